@@ -1,0 +1,3 @@
+from raygs_viewer.cli import main
+
+raise SystemExit(main())
