@@ -1,0 +1,87 @@
+"""Per-frame CPU work before drawing: conservative culling and the depth sort (section 9).
+
+The order is back to front: descending camera-space depth of the centres, ties
+kept in scene order (both sorts are stable), so the GL renderer and the float64
+reference composite the same sequence.
+"""
+
+from __future__ import annotations
+
+import math
+from typing import Literal
+
+import numpy as np
+
+from raygs_viewer.camera import Camera
+from raygs_viewer.scene import Scene
+
+SortMethod = Literal["auto", "radix", "float"]
+
+
+class DepthSorter:
+    """Caches what culling needs per scene, then sorts for any camera and p_min."""
+
+    def __init__(self, scene: Scene):
+        self.positions = scene.positions
+        self.max_scale = scene.scales.max(axis=1) if scene.count else np.zeros(0, np.float32)
+        with np.errstate(divide="ignore"):
+            self.log_opacity = np.log(scene.opacities)  # -inf for opacity 0: always culled
+        # float32 camera transforms lose ~1e-7 of the coordinates' magnitude: widen the
+        # culling bounds by that much so rounding never drops a visible gaussian.
+        self.coordinate_scale = float(np.abs(self.positions).max()) if scene.count else 0.0
+
+    def support_radius(self, p_min: float) -> np.ndarray:
+        """(N,) float32 world-space radius of a sphere that holds every peak point with
+        opacity >= p_min: the kappa-ellipsoid fits in a sphere of sqrt(kappa)*max(s);
+        NaN-free, 0 where kappa <= 0 (those are culled separately)."""
+        kappa = 2.0 * (self.log_opacity - np.float32(math.log(p_min)))
+        return np.sqrt(np.maximum(kappa, 0.0)) * self.max_scale
+
+    def order(self, camera: Camera, p_min: float, method: SortMethod = "auto") -> np.ndarray:
+        """(M,) uint32 indices of the gaussians that may be visible, back to front.
+
+        A gaussian is dropped only when it cannot reach any pixel: opacity <= p_min
+        (kappa <= 0), its support sphere entirely behind the camera plane, or entirely
+        outside one side plane of the view frustum.
+        """
+        if self.positions.shape[0] == 0:
+            return np.zeros(0, np.uint32)
+        R = camera.R.astype(np.float32)
+        mu = self.positions @ R.T + camera.t.astype(np.float32)
+        slack = np.float32(1e-5 * (self.coordinate_scale + float(np.abs(camera.t).max())) + 1e-6)
+        radius = self.support_radius(p_min) * np.float32(1.0 + 1e-5) + slack
+        x, y, z = mu[:, 0], mu[:, 1], mu[:, 2]
+        keep = (self.log_opacity > np.float32(math.log(p_min))) & (z > -radius)
+        # Side planes through the camera centre, at the image border (pixel centres lie
+        # half a pixel inside it), with unit normals pointing into the frustum.
+        for a, b, extent in ((camera.fx, camera.cx, camera.width), (camera.fy, camera.cy, camera.height)):
+            coordinate = x if extent == camera.width else y
+            for normal in ((a, b), (-a, extent - b)):
+                n = np.float32(1.0 / math.hypot(*normal))
+                keep &= (np.float32(normal[0]) * n) * coordinate + (np.float32(normal[1]) * n) * z > -radius
+        visible = np.flatnonzero(keep)
+        depth = z[visible]
+        return visible[sort_back_to_front(depth, method)].astype(np.uint32)
+
+
+def sort_back_to_front(depth: np.ndarray, method: SortMethod = "auto") -> np.ndarray:
+    """Stable argsort of (M,) depths, farthest first.
+
+    "radix" quantises depth to 16 bits over its range so numpy picks its radix sort
+    (about 2x faster than float argsort at 1M); depths closer than range/65535 keep
+    scene order. "float" sorts the float32 depths exactly. "auto" is radix, falling
+    back to float when the range cannot be quantised (fewer than two distinct finite
+    depths)."""
+    if depth.size == 0:
+        return np.zeros(0, np.int64)
+    if method in ("auto", "radix"):
+        near, far = float(depth.min()), float(depth.max())
+        if math.isfinite(far - near) and far > near:
+            scaled = (far - depth) * np.float32(65535.0 / (far - near))
+            key = np.minimum(scaled, np.float32(65535.0)).astype(np.uint16)  # rounding may pass 65535
+            return np.argsort(key, kind="stable")
+        if method == "radix":
+            return np.arange(depth.size)  # all depths equal: scene order is the stable order
+    elif method != "float":
+        raise ValueError(f"unknown sort method {method!r}")
+    return np.argsort(-depth, kind="stable")
