@@ -174,3 +174,19 @@ def camera_to_json(camera: Camera, index: int = 0, name: str = "") -> dict:
     if camera.cx != camera.width / 2 or camera.cy != camera.height / 2:
         entry["cx"], entry["cy"] = camera.cx, camera.cy
     return entry
+
+
+def frame_points(points: np.ndarray, width: int = 640, height: int = 480, fov_y_degrees: float = 60.0) -> Camera:
+    """A camera looking along world +z at the bulk of ``points`` (1st..99th percentile
+    box), far enough back that the box fills most of the view; for scenes without
+    cameras of their own."""
+    finite = points[np.all(np.isfinite(points), axis=1)].astype(np.float64)
+    if finite.shape[0] == 0:
+        return look_at([0.0, 0.0, -5.0], [0.0, 0.0, 0.0], width=width, height=height, fov_y_degrees=fov_y_degrees)
+    low, high = np.percentile(finite, [1, 99], axis=0)
+    center = (low + high) / 2
+    radius = max(float(np.linalg.norm(high - low)) / 2, 1e-6)
+    half_y = math.radians(fov_y_degrees) / 2
+    fov = 2 * min(half_y, math.atan(math.tan(half_y) * width / height))
+    distance = radius / math.sin(fov / 2)
+    return look_at(center - [0.0, 0.0, distance], center, width=width, height=height, fov_y_degrees=fov_y_degrees)
