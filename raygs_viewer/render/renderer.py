@@ -107,6 +107,8 @@ class GLRenderer:
             fragment_shader=shader_source("raygs.frag"),
         )
         self._vao = ctx.vertex_array(self._draw, [])
+        #: Off only to demonstrate the near-plane seam that depth clamp prevents.
+        self.depth_clamp = True
         self._targets: dict[tuple[int, int], moderngl.Framebuffer] = {}
 
     # -- per-frame passes ---------------------------------------------------------
@@ -153,7 +155,10 @@ class GLRenderer:
         ctx.enable(moderngl.BLEND)
         ctx.blend_func = moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA
         ctx.blend_equation = moderngl.FUNC_ADD
-        ctx.enable_direct(GL_DEPTH_CLAMP)
+        if self.depth_clamp:
+            ctx.enable_direct(GL_DEPTH_CLAMP)
+        else:
+            ctx.disable_direct(GL_DEPTH_CLAMP)
         self._vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=int(order.size))
 
     def render(self, camera: Camera, settings: RenderSettings = RenderSettings(),

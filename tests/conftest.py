@@ -1,0 +1,28 @@
+import pytest
+
+from raygs_viewer.render.context import create_headless_context
+
+
+@pytest.fixture(scope="session")
+def gl_ctx():
+    """One headless GL context for the whole session (creating one costs 50-900 ms)."""
+    ctx = create_headless_context()
+    yield ctx
+    ctx.release()
+
+
+@pytest.fixture(scope="session")
+def gl_render(gl_ctx):
+    """render(scene, camera, settings=..., **renderer_options) -> float32 (H, W, 4)."""
+    from raygs_viewer.render.renderer import GLRenderer
+    from raygs_viewer.settings import RenderSettings
+
+    def render(scene, camera, settings=RenderSettings(), order=None, depth_clamp=True, **options):
+        renderer = GLRenderer(gl_ctx, scene, **options)
+        renderer.depth_clamp = depth_clamp
+        try:
+            return renderer.render(camera, settings, order)
+        finally:
+            renderer.release()
+
+    return render
