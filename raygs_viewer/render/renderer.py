@@ -135,6 +135,12 @@ class GLRenderer:
             program.run(group_x=-(-n // WORKGROUP))
         self.ctx.memory_barrier()
 
+    def read_splats(self) -> np.ndarray:
+        """(N, 16) float32 copy of the per-view records of the last :meth:`preprocess`
+        (the ``Splat`` struct, row by row), for tests and diagnostics."""
+        count = self.scene.count
+        return np.frombuffer(self._splats.read(size=count * SPLAT_BYTES), np.float32).reshape(count, 16)
+
     def draw(self, camera: Camera, settings: RenderSettings, order: np.ndarray) -> None:
         """Draws the quads of ``order`` (back to front) into the bound framebuffer."""
         if order.size == 0:
