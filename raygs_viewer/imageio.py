@@ -56,6 +56,7 @@ def write_atomically(path: str | Path, data: bytes, overwrite: bool = False) -> 
     try:
         handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
         try:
+            os.fchmod(handle, 0o666 & ~_umask())  # mkstemp makes 0600; a saved image is an ordinary file
             with os.fdopen(handle, "wb") as stream:
                 stream.write(data)
                 stream.flush()
@@ -72,6 +73,12 @@ def write_atomically(path: str | Path, data: bytes, overwrite: bool = False) -> 
         raise UserError(f"{path}: already exists (pass --overwrite to replace it)") from None
     except OSError as exc:
         raise UserError(f"{path}: cannot write: {exc.strerror or exc}") from None
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
 
 
 def _move_without_replacing(source: str, target: Path) -> None:
