@@ -105,6 +105,13 @@ def _number(value, what: str) -> float:
     return float(value)
 
 
+def _numbers(values) -> bool:
+    """A (nested) JSON list of numbers only: numpy would quietly take "1" and true."""
+    return isinstance(values, list) and all(
+        _numbers(v) if isinstance(v, list) else isinstance(v, (int, float)) and not isinstance(v, bool)
+        for v in values)
+
+
 def camera_from_json(entry, where: str) -> Camera:
     """One INRIA cameras.json object -> Camera. ``position`` is the centre, ``rotation``
     camera-to-world; optional ``cx``/``cy`` override the image centre."""
@@ -119,10 +126,12 @@ def camera_from_json(entry, where: str) -> Camera:
     fx, fy = (_number(entry[k], f"{where}: '{k}'") for k in ("fx", "fy"))
     if fx <= 0 or fy <= 0:
         raise UserError(f"{where}: fx and fy must be positive")
+    if not (_numbers(entry["position"]) and _numbers(entry["rotation"])):
+        raise UserError(f"{where}: 'position' and 'rotation' must be arrays of numbers")
     try:
         position = np.array(entry["position"], dtype=np.float64)
         rotation = np.array(entry["rotation"], dtype=np.float64)
-    except (TypeError, ValueError):
+    except (TypeError, ValueError):  # ragged nesting
         raise UserError(f"{where}: 'position' and 'rotation' must be arrays of numbers") from None
     if position.shape != (3,) or rotation.shape != (3, 3):
         raise UserError(f"{where}: 'position' must have 3 numbers and 'rotation' be 3x3")

@@ -2,7 +2,6 @@
 and one GL render that checks the projection lands on the exact pixel."""
 
 import json
-import math
 from pathlib import Path
 
 import numpy as np
@@ -255,7 +254,6 @@ LENIENT_ARRAYS = {
 }
 
 
-@pytest.mark.xfail(strict=True, reason="camera_from_json accepts numeric strings/booleans in arrays")
 @pytest.mark.parametrize("case", sorted(LENIENT_ARRAYS))
 def test_non_numbers_inside_arrays_are_user_errors(tmp_path, case):
     path = tmp_path / f"cams_{case}.json"

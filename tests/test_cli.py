@@ -1,0 +1,401 @@
+"""The ``raygs-viewer`` command line, run in-process through ``main(argv)``, plus one run
+of the installed module as a user would start it."""
+
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+from PIL import Image
+from plyfile import PlyData, PlyElement
+
+from raygs_viewer.camera import Camera, camera_to_json, look_at
+from raygs_viewer.cli import main
+from raygs_viewer.demo import demo_camera, demo_scene
+from raygs_viewer.scene_io import load_scene
+from raygs_viewer.settings import RenderSettings
+
+SMALL = ["--width", "64"]  # demo camera 640x480 -> 64x48
+
+
+# --------------------------------------------------------------------------- helpers
+
+
+INRIA_PROPERTIES = ["x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
+                    "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3"]
+
+
+def write_inria_ply(path, n=5, seed=0, spread=0.5):
+    """A small INRIA PLY (SH degree 0, float32 properties) written with plyfile: gaussians
+    of 0.03..0.08 around the origin, opaque-ish."""
+    rng = np.random.default_rng(seed)
+    rows = np.zeros(n, dtype=[(name, "<f4") for name in INRIA_PROPERTIES])
+    for axis, name in enumerate("xyz"):
+        rows[name] = rng.uniform(-spread, spread, n)
+    for c in range(3):
+        rows[f"f_dc_{c}"] = rng.uniform(-1, 1, n)
+    rows["opacity"] = rng.uniform(1.0, 3.0, n)            # sigmoid: 0.73..0.95
+    for a in range(3):
+        rows[f"scale_{a}"] = np.log(rng.uniform(0.03, 0.08, n))
+    q = rng.normal(size=(n, 4))
+    for a in range(4):
+        rows[f"rot_{a}"] = q[:, a]
+    PlyData([PlyElement.describe(rows, "vertex")], text=False, byte_order="<").write(str(path))
+    return path
+
+
+def run_cli(capsys, *argv):
+    """main(argv) -> (return code, stdout, stderr)."""
+    code = main([str(a) for a in argv])
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def assert_one_line_error(code, err):
+    assert code == 2, err
+    assert "Traceback" not in err
+    assert err.startswith("error: "), err
+    assert err.endswith("\n") and err.count("\n") == 1, repr(err)
+    return err
+
+
+def gl_render(gl_ctx, scene, camera, settings=RenderSettings()):
+    from raygs_viewer.render.renderer import GLRenderer
+
+    renderer = GLRenderer(gl_ctx, scene)
+    try:
+        return renderer.render(camera, settings)
+    finally:
+        renderer.release()
+
+
+def listing(folder):
+    return sorted(p.name for p in Path(folder).iterdir())
+
+
+def small_camera():
+    """An off-centre, fx != fy camera looking at the origin, 80x60."""
+    pose = look_at([0.3, -0.4, -2.5], [0, 0, 0])
+    return Camera(80, 60, 90.0, 70.0, 37.5, 33.25, pose.R, pose.t)
+
+
+@pytest.fixture
+def camera_file(tmp_path):
+    """cameras.json with two cameras: 0 is the demo view at 48x36, 1 is small_camera()."""
+    demo = demo_camera(48, 36)
+    path = tmp_path / "cameras.json"
+    path.write_text(json.dumps([camera_to_json(demo, 0, "demo"), camera_to_json(small_camera(), 1, "small")]))
+    return path
+
+
+@pytest.fixture(scope="module")
+def demo():
+    return demo_scene()
+
+
+# --------------------------------------------------------------------------- info
+
+
+def test_info_demo(capsys):
+    code, out, err = run_cli(capsys, "info", "demo")
+    assert code == 0 and err == ""
+    assert "3914" in out and "SH degree" in out and "demo" in out
+
+
+def test_info_demo_json(capsys):
+    code, out, err = run_cli(capsys, "info", "demo", "--json")
+    assert code == 0 and err == ""
+    info = json.loads(out)
+    assert info["count"] == 3914 and info["sh_degree"] == 3
+    assert info["dropped"]["total"] == 0
+
+
+def test_info_ply(capsys, tmp_path):
+    path = write_inria_ply(tmp_path / "small.ply", n=5)
+    code, out, err = run_cli(capsys, "info", path)
+    assert code == 0 and err == ""
+    assert "small.ply" in out and "gaussians:" in out
+    code, out, err = run_cli(capsys, "info", path, "--json")
+    assert code == 0
+    info = json.loads(out)
+    assert info["count"] == 5 and info["sh_degree"] == 0
+    assert info["filter_fused"] is False
+    positions = load_scene(path).positions
+    np.testing.assert_allclose(info["bbox"]["min"], positions.min(axis=0), rtol=1e-6)
+
+
+# --------------------------------------------------------------------------- render
+
+
+def test_render_demo_png(capsys, tmp_path):
+    out = tmp_path / "demo.png"
+    code, stdout, err = run_cli(capsys, "render", *SMALL, "--out", out)
+    assert code == 0 and err == ""
+    assert "64x48" in stdout
+    with Image.open(out) as image:
+        assert image.format == "PNG" and image.mode == "RGB" and image.size == (64, 48)
+        pixels = np.asarray(image)
+    assert pixels.dtype == np.uint8 and pixels.shape == (48, 64, 3)
+    assert pixels.std() > 5  # shows something
+    assert listing(tmp_path) == ["demo.png"]
+
+
+def test_render_demo_npy_matches_gl(capsys, tmp_path, gl_ctx, demo):
+    out = tmp_path / "demo.npy"
+    code, _, err = run_cli(capsys, "render", "demo", "--width", "64", "--height", "40", "--out", out)
+    assert code == 0 and err == ""
+    image = np.load(out)
+    assert image.dtype == np.float32 and image.shape == (40, 64, 4)
+    assert np.all(np.isfinite(image))
+    assert image[..., 3].min() >= 0 and image[..., 3].max() <= 1
+    assert image[..., 3].max() > 0.9
+    expected = gl_render(gl_ctx, demo, demo_camera().resized(64, 40))
+    np.testing.assert_allclose(image, expected, atol=1e-5)
+    # The PNG of the same render is its 8-bit rounding.
+    png = tmp_path / "demo.png"
+    assert run_cli(capsys, "render", "demo", "--width", "64", "--height", "40", "--out", png)[0] == 0
+    with Image.open(png) as decoded:
+        rgb8 = np.asarray(decoded).astype(int)
+    assert np.abs(rgb8 - np.round(np.clip(image[..., :3], 0, 1) * 255)).max() <= 1
+
+
+def test_render_with_camera_file_and_index(capsys, tmp_path, camera_file, gl_ctx, demo):
+    first, second = tmp_path / "c0.npy", tmp_path / "c1.npy"
+    assert run_cli(capsys, "render", "--camera", camera_file, "--out", first)[0] == 0
+    assert run_cli(capsys, "render", "--camera", camera_file, "--camera-index", "1", "--out", second)[0] == 0
+    image0, image1 = np.load(first), np.load(second)
+    assert image0.shape == (36, 48, 4) and image1.shape == (60, 80, 4)
+    np.testing.assert_allclose(image0, gl_render(gl_ctx, demo, demo_camera(48, 36)), atol=1e-5)
+    np.testing.assert_allclose(image1, gl_render(gl_ctx, demo, small_camera()), atol=1e-5)
+
+
+@pytest.mark.parametrize("size,expected", [
+    (["--width", "40", "--height", "20"], (40, 20)),   # aspect ratio changed
+    (["--width", "40"], (40, 30)),                      # one alone keeps it
+    (["--height", "15"], (20, 15)),
+])
+def test_width_and_height_scale_the_intrinsics(capsys, tmp_path, camera_file, gl_ctx, demo, size, expected):
+    out = tmp_path / "scaled.npy"
+    code, _, err = run_cli(capsys, "render", "--camera", camera_file, "--camera-index", "1", *size, "--out", out)
+    assert code == 0, err
+    image = np.load(out)
+    width, height = expected
+    assert image.shape == (height, width, 4)
+    camera = small_camera()
+    resized = camera.resized(width, height)
+    assert resized.fx == pytest.approx(camera.fx * width / 80) and resized.cx == pytest.approx(camera.cx * width / 80)
+    assert resized.fy == pytest.approx(camera.fy * height / 60) and resized.cy == pytest.approx(camera.cy * height / 60)
+    np.testing.assert_allclose(image, gl_render(gl_ctx, demo, resized), atol=1e-5)
+    # Negative control: only the size changed, not fx, fy, cx, cy -> a different image.
+    unscaled = Camera(width, height, camera.fx, camera.fy, camera.cx, camera.cy, camera.R, camera.t)
+    assert np.abs(image - gl_render(gl_ctx, demo, unscaled)).max() > 0.05
+
+
+def test_p_min(capsys, tmp_path, gl_ctx, demo):
+    default, strict = tmp_path / "default.npy", tmp_path / "strict.npy"
+    assert run_cli(capsys, "render", *SMALL, "--out", default)[0] == 0
+    assert run_cli(capsys, "render", *SMALL, "--p-min", "0.2", "--out", strict)[0] == 0
+    a, b = np.load(default), np.load(strict)
+    assert np.abs(a - b).max() > 0.05
+    assert b[..., 3].sum() < a[..., 3].sum()  # a higher cut-off drops fragments
+    camera = demo_camera().resized(64, 48)
+    np.testing.assert_allclose(b, gl_render(gl_ctx, demo, camera, RenderSettings(p_min=0.2)), atol=1e-5)
+
+
+def test_background(capsys, tmp_path):
+    """Empty pixels of a sparse scene are exactly the background; covered ones are
+    colour over it."""
+    scene = write_inria_ply(tmp_path / "sparse.ply", n=4, seed=3)
+    out = tmp_path / "bg.npy"
+    code, _, err = run_cli(capsys, "render", scene, "--width", "64", "--background", "0.25,0.5,0.75", "--out", out)
+    assert code == 0, err
+    image = np.load(out)
+    empty = image[..., 3] == 0
+    assert 0.1 < empty.mean() < 0.99  # both kinds of pixel present
+    np.testing.assert_array_equal(image[empty][:, :3], np.tile(np.float32([0.25, 0.5, 0.75]), (empty.sum(), 1)))
+    black = tmp_path / "black.npy"
+    assert run_cli(capsys, "render", scene, "--width", "64", "--out", black)[0] == 0
+    black_image = np.load(black)
+    assert np.all(black_image[empty][:, :3] == 0)
+    # Over a background: C_bg = C_black + (1 - alpha) * bg.
+    np.testing.assert_allclose(image[..., :3], black_image[..., :3]
+                               + (1 - black_image[..., 3:]) * np.float32([0.25, 0.5, 0.75]), atol=1e-5)
+    np.testing.assert_array_equal(image[..., 3], black_image[..., 3])
+
+
+def test_reference_render_is_close_to_gl(capsys, tmp_path):
+    gl, ref = tmp_path / "gl.npy", tmp_path / "ref.npy"
+    assert run_cli(capsys, "render", *SMALL, "--out", gl)[0] == 0
+    code, stdout, _ = run_cli(capsys, "render", *SMALL, "--reference", "--out", ref)
+    assert code == 0 and "reference" in stdout
+    a, b = np.load(gl), np.load(ref)
+    assert b.dtype == np.float32 and b.shape == a.shape == (48, 64, 4)
+    diff = np.abs(a.astype(np.float64) - b)
+    assert diff.max() < 1e-2 and diff.mean() < 1e-4, (diff.max(), diff.mean())
+    assert np.abs(b[:, ::-1] - a).max() > 0.1  # control: a mirrored image would not pass
+
+
+def test_render_ply_scene_frames_it(capsys, tmp_path):
+    scene = write_inria_ply(tmp_path / "cloud.ply", n=40, seed=4)
+    out = tmp_path / "cloud.png"
+    code, stdout, err = run_cli(capsys, "render", scene, "--width", "48", "--out", out)
+    assert code == 0, err
+    assert "48x36" in stdout and "40 gaussians" in stdout
+    with Image.open(out) as image:
+        assert image.size == (48, 36)
+        assert np.asarray(image).max() > 0
+
+
+@pytest.mark.parametrize("suffix", [".png", ".npy"])
+def test_existing_output_is_kept_unless_overwrite(capsys, tmp_path, suffix):
+    out = tmp_path / f"image{suffix}"
+    old = b"precious bytes, not an image"
+    out.write_bytes(old)
+    code, _, err = run_cli(capsys, "render", *SMALL, "--out", out)
+    assert "already exists" in assert_one_line_error(code, err)
+    assert out.read_bytes() == old
+    assert listing(tmp_path) == [out.name]
+    code, _, err = run_cli(capsys, "render", *SMALL, "--out", out, "--overwrite")
+    assert code == 0, err
+    assert out.read_bytes() != old
+    if suffix == ".npy":
+        assert np.load(out).shape == (48, 64, 4)
+    else:
+        with Image.open(out) as image:
+            assert image.size == (64, 48)
+    assert listing(tmp_path) == [out.name]
+
+
+def test_no_temporary_files_left_after_failures(capsys, tmp_path):
+    scene = tmp_path / "bad.ply"
+    scene.write_text("not a ply\n")
+    before = listing(tmp_path)
+    for argv in (["render", scene, "--out", tmp_path / "a.png"],
+                 ["render", "--camera", tmp_path / "none.json", "--out", tmp_path / "b.png"],
+                 ["render", *SMALL, "--out", tmp_path / "c.jpg"]):
+        assert_one_line_error(*run_cli(capsys, *argv)[::2])
+    assert listing(tmp_path) == before
+
+
+# --------------------------------------------------------------------------- error paths
+
+
+def _bad_cases(tmp_path, write=True):
+    """{case: argv}; with ``write`` the input files the cases name are created."""
+    not_ply, empty, bad_json, bad_camera, good_camera = (
+        tmp_path / name for name in ("notply.ply", "empty.ply", "bad.json", "badcam.json", "good.json"))
+    if write:
+        (tmp_path / "folder.png").mkdir()
+        not_ply.write_text("hello, I am text\n")
+        empty.write_bytes(b"")
+        bad_json.write_text("{not json")
+        bad_camera.write_text(json.dumps([{"width": 64, "height": 48, "position": [0, 0, 0],
+                                           "rotation": [[2, 0, 0], [0, 2, 0], [0, 0, 2]], "fx": 50, "fy": 50}]))
+        good_camera.write_text(json.dumps([camera_to_json(demo_camera(32, 24))]))
+    out = str(tmp_path / "out.png")
+    return {
+        "missing_scene": ["render", tmp_path / "nowhere.ply", "--out", out],
+        "missing_scene_info": ["info", tmp_path / "nowhere.ply"],
+        "not_a_ply": ["render", not_ply, "--out", out],
+        "not_a_ply_info": ["info", not_ply],
+        "empty_ply_info": ["info", empty],
+        "unknown_scene_type": ["info", bad_json],
+        "scene_is_folder": ["info", tmp_path],
+        "camera_not_json": ["render", "--camera", bad_json, "--out", out],
+        "camera_not_rotation": ["render", "--camera", bad_camera, "--out", out],
+        "camera_missing": ["render", "--camera", tmp_path / "nocams.json", "--out", out],
+        "camera_index_out_of_range": ["render", "--camera", good_camera, "--camera-index", "1", "--out", out],
+        "camera_index_negative_out_of_range": ["render", "--camera", good_camera, "--camera-index", "-2",
+                                               "--out", out],
+        "camera_index_not_int": ["render", "--camera", good_camera, "--camera-index", "one", "--out", out],
+        "p_min_zero": ["render", "--p-min", "0", "--out", out],
+        "p_min_one": ["render", "--p-min", "1", "--out", out],
+        "p_min_word": ["render", "--p-min", "x", "--out", out],
+        "p_min_negative": ["render", "--p-min=-0.5", "--out", out],
+        "p_min_nan": ["render", "--p-min", "nan", "--out", out],
+        "background_two": ["render", "--background", "1,2", "--out", out],
+        "background_words": ["render", "--background", "a,b,c", "--out", out],
+        "background_nan": ["render", "--background", "nan,0,0", "--out", out],
+        "background_empty": ["render", "--background", "", "--out", out],
+        "width_zero": ["render", "--width", "0", "--out", out],
+        "width_word": ["render", "--width", "wide", "--out", out],
+        "height_huge": ["render", "--height", "100000", "--out", out],
+        "unknown_suffix": ["render", "--out", tmp_path / "out.jpg"],
+        "no_suffix": ["render", "--out", tmp_path / "out"],
+        "output_folder_missing": ["render", "--out", tmp_path / "no" / "such" / "out.png"],
+        "output_is_folder": ["render", "--out", tmp_path / "folder.png"],
+        "unknown_subcommand": ["paint", "demo"],
+        "no_subcommand": [],
+        "missing_out": ["render", "demo"],
+        "unknown_option": ["render", "--colour", "red", "--out", out],
+        "info_missing_scene_argument": ["info"],
+        "bad_gl_backend": ["render", "--gl-backend", "metal", "--out", out],
+    }
+
+
+CASES = sorted(_bad_cases(Path("unused"), write=False))
+
+
+@pytest.mark.parametrize("case", CASES)
+def test_error_paths_are_one_line(capsys, tmp_path, case):
+    argv = _bad_cases(tmp_path)[case]
+    before = listing(tmp_path)
+    code, _, err = run_cli(capsys, *argv)
+    assert_one_line_error(code, err)
+    assert listing(tmp_path) == before  # nothing written, no temporary file left
+
+
+def test_error_messages_name_what_is_wrong(capsys, tmp_path):
+    cases = _bad_cases(tmp_path)
+    expect = {
+        "missing_scene": "nowhere.ply",
+        "not_a_ply": "notply.ply",
+        "camera_not_json": "bad.json",
+        "camera_not_rotation": "badcam.json",
+        "camera_index_out_of_range": "out of range",
+        "p_min_zero": "p-min",
+        "background_two": "background",
+        "unknown_suffix": "out.jpg",
+        "output_folder_missing": "does not exist",
+        "unknown_subcommand": "paint",
+        "missing_out": "--out",
+    }
+    for case, fragment in expect.items():
+        code, _, err = run_cli(capsys, *cases[case])
+        assert fragment in assert_one_line_error(code, err), (case, err)
+
+
+def test_output_checks_come_before_slow_work(capsys, tmp_path, monkeypatch):
+    """An unusable --out fails before the scene is loaded or anything rendered."""
+    import raygs_viewer.cli as cli
+
+    def boom(name):
+        raise AssertionError("scene loaded before the output was checked")
+
+    monkeypatch.setattr(cli, "load_scene_argument", boom)
+    code, _, err = run_cli(capsys, "render", "--out", tmp_path / "x.tiff")
+    assert_one_line_error(code, err)
+
+
+# --------------------------------------------------------------------------- as installed
+
+
+def test_installed_module_runs_outside_the_source_tree(tmp_path):
+    env = {k: v for k, v in os.environ.items() if k != "PYTHONPATH"}
+    out = tmp_path / "x.png"
+    result = subprocess.run([sys.executable, "-m", "raygs_viewer", "render", "--width", "64", "--out", str(out)],
+                            cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr
+    assert "Traceback" not in result.stderr
+    with Image.open(out) as image:
+        assert image.size == (64, 48) and image.mode == "RGB"
+    assert listing(tmp_path) == ["x.png"]
+
+    result = subprocess.run([sys.executable, "-m", "raygs_viewer", "info", "/nonexistent.ply"],
+                            cwd=tmp_path, env=env, capture_output=True, text=True, timeout=120)
+    assert result.returncode == 2
+    assert result.stderr.startswith("error: ") and result.stderr.count("\n") == 1, result.stderr
+    assert "Traceback" not in result.stderr and "nonexistent.ply" in result.stderr
