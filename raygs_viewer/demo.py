@@ -422,3 +422,20 @@ def demo_cameras(width: int = 640, height: int = 480) -> list[Camera]:
         view((0.5, -0.35, -0.9), (0.0, 0.0, 1.0), 50.0),    # close-up of the sphere
         view((0.6, 0.9, -1.6), (0.2, 0.8, 3.0)),            # grazing, just above the floor
     ]
+
+
+DEMO_VIEW_NAMES = ("default", "front-left", "through-the-sheets", "high-behind", "sphere-close-up", "grazing-floor")
+
+
+def demo_cameras_json() -> list[dict]:
+    """:func:`demo_cameras` in INRIA ``cameras.json`` layout (``assets/demo_cameras.json``)."""
+    from raygs_viewer.camera import camera_to_json
+    return [camera_to_json(camera, i, name) for i, (camera, name) in enumerate(zip(demo_cameras(), DEMO_VIEW_NAMES))]
+
+
+if __name__ == "__main__":  # regenerate assets/demo_cameras.json from a source checkout
+    import json
+    from pathlib import Path
+    target = Path(__file__).resolve().parents[1] / "assets" / "demo_cameras.json"
+    target.write_text(json.dumps(demo_cameras_json(), indent=1) + "\n", encoding="utf-8")
+    print(target)

@@ -250,3 +250,18 @@ def test_demo_cameras(scene):
              if np.median(np.linalg.norm(scene.positions[_inside_image(scene, c)] - c.center, axis=1)) < 4.0]
     assert close
     assert all((c.width, c.height) == (320, 240) for c in demo_cameras(320, 240))
+
+
+def test_shipped_demo_cameras_match_the_generator():
+    """assets/demo_cameras.json is the demo's views, loadable with --camera."""
+    from pathlib import Path
+
+    from raygs_viewer.camera import load_cameras
+    shipped = load_cameras(Path(__file__).resolve().parents[1] / "assets" / "demo_cameras.json")
+    generated = demo_cameras()
+    assert len(shipped) == len(generated)
+    for a, b in zip(shipped, generated):
+        assert (a.width, a.height) == (b.width, b.height)
+        np.testing.assert_allclose([a.fx, a.fy, a.cx, a.cy], [b.fx, b.fy, b.cx, b.cy], rtol=1e-12)
+        np.testing.assert_allclose(a.R, b.R, atol=1e-9)
+        np.testing.assert_allclose(a.center, b.center, atol=1e-9)
