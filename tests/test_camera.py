@@ -7,7 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gen_scenes import make_scene
+from testkit import assert_user_error, make_scene
 from raygs_viewer.camera import (
     Camera,
     camera_from_json,
@@ -81,14 +81,7 @@ def write_json(path, data):
 
 
 def assert_camera_error(path, *fragments, index=0):
-    with pytest.raises(UserError) as info:
-        load_camera(path, index)
-    message = str(info.value)
-    assert "\n" not in message and "\r" not in message, message
-    assert Path(path).name in message, message
-    for fragment in fragments:
-        assert fragment in message, message
-    return message
+    return assert_user_error(lambda: load_camera(path, index), path, *fragments)
 
 
 # --------------------------------------------------------------------------- cameras.json

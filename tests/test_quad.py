@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from gen_scenes import random_scene
+from testkit import random_scene
 from raygs_viewer.camera import look_at
 from raygs_viewer.render.renderer import GLRenderer
 from raygs_viewer.scene import quaternion_to_matrix

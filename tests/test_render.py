@@ -6,7 +6,7 @@ import math
 import numpy as np
 import pytest
 
-from gen_scenes import SHARED_SCENES, assert_differs, assert_matches, make_scene, random_scene
+from testkit import SHARED_SCENES, assert_differs, assert_matches, make_scene, random_scene
 from raygs_viewer.camera import Camera, frame_points, look_at
 from raygs_viewer.reference import render_reference
 from raygs_viewer.settings import RenderSettings

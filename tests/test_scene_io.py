@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import testkit
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene_io import (
     DROP_REASONS,
@@ -93,15 +94,8 @@ def sigmoid64(x):
     return 1.0 / (1.0 + np.exp(-np.asarray(x, np.float64)))
 
 
-def assert_user_error(path, *fragments):
-    with pytest.raises(UserError) as info:
-        load_scene(path)
-    message = str(info.value)
-    assert "\n" not in message and "\r" not in message, message
-    assert Path(path).name in message, message
-    for fragment in fragments:
-        assert fragment in message, message
-    return message
+def assert_scene_error(path, *fragments):
+    return testkit.assert_user_error(lambda: load_scene(path), path, *fragments)
 
 
 @pytest.fixture
@@ -327,13 +321,13 @@ def _standard_props(names=_STANDARD):
 
 
 def test_missing_file(tmp_path):
-    assert_user_error(tmp_path / "nothing.ply", "no such file")
+    assert_scene_error(tmp_path / "nothing.ply", "no such file")
 
 
 def test_directory(tmp_path):
     d = tmp_path / "adir.ply"
     d.mkdir()
-    assert_user_error(d, "directory")
+    assert_scene_error(d, "directory")
 
 
 @pytest.mark.skipif(hasattr(os, "geteuid") and os.geteuid() == 0, reason="root can read any file")
@@ -341,7 +335,7 @@ def test_unreadable_file(tmp_path):
     path = write_ply(tmp_path / "locked.ply", gaussian_columns(2))
     path.chmod(0)
     try:
-        assert_user_error(path, "permission denied")
+        assert_scene_error(path, "permission denied")
     finally:
         path.chmod(0o644)
 
@@ -357,7 +351,7 @@ def test_read_error_is_a_user_error(tmp_path, monkeypatch):
         raise OSError(errno.EIO, "Input/output error")
 
     monkeypatch.setattr(scene_io, "open", failing_open, raising=False)
-    assert_user_error(path, "cannot read", "Input/output error")
+    assert_scene_error(path, "cannot read", "Input/output error")
 
 
 BAD_FILES = {
@@ -412,13 +406,13 @@ def test_bad_ply_input_is_a_one_line_user_error(tmp_path, case):
     content, fragment = BAD_FILES[case]
     path = tmp_path / f"{case}.ply"
     path.write_bytes(content)
-    assert_user_error(path, fragment)
+    assert_scene_error(path, fragment)
 
 
 def test_unrecognised_format(tmp_path):
     path = tmp_path / "notes.txt"
     path.write_text("hello\n")
-    assert_user_error(path, "unrecognised")
+    assert_scene_error(path, "unrecognised")
 
 
 def test_declared_count_far_too_large_fails_fast_without_allocating(tmp_path):
@@ -426,7 +420,7 @@ def test_declared_count_far_too_large_fails_fast_without_allocating(tmp_path):
     tracemalloc.start()
     try:
         start = time.perf_counter()
-        message = assert_user_error(path, "truncated", str(10**12))
+        message = assert_scene_error(path, "truncated", str(10**12))
         elapsed = time.perf_counter() - start
         _, peak = tracemalloc.get_traced_memory()
     finally:
@@ -478,7 +472,7 @@ def test_splat_invalid_rows_dropped(tmp_path):
 def test_splat_size_not_multiple_of_32(tmp_path):
     path = tmp_path / "odd.splat"
     path.write_bytes(bytes(70))
-    assert_user_error(path, "multiple of 32")
+    assert_scene_error(path, "multiple of 32")
 
 
 def test_empty_splat_is_an_empty_scene(tmp_path):

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from gen_scenes import make_scene, random_scene
+from testkit import make_scene, random_scene
 from raygs_viewer.camera import look_at
 from raygs_viewer.reference import render_reference
 from raygs_viewer.settings import RenderSettings

@@ -1,10 +1,13 @@
-"""Generated scenes and cameras for the tests, and the image comparison they share."""
+"""What the tests share: generated scenes, the image comparison, the one-line-error check."""
 
 from __future__ import annotations
 
 from pathlib import Path
 
 import numpy as np
+import pytest
+
+from raygs_viewer.errors import UserError
 
 from raygs_viewer.scene import Scene, sh_coefficient_count
 
@@ -79,3 +82,15 @@ def assert_differs(image, reference, **tolerances):
     except AssertionError:
         return
     raise AssertionError(f"expected a visible difference, got {compare(image, reference)}")
+
+
+def assert_user_error(call, path, *fragments):
+    """``call()`` raises UserError with a one-line message naming ``path`` and every fragment."""
+    with pytest.raises(UserError) as info:
+        call()
+    message = str(info.value)
+    assert "\n" not in message and "\r" not in message, message
+    assert Path(path).name in message, message
+    for fragment in fragments:
+        assert fragment in message, message
+    return message
