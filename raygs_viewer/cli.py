@@ -10,7 +10,6 @@ import json
 import math
 import sys
 import time
-from pathlib import Path
 
 from raygs_viewer import __version__
 from raygs_viewer.errors import UserError

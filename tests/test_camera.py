@@ -2,7 +2,6 @@
 and one GL render that checks the projection lands on the exact pixel."""
 
 import json
-from pathlib import Path
 
 import numpy as np
 import pytest

@@ -14,6 +14,7 @@ from raygs_viewer.camera import look_at
 from raygs_viewer.render.renderer import GLRenderer
 from raygs_viewer.scene import quaternion_to_matrix
 from raygs_viewer.settings import RenderSettings
+from raygs_viewer.sh import sh_to_rgb
 
 
 def quad64(mu, rotation, scales, kappa):
@@ -95,6 +96,9 @@ def test_gl_quads_contain_the_support(gl_ctx):
     rng = np.random.default_rng(0)
     mu_all = (scene.positions - camera.center) @ camera.R.T
     rotations = camera.R @ quaternion_to_matrix(scene.rotations.astype(np.float64))
+    offsets = scene.positions.astype(np.float64) - camera.center
+    colors = sh_to_rgb(scene.sh.astype(np.float64), scene.sh_degree,
+                       offsets / np.linalg.norm(offsets, axis=1, keepdims=True))
     checked = 0
     for i in range(scene.count):
         center, c2 = splats[i, 0:3], splats[i, 3]
@@ -105,6 +109,8 @@ def test_gl_quads_contain_the_support(gl_ctx):
             assert c2 == 0, "skipped gaussians are flagged"
             continue
         np.testing.assert_allclose(center, mu_all[i], rtol=1e-5, atol=1e-6)
+        assert opacity == scene.opacities[i]
+        np.testing.assert_allclose(splats[i, 12:15], colors[i], rtol=1e-5, atol=1e-6)
         np.testing.assert_allclose(c2, w @ w, rtol=1e-4)
         whitened = support_rays(w, kappa, rng, 32)
         rays = whitened * scene.scales[i] @ rotations[i].T  # back to camera space

@@ -1,8 +1,6 @@
 """The GL renderer against the float64 reference, with negative controls showing that
 each comparison would catch the fault it names."""
 
-import math
-
 import numpy as np
 import pytest
 

@@ -13,7 +13,6 @@ import numpy as np
 import pytest
 
 import testkit
-from raygs_viewer.errors import UserError
 from raygs_viewer.scene_io import (
     DROP_REASONS,
     describe,
