@@ -126,6 +126,8 @@ def test_block_layout():
     assert (layout.splats_per_block, layout.chunk, layout.splat_blocks) == (64, 16, 5)
     big = StorageLayout.plan(2_000_000, 16 * 12, 1 << 27)
     assert big.splats_per_block * 64 <= 1 << 27 and big.chunk * 192 <= 1 << 27 and big.splat_blocks == 1
+    huge = StorageLayout.plan(50_000_000, 3 * 12, (1 << 31) - 1)  # drivers reporting 2 GiB
+    assert huge.chunk // 128 <= 65535 and huge.splats_per_block % huge.chunk == 0
     with pytest.raises(UserError):
         StorageLayout.plan(10, 16 * 12, 1024)
 

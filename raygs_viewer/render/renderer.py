@@ -31,6 +31,9 @@ GAUSSIAN_BYTES = 48  # struct Gaussian in preprocess.comp
 SPLAT_BYTES = 64     # struct Splat in splat.glsl
 MAX_SPLAT_BLOCKS = 8  # bindings raygs.vert declares
 WORKGROUP = 128
+# GL guarantees 65535 workgroups per dispatch; drivers that report a 2 GiB block
+# limit would otherwise ask for more in one chunk.
+MAX_CHUNK = 1 << 22
 
 
 def _power_of_two_at_most(value: int) -> int:
@@ -55,7 +58,7 @@ class StorageLayout:
     def plan(cls, count: int, harmonics_bytes: int, block_limit: int, alignment: int = RANGE_ALIGNMENT) -> "StorageLayout":
         record_bytes = (GAUSSIAN_BYTES, harmonics_bytes, SPLAT_BYTES)
         splats_per_block = _power_of_two_at_most(block_limit // SPLAT_BYTES)
-        chunk = min(_power_of_two_at_most(block_limit // max(record_bytes)), splats_per_block)
+        chunk = min(_power_of_two_at_most(block_limit // max(record_bytes)), splats_per_block, MAX_CHUNK)
         # Every bound offset is a multiple of chunk * record size: keep those aligned.
         if chunk * max(record_bytes) > block_limit or any(chunk * b % alignment for b in record_bytes):
             raise UserError(f"a storage block limit of {block_limit} bytes is too small for "
