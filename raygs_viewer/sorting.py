@@ -54,8 +54,8 @@ class DepthSorter:
         keep = (self.log_opacity > np.float32(math.log(p_min))) & (z > -radius)
         # Side planes through the camera centre, at the image border (pixel centres lie
         # half a pixel inside it), with unit normals pointing into the frustum.
-        for a, b, extent in ((camera.fx, camera.cx, camera.width), (camera.fy, camera.cy, camera.height)):
-            coordinate = x if extent == camera.width else y
+        for coordinate, a, b, extent in ((x, camera.fx, camera.cx, camera.width),
+                                         (y, camera.fy, camera.cy, camera.height)):
             for normal in ((a, b), (-a, extent - b)):
                 n = np.float32(1.0 / math.hypot(*normal))
                 keep &= (np.float32(normal[0]) * n) * coordinate + (np.float32(normal[1]) * n) * z > -radius

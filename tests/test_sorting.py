@@ -52,6 +52,16 @@ def test_culling_drops_what_cannot_be_seen():
     assert DepthSorter(scene).order(camera, 1 / 255).tolist() == [0]
 
 
+@pytest.mark.parametrize("width, height", [(64, 48), (48, 48)])
+def test_culling_uses_each_axis_for_its_own_planes(width, height):
+    """Far to the side but level (kept only if visible) and far above (dropped), on
+    wide and square images alike."""
+    scene = make_scene(positions=[[0.0, 0.0, 5.0], [0.0, -50.0, 5.0], [50.0, 0.0, 5.0]],
+                       scales=[[0.1, 0.1, 0.1]] * 3, opacities=0.9)
+    camera = look_at([0, 0, 0], [0, 0, 1], width=width, height=height)
+    assert DepthSorter(scene).order(camera, 1 / 255).tolist() == [0]
+
+
 def test_culling_keeps_a_gaussian_whose_support_reaches_the_view():
     """Centre behind the camera or beside the frustum, yet the support reaches in."""
     scene = make_scene(positions=[[0, 0, -0.5], [1.2, 0, 1.0]], scales=[[0.3, 0.3, 0.3]] * 2, opacities=1.0)
@@ -61,12 +71,13 @@ def test_culling_keeps_a_gaussian_whose_support_reaches_the_view():
 
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 10_000), yaw=st.floats(-3.2, 3.2), pitch=st.floats(-1.5, 1.5),
-       distance=st.floats(0.2, 4.0), p_min=st.sampled_from([1e-3, 1 / 255, 0.05]))
-def test_culling_is_conservative(seed, yaw, pitch, distance, p_min):
+       distance=st.floats(0.2, 4.0), p_min=st.sampled_from([1e-3, 1 / 255, 0.05]),
+       size=st.sampled_from([(24, 18), (20, 20), (12, 26)]))
+def test_culling_is_conservative(seed, yaw, pitch, distance, p_min, size):
     """The reference image with every gaussian equals the one with only those kept."""
     scene = random_scene(n=120, seed=seed, spread=1.5, log_scale=(-3.0, -0.5))
     eye = distance * np.array([np.cos(pitch) * np.sin(yaw), np.sin(pitch), -np.cos(pitch) * np.cos(yaw)])
-    camera = look_at(eye, [0.1, 0.2, 0.3], width=24, height=18, fov_y_degrees=70)
+    camera = look_at(eye, [0.1, 0.2, 0.3], width=size[0], height=size[1], fov_y_degrees=70)
     settings_ = RenderSettings(p_min=p_min)
     kept = DepthSorter(scene).order(camera, p_min, method="float")
     depth = (scene.positions.astype(np.float64) @ camera.R.T + camera.t)[:, 2]
