@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import json
 import os
-import time
 import tracemalloc
 import warnings
 from pathlib import Path
@@ -414,17 +413,14 @@ def test_unrecognised_format(tmp_path):
     assert_scene_error(path, "unrecognised")
 
 
-def test_declared_count_far_too_large_fails_fast_without_allocating(tmp_path):
+def test_declared_count_far_too_large_fails_without_allocating(tmp_path):
     path = write_ply(tmp_path / "huge.ply", gaussian_columns(3, 3), count=10**12)
     tracemalloc.start()
     try:
-        start = time.perf_counter()
-        message = assert_scene_error(path, "truncated", str(10**12))
-        elapsed = time.perf_counter() - start
+        assert_scene_error(path, "truncated", str(10**12))
         _, peak = tracemalloc.get_traced_memory()
     finally:
         tracemalloc.stop()
-    assert elapsed < 1.0, message
     assert peak < 8 * 2**20, peak  # the header buffer (1 MiB) and change
 
 

@@ -100,7 +100,6 @@ class GLRenderer:
         self._harmonics = _buffer(ctx, scene.sh.reshape(count, coeffs * 3))
         self._splats = ctx.buffer(reserve=max(count, 1) * SPLAT_BYTES)
         self._order = ctx.buffer(reserve=max(count, 1) * 4)
-        self._order_capacity = max(count, 1)
 
         defines = {"SH_DEGREE": scene.sh_degree}
         self._preprocess = ctx.compute_shader(shader_source("preprocess.comp", defines))
@@ -148,7 +147,7 @@ class GLRenderer:
         """Draws the quads of ``order`` (back to front) into the bound framebuffer."""
         if order.size == 0:
             return
-        if order.size > self._order_capacity:
+        if order.size > self.scene.count:
             raise ValueError("order longer than the scene")
         self._order.write(np.ascontiguousarray(order, dtype=np.uint32))
         self._order.bind_to_storage_buffer(0, size=order.size * 4)
