@@ -21,7 +21,8 @@ uniform mat3 u_world_to_camera;
 uniform vec3 u_camera_center;
 uniform float u_log_p_min;
 
-const uint COEFFS = uint((SH_DEGREE + 1) * (SH_DEGREE + 1));
+// The scene stores SH_STORED_DEGREE bands; SH_DEGREE (<= it) are evaluated.
+const uint COEFFS = uint((SH_STORED_DEGREE + 1) * (SH_STORED_DEGREE + 1));
 uint g_index;
 vec3 coeff(int k) {
     uint base = (g_index * COEFFS + uint(k)) * 3u;

@@ -1,4 +1,9 @@
-"""The ``raygs-viewer`` command line: ``info``, ``render`` and ``verify`` (the window comes later).
+"""The ``raygs-viewer`` command line: ``view`` (the window), ``info``, ``render`` and ``verify``.
+
+Without a command the window opens: ``raygs-viewer`` shows the demo, and
+``raygs-viewer SCENE.ply [view options]`` or ``raygs-viewer --frames 3`` mean
+``raygs-viewer view ...``. ``render --sidecar SHOT.json`` renders a screenshot of the
+window again from the JSON sidecar saved beside it.
 
 Bad input ends in one line, ``error: <what and where>``, and exit status 2.
 """
@@ -8,13 +13,26 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 import time
+from pathlib import Path
 
 from raygs_viewer import __version__
 from raygs_viewer.errors import UserError
 
 DEMO = "demo"
+COMMANDS = ("view", "info", "render", "verify")
+# Arguments that keep their meaning at the top level instead of starting the window.
+TOP_LEVEL_OPTIONS = ("-h", "--help", "--version")
+SCENE_SUFFIXES = (".ply", ".splat")
+# The same axes as controls.UP_AXES (kept here so parsing options imports no window code).
+UP_AXES = ("-y", "+y", "+z", "-z", "+x", "-x")
+DEFAULT_BACKGROUND = (0.0, 0.0, 0.0)
+# render options that set what --sidecar already fixes: (flag, argparse dest).
+SIDECAR_CONFLICTS = (("--camera", "camera"), ("--camera-index", "camera_index"), ("--width", "width"),
+                     ("--height", "height"), ("--p-min", "p_min"), ("--background", "background"),
+                     ("--sh-degree", "sh_degree"))
 
 
 class _Parser(argparse.ArgumentParser):
@@ -42,6 +60,37 @@ def _p_min(text: str) -> float:
     return value
 
 
+def _sh_degree(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
+    if not 0 <= value <= 3:
+        raise argparse.ArgumentTypeError(f"{value} is not 0, 1, 2 or 3")
+    return value
+
+
+def _frames(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"{value} is not at least 1")
+    return value
+
+
+def _screenshot_scale(text: str) -> float:
+    from raygs_viewer.screenshot import MAX_SCALE
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
+    if not (math.isfinite(value) and 0.0 < value <= MAX_SCALE):
+        raise argparse.ArgumentTypeError(f"{text} is not in (0, {MAX_SCALE:g}]")
+    return value
+
+
 def _color(text: str) -> tuple[float, float, float]:
     try:
         parts = tuple(float(part) for part in text.split(","))
@@ -53,9 +102,16 @@ def _color(text: str) -> tuple[float, float, float]:
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = _Parser(prog="raygs-viewer", description="Ray-based Gaussian splatting (RayGS) viewer.")
+    parser = _Parser(
+        prog="raygs-viewer",
+        description="Ray-based Gaussian splatting (RayGS) viewer. Without a command it opens the window: "
+                    "'raygs-viewer [SCENE] [view options]' is short for 'raygs-viewer view [SCENE] [view options]', "
+                    "and plain 'raygs-viewer' shows the built-in demo.")
     parser.add_argument("--version", action="version", version=f"raygs-viewer {__version__}")
     commands = parser.add_subparsers(dest="command", required=True, parser_class=_Parser)
+
+    view = commands.add_parser("view", help="open the interactive window (the default command)")
+    _add_viewer_options(view)
 
     info = commands.add_parser("info", help="describe a scene file")
     info.add_argument("scene", help=f"a .ply or .splat file, or '{DEMO}'")
@@ -63,6 +119,10 @@ def build_parser() -> argparse.ArgumentParser:
 
     render = commands.add_parser("render", help="render one image headlessly")
     _add_view_options(render)
+    render.add_argument("--sidecar", metavar="SHOT.json",
+                        help="render a screenshot again from its sidecar: scene, camera, settings and size "
+                             "come from it (SCENE, if given, replaces the scene file but must have the same "
+                             "sha256); the view options above cannot be combined with it")
     render.add_argument("--out", required=True, metavar="OUT.png|OUT.npy",
                         help=".png: 8-bit RGB; .npy: float32 HxWx4 (RGB over background, alpha)")
     render.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
@@ -79,15 +139,52 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def _add_view_options(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("scene", nargs="?", default=DEMO, help=f"a .ply or .splat file, or '{DEMO}' (default)")
+    """render's and verify's view. Defaults are None so that render can tell which were
+    given (--sidecar rejects them); :func:`_settings` and :func:`choose_camera` apply
+    the documented defaults."""
+    parser.add_argument("scene", nargs="?", help=f"a .ply or .splat file, or '{DEMO}' (default)")
     parser.add_argument("--camera", metavar="CAMERAS.json", help="INRIA cameras.json (a list or one camera)")
-    parser.add_argument("--camera-index", type=int, default=0, metavar="I", help="which camera of the file (default 0)")
+    parser.add_argument("--camera-index", type=int, metavar="I", help="which camera of the file (default 0)")
     parser.add_argument("--width", type=_positive_int, help="image width; fx and cx scale to match")
     parser.add_argument("--height", type=_positive_int, help="image height; fy and cy scale to match")
-    parser.add_argument("--p-min", type=_p_min, default=1 / 255, metavar="P",
+    _add_settings_options(parser, None, None)
+
+
+def _add_settings_options(parser: argparse.ArgumentParser, p_min, background) -> None:
+    parser.add_argument("--p-min", type=_p_min, default=p_min, metavar="P",
                         help="opacity cut-off, sets kappa = -2 ln(P/o) (default 1/255)")
-    parser.add_argument("--background", type=_color, default=(0.0, 0.0, 0.0), metavar="R,G,B",
+    parser.add_argument("--background", type=_color, default=background, metavar="R,G,B",
                         help="background colour, 0..1 each (default 0,0,0)")
+    parser.add_argument("--sh-degree", type=_sh_degree, metavar="D",
+                        help="highest spherical-harmonics band to evaluate, 0..3, capped at the scene's "
+                             "(default: all the scene has)")
+
+
+def _add_viewer_options(parser: argparse.ArgumentParser) -> None:
+    """The fields of app.ViewerOptions."""
+    from raygs_viewer.settings import DEFAULT_P_MIN
+    parser.add_argument("scene", nargs="?", default=DEMO, help=f"a .ply or .splat file, or '{DEMO}' (default)")
+    parser.add_argument("--cameras", metavar="CAMERAS.json",
+                        help="the scene's training cameras (default: a cameras.json found next to the scene)")
+    parser.add_argument("--camera", metavar="CAMERAS.json", help="start at a camera of this INRIA cameras.json")
+    parser.add_argument("--camera-index", type=int, default=0, metavar="I",
+                        help="which camera of --camera to start at (default 0)")
+    parser.add_argument("--width", type=_positive_int, default=1280, help="window width (default 1280)")
+    parser.add_argument("--height", type=_positive_int, default=720, help="window height (default 720)")
+    _add_settings_options(parser, DEFAULT_P_MIN, DEFAULT_BACKGROUND)
+    parser.add_argument("--frames", type=_frames, metavar="N", help="quit after drawing N frames")
+    parser.add_argument("--screenshot", metavar="PATH.png",
+                        help="save the last frame there, with a .json sidecar beside it (never replaces a file)")
+    parser.add_argument("--screenshot-dir", default="screenshots", metavar="DIR",
+                        help="where F12 and the panel save screenshots (default ./screenshots)")
+    parser.add_argument("--screenshot-scale", type=_screenshot_scale, default=1.0, metavar="K",
+                        help="screenshots render offscreen at K times the window size, 0 < K <= 8 (default 1)")
+    parser.add_argument("--no-vsync", action="store_true", help="draw as fast as possible")
+    parser.add_argument("--orbit", action="store_true", help="start in orbit navigation instead of fly")
+    parser.add_argument("--up-axis", choices=UP_AXES, default="-y",
+                        help="world up, for navigation (default -y, the OpenCV/COLMAP convention)")
+    parser.add_argument("--window-platform", choices=("auto", "x11", "wayland", "null"), default="auto",
+                        help="GLFW platform (default auto: null without a display)")
 
 
 def _add_backend_option(parser: argparse.ArgumentParser) -> None:
@@ -118,13 +215,21 @@ def _command_info(args) -> int:
     return 0
 
 
-def choose_camera(scene, scene_name: str, camera_file: str | None, index: int, width: int | None,
+def _settings(args):
+    """RenderSettings from --p-min, --background and --sh-degree, defaults for those not given."""
+    from raygs_viewer.settings import DEFAULT_P_MIN, RenderSettings
+    return RenderSettings(p_min=DEFAULT_P_MIN if args.p_min is None else args.p_min,
+                          background=DEFAULT_BACKGROUND if args.background is None else args.background,
+                          sh_degree=args.sh_degree)
+
+
+def choose_camera(scene, scene_name: str, camera_file: str | None, index: int | None, width: int | None,
                   height: int | None):
     """The camera of ``--camera``/``--camera-index``, else the demo's or one framing the
     scene; resized when --width/--height are given (one alone keeps the aspect ratio)."""
     from raygs_viewer.camera import frame_points, load_camera
     if camera_file is not None:
-        camera = load_camera(camera_file, index)
+        camera = load_camera(camera_file, index or 0)
     elif scene_name == DEMO:
         from raygs_viewer.demo import demo_camera
         camera = demo_camera()
@@ -139,13 +244,26 @@ def choose_camera(scene, scene_name: str, camera_file: str | None, index: int, w
 
 def _command_render(args) -> int:
     from raygs_viewer.imageio import check_output_path, save_image
-    from raygs_viewer.settings import RenderSettings
 
+    if args.sidecar is not None:
+        given = [flag for flag, dest in SIDECAR_CONFLICTS if getattr(args, dest) is not None]
+        if given:
+            raise UserError(f"--sidecar already sets the view; drop {', '.join(given)}")
     out = check_output_path(args.out, args.overwrite)  # fail before any slow work
-    settings = RenderSettings(p_min=args.p_min, background=args.background)
-    scene = load_scene_argument(args.scene)
-    _warn_dropped(scene)
-    camera = choose_camera(scene, args.scene, args.camera, args.camera_index, args.width, args.height)
+    if args.sidecar is not None:
+        from raygs_viewer.sidecar import load_sidecar, resolve_scene, verify_scene_hash
+        shot = load_sidecar(args.sidecar)
+        scene_name = resolve_scene(shot, args.scene)
+        verify_scene_hash(shot, scene_name)
+        camera, settings = shot.camera, shot.settings
+        scene = load_scene_argument(scene_name)
+        _warn_dropped(scene)
+    else:
+        settings = _settings(args)
+        scene_name = args.scene or DEMO
+        scene = load_scene_argument(scene_name)
+        _warn_dropped(scene)
+        camera = choose_camera(scene, scene_name, args.camera, args.camera_index, args.width, args.height)
     start = time.perf_counter()
     if args.reference:
         from raygs_viewer.reference import render_reference
@@ -153,17 +271,21 @@ def _command_render(args) -> int:
     else:
         from raygs_viewer.render.context import create_headless_context
         from raygs_viewer.render.renderer import GLRenderer
+        from raygs_viewer.screenshot import render_tiled
         ctx = create_headless_context(args.gl_backend)
         try:
             renderer = GLRenderer(ctx, scene)
-            image = renderer.render(camera, settings)
+            # Tiled like the window's screenshots: the same pixels, and sizes beyond
+            # the GPU's largest render target.
+            image = render_tiled(renderer, camera, settings)
             renderer.release()
         finally:
             ctx.release()
     elapsed = time.perf_counter() - start
     save_image(out, image, args.overwrite)
     print(f"{out}: {camera.width}x{camera.height}, {scene.count} gaussians, "
-          f"{'reference' if args.reference else 'GL'} render {elapsed * 1000:.0f} ms")
+          f"{'reference' if args.reference else 'GL'} render {elapsed * 1000:.0f} ms"
+          + (f", view from {args.sidecar}" if args.sidecar is not None else ""))
     return 0
 
 
@@ -173,12 +295,12 @@ def _command_verify(args) -> int:
     from raygs_viewer.reference import render_reference
     from raygs_viewer.render.context import context_description, create_headless_context
     from raygs_viewer.render.renderer import GLRenderer
-    from raygs_viewer.settings import RenderSettings
 
-    settings = RenderSettings(p_min=args.p_min, background=args.background)
-    scene = load_scene_argument(args.scene)
+    settings = _settings(args)
+    scene_name = args.scene or DEMO
+    scene = load_scene_argument(scene_name)
     _warn_dropped(scene)
-    camera = choose_camera(scene, args.scene, args.camera, args.camera_index, args.width, args.height)
+    camera = choose_camera(scene, scene_name, args.camera, args.camera_index, args.width, args.height)
     ctx = create_headless_context(args.gl_backend)
     try:
         renderer = GLRenderer(ctx, scene)
@@ -212,10 +334,59 @@ def _command_verify(args) -> int:
     return 0
 
 
+def _command_view(args) -> int:
+    from raygs_viewer import app  # the window's imports (glfw, imgui) only when it opens
+    from raygs_viewer.screenshot import check_screenshot_path
+
+    if args.screenshot is not None:
+        check_screenshot_path(args.screenshot)  # before the window opens and the scene loads
+    options = app.ViewerOptions(
+        scene=args.scene, cameras=args.cameras, camera=args.camera, camera_index=args.camera_index,
+        width=args.width, height=args.height, p_min=args.p_min, background=args.background,
+        sh_degree=args.sh_degree, frames=args.frames, screenshot=args.screenshot,
+        screenshot_dir=args.screenshot_dir, screenshot_scale=args.screenshot_scale, vsync=not args.no_vsync,
+        navigation="orbit" if args.orbit else "fly", up_axis=args.up_axis, platform=args.window_platform)
+    return app.run_viewer(options)
+
+
+def route(argv: list[str]) -> list[str]:
+    """The argument list with the implied ``view`` made explicit: no arguments, a scene
+    as the first argument, or an option other than -h/--help/--version first."""
+    if not argv:
+        return ["view"]
+    first = argv[0]
+    if first in COMMANDS or first in TOP_LEVEL_OPTIONS:
+        return argv
+    if first.startswith("-") or first == DEMO or os.path.exists(first) \
+            or Path(first).suffix.lower() in SCENE_SUFFIXES:
+        return ["view", *argv]
+    raise UserError(f"'{first}' is neither a command ({', '.join(COMMANDS)}) nor a scene file "
+                    f"(see 'raygs-viewer --help')")
+
+
+def join_up_axis(argv: list[str]) -> list[str]:
+    """``--up-axis -y`` -> ``--up-axis=-y``: argparse takes a value starting with '-' for
+    an option and would report the axis missing."""
+    joined, i = [], 0
+    while i < len(argv):
+        if argv[i] == "--":
+            joined.extend(argv[i:])
+            break
+        if argv[i] == "--up-axis" and i + 1 < len(argv) and argv[i + 1] in UP_AXES:
+            joined.append(f"--up-axis={argv[i + 1]}")
+            i += 2
+        else:
+            joined.append(argv[i])
+            i += 1
+    return joined
+
+
 def main(argv: list[str] | None = None) -> int:
     try:
+        argv = join_up_axis(route(list(sys.argv[1:] if argv is None else argv)))
         args = build_parser().parse_args(argv)
-        commands = {"info": _command_info, "render": _command_render, "verify": _command_verify}
+        commands = {"view": _command_view, "info": _command_info, "render": _command_render,
+                    "verify": _command_verify}
         return commands[args.command](args)
     except UserError as exc:
         print(f"error: {str(exc).splitlines()[0] if str(exc) else 'failed'}", file=sys.stderr)

@@ -34,6 +34,7 @@ def render_reference(scene: Scene, camera: Camera, settings: RenderSettings = Re
     if order is None:
         order = DepthSorter(scene).order(camera, settings.p_min)
     order = np.asarray(order, dtype=np.int64)
+    scene = scene.with_sh_degree(settings.effective_sh_degree(scene.sh_degree))
     height, width = camera.height, camera.width
     image = np.zeros((height, width, 4))
     image[..., :3] = settings.background

@@ -34,6 +34,8 @@ from __future__ import annotations
 
 import os
 import re
+import threading
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -44,7 +46,9 @@ from raygs_viewer.scene import SH_DEGREE_OF_REST_COUNT, Scene, sh_coefficient_co
 
 __all__ = [
     "DROP_REASONS",
+    "READ_CHUNK_BYTES",
     "SPLAT_ROW_BYTES",
+    "ProgressCallback",
     "describe",
     "dropped_summary",
     "format_description",
@@ -71,6 +75,23 @@ DROP_REASONS = (
 )
 
 _HEADER_LIMIT = 1 << 20  # bytes searched for end_header
+
+#: Gaussian data is read (PLY: gathered from the memory map) this many bytes at a time,
+#: with a progress report and a cancel check after each chunk. A few MiB keeps a
+#: progress bar moving on multi-GB files at a negligible per-chunk overhead; tests
+#: set it small to get many chunks from a tiny file.
+READ_CHUNK_BYTES = 4 << 20
+
+#: ``progress(fraction, stage)``: fraction in [0, 1], never decreasing; stage is a
+#: short word ("reading", "activating", "validating", "done").
+ProgressCallback = Callable[[float, str], None]
+
+# Where each stage starts, as a fraction of the whole load. Reading dominates on a
+# cold file; the rest are vectorised passes over arrays already in memory.
+_READ_END = 0.7
+_ACTIVATE_AT = 0.72
+_VALIDATE_AT = 0.85
+_BUILD_AT = 0.93
 
 # PLY scalar type name -> (canonical name, size in bytes, little-endian numpy dtype)
 _PLY_TYPES = {}
@@ -113,18 +134,51 @@ def _os_error(path, exc: OSError) -> UserError:
     return _error(path, f"cannot read: {exc.strerror or exc}")
 
 
+class _Reporter:
+    """Forwards progress to the caller's callback and turns a set cancel event into
+    ``UserError("loading cancelled")``: every progress point is also a cancel point."""
+
+    def __init__(self, progress: ProgressCallback | None, cancel: threading.Event | None) -> None:
+        self.progress = progress
+        self.cancel = cancel
+        self.last = 0.0
+
+    def __call__(self, fraction: float, stage: str) -> None:
+        if self.cancel is not None and self.cancel.is_set():
+            raise UserError("loading cancelled")
+        if self.progress is not None:
+            # Clamped so a caller's bar never runs backwards, whatever the stage maths says.
+            self.last = min(1.0, max(self.last, float(fraction)))
+            self.progress(self.last, stage)
+
+
 # --------------------------------------------------------------------------- entry point
 
 
-def load_scene(path: str | os.PathLike) -> Scene:
+def load_scene(path: str | os.PathLike, *, progress: ProgressCallback | None = None,
+               cancel: threading.Event | None = None) -> Scene:
     """Read an INRIA PLY or a ``.splat`` file into an activated :class:`Scene`.
 
     The format is chosen by the extension ``.splat`` (32-byte rows), otherwise by
     the PLY magic ``ply`` at the start of the file. Raises :class:`UserError`
     for anything that is not a readable scene file. Invalid gaussians are
     dropped and counted in ``scene.dropped`` (see the module docstring).
+
+    ``progress(fraction, stage)`` is called from the loading thread: first with
+    0.0, then after every :data:`READ_CHUNK_BYTES` of gaussian data and at each
+    later stage, with a non-decreasing fraction; the last call is ``(1.0, "done")``.
+    When ``cancel`` is set, loading stops at the next progress point (whether or
+    not a callback is given) with ``UserError("loading cancelled")``.
     """
+    report = _Reporter(progress, cancel)
+    scene = _load(path, report)
+    report(1.0, "done")
+    return scene
+
+
+def _load(path: str | os.PathLike, report: _Reporter) -> Scene:
     shown = os.fspath(path)
+    report(0.0, "reading")
     if not os.path.exists(path):
         raise _error(shown, "no such file")
     if os.path.isdir(path):
@@ -133,11 +187,11 @@ def load_scene(path: str | os.PathLike) -> Scene:
         raise _error(shown, "not a regular file")
     try:
         if Path(path).suffix.lower() == ".splat":
-            return _load_splat(path, shown)
+            return _load_splat(path, shown, report)
         with open(path, "rb") as f:
             magic = f.read(4)
         if magic[:3] == b"ply" and magic[3:4] in (b"\n", b"\r"):
-            return _load_ply(path, shown)
+            return _load_ply(path, shown, report)
         if Path(path).suffix.lower() == ".ply" or magic[:3] == b"ply":
             what = "empty file" if not magic else "does not start with the 'ply' magic line"
             raise _error(shown, f"not a PLY file ({what})")
@@ -253,7 +307,7 @@ def _parse_header(path, shown: str) -> tuple[int, list[_Element]]:
 # --------------------------------------------------------------------------- PLY data
 
 
-def _load_ply(path, shown: str) -> Scene:
+def _load_ply(path, shown: str, report: _Reporter) -> Scene:
     header_bytes, elements = _parse_header(path, shown)
     vertex = next((e for e in elements if e.name == "vertex"), None)
     if vertex is None:
@@ -298,7 +352,7 @@ def _load_ply(path, shown: str) -> Scene:
 
     n = vertex.count
     if n == 0:
-        return _scene_from_columns(shown, np.zeros((0, len(used)), np.float32), degree, has_filter)
+        return _scene_from_columns(shown, np.zeros((0, len(used)), np.float32), degree, has_filter, report)
 
     with open(path, "rb") as f:
         try:
@@ -309,9 +363,27 @@ def _load_ply(path, shown: str) -> Scene:
         data = ply["vertex"].data
         if data.shape != (n,) or list(data.dtype.names) != [p for p, _ in vertex.properties]:
             raise _error(shown, "PLY header could not be read consistently")
-        columns = _gather_float32(data, [data.dtype.fields[name][1] for name in used])
+        columns = _gather_chunked(data, [data.dtype.fields[name][1] for name in used], report)
         del data, ply
-    return _scene_from_columns(shown, columns, degree, has_filter)
+    return _scene_from_columns(shown, columns, degree, has_filter, report)
+
+
+def _gather_chunked(data: np.ndarray, offsets: list[int], report: _Reporter) -> np.ndarray:
+    """:func:`_gather_float32` over READ_CHUNK_BYTES of rows at a time, into one
+    preallocated (N, len(offsets)) float32 array.
+
+    ``data`` is usually plyfile's memory map, so gathering a chunk is what pages it
+    in from disk: reporting per chunk tracks the actual reading. Chunking also
+    bounds the gather's temporaries to a chunk instead of a copy of every column.
+    """
+    n = data.shape[0]
+    out = np.empty((n, len(offsets)), np.float32)
+    step = max(1, READ_CHUNK_BYTES // max(1, data.dtype.itemsize))
+    for start in range(0, n, step):
+        stop = min(n, start + step)
+        out[start:stop] = _gather_float32(data[start:stop], offsets)
+        report(_READ_END * stop / n, "reading")
+    return out
 
 
 def _gather_float32(data: np.ndarray, offsets: list[int]) -> np.ndarray:
@@ -344,8 +416,10 @@ def _sigmoid(x: np.ndarray) -> np.ndarray:
     return np.where(x >= 0, 1.0 / (1.0 + e), e / (1.0 + e))
 
 
-def _scene_from_columns(shown: str, m: np.ndarray, degree: int, has_filter: bool) -> Scene:
+def _scene_from_columns(shown: str, m: np.ndarray, degree: int, has_filter: bool,
+                        report: _Reporter) -> Scene:
     """Columns in the order x y z f_dc_0..2 opacity scale_0..2 rot_0..3 f_rest_* [filter_3D]."""
+    report(_ACTIVATE_AT, "activating")
     n = m.shape[0]
     k = sh_coefficient_count(degree) - 1
     positions = m[:, 0:3]
@@ -371,6 +445,7 @@ def _scene_from_columns(shown: str, m: np.ndarray, degree: int, has_filter: bool
         sh[:, 0, :] = dc
         sh[:, 1:, :] = rest.reshape(n, 3, k).transpose(0, 2, 1)
 
+        report(_VALIDATE_AT, "validating")
         # Cheap prefilter: a row sum is finite unless the row holds a NaN or an inf
         # (or overflows, which only makes the row a candidate for the exact tests).
         suspect = np.flatnonzero(~np.isfinite(m @ np.ones(m.shape[1], dtype=np.float32)))
@@ -388,11 +463,13 @@ def _scene_from_columns(shown: str, m: np.ndarray, degree: int, has_filter: bool
             "infinite colour": inf_colour,
         }
     positions = np.ascontiguousarray(positions, dtype=np.float32)
-    return _finish(shown, positions, quat32, scales32, opacity32, sh, degree, has_filter, tests)
+    return _finish(shown, positions, quat32, scales32, opacity32, sh, degree, has_filter, tests, report)
 
 
-def _finish(shown, positions, rotations, scales, opacities, sh, degree, fused, tests) -> Scene:
+def _finish(shown, positions, rotations, scales, opacities, sh, degree, fused, tests,
+            report: _Reporter) -> Scene:
     """Drop invalid gaussians (first failing reason wins) and build the Scene."""
+    report(_BUILD_AT, "validating")
     n = positions.shape[0]
     bad = np.zeros(n, dtype=bool)
     dropped: dict[str, int] = {}
@@ -425,7 +502,7 @@ def _finish(shown, positions, rotations, scales, opacities, sh, degree, fused, t
 # --------------------------------------------------------------------------- .splat
 
 
-def _load_splat(path, shown: str) -> Scene:
+def _load_splat(path, shown: str, report: _Reporter) -> Scene:
     """The 32-byte ``.splat`` rows: float32 position xyz, float32 *linear* scale xyz,
     RGBA uint8 (colour -> SH DC via (c/255 - 0.5)/C0, opacity a/255), quaternion
     as 4 uint8 ``q*128+128`` in order w, x, y, z (normalised here). SH degree 0."""
@@ -433,9 +510,20 @@ def _load_splat(path, shown: str) -> Scene:
     if size % SPLAT_ROW_BYTES:
         raise _error(shown, f"not a .splat file: size {size} bytes is not a multiple of {SPLAT_ROW_BYTES}")
     n = size // SPLAT_ROW_BYTES
-    rows = np.fromfile(path, dtype=_SPLAT_DTYPE, count=n)
-    if rows.shape[0] != n:
-        raise _error(shown, "truncated .splat file (the file shrank while reading)")
+    rows = np.empty(n, dtype=_SPLAT_DTYPE)
+    # Read straight into the rows' memory, a chunk at a time: the same footprint as
+    # one np.fromfile, with progress and cancel points in between.
+    buffer = memoryview(rows.view(np.uint8))
+    done = 0
+    with open(path, "rb") as f:
+        while done < size:
+            got = f.readinto(buffer[done: min(size, done + max(1, READ_CHUNK_BYTES))])
+            if not got:
+                raise _error(shown, "truncated .splat file (the file shrank while reading)")
+            done += got
+            report(_READ_END * done / size, "reading")
+    del buffer
+    report(_ACTIVATE_AT, "activating")
     positions = rows["position"].astype(np.float32)
     scale = rows["scale"].astype(np.float32)
     rgba = rows["rgba"].astype(np.float64)
@@ -445,6 +533,7 @@ def _load_splat(path, shown: str) -> Scene:
         quat = (q / norm[:, None]).astype(np.float32)
     sh = ((rgba[:, None, :3] / 255.0 - 0.5) / C0).astype(np.float32)
     opacity = (rgba[:, 3] / 255.0).astype(np.float32)
+    report(_VALIDATE_AT, "validating")
     tests = {
         "nan": np.isnan(positions).any(axis=1) | np.isnan(scale).any(axis=1),
         "infinite position": np.isinf(positions).any(axis=1),
@@ -453,7 +542,7 @@ def _load_splat(path, shown: str) -> Scene:
         "negative scale": (scale < 0).any(axis=1),
         "zero quaternion": norm == 0,
     }
-    return _finish(shown, positions, quat, scale, opacity, sh, 0, False, tests)
+    return _finish(shown, positions, quat, scale, opacity, sh, 0, False, tests, report)
 
 
 # --------------------------------------------------------------------------- reporting

@@ -35,3 +35,11 @@ def gl_render(gl_ctx):
             renderer.release()
 
     return render
+
+
+@pytest.fixture
+def restore_gl_ctx(gl_ctx):
+    """For tests that open a viewer window: its context becomes current in this thread,
+    so the session context is made current again afterwards."""
+    yield
+    gl_ctx.__enter__()

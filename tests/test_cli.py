@@ -295,6 +295,8 @@ def _bad_cases(tmp_path, write=True):
         bad_camera.write_text(json.dumps([{"width": 64, "height": 48, "position": [0, 0, 0],
                                            "rotation": [[2, 0, 0], [0, 2, 0], [0, 0, 2]], "fx": 50, "fy": 50}]))
         good_camera.write_text(json.dumps([camera_to_json(demo_camera(32, 24))]))
+        (tmp_path / "taken.png").write_bytes(b"precious")
+        (tmp_path / "sidecar.json").write_bytes(b"precious")
     out = str(tmp_path / "out.png")
     return {
         "missing_scene": ["render", tmp_path / "nowhere.ply", "--out", out],
@@ -328,7 +330,29 @@ def _bad_cases(tmp_path, write=True):
         "output_folder_missing": ["render", "--out", tmp_path / "no" / "such" / "out.png"],
         "output_is_folder": ["render", "--out", tmp_path / "folder.png"],
         "unknown_subcommand": ["paint", "demo"],
-        "no_subcommand": [],
+        "subcommand_without_scene_look": ["paint"],
+        "sh_degree_four": ["render", "--sh-degree", "4", "--out", out],
+        "sh_degree_negative": ["render", "--sh-degree=-1", "--out", out],
+        "sh_degree_word": ["verify", "--sh-degree", "all"],
+        "view_frames_zero": ["view", "--frames", "0"],
+        "view_frames_word": ["--frames", "many"],
+        "view_scale_zero": ["view", "--screenshot-scale", "0"],
+        "view_scale_negative": ["view", "--screenshot-scale=-2"],
+        "view_scale_too_big": ["view", "--screenshot-scale", "8.5"],
+        "view_scale_nan": ["view", "--screenshot-scale", "nan"],
+        "view_scale_inf": ["view", "--screenshot-scale", "inf"],
+        "view_up_axis_bad": ["view", "--up-axis", "up"],
+        "view_up_axis_missing": ["view", "--up-axis"],
+        "view_up_axis_option_next": ["--up-axis", "--frames", "3"],
+        "view_platform_bad": ["view", "--window-platform", "cocoa"],
+        "view_screenshot_jpg": ["view", "--screenshot", tmp_path / "shot.jpg"],
+        "view_screenshot_no_folder": ["view", "--screenshot", tmp_path / "no" / "shot.png"],
+        "view_screenshot_exists": ["view", "--screenshot", tmp_path / "taken.png"],
+        "view_screenshot_sidecar_exists": ["view", "--screenshot", tmp_path / "sidecar.png"],
+        "view_unknown_option": ["--colour", "red"],
+        "view_render_option": ["view", "--out", out],
+        "sidecar_with_camera": ["render", "--sidecar", good_camera, "--camera", good_camera, "--out", out],
+        "sidecar_is_cameras_json": ["render", "--sidecar", good_camera, "--out", out],
         "missing_out": ["render", "demo"],
         "unknown_option": ["render", "--colour", "red", "--out", out],
         "info_missing_scene_argument": ["info"],
@@ -340,7 +364,10 @@ CASES = sorted(_bad_cases(Path("unused"), write=False))
 
 
 @pytest.mark.parametrize("case", CASES)
-def test_error_paths_are_one_line(capsys, tmp_path, case):
+def test_error_paths_are_one_line(capsys, tmp_path, case, monkeypatch):
+    import raygs_viewer.app as app
+
+    monkeypatch.setattr(app, "run_viewer", lambda options: pytest.fail(f"window opened with {options}"))
     argv = _bad_cases(tmp_path)[case]
     before = listing(tmp_path)
     code, _, err = run_cli(capsys, *argv)
@@ -348,7 +375,10 @@ def test_error_paths_are_one_line(capsys, tmp_path, case):
     assert listing(tmp_path) == before  # nothing written, no temporary file left
 
 
-def test_error_messages_name_what_is_wrong(capsys, tmp_path):
+def test_error_messages_name_what_is_wrong(capsys, tmp_path, monkeypatch):
+    import raygs_viewer.app as app
+
+    monkeypatch.setattr(app, "run_viewer", lambda options: pytest.fail(f"window opened with {options}"))
     cases = _bad_cases(tmp_path)
     expect = {
         "missing_scene": "nowhere.ply",
@@ -362,6 +392,13 @@ def test_error_messages_name_what_is_wrong(capsys, tmp_path):
         "output_folder_missing": "does not exist",
         "unknown_subcommand": "paint",
         "missing_out": "--out",
+        "sh_degree_four": "--sh-degree",
+        "view_frames_zero": "--frames",
+        "view_scale_too_big": "--screenshot-scale",
+        "view_up_axis_bad": "--up-axis",
+        "view_screenshot_exists": "taken.png",
+        "view_screenshot_sidecar_exists": "sidecar.json",
+        "sidecar_with_camera": "--camera",
     }
     for case, fragment in expect.items():
         code, _, err = run_cli(capsys, *cases[case])
@@ -378,6 +415,168 @@ def test_output_checks_come_before_slow_work(capsys, tmp_path, monkeypatch):
     monkeypatch.setattr(cli, "load_scene_argument", boom)
     code, _, err = run_cli(capsys, "render", "--out", tmp_path / "x.tiff")
     assert_one_line_error(code, err)
+
+
+# --------------------------------------------------------------------------- --sh-degree
+
+
+def test_sh_degree(capsys, tmp_path, gl_ctx, demo):
+    """--sh-degree reaches the renderer: fewer bands change the view-dependent colour."""
+    images = {}
+    for degree in (None, 0, 1, 3):
+        out = tmp_path / f"sh{degree}.npy"
+        extra = [] if degree is None else ["--sh-degree", str(degree)]
+        code, _, err = run_cli(capsys, "render", *SMALL, *extra, "--out", out)
+        assert code == 0, err
+        images[degree] = np.load(out)
+    camera = demo_camera().resized(64, 48)
+    with gl_ctx:  # the CLI's own context was current last
+        for degree in (0, 1):
+            expected = gl_render(gl_ctx, demo, camera, RenderSettings(sh_degree=degree))
+            np.testing.assert_allclose(images[degree], expected, atol=1e-5)
+    np.testing.assert_array_equal(images[3], images[None])  # the demo has degree 3: all of it
+    assert np.abs(images[0] - images[None]).max() > 0.05
+    assert np.abs(images[1] - images[0]).max() > 0.05
+    np.testing.assert_array_equal(images[0][..., 3], images[None][..., 3])  # colour only, not coverage
+
+
+def test_sh_degree_capped_at_the_scene(capsys, tmp_path):
+    scene = write_inria_ply(tmp_path / "dc.ply", n=20, seed=5)  # SH degree 0
+    a, b = tmp_path / "a.npy", tmp_path / "b.npy"
+    assert run_cli(capsys, "render", scene, "--width", "32", "--out", a)[0] == 0
+    assert run_cli(capsys, "render", scene, "--width", "32", "--sh-degree", "3", "--out", b)[0] == 0
+    np.testing.assert_array_equal(np.load(a), np.load(b))
+
+
+def test_verify_takes_sh_degree(capsys):
+    code, out, err = run_cli(capsys, "verify", "--width", "32", "--sh-degree", "1", "--repeat", "1")
+    assert code == 0, err
+    assert "max error" in out
+
+
+# --------------------------------------------------------------------------- view and the default command
+
+
+@pytest.fixture
+def viewer(monkeypatch):
+    """Replaces app.run_viewer: records the options it gets and returns 0."""
+    import raygs_viewer.app as app
+
+    calls = []
+
+    def run_viewer(options):
+        calls.append(options)
+        return 0
+
+    monkeypatch.setattr(app, "run_viewer", run_viewer)
+    return calls
+
+
+@pytest.mark.parametrize("argv", [[], ["view"], ["demo"], ["view", "demo"]])
+def test_no_arguments_open_the_demo(capsys, viewer, argv):
+    from raygs_viewer.app import ViewerOptions
+
+    code, out, err = run_cli(capsys, *argv)
+    assert (code, out, err) == (0, "", "")
+    assert viewer == [ViewerOptions()]
+    assert viewer[0].p_min == 1 / 255 and viewer[0].background == (0.0, 0.0, 0.0)
+
+
+def test_scene_first_means_view(capsys, viewer, tmp_path):
+    scene = write_inria_ply(tmp_path / "s.ply")
+    no_suffix = tmp_path / "scene_without_suffix"
+    no_suffix.write_bytes(scene.read_bytes())
+    for argv, expected in (([scene], str(scene)),
+                           ([tmp_path / "not_yet.ply"], str(tmp_path / "not_yet.ply")),  # the app reports it
+                           ([tmp_path / "x.SPLAT"], str(tmp_path / "x.SPLAT")),
+                           ([no_suffix], str(no_suffix)),
+                           ([scene, "--frames", "3"], str(scene))):
+        code, _, err = run_cli(capsys, *argv)
+        assert code == 0, err
+        assert viewer.pop().scene == expected
+    assert run_cli(capsys, "--frames", "3")[0] == 0
+    assert viewer.pop().frames == 3 and viewer == []
+
+
+def test_every_view_option(capsys, viewer, tmp_path):
+    from raygs_viewer.app import ViewerOptions
+
+    code, _, err = run_cli(capsys, "view", "scene.ply", "--cameras", "train.json", "--camera", "start.json",
+                           "--camera-index", "4", "--width", "800", "--height", "600", "--p-min", "0.05",
+                           "--background", "0.5,0.25,1", "--sh-degree", "2", "--frames", "10",
+                           "--screenshot", tmp_path / "last.png", "--screenshot-dir", tmp_path / "shots",
+                           "--screenshot-scale", "2.5", "--no-vsync", "--orbit", "--up-axis", "+z",
+                           "--window-platform", "null")
+    assert code == 0, err
+    assert viewer == [ViewerOptions(
+        scene="scene.ply", cameras="train.json", camera="start.json", camera_index=4, width=800, height=600,
+        p_min=0.05, background=(0.5, 0.25, 1.0), sh_degree=2, frames=10, screenshot=str(tmp_path / "last.png"),
+        screenshot_dir=str(tmp_path / "shots"), screenshot_scale=2.5, vsync=False, navigation="orbit",
+        up_axis="+z", platform="null")]
+    assert listing(tmp_path) == []  # the CLI only checks the screenshot path; nothing created
+
+
+@pytest.mark.parametrize("argv,axis", [
+    (["--up-axis", "-y"], "-y"), (["--up-axis=-y"], "-y"), (["--up-axis", "-z"], "-z"),
+    (["--up-axis=+x"], "+x"), (["view", "--up-axis", "-x", "--frames", "2"], "-x"),
+    (["demo", "--frames", "1", "--up-axis", "+y"], "+y"), ([], "-y"),
+])
+def test_up_axis(capsys, viewer, argv, axis):
+    code, _, err = run_cli(capsys, *argv)
+    assert code == 0, err
+    assert viewer.pop().up_axis == axis
+
+
+def test_up_axes_match_the_controls():
+    from raygs_viewer.cli import UP_AXES
+    controls = pytest.importorskip("raygs_viewer.controls")
+    if not hasattr(controls, "UP_AXES"):
+        pytest.skip("controls.UP_AXES not written yet")
+    assert set(UP_AXES) == set(controls.UP_AXES)
+
+
+@pytest.mark.parametrize("scale", ["8", "0.25", "1e-3"])
+def test_screenshot_scale_range(capsys, viewer, scale):
+    assert run_cli(capsys, "--screenshot-scale", scale)[0] == 0
+    assert viewer.pop().screenshot_scale == float(scale)
+
+
+def test_view_returns_the_viewers_status(capsys, monkeypatch):
+    import raygs_viewer.app as app
+
+    monkeypatch.setattr(app, "run_viewer", lambda options: 3)
+    assert run_cli(capsys, "view")[0] == 3
+
+
+def test_view_user_errors_are_one_line(capsys, monkeypatch):
+    import raygs_viewer.app as app
+    from raygs_viewer.errors import UserError
+
+    def fail(options):
+        raise UserError(f"{options.scene}: no such file")
+
+    monkeypatch.setattr(app, "run_viewer", fail)
+    code, _, err = run_cli(capsys, "missing.ply")
+    assert "missing.ply: no such file" in assert_one_line_error(code, err)
+
+
+def test_help_and_version_stay_top_level(capsys, viewer):
+    for argv in (["-h"], ["--help"], ["--version"]):
+        with pytest.raises(SystemExit) as info:
+            main(argv)
+        assert info.value.code == 0
+    out = capsys.readouterr().out
+    assert "view" in out and "render" in out and "raygs-viewer 0" in out
+    with pytest.raises(SystemExit):
+        main(["view", "--help"])
+    assert "--screenshot-scale" in capsys.readouterr().out
+    assert viewer == []
+
+
+def test_join_up_axis_stops_at_double_dash():
+    from raygs_viewer.cli import join_up_axis
+    assert join_up_axis(["--up-axis", "-y", "--", "--up-axis", "-y"]) == ["--up-axis=-y", "--", "--up-axis", "-y"]
+    assert join_up_axis(["--up-axis", "--frames"]) == ["--up-axis", "--frames"]
 
 
 # --------------------------------------------------------------------------- as installed

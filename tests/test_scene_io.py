@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import os
+import threading
 import tracemalloc
 import warnings
 from pathlib import Path
@@ -11,7 +12,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+import raygs_viewer.scene_io as scene_io
 import testkit
+from raygs_viewer.errors import UserError
 from raygs_viewer.scene_io import (
     DROP_REASONS,
     describe,
@@ -536,3 +539,100 @@ def test_real_scenes(name, count, degree, strict_warnings):
     info = describe(scene)
     json.dumps(info)
     assert info["count"] == count
+
+
+# --------------------------------------------------------------------------- progress and cancel
+
+
+def _recorded_load(path, **kwargs):
+    calls = []
+    scene = load_scene(path, progress=lambda fraction, stage: calls.append((fraction, stage)), **kwargs)
+    return scene, calls
+
+
+def _assert_progress_shape(calls):
+    fractions = [f for f, _ in calls]
+    assert fractions == sorted(fractions), calls
+    assert all(0.0 <= f <= 1.0 for f in fractions), calls
+    assert calls[0] == (0.0, "reading") and calls[-1] == (1.0, "done"), calls
+    assert [s for _, s in calls].count("done") == 1
+    assert {s for _, s in calls} <= {"reading", "activating", "validating", "done"}, calls
+
+
+@pytest.mark.parametrize("chunk", [1, 200, 1000, 1 << 22])
+def test_chunked_ply_reading_reports_progress_and_gives_the_same_scene(tmp_path, monkeypatch, chunk):
+    base = gaussian_columns(23, degree=2, filter_3d=0.01)
+    cols = {"red": np.arange(23) % 250}  # a uchar first misaligns the floats: every gather path
+    cols.update(base)
+    path = write_ply(tmp_path / "chunks.ply", cols, types={"red": "uchar"})
+    whole = load_scene(path)
+    monkeypatch.setattr(scene_io, "READ_CHUNK_BYTES", chunk)
+    scene, calls = _recorded_load(path)
+    _assert_progress_shape(calls)
+    row = 1 + 4 * (len(cols) - 1)
+    rows_per_chunk = max(1, chunk // row)
+    assert [s for _, s in calls].count("reading") == 1 + -(-23 // rows_per_chunk)
+    for field in ("positions", "rotations", "scales", "opacities", "sh"):
+        np.testing.assert_array_equal(getattr(scene, field), getattr(whole, field))
+
+
+@pytest.mark.parametrize("chunk", [1, 50, 64, 1 << 22])
+def test_chunked_splat_reading_reports_progress_and_gives_the_same_scene(tmp_path, monkeypatch, chunk):
+    rng = np.random.default_rng(3)
+    n = 9
+    path = tmp_path / "chunks.splat"
+    path.write_bytes(splat_bytes(rng.normal(size=(n, 3)), rng.uniform(0.1, 1, (n, 3)),
+                                 rng.integers(0, 256, (n, 4)), rng.integers(0, 256, (n, 4))))
+    whole = load_scene(path)
+    monkeypatch.setattr(scene_io, "READ_CHUNK_BYTES", chunk)
+    scene, calls = _recorded_load(path)
+    _assert_progress_shape(calls)
+    assert [s for _, s in calls].count("reading") == 1 + -(-32 * n // chunk)
+    for field in ("positions", "rotations", "scales", "opacities", "sh"):
+        np.testing.assert_array_equal(getattr(scene, field), getattr(whole, field))
+
+
+def test_progress_on_an_empty_scene(tmp_path):
+    cols = {name: np.zeros(0) for name in gaussian_columns(1)}
+    scene, calls = _recorded_load(write_ply(tmp_path / "empty.ply", cols))
+    assert scene.count == 0
+    _assert_progress_shape(calls)
+
+
+def test_a_failed_load_reports_no_done(tmp_path):
+    calls = []
+    with pytest.raises(UserError, match="no such file"):
+        load_scene(tmp_path / "nothing.ply", progress=lambda f, s: calls.append((f, s)))
+    assert calls == [(0.0, "reading")]
+
+
+def test_cancel_before_loading(tmp_path):
+    cancel = threading.Event()
+    cancel.set()
+    path = write_ply(tmp_path / "ok.ply", gaussian_columns(3))
+    with pytest.raises(UserError) as info:
+        load_scene(path, cancel=cancel)
+    assert str(info.value) == "loading cancelled"
+
+
+@pytest.mark.parametrize("suffix", [".ply", ".splat"])
+def test_cancel_stops_at_the_next_progress_point(tmp_path, monkeypatch, suffix):
+    path = tmp_path / f"cancel{suffix}"
+    if suffix == ".ply":
+        write_ply(path, gaussian_columns(20))
+    else:
+        path.write_bytes(splat_bytes([[0, 0, 0]] * 20, [[1, 1, 1]] * 20, [[1, 2, 3, 4]] * 20,
+                                     [[200, 128, 128, 128]] * 20))
+    monkeypatch.setattr(scene_io, "READ_CHUNK_BYTES", 64)
+    cancel = threading.Event()
+    calls = []
+
+    def progress(fraction, stage):
+        calls.append((fraction, stage))
+        if len(calls) == 3:  # the second chunk of gaussian data
+            cancel.set()
+
+    with pytest.raises(UserError) as info:
+        load_scene(path, progress=progress, cancel=cancel)
+    assert str(info.value) == "loading cancelled"
+    assert len(calls) == 3 and [s for _, s in calls] == ["reading"] * 3

@@ -101,8 +101,8 @@ class GLRenderer:
         self._splats = ctx.buffer(reserve=max(count, 1) * SPLAT_BYTES)
         self._order = ctx.buffer(reserve=max(count, 1) * 4)
 
-        defines = {"SH_DEGREE": scene.sh_degree}
-        self._preprocess = ctx.compute_shader(shader_source("preprocess.comp", defines))
+        # One preprocessing variant per evaluated SH degree, compiled on first use.
+        self._preprocess_programs: dict[int, moderngl.ComputeShader] = {}
         self._draw = ctx.program(
             vertex_shader=shader_source("raygs.vert", {"SPLAT_BLOCKS": self.layout.splat_blocks,
                                                        "SPLATS_PER_BLOCK": self.layout.splats_per_block}),
@@ -120,7 +120,7 @@ class GLRenderer:
     def preprocess(self, camera: Camera, settings: RenderSettings) -> None:
         """Writes the per-view splat record of every gaussian."""
         layout, count = self.layout, self.scene.count
-        program = self._preprocess
+        program = self._preprocess_program(settings.effective_sh_degree(self.scene.sh_degree))
         program["u_world_to_camera"].write(camera.R.astype(np.float32).tobytes(order="F"))
         program["u_camera_center"].value = tuple(camera.center.astype(np.float32))
         program["u_log_p_min"].value = math.log(settings.p_min)
@@ -136,6 +136,12 @@ class GLRenderer:
             program["u_out_offset"].value = start - block_start
             program.run(group_x=-(-n // WORKGROUP))
         self.ctx.memory_barrier()
+
+    def _preprocess_program(self, degree: int) -> moderngl.ComputeShader:
+        if degree not in self._preprocess_programs:
+            defines = {"SH_DEGREE": degree, "SH_STORED_DEGREE": self.scene.sh_degree}
+            self._preprocess_programs[degree] = self.ctx.compute_shader(shader_source("preprocess.comp", defines))
+        return self._preprocess_programs[degree]
 
     def read_splats(self) -> np.ndarray:
         """(N, 16) float32 copy of the per-view records of the last :meth:`preprocess`
@@ -175,14 +181,19 @@ class GLRenderer:
         if order is None:
             order = self.sort(camera, settings)
         target = self._target(camera.width, camera.height)
+        self.render_into(target, camera, settings, order)
+        pixels = np.frombuffer(target.read(components=4, dtype="f4"), np.float32)
+        return pixels.reshape(camera.height, camera.width, 4)[::-1].copy()
+
+    def render_into(self, target: moderngl.Framebuffer, camera: Camera, settings: RenderSettings,
+                    order: np.ndarray) -> None:
+        """Clears ``target`` (camera-sized, float colour) and draws the scene into it.
+        Clearing to (background, 0) and blending with (ONE, ONE_MINUS_SRC_ALPHA) leaves
+        background-composited colour in RGB and the accumulated alpha in A."""
         target.use()
-        # Clearing to (background, 0) and blending with (ONE, ONE_MINUS_SRC_ALPHA)
-        # leaves background-composited colour in RGB and the accumulated alpha in A.
         target.clear(*settings.background, 0.0)
         self.preprocess(camera, settings)
         self.draw(camera, settings, order)
-        pixels = np.frombuffer(target.read(components=4, dtype="f4"), np.float32)
-        return pixels.reshape(camera.height, camera.width, 4)[::-1].copy()
 
     def _target(self, width: int, height: int) -> moderngl.Framebuffer:
         limit = _limit(self.ctx, "GL_MAX_TEXTURE_SIZE", 16384)
@@ -199,7 +210,10 @@ class GLRenderer:
         for fbo in self._targets.values():
             _release_framebuffer(fbo)
         self._targets.clear()
-        for obj in (self._vao, self._draw, self._preprocess, self._gaussians, self._harmonics,
+        for program in self._preprocess_programs.values():
+            program.release()
+        self._preprocess_programs.clear()
+        for obj in (self._vao, self._draw, self._gaussians, self._harmonics,
                     self._splats, self._order):
             obj.release()
 

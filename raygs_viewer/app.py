@@ -1,0 +1,536 @@
+"""The interactive viewer: a GLFW window, the RayGS renderer, and an imgui panel on top.
+
+One frame: poll input -> move the camera -> ask the background sorter for this
+view (never waiting) -> draw the newest finished order into a float target ->
+show it letterboxed in the window -> panel -> swap. Screenshots re-render the
+same view offscreen with an exact sort, so they reproduce headlessly from their
+sidecar (``raygs-viewer render --sidecar``).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable
+
+import numpy as np
+
+from raygs_viewer.camera import Camera
+from raygs_viewer.errors import UserError
+from raygs_viewer.settings import DEFAULT_P_MIN, RenderSettings
+
+RENDER_MODES = ("RayGS",)
+LETTERBOX_GREY = 0.12
+
+
+@dataclass(frozen=True)
+class ViewerOptions:
+    """Everything ``raygs-viewer view`` takes from the command line.
+
+    scene: a .ply/.splat path or "demo". cameras: training cameras.json (None: look
+    next to the scene). camera/camera_index: the start view (a cameras.json and an
+    index into it). width, height: window size in screen coordinates. frames: quit
+    after that many frames (None: run until closed). screenshot: save the last frame
+    there (PNG, with a .json sidecar beside it). screenshot_dir: where F12 and the
+    panel button save. screenshot_scale: offscreen render scale of those. platform:
+    GLFW platform ("auto", "x11", "wayland", "null"; auto picks null without a display).
+    """
+
+    scene: str = "demo"
+    cameras: str | None = None
+    camera: str | None = None
+    camera_index: int = 0
+    width: int = 1280
+    height: int = 720
+    p_min: float = DEFAULT_P_MIN
+    background: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    sh_degree: int | None = None
+    frames: int | None = None
+    screenshot: str | None = None
+    screenshot_dir: str = "screenshots"
+    screenshot_scale: float = 1.0
+    vsync: bool = True
+    navigation: str = "fly"   # "fly" or "orbit"
+    up_axis: str = "-y"       # one of controls.UP_AXES
+    platform: str = "auto"
+
+
+@dataclass
+class PanelState:
+    """What the panel edits; read by the frame each time (panel edits apply next frame)."""
+
+    p_min: float
+    background: list[float]
+    sh_degree: int
+    render_mode: str = "RayGS"
+    # MIP (Eq. 17) arrives with its own issue; the controls are shown, disabled.
+    mip_enabled: bool = False
+    mip_sigma2: float = 0.1
+    mip_modulation: bool = True
+    screenshot_scale: float = 1.0
+    screenshot_dir: str = "screenshots"
+    open_path: str = ""
+    show_panel: bool = True
+    message: str = ""
+    error: str = ""
+
+
+@dataclass
+class FrameStats:
+    """Rolling statistics for the panel; times in seconds."""
+
+    frame_times: deque = field(default_factory=lambda: deque(maxlen=60))
+    sort_seconds: float = float("nan")
+    gpu_seconds: float = float("nan")
+    visible: int = 0
+    order_age: int = 0          # frames since the drawn order's view was current; 0: up to date
+    drawn_serial: int = 0       # sort request whose order the last draw used
+    draws: int = 0              # frames that re-rendered the scene (others reused the image)
+    frames_with_sort_running: int = 0  # frames completed while a sort was in progress
+
+    @property
+    def fps(self) -> float:
+        return len(self.frame_times) / sum(self.frame_times) if self.frame_times and sum(self.frame_times) > 0 else 0.0
+
+    @property
+    def frame_ms(self) -> float:
+        return 1000 * float(np.median(self.frame_times)) if self.frame_times else float("nan")
+
+
+class GpuTimer:
+    """GPU time of a pass from timer queries, read a couple of frames late so that
+    reading never stalls the CPU on a real GPU."""
+
+    def __init__(self, ctx, depth: int = 3):
+        self._queries = [ctx.query(time=True) for _ in range(depth)]
+        self._pending: deque = deque()
+        self.seconds = float("nan")
+
+    def measure(self):
+        query = self._queries[0]
+        self._queries.append(self._queries.pop(0))
+        if query in self._pending:  # the oldest: its result is due now
+            self._pending.remove(query)
+            self.seconds = query.elapsed * 1e-9
+        self._pending.append(query)
+        return query
+
+
+
+def _camera_key(camera: Camera) -> tuple:
+    return (camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy,
+            camera.R.tobytes(), camera.t.tobytes())
+
+
+class Viewer:
+    """The application: owns the window, the scene on the GPU, the sorter and the panel.
+
+    ``frame()`` runs one iteration of the loop; ``run()`` loops until the window
+    closes. Tests drive ``frame()`` directly and queue input in ``input_script``,
+    which is called with the viewer after the GLFW backend has read the devices and
+    before imgui starts the frame (the place synthetic imgui events must go).
+    """
+
+    def __init__(self, options: ViewerOptions, loaded, start_camera: Camera | None = None, window=None,
+                 sorter_factory=None):
+        from raygs_viewer.loader import SceneLoader
+        from raygs_viewer.window import Window
+
+        self.options = options
+        self.window = window or Window(f"raygs-viewer — {_scene_title(loaded.path)}", options.width,
+                                       options.height, options.platform, options.vsync)
+        self.ctx = self.window.ctx
+        self.window.set_drop_callback(self.on_drop)
+        self.panel = PanelState(p_min=options.p_min, background=list(options.background),
+                                sh_degree=3 if options.sh_degree is None else options.sh_degree,
+                                screenshot_scale=options.screenshot_scale,
+                                screenshot_dir=options.screenshot_dir)
+        self.stats = FrameStats()
+        self.frame_index = 0
+        self.input_script: Callable[["Viewer"], None] | None = None
+        self.fixed_dt: float | None = None  # tests: a deterministic frame time
+        self.sorter_factory = sorter_factory  # tests: wraps the sorter to instrument it
+        self.loader = SceneLoader()
+        self.loaded = None
+        self.navigator = None
+        self.renderer = None
+        self.sorter = None
+        self.camera: Camera | None = None   # the view of the last frame, viewport-sized
+        self.viewport = (0, 0, 1, 1)
+        self.training_index: int | None = None
+        self.screenshot_requested = False
+        self.last_screenshot: tuple[Path, Path] | None = None
+        self._request_frames: dict[int, int] = {}
+        self._drawn_key = None
+        self._target = None
+        self._present = self.ctx.program(*_present_shaders())
+        self._present_vao = self.ctx.vertex_array(self._present, [])
+        self._timer = GpuTimer(self.ctx)
+        self._last_time = None
+        self._install(loaded, start_camera)
+        if options.navigation == "orbit":
+            self.navigator.set_mode("orbit")
+
+    # -- scene ---------------------------------------------------------------------
+    def _install(self, loaded, start_camera: Camera | None = None) -> None:
+        """Puts a loaded scene on the GPU; on failure the current scene stays."""
+        from raygs_viewer.controls import Lens, Navigator, Pose, framing_pose, scene_bounds
+        from raygs_viewer.render.renderer import GLRenderer
+        from raygs_viewer.sort_worker import BackgroundSorter
+
+        renderer = GLRenderer(self.ctx, loaded.scene)  # UserError (too large) leaves everything as it was
+        if self.renderer is not None:
+            self.renderer.release()
+        if self.sorter is not None:
+            self.sorter.close()
+        self.renderer = renderer
+        self.sorter = (self.sorter_factory or BackgroundSorter)(renderer.sorter)
+        self._request_frames.clear()
+        self._drawn_key = None
+        self.loaded = loaded
+        self.training_index = None
+        self.panel.sh_degree = min(self.panel.sh_degree, loaded.scene.sh_degree) if self.options.sh_degree is not None \
+            else loaded.scene.sh_degree
+        self.center, self.radius = scene_bounds(loaded.scene.positions)
+        # A new scene keeps the user's navigation choices.
+        up = self.options.up_axis if self.navigator is None else self.navigator.up
+        mode = self.options.navigation if self.navigator is None else self.navigator.mode
+        if start_camera is not None:
+            pose, self.lens = Pose.from_camera(start_camera), Lens.of_camera(start_camera)
+        elif loaded.cameras:
+            # The first training view, filling the window with its vertical field of view.
+            first = loaded.cameras[0]
+            pose, self.lens = Pose.from_camera(first), Lens(fov_y_degrees=_fov_y(first))
+        else:
+            self.lens = Lens()
+            pose = framing_pose(self.center, self.radius, up, self.lens.fov_y_degrees,
+                                self.options.width / self.options.height)
+        self.navigator = Navigator(pose, self.center, self.radius, up=up, mode=mode)
+        if self.window is not None:
+            import glfw
+            glfw.set_window_title(self.window.handle, f"raygs-viewer — {_scene_title(loaded.path)}")
+
+    def open_scene(self, path: str) -> None:
+        """Starts loading ``path`` in the background; the current scene stays until it is ready."""
+        path = path.strip()
+        if not path:
+            self.panel.error = "error: no file given"
+            return
+        self.panel.error = ""
+        self.panel.message = f"loading {path} ..."
+        self.loader.start(path)
+
+    def on_drop(self, paths: list[str]) -> None:
+        if paths:
+            self.open_scene(paths[0])
+            if len(paths) > 1:
+                self.panel.message = f"{len(paths)} files dropped; opening the first"
+
+    def _poll_loader(self) -> None:
+        result = self.loader.poll()
+        if result is None:
+            return
+        if isinstance(result, UserError):
+            self.panel.error = f"error: {str(result).splitlines()[0]}"
+            self.panel.message = ""
+            return
+        try:
+            self._install(result)
+        except UserError as exc:
+            self.panel.error = f"error: {exc}"
+            self.panel.message = ""
+            return
+        self.panel.error = ""
+        self.panel.message = "; ".join(["loaded " + _scene_title(result.path)] + list(result.warnings))
+
+    # -- view ------------------------------------------------------------------------
+    def settings(self) -> RenderSettings:
+        return RenderSettings(p_min=self.panel.p_min, background=tuple(self.panel.background),
+                              sh_degree=self.panel.sh_degree)
+
+    def select_training_camera(self, index: int) -> None:
+        """Flies to training camera ``index`` (wrapping) and renders with its intrinsics."""
+        from raygs_viewer.controls import Lens, Pose
+        cameras = self.loaded.cameras
+        if not cameras:
+            self.panel.message = "this scene has no training cameras"
+            return
+        index %= len(cameras)
+        self.training_index = index
+        self.lens = Lens.of_camera(cameras[index])
+        self.navigator.fly_to(Pose.from_camera(cameras[index]))
+
+    def step_training_camera(self, step: int) -> None:
+        start = self.training_index if self.training_index is not None else (-1 if step > 0 else 0)
+        self.select_training_camera(start + step)
+
+    def reset_view(self) -> None:
+        from raygs_viewer.controls import Lens, framing_pose
+        self.training_index = None
+        self.lens = Lens(fov_y_degrees=self.lens.fov_y_degrees if self.lens.source is None else 60.0)
+        width, height = self.window.framebuffer_size()
+        aspect = width / height if width > 0 and height > 0 else self.options.width / self.options.height
+        self.navigator.reset(framing_pose(self.center, self.radius, self.navigator.up,
+                                          self.lens.fov_y_degrees, aspect))
+
+    def set_fov(self, fov_y_degrees: float) -> None:
+        self.training_index = None
+        self.lens = self.lens.with_fov(fov_y_degrees)
+
+    # -- input -----------------------------------------------------------------------
+    def _handle_input(self, dt: float) -> None:
+        from imgui_bundle import imgui
+        io = imgui.get_io()
+        key = imgui.Key
+        nav = self.navigator
+        if not io.want_capture_keyboard:
+            pressed = lambda *keys: any(imgui.is_key_pressed(k, False) for k in keys)  # noqa: E731
+            down = lambda k: 1.0 if imgui.is_key_down(k) else 0.0  # noqa: E731
+            if pressed(key.escape):
+                self.window.request_close()
+            if pressed(key.f12):
+                self.screenshot_requested = True
+            if pressed(key.tab):
+                nav.set_mode("orbit" if nav.mode == "fly" else "fly")
+            if pressed(key.n, key.page_down):
+                self.step_training_camera(+1)
+            if pressed(key.p, key.page_up):
+                self.step_training_camera(-1)
+            if pressed(key.r, key.home):
+                self.reset_view()
+            if pressed(key.h, key.f1):
+                self.panel.show_panel = not self.panel.show_panel
+            right = down(key.d) - down(key.a)
+            upward = down(key.e) - down(key.q)
+            forward = down(key.w) - down(key.s)
+            if right or upward or forward:
+                nav.move(dt, right, upward, forward, fast=io.key_shift, slow=io.key_ctrl)
+        if not io.want_capture_mouse:
+            dx, dy = io.mouse_delta.x, io.mouse_delta.y
+            if not (math.isfinite(dx) and math.isfinite(dy)):
+                dx = dy = 0.0
+            left, right_button, middle = (imgui.is_mouse_down(b) for b in (0, 1, 2))
+            wheel = io.mouse_wheel
+            if nav.mode == "fly":
+                if (left or right_button) and (dx or dy):
+                    nav.look(dx, dy)
+                if wheel:
+                    nav.scale(wheel)
+            else:
+                panning = right_button or middle or (left and io.key_shift)
+                if panning and (dx or dy):
+                    scale = io.display_framebuffer_scale
+                    focal = self.camera.fy if self.camera is not None else 1000.0
+                    nav.pan(dx * scale.x, dy * scale.y, focal)
+                elif left and (dx or dy):
+                    nav.rotate(dx, dy)
+                if wheel:
+                    nav.zoom(wheel)
+
+    # -- frame -----------------------------------------------------------------------
+    def frame(self) -> None:
+        """One iteration of the loop (see the module docstring)."""
+        from imgui_bundle import imgui
+
+        import glfw
+        now = time.perf_counter()
+        if self._last_time is not None:
+            self.stats.frame_times.append(now - self._last_time)
+        dt = self.fixed_dt if self.fixed_dt is not None else (
+            min(now - self._last_time, 0.1) if self._last_time is not None else 0.0)
+        self._last_time = now
+        self.frame_index += 1
+        glfw.poll_events()
+        self._poll_loader()
+        width, height = self.window.framebuffer_size()
+        if width <= 0 or height <= 0:  # minimised: nothing to draw, do not spin
+            if self.options.frames is None:
+                glfw.wait_events_timeout(0.1)
+            return
+        self.window.begin_frame()
+        if self.input_script is not None:
+            self.input_script(self)
+        imgui.new_frame()
+        self._handle_input(dt)
+        self.navigator.advance(dt)
+
+        x, y, w, h = self.viewport = self.lens.viewport(width, height)
+        camera = self.camera = self.lens.camera(self.navigator.pose, w, h)
+        settings = self.settings()
+        serial = self.sorter.request(camera, settings.p_min)
+        self._request_frames.setdefault(serial, self.frame_index)
+        result = self.sorter.latest()
+        if self.sorter.started > self.sorter.finished:
+            self.stats.frames_with_sort_running += 1
+
+        if self.panel.show_panel:
+            from raygs_viewer.panel import draw_panel
+            draw_panel(self)
+        imgui.render()
+
+        self._draw_scene(camera, settings, result)
+        self._present_image(width, height, x, y, w, h)
+        self.window.end_frame()
+        if self.screenshot_requested:
+            self.screenshot_requested = False
+            try:
+                png, sidecar = self.save_screenshot()
+                self.panel.message, self.panel.error = f"saved {png}", ""
+            except UserError as exc:
+                self.panel.error = f"error: {exc}"
+
+    def _draw_scene(self, camera: Camera, settings: RenderSettings, result) -> None:
+        if result is None:
+            self.stats.order_age = self.frame_index - min(self._request_frames.values(), default=self.frame_index)
+            order, serial = np.zeros(0, np.uint32), 0
+        else:
+            order, serial = result.order, result.serial
+            current = _camera_key(result.camera) == _camera_key(camera) and result.p_min == settings.p_min
+            self.stats.order_age = 0 if current else self.frame_index - self._request_frames.get(serial, self.frame_index)
+            self.stats.sort_seconds = result.seconds
+            self.stats.visible = int(order.size)
+        key = (_camera_key(camera), settings, serial)
+        target = self._target_for(camera.width, camera.height)
+        if key == self._drawn_key:
+            return  # nothing changed: the image in the target is still right
+        with self._timer.measure():
+            self.renderer.render_into(target, camera, settings, order)
+        self.stats.gpu_seconds = self._timer.seconds
+        self.stats.drawn_serial = serial
+        self.stats.draws += 1
+        self._drawn_key = key
+
+    def _target_for(self, width: int, height: int):
+        if self._target is None or self._target.size != (width, height):
+            if self._target is not None:
+                for attachment in self._target.color_attachments:
+                    attachment.release()
+                self._target.release()
+            texture = self.ctx.texture((width, height), 4, dtype="f4")
+            self._target = self.ctx.framebuffer(color_attachments=[texture])
+            self._drawn_key = None
+        return self._target
+
+    def _present_image(self, width: int, height: int, x: int, y: int, w: int, h: int) -> None:
+        import moderngl
+        ctx = self.ctx
+        screen = ctx.screen
+        screen.use()
+        screen.viewport = (0, 0, width, height)
+        ctx.clear(LETTERBOX_GREY, LETTERBOX_GREY, LETTERBOX_GREY, 1.0)
+        lower = height - y - h  # the viewport's y counts from the top, GL's from the bottom
+        screen.viewport = (x, lower, w, h)
+        ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST)
+        self._target.color_attachments[0].use(0)
+        self._present["u_image"].value = 0
+        self._present["u_origin"].value = (x, lower)
+        self._present_vao.render(moderngl.TRIANGLES, vertices=3)
+        screen.viewport = (0, 0, width, height)
+
+    # -- screenshots -------------------------------------------------------------------
+    def save_screenshot(self, path: str | Path | None = None) -> tuple[Path, Path]:
+        """Re-renders the last frame's view offscreen at the panel's scale (exact sort,
+        no panel) and saves PNG + JSON sidecar; never overwrites anything."""
+        from raygs_viewer.render.context import context_description
+        from raygs_viewer.screenshot import render_tiled, save_screenshot, scaled_camera
+        from raygs_viewer.sidecar import build_sidecar
+
+        if self.camera is None:
+            raise UserError("nothing has been drawn yet")
+        scale = self.panel.screenshot_scale
+        camera = scaled_camera(self.camera, scale)
+        settings = self.settings()
+        image = render_tiled(self.renderer, camera, settings)
+        scene_path = self.loaded.path if self.loaded.path == "demo" else os.path.abspath(self.loaded.path)
+        sidecar = build_sidecar(
+            scene_path=scene_path, scene_sha256=self.loaded.sha256, scene=self.loaded.scene,
+            camera=camera, settings=settings, scale=scale, window_camera=self.camera,
+            extra={"navigation": self.navigator.mode, "up_axis": self.navigator.up,
+                   "training_camera": self.training_index,
+                   "training_camera_name": (self.loaded.camera_names[self.training_index]
+                                            if self.training_index is not None else None),
+                   "gl": context_description(self.ctx)})
+        if path is not None:
+            saved = save_screenshot(image, sidecar, path=Path(path))
+        else:
+            saved = save_screenshot(image, sidecar, folder=Path(self.panel.screenshot_dir))
+        self.last_screenshot = saved
+        return saved
+
+    # -- loop ------------------------------------------------------------------------
+    def run(self) -> None:
+        while not self.window.should_close:
+            self.frame()
+            if self.options.frames is not None and self.frame_index >= self.options.frames:
+                break
+        if self.options.screenshot is not None:
+            self.save_screenshot(self.options.screenshot)
+
+    def close(self) -> None:
+        if self.window is None:
+            return
+        self.loader.close()
+        if self.sorter is not None:
+            self.sorter.close()
+        import glfw
+        glfw.make_context_current(self.window.handle)
+        if self.renderer is not None:
+            self.renderer.release()
+        if self._target is not None:
+            for attachment in self._target.color_attachments:
+                attachment.release()
+            self._target.release()
+        self._present_vao.release()
+        self._present.release()
+        self.window.close()
+        self.window = None
+
+
+def _present_shaders() -> tuple[str, str]:
+    from raygs_viewer.render.shaders import shader_source
+    return shader_source("present.vert"), shader_source("present.frag")
+
+
+def _fov_y(camera: Camera) -> float:
+    return math.degrees(2 * math.atan(camera.height / (2 * camera.fy)))
+
+
+def _scene_title(path: str) -> str:
+    return "demo scene" if path == "demo" else Path(path).name
+
+
+def start_camera(options: ViewerOptions) -> Camera | None:
+    if options.camera is None:
+        return None
+    from raygs_viewer.camera import load_camera
+    return load_camera(options.camera, options.camera_index)
+
+
+def run_viewer(options: ViewerOptions) -> int:
+    """Opens the window and runs until it is closed (or ``options.frames`` have been
+    drawn); returns the exit status. Bad input found before the window opens (scene,
+    cameras, screenshot path) raises UserError, so the CLI exits with status 2."""
+    from raygs_viewer.loader import load_now
+
+    if options.screenshot is not None:
+        from raygs_viewer.screenshot import check_screenshot_path
+        check_screenshot_path(options.screenshot)
+    loaded = load_now(options.scene, options.cameras)
+    for warning in loaded.warnings:
+        print(f"warning: {warning}", flush=True)
+    camera = start_camera(options)
+    viewer = Viewer(options, loaded, camera)
+    try:
+        viewer.run()
+        if viewer.last_screenshot is not None and options.screenshot is not None:
+            print(f"{viewer.last_screenshot[0]} (+ {viewer.last_screenshot[1].name})")
+    finally:
+        viewer.close()
+    return 0
+
+
+__all__ = ["ViewerOptions", "Viewer", "run_viewer", "RENDER_MODES"]

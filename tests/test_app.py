@@ -1,0 +1,500 @@
+"""The real application loop, in-process, with no X server: GLFW's null platform with
+an EGL context, imgui-bundle's GLFW and OpenGL backends, and synthetic imgui input
+queued where the backends would put real input."""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+
+import numpy as np
+import pytest
+from imgui_bundle import imgui  # before glfw (see raygs_viewer.window)
+from PIL import Image
+
+from raygs_viewer.app import Viewer, ViewerOptions
+from raygs_viewer.loader import load_now
+from raygs_viewer.settings import RenderSettings
+from raygs_viewer.sort_worker import BackgroundSorter
+from testkit import assert_matches
+
+WIDTH, HEIGHT = 192, 144
+PANEL_WIDTH, PANEL_HEIGHT = 640, 720  # room for the whole panel
+
+
+class Driver:
+    """Queues imgui input for the next frames and runs them."""
+
+    def __init__(self, viewer: Viewer):
+        self.viewer = viewer
+        self.mouse: tuple[float, float] | None = None
+        self._queued: list = []
+        viewer.input_script = self._inject
+        viewer.fixed_dt = 0.1
+
+    def _inject(self, viewer) -> None:
+        io = imgui.get_io()
+        if self.mouse is not None:  # the GLFW backend overwrites the position every frame
+            io.add_mouse_pos_event(*self.mouse)
+        for event in self._queued:
+            event(io)
+        self._queued = []
+
+    def key(self, key, down: bool = True) -> None:
+        self._queued.append(lambda io: io.add_key_event(key, down))
+
+    def tap(self, key) -> None:
+        self.key(key, True)
+        self.frames(1)
+        self.key(key, False)
+        self.frames(1)
+
+    def button(self, button: int, down: bool) -> None:
+        self._queued.append(lambda io: io.add_mouse_button_event(button, down))
+
+    def wheel(self, ticks: float) -> None:
+        self._queued.append(lambda io: io.add_mouse_wheel_event(0.0, ticks))
+
+    def move_mouse(self, x: float, y: float) -> None:
+        self.mouse = (x, y)
+
+    def frames(self, count: int = 1) -> None:
+        for _ in range(count):
+            self.viewer.frame()
+
+    def settle(self) -> None:
+        """Frames until the drawn order is the one for the current view."""
+        for _ in range(50):
+            self.frames(1)
+            self.viewer.sorter.wait(self.viewer.sorter.requested, timeout=30)
+            self.frames(1)
+            if self.viewer.stats.order_age == 0:
+                return
+        raise AssertionError("the order never caught up with the view")
+
+    def wait_for_load(self) -> None:
+        """Frames until the background load has finished and the window has taken its result."""
+        for _ in range(3000):
+            if not self.viewer.loader.busy:
+                break
+            time.sleep(0.01)
+        assert not self.viewer.loader.busy
+        self.frames(1)
+
+    def click(self, rect) -> None:
+        x0, y0, x1, y1 = rect
+        self.move_mouse((x0 + x1) / 2, (y0 + y1) / 2)
+        self.frames(1)
+        self.button(0, True)
+        self.frames(1)
+        self.button(0, False)
+        self.frames(1)
+
+
+@pytest.fixture
+def open_viewer(restore_gl_ctx, tmp_path):
+    viewers = []
+
+    def open_(scene="demo", hide_panel=False, **options):
+        options.setdefault("width", WIDTH)
+        options.setdefault("height", HEIGHT)
+        options.setdefault("screenshot_dir", str(tmp_path / "shots"))
+        sorter_factory = options.pop("sorter_factory", None)
+        viewer = Viewer(ViewerOptions(scene=scene, platform="null", **options), load_now(scene),
+                        _start_camera(options), sorter_factory=sorter_factory)
+        viewers.append(viewer)
+        viewer.panel.show_panel = not hide_panel
+        return viewer, Driver(viewer)
+
+    yield open_
+    for viewer in viewers:
+        viewer.close()
+
+
+def _start_camera(options):
+    from raygs_viewer.app import start_camera
+    return start_camera(ViewerOptions(camera=options.get("camera")))
+
+
+def window_image(viewer: Viewer) -> np.ndarray:
+    """The scene image the window shows (its float target), top row first."""
+    target = viewer._target
+    w, h = target.size
+    return np.frombuffer(target.read(components=4, dtype="f4"), np.float32).reshape(h, w, 4)[::-1]
+
+
+def headless(viewer: Viewer, settings: RenderSettings | None = None) -> np.ndarray:
+    return viewer.renderer.render(viewer.camera, settings or viewer.settings())
+
+
+def project(camera, point) -> np.ndarray:
+    p = camera.R @ np.asarray(point, float) + camera.t
+    return np.array([camera.fx * p[0] / p[2] + camera.cx, camera.fy * p[1] / p[2] + camera.cy, p[2]])
+
+
+# -- the window shows the right image ---------------------------------------------------
+def test_window_image_is_the_headless_render_of_its_camera(open_viewer):
+    viewer, drive = open_viewer(hide_panel=True)
+    drive.settle()
+    camera = viewer.camera
+    assert (camera.width, camera.height) == (WIDTH, HEIGHT)
+    assert_matches(window_image(viewer), headless(viewer))
+    # and the start view is the demo's default view, filling the window
+    from raygs_viewer.demo import demo_camera
+    np.testing.assert_allclose(camera.center, demo_camera().center, atol=1e-9)
+    np.testing.assert_allclose(camera.R, demo_camera().R, atol=1e-9)
+
+
+# -- keys and mouse move the camera as documented ------------------------------------------
+@pytest.mark.parametrize("key_name, axis, sign", [("w", 2, +1), ("s", 2, -1), ("d", 0, +1), ("a", 0, -1)])
+def test_keys_move_the_camera(open_viewer, key_name, axis, sign):
+    viewer, drive = open_viewer(hide_panel=True)
+    drive.frames(1)
+    before = viewer.camera
+    drive.key(getattr(imgui.Key, key_name), True)
+    drive.frames(1)
+    drive.key(getattr(imgui.Key, key_name), False)
+    drive.frames(1)
+    after = viewer.camera
+    # The displacement in the old camera's axes (x right, y down, z forward).
+    step = before.R @ (after.center - before.center)
+    expected = viewer.navigator.speed * 0.1
+    assert step[axis] == pytest.approx(sign * expected, rel=1e-6)
+    assert np.abs(np.delete(step, axis)).max() < 1e-9 * expected
+    np.testing.assert_array_equal(after.R, before.R)
+
+
+@pytest.mark.parametrize("key_name, sign", [("e", +1), ("q", -1)])
+@pytest.mark.parametrize("up_axis", ["-y", "+z"])
+def test_e_and_q_move_along_the_world_up_axis(open_viewer, key_name, sign, up_axis):
+    from raygs_viewer.controls import up_vector
+    viewer, drive = open_viewer(hide_panel=True, up_axis=up_axis)
+    drive.frames(1)
+    before = viewer.camera.center
+    drive.key(getattr(imgui.Key, key_name), True)
+    drive.frames(1)
+    drive.key(getattr(imgui.Key, key_name), False)
+    drive.frames(1)
+    np.testing.assert_allclose(viewer.camera.center - before, sign * up_vector(up_axis) * viewer.navigator.speed * 0.1,
+                               atol=1e-9)
+
+
+def test_shift_moves_faster_and_wheel_changes_speed(open_viewer):
+    viewer, drive = open_viewer(hide_panel=True)
+    drive.frames(1)
+    speed = viewer.navigator.speed
+    drive.move_mouse(WIDTH / 2, HEIGHT / 2)
+    drive.wheel(2)
+    drive.frames(2)
+    assert viewer.navigator.speed == pytest.approx(speed * 1.25 ** 2)
+    before = viewer.camera.center
+    drive.key(imgui.Key.mod_shift, True)  # what the GLFW backend sends with left_shift
+    drive.key(imgui.Key.w, True)
+    drive.frames(1)
+    drive.key(imgui.Key.w, False)
+    drive.key(imgui.Key.mod_shift, False)
+    drive.frames(1)
+    assert np.linalg.norm(viewer.camera.center - before) == pytest.approx(4 * viewer.navigator.speed * 0.1, rel=1e-6)
+
+
+def test_mouse_drag_looks_around_in_fly_mode(open_viewer):
+    viewer, drive = open_viewer(hide_panel=True)
+    drive.move_mouse(WIDTH / 2, HEIGHT / 2)
+    drive.frames(2)
+    camera = viewer.camera
+    ahead = camera.center + 5.0 * camera.R[2]  # a point at the image centre
+    drive.button(0, True)
+    drive.frames(1)
+    drive.move_mouse(WIDTH / 2 + 40, HEIGHT / 2)
+    drive.frames(1)
+    drive.button(0, False)
+    drive.frames(1)
+    u, v, _ = project(viewer.camera, ahead)
+    assert u < viewer.camera.cx - 10  # turned right: what was ahead is now left of centre
+    assert abs(v - viewer.camera.cy) < 1.0
+    np.testing.assert_allclose(viewer.camera.center, camera.center)  # looking does not move
+
+
+def test_orbit_mode_drag_keeps_the_target_centred(open_viewer):
+    viewer, drive = open_viewer(hide_panel=True)
+    drive.move_mouse(WIDTH / 2, HEIGHT / 2)
+    drive.frames(1)
+    drive.tap(imgui.Key.tab)
+    assert viewer.navigator.mode == "orbit"
+    target, distance = viewer.navigator.target.copy(), viewer.navigator.distance
+    drive.button(0, True)
+    drive.frames(1)
+    drive.move_mouse(WIDTH / 2 + 30, HEIGHT / 2 + 10)
+    drive.frames(1)
+    drive.button(0, False)
+    drive.frames(1)
+    camera = viewer.camera
+    u, v, z = project(camera, target)
+    assert (u, v) == pytest.approx((camera.cx, camera.cy), abs=1e-6)
+    assert np.linalg.norm(camera.center - target) == pytest.approx(distance, rel=1e-9)
+    assert camera.R[0] @ (camera.center - viewer.navigator.target) != 0
+    # the wheel zooms towards the target
+    drive.wheel(1)
+    drive.frames(2)
+    assert viewer.navigator.distance == pytest.approx(distance * 0.85, rel=1e-9)
+
+
+def test_mouse_over_the_panel_does_not_move_the_camera(open_viewer):
+    viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
+    drive.frames(2)
+    from raygs_viewer.panel import item_rects
+    x0, y0, x1, y1 = item_rects["Reset view"]
+    drive.move_mouse(x0 - 2, y0)  # on the panel, beside the button
+    drive.frames(1)
+    pose = viewer.camera
+    drive.button(0, True)
+    drive.frames(1)
+    drive.move_mouse(x0 + 30, y0 + 5)
+    drive.frames(1)
+    drive.button(0, False)
+    drive.frames(1)
+    np.testing.assert_array_equal(viewer.camera.R, pose.R)
+
+
+# -- the panel changes settings and the image ---------------------------------------------
+def test_panel_click_changes_the_setting_and_the_image(open_viewer):
+    viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
+    drive.settle()
+    before = window_image(viewer).copy()
+    from raygs_viewer.panel import item_rects
+    drive.click(item_rects["background white"])
+    assert viewer.panel.background == [1.0, 1.0, 1.0]
+    drive.settle()
+    after = window_image(viewer)
+    assert np.abs(after - before).max() > 0.5
+    assert_matches(after, headless(viewer, RenderSettings(viewer.panel.p_min, (1.0, 1.0, 1.0), 3)))
+
+    # Dragging the SH degree slider to its left end evaluates band 0 only.
+    x0, y0, x1, y1 = item_rects["SH degree"]
+    drive.move_mouse(x0 + 2, (y0 + y1) / 2)
+    drive.frames(1)
+    drive.button(0, True)
+    drive.frames(1)
+    drive.button(0, False)
+    drive.frames(1)
+    assert viewer.panel.sh_degree == 0
+    drive.settle()
+    degree0 = window_image(viewer)
+    assert np.abs(degree0 - after).max() > 0.05  # the demo's sphere is view-dependent
+    assert_matches(degree0, headless(viewer, RenderSettings(viewer.panel.p_min, (1.0, 1.0, 1.0), 0)))
+
+
+# -- screenshots -----------------------------------------------------------------------------
+def test_f12_screenshot_with_sidecar_reproduces_headlessly(open_viewer, tmp_path):
+    from raygs_viewer.cli import main
+    viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)  # the panel is open: the screenshot must not show it
+    drive.move_mouse(PANEL_WIDTH - 5, PANEL_HEIGHT - 5)
+    drive.settle()
+    drive.tap(imgui.Key.f12)
+    png, sidecar = viewer.last_screenshot
+    assert png.parent == tmp_path / "shots" and sidecar == png.with_suffix(".json")
+    shot = np.asarray(Image.open(png))
+    assert shot.shape == (PANEL_HEIGHT, PANEL_WIDTH, 3)
+    info = json.loads(sidecar.read_text())
+    assert info["camera"]["width"] == PANEL_WIDTH and info["scene"]["path"] == "demo"
+    assert info["settings"]["p_min"] == viewer.panel.p_min
+    # The scene alone: equal to the headless render of the window's camera.
+    from raygs_viewer.imageio import to_rgb8
+    expected = to_rgb8(headless(viewer))
+    assert np.abs(shot.astype(int) - expected).max() <= 1
+    # ... and `render --sidecar` reproduces the PNG.
+    out = tmp_path / "again.png"
+    assert main(["render", "--sidecar", str(sidecar), "--out", str(out)]) == 0
+    np.testing.assert_array_equal(np.asarray(Image.open(out)), shot)
+
+    # A second capture never overwrites the first.
+    first = png.read_bytes()
+    drive.tap(imgui.Key.f12)
+    second, _ = viewer.last_screenshot
+    assert second != png and png.read_bytes() == first
+
+
+def test_panel_button_saves_at_the_chosen_scale(open_viewer):
+    viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
+    drive.frames(2)
+    viewer.panel.screenshot_scale = 2.0
+    from raygs_viewer.panel import item_rects
+    drive.click(item_rects["Save screenshot"])
+    png, sidecar = viewer.last_screenshot
+    assert Image.open(png).size == (2 * PANEL_WIDTH, 2 * PANEL_HEIGHT)
+    assert json.loads(sidecar.read_text())["image"]["scale"] == 2.0
+
+
+def test_unwritable_screenshot_folder_reports_and_keeps_running(open_viewer, tmp_path):
+    viewer, drive = open_viewer(hide_panel=True)
+    blocker = tmp_path / "not-a-folder"
+    blocker.write_text("x")
+    viewer.panel.screenshot_dir = str(blocker / "shots")
+    drive.frames(1)
+    drive.tap(imgui.Key.f12)
+    assert viewer.panel.error.startswith("error: ") and "\n" not in viewer.panel.error
+    drive.frames(2)  # still running
+
+
+# -- loading --------------------------------------------------------------------------------
+def test_bad_file_dropped_in_shows_an_error_and_keeps_the_scene(open_viewer, tmp_path):
+    viewer, drive = open_viewer(hide_panel=True)
+    drive.settle()
+    loaded, image = viewer.loaded, window_image(viewer).copy()
+    bad = tmp_path / "broken.ply"
+    bad.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 100\nproperty float x\nend_header\n\x00")
+    viewer.on_drop([str(bad)])
+    drive.wait_for_load()
+    assert viewer.panel.error.startswith("error: ") and "broken.ply" in viewer.panel.error
+    assert "\n" not in viewer.panel.error
+    assert viewer.loaded is loaded
+    drive.settle()
+    np.testing.assert_array_equal(window_image(viewer), image)
+
+
+def test_good_file_dropped_in_replaces_the_scene(open_viewer, tmp_path):
+    from test_scene_io import gaussian_columns, write_ply
+    viewer, drive = open_viewer(hide_panel=True)
+    drive.frames(1)
+    path = tmp_path / "small.ply"
+    write_ply(path, gaussian_columns(n=50, degree=1, seed=3))
+    viewer.on_drop([str(path)])
+    drive.wait_for_load()
+    assert viewer.panel.error == ""
+    assert viewer.loaded.path == str(path) and viewer.loaded.scene.count == 50
+    drive.settle()
+    assert_matches(window_image(viewer), headless(viewer))
+
+
+# -- the sort never makes a frame wait ----------------------------------------------------------
+class BlockingSorter:
+    """Wraps a DepthSorter; every sort waits for ``release`` (set by the test)."""
+
+    def __init__(self, sorter):
+        self.sorter = sorter
+        self.release = threading.Event()
+        self.inside = threading.Event()
+
+    def order(self, camera, p_min):
+        self.inside.set()
+        self.release.wait()
+        return self.sorter.order(camera, p_min)
+
+
+def test_frames_never_wait_for_the_sort(open_viewer):
+    blocking = []
+
+    def factory(sorter):
+        blocking.append(BlockingSorter(sorter))
+        return BackgroundSorter(blocking[-1])
+
+    viewer, drive = open_viewer(hide_panel=True, sorter_factory=factory)
+    gate = blocking[-1]
+    drive.frames(1)
+    assert gate.inside.wait(timeout=30)  # the first sort is running, and stays blocked
+    drive.key(imgui.Key.w, True)
+    drive.frames(10)  # each moves the camera: a new request every frame
+    drive.key(imgui.Key.w, False)
+    drive.frames(1)
+    # Twelve frames completed while the only sort ever started was still blocked.
+    assert viewer.sorter.started == 1 and viewer.sorter.finished == 0
+    assert viewer.stats.frames_with_sort_running >= 11
+    assert viewer.stats.order_age >= 11 and viewer.stats.visible == 0
+    assert viewer.sorter.superseded >= 9  # views that went by were never sorted
+    gate.release.set()
+    drive.settle()
+    assert viewer.stats.drawn_serial == viewer.sorter.latest().serial
+    assert_matches(window_image(viewer), headless(viewer))
+
+
+# -- training cameras --------------------------------------------------------------------------
+def test_training_camera_keys_fly_smoothly_and_use_its_intrinsics(open_viewer):
+    from raygs_viewer.demo import demo_cameras
+    viewer, drive = open_viewer(hide_panel=True)
+    drive.frames(1)
+    start = viewer.camera.center.copy()
+    drive.tap(imgui.Key.n)
+    assert viewer.training_index == 0
+    drive.tap(imgui.Key.n)
+    assert viewer.training_index == 1
+    target = demo_cameras()[1]
+    assert not np.allclose(viewer.camera.center, target.center)  # on its way, not jumped
+    drive.frames(10)
+    camera = viewer.camera
+    np.testing.assert_allclose(camera.center, target.center, atol=1e-9)
+    np.testing.assert_allclose(camera.R, target.R, atol=1e-9)
+    # 640x480 letterboxed into 192x144 is the same aspect: exactly the camera, scaled.
+    assert (camera.width, camera.height) == (WIDTH, HEIGHT)
+    assert camera.fx == pytest.approx(target.fx * WIDTH / target.width)
+    assert camera.cy == pytest.approx(target.cy * HEIGHT / target.height)
+    drive.tap(imgui.Key.p)
+    assert viewer.training_index == 0
+    assert not np.allclose(start, target.center)
+
+
+def test_training_camera_of_another_aspect_is_letterboxed(open_viewer, tmp_path):
+    from raygs_viewer.camera import camera_to_json, look_at
+    square = look_at((0, 0, -4), (0, 0, 0), width=300, height=300, fov_y_degrees=50)
+    path = tmp_path / "cameras.json"
+    path.write_text(json.dumps([camera_to_json(square)]))
+    viewer, drive = open_viewer(hide_panel=True, camera=str(path))
+    drive.settle()
+    assert viewer.viewport == ((WIDTH - HEIGHT) // 2, 0, HEIGHT, HEIGHT)
+    assert (viewer.camera.width, viewer.camera.height) == (HEIGHT, HEIGHT)
+    assert viewer.camera.fx == pytest.approx(square.fx * HEIGHT / 300)
+    assert_matches(window_image(viewer), headless(viewer))
+
+
+# -- window behaviour ------------------------------------------------------------------------------
+def test_resize_and_minimise(open_viewer):
+    import glfw
+    viewer, drive = open_viewer(hide_panel=True)
+    drive.frames(1)
+    glfw.set_window_size(viewer.window.handle, 0, 0)
+    draws = viewer.stats.draws
+    drive.frames(3)  # minimised: no draw, no error
+    assert viewer.stats.draws == draws
+    glfw.set_window_size(viewer.window.handle, 240, 100)
+    drive.settle()
+    assert (viewer.camera.width, viewer.camera.height) == (240, 100)
+    assert_matches(window_image(viewer), headless(viewer))
+
+
+def test_escape_quits_the_loop(open_viewer):
+    viewer, drive = open_viewer(hide_panel=True)
+    drive.frames(1)
+    drive.key(imgui.Key.escape, True)
+    viewer.run()  # returns once the key closes the window
+    assert viewer.window.should_close
+
+
+def test_reset_view_frames_the_scene(open_viewer):
+    viewer, drive = open_viewer(hide_panel=True)
+    drive.frames(1)
+    drive.key(imgui.Key.w, True)
+    drive.frames(20)
+    drive.key(imgui.Key.w, False)
+    drive.tap(imgui.Key.r)
+    camera = viewer.camera
+    u, v, z = project(camera, viewer.center)
+    assert z > viewer.radius and abs(u - camera.cx) < 1 and abs(v - camera.cy) < 1
+
+
+# -- scripted runs ------------------------------------------------------------------------------------
+def test_scripted_run_saves_the_last_frame(restore_gl_ctx, tmp_path, capsys):
+    from raygs_viewer.cli import main
+    from raygs_viewer.demo import demo_cameras
+    from raygs_viewer.camera import camera_to_json
+    cameras = tmp_path / "cams.json"
+    cameras.write_text(json.dumps([camera_to_json(c) for c in demo_cameras(160, 120)]))
+    shot = tmp_path / "shot.png"
+    status = main(["view", "--frames", "3", "--screenshot", str(shot), "--camera", str(cameras),
+                   "--camera-index", "2", "--width", "160", "--height", "120", "--window-platform", "null"])
+    assert status == 0
+    sidecar = json.loads(shot.with_suffix(".json").read_text())
+    assert sidecar["camera"]["position"] == pytest.approx(demo_cameras()[2].center.tolist())
+    assert Image.open(shot).size == (160, 120)
+    # an existing screenshot is never overwritten: refused before the window opens
+    assert main(["view", "--frames", "1", "--screenshot", str(shot), "--window-platform", "null"]) == 2
+    assert "already exists" in capsys.readouterr().err
