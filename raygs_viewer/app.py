@@ -57,6 +57,7 @@ class ViewerOptions:
     navigation: str = "fly"   # "fly" or "orbit"
     up_axis: str = "-y"       # one of controls.UP_AXES
     platform: str = "auto"
+    turntable: float = 0.0    # degrees per frame about the up axis (orbit mode); 0: off
 
 
 @dataclass
@@ -84,6 +85,10 @@ class FrameStats:
     """Rolling statistics for the panel; times in seconds."""
 
     frame_times: deque = field(default_factory=lambda: deque(maxlen=60))
+    # Longer histories for the summary of a scripted run.
+    all_frame_times: deque = field(default_factory=lambda: deque(maxlen=10000))
+    all_gpu_times: deque = field(default_factory=lambda: deque(maxlen=10000))
+    all_sort_times: deque = field(default_factory=lambda: deque(maxlen=10000))
     sort_seconds: float = float("nan")
     gpu_seconds: float = float("nan")
     visible: int = 0
@@ -163,6 +168,8 @@ class Viewer:
         self.viewport = (0, 0, 1, 1)
         self.training_index: int | None = None
         self.screenshot_requested = False
+        self.capture_window_next = False    # set to keep the next frame's window image
+        self.window_capture: np.ndarray | None = None
         self.last_screenshot: tuple[Path, Path] | None = None
         self._request_frames: dict[int, int] = {}
         self._drawn_key = None
@@ -331,6 +338,14 @@ class Viewer:
                 if wheel:
                     nav.zoom(wheel)
 
+    def _turn(self, degrees: float) -> None:
+        """Turntable: orbit the target by a fixed angle per frame (not per second), so a
+        scripted run draws the same views on any machine."""
+        from raygs_viewer.controls import LOOK_RADIANS_PER_PIXEL
+        if self.navigator.mode != "orbit":
+            self.navigator.set_mode("orbit")
+        self.navigator.rotate(math.radians(degrees) / LOOK_RADIANS_PER_PIXEL, 0.0)
+
     # -- frame -----------------------------------------------------------------------
     def frame(self) -> None:
         """One iteration of the loop (see the module docstring)."""
@@ -340,6 +355,7 @@ class Viewer:
         now = time.perf_counter()
         if self._last_time is not None:
             self.stats.frame_times.append(now - self._last_time)
+            self.stats.all_frame_times.append(now - self._last_time)
         dt = self.fixed_dt if self.fixed_dt is not None else (
             min(now - self._last_time, 0.1) if self._last_time is not None else 0.0)
         self._last_time = now
@@ -357,6 +373,8 @@ class Viewer:
         imgui.new_frame()
         self._handle_input(dt)
         self.navigator.advance(dt)
+        if self.options.turntable:
+            self._turn(self.options.turntable)
 
         x, y, w, h = self.viewport = self.lens.viewport(width, height)
         camera = self.camera = self.lens.camera(self.navigator.pose, w, h)
@@ -373,7 +391,10 @@ class Viewer:
         imgui.render()
 
         self._draw_scene(camera, settings, result)
-        self._present_image(width, height, x, y, w, h)
+        self._present_image(self.ctx.screen, width, height, x, y, w, h)
+        if self.capture_window_next:
+            self.capture_window_next = False
+            self.window_capture = self._capture_window(width, height, x, y, w, h)
         self.window.end_frame()
         if self.screenshot_requested:
             self.screenshot_requested = False
@@ -391,6 +412,8 @@ class Viewer:
             order, serial = result.order, result.serial
             current = _camera_key(result.camera) == _camera_key(camera) and result.p_min == settings.p_min
             self.stats.order_age = 0 if current else self.frame_index - self._request_frames.get(serial, self.frame_index)
+            if serial != self.stats.drawn_serial:
+                self.stats.all_sort_times.append(result.seconds)
             self.stats.sort_seconds = result.seconds
             self.stats.visible = int(order.size)
         key = (_camera_key(camera), settings, serial)
@@ -400,6 +423,8 @@ class Viewer:
         with self._timer.measure():
             self.renderer.render_into(target, camera, settings, order)
         self.stats.gpu_seconds = self._timer.seconds
+        if math.isfinite(self._timer.seconds):
+            self.stats.all_gpu_times.append(self._timer.seconds)
         self.stats.drawn_serial = serial
         self.stats.draws += 1
         self._drawn_key = key
@@ -415,10 +440,26 @@ class Viewer:
             self._drawn_key = None
         return self._target
 
-    def _present_image(self, width: int, height: int, x: int, y: int, w: int, h: int) -> None:
+    def _capture_window(self, width: int, height: int, x: int, y: int, w: int, h: int) -> np.ndarray:
+        """(H, W, 3) uint8, top row first: the window as shown, panel included, composed
+        again into an offscreen target (reading the default framebuffer is not portable)."""
+        from imgui_bundle import imgui
+        texture = self.ctx.texture((width, height), 4)
+        fbo = self.ctx.framebuffer(color_attachments=[texture])
+        try:
+            self._present_image(fbo, width, height, x, y, w, h)
+            imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
+            fbo.use()  # imgui's backend restores the binding it found; read what it drew
+            pixels = np.frombuffer(fbo.read(components=3), np.uint8).reshape(height, width, 3)[::-1].copy()
+        finally:
+            fbo.release()
+            texture.release()
+            self.ctx.screen.use()
+        return pixels
+
+    def _present_image(self, screen, width: int, height: int, x: int, y: int, w: int, h: int) -> None:
         import moderngl
         ctx = self.ctx
-        screen = ctx.screen
         screen.use()
         screen.viewport = (0, 0, width, height)
         ctx.clear(LETTERBOX_GREY, LETTERBOX_GREY, LETTERBOX_GREY, 1.0)
@@ -427,7 +468,6 @@ class Viewer:
         ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST)
         self._target.color_attachments[0].use(0)
         self._present["u_image"].value = 0
-        self._present["u_origin"].value = (x, lower)
         self._present_vao.render(moderngl.TRIANGLES, vertices=3)
         screen.viewport = (0, 0, width, height)
 
@@ -470,6 +510,17 @@ class Viewer:
         if self.options.screenshot is not None:
             self.save_screenshot(self.options.screenshot)
 
+    def summary(self) -> str:
+        """One line of frame statistics, printed after a scripted run."""
+        def median_ms(values) -> str:
+            return f"{1000 * float(np.median(values)):.1f} ms" if values else "n/a"
+        stats = self.stats
+        frame = float(np.median(stats.all_frame_times)) if stats.all_frame_times else float("nan")
+        return (f"{self.frame_index} frames ({stats.draws} drawn) at {camera_size(self.camera)}: "
+                f"median frame {median_ms(stats.all_frame_times)} ({1 / frame if frame > 0 else 0:.1f} fps), "
+                f"GPU {median_ms(stats.all_gpu_times)}, sort {median_ms(stats.all_sort_times)}, "
+                f"{stats.visible:,} of {self.loaded.scene.count:,} visible")
+
     def close(self) -> None:
         if self.window is None:
             return
@@ -495,6 +546,10 @@ def _present_shaders() -> tuple[str, str]:
     return shader_source("present.vert"), shader_source("present.frag")
 
 
+def camera_size(camera: Camera | None) -> str:
+    return "-" if camera is None else f"{camera.width}x{camera.height}"
+
+
 def _fov_y(camera: Camera) -> float:
     return math.degrees(2 * math.atan(camera.height / (2 * camera.fy)))
 
@@ -515,7 +570,12 @@ def run_viewer(options: ViewerOptions) -> int:
     drawn); returns the exit status. Bad input found before the window opens (scene,
     cameras, screenshot path) raises UserError, so the CLI exits with status 2."""
     from raygs_viewer.loader import load_now
+    from raygs_viewer.window import choose_platform
 
+    if choose_platform(options.platform) == "null" and options.frames is None and options.platform == "auto":
+        # An invisible window that runs until killed would look like a hang.
+        raise UserError("no display (DISPLAY and WAYLAND_DISPLAY are unset): run on a desktop, or add "
+                        "--frames N --screenshot shot.png for a headless capture")
     if options.screenshot is not None:
         from raygs_viewer.screenshot import check_screenshot_path
         check_screenshot_path(options.screenshot)
@@ -526,6 +586,8 @@ def run_viewer(options: ViewerOptions) -> int:
     viewer = Viewer(options, loaded, camera)
     try:
         viewer.run()
+        if options.frames is not None:
+            print(viewer.summary(), flush=True)
         if viewer.last_screenshot is not None and options.screenshot is not None:
             print(f"{viewer.last_screenshot[0]} (+ {viewer.last_screenshot[1].name})")
     finally:

@@ -80,6 +80,16 @@ def _frames(text: str) -> int:
     return value
 
 
+def _turntable(text: str) -> float:
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
+    if not (math.isfinite(value) and abs(value) <= 180):
+        raise argparse.ArgumentTypeError(f"{text} is not between -180 and 180")
+    return value
+
+
 def _screenshot_scale(text: str) -> float:
     from raygs_viewer.screenshot import MAX_SCALE
     try:
@@ -181,6 +191,9 @@ def _add_viewer_options(parser: argparse.ArgumentParser) -> None:
                         help="screenshots render offscreen at K times the window size, 0 < K <= 8 (default 1)")
     parser.add_argument("--no-vsync", action="store_true", help="draw as fast as possible")
     parser.add_argument("--orbit", action="store_true", help="start in orbit navigation instead of fly")
+    parser.add_argument("--turntable", type=_turntable, default=0.0, metavar="DEG",
+                        help="orbit about the up axis by DEG degrees every frame (a reproducible "
+                             "fly-around, e.g. to measure the frame rate with --frames)")
     parser.add_argument("--up-axis", choices=UP_AXES, default="-y",
                         help="world up, for navigation (default -y, the OpenCV/COLMAP convention)")
     parser.add_argument("--window-platform", choices=("auto", "x11", "wayland", "null"), default="auto",
@@ -345,7 +358,8 @@ def _command_view(args) -> int:
         width=args.width, height=args.height, p_min=args.p_min, background=args.background,
         sh_degree=args.sh_degree, frames=args.frames, screenshot=args.screenshot,
         screenshot_dir=args.screenshot_dir, screenshot_scale=args.screenshot_scale, vsync=not args.no_vsync,
-        navigation="orbit" if args.orbit else "fly", up_axis=args.up_axis, platform=args.window_platform)
+        navigation="orbit" if args.orbit else "fly", up_axis=args.up_axis, platform=args.window_platform,
+        turntable=args.turntable)
     return app.run_viewer(options)
 
 

@@ -498,3 +498,63 @@ def test_scripted_run_saves_the_last_frame(restore_gl_ctx, tmp_path, capsys):
     # an existing screenshot is never overwritten: refused before the window opens
     assert main(["view", "--frames", "1", "--screenshot", str(shot), "--window-platform", "null"]) == 2
     assert "already exists" in capsys.readouterr().err
+
+
+def test_window_shows_the_image_letterboxed_and_the_panel_on_top(open_viewer, tmp_path):
+    from raygs_viewer.app import LETTERBOX_GREY
+    from raygs_viewer.camera import camera_to_json, look_at
+    from raygs_viewer.imageio import to_rgb8
+    tall = look_at((0.3, -0.5, -4), (0, 0, 1), width=200, height=400, fov_y_degrees=70)
+    path = tmp_path / "tall.json"
+    path.write_text(json.dumps(camera_to_json(tall)))
+    viewer, drive = open_viewer(camera=str(path), width=PANEL_WIDTH, height=PANEL_HEIGHT)
+    viewer.panel.show_panel = False
+    drive.settle()
+    viewer.capture_window_next = True
+    drive.frames(1)
+    window = viewer.window_capture.astype(int)
+    x, y, w, h = viewer.viewport
+    assert (w, h) == (PANEL_HEIGHT // 2, PANEL_HEIGHT) and x == (PANEL_WIDTH - w) // 2
+    scene = to_rgb8(window_image(viewer)).astype(int)
+    # Inside the viewport: the scene, the right way up and in the right place.
+    assert np.abs(window[y:y + h, x:x + w] - scene).max() <= 1
+    assert np.abs(window[y:y + h, x + 1:x + w + 1] - scene).max() > 10  # one pixel off would show
+    # Outside it: the letterbox bars.
+    grey = round(LETTERBOX_GREY * 255)
+    assert np.abs(window[:, :x] - grey).max() <= 1 and np.abs(window[:, x + w:] - grey).max() <= 1
+
+    viewer.panel.show_panel = True
+    viewer.capture_window_next = True
+    drive.frames(2)
+    viewer.capture_window_next = True
+    drive.frames(1)
+    with_panel = viewer.window_capture.astype(int)
+    from raygs_viewer.panel import item_rects
+    x0, y0, x1, y1 = (int(v) for v in item_rects["Reset view"])
+    assert np.abs(with_panel[y0:y1, x0:x1] - window[y0:y1, x0:x1]).max() > 50  # the panel is drawn
+    right = x + w - 5
+    assert np.abs(with_panel[:, right:] - window[:, right:]).max() <= 1  # and not over the rest
+    # A screenshot shows the scene alone.
+    drive.tap(imgui.Key.f12)
+    shot = np.asarray(Image.open(viewer.last_screenshot[0])).astype(int)
+    assert np.abs(shot - scene).max() <= 1
+
+
+def test_turntable_run_prints_its_frame_statistics(restore_gl_ctx, capsys):
+    from raygs_viewer.app import run_viewer
+    from raygs_viewer.controls import up_vector
+    from raygs_viewer.demo import demo_camera
+    status = run_viewer(ViewerOptions(width=96, height=72, frames=6, turntable=5.0, platform="null"))
+    assert status == 0
+    line = capsys.readouterr().out.strip().splitlines()[-1]
+    assert line.startswith("6 frames (6 drawn) at 96x72: median frame ") and " fps), GPU " in line
+    del up_vector, demo_camera
+
+
+def test_no_display_refuses_an_endless_invisible_window(monkeypatch):
+    from raygs_viewer.app import run_viewer
+    from raygs_viewer.errors import UserError
+    monkeypatch.delenv("DISPLAY", raising=False)
+    monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
+    with pytest.raises(UserError, match="no display"):
+        run_viewer(ViewerOptions())
