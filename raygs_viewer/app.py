@@ -58,6 +58,7 @@ class ViewerOptions:
     up_axis: str = "-y"       # one of controls.UP_AXES
     platform: str = "auto"
     turntable: float = 0.0    # degrees per frame about the up axis (orbit mode); 0: off
+    window_screenshot: str | None = None  # PNG of the whole window, panel included, at the end
 
 
 @dataclass
@@ -87,7 +88,6 @@ class FrameStats:
     frame_times: deque = field(default_factory=lambda: deque(maxlen=60))
     # Longer histories for the summary of a scripted run.
     all_frame_times: deque = field(default_factory=lambda: deque(maxlen=10000))
-    all_gpu_times: deque = field(default_factory=lambda: deque(maxlen=10000))
     all_sort_times: deque = field(default_factory=lambda: deque(maxlen=10000))
     sort_seconds: float = float("nan")
     gpu_seconds: float = float("nan")
@@ -108,22 +108,31 @@ class FrameStats:
 
 class GpuTimer:
     """GPU time of a pass from timer queries, read a couple of frames late so that
-    reading never stalls the CPU on a real GPU."""
+    reading never stalls the CPU on a real GPU. ``history`` keeps every result."""
 
     def __init__(self, ctx, depth: int = 3):
         self._queries = [ctx.query(time=True) for _ in range(depth)]
         self._pending: deque = deque()
         self.seconds = float("nan")
+        self.history: deque = deque(maxlen=10000)
 
     def measure(self):
         query = self._queries[0]
         self._queries.append(self._queries.pop(0))
         if query in self._pending:  # the oldest: its result is due now
             self._pending.remove(query)
-            self.seconds = query.elapsed * 1e-9
+            self._record(query)
         self._pending.append(query)
         return query
 
+    def flush(self) -> None:
+        """Reads every pending result (waits for the GPU: for the end of a run)."""
+        while self._pending:
+            self._record(self._pending.popleft())
+
+    def _record(self, query) -> None:
+        self.seconds = query.elapsed * 1e-9
+        self.history.append(self.seconds)
 
 
 def _camera_key(camera: Camera) -> tuple:
@@ -169,6 +178,7 @@ class Viewer:
         self.training_index: int | None = None
         self.screenshot_requested = False
         self.capture_window_next = False    # set to keep the next frame's window image
+        self.wait_for_sort = False          # set for the last frame of a scripted run
         self.window_capture: np.ndarray | None = None
         self.last_screenshot: tuple[Path, Path] | None = None
         self._request_frames: dict[int, int] = {}
@@ -377,10 +387,13 @@ class Viewer:
             self._turn(self.options.turntable)
 
         x, y, w, h = self.viewport = self.lens.viewport(width, height)
-        camera = self.camera = self.lens.camera(self.navigator.pose, w, h)
+        camera = self.camera = self.lens.camera(self.navigator.pose, width, height)  # viewport-sized
         settings = self.settings()
         serial = self.sorter.request(camera, settings.p_min)
         self._request_frames.setdefault(serial, self.frame_index)
+        if self.wait_for_sort:
+            # Only the last frame of a scripted run: its capture must show the finished view.
+            self.sorter.wait(serial, timeout=120)
         result = self.sorter.latest()
         if self.sorter.started > self.sorter.finished:
             self.stats.frames_with_sort_running += 1
@@ -419,12 +432,14 @@ class Viewer:
         key = (_camera_key(camera), settings, serial)
         target = self._target_for(camera.width, camera.height)
         if key == self._drawn_key:
-            return  # nothing changed: the image in the target is still right
+            # Nothing changed: the image in the target is still right. The GPU is idle
+            # as far as this view goes, so the last timings can be read without stalling.
+            self._timer.flush()
+            self.stats.gpu_seconds = self._timer.seconds
+            return
         with self._timer.measure():
             self.renderer.render_into(target, camera, settings, order)
         self.stats.gpu_seconds = self._timer.seconds
-        if math.isfinite(self._timer.seconds):
-            self.stats.all_gpu_times.append(self._timer.seconds)
         self.stats.drawn_serial = serial
         self.stats.draws += 1
         self._drawn_key = key
@@ -503,22 +518,30 @@ class Viewer:
 
     # -- loop ------------------------------------------------------------------------
     def run(self) -> None:
+        options = self.options
         while not self.window.should_close:
+            last = options.frames is not None and self.frame_index + 1 >= options.frames
+            self.capture_window_next |= last and options.window_screenshot is not None
+            self.wait_for_sort = last
             self.frame()
-            if self.options.frames is not None and self.frame_index >= self.options.frames:
+            if last:
                 break
-        if self.options.screenshot is not None:
-            self.save_screenshot(self.options.screenshot)
+        if options.screenshot is not None:
+            self.save_screenshot(options.screenshot)
+        if options.window_screenshot is not None and self.window_capture is not None:
+            from raygs_viewer.imageio import save_image
+            save_image(options.window_screenshot, self.window_capture.astype(np.float32) / 255.0)
 
     def summary(self) -> str:
         """One line of frame statistics, printed after a scripted run."""
         def median_ms(values) -> str:
             return f"{1000 * float(np.median(values)):.1f} ms" if values else "n/a"
         stats = self.stats
+        self._timer.flush()
         frame = float(np.median(stats.all_frame_times)) if stats.all_frame_times else float("nan")
         return (f"{self.frame_index} frames ({stats.draws} drawn) at {camera_size(self.camera)}: "
                 f"median frame {median_ms(stats.all_frame_times)} ({1 / frame if frame > 0 else 0:.1f} fps), "
-                f"GPU {median_ms(stats.all_gpu_times)}, sort {median_ms(stats.all_sort_times)}, "
+                f"GPU {median_ms(self._timer.history)}, sort {median_ms(stats.all_sort_times)}, "
                 f"{stats.visible:,} of {self.loaded.scene.count:,} visible")
 
     def close(self) -> None:
@@ -579,6 +602,11 @@ def run_viewer(options: ViewerOptions) -> int:
     if options.screenshot is not None:
         from raygs_viewer.screenshot import check_screenshot_path
         check_screenshot_path(options.screenshot)
+    if options.window_screenshot is not None:
+        from raygs_viewer.imageio import check_output_path
+        if not options.window_screenshot.lower().endswith(".png"):
+            raise UserError(f"{options.window_screenshot}: the window screenshot must be a .png")
+        check_output_path(options.window_screenshot)
     loaded = load_now(options.scene, options.cameras)
     for warning in loaded.warnings:
         print(f"warning: {warning}", flush=True)

@@ -191,6 +191,8 @@ def _add_viewer_options(parser: argparse.ArgumentParser) -> None:
                         help="screenshots render offscreen at K times the window size, 0 < K <= 8 (default 1)")
     parser.add_argument("--no-vsync", action="store_true", help="draw as fast as possible")
     parser.add_argument("--orbit", action="store_true", help="start in orbit navigation instead of fly")
+    parser.add_argument("--window-screenshot", metavar="PATH.png",
+                        help="with --frames: save the whole window, panel included, after the last frame")
     parser.add_argument("--turntable", type=_turntable, default=0.0, metavar="DEG",
                         help="orbit about the up axis by DEG degrees every frame (a reproducible "
                              "fly-around, e.g. to measure the frame rate with --frames)")
@@ -359,7 +361,7 @@ def _command_view(args) -> int:
         sh_degree=args.sh_degree, frames=args.frames, screenshot=args.screenshot,
         screenshot_dir=args.screenshot_dir, screenshot_scale=args.screenshot_scale, vsync=not args.no_vsync,
         navigation="orbit" if args.orbit else "fly", up_axis=args.up_axis, platform=args.window_platform,
-        turntable=args.turntable)
+        turntable=args.turntable, window_screenshot=args.window_screenshot)
     return app.run_viewer(options)
 
 

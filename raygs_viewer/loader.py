@@ -30,7 +30,7 @@ __all__ = [
     "HASH_CHUNK_BYTES",
     "LoadedScene",
     "SceneLoader",
-    "demo_sha256",
+    "arrays_sha256",
     "file_sha256",
     "find_training_cameras",
     "load_now",
@@ -78,7 +78,7 @@ class LoadedScene:
 
     scene:        the gaussians (see :class:`raygs_viewer.scene.Scene`).
     path:         the scene path as given, or "demo".
-    sha256:       hex SHA-256 of the file's bytes; for the demo, :func:`demo_sha256`.
+    sha256:       hex SHA-256 of the file's bytes; for the demo, :func:`arrays_sha256`.
     cameras:      training cameras (the demo: ``demo_cameras()``), [] if none.
     cameras_path: the cameras.json they came from (None for none, and for the demo's own).
     camera_names: one per camera: its ``img_name`` when present, else "camera i";
@@ -96,7 +96,7 @@ class LoadedScene:
     warnings: list[str]
 
 
-def demo_sha256(scene: Scene) -> str:
+def arrays_sha256(scene: Scene) -> str:
     """Hex SHA-256 of the scene's positions, rotations, scales, opacities and sh, in that
     order, as C-contiguous float32 bytes (for the demo, where there is no file to hash)."""
     digest = hashlib.sha256()
@@ -130,6 +130,10 @@ def file_sha256(path: str | os.PathLike, progress: ProgressCallback | None = Non
                 done += got
                 if progress is not None:
                     progress(min(1.0, done / size) if size else 1.0, "hashing")
+    except FileNotFoundError:
+        raise UserError(f"{shown}: no such file") from None
+    except IsADirectoryError:
+        raise UserError(f"{shown}: is a folder, expected a scene file") from None
     except OSError as exc:
         raise UserError(f"{shown}: cannot read: {exc.strerror or exc}") from None
     return digest.hexdigest()
@@ -188,7 +192,7 @@ def load_now(path: str | os.PathLike, cameras: str | os.PathLike | None = None,
             report(0.0, "building")
             scene = demo_scene()
             report(_SCENE_END, "hashing")
-            digest = demo_sha256(scene)
+            digest = arrays_sha256(scene)
             found: list[Camera] = demo_cameras()
             names = list(DEMO_VIEW_NAMES)
             cameras_path = None

@@ -32,27 +32,19 @@ def _tooltip(text: str) -> None:
 
 
 def draw_panel(viewer) -> None:
-    panel, stats = viewer.panel, viewer.stats
+    panel = viewer.panel
     imgui.set_next_window_pos((10, 10), imgui.Cond_.first_use_ever.value)
     imgui.set_next_window_size((360, 0), imgui.Cond_.first_use_ever.value)
     visible, _ = imgui.begin("raygs-viewer", None)
     if not visible:
         imgui.end()
         return
+    _statistics(viewer)
     _scene_section(viewer)
     _render_section(viewer)
     _view_section(viewer)
     _training_section(viewer)
     _screenshot_section(viewer)
-    if imgui.collapsing_header("Statistics", imgui.TreeNodeFlags_.default_open.value):
-        sorter = viewer.sorter
-        imgui.text(f"{stats.fps:6.1f} fps   frame {stats.frame_ms:7.2f} ms")
-        imgui.text(f"sort   {stats.sort_seconds * 1000:7.2f} ms (background thread)")
-        imgui.text(f"GPU    {stats.gpu_seconds * 1000:7.2f} ms (preprocess + draw)")
-        imgui.text(f"visible {stats.visible:,} of {viewer.loaded.scene.count:,}")
-        imgui.text("order up to date" if stats.order_age == 0 else f"order {stats.order_age} frames old")
-        imgui.text_disabled(f"sorts: {sorter.requested} asked, {sorter.finished} done, "
-                            f"{sorter.superseded} skipped")
     if panel.message:
         imgui.text_wrapped(panel.message)
     if panel.error:
@@ -60,6 +52,24 @@ def draw_panel(viewer) -> None:
         imgui.text_wrapped(panel.error)
         imgui.pop_style_color()
     imgui.end()
+
+
+def _ms(seconds: float) -> str:
+    return f"{seconds * 1000:6.2f} ms" if math.isfinite(seconds) else "     - ms"
+
+
+def _statistics(viewer) -> None:
+    stats, sorter = viewer.stats, viewer.sorter
+    imgui.text(f"{stats.fps:6.1f} fps  frame {_ms(stats.frame_ms / 1000)}")
+    _tooltip("frames per second and the median frame time of the last 60 frames")
+    imgui.text(f"GPU   {_ms(stats.gpu_seconds)}  sort {_ms(stats.sort_seconds)}")
+    _tooltip("GPU: preprocessing + draw of the last redraw (timer queries).\n"
+             "sort: the last depth sort, on a background thread")
+    age = "up to date" if stats.order_age == 0 else f"{stats.order_age} frames old"
+    imgui.text(f"visible {stats.visible:,} of {viewer.loaded.scene.count:,}, order {age}")
+    _tooltip(f"sorts: {sorter.requested} asked, {sorter.finished} done, {sorter.superseded} skipped "
+             f"(superseded by a newer view before they started)")
+    imgui.separator()
 
 
 def _scene_section(viewer) -> None:

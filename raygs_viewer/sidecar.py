@@ -29,7 +29,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import hashlib
 import json
 import math
 import os
@@ -45,6 +44,7 @@ import numpy as np
 import raygs_viewer
 from raygs_viewer.camera import Camera, camera_from_json, camera_to_json
 from raygs_viewer.errors import UserError
+from raygs_viewer.loader import arrays_sha256, file_sha256
 from raygs_viewer.settings import RenderSettings
 
 SIDECAR_FORMAT = "raygs-viewer screenshot"
@@ -52,7 +52,6 @@ SIDECAR_VERSION = 1
 RENDER_MODES = ("raygs",)
 DEMO = "demo"
 
-_READ_CHUNK = 1 << 20
 _SHA256 = re.compile(r"[0-9a-f]{64}")
 # A pose written by this program is orthonormal to ~1e-15; anything far off is an
 # edited or corrupted file, not rounding.
@@ -66,28 +65,8 @@ _POSE_AGREEMENT = 1e-6
 
 
 def scene_sha256(path: str | os.PathLike) -> str:
-    """SHA-256 (hex) of the file's bytes, read 1 MiB at a time."""
-    digest = hashlib.sha256()
-    try:
-        with open(path, "rb") as stream:
-            while chunk := stream.read(_READ_CHUNK):
-                digest.update(chunk)
-    except FileNotFoundError:
-        raise UserError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise UserError(f"{path}: is a folder, expected a scene file") from None
-    except OSError as exc:
-        raise UserError(f"{path}: cannot read: {exc.strerror or exc}") from None
-    return digest.hexdigest()
-
-
-def arrays_sha256(scene) -> str:
-    """SHA-256 (hex) of a scene's float32 arrays: positions, rotations, scales,
-    opacities and SH, in that order (the digest ``tests/test_demo.py`` pins)."""
-    digest = hashlib.sha256()
-    for name in ("positions", "rotations", "scales", "opacities", "sh"):
-        digest.update(np.ascontiguousarray(getattr(scene, name)).tobytes())
-    return digest.hexdigest()
+    """SHA-256 (hex) of the file's bytes, streamed (the digest the window records)."""
+    return file_sha256(path)
 
 
 @functools.lru_cache(maxsize=1)

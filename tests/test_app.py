@@ -431,6 +431,13 @@ def test_training_camera_keys_fly_smoothly_and_use_its_intrinsics(open_viewer):
     drive.tap(imgui.Key.p)
     assert viewer.training_index == 0
     assert not np.allclose(start, target.center)
+    # The close-up view has a 50 degree lens where the window's own is 60.
+    for _ in range(4):
+        drive.tap(imgui.Key.page_down)
+    close_up = demo_cameras()[4]
+    assert viewer.training_index == 4 and close_up.fy != target.fy
+    drive.frames(8)
+    assert viewer.camera.fy == pytest.approx(close_up.fy * HEIGHT / close_up.height)
 
 
 def test_training_camera_of_another_aspect_is_letterboxed(open_viewer, tmp_path):
@@ -488,25 +495,36 @@ def test_scripted_run_saves_the_last_frame(restore_gl_ctx, tmp_path, capsys):
     from raygs_viewer.camera import camera_to_json
     cameras = tmp_path / "cams.json"
     cameras.write_text(json.dumps([camera_to_json(c) for c in demo_cameras(160, 120)]))
-    shot = tmp_path / "shot.png"
-    status = main(["view", "--frames", "3", "--screenshot", str(shot), "--camera", str(cameras),
-                   "--camera-index", "2", "--width", "160", "--height", "120", "--window-platform", "null"])
+    shot, window = tmp_path / "shot.png", tmp_path / "window.png"
+    status = main(["view", "--frames", "2", "--screenshot", str(shot), "--camera", str(cameras),
+                   "--camera-index", "2", "--width", "640", "--height", "480", "--window-platform", "null",
+                   "--window-screenshot", str(window)])
     assert status == 0
+    # Two frames are too few for the background sort on its own: the last frame of a
+    # scripted run waits for its view's order, so right of the panel the window shows
+    # the finished scene, the same as the screenshot.
+    scene, whole = (np.asarray(Image.open(p)).astype(int) for p in (shot, window))
+    assert whole.shape == scene.shape == (480, 640, 3)
+    right = slice(400, 640)
+    assert scene[:, right].std() > 10  # there is something to see there
+    assert np.abs(whole[:, right] - scene[:, right]).max() <= 1
     sidecar = json.loads(shot.with_suffix(".json").read_text())
     assert sidecar["camera"]["position"] == pytest.approx(demo_cameras()[2].center.tolist())
-    assert Image.open(shot).size == (160, 120)
+    assert Image.open(shot).size == (640, 480)
     # an existing screenshot is never overwritten: refused before the window opens
     assert main(["view", "--frames", "1", "--screenshot", str(shot), "--window-platform", "null"]) == 2
     assert "already exists" in capsys.readouterr().err
 
 
-def test_window_shows_the_image_letterboxed_and_the_panel_on_top(open_viewer, tmp_path):
+@pytest.mark.parametrize("camera_size", [(200, 400), (800, 309)])
+def test_window_shows_the_image_letterboxed_and_the_panel_on_top(open_viewer, tmp_path, camera_size):
     from raygs_viewer.app import LETTERBOX_GREY
     from raygs_viewer.camera import camera_to_json, look_at
     from raygs_viewer.imageio import to_rgb8
-    tall = look_at((0.3, -0.5, -4), (0, 0, 1), width=200, height=400, fov_y_degrees=70)
-    path = tmp_path / "tall.json"
-    path.write_text(json.dumps(camera_to_json(tall)))
+    width, height = camera_size
+    lens = look_at((0.3, -0.5, -4), (0, 0, 1), width=width, height=height, fov_y_degrees=70)
+    path = tmp_path / "lens.json"
+    path.write_text(json.dumps(camera_to_json(lens)))
     viewer, drive = open_viewer(camera=str(path), width=PANEL_WIDTH, height=PANEL_HEIGHT)
     viewer.panel.show_panel = False
     drive.settle()
@@ -514,14 +532,21 @@ def test_window_shows_the_image_letterboxed_and_the_panel_on_top(open_viewer, tm
     drive.frames(1)
     window = viewer.window_capture.astype(int)
     x, y, w, h = viewer.viewport
-    assert (w, h) == (PANEL_HEIGHT // 2, PANEL_HEIGHT) and x == (PANEL_WIDTH - w) // 2
+    if width < height:  # bars left and right
+        assert (w, h) == (PANEL_HEIGHT // 2, PANEL_HEIGHT) and (x, y) == ((PANEL_WIDTH - w) // 2, 0)
+    else:  # bars above and below, of unequal heights: 236 above, 237 below
+        assert (w, h) == (PANEL_WIDTH, 247) and (x, y) == (0, 236)
     scene = to_rgb8(window_image(viewer)).astype(int)
     # Inside the viewport: the scene, the right way up and in the right place.
     assert np.abs(window[y:y + h, x:x + w] - scene).max() <= 1
-    assert np.abs(window[y:y + h, x + 1:x + w + 1] - scene).max() > 10  # one pixel off would show
+    shifted = window[y:y + h, x + 1:x + w + 1] if width < height else window[y + 1:y + h + 1, x:x + w]
+    assert np.abs(shifted - scene).max() > 10  # one pixel off would show
+    assert np.abs(window[y:y + h, x:x + w][::-1] - scene).max() > 10
     # Outside it: the letterbox bars.
     grey = round(LETTERBOX_GREY * 255)
-    assert np.abs(window[:, :x] - grey).max() <= 1 and np.abs(window[:, x + w:] - grey).max() <= 1
+    outside = np.ones(window.shape[:2], bool)
+    outside[y:y + h, x:x + w] = False
+    assert outside.any() and np.abs(window[outside] - grey).max() <= 1
 
     viewer.panel.show_panel = True
     viewer.capture_window_next = True
@@ -532,7 +557,7 @@ def test_window_shows_the_image_letterboxed_and_the_panel_on_top(open_viewer, tm
     from raygs_viewer.panel import item_rects
     x0, y0, x1, y1 = (int(v) for v in item_rects["Reset view"])
     assert np.abs(with_panel[y0:y1, x0:x1] - window[y0:y1, x0:x1]).max() > 50  # the panel is drawn
-    right = x + w - 5
+    right = 400  # the panel is 360 wide, at x = 10
     assert np.abs(with_panel[:, right:] - window[:, right:]).max() <= 1  # and not over the rest
     # A screenshot shows the scene alone.
     drive.tap(imgui.Key.f12)
@@ -540,15 +565,28 @@ def test_window_shows_the_image_letterboxed_and_the_panel_on_top(open_viewer, tm
     assert np.abs(shot - scene).max() <= 1
 
 
-def test_turntable_run_prints_its_frame_statistics(restore_gl_ctx, capsys):
-    from raygs_viewer.app import run_viewer
+def test_turntable_turns_a_fixed_angle_per_frame(open_viewer):
     from raygs_viewer.controls import up_vector
-    from raygs_viewer.demo import demo_camera
+    viewer, drive = open_viewer(hide_panel=True, turntable=5.0)
+    drive.frames(1)
+    target, first = viewer.navigator.target.copy(), viewer.camera.center.copy()
+    drive.frames(6)
+    up = up_vector("-y")
+    def around(point):  # the horizontal direction from the target
+        d = point - target
+        d -= (d @ up) * up
+        return d / np.linalg.norm(d)
+    angle = np.degrees(np.arccos(np.clip(around(first) @ around(viewer.camera.center), -1, 1)))
+    assert angle == pytest.approx(30.0, abs=1e-6)
+    assert viewer.stats.draws >= 6  # every frame a new view
+
+
+def test_scripted_run_prints_its_frame_statistics(restore_gl_ctx, capsys):
+    from raygs_viewer.app import run_viewer
     status = run_viewer(ViewerOptions(width=96, height=72, frames=6, turntable=5.0, platform="null"))
     assert status == 0
     line = capsys.readouterr().out.strip().splitlines()[-1]
     assert line.startswith("6 frames (6 drawn) at 96x72: median frame ") and " fps), GPU " in line
-    del up_vector, demo_camera
 
 
 def test_no_display_refuses_an_endless_invisible_window(monkeypatch):

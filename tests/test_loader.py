@@ -23,7 +23,7 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.loader import (
     LoadedScene,
     SceneLoader,
-    demo_sha256,
+    arrays_sha256,
     file_sha256,
     find_training_cameras,
     load_now,
@@ -187,7 +187,7 @@ def test_sha256_is_the_files(tmp_path, monkeypatch):
 
 
 def test_hash_read_failure_is_a_user_error(tmp_path):
-    testkit.assert_user_error(lambda: file_sha256(tmp_path), tmp_path, "cannot read")
+    testkit.assert_user_error(lambda: file_sha256(tmp_path), tmp_path, "folder")
 
 
 def test_progress_is_monotone_and_ends_at_done(tmp_path, monkeypatch):
@@ -226,17 +226,17 @@ def test_the_demo_loads_with_its_six_cameras():
     digest = hashlib.sha256()
     for name in ("positions", "rotations", "scales", "opacities", "sh"):
         digest.update(getattr(loaded.scene, name).astype(np.float32).tobytes())
-    assert loaded.sha256 == digest.hexdigest() == demo_sha256(demo_scene())
+    assert loaded.sha256 == digest.hexdigest() == arrays_sha256(demo_scene())
 
 
-def test_demo_sha256_covers_every_array():
+def test_arrays_sha256_covers_every_array():
     scene = demo_scene()
-    base = demo_sha256(scene)
+    base = arrays_sha256(scene)
     for name in ("positions", "rotations", "scales", "opacities", "sh"):
         array = getattr(scene, name).copy()
         array.reshape(-1)[-1] += np.float32(1.0)
         changed = type(scene)(**{**scene.__dict__, name: array})
-        assert demo_sha256(changed) != base, name
+        assert arrays_sha256(changed) != base, name
 
 
 def test_explicit_cameras_replace_the_demo_views(tmp_path):
