@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
+import moderngl
 import numpy as np
 
 from raygs_viewer.camera import Camera
@@ -257,8 +258,8 @@ class Viewer:
             return
         try:
             self._install(result)
-        except UserError as exc:
-            self.panel.error = f"error: {exc}"
+        except (UserError, MemoryError, moderngl.Error) as exc:  # e.g. too large for this GPU
+            self.panel.error = f"error: {result.path}: {_one_line(exc)}"
             self.panel.message = ""
             return
         self.panel.error = ""
@@ -414,8 +415,8 @@ class Viewer:
             try:
                 png, sidecar = self.save_screenshot()
                 self.panel.message, self.panel.error = f"saved {png}", ""
-            except UserError as exc:
-                self.panel.error = f"error: {exc}"
+            except (UserError, MemoryError, moderngl.Error) as exc:
+                self.panel.error = f"error: screenshot not saved: {_one_line(exc)}"
 
     def _draw_scene(self, camera: Camera, settings: RenderSettings, result) -> None:
         if result is None:
@@ -473,7 +474,6 @@ class Viewer:
         return pixels
 
     def _present_image(self, screen, width: int, height: int, x: int, y: int, w: int, h: int) -> None:
-        import moderngl
         ctx = self.ctx
         screen.use()
         screen.viewport = (0, 0, width, height)
@@ -567,6 +567,11 @@ class Viewer:
 def _present_shaders() -> tuple[str, str]:
     from raygs_viewer.render.shaders import shader_source
     return shader_source("present.vert"), shader_source("present.frag")
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    return text or type(exc).__name__
 
 
 def camera_size(camera: Camera | None) -> str:

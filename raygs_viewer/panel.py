@@ -80,10 +80,11 @@ def _scene_section(viewer) -> None:
     imgui.text_wrapped("built-in demo scene" if loaded.path == "demo" else loaded.path)
     imgui.text(f"{scene.count:,} gaussians, SH degree {scene.sh_degree}, "
                f"3D filter {'fused' if scene.filter_fused else 'none'}")
-    _, panel.open_path = imgui.input_text_with_hint("##open", "scene.ply (or drop a file)", panel.open_path)
+    entered, panel.open_path = imgui.input_text_with_hint(
+        "##open", "scene.ply (or drop a file)", panel.open_path, imgui.InputTextFlags_.enter_returns_true.value)
     _remember("open path")
     imgui.same_line()
-    if imgui.button("Open"):
+    if imgui.button("Open") or entered:
         viewer.open_scene(panel.open_path)
     _remember("Open")
     if viewer.loader.busy:

@@ -353,13 +353,22 @@ def test_bad_file_dropped_in_shows_an_error_and_keeps_the_scene(open_viewer, tmp
     np.testing.assert_array_equal(window_image(viewer), image)
 
 
-def test_good_file_dropped_in_replaces_the_scene(open_viewer, tmp_path):
+@pytest.mark.parametrize("route", ["drop", "path field"])
+def test_good_file_opened_replaces_the_scene(open_viewer, tmp_path, route):
     from test_scene_io import gaussian_columns, write_ply
-    viewer, drive = open_viewer(hide_panel=True)
+    viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
     drive.frames(1)
     path = tmp_path / "small.ply"
     write_ply(path, gaussian_columns(n=50, degree=1, seed=3))
-    viewer.on_drop([str(path)])
+    if route == "drop":
+        viewer.on_drop([str(path)])
+    else:  # click into the field, type the path, press Enter
+        from raygs_viewer.panel import item_rects
+        drive.click(item_rects["open path"])
+        drive._queued.append(lambda io: io.add_input_characters_utf8(str(path)))
+        drive.frames(1)
+        drive.tap(imgui.Key.enter)
+        assert viewer.panel.open_path == str(path)
     drive.wait_for_load()
     assert viewer.panel.error == ""
     assert viewer.loaded.path == str(path) and viewer.loaded.scene.count == 50
