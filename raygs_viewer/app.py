@@ -20,6 +20,7 @@ from typing import Callable
 import moderngl
 import numpy as np
 
+from raygs_viewer.window import Window, glfw, imgui  # noqa: I001  (imgui before glfw: see window)
 from raygs_viewer.camera import Camera
 from raygs_viewer.errors import UserError
 from raygs_viewer.settings import DEFAULT_P_MIN, RenderSettings
@@ -153,7 +154,6 @@ class Viewer:
     def __init__(self, options: ViewerOptions, loaded, start_camera: Camera | None = None, window=None,
                  sorter_factory=None):
         from raygs_viewer.loader import SceneLoader
-        from raygs_viewer.window import Window
 
         self.options = options
         self.window = window or Window(f"raygs-viewer — {_scene_title(loaded.path)}", options.width,
@@ -222,14 +222,13 @@ class Viewer:
         elif loaded.cameras:
             # The first training view, filling the window with its vertical field of view.
             first = loaded.cameras[0]
-            pose, self.lens = Pose.from_camera(first), Lens(fov_y_degrees=_fov_y(first))
+            pose, self.lens = Pose.from_camera(first), Lens().with_fov(Lens.of_camera(first).fov_y_degrees)
         else:
             self.lens = Lens()
             pose = framing_pose(self.center, self.radius, up, self.lens.fov_y_degrees,
                                 self.options.width / self.options.height)
         self.navigator = Navigator(pose, self.center, self.radius, up=up, mode=mode)
         if self.window is not None:
-            import glfw
             glfw.set_window_title(self.window.handle, f"raygs-viewer — {_scene_title(loaded.path)}")
 
     def open_scene(self, path: str) -> None:
@@ -287,9 +286,9 @@ class Viewer:
         self.select_training_camera(start + step)
 
     def reset_view(self) -> None:
-        from raygs_viewer.controls import Lens, framing_pose
+        from raygs_viewer.controls import framing_pose
         self.training_index = None
-        self.lens = Lens(fov_y_degrees=self.lens.fov_y_degrees if self.lens.source is None else 60.0)
+        self.lens = self.lens.with_fov(self.lens.fov_y_degrees)  # free lens, same field of view
         width, height = self.window.framebuffer_size()
         aspect = width / height if width > 0 and height > 0 else self.options.width / self.options.height
         self.navigator.reset(framing_pose(self.center, self.radius, self.navigator.up,
@@ -301,7 +300,6 @@ class Viewer:
 
     # -- input -----------------------------------------------------------------------
     def _handle_input(self, dt: float) -> None:
-        from imgui_bundle import imgui
         io = imgui.get_io()
         key = imgui.Key
         nav = self.navigator
@@ -360,9 +358,7 @@ class Viewer:
     # -- frame -----------------------------------------------------------------------
     def frame(self) -> None:
         """One iteration of the loop (see the module docstring)."""
-        from imgui_bundle import imgui
 
-        import glfw
         now = time.perf_counter()
         if self._last_time is not None:
             self.stats.frame_times.append(now - self._last_time)
@@ -424,6 +420,8 @@ class Viewer:
             order, serial = np.zeros(0, np.uint32), 0
         else:
             order, serial = result.order, result.serial
+            for older in [n for n in self._request_frames if n < serial]:  # answered or skipped
+                del self._request_frames[older]
             current = _camera_key(result.camera) == _camera_key(camera) and result.p_min == settings.p_min
             self.stats.order_age = 0 if current else self.frame_index - self._request_frames.get(serial, self.frame_index)
             if serial != self.stats.drawn_serial:
@@ -459,7 +457,6 @@ class Viewer:
     def _capture_window(self, width: int, height: int, x: int, y: int, w: int, h: int) -> np.ndarray:
         """(H, W, 3) uint8, top row first: the window as shown, panel included, composed
         again into an offscreen target (reading the default framebuffer is not portable)."""
-        from imgui_bundle import imgui
         texture = self.ctx.texture((width, height), 4)
         fbo = self.ctx.framebuffer(color_attachments=[texture])
         try:
@@ -550,7 +547,6 @@ class Viewer:
         self.loader.close()
         if self.sorter is not None:
             self.sorter.close()
-        import glfw
         glfw.make_context_current(self.window.handle)
         if self.renderer is not None:
             self.renderer.release()
@@ -578,10 +574,6 @@ def camera_size(camera: Camera | None) -> str:
     return "-" if camera is None else f"{camera.width}x{camera.height}"
 
 
-def _fov_y(camera: Camera) -> float:
-    return math.degrees(2 * math.atan(camera.height / (2 * camera.fy)))
-
-
 def _scene_title(path: str) -> str:
     return "demo scene" if path == "demo" else Path(path).name
 
@@ -598,6 +590,7 @@ def run_viewer(options: ViewerOptions) -> int:
     drawn); returns the exit status. Bad input found before the window opens (scene,
     cameras, screenshot path) raises UserError, so the CLI exits with status 2."""
     from raygs_viewer.loader import load_now
+
     from raygs_viewer.window import choose_platform
 
     if choose_platform(options.platform) == "null" and options.frames is None and options.platform == "auto":

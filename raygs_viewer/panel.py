@@ -146,19 +146,13 @@ def _view_section(viewer) -> None:
     changed, index = imgui.combo("up axis", axes.index(nav.up), axes)
     if changed:
         nav.set_up(axes[index])
-    changed, fov = imgui.slider_float("field of view", viewer.lens.fov_y_degrees if viewer.lens.source is None
-                                      else _lens_fov(viewer), *FOV_RANGE, "%.1f deg")
+    changed, fov = imgui.slider_float("field of view", viewer.lens.fov_y_degrees, *FOV_RANGE, "%.1f deg")
     if changed and math.isfinite(fov):
         viewer.set_fov(min(max(fov, FOV_RANGE[0]), FOV_RANGE[1]))
     imgui.text_disabled(f"speed {nav.speed:.3g} units/s (wheel in fly mode)")
     if imgui.button("Reset view (R)"):
         viewer.reset_view()
     _remember("Reset view")
-
-
-def _lens_fov(viewer) -> float:
-    camera = viewer.lens.source
-    return math.degrees(2 * math.atan(camera.height / (2 * camera.fy)))
 
 
 def _training_section(viewer) -> None:
