@@ -189,7 +189,12 @@ class Viewer:
         self._present_vao = self.ctx.vertex_array(self._present, [])
         self._timer = GpuTimer(self.ctx)
         self._last_time = None
-        self._install(loaded, start_camera)
+        try:
+            self._install(loaded, start_camera)
+        except BaseException:  # e.g. a scene too large for this GPU: no window left behind
+            self.loader.close()
+            self.window.close()
+            raise
         if options.navigation == "orbit":
             self.navigator.set_mode("orbit")
 

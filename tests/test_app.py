@@ -605,3 +605,18 @@ def test_no_display_refuses_an_endless_invisible_window(monkeypatch):
     monkeypatch.delenv("WAYLAND_DISPLAY", raising=False)
     with pytest.raises(UserError, match="no display"):
         run_viewer(ViewerOptions())
+
+
+def test_a_scene_too_large_for_the_gpu_fails_before_the_loop_and_closes_the_window(restore_gl_ctx, monkeypatch):
+    import glfw
+
+    from raygs_viewer.errors import UserError
+    from raygs_viewer.render import renderer as renderer_module
+
+    def refuse(*args, **kwargs):
+        raise UserError("scene of 3914 gaussians needs 9 storage blocks")
+
+    monkeypatch.setattr(renderer_module, "GLRenderer", refuse)
+    with pytest.raises(UserError, match="storage blocks"):
+        Viewer(ViewerOptions(width=64, height=48, platform="null"), load_now("demo"))
+    assert not glfw.get_current_context()  # the window and GLFW were shut down
