@@ -147,19 +147,27 @@ def camera_from_json(entry, where: str) -> Camera:
     return Camera(int(width), int(height), fx, fy, cx, cy, R, -R @ position)
 
 
-def load_cameras(path: str | Path) -> list[Camera]:
-    """Cameras from an INRIA ``cameras.json``: a list of camera objects, or one object."""
-    path = Path(path)
+def read_json_file(path: Path, expected: str):
+    """The parsed JSON of ``path``; a one-line UserError for a missing, unreadable or
+    invalid file (``expected`` names what a folder should have been)."""
     try:
         text = path.read_text(encoding="utf-8")
     except FileNotFoundError:
         raise UserError(f"{path}: no such file") from None
+    except IsADirectoryError:
+        raise UserError(f"{path}: is a folder, expected {expected}") from None
     except (OSError, UnicodeDecodeError) as exc:
-        raise UserError(f"{path}: cannot read: {exc}") from None
+        raise UserError(f"{path}: cannot read: {getattr(exc, 'strerror', None) or exc}") from None
     try:
-        data = json.loads(text)
+        return json.loads(text)
     except (json.JSONDecodeError, RecursionError) as exc:
         raise UserError(f"{path}: not valid JSON ({exc})") from None
+
+
+def load_cameras(path: str | Path) -> list[Camera]:
+    """Cameras from an INRIA ``cameras.json``: a list of camera objects, or one object."""
+    path = Path(path)
+    data = read_json_file(path, "a cameras.json file")
     entries = data if isinstance(data, list) else [data]
     if not entries:
         raise UserError(f"{path}: contains no cameras")

@@ -40,65 +40,42 @@ class _Parser(argparse.ArgumentParser):
         raise UserError(f"{message} (see '{self.prog} --help')")
 
 
-def _positive_int(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
-    if not 1 <= value <= 65536:
-        raise argparse.ArgumentTypeError(f"{value} is outside 1..65536")
-    return value
+def _whole_number(low: int, high: float, meaning: str):
+    """An argparse type: a whole number in [low, high]; ``meaning`` says the range in words."""
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"{value} is {meaning}")
+        return value
+    return parse
 
 
-def _p_min(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
-    if not 0.0 < value < 1.0:
-        raise argparse.ArgumentTypeError(f"{text} is not in (0, 1)")
-    return value
+def _real_number(accept, meaning: str):
+    """An argparse type: a finite number that ``accept`` takes; ``meaning`` says which in words."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
+        if not (math.isfinite(value) and accept(value)):
+            raise argparse.ArgumentTypeError(f"{text} is {meaning}")
+        return value
+    return parse
 
 
-def _sh_degree(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
-    if not 0 <= value <= 3:
-        raise argparse.ArgumentTypeError(f"{value} is not 0, 1, 2 or 3")
-    return value
-
-
-def _frames(text: str) -> int:
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"{value} is not at least 1")
-    return value
-
-
-def _turntable(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
-    if not (math.isfinite(value) and abs(value) <= 180):
-        raise argparse.ArgumentTypeError(f"{text} is not between -180 and 180")
-    return value
+_positive_int = _whole_number(1, 65536, "outside 1..65536")
+_sh_degree = _whole_number(0, 3, "not 0, 1, 2 or 3")
+_frames = _whole_number(1, math.inf, "not at least 1")
+_p_min = _real_number(lambda v: 0.0 < v < 1.0, "not in (0, 1)")
+_turntable = _real_number(lambda v: abs(v) <= 180, "not between -180 and 180")
 
 
 def _screenshot_scale(text: str) -> float:
     from raygs_viewer.screenshot import MAX_SCALE
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
-    if not (math.isfinite(value) and 0.0 < value <= MAX_SCALE):
-        raise argparse.ArgumentTypeError(f"{text} is not in (0, {MAX_SCALE:g}]")
-    return value
+    return _real_number(lambda v: 0.0 < v <= MAX_SCALE, f"not in (0, {MAX_SCALE:g}]")(text)
 
 
 def _color(text: str) -> tuple[float, float, float]:

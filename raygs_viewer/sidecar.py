@@ -42,7 +42,7 @@ from pathlib import Path
 import numpy as np
 
 import raygs_viewer
-from raygs_viewer.camera import Camera, camera_from_json, camera_to_json
+from raygs_viewer.camera import Camera, camera_from_json, camera_to_json, read_json_file
 from raygs_viewer.errors import UserError
 from raygs_viewer.loader import arrays_sha256, file_sha256
 from raygs_viewer.settings import RenderSettings
@@ -148,18 +148,7 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
     """Reads and validates a screenshot sidecar; any problem is a one-line UserError
     naming the file and the field."""
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise UserError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise UserError(f"{path}: is a folder, expected a screenshot's .json sidecar") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UserError(f"{path}: cannot read: {getattr(exc, 'strerror', None) or exc}") from None
-    try:
-        data = json.loads(text)
-    except (json.JSONDecodeError, RecursionError) as exc:
-        raise UserError(f"{path}: not valid JSON ({exc})") from None
+    data = read_json_file(path, "a screenshot's .json sidecar")
     if not isinstance(data, dict):
         raise UserError(f"{path}: not a raygs-viewer screenshot sidecar (expected a JSON object)")
     fields = _Fields(path, data)

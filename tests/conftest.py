@@ -43,3 +43,22 @@ def restore_gl_ctx(gl_ctx):
     so the session context is made current again afterwards."""
     yield
     gl_ctx.__enter__()
+
+
+@pytest.fixture(scope="session")
+def demo():
+    """The built-in demo scene (generating it takes a fraction of a second)."""
+    from raygs_viewer.demo import demo_scene
+    return demo_scene()
+
+
+@pytest.fixture(scope="session")
+def demo_renderer(gl_ctx, demo):
+    """A GLRenderer of the demo on the session context. Tests that create and release
+    another context in this thread (the CLI's, a viewer's) use it inside ``with gl_ctx:``."""
+    from raygs_viewer.render.renderer import GLRenderer
+    with gl_ctx:
+        renderer = GLRenderer(gl_ctx, demo)
+    yield renderer
+    with gl_ctx:
+        renderer.release()

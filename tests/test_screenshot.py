@@ -14,7 +14,6 @@ from PIL import Image
 
 import raygs_viewer.screenshot as screenshot
 from raygs_viewer.camera import Camera, look_at
-from raygs_viewer.demo import demo_scene
 from raygs_viewer.errors import UserError
 from raygs_viewer.imageio import encode_image, to_rgb8
 from raygs_viewer.screenshot import (MAX_SCALE, MAX_SCREENSHOT_SIDE, check_screenshot_path, next_screenshot_path,
@@ -38,27 +37,12 @@ def listing(folder):
     return sorted(p.name for p in Path(folder).iterdir())
 
 
-@pytest.fixture(scope="module")
-def demo():
-    return demo_scene()
-
-
-@pytest.fixture(scope="module")
-def module_renderer(gl_ctx, demo):
-    from raygs_viewer.render.renderer import GLRenderer
-    with gl_ctx:
-        renderer = GLRenderer(gl_ctx, demo)
-    yield renderer
-    with gl_ctx:
-        renderer.release()
-
-
 @pytest.fixture
-def renderer(module_renderer):
+def renderer(demo_renderer):
     """The demo's renderer, its context made current: a context another test created
     and released (the CLI's) may be current since, and GL calls would go nowhere."""
-    with module_renderer.ctx:
-        yield module_renderer
+    with demo_renderer.ctx:
+        yield demo_renderer
 
 
 @pytest.fixture

@@ -42,21 +42,6 @@ def window_camera(width=64, height=48):
                   height / 2 + 0.125, pose.R, pose.t)
 
 
-@pytest.fixture(scope="module")
-def demo():
-    return demo_scene()
-
-
-@pytest.fixture(scope="module")
-def demo_renderer(gl_ctx, demo):
-    from raygs_viewer.render.renderer import GLRenderer
-    with gl_ctx:
-        renderer = GLRenderer(gl_ctx, demo)
-    yield renderer
-    with gl_ctx:
-        renderer.release()
-
-
 def tiled(renderer, camera, settings):
     """render_tiled in the renderer's context: the CLI makes its own context current
     and releases it, after which GL calls on the session context would go nowhere."""
