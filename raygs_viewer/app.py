@@ -9,6 +9,7 @@ sidecar (``raygs-viewer render --sidecar``).
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
 import time
@@ -85,10 +86,9 @@ class PanelState:
 
 @dataclass
 class FrameStats:
-    """Rolling statistics for the panel; times in seconds."""
+    """Statistics for the panel (the last 60 frames) and for the summary of a scripted
+    run (the whole history); times in seconds."""
 
-    frame_times: deque = field(default_factory=lambda: deque(maxlen=60))
-    # Longer histories for the summary of a scripted run.
     all_frame_times: deque = field(default_factory=lambda: deque(maxlen=10000))
     all_sort_times: deque = field(default_factory=lambda: deque(maxlen=10000))
     sort_seconds: float = float("nan")
@@ -100,12 +100,18 @@ class FrameStats:
     frames_with_sort_running: int = 0  # frames completed while a sort was in progress
 
     @property
+    def recent_frame_times(self) -> list[float]:
+        return list(itertools.islice(reversed(self.all_frame_times), 60))
+
+    @property
     def fps(self) -> float:
-        return len(self.frame_times) / sum(self.frame_times) if self.frame_times and sum(self.frame_times) > 0 else 0.0
+        recent = self.recent_frame_times
+        return len(recent) / sum(recent) if recent and sum(recent) > 0 else 0.0
 
     @property
     def frame_ms(self) -> float:
-        return 1000 * float(np.median(self.frame_times)) if self.frame_times else float("nan")
+        recent = self.recent_frame_times
+        return 1000 * float(np.median(recent)) if recent else float("nan")
 
 
 class GpuTimer:
@@ -151,12 +157,11 @@ class Viewer:
     before imgui starts the frame (the place synthetic imgui events must go).
     """
 
-    def __init__(self, options: ViewerOptions, loaded, start_camera: Camera | None = None, window=None,
-                 sorter_factory=None):
+    def __init__(self, options: ViewerOptions, loaded, start_camera: Camera | None = None, sorter_factory=None):
         from raygs_viewer.loader import SceneLoader
 
         self.options = options
-        self.window = window or Window(f"raygs-viewer — {_scene_title(loaded.path)}", options.width,
+        self.window = Window(f"raygs-viewer — {_scene_title(loaded.path)}", options.width,
                                        options.height, options.platform, options.vsync)
         self.ctx = self.window.ctx
         self.window.set_drop_callback(self.on_drop)
@@ -366,7 +371,6 @@ class Viewer:
 
         now = time.perf_counter()
         if self._last_time is not None:
-            self.stats.frame_times.append(now - self._last_time)
             self.stats.all_frame_times.append(now - self._last_time)
         dt = self.fixed_dt if self.fixed_dt is not None else (
             min(now - self._last_time, 0.1) if self._last_time is not None else 0.0)

@@ -6,7 +6,7 @@ import json
 import numpy as np
 import pytest
 
-from testkit import assert_user_error, make_scene
+from testkit import assert_user_error, make_scene, random_rotation
 from raygs_viewer.camera import (
     Camera,
     camera_from_json,
@@ -20,15 +20,6 @@ from raygs_viewer.errors import UserError
 
 
 # --------------------------------------------------------------------------- helpers
-
-
-def random_rotation(rng):
-    """A uniformly random proper rotation (det +1), float64."""
-    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
-    q = q * np.sign(np.diag(r))
-    if np.linalg.det(q) < 0:
-        q[:, 0] = -q[:, 0]
-    return q
 
 
 def random_camera(rng, width=None, height=None):

@@ -9,6 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from testkit import random_rotation
 from raygs_viewer.camera import Camera, frame_points, look_at
 from raygs_viewer.controls import (
     UP_AXES,
@@ -23,14 +24,6 @@ W, H = 640, 480
 
 
 # --------------------------------------------------------------------------- helpers
-
-
-def random_rotation(rng):
-    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
-    q = q * np.sign(np.diag(r))
-    if np.linalg.det(q) < 0:
-        q[:, 0] = -q[:, 0]
-    return q
 
 
 def project(camera, world):

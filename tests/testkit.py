@@ -14,6 +14,15 @@ from raygs_viewer.scene import Scene, sh_coefficient_count
 SHARED_SCENES = Path(__file__).resolve().parents[2] / "shared" / "scenes"
 
 
+def random_rotation(rng):
+    """A uniformly random proper rotation (det +1), float64."""
+    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
+    q = q * np.sign(np.diag(r))
+    if np.linalg.det(q) < 0:
+        q[:, 0] = -q[:, 0]
+    return q
+
+
 def unit_quaternions(rng, n):
     q = rng.normal(size=(n, 4))
     return (q / np.linalg.norm(q, axis=1, keepdims=True)).astype(np.float32)
