@@ -37,21 +37,33 @@ class DepthSorter:
         kappa = 2.0 * (self.log_opacity - np.float32(math.log(p_min)))
         return np.sqrt(np.maximum(kappa, 0.0)) * self.max_scale
 
-    def order(self, camera: Camera, p_min: float, method: SortMethod = "auto") -> np.ndarray:
+    def order(self, camera: Camera, p_min: float, method: SortMethod = "auto", *,
+              dilation: float | None = 0.0) -> np.ndarray:
         """(M,) uint32 indices of the gaussians that may be visible, back to front.
 
         A gaussian is dropped only when it cannot reach any pixel: opacity <= p_min
         (kappa <= 0), its support sphere entirely behind the camera plane, or entirely
-        outside one side plane of the view frustum.
+        outside one side plane of the view frustum. ``dilation`` (from
+        :meth:`RenderSettings.cull_dilation`) widens each support sphere by
+        sqrt(kappa) * dilation * |mu|, the most a pixel filter of that standard deviation
+        per unit distance adds; None keeps every gaussian in front of the camera plane
+        (for footprints no sphere bounds, such as EWA's).
         """
         if self.positions.shape[0] == 0:
             return np.zeros(0, np.uint32)
         R = camera.R.astype(np.float32)
         mu = self.positions @ R.T + camera.t.astype(np.float32)
         slack = np.float32(1e-5 * (self.coordinate_scale + float(np.abs(camera.t).max())) + 1e-6)
-        radius = self.support_radius(p_min) * np.float32(1.0 + 1e-5) + slack
+        radius = self.support_radius(p_min)
+        if dilation:
+            kappa = 2.0 * (self.log_opacity - np.float32(math.log(p_min)))
+            radius = radius + np.sqrt(np.maximum(kappa, 0.0)) * np.float32(dilation) * np.linalg.norm(mu, axis=1)
+        radius = radius * np.float32(1.0 + 1e-5) + slack
         x, y, z = mu[:, 0], mu[:, 1], mu[:, 2]
         keep = (self.log_opacity > np.float32(math.log(p_min))) & (z > -radius)
+        if dilation is None:
+            visible = np.flatnonzero(keep)
+            return visible[sort_back_to_front(z[visible], method)].astype(np.uint32)
         # Side planes through the camera centre, at the image border (pixel centres lie
         # half a pixel inside it), with unit normals pointing into the frustum.
         for coordinate, a, b, extent in ((x, camera.fx, camera.cx, camera.width),

@@ -115,7 +115,7 @@ class GLRenderer:
 
     # -- per-frame passes ---------------------------------------------------------
     def sort(self, camera: Camera, settings: RenderSettings) -> np.ndarray:
-        return self.sorter.order(camera, settings.p_min)
+        return self.sorter.order(camera, settings.p_min, dilation=settings.cull_dilation(camera))
 
     def preprocess(self, camera: Camera, settings: RenderSettings) -> None:
         """Writes the per-view splat record of every gaussian."""
