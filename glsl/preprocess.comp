@@ -1,6 +1,10 @@
-// Per gaussian, per view: colour, opacity, c^2 and the RayGS quad frame
-// (maths page, sections 3 and 4). Runs over one chunk of gaussians at a time so
-// that no bound range exceeds the per-block storage limit.
+// Per gaussian, per view: colour, opacity and the quad to draw (maths page, sections
+// 3 to 7). Runs over one chunk of gaussians at a time so that no bound range exceeds
+// the per-block storage limit. Variants, by #define:
+//   MODE_GS          EWA splatting's image-space quad (section 7), GS_COMPENSATION
+//   MIP              RayGS with the pixel-invariant MIP filter (Eq. 17), MIP_MODULATION
+//   EXACT_MIP        RayGS with the pixel-dependent filter: the quad bounds the widest
+//                    filter a pixel can apply; the fragments evaluate the filter.
 layout(local_size_x = 128) in;
 
 #include "splat.glsl"
@@ -20,6 +24,9 @@ uniform uint u_out_offset;   // first output slot of this chunk within the bound
 uniform mat3 u_world_to_camera;
 uniform vec3 u_camera_center;
 uniform float u_log_p_min;
+uniform float u_pixel_variance;  // MIP: sigma_x^2, the filter's variance at unit distance
+uniform vec4 u_intrinsics;       // GS: fx, fy, cx, cy
+uniform vec2 u_image_size;       // GS: width, height
 
 // The scene stores SH_STORED_DEGREE bands; SH_DEGREE (<= it) are evaluated.
 const uint COEFFS = uint((SH_STORED_DEGREE + 1) * (SH_STORED_DEGREE + 1));
@@ -38,6 +45,40 @@ mat3 quaternion_matrix(vec4 q) {
                 2.0 * (x * z + w * y), 2.0 * (y * z - w * x), 1.0 - 2.0 * (x * x + y * y));
 }
 
+#if MODE_GS
+// The linearised projection at mu (INRIA's, with its ray clamped 15 % of the image
+// beyond each border), Sigma2 = J Sigma J^T + dilation, and the quad spanning its
+// kappa-ellipse along the eigenvectors.
+void project_ewa(inout Splat s, vec3 mu, mat3 to_camera, vec3 scale, float opacity) {
+    if (mu.z <= GS_NEAR) return;
+    vec2 focal = u_intrinsics.xy, principal = u_intrinsics.zw;
+    vec2 margin = 0.15 * u_image_size / focal;
+    vec2 ray = clamp(mu.xy / mu.z, -principal / focal - margin, (u_image_size - principal) / focal + margin);
+    // Rows of J, taken into the gaussian's scaled frame: Sigma2 = [a b]^T [a b].
+    vec3 j0 = vec3(focal.x / mu.z, 0.0, -focal.x * ray.x / mu.z);
+    vec3 j1 = vec3(0.0, focal.y / mu.z, -focal.y * ray.y / mu.z);
+    vec3 a = scale * (transpose(to_camera) * j0);
+    vec3 b = scale * (transpose(to_camera) * j1);
+    float xx = dot(a, a), xy = dot(a, b), yy = dot(b, b);
+    float det_unfiltered = max(xx * yy - xy * xy, 0.0);
+    xx += GS_DILATION;
+    yy += GS_DILATION;
+    float det = xx * yy - xy * xy;
+#if GS_COMPENSATION
+    opacity *= sqrt(det_unfiltered / det);
+#endif
+    float kappa = 2.0 * (log(opacity) - u_log_p_min);
+    if (kappa <= 0.0) return;
+    float mid = 0.5 * (xx + yy), radius = sqrt(0.25 * (xx - yy) * (xx - yy) + xy * xy);
+    float angle = (xy == 0.0 && xx == yy) ? 0.0 : 0.5 * atan(2.0 * xy, xx - yy);
+    vec2 major = vec2(cos(angle), sin(angle));
+    s.center_c2 = vec4(focal * mu.xy / mu.z + principal, mu.z, 1.0);
+    s.axis0_half = vec4(major * sqrt(kappa * (mid + radius)),
+                        vec2(-major.y, major.x) * sqrt(kappa * max(mid - radius, 0.0)));
+    s.axis1_opacity = vec4(yy / det, -xy / det, xx / det, opacity);
+}
+#endif
+
 void main() {
     uint i = gl_GlobalInvocationID.x;
     if (i >= u_count) return;
@@ -47,17 +88,44 @@ void main() {
     float opacity = g.position_opacity.w;
     vec3 offset = g.position_opacity.xyz - u_camera_center;  // world, camera -> centre
     mat3 rotation = quaternion_matrix(g.rotation);
-
-    // Whitened frame: there the gaussian is a unit sphere at w, seen from the origin.
-    vec3 w = (transpose(rotation) * offset) / scale;
-    float c2 = dot(w, w);
-    float kappa = 2.0 * (log(opacity) - u_log_p_min);  // exact log (maths page, section 3)
+    mat3 to_camera = u_world_to_camera * rotation;
+    vec3 mu = u_world_to_camera * offset;
 
     Splat s;
     s.color = vec4(sh_color(normalize(offset)), 0.0);
-    s.center_c2 = vec4(u_world_to_camera * offset, 0.0);
+    s.center_c2 = vec4(mu, 0.0);
     s.axis0_half = vec4(0.0);
     s.axis1_opacity = vec4(0.0, 0.0, 0.0, opacity);
+#if MODE_GS
+    project_ewa(s, mu, to_camera, scale, opacity);
+#else
+    vec3 local = transpose(rotation) * offset;  // mu in the gaussian's rotated frame
+#if EXACT_MIP
+    // The quad must hold every pixel's support: bound the filter by the farthest peak.
+    float kappa = 2.0 * (log(opacity) - u_log_p_min);
+    vec3 s_mip = sqrt(scale * scale + u_pixel_variance * dot(offset, offset));
+    float tau_max = length(offset) + sqrt(max(kappa, 0.0)) * max(max(s_mip.x, s_mip.y), s_mip.z);
+    vec3 unfiltered = scale;
+    scale = sqrt(scale * scale + u_pixel_variance * tau_max * tau_max);
+    s.local_center = vec4(local, unfiltered.x);
+    s.local_axis0 = vec4(0.0, 0.0, 0.0, unfiltered.y);
+    s.local_axis1 = vec4(0.0, 0.0, 0.0, unfiltered.z);
+#elif MIP
+    vec3 s_hat = sqrt(scale * scale + u_pixel_variance * dot(offset, offset));
+#if MIP_MODULATION
+    // Eq. 17's sqrt(|Sigma| c^2 / (|Sigma_hat| c_hat^2)), as ratios that cannot underflow.
+    vec3 shrink = scale / s_hat;
+    opacity *= shrink.x * shrink.y * shrink.z * (length(local / scale) / length(local / s_hat));
+    s.axis1_opacity.w = opacity;
+#endif
+    scale = s_hat;
+#endif
+#if !EXACT_MIP
+    float kappa = 2.0 * (log(opacity) - u_log_p_min);  // exact log (maths page, section 3)
+#endif
+    // Whitened frame: there the gaussian is a unit sphere at w, seen from the origin.
+    vec3 w = local / scale;
+    float c2 = dot(w, w);
     if (kappa > 0.0 && c2 > kappa) {
         vec3 m = w * inversesqrt(c2);
         float b = sqrt(1.0 - kappa / c2);
@@ -75,10 +143,17 @@ void main() {
         float angle = (b01 == 0.0 && b00 == b11) ? 0.0 : 0.5 * atan(2.0 * b01, b00 - b11);
         vec2 u1 = vec2(cos(angle), sin(angle));
         vec2 u0 = vec2(-u1.y, u1.x);
-        mat3 to_camera = u_world_to_camera * rotation;
+        vec3 local_axis0 = (q0 * u0.x + q1 * u0.y) * half_size;
+        vec3 local_axis1 = (q0 * u1.x + q1 * u1.y) * half_size;
         s.center_c2.w = c2;
-        s.axis0_half = vec4(to_camera * ((q0 * u0.x + q1 * u0.y) * half_size), half_size);
-        s.axis1_opacity.xyz = to_camera * ((q0 * u1.x + q1 * u1.y) * half_size);
+        s.color.a = kappa;
+        s.axis0_half = vec4(to_camera * local_axis0, half_size);
+        s.axis1_opacity.xyz = to_camera * local_axis1;
+#if EXACT_MIP
+        s.local_axis0.xyz = local_axis0;
+        s.local_axis1.xyz = local_axis1;
+#endif
     }
+#endif
     splats[u_out_offset + i] = s;
 }

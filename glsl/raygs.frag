@@ -1,17 +1,44 @@
-// The ray's divergence from the quad coordinate (maths page, section 5, Eq. 16),
-// premultiplied output for back-to-front (ONE, ONE_MINUS_SRC_ALPHA) blending.
+#include "composite.glsl"
+// The ray's divergence from the quad coordinate (maths page, section 5, Eq. 16).
+// EXACT_MIP: the pixel-dependent MIP filter (section 6, Appendix A.5), evaluated in
+// the gaussian's rotated frame, where the covariance is diag(s^2) and the filter
+// sigma_x^2 tau^2 I only widens the scales.
 in vec2 v_plane;
 flat in vec4 v_color_opacity;
-flat in float v_c2;
-
-uniform float u_p_min;
-
-out vec4 frag_color;
+flat in vec2 v_c2_kappa;
+#if EXACT_MIP
+in vec3 v_local;
+flat in vec3 v_local_center;
+flat in vec3 v_scale;
+uniform float u_pixel_variance;  // sigma_x^2: the filter's variance at unit distance
+#endif
 
 void main() {
     float r2 = dot(v_plane, v_plane);
-    float divergence = r2 / (1.0 + r2 / v_c2);
-    float alpha = v_color_opacity.a * exp(-0.5 * divergence);
-    if (alpha < u_p_min) discard;
-    frag_color = vec4(v_color_opacity.rgb * alpha, alpha);
+    float divergence = r2 / (1.0 + r2 / v_c2_kappa.x);
+#if EXACT_MIP
+    // The quad bounds the support of the widest filter this gaussian can get; outside
+    // that support the exact opacity is below p_min too.
+    if (divergence > v_c2_kappa.y) discard;
+    vec3 ray = normalize(v_local);
+    vec3 s2 = v_scale * v_scale;
+    float ray_metric = dot(ray * ray, 1.0 / s2);            // x^T Sigma^-1 x
+    float tau = dot(ray * v_local_center, 1.0 / s2) / ray_metric;
+    if (tau <= 0.0) discard;                                // the peak is behind the camera
+    vec3 s2_hat = s2 + u_pixel_variance * tau * tau;
+    vec3 s_hat = sqrt(s2_hat);
+    vec3 y = ray / s_hat, w = v_local_center / s_hat;
+    vec3 across = cross(y, w);
+    divergence = dot(across, across) / dot(y, y);
+    float opacity = v_color_opacity.a;
+#if MIP_MODULATION
+    // sqrt(|Sigma| x^T Sigma^-1 x / (|Sigma_hat| x^T Sigma_hat^-1 x)), as a product of
+    // ratios <= 1 so tiny scales do not underflow a determinant.
+    vec3 shrink = s2 / s2_hat;
+    opacity *= sqrt(shrink.x * shrink.y * shrink.z * ray_metric / dot(ray * ray, 1.0 / s2_hat));
+#endif
+    emit(v_color_opacity.rgb, opacity * exp(-0.5 * divergence));
+#else
+    emit(v_color_opacity.rgb, v_color_opacity.a * exp(-0.5 * divergence));
+#endif
 }

@@ -5,6 +5,10 @@ view (never waiting) -> draw the newest finished order into a float target ->
 show it letterboxed in the window -> panel -> swap. Screenshots re-render the
 same view offscreen with an exact sort, so they reproduce headlessly from their
 sidecar (``raygs-viewer render --sidecar``).
+
+In the A/B split view both sides render the whole viewport with the same order
+(sorted with the more conservative cull of the two) into their own targets; the
+present pass shows the left target left of the divider and the right one right of it.
 """
 
 from __future__ import annotations
@@ -24,10 +28,17 @@ import numpy as np
 from raygs_viewer.window import Window, glfw, imgui  # noqa: I001  (imgui before glfw: see window)
 from raygs_viewer.camera import Camera
 from raygs_viewer.errors import UserError
-from raygs_viewer.settings import DEFAULT_P_MIN, RenderSettings
+from raygs_viewer.settings import ACCURACY_PRESETS, DEFAULT_P_MIN, MODE_LABELS, RENDER_MODES, RenderSettings, \
+    apply_preset
 
-RENDER_MODES = ("RayGS",)
 LETTERBOX_GREY = 0.12
+#: The A/B divider's position, as a fraction of the viewport's width, stays in this range.
+SPLIT_RANGE = (0.02, 0.98)
+#: The divider can be grabbed this many screen pixels either side of it.
+SPLIT_GRAB = 6.0
+#: The right side's preset when the split view is first switched on.
+DEFAULT_SPLIT_PRESET = "GS"
+_DEFAULTS = RenderSettings()
 
 
 @dataclass(frozen=True)
@@ -41,6 +52,8 @@ class ViewerOptions:
     there (PNG, with a .json sidecar beside it). screenshot_dir: where F12 and the
     panel button save. screenshot_scale: offscreen render scale of those. platform:
     GLFW platform ("auto", "x11", "wayland", "null"; auto picks null without a display).
+    p_min ... transmittance_cutoff: the start values of the panel's render settings
+    (the RenderSettings fields of the same names; sh_degree None: the scene's).
     """
 
     scene: str = "demo"
@@ -52,6 +65,14 @@ class ViewerOptions:
     p_min: float = DEFAULT_P_MIN
     background: tuple[float, float, float] = (0.0, 0.0, 0.0)
     sh_degree: int | None = None
+    mode: str = _DEFAULTS.mode
+    mip: bool = _DEFAULTS.mip
+    mip_sigma2: float = _DEFAULTS.mip_sigma2
+    mip_modulation: bool = _DEFAULTS.mip_modulation
+    gs_compensation: bool = _DEFAULTS.gs_compensation
+    supersample: int = _DEFAULTS.supersample
+    alpha_clamp: bool = _DEFAULTS.alpha_clamp
+    transmittance_cutoff: bool = _DEFAULTS.transmittance_cutoff
     frames: int | None = None
     screenshot: str | None = None
     screenshot_dir: str = "screenshots"
@@ -63,19 +84,42 @@ class ViewerOptions:
     turntable: float = 0.0    # degrees per frame about the up axis (orbit mode); 0: off
     window_screenshot: str | None = None  # PNG of the whole window, panel included, at the end
 
+    def settings(self, sh_degree: int | None = None) -> RenderSettings:
+        """The start settings (UserError when a value is out of range)."""
+        return RenderSettings(p_min=self.p_min, background=tuple(self.background),
+                              sh_degree=self.sh_degree if sh_degree is None else sh_degree,
+                              **{name: getattr(self, name) for name in ACCURACY_FIELDS})
+
+
+#: The RenderSettings fields beyond p_min, background and sh_degree; ViewerOptions and
+#: PanelState carry them under the same names.
+ACCURACY_FIELDS = ("mode", "mip", "mip_sigma2", "mip_modulation", "gs_compensation", "supersample",
+                   "alpha_clamp", "transmittance_cutoff")
+
 
 @dataclass
 class PanelState:
-    """What the panel edits; read by the frame each time (panel edits apply next frame)."""
+    """What the panel edits; read by the frame each time (panel edits apply next frame).
+
+    p_min ... transmittance_cutoff are the RenderSettings fields of the same names (the
+    left side's in the split view). split_view: show the A/B split view; split_preset:
+    the right side's ACCURACY_PRESETS entry, applied to the panel's settings;
+    split_fraction: where the divider is, as a fraction of the viewport's width."""
 
     p_min: float
     background: list[float]
     sh_degree: int
-    render_mode: str = "RayGS"
-    # MIP (Eq. 17) arrives with its own issue; the controls are shown, disabled.
-    mip_enabled: bool = False
-    mip_sigma2: float = 0.1
-    mip_modulation: bool = True
+    mode: str = _DEFAULTS.mode
+    mip: bool = _DEFAULTS.mip
+    mip_sigma2: float = _DEFAULTS.mip_sigma2
+    mip_modulation: bool = _DEFAULTS.mip_modulation
+    gs_compensation: bool = _DEFAULTS.gs_compensation
+    supersample: int = _DEFAULTS.supersample
+    alpha_clamp: bool = _DEFAULTS.alpha_clamp
+    transmittance_cutoff: bool = _DEFAULTS.transmittance_cutoff
+    split_view: bool = False
+    split_preset: str = DEFAULT_SPLIT_PRESET
+    split_fraction: float = 0.5
     screenshot_scale: float = 1.0
     screenshot_dir: str = "screenshots"
     open_path: str = ""
@@ -168,7 +212,8 @@ class Viewer:
         self.panel = PanelState(p_min=options.p_min, background=list(options.background),
                                 sh_degree=3 if options.sh_degree is None else options.sh_degree,
                                 screenshot_scale=options.screenshot_scale,
-                                screenshot_dir=options.screenshot_dir)
+                                screenshot_dir=options.screenshot_dir,
+                                **{name: getattr(options, name) for name in ACCURACY_FIELDS})
         self.stats = FrameStats()
         self.frame_index = 0
         self.input_script: Callable[["Viewer"], None] | None = None
@@ -187,9 +232,15 @@ class Viewer:
         self.wait_for_sort = False          # set for the last frame of a scripted run
         self.window_capture: np.ndarray | None = None
         self.last_screenshot: tuple[Path, Path] | None = None
+        self.last_screenshots: list[tuple[Path, Path]] = []  # every file pair of the last capture
+        #: The split view's divider and side labels as drawn last frame, (x0, y0, x1, y1)
+        #: in screen coordinates (imgui's), for tests; empty without the split view.
+        self.overlay_rects: dict[str, tuple[float, float, float, float]] = {}
+        self.dragging_divider = False
         self._request_frames: dict[int, int] = {}
         self._drawn_key = None
-        self._target = None
+        self._target = None         # the scene (the left side in the split view)
+        self._target_right = None   # the split view's right side
         self._present = self.ctx.program(*_present_shaders())
         self._present_vao = self.ctx.vertex_array(self._present, [])
         self._timer = GpuTimer(self.ctx)
@@ -276,8 +327,22 @@ class Viewer:
 
     # -- view ------------------------------------------------------------------------
     def settings(self) -> RenderSettings:
-        return RenderSettings(p_min=self.panel.p_min, background=tuple(self.panel.background),
-                              sh_degree=self.panel.sh_degree)
+        """The panel's render settings (the left side's in the split view)."""
+        panel = self.panel
+        return RenderSettings(p_min=panel.p_min, background=tuple(panel.background), sh_degree=panel.sh_degree,
+                              **{name: getattr(panel, name) for name in ACCURACY_FIELDS})
+
+    def right_settings(self) -> RenderSettings | None:
+        """The split view's right side: the panel's settings with its preset applied;
+        None when the split view is off."""
+        if not self.panel.split_view:
+            return None
+        return apply_preset(self.settings(), self.panel.split_preset)
+
+    def split_column(self, width: int | None = None) -> int:
+        """The first viewport column (framebuffer pixels) of the split view's right side."""
+        width = self.viewport[2] if width is None else width
+        return int(round(self.panel.split_fraction * width))
 
     def select_training_camera(self, index: int) -> None:
         """Flies to training camera ``index`` (wrapping) and renders with its intrinsics."""
@@ -335,6 +400,8 @@ class Viewer:
             forward = down(key.w) - down(key.s)
             if right or upward or forward:
                 nav.move(dt, right, upward, forward, fast=io.key_shift, slow=io.key_ctrl)
+        if self._divider_input(io):
+            return  # the mouse drags the split view's divider, not the camera
         if not io.want_capture_mouse:
             dx, dy = io.mouse_delta.x, io.mouse_delta.y
             if not (math.isfinite(dx) and math.isfinite(dy)):
@@ -356,6 +423,36 @@ class Viewer:
                     nav.rotate(dx, dy)
                 if wheel:
                     nav.zoom(wheel)
+
+    def _divider_input(self, io) -> bool:
+        """The split view's divider: a left press within SPLIT_GRAB screen pixels of it
+        (not on the panel) grabs it, and it follows the mouse until the button is
+        released. True while the mouse belongs to the divider (the camera ignores it)."""
+        if not self.panel.split_view:
+            self.dragging_divider = False
+            return False
+        scale = io.display_framebuffer_scale
+        sx, sy = (scale.x or 1.0), (scale.y or 1.0)
+        vx, vy, vw, vh = self.viewport
+        mx, my = io.mouse_pos.x, io.mouse_pos.y
+        finite = math.isfinite(mx) and math.isfinite(my) and abs(mx) < 1e30 and abs(my) < 1e30
+        if self.dragging_divider:
+            if not imgui.is_mouse_down(0):
+                self.dragging_divider = False
+            elif finite and vw > 0:
+                low, high = SPLIT_RANGE
+                self.panel.split_fraction = min(max((mx * sx - vx) / vw, low), high)
+            imgui.set_mouse_cursor(imgui.MouseCursor_.resize_ew.value)
+            return True
+        if io.want_capture_mouse or not finite:
+            return False
+        divider = (vx + self.split_column(vw)) / sx
+        if abs(mx - divider) <= SPLIT_GRAB and vy / sy <= my <= (vy + vh) / sy:
+            imgui.set_mouse_cursor(imgui.MouseCursor_.resize_ew.value)
+            if imgui.is_mouse_clicked(0):
+                self.dragging_divider = True
+                return True
+        return False
 
     def _turn(self, degrees: float) -> None:
         """Turntable: orbit the target by a fixed angle per frame (not per second), so a
@@ -394,8 +491,9 @@ class Viewer:
 
         x, y, w, h = self.viewport = self.lens.viewport(width, height)
         camera = self.camera = self.lens.camera(self.navigator.pose, width, height)  # viewport-sized
-        settings = self.settings()
-        serial = self.sorter.request(camera, settings.p_min)
+        settings, right = self.settings(), self.right_settings()
+        p_min, dilation = sort_cull(camera, settings, right)
+        serial = self.sorter.request(camera, p_min, dilation)
         self._request_frames.setdefault(serial, self.frame_index)
         if self.wait_for_sort:
             # Only the last frame of a scripted run: its capture must show the finished view.
@@ -407,9 +505,10 @@ class Viewer:
         if self.panel.show_panel:
             from raygs_viewer.panel import draw_panel
             draw_panel(self)
+        self._draw_split_overlay(right)
         imgui.render()
 
-        self._draw_scene(camera, settings, result)
+        self._draw_scene(camera, settings, right, result, (p_min, dilation))
         self._present_image(self.ctx.screen, width, height, x, y, w, h)
         if self.capture_window_next:
             self.capture_window_next = False
@@ -418,12 +517,45 @@ class Viewer:
         if self.screenshot_requested:
             self.screenshot_requested = False
             try:
-                png, sidecar = self.save_screenshot()
-                self.panel.message, self.panel.error = f"saved {png}", ""
+                self.save_screenshot()
+                self.panel.message, self.panel.error = _saved_message(self.last_screenshots), ""
             except (UserError, MemoryError, moderngl.Error) as exc:
                 self.panel.error = f"error: screenshot not saved: {_one_line(exc)}"
 
-    def _draw_scene(self, camera: Camera, settings: RenderSettings, result) -> None:
+    def _draw_split_overlay(self, right: RenderSettings | None) -> None:
+        """The split view's divider line and a label on each side, on imgui's background
+        draw list (over the scene, under the panel)."""
+        self.overlay_rects = {}
+        if right is None:
+            return
+        io = imgui.get_io()
+        scale = io.display_framebuffer_scale
+        sx, sy = (scale.x or 1.0), (scale.y or 1.0)
+        vx, vy, vw, vh = self.viewport
+        draw = imgui.get_background_draw_list()
+        divider = (vx + self.split_column(vw)) / sx
+        top, bottom = vy / sy, (vy + vh) / sy
+        grabbed = self.dragging_divider
+        draw.add_line((divider, top), (divider, bottom), imgui.IM_COL32(255, 255, 255, 255 if grabbed else 200),
+                      2.0 if grabbed else 1.0)
+        self.overlay_rects["divider"] = (divider - 2.0, top, divider + 2.0, bottom)
+        labels = {"left label": f"A: {describe_settings(self.settings())}",
+                  "right label": f"B: {self.panel.split_preset}"}
+        pad = 4.0
+        for name, text in labels.items():
+            size = imgui.calc_text_size(text)
+            x0 = divider - 8.0 - size.x - 2 * pad if name == "left label" else divider + 8.0
+            y0 = top + 8.0
+            rect = (x0, y0, x0 + size.x + 2 * pad, y0 + size.y + 2 * pad)
+            draw.add_rect_filled(rect[:2], rect[2:], imgui.IM_COL32(0, 0, 0, 160), 3.0)
+            draw.add_text((x0 + pad, y0 + pad), imgui.IM_COL32(255, 255, 255, 255), text)
+            self.overlay_rects[name] = rect
+
+    def _draw_scene(self, camera: Camera, settings: RenderSettings, right: RenderSettings | None, result,
+                    cull: tuple[float, float | None]) -> None:
+        """Draws the newest order into the target(s) unless view, settings and order
+        are what the targets already hold. ``cull``: the (p_min, dilation) this frame's
+        sort was asked for, to tell whether the drawn order is up to date."""
         if result is None:
             self.stats.order_age = self.frame_index - min(self._request_frames.values(), default=self.frame_index)
             order, serial = np.zeros(0, np.uint32), 0
@@ -431,22 +563,26 @@ class Viewer:
             order, serial = result.order, result.serial
             for older in [n for n in self._request_frames if n < serial]:  # answered or skipped
                 del self._request_frames[older]
-            current = _camera_key(result.camera) == _camera_key(camera) and result.p_min == settings.p_min
+            current = (_camera_key(result.camera) == _camera_key(camera)
+                       and (result.p_min, result.dilation) == cull)
             self.stats.order_age = 0 if current else self.frame_index - self._request_frames.get(serial, self.frame_index)
             if serial != self.stats.drawn_serial:
                 self.stats.all_sort_times.append(result.seconds)
             self.stats.sort_seconds = result.seconds
             self.stats.visible = int(order.size)
-        key = (_camera_key(camera), settings, serial)
+        key = (_camera_key(camera), settings, right, serial)
         target = self._target_for(camera.width, camera.height)
+        right_target = self._right_target_for(camera.width, camera.height) if right is not None else None
         if key == self._drawn_key:
             # Nothing changed: the image in the target is still right. The GPU is idle
             # as far as this view goes, so the last timings can be read without stalling.
             self._timer.flush()
             self.stats.gpu_seconds = self._timer.seconds
             return
-        with self._timer.measure():
+        with self._timer.measure():  # the whole frame's GPU time, both sides in the split view
             self.renderer.render_into(target, camera, settings, order)
+            if right is not None:
+                self.renderer.render_into(right_target, camera, right, order)
         self.stats.gpu_seconds = self._timer.seconds
         self.stats.drawn_serial = serial
         self.stats.draws += 1
@@ -454,14 +590,20 @@ class Viewer:
 
     def _target_for(self, width: int, height: int):
         if self._target is None or self._target.size != (width, height):
-            if self._target is not None:
-                for attachment in self._target.color_attachments:
-                    attachment.release()
-                self._target.release()
-            texture = self.ctx.texture((width, height), 4, dtype="f4")
-            self._target = self.ctx.framebuffer(color_attachments=[texture])
+            _release_framebuffer(self._target)
+            self._target = self._float_target(width, height)
             self._drawn_key = None
         return self._target
+
+    def _right_target_for(self, width: int, height: int):
+        if self._target_right is None or self._target_right.size != (width, height):
+            _release_framebuffer(self._target_right)
+            self._target_right = self._float_target(width, height)
+            self._drawn_key = None
+        return self._target_right
+
+    def _float_target(self, width: int, height: int):
+        return self.ctx.framebuffer(color_attachments=[self.ctx.texture((width, height), 4, dtype="f4")])
 
     def _capture_window(self, width: int, height: int, x: int, y: int, w: int, h: int) -> np.ndarray:
         """(H, W, 3) uint8, top row first: the window as shown, panel included, composed
@@ -487,8 +629,14 @@ class Viewer:
         lower = height - y - h  # the viewport's y counts from the top, GL's from the bottom
         screen.viewport = (x, lower, w, h)
         ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST)
+        split = self.panel.split_view and self._target_right is not None \
+            and self._target_right.size == self._target.size
         self._target.color_attachments[0].use(0)
+        (self._target_right if split else self._target).color_attachments[0].use(1)
         self._present["u_image"].value = 0
+        self._present["u_right"].value = 1
+        # Viewport columns from split_column() on show the right image (2: none).
+        self._present["u_split"].value = self.split_column(w) / w if split else 2.0
         self._present_vao.render(moderngl.TRIANGLES, vertices=3)
         screen.viewport = (0, 0, width, height)
 

@@ -27,7 +27,7 @@ __all__ = ["BackgroundSorter", "SortResult", "Sorter"]
 class Sorter(Protocol):
     """What :class:`BackgroundSorter` runs: :class:`raygs_viewer.sorting.DepthSorter` or a test double."""
 
-    def order(self, camera: Camera, p_min: float) -> np.ndarray: ...
+    def order(self, camera: Camera, p_min: float, *, dilation: float | None = 0.0) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)
@@ -38,6 +38,8 @@ class SortResult:
     serial:  the serial :meth:`BackgroundSorter.request` returned for the view (1, 2, ...).
     camera:  the view it was sorted for (a private copy of the requested camera).
     p_min:   the opacity cut-off it culled with.
+    dilation: the cull dilation it culled with (``RenderSettings.cull_dilation``; None:
+             no frustum culling).
     seconds: how long ``sorter.order`` took (``time.perf_counter``), for the statistics panel.
     """
 
@@ -46,6 +48,7 @@ class SortResult:
     camera: Camera
     p_min: float
     seconds: float
+    dilation: float | None = 0.0
 
 
 @dataclass(frozen=True)
@@ -53,13 +56,19 @@ class _Request:
     serial: int
     camera: Camera
     p_min: float
+    dilation: float | None
 
 
-def _view_key(camera: Camera, p_min: float) -> tuple:
-    """Everything the order depends on, as exact values: equal keys give equal orders."""
+def _dilation(value: float | None) -> float | None:
+    return None if value is None else float(value)
+
+
+def _view_key(camera: Camera, p_min: float, dilation: float | None = 0.0) -> tuple:
+    """Everything the order depends on, as exact values: equal keys give equal orders
+    (a dilation of None, no frustum culling, differs from every number)."""
     return (camera.width, camera.height, float(camera.fx), float(camera.fy), float(camera.cx),
             float(camera.cy), np.asarray(camera.R, np.float64).tobytes(),
-            np.asarray(camera.t, np.float64).tobytes(), float(p_min))
+            np.asarray(camera.t, np.float64).tobytes(), float(p_min), _dilation(dilation))
 
 
 def _one_line(exc: BaseException) -> str:
@@ -80,8 +89,8 @@ class BackgroundSorter:
 
     ``requested == started + superseded + (1 if a request is waiting else 0)``.
     ``error`` is the one-line message of the last failed sort, cleared by the next
-    successful one; a failed view is not retried until a different view (or p_min)
-    is requested, so a frame loop re-requesting the same view cannot spin on it.
+    successful one; a failed view is not retried until a different view (or p_min,
+    or dilation) is requested, so a frame loop re-requesting the same view cannot spin on it.
     """
 
     def __init__(self, sorter: Sorter) -> None:
@@ -104,12 +113,15 @@ class BackgroundSorter:
 
     # ------------------------------------------------------------------ frame-loop side
 
-    def request(self, camera: Camera, p_min: float) -> int:
+    def request(self, camera: Camera, p_min: float, dilation: float | None = 0.0) -> int:
         """Non-blocking. Queues a sort for this view and returns its serial; a request
         not yet started is replaced by the newer one (only the newest view matters). A
-        request equal to the last one queued (same camera R, t, intrinsics and p_min) is
-        not queued again: returns the old serial. Raises RuntimeError after :meth:`close`."""
-        key = _view_key(camera, p_min)
+        request equal to the last one queued (same camera R, t, intrinsics, p_min and
+        dilation) is not queued again: returns the old serial. ``dilation`` goes to
+        ``sorter.order(camera, p_min, dilation=dilation)`` (see
+        :meth:`raygs_viewer.settings.RenderSettings.cull_dilation`). Raises RuntimeError
+        after :meth:`close`."""
+        key = _view_key(camera, p_min, dilation)
         with self._cond:
             if self._closed:
                 raise RuntimeError("BackgroundSorter.request after close()")
@@ -122,7 +134,7 @@ class BackgroundSorter:
             self.requested += 1
             if self._pending is not None:
                 self.superseded += 1
-            self._pending = _Request(self.requested, snapshot, float(p_min))
+            self._pending = _Request(self.requested, snapshot, float(p_min), _dilation(dilation))
             self._last_key = key
             self._cond.notify_all()
             return self.requested
@@ -175,7 +187,8 @@ class BackgroundSorter:
                 self.started += 1
             begin = time.perf_counter()
             try:
-                order = np.asarray(self._sorter.order(request.camera, request.p_min), dtype=np.uint32)
+                order = np.asarray(self._sorter.order(request.camera, request.p_min, dilation=request.dilation),
+                                   dtype=np.uint32)
             except Exception as exc:  # reported in .error; the thread must keep serving
                 with self._cond:
                     self.failed += 1
@@ -184,7 +197,7 @@ class BackgroundSorter:
                     self._cond.notify_all()
                 continue
             result = SortResult(order, request.serial, request.camera, request.p_min,
-                                time.perf_counter() - begin)
+                                time.perf_counter() - begin, request.dilation)
             with self._cond:
                 self._latest = result
                 self.finished += 1

@@ -5,6 +5,11 @@ pass turns every gaussian into a per-view :file:`splat.glsl` record (colour,
 opacity, c^2, quad axes); the vertex stage draws one quad per sorted index and
 the fragment stage evaluates Eq. 16, blending premultiplied colour back to front
 into a float32 target with depth clamp on (no near-plane clipping).
+
+The accuracy options of :class:`RenderSettings` select shader variants by
+``#define`` (EWA splatting, the two MIP filters, the parity switches), so a frame
+pays only for what is on. Supersampling and the transmittance cut-off render into
+a sample target first; a resolve pass filters it down into the caller's target.
 """
 
 from __future__ import annotations
@@ -19,7 +24,8 @@ from raygs_viewer.camera import Camera
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.shaders import shader_source
 from raygs_viewer.scene import Scene, sh_coefficient_count
-from raygs_viewer.settings import RenderSettings
+from raygs_viewer.settings import (ALPHA_CLAMP, GS_DILATION, GS_NEAR, TRANSMITTANCE_CUTOFF,
+                                   RenderSettings)
 from raygs_viewer.sorting import DepthSorter
 
 GL_DEPTH_CLAMP = 0x864F
@@ -29,6 +35,8 @@ RANGE_ALIGNMENT = 256
 
 GAUSSIAN_BYTES = 48  # struct Gaussian in preprocess.comp
 SPLAT_BYTES = 64     # struct Splat in splat.glsl
+EXACT_MIP_SPLAT_BYTES = 112  # ... with EXACT_MIP's three extra vec4
+GL_EXT_FRAMEBUFFER_FETCH = "GL_EXT_shader_framebuffer_fetch"
 MAX_SPLAT_BLOCKS = 8  # bindings raygs.vert declares
 WORKGROUP = 128
 # GL guarantees 65535 workgroups per dispatch; drivers that report a 2 GiB block
@@ -53,17 +61,19 @@ class StorageLayout:
     block_limit: int
     splats_per_block: int
     chunk: int
+    splat_bytes: int = SPLAT_BYTES
 
     @classmethod
-    def plan(cls, count: int, harmonics_bytes: int, block_limit: int, alignment: int = RANGE_ALIGNMENT) -> "StorageLayout":
-        record_bytes = (GAUSSIAN_BYTES, harmonics_bytes, SPLAT_BYTES)
-        splats_per_block = _power_of_two_at_most(block_limit // SPLAT_BYTES)
+    def plan(cls, count: int, harmonics_bytes: int, block_limit: int, alignment: int = RANGE_ALIGNMENT,
+             splat_bytes: int = SPLAT_BYTES) -> "StorageLayout":
+        record_bytes = (GAUSSIAN_BYTES, harmonics_bytes, splat_bytes)
+        splats_per_block = _power_of_two_at_most(block_limit // splat_bytes)
         chunk = min(_power_of_two_at_most(block_limit // max(record_bytes)), splats_per_block, MAX_CHUNK)
         # Every bound offset is a multiple of chunk * record size: keep those aligned.
         if chunk * max(record_bytes) > block_limit or any(chunk * b % alignment for b in record_bytes):
             raise UserError(f"a storage block limit of {block_limit} bytes is too small for "
                             f"{max(record_bytes)}-byte gaussian records")
-        return cls(count, block_limit, splats_per_block, chunk)
+        return cls(count, block_limit, splats_per_block, chunk, splat_bytes)
 
     @property
     def splat_blocks(self) -> int:
@@ -84,12 +94,9 @@ class GLRenderer:
         count = scene.count
         coeffs = sh_coefficient_count(scene.sh_degree)
         gpu_limit = _limit(ctx, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 1 << 27)
-        self.layout = StorageLayout.plan(count, coeffs * 12, min(block_limit or gpu_limit, gpu_limit))
-        vertex_blocks = _limit(ctx, "GL_MAX_VERTEX_SHADER_STORAGE_BLOCKS", 16) - 1  # one holds the order
-        if self.layout.splat_blocks > min(MAX_SPLAT_BLOCKS, vertex_blocks):
-            raise UserError(f"scene of {count} gaussians needs {self.layout.splat_blocks} storage blocks "
-                            f"of {self.layout.block_limit} bytes; this GPU and renderer allow "
-                            f"{min(MAX_SPLAT_BLOCKS, vertex_blocks)}")
+        self._block_limit = min(block_limit or gpu_limit, gpu_limit)
+        self._layouts: dict[int, StorageLayout] = {}
+        self.layout = self._layout(SPLAT_BYTES)
 
         packed = np.zeros((count, 12), np.float32)
         packed[:, 0:3] = scene.positions
@@ -100,80 +107,149 @@ class GLRenderer:
         self._harmonics = _buffer(ctx, scene.sh.reshape(count, coeffs * 3))
         self._splats = ctx.buffer(reserve=max(count, 1) * SPLAT_BYTES)
         self._order = ctx.buffer(reserve=max(count, 1) * 4)
+        self._last_layout = self.layout
 
-        # One preprocessing variant per evaluated SH degree, compiled on first use.
-        self._preprocess_programs: dict[int, moderngl.ComputeShader] = {}
-        self._draw = ctx.program(
-            vertex_shader=shader_source("raygs.vert", {"SPLAT_BLOCKS": self.layout.splat_blocks,
-                                                       "SPLATS_PER_BLOCK": self.layout.splats_per_block}),
-            fragment_shader=shader_source("raygs.frag"),
-        )
-        self._vao = ctx.vertex_array(self._draw, [])
+        # Shader variants, compiled on first use: keyed by their #defines.
+        self._preprocess_programs: dict[tuple, moderngl.ComputeShader] = {}
+        self._draw_programs: dict[tuple, tuple[moderngl.Program, moderngl.VertexArray]] = {}
+        self._resolve_programs: dict[bool, tuple[moderngl.Program, moderngl.VertexArray]] = {}
         #: Off only to demonstrate the near-plane seam that depth clamp prevents.
         self.depth_clamp = True
         self._targets: dict[tuple[int, int], moderngl.Framebuffer] = {}
+        self._sample_targets: dict[tuple[int, int], moderngl.Framebuffer] = {}
+
+    def _layout(self, splat_bytes: int) -> StorageLayout:
+        if splat_bytes not in self._layouts:
+            count = self.scene.count
+            harmonics_bytes = sh_coefficient_count(self.scene.sh_degree) * 12
+            layout = StorageLayout.plan(count, harmonics_bytes, self._block_limit, splat_bytes=splat_bytes)
+            vertex_blocks = _limit(self.ctx, "GL_MAX_VERTEX_SHADER_STORAGE_BLOCKS", 16) - 1  # one holds the order
+            if layout.splat_blocks > min(MAX_SPLAT_BLOCKS, vertex_blocks):
+                raise UserError(f"scene of {count} gaussians needs {layout.splat_blocks} storage blocks "
+                                f"of {layout.block_limit} bytes; this GPU and renderer allow "
+                                f"{min(MAX_SPLAT_BLOCKS, vertex_blocks)}")
+            self._layouts[splat_bytes] = layout
+        return self._layouts[splat_bytes]
+
+    @staticmethod
+    def _splat_bytes(settings: RenderSettings) -> int:
+        return EXACT_MIP_SPLAT_BYTES if settings.mode == "raygs-exact-mip" else SPLAT_BYTES
+
+    def supports(self, settings: RenderSettings) -> str | None:
+        """None when this GPU can render ``settings``, else why not (one line)."""
+        if settings.transmittance_cutoff and GL_EXT_FRAMEBUFFER_FETCH not in self.ctx.extensions:
+            return (f"the transmittance cut-off needs {GL_EXT_FRAMEBUFFER_FETCH}, "
+                    f"which this GPU's OpenGL driver does not offer")
+        return None
 
     # -- per-frame passes ---------------------------------------------------------
     def sort(self, camera: Camera, settings: RenderSettings) -> np.ndarray:
         return self.sorter.order(camera, settings.p_min, dilation=settings.cull_dilation(camera))
 
     def preprocess(self, camera: Camera, settings: RenderSettings) -> None:
-        """Writes the per-view splat record of every gaussian."""
-        layout, count = self.layout, self.scene.count
-        program = self._preprocess_program(settings.effective_sh_degree(self.scene.sh_degree))
+        """Writes the per-view splat record of every gaussian for ``camera`` (the camera
+        actually rasterized: already supersampled)."""
+        count = self.scene.count
+        layout = self._layout(self._splat_bytes(settings))
+        if self._splats.size < max(count, 1) * layout.splat_bytes:
+            self._splats.orphan(max(count, 1) * layout.splat_bytes)
+        self._last_layout = layout
+        program = self._preprocess_program(settings)
         program["u_world_to_camera"].write(camera.R.astype(np.float32).tobytes(order="F"))
         program["u_camera_center"].value = tuple(camera.center.astype(np.float32))
         program["u_log_p_min"].value = math.log(settings.p_min)
+        _set_uniform(program, "u_pixel_variance", settings.pixel_variance(camera))
+        _set_uniform(program, "u_intrinsics", (camera.fx, camera.fy, camera.cx, camera.cy))
+        _set_uniform(program, "u_image_size", (camera.width, camera.height))
         harmonics_bytes = sh_coefficient_count(self.scene.sh_degree) * 12
+        splat_bytes = layout.splat_bytes
         for start in range(0, count, layout.chunk):
             n = min(layout.chunk, count - start)
             self._gaussians.bind_to_storage_buffer(0, offset=start * GAUSSIAN_BYTES, size=n * GAUSSIAN_BYTES)
             self._harmonics.bind_to_storage_buffer(1, offset=start * harmonics_bytes, size=n * harmonics_bytes)
             block_start = start - start % layout.splats_per_block
             block_count = min(layout.splats_per_block, count - block_start)
-            self._splats.bind_to_storage_buffer(2, offset=block_start * SPLAT_BYTES, size=block_count * SPLAT_BYTES)
+            self._splats.bind_to_storage_buffer(2, offset=block_start * splat_bytes, size=block_count * splat_bytes)
             program["u_count"].value = n
             program["u_out_offset"].value = start - block_start
             program.run(group_x=-(-n // WORKGROUP))
         self.ctx.memory_barrier()
 
-    def _preprocess_program(self, degree: int) -> moderngl.ComputeShader:
-        if degree not in self._preprocess_programs:
-            defines = {"SH_DEGREE": degree, "SH_STORED_DEGREE": self.scene.sh_degree}
-            self._preprocess_programs[degree] = self.ctx.compute_shader(shader_source("preprocess.comp", defines))
-        return self._preprocess_programs[degree]
+    def _preprocess_program(self, settings: RenderSettings) -> moderngl.ComputeShader:
+        defines = {"SH_DEGREE": settings.effective_sh_degree(self.scene.sh_degree),
+                   "SH_STORED_DEGREE": self.scene.sh_degree,
+                   "MODE_GS": int(settings.mode == "gs"),
+                   "GS_COMPENSATION": int(settings.mode == "gs" and settings.gs_compensation),
+                   "GS_DILATION": _glsl_float(GS_DILATION),
+                   "GS_NEAR": _glsl_float(GS_NEAR),
+                   "MIP": int(settings.mode == "raygs" and settings.mip),
+                   "MIP_MODULATION": int(settings.mip_modulation),
+                   "EXACT_MIP": int(settings.mode == "raygs-exact-mip")}
+        key = tuple(sorted(defines.items()))
+        if key not in self._preprocess_programs:
+            self._preprocess_programs[key] = self.ctx.compute_shader(shader_source("preprocess.comp", defines))
+        return self._preprocess_programs[key]
 
     def read_splats(self) -> np.ndarray:
-        """(N, 16) float32 copy of the per-view records of the last :meth:`preprocess`
-        (the ``Splat`` struct, row by row), for tests and diagnostics."""
-        count = self.scene.count
-        return np.frombuffer(self._splats.read(size=count * SPLAT_BYTES), np.float32).reshape(count, 16)
+        """(N, F) float32 copy of the per-view records of the last :meth:`preprocess`
+        (the ``Splat`` struct, row by row; F = 16, or 28 in exact MIP mode), for tests
+        and diagnostics."""
+        count, floats = self.scene.count, self._last_layout.splat_bytes // 4
+        return np.frombuffer(self._splats.read(size=count * floats * 4), np.float32).reshape(count, floats)
 
     def draw(self, camera: Camera, settings: RenderSettings, order: np.ndarray) -> None:
-        """Draws the quads of ``order`` (back to front) into the bound framebuffer."""
+        """Draws the quads of ``order`` (back to front) into the bound framebuffer, as
+        the last :meth:`preprocess` (same camera and settings) prepared them."""
         if order.size == 0:
             return
         if order.size > self.scene.count:
             raise ValueError("order longer than the scene")
+        layout, count = self._layout(self._splat_bytes(settings)), self.scene.count
+        program, vao = self._draw_program(settings, layout)
         self._order.write(np.ascontiguousarray(order, dtype=np.uint32))
         self._order.bind_to_storage_buffer(0, size=order.size * 4)
-        layout, count = self.layout, self.scene.count
         for block in range(layout.splat_blocks):
             start = block * layout.splats_per_block
             n = max(1, min(layout.splats_per_block, count - start))
-            self._splats.bind_to_storage_buffer(1 + block, offset=start * SPLAT_BYTES, size=n * SPLAT_BYTES)
-        self._draw["u_projection"].write(camera.gl_projection().astype(np.float32).tobytes(order="F"))
-        self._draw["u_p_min"].value = settings.p_min
+            self._splats.bind_to_storage_buffer(1 + block, offset=start * layout.splat_bytes,
+                                                size=n * layout.splat_bytes)
+        _set_uniform(program, "u_projection", camera.gl_projection().astype(np.float32).tobytes(order="F"))
+        _set_uniform(program, "u_image_size", (camera.width, camera.height))
+        _set_uniform(program, "u_pixel_variance", settings.pixel_variance(camera))
+        _set_uniform(program, "u_order_count", int(order.size))
+        program["u_p_min"].value = settings.p_min
         ctx = self.ctx
         ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
-        ctx.enable(moderngl.BLEND)
-        ctx.blend_func = moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA
-        ctx.blend_equation = moderngl.FUNC_ADD
+        if settings.transmittance_cutoff:
+            ctx.disable(moderngl.BLEND)  # the fragment stage composites through framebuffer fetch
+        else:
+            ctx.enable(moderngl.BLEND)
+            ctx.blend_func = moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA
+            ctx.blend_equation = moderngl.FUNC_ADD
         if self.depth_clamp:
             ctx.enable_direct(GL_DEPTH_CLAMP)
         else:
             ctx.disable_direct(GL_DEPTH_CLAMP)
-        self._vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=int(order.size))
+        vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=int(order.size))
+
+    def _draw_program(self, settings: RenderSettings, layout: StorageLayout):
+        problem = self.supports(settings)
+        if problem:
+            raise UserError(problem)
+        gs = settings.mode == "gs"
+        defines = {"SPLAT_BLOCKS": layout.splat_blocks, "SPLATS_PER_BLOCK": layout.splats_per_block,
+                   "EXACT_MIP": int(settings.mode == "raygs-exact-mip"),
+                   "MIP_MODULATION": int(settings.mip_modulation),
+                   "ALPHA_CLAMP": int(settings.alpha_clamp), "ALPHA_MAX": _glsl_float(ALPHA_CLAMP),
+                   "FRONT_TO_BACK": int(settings.transmittance_cutoff),
+                   "MIN_TRANSMITTANCE": _glsl_float(TRANSMITTANCE_CUTOFF)}
+        key = (gs, *sorted(defines.items()))
+        if key not in self._draw_programs:
+            stage = "gs" if gs else "raygs"
+            program = self.ctx.program(vertex_shader=shader_source(f"{stage}.vert", defines),
+                                       fragment_shader=shader_source(f"{stage}.frag", defines))
+            self._draw_programs[key] = program, self.ctx.vertex_array(program, [])
+        return self._draw_programs[key]
 
     def render(self, camera: Camera, settings: RenderSettings = RenderSettings(),
                order: np.ndarray | None = None) -> np.ndarray:
@@ -187,35 +263,99 @@ class GLRenderer:
 
     def render_into(self, target: moderngl.Framebuffer, camera: Camera, settings: RenderSettings,
                     order: np.ndarray) -> None:
-        """Clears ``target`` (camera-sized, float colour) and draws the scene into it.
-        Clearing to (background, 0) and blending with (ONE, ONE_MINUS_SRC_ALPHA) leaves
-        background-composited colour in RGB and the accumulated alpha in A."""
+        """Clears ``target`` (camera-sized, float colour) and draws the scene into it:
+        background-composited colour in RGB and the accumulated alpha in A.
+
+        Plain back-to-front rendering draws straight into ``target``, cleared to
+        (background, 0). Supersampling (k x k) draws into a k-times larger sample target
+        with the camera scaled to match, and the transmittance cut-off composites front
+        to back into a target cleared to 0; a resolve pass then averages the samples and
+        adds the background."""
+        k = settings.supersample
+        if k == 1 and not settings.transmittance_cutoff:
+            target.use()
+            target.clear(*settings.background, 0.0)
+            self.preprocess(camera, settings)
+            self.draw(camera, settings, order)
+            return
+        problem = self.supports(settings)
+        if problem:
+            raise UserError(problem)
+        sampled = camera.resized(camera.width * k, camera.height * k) if k > 1 else camera
+        samples = self._sample_target(sampled.width, sampled.height)
+        samples.use()
+        if settings.transmittance_cutoff:
+            samples.clear(0.0, 0.0, 0.0, 0.0)
+        else:
+            samples.clear(*settings.background, 0.0)
+        self.preprocess(sampled, settings)
+        self.draw(sampled, settings, order)
+        self._resolve(samples, target, k, settings)
+
+    def _resolve(self, samples: moderngl.Framebuffer, target: moderngl.Framebuffer, k: int,
+                 settings: RenderSettings) -> None:
+        front_to_back = settings.transmittance_cutoff
+        if front_to_back not in self._resolve_programs:
+            program = self.ctx.program(vertex_shader=shader_source("present.vert"),
+                                       fragment_shader=shader_source("resolve.frag",
+                                                                     {"FRONT_TO_BACK": int(front_to_back)}))
+            self._resolve_programs[front_to_back] = program, self.ctx.vertex_array(program, [])
+        program, vao = self._resolve_programs[front_to_back]
         target.use()
-        target.clear(*settings.background, 0.0)
-        self.preprocess(camera, settings)
-        self.draw(camera, settings, order)
+        self.ctx.disable(moderngl.BLEND)
+        samples.color_attachments[0].use(0)
+        program["u_samples"].value = 0
+        program["u_factor"].value = k
+        _set_uniform(program, "u_background", settings.background)
+        vao.render(moderngl.TRIANGLES, vertices=3)
 
     def _target(self, width: int, height: int) -> moderngl.Framebuffer:
+        return self._cached_target(self._targets, width, height)
+
+    def _sample_target(self, width: int, height: int) -> moderngl.Framebuffer:
+        return self._cached_target(self._sample_targets, width, height)
+
+    def _cached_target(self, cache: dict, width: int, height: int) -> moderngl.Framebuffer:
+        """A float32 RGBA framebuffer of this size; the cache keeps only the latest size."""
         limit = _limit(self.ctx, "GL_MAX_TEXTURE_SIZE", 16384)
         if not (1 <= width <= limit and 1 <= height <= limit):
             raise UserError(f"image size {width}x{height} is outside what this GPU renders (1..{limit})")
-        if (width, height) not in self._targets:
-            for fbo in self._targets.values():
+        if (width, height) not in cache:
+            for fbo in cache.values():
                 _release_framebuffer(fbo)
-            self._targets = {(width, height): self.ctx.framebuffer(
-                color_attachments=[self.ctx.texture((width, height), 4, dtype="f4")])}
-        return self._targets[(width, height)]
+            cache.clear()
+            cache[(width, height)] = self.ctx.framebuffer(
+                color_attachments=[self.ctx.texture((width, height), 4, dtype="f4")])
+        return cache[(width, height)]
 
     def release(self) -> None:
-        for fbo in self._targets.values():
-            _release_framebuffer(fbo)
-        self._targets.clear()
+        for cache in (self._targets, self._sample_targets):
+            for fbo in cache.values():
+                _release_framebuffer(fbo)
+            cache.clear()
         for program in self._preprocess_programs.values():
             program.release()
         self._preprocess_programs.clear()
-        for obj in (self._vao, self._draw, self._gaussians, self._harmonics,
-                    self._splats, self._order):
+        for programs in (self._draw_programs, self._resolve_programs):
+            for program, vao in programs.values():
+                vao.release()
+                program.release()
+            programs.clear()
+        for obj in (self._gaussians, self._harmonics, self._splats, self._order):
             obj.release()
+
+
+def _set_uniform(program: moderngl.Program, name: str, value) -> None:
+    """Sets a uniform the variant uses; variants that compiled it away are skipped."""
+    if name in program:
+        if isinstance(value, bytes):
+            program[name].write(value)
+        else:
+            program[name].value = value
+
+
+def _glsl_float(value: float) -> str:
+    return repr(float(value))
 
 
 def _release_framebuffer(fbo: moderngl.Framebuffer) -> None:

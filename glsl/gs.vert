@@ -1,0 +1,24 @@
+// EWA splatting (maths page, section 7): one image-space quad per visible gaussian,
+// in sorted order, spanning the kappa-ellipse of its projected 2D covariance.
+#include "splat_blocks.glsl"
+
+uniform vec2 u_image_size;  // pixels
+
+noperspective out vec2 v_offset;  // pixels from the projected centre
+flat out vec4 v_conic_opacity;
+flat out vec3 v_color;
+
+void main() {
+    Splat s = this_instance_splat();
+    v_conic_opacity = s.axis1_opacity;
+    v_color = s.color.rgb;
+    if (s.center_c2.w == 0.0) {
+        gl_Position = vec4(0.0);
+        v_offset = vec2(0.0);
+        return;
+    }
+    vec2 corner = quad_corner();
+    v_offset = corner.x * s.axis0_half.xy + corner.y * s.axis0_half.zw;
+    vec2 pixel = s.center_c2.xy + v_offset;  // image coordinates, v downwards
+    gl_Position = vec4(2.0 * pixel.x / u_image_size.x - 1.0, 1.0 - 2.0 * pixel.y / u_image_size.y, 0.0, 1.0);
+}

@@ -1,0 +1,71 @@
+// The sorted order and the splat records, for the vertex stages. The records span
+// SPLAT_BLOCKS bindings of SPLATS_PER_BLOCK each, so a large scene never exceeds the
+// per-block storage limit.
+#include "splat.glsl"
+
+layout(std430, binding = 0) readonly buffer Order { uint order[]; };
+layout(std430, binding = 1) readonly buffer Splats0 { Splat splats0[]; };
+#if SPLAT_BLOCKS > 1
+layout(std430, binding = 2) readonly buffer Splats1 { Splat splats1[]; };
+#endif
+#if SPLAT_BLOCKS > 2
+layout(std430, binding = 3) readonly buffer Splats2 { Splat splats2[]; };
+#endif
+#if SPLAT_BLOCKS > 3
+layout(std430, binding = 4) readonly buffer Splats3 { Splat splats3[]; };
+#endif
+#if SPLAT_BLOCKS > 4
+layout(std430, binding = 5) readonly buffer Splats4 { Splat splats4[]; };
+#endif
+#if SPLAT_BLOCKS > 5
+layout(std430, binding = 6) readonly buffer Splats5 { Splat splats5[]; };
+#endif
+#if SPLAT_BLOCKS > 6
+layout(std430, binding = 7) readonly buffer Splats6 { Splat splats6[]; };
+#endif
+#if SPLAT_BLOCKS > 7
+layout(std430, binding = 8) readonly buffer Splats7 { Splat splats7[]; };
+#endif
+
+uniform uint u_order_count;
+
+Splat fetch_splat(uint index) {
+    uint block = index / uint(SPLATS_PER_BLOCK);
+    uint i = index - block * uint(SPLATS_PER_BLOCK);
+#if SPLAT_BLOCKS > 1
+    if (block == 1u) return splats1[i];
+#endif
+#if SPLAT_BLOCKS > 2
+    if (block == 2u) return splats2[i];
+#endif
+#if SPLAT_BLOCKS > 3
+    if (block == 3u) return splats3[i];
+#endif
+#if SPLAT_BLOCKS > 4
+    if (block == 4u) return splats4[i];
+#endif
+#if SPLAT_BLOCKS > 5
+    if (block == 5u) return splats5[i];
+#endif
+#if SPLAT_BLOCKS > 6
+    if (block == 6u) return splats6[i];
+#endif
+#if SPLAT_BLOCKS > 7
+    if (block == 7u) return splats7[i];
+#endif
+    return splats0[i];
+}
+
+// The order is back to front; the transmittance cut-off composites front to back.
+Splat this_instance_splat() {
+#if FRONT_TO_BACK
+    return fetch_splat(order[u_order_count - 1u - uint(gl_InstanceID)]);
+#else
+    return fetch_splat(order[gl_InstanceID]);
+#endif
+}
+
+// Triangle-strip corners (-,-), (+,-), (-,+), (+,+).
+vec2 quad_corner() {
+    return vec2((gl_VertexID & 1) != 0 ? 1.0 : -1.0, (gl_VertexID & 2) != 0 ? 1.0 : -1.0);
+}
