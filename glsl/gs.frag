@@ -1,7 +1,7 @@
 #include "composite.glsl"
 // The projected 2D gaussian at the pixel centre (the offset is exact there: the quad
-// is drawn in image space, so interpolation is linear).
-noperspective in vec2 v_offset;
+// is drawn in image space with w = 1, so interpolation is linear).
+in vec2 v_offset;
 flat in vec4 v_conic_opacity;
 flat in vec3 v_color;
 

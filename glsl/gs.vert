@@ -4,7 +4,10 @@
 
 uniform vec2 u_image_size;  // pixels
 
-noperspective out vec2 v_offset;  // pixels from the projected centre
+// Pixels from the projected centre. Every w is 1, so ordinary interpolation is linear
+// in screen space; llvmpipe (Mesa 22.3) mis-interpolates `noperspective` varyings on
+// triangles it clips, so that qualifier is not used.
+out vec2 v_offset;
 flat out vec4 v_conic_opacity;
 flat out vec3 v_color;
 

@@ -60,10 +60,13 @@ void project_ewa(inout Splat s, vec3 mu, mat3 to_camera, vec3 scale, float opaci
     vec3 a = scale * (transpose(to_camera) * j0);
     vec3 b = scale * (transpose(to_camera) * j1);
     float xx = dot(a, a), xy = dot(a, b), yy = dot(b, b);
-    float det_unfiltered = max(xx * yy - xy * xy, 0.0);
+    // Determinants without cancellation: xx yy - xy^2 = |a x b|^2 (Lagrange), which
+    // near the camera is a small difference of numbers around 1e12 in float32.
+    vec3 normal = cross(a, b);
+    float det_unfiltered = dot(normal, normal);
+    float det = det_unfiltered + GS_DILATION * (xx + yy) + GS_DILATION * GS_DILATION;
     xx += GS_DILATION;
     yy += GS_DILATION;
-    float det = xx * yy - xy * xy;
 #if GS_COMPENSATION
     opacity *= sqrt(det_unfiltered / det);
 #endif
@@ -73,8 +76,9 @@ void project_ewa(inout Splat s, vec3 mu, mat3 to_camera, vec3 scale, float opaci
     float angle = (xy == 0.0 && xx == yy) ? 0.0 : 0.5 * atan(2.0 * xy, xx - yy);
     vec2 major = vec2(cos(angle), sin(angle));
     s.center_c2 = vec4(focal * mu.xy / mu.z + principal, mu.z, 1.0);
-    s.axis0_half = vec4(major * sqrt(kappa * (mid + radius)),
-                        vec2(-major.y, major.x) * sqrt(kappa * max(mid - radius, 0.0)));
+    float major_variance = mid + radius;
+    float minor_variance = det / major_variance;  // not mid - radius: that cancels
+    s.axis0_half = vec4(major * sqrt(kappa * major_variance), vec2(-major.y, major.x) * sqrt(kappa * minor_variance));
     s.axis1_opacity = vec4(yy / det, -xy / det, xx / det, opacity);
 }
 #endif

@@ -237,6 +237,7 @@ class Viewer:
         #: in screen coordinates (imgui's), for tests; empty without the split view.
         self.overlay_rects: dict[str, tuple[float, float, float, float]] = {}
         self.dragging_divider = False
+        self._split_drawn = False   # whether the targets hold a split view (what present shows)
         self._request_frames: dict[int, int] = {}
         self._drawn_key = None
         self._target = None         # the scene (the left side in the split view)
@@ -509,6 +510,7 @@ class Viewer:
         imgui.render()
 
         self._draw_scene(camera, settings, right, result, (p_min, dilation))
+        self._split_drawn = right is not None
         self._present_image(self.ctx.screen, width, height, x, y, w, h)
         if self.capture_window_next:
             self.capture_window_next = False
@@ -629,7 +631,7 @@ class Viewer:
         lower = height - y - h  # the viewport's y counts from the top, GL's from the bottom
         screen.viewport = (x, lower, w, h)
         ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST)
-        split = self.panel.split_view and self._target_right is not None \
+        split = self._split_drawn and self._target_right is not None \
             and self._target_right.size == self._target.size
         self._target.color_attachments[0].use(0)
         (self._target_right if split else self._target).color_attachments[0].use(1)
@@ -643,32 +645,54 @@ class Viewer:
     # -- screenshots -------------------------------------------------------------------
     def save_screenshot(self, path: str | Path | None = None) -> tuple[Path, Path]:
         """Re-renders the last frame's view offscreen at the panel's scale (exact sort,
-        no panel) and saves PNG + JSON sidecar; never overwrites anything."""
+        no panel) and saves PNG + JSON sidecar; never overwrites anything. Returns the
+        (png, json) pair; ``last_screenshots`` lists every pair written.
+
+        In the split view each side is saved whole, with its own settings and sidecar:
+        ``<name>-left.png`` and ``<name>-right.png`` (each reproducible with
+        ``render --sidecar``); the returned pair is the left side's."""
         from raygs_viewer.render.context import context_description
-        from raygs_viewer.screenshot import render_tiled, save_screenshot, scaled_camera
+        from raygs_viewer.screenshot import render_tiled, save_screenshot, save_screenshots, scaled_camera
         from raygs_viewer.sidecar import build_sidecar
 
         if self.camera is None:
             raise UserError("nothing has been drawn yet")
         scale = self.panel.screenshot_scale
         camera = scaled_camera(self.camera, scale)
-        settings = self.settings()
-        image = render_tiled(self.renderer, camera, settings)
         scene_path = self.loaded.path if self.loaded.path == "demo" else os.path.abspath(self.loaded.path)
-        sidecar = build_sidecar(
-            scene_path=scene_path, scene_sha256=self.loaded.sha256, scene=self.loaded.scene,
-            camera=camera, settings=settings, scale=scale, window_camera=self.camera,
-            extra={"navigation": self.navigator.mode, "up_axis": self.navigator.up,
-                   "training_camera": self.training_index,
-                   "training_camera_name": (self.loaded.camera_names[self.training_index]
-                                            if self.training_index is not None else None),
-                   "gl": context_description(self.ctx)})
-        if path is not None:
-            saved = save_screenshot(image, sidecar, path=Path(path))
+        extra = {"navigation": self.navigator.mode, "up_axis": self.navigator.up,
+                 "training_camera": self.training_index,
+                 "training_camera_name": (self.loaded.camera_names[self.training_index]
+                                          if self.training_index is not None else None),
+                 "gl": context_description(self.ctx)}
+        sides = [("left", self.settings())]
+        right = self.right_settings()
+        if right is not None:
+            sides.append(("right", right))
+        shots = []
+        for side, settings in sides:
+            image = render_tiled(self.renderer, camera, settings)
+            side_extra = extra if right is None else {**extra, "split_view": {
+                "side": side, "preset": self.panel.split_preset if side == "right" else None,
+                "divider": self.panel.split_fraction}}
+            sidecar = build_sidecar(scene_path=scene_path, scene_sha256=self.loaded.sha256, scene=self.loaded.scene,
+                                    camera=camera, settings=settings, scale=scale, window_camera=self.camera,
+                                    extra=side_extra)
+            shots.append((image, sidecar))
+        if right is None:
+            if path is not None:
+                saved = [save_screenshot(*shots[0], path=Path(path))]
+            else:
+                saved = [save_screenshot(*shots[0], folder=Path(self.panel.screenshot_dir))]
         else:
-            saved = save_screenshot(image, sidecar, folder=Path(self.panel.screenshot_dir))
-        self.last_screenshot = saved
-        return saved
+            tagged = [(image, sidecar, side) for (image, sidecar), (side, _) in zip(shots, sides)]
+            if path is not None:
+                saved = save_screenshots(tagged, path=Path(path))
+            else:
+                saved = save_screenshots(tagged, folder=Path(self.panel.screenshot_dir))
+        self.last_screenshots = saved
+        self.last_screenshot = saved[0]
+        return saved[0]
 
     # -- loop ------------------------------------------------------------------------
     def run(self) -> None:
@@ -707,10 +731,9 @@ class Viewer:
         glfw.make_context_current(self.window.handle)
         if self.renderer is not None:
             self.renderer.release()
-        if self._target is not None:
-            for attachment in self._target.color_attachments:
-                attachment.release()
-            self._target.release()
+        _release_framebuffer(self._target)
+        _release_framebuffer(self._target_right)
+        self._target = self._target_right = None
         self._present_vao.release()
         self._present.release()
         self.window.close()
@@ -720,6 +743,49 @@ class Viewer:
 def _present_shaders() -> tuple[str, str]:
     from raygs_viewer.render.shaders import shader_source
     return shader_source("present.vert"), shader_source("present.frag")
+
+
+def sort_cull(camera: Camera, left: RenderSettings, right: RenderSettings | None = None
+              ) -> tuple[float, float | None]:
+    """(p_min, dilation) of the one sort that serves every side shown: the more
+    conservative cull of the two (the smaller p_min; no frustum culling if either side
+    needs none, else the larger dilation)."""
+    sides = [left] if right is None else [left, right]
+    dilations = [side.cull_dilation(camera) for side in sides]
+    dilation = None if any(d is None for d in dilations) else max(dilations)
+    return min(side.p_min for side in sides), dilation
+
+
+def describe_settings(settings: RenderSettings) -> str:
+    """A short label of the accuracy options, e.g. "RayGS + MIP 0.1 px², 2×2"."""
+    parts = [MODE_LABELS[settings.mode]]
+    if settings.mip_active:
+        parts.append(f"MIP {settings.mip_sigma2:g} px²" + ("" if settings.mip_modulation else " no mod."))
+    if settings.mode == "gs" and settings.gs_compensation:
+        parts.append("comp.")
+    if settings.supersample > 1:
+        parts.append(f"{settings.supersample}×{settings.supersample}")
+    if settings.alpha_clamp:
+        parts.append("alpha clamp")
+    if settings.transmittance_cutoff:
+        parts.append("T cut-off")
+    if settings.p_min != DEFAULT_P_MIN:
+        parts.append(f"p_min {settings.p_min:.3g}")
+    return " + ".join(parts[:2]) + "".join(f", {part}" for part in parts[2:])
+
+
+def _release_framebuffer(fbo) -> None:
+    if fbo is None:
+        return
+    for attachment in fbo.color_attachments:
+        attachment.release()
+    fbo.release()
+
+
+def _saved_message(saved: list[tuple[Path, Path]]) -> str:
+    if len(saved) == 1:
+        return f"saved {saved[0][0]}"
+    return "saved " + " and ".join(str(png) for png, _ in saved) + " (each with its .json sidecar)"
 
 
 def _one_line(exc: BaseException) -> str:
@@ -762,6 +828,7 @@ def run_viewer(options: ViewerOptions) -> int:
         if not options.window_screenshot.lower().endswith(".png"):
             raise UserError(f"{options.window_screenshot}: the window screenshot must be a .png")
         check_output_path(options.window_screenshot)
+    options.settings()  # out-of-range start settings: UserError before the window opens
     loaded = load_now(options.scene, options.cameras)
     for warning in loaded.warnings:
         print(f"warning: {warning}", flush=True)
@@ -772,10 +839,11 @@ def run_viewer(options: ViewerOptions) -> int:
         if options.frames is not None:
             print(viewer.summary(), flush=True)
         if viewer.last_screenshot is not None and options.screenshot is not None:
-            print(f"{viewer.last_screenshot[0]} (+ {viewer.last_screenshot[1].name})")
+            for png, sidecar in viewer.last_screenshots:
+                print(f"{png} (+ {sidecar.name})")
     finally:
         viewer.close()
     return 0
 
 
-__all__ = ["ViewerOptions", "Viewer", "run_viewer", "RENDER_MODES"]
+__all__ = ["ViewerOptions", "Viewer", "run_viewer", "RENDER_MODES", "ACCURACY_PRESETS", "sort_cull"]

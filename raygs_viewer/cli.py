@@ -1,4 +1,5 @@
-"""The ``raygs-viewer`` command line: ``view`` (the window), ``info``, ``render`` and ``verify``.
+"""The ``raygs-viewer`` command line: ``view`` (the window), ``info``, ``render``, ``verify``
+and ``bench``.
 
 Without a command the window opens: ``raygs-viewer`` shows the demo, and
 ``raygs-viewer SCENE.ply [view options]`` or ``raygs-viewer --frames 3`` mean
@@ -22,7 +23,7 @@ from raygs_viewer import __version__
 from raygs_viewer.errors import UserError
 
 DEMO = "demo"
-COMMANDS = ("view", "info", "render", "verify")
+COMMANDS = ("view", "info", "render", "verify", "bench")
 # Arguments that keep their meaning at the top level instead of starting the window.
 TOP_LEVEL_OPTIONS = ("-h", "--help", "--version")
 SCENE_SUFFIXES = (".ply", ".splat")
@@ -32,7 +33,10 @@ DEFAULT_BACKGROUND = (0.0, 0.0, 0.0)
 # render options that set what --sidecar already fixes: (flag, argparse dest).
 SIDECAR_CONFLICTS = (("--camera", "camera"), ("--camera-index", "camera_index"), ("--width", "width"),
                      ("--height", "height"), ("--p-min", "p_min"), ("--background", "background"),
-                     ("--sh-degree", "sh_degree"))
+                     ("--sh-degree", "sh_degree"), ("--mode", "mode"), ("--mip/--no-mip", "mip"),
+                     ("--mip-sigma2", "mip_sigma2"), ("--mip-modulation/--no-mip-modulation", "mip_modulation"),
+                     ("--gs-compensation", "gs_compensation"), ("--supersample", "supersample"),
+                     ("--alpha-clamp", "alpha_clamp"), ("--transmittance-cutoff", "transmittance_cutoff"))
 
 
 class _Parser(argparse.ArgumentParser):
@@ -71,6 +75,16 @@ _sh_degree = _whole_number(0, 3, "not 0, 1, 2 or 3")
 _frames = _whole_number(1, math.inf, "not at least 1")
 _p_min = _real_number(lambda v: 0.0 < v < 1.0, "not in (0, 1)")
 _turntable = _real_number(lambda v: abs(v) <= 180, "not between -180 and 180")
+
+
+def _supersample(text: str) -> int:
+    from raygs_viewer.settings import MAX_SUPERSAMPLE
+    return _whole_number(1, MAX_SUPERSAMPLE, f"outside 1..{MAX_SUPERSAMPLE}")(text)
+
+
+def _mip_sigma2(text: str) -> float:
+    from raygs_viewer.settings import MAX_MIP_SIGMA2
+    return _real_number(lambda v: 0.0 <= v <= MAX_MIP_SIGMA2, f"not in [0, {MAX_MIP_SIGMA2:g}] px^2")(text)
 
 
 def _screenshot_scale(text: str) -> float:
@@ -122,6 +136,9 @@ def build_parser() -> argparse.ArgumentParser:
     _add_backend_option(verify)
     verify.add_argument("--repeat", type=_positive_int, default=5, metavar="N",
                         help="GL renders to time, after one warm-up (default 5)")
+
+    from raygs_viewer import bench
+    bench.add_parser(commands)
     return parser
 
 
@@ -145,6 +162,29 @@ def _add_settings_options(parser: argparse.ArgumentParser, p_min, background) ->
     parser.add_argument("--sh-degree", type=_sh_degree, metavar="D",
                         help="highest spherical-harmonics band to evaluate, 0..3, capped at the scene's "
                              "(default: all the scene has)")
+    # The accuracy options default to None so that render can tell which were given
+    # (--sidecar rejects them) and --mip can be implied; see _accuracy_settings.
+    from raygs_viewer.settings import RENDER_MODES
+    parser.add_argument("--mode", choices=RENDER_MODES,
+                        help="raygs: RayGS (default); raygs-exact-mip: RayGS with the exact, per-pixel MIP "
+                             "filter; gs: EWA splatting as INRIA 3DGS renders (0.3 px^2 dilation)")
+    parser.add_argument("--mip", action=argparse.BooleanOptionalAction, default=None,
+                        help="RayGS mode: the pixel-invariant MIP filter (Eq. 17) (default off)")
+    parser.add_argument("--mip-sigma2", type=_mip_sigma2, metavar="S",
+                        help="the MIP filter's variance in px^2 of the rendered image (default 0.1); "
+                             "implies --mip unless --no-mip is given")
+    parser.add_argument("--mip-modulation", action=argparse.BooleanOptionalAction, default=None,
+                        help="scale opacity so a filtered gaussian keeps its total opacity (default on); "
+                             "either form implies --mip unless --no-mip is given")
+    parser.add_argument("--gs-compensation", action="store_true", default=None,
+                        help="gs mode: scale opacity by sqrt(det(S) / det(S + dilation)), as Mip-Splatting does")
+    parser.add_argument("--supersample", type=_supersample, metavar="K",
+                        help="render K x K samples per pixel and average them, K = 1..4 (default 1)")
+    parser.add_argument("--alpha-clamp", action="store_true", default=None,
+                        help="clamp every splat's alpha to 0.99, as INRIA and GOF do")
+    parser.add_argument("--transmittance-cutoff", action="store_true", default=None,
+                        help="stop compositing a pixel before its transmittance falls below 1e-4, "
+                             "as INRIA and GOF do")
 
 
 def _add_viewer_options(parser: argparse.ArgumentParser) -> None:
@@ -207,12 +247,29 @@ def _command_info(args) -> int:
     return 0
 
 
+def _accuracy_settings(args) -> dict:
+    """The RenderSettings fields beyond p_min, background and sh_degree from the options
+    (defaults for those not given). --mip-sigma2 and --[no-]mip-modulation imply --mip
+    unless --no-mip was given."""
+    from raygs_viewer.settings import RenderSettings
+    defaults = RenderSettings()
+    mip = args.mip
+    if mip is None:
+        mip = True if (args.mip_sigma2 is not None or args.mip_modulation is not None) else defaults.mip
+    values = {"mip": mip}
+    for name in ("mode", "mip_sigma2", "mip_modulation", "gs_compensation", "supersample", "alpha_clamp",
+                 "transmittance_cutoff"):
+        value = getattr(args, name)
+        values[name] = getattr(defaults, name) if value is None else value
+    return values
+
+
 def _settings(args):
-    """RenderSettings from --p-min, --background and --sh-degree, defaults for those not given."""
+    """RenderSettings from the settings options, defaults for those not given."""
     from raygs_viewer.settings import DEFAULT_P_MIN, RenderSettings
     return RenderSettings(p_min=DEFAULT_P_MIN if args.p_min is None else args.p_min,
                           background=DEFAULT_BACKGROUND if args.background is None else args.background,
-                          sh_degree=args.sh_degree)
+                          sh_degree=args.sh_degree, **_accuracy_settings(args))
 
 
 def choose_camera(scene, scene_name: str, camera_file: str | None, index: int | None, width: int | None,
@@ -314,6 +371,7 @@ def _command_verify(args) -> int:
     gl_time = float(np.median(gl_times))
     print(f"scene       {scene.source} ({scene.count} gaussians, SH degree {scene.sh_degree})")
     print(f"image       {camera.width}x{camera.height}, p_min {settings.p_min:.6g}")
+    print(f"settings    {_describe_accuracy(settings)}")
     print(f"device      {device}")
     print(f"max error   {error.max():.3g}  (RGBA, linear 0..1)")
     print(f"p99.9 error {np.quantile(error, 0.999):.3g}")
@@ -324,6 +382,21 @@ def _command_verify(args) -> int:
     print(f"reference   {reference_time * 1000:.0f} ms (float64 numpy)")
     print(f"reference/GL {reference_time / gl_time:.1f}")
     return 0
+
+
+def _describe_accuracy(settings) -> str:
+    """One line of the accuracy options, for verify's report."""
+    parts = [f"mode {settings.mode}"]
+    if settings.mode == "raygs":
+        parts.append(f"MIP {'on' if settings.mip else 'off'}")
+    if settings.mip_active:
+        parts.append(f"sigma^2 {settings.mip_sigma2:g} px^2, modulation {'on' if settings.mip_modulation else 'off'}")
+    if settings.mode == "gs":
+        parts.append(f"compensation {'on' if settings.gs_compensation else 'off'}")
+    parts.append(f"supersample {settings.supersample}x{settings.supersample}")
+    parts.append(f"alpha clamp {'on' if settings.alpha_clamp else 'off'}")
+    parts.append(f"transmittance cut-off {'on' if settings.transmittance_cutoff else 'off'}")
+    return ", ".join(parts)
 
 
 def _command_view(args) -> int:
@@ -338,7 +411,7 @@ def _command_view(args) -> int:
         sh_degree=args.sh_degree, frames=args.frames, screenshot=args.screenshot,
         screenshot_dir=args.screenshot_dir, screenshot_scale=args.screenshot_scale, vsync=not args.no_vsync,
         navigation="orbit" if args.orbit else "fly", up_axis=args.up_axis, platform=args.window_platform,
-        turntable=args.turntable, window_screenshot=args.window_screenshot)
+        turntable=args.turntable, window_screenshot=args.window_screenshot, **_accuracy_settings(args))
     return app.run_viewer(options)
 
 
@@ -378,8 +451,9 @@ def main(argv: list[str] | None = None) -> int:
     try:
         argv = join_up_axis(route(list(sys.argv[1:] if argv is None else argv)))
         args = build_parser().parse_args(argv)
+        from raygs_viewer import bench
         commands = {"view": _command_view, "info": _command_info, "render": _command_render,
-                    "verify": _command_verify}
+                    "verify": _command_verify, "bench": bench.command}
         return commands[args.command](args)
     except UserError as exc:
         print(f"error: {str(exc).splitlines()[0] if str(exc) else 'failed'}", file=sys.stderr)

@@ -11,9 +11,10 @@ import math
 
 from imgui_bundle import imgui
 
-from raygs_viewer.app import RENDER_MODES
+from raygs_viewer.settings import ACCURACY_PRESETS, MAX_MIP_SIGMA2, MAX_SUPERSAMPLE, MODE_LABELS, RENDER_MODES
 
 P_MIN_RANGE = (1e-4, 0.5)
+SIGMA2_RANGE = (0.0, 1.0)  # the slider's; ctrl-click types any value up to MAX_MIP_SIGMA2
 FOV_RANGE = (10.0, 120.0)
 SCALE_CHOICES = (1.0, 2.0, 4.0, 8.0)
 
@@ -35,6 +36,9 @@ def draw_panel(viewer) -> None:
     panel = viewer.panel
     imgui.set_next_window_pos((10, 10), imgui.Cond_.first_use_ever.value)
     imgui.set_next_window_size((360, 0), imgui.Cond_.first_use_ever.value)
+    # Never taller than the window: a short window scrolls the panel instead of cutting it off.
+    display = imgui.get_io().display_size
+    imgui.set_next_window_size_constraints((0, 0), (1e9, max(display.y - 20, 100)))
     visible, _ = imgui.begin("raygs-viewer", None)
     if not visible:
         imgui.end()
@@ -63,7 +67,7 @@ def _statistics(viewer) -> None:
     imgui.text(f"{stats.fps:6.1f} fps  frame {_ms(stats.frame_ms / 1000)}")
     _tooltip("frames per second and the median frame time of the last 60 frames")
     imgui.text(f"GPU   {_ms(stats.gpu_seconds)}  sort {_ms(stats.sort_seconds)}")
-    _tooltip("GPU: preprocessing + draw of the last redraw (timer queries).\n"
+    _tooltip("GPU: preprocessing + draw of the last redraw (timer queries; both sides in the split view).\n"
              "sort: the last depth sort, on a background thread")
     age = "up to date" if stats.order_age == 0 else f"{stats.order_age} frames old"
     imgui.text(f"visible {stats.visible:,} of {viewer.loaded.scene.count:,}, order {age}")
@@ -91,28 +95,50 @@ def _scene_section(viewer) -> None:
         imgui.progress_bar(viewer.loader.progress, (-1, 0), viewer.loader.stage)
 
 
+def _choice(label: str, current: str, choices: dict[str, str], tag: str) -> str:
+    """A combo of ``choices`` (value -> shown text); the combo's rect is remembered as
+    ``tag`` and each open entry's as ``f"{tag} {value}"``. Returns the chosen value."""
+    chosen = current
+    if imgui.begin_combo(label, choices.get(current, current)):
+        for value, text in choices.items():
+            if imgui.selectable(text, value == current)[0]:
+                chosen = value
+            _remember(f"{tag} {value}")
+            if value == current:
+                imgui.set_item_default_focus()
+        imgui.end_combo()
+    _remember(tag)
+    return chosen
+
+
+def _checkbox(label: str, value: bool, tag: str, enabled: bool = True, tooltip: str = "") -> bool:
+    imgui.begin_disabled(not enabled)
+    _, value = imgui.checkbox(label, value)
+    imgui.end_disabled()
+    _remember(tag)
+    if tooltip:
+        _tooltip(tooltip)
+    return value
+
+
 def _render_section(viewer) -> None:
     panel, scene = viewer.panel, viewer.loaded.scene
     if not imgui.collapsing_header("Render", imgui.TreeNodeFlags_.default_open.value):
         return
-    current = RENDER_MODES.index(panel.render_mode) if panel.render_mode in RENDER_MODES else 0
-    changed, index = imgui.combo("mode", current, list(RENDER_MODES))
-    if changed:
-        panel.render_mode = RENDER_MODES[index]
-    changed, value = imgui.slider_float("p_min", panel.p_min, *P_MIN_RANGE, "%.5f",
+    panel.mode = _choice("mode", panel.mode, {mode: MODE_LABELS[mode] for mode in RENDER_MODES}, "mode")
+    _tooltip("RayGS: the ray-based opacity, with the pixel-invariant MIP filter when MIP is on.\n"
+             "RayGS exact MIP: the per-pixel MIP filter (Appendix A.5), always on.\n"
+             "GS (EWA): INRIA's linearised splats with a 0.3 px^2 dilation.")
+    # The slider also shows the kappa = -2 ln(p_min / o) it implies at opacity 1.
+    kappa = f"  kappa {-2 * math.log(panel.p_min):.2f}"
+    changed, value = imgui.slider_float("p_min", panel.p_min, *P_MIN_RANGE, "%.5f" + kappa,
                                         imgui.SliderFlags_.logarithmic.value)
     _remember("p_min")
+    _tooltip("opacity cut-off: a gaussian's support is kappa = -2 ln(p_min / o);\n"
+             "the slider shows kappa at opacity o = 1")
     if changed and math.isfinite(value):
         panel.p_min = min(max(value, P_MIN_RANGE[0]), P_MIN_RANGE[1])
-    imgui.text_disabled(f"kappa = -2 ln(p_min / o) = {-2 * math.log(panel.p_min):.2f} at opacity 1")
-    imgui.begin_disabled()
-    _, panel.mip_enabled = imgui.checkbox("MIP filter", panel.mip_enabled)
-    _tooltip("MIP for RayGS (Eq. 17) arrives in a later version")
-    _, panel.mip_sigma2 = imgui.slider_float("sigma^2 (px^2)", panel.mip_sigma2, 0.0, 1.0)
-    _tooltip("MIP filter variance in pixel^2 units (later version)")
-    _, panel.mip_modulation = imgui.checkbox("opacity modulation", panel.mip_modulation)
-    _tooltip("MIP opacity modulation (later version)")
-    imgui.end_disabled()
+    _accuracy_controls(panel)
     changed, degree = imgui.slider_int("SH degree", panel.sh_degree, 0, scene.sh_degree)
     _remember("SH degree")
     if changed:
@@ -125,10 +151,67 @@ def _render_section(viewer) -> None:
             panel.background = [value] * 3
         _remember(f"background {name}")
         imgui.same_line()
-    imgui.new_line()
+    imgui.same_line(0, 24)
     changed, vsync = imgui.checkbox("vsync", viewer.window.vsync)
     if changed:
         viewer.window.vsync = vsync
+    _split_controls(viewer)
+
+
+def _accuracy_controls(panel) -> None:
+    """MIP, GS compensation, supersampling and the INRIA/GOF parity switches; what does
+    not apply to the current mode is greyed out."""
+    exact = panel.mode == "raygs-exact-mip"
+    mip_help = ("RayGS mode: the pixel-invariant MIP filter of Eq. 17 (a pixel-sized gaussian convolved into "
+                "every splat). Always on in exact MIP mode; not used by GS.")
+    if exact:  # on by definition: shown checked, the RayGS mode's choice kept
+        _checkbox("MIP filter", True, "MIP filter", enabled=False, tooltip=mip_help)
+    else:
+        panel.mip = _checkbox("MIP filter", panel.mip, "MIP filter", enabled=panel.mode == "raygs", tooltip=mip_help)
+    filtered = exact or (panel.mode == "raygs" and panel.mip)
+    imgui.same_line()
+    modulation = _checkbox("opacity modulation", panel.mip_modulation, "opacity modulation", enabled=filtered,
+                           tooltip="scale the filtered opacity so a gaussian keeps its total opacity "
+                                   "(the root of Eq. 17; per pixel in exact MIP mode)")
+    imgui.begin_disabled(not filtered)
+    changed, value = imgui.slider_float("sigma^2 (px^2)", panel.mip_sigma2, *SIGMA2_RANGE, "%.3f")
+    imgui.end_disabled()
+    _remember("sigma^2")
+    _tooltip("the MIP filter's variance in px^2 of the rendered image (default 0.1).\n"
+             "Ctrl-click to type a value (up to 100).")
+    if changed and math.isfinite(value):
+        panel.mip_sigma2 = min(max(float(value), 0.0), MAX_MIP_SIGMA2)
+    panel.mip_modulation = modulation
+    panel.gs_compensation = _checkbox("GS compensation", panel.gs_compensation, "GS compensation",
+                                      enabled=panel.mode == "gs",
+                                      tooltip="GS mode: scale opacity by sqrt(det(S) / det(S + 0.3 px^2)), "
+                                              "as Mip-Splatting does")
+    factors = {k: f"{k}\u00d7{k}" for k in range(1, MAX_SUPERSAMPLE + 1)}
+    chosen = _choice("supersampling", str(panel.supersample), {str(k): text for k, text in factors.items()},
+                     "supersampling")
+    panel.supersample = int(chosen)
+    _tooltip("render k x k samples per pixel and average them (a box filter)")
+    parity = "matches the images of INRIA 3DGS and GOF (section 10)"
+    panel.alpha_clamp = _checkbox("alpha clamp 0.99", panel.alpha_clamp, "alpha clamp",
+                                  tooltip=f"clamp each splat's alpha to 0.99: {parity}")
+    panel.transmittance_cutoff = _checkbox("transmittance cut-off 1e-4", panel.transmittance_cutoff,
+                                           "transmittance cut-off",
+                                           tooltip=f"stop compositing a pixel before its transmittance falls "
+                                                   f"below 1e-4: {parity}")
+
+
+def _split_controls(viewer) -> None:
+    panel = viewer.panel
+    panel.split_view = _checkbox("split view", panel.split_view, "split view",
+                                 tooltip="A/B: left of the divider the settings above, right of it the chosen "
+                                         "preset applied to them. Drag the divider with the left mouse button.")
+    imgui.same_line()
+    imgui.begin_disabled(not panel.split_view)
+    imgui.set_next_item_width(-1)
+    panel.split_preset = _choice("##right side", panel.split_preset, {name: name for name in ACCURACY_PRESETS},
+                                 "split preset")
+    imgui.end_disabled()
+    _tooltip("the right side's accuracy preset: the settings above with these options")
 
 
 def _view_section(viewer) -> None:
@@ -149,7 +232,9 @@ def _view_section(viewer) -> None:
     changed, fov = imgui.slider_float("field of view", viewer.lens.fov_y_degrees, *FOV_RANGE, "%.1f deg")
     if changed and math.isfinite(fov):
         viewer.set_fov(min(max(fov, FOV_RANGE[0]), FOV_RANGE[1]))
-    imgui.text_disabled(f"speed {nav.speed:.3g} units/s (wheel in fly mode)")
+    imgui.text_disabled(f"speed {nav.speed:.3g} units/s")
+    _tooltip("the mouse wheel changes it in fly mode")
+    imgui.same_line()
     if imgui.button("Reset view (R)"):
         viewer.reset_view()
     _remember("Reset view")
@@ -193,3 +278,6 @@ def _screenshot_section(viewer) -> None:
     if imgui.button("Save screenshot (F12)"):
         viewer.screenshot_requested = True
     _remember("Save screenshot")
+    if panel.split_view:
+        imgui.same_line()
+        imgui.text_disabled("(each side, -left/-right)")

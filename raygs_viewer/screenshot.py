@@ -77,9 +77,13 @@ def render_tiled(renderer: "GLRenderer", camera: Camera, settings: RenderSetting
     Every tile composites the whole image's back-to-front order (restricted to the
     gaussians that can reach the tile), so blending sequences, and hence pixels,
     match a single render up to the rasterizer's float rounding.
+
+    With ``settings.supersample`` k > 1 the renderer draws k x k samples per pixel, so
+    tiles are at most ``tile // k`` pixels a side: the GPU target stays within ``tile``.
     """
     if tile < 1:
         raise ValueError(f"tile must be positive, got {tile}")
+    tile = max(1, tile // settings.supersample)
     width, height = camera.width, camera.height
     if width <= tile and height <= tile:
         return renderer.render(camera, settings)
@@ -168,15 +172,7 @@ def save_screenshot(image: np.ndarray, sidecar: dict, path: str | Path | None = 
         except _NameTaken as taken:  # appeared since the check: still never replaced
             raise UserError(f"{taken}: already exists (screenshots never replace a file)") from None
 
-    folder = Path(folder)
-    try:
-        folder.mkdir(parents=True, exist_ok=True)
-    except FileExistsError:
-        raise UserError(f"{folder}: cannot save screenshots there: not a folder") from None
-    except OSError as exc:
-        raise UserError(f"{folder}: cannot create the screenshot folder: {exc.strerror or exc}") from None
-    if not folder.is_dir():
-        raise UserError(f"{folder}: cannot save screenshots there: not a folder")
+    folder = _screenshot_folder(folder)
     png = next_screenshot_path(folder)
     stem = png.stem
     number = 1
@@ -187,6 +183,73 @@ def save_screenshot(image: np.ndarray, sidecar: dict, path: str | Path | None = 
             number = _suffix_number(png, stem) + 1
             png = _free_path(folder, stem, number)
     raise UserError(f"{folder}: no free screenshot name after {_MAX_NAME_ATTEMPTS} attempts")
+
+
+def save_screenshots(shots: list[tuple[np.ndarray, dict, str]], path: str | Path | None = None,
+                     folder: str | Path | None = None) -> list[tuple[Path, Path]]:
+    """Saves several images of one view (the split view's sides), each ``(image,
+    sidecar, tag)``, as PNG + sidecar pairs named ``<name>-<tag>.png`` and
+    ``<name>-<tag>.json``; returns the (png, json) pairs in order.
+
+    ``path`` (an explicit .png) gives ``<name>``: UserError, before anything is written,
+    if any of the files exists. ``folder`` gives ``raygs-<time>``, with ``-2``, ``-3``,
+    ... where any of the tagged names is taken, so the pairs of one capture share a
+    number. Like :func:`save_screenshot`, nothing is ever replaced."""
+    if (path is None) == (folder is None):
+        raise ValueError("save_screenshots takes exactly one of path and folder")
+    tags = [tag for _, _, tag in shots]
+    if len(set(tags)) != len(tags) or not all(tags):
+        raise ValueError(f"screenshot tags must be distinct and non-empty, got {tags}")
+    encoded = [(encode_image(image, ".png"), sidecar, tag) for image, sidecar, tag in shots]
+    if path is not None:
+        path = Path(path)
+        pngs = [check_screenshot_path(path.with_name(f"{path.stem}-{tag}{path.suffix}")) for tag in tags]
+        written = []
+        for png, (data, sidecar, _) in zip(pngs, encoded):
+            try:
+                written.append((png, _write_pair(png, data, sidecar)))
+            except _NameTaken as taken:
+                raise UserError(f"{taken}: already exists (screenshots never replace a file)") from None
+        return written
+
+    folder = _screenshot_folder(folder)
+    stem = next_screenshot_path(folder).stem  # a fresh time stamp
+    number, written = 1, []
+    for data, sidecar, tag in encoded:
+        for _ in range(_MAX_NAME_ATTEMPTS):
+            number = _free_number(folder, stem, number, tags[len(written):])
+            png = folder / (f"{stem}-{tag}.png" if number == 1 else f"{stem}-{number}-{tag}.png")
+            try:
+                written.append((png, _write_pair(png, data, sidecar)))
+                break
+            except _NameTaken:
+                number += 1
+        else:
+            raise UserError(f"{folder}: no free screenshot name after {_MAX_NAME_ATTEMPTS} attempts")
+    return written
+
+
+def _free_number(folder: Path, stem: str, number: int, tags: list[str]) -> int:
+    """The first n >= ``number`` for which every tag's PNG and sidecar name is free."""
+    for n in range(number, number + _MAX_NAME_ATTEMPTS):
+        pngs = [folder / (f"{stem}-{tag}.png" if n == 1 else f"{stem}-{n}-{tag}.png") for tag in tags]
+        if not any(os.path.lexists(p) or os.path.lexists(sidecar_path(p)) for p in pngs):
+            return n
+    raise UserError(f"{folder}: no free screenshot name from {stem}-{number}-{tags[0]}.png on")
+
+
+def _screenshot_folder(folder: str | Path) -> Path:
+    """``folder``, created if missing; UserError if it cannot be."""
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise UserError(f"{folder}: cannot save screenshots there: not a folder") from None
+    except OSError as exc:
+        raise UserError(f"{folder}: cannot create the screenshot folder: {exc.strerror or exc}") from None
+    if not folder.is_dir():
+        raise UserError(f"{folder}: cannot save screenshots there: not a folder")
+    return folder
 
 
 class _NameTaken(Exception):

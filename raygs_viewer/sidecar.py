@@ -17,8 +17,12 @@ Layout (version 1)::
      "world_to_camera": {"R": 3x3, "t": 3},                    # the exact float64 pose
      "window": {"camera": {...}, "world_to_camera": {...}},    # optional: the on-screen view before scaling
      "settings": {every RenderSettings field},
-     "render_mode": "raygs",
+     "render_mode": "raygs",                                   # = settings.mode
      "extra": {...}}                                           # free-form, from the window
+
+"render_mode" mirrors ``settings.mode`` (one of :data:`raygs_viewer.settings.RENDER_MODES`).
+Sidecars written before "settings" had a "mode" take the mode from "render_mode"; when
+both are present they must agree.
 
 "camera" and "world_to_camera" describe the screenshot's camera, already scaled to
 the image size. Python writes a float as the shortest repr that reads back to the
@@ -45,11 +49,10 @@ import raygs_viewer
 from raygs_viewer.camera import Camera, camera_from_json, camera_to_json, read_json_file
 from raygs_viewer.errors import UserError
 from raygs_viewer.loader import arrays_sha256, file_sha256
-from raygs_viewer.settings import RenderSettings
+from raygs_viewer.settings import RENDER_MODES, RenderSettings
 
 SIDECAR_FORMAT = "raygs-viewer screenshot"
 SIDECAR_VERSION = 1
-RENDER_MODES = ("raygs",)
 DEMO = "demo"
 
 _SHA256 = re.compile(r"[0-9a-f]{64}")
@@ -114,7 +117,7 @@ def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, 
         "camera": _camera_entry(camera),
         "world_to_camera": _pose(camera),
         "settings": dataclasses.asdict(settings),
-        "render_mode": "raygs",
+        "render_mode": settings.mode,
         "extra": dict(extra or {}),
     }
     if window_camera is not None:
@@ -131,7 +134,8 @@ class Sidecar:
     (absolute path or "demo"). scene_sha256: hex digest of the scene file (or of the
     demo's arrays). camera: the screenshot's camera (R (3, 3), t (3,) float64, exactly
     as written). settings: the render settings. scale: the window-to-screenshot scale
-    (informational: camera already has the screenshot's size). render_mode: "raygs".
+    (informational: camera already has the screenshot's size). render_mode: the
+    settings' mode (one of RENDER_MODES).
     raw: the parsed JSON, for fields only the window reads."""
 
     path: Path
@@ -185,11 +189,11 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
     if not 0.0 < scale <= MAX_SCALE:
         raise UserError(f"{path}: 'image.scale' must be in (0, {MAX_SCALE:g}], got {_show(scale)}")
 
-    settings = _load_settings(fields)
     render_mode = fields.get("render_mode", str)
     if render_mode not in RENDER_MODES:
         raise UserError(f"{path}: unknown 'render_mode' {_show(render_mode)} (this raygs-viewer renders "
                         f"{', '.join(map(repr, RENDER_MODES))}; the sidecar may come from a newer one)")
+    settings = _load_settings(fields, render_mode)
     if "extra" in data:
         fields.get("extra", dict)
     return Sidecar(path, scene_path, sha, camera, settings, scale, render_mode, data)
@@ -282,12 +286,19 @@ def _load_camera(fields: _Fields) -> Camera:
     return Camera(camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy, R, t)
 
 
-def _load_settings(fields: _Fields) -> RenderSettings:
+def _load_settings(fields: _Fields, render_mode: str | None = None) -> RenderSettings:
     """RenderSettings from "settings": every key must be a field (a newer program's
     setting cannot be honoured, so it is an error); missing fields take their defaults
-    (sidecars written before the field existed)."""
+    (sidecars written before the field existed), except "mode", which older sidecars
+    recorded only as ``render_mode``: a "settings.mode" must equal it."""
     path = fields.path
     raw = fields.get("settings", dict)
+    if render_mode is not None:
+        if "mode" not in raw:
+            raw = {**raw, "mode": render_mode}
+        elif raw["mode"] != render_mode:
+            raise UserError(f"{path}: 'settings.mode' {_show(raw['mode'])} differs from 'render_mode' "
+                            f"{_show(render_mode)} (they must agree; edit both)")
     hints = typing.get_type_hints(RenderSettings)
     known = {f.name for f in dataclasses.fields(RenderSettings)}
     values = {}

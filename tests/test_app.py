@@ -385,10 +385,10 @@ class BlockingSorter:
         self.release = threading.Event()
         self.inside = threading.Event()
 
-    def order(self, camera, p_min):
+    def order(self, camera, p_min, *, dilation=0.0):
         self.inside.set()
         self.release.wait()
-        return self.sorter.order(camera, p_min)
+        return self.sorter.order(camera, p_min, dilation=dilation)
 
 
 def test_frames_never_wait_for_the_sort(open_viewer):
