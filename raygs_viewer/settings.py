@@ -34,8 +34,10 @@ TRANSMITTANCE_CUTOFF = 1e-4
 MAX_SUPERSAMPLE = 4
 #: Largest MIP filter variance accepted, px^2 (a filter 10 px wide is no longer anti-aliasing).
 MAX_MIP_SIGMA2 = 100.0
-#: The exact MIP filter grows with the distance tau to each ray's peak, which can exceed
-#: |mu| by the support's radius; culling widens the approximate filter's margin by this.
+#: The exact MIP quad widens the filter for the farthest peak, tau_max = |mu| + sqrt(kappa)
+#: max(s_mip) (see preprocess.comp); culling widens the approximate filter's margin by
+#: this factor. It is conservative: tau_max <= 2|mu| unless sqrt(kappa) max(s_mip) > |mu|,
+#: and then the cull sphere already holds the camera centre, so nothing is culled.
 EXACT_MIP_CULL_FACTOR = 2.0
 
 

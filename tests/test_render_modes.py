@@ -187,3 +187,23 @@ def test_supersampling_is_a_box_filter_of_the_bigger_render(gl_render, scene):
     with pytest.raises(AssertionError):  # the blocks must be the image's own pixels, not shifted
         np.testing.assert_allclose(image[:, 1:], blocks[:, :-1], atol=1e-3)
 
+
+
+@pytest.mark.parametrize("settings", [RenderSettings(mip=True, mip_sigma2=4.0, mip_modulation=False),
+                                      RenderSettings(mode="raygs-exact-mip", mip_sigma2=4.0, mip_modulation=False),
+                                      RenderSettings(mode="gs")], ids=["mip", "exact-mip", "gs"])
+def test_culling_keeps_what_a_filter_spreads_into_view(gl_render, settings):
+    """Tiny gaussians just outside the image, widened by the filter (or EWA's footprint)
+    into it: the culled GL render equals the reference drawing every gaussian in front
+    of the camera plane."""
+    from raygs_viewer.sorting import DepthSorter
+    rng = np.random.default_rng(4)
+    n = 600
+    positions = np.column_stack([rng.uniform(-2.2, 2.2, n), rng.uniform(-1.7, 1.7, n), rng.uniform(-0.3, 0.3, n)])
+    scene = make_scene(positions, 0.002, opacities=0.9, colors=rng.uniform(0.2, 1.0, (n, 3)))
+    camera = look_at([0, 0, -4.0], [0, 0, 0], width=64, height=48, fov_y_degrees=30)
+    everything = DepthSorter(scene).order(camera, settings.p_min, dilation=None)
+    culled = DepthSorter(scene).order(camera, settings.p_min, dilation=settings.cull_dilation(camera))
+    if settings.mode != "gs":
+        assert culled.size < everything.size  # the test exercises the cull
+    assert_matches(gl_render(scene, camera, settings), render_reference(scene, camera, settings, order=everything))
