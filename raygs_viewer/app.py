@@ -39,6 +39,10 @@ SPLIT_GRAB = 6.0
 #: The right side's preset when the split view is first switched on.
 DEFAULT_SPLIT_PRESET = "GS"
 _DEFAULTS = RenderSettings()
+#: The RenderSettings fields beyond p_min, background and sh_degree; ViewerOptions and
+#: PanelState carry them under the same names.
+ACCURACY_FIELDS = ("mode", "mip", "mip_sigma2", "mip_modulation", "gs_compensation", "supersample",
+                   "alpha_clamp", "transmittance_cutoff")
 
 
 @dataclass(frozen=True)
@@ -84,17 +88,10 @@ class ViewerOptions:
     turntable: float = 0.0    # degrees per frame about the up axis (orbit mode); 0: off
     window_screenshot: str | None = None  # PNG of the whole window, panel included, at the end
 
-    def settings(self, sh_degree: int | None = None) -> RenderSettings:
+    def settings(self) -> RenderSettings:
         """The start settings (UserError when a value is out of range)."""
-        return RenderSettings(p_min=self.p_min, background=tuple(self.background),
-                              sh_degree=self.sh_degree if sh_degree is None else sh_degree,
+        return RenderSettings(p_min=self.p_min, background=tuple(self.background), sh_degree=self.sh_degree,
                               **{name: getattr(self, name) for name in ACCURACY_FIELDS})
-
-
-#: The RenderSettings fields beyond p_min, background and sh_degree; ViewerOptions and
-#: PanelState carry them under the same names.
-ACCURACY_FIELDS = ("mode", "mip", "mip_sigma2", "mip_modulation", "gs_compensation", "supersample",
-                   "alpha_clamp", "transmittance_cutoff")
 
 
 @dataclass
@@ -238,6 +235,7 @@ class Viewer:
         self.overlay_rects: dict[str, tuple[float, float, float, float]] = {}
         self.dragging_divider = False
         self._split_drawn = False   # whether the targets hold a split view (what present shows)
+        self._draw_error: str | None = None
         self._request_frames: dict[int, int] = {}
         self._drawn_key = None
         self._target = None         # the scene (the left side in the split view)
@@ -248,6 +246,9 @@ class Viewer:
         self._last_time = None
         try:
             self._install(loaded, start_camera)
+            problem = self.renderer.supports(self.settings())
+            if problem:  # e.g. --transmittance-cutoff without framebuffer fetch
+                raise UserError(problem)
         except BaseException:  # e.g. a scene too large for this GPU: no window left behind
             self.loader.close()
             self.window.close()
@@ -546,9 +547,13 @@ class Viewer:
         pad = 4.0
         for name, text in labels.items():
             size = imgui.calc_text_size(text)
-            x0 = divider - 8.0 - size.x - 2 * pad if name == "left label" else divider + 8.0
+            width = size.x + 2 * pad
+            if name == "left label":  # beside the divider, kept inside the image
+                x0 = max(divider - 8.0 - width, vx / sx + 4.0)
+            else:
+                x0 = min(divider + 8.0, (vx + vw) / sx - 4.0 - width)
             y0 = top + 8.0
-            rect = (x0, y0, x0 + size.x + 2 * pad, y0 + size.y + 2 * pad)
+            rect = (x0, y0, x0 + width, y0 + size.y + 2 * pad)
             draw.add_rect_filled(rect[:2], rect[2:], imgui.IM_COL32(0, 0, 0, 160), 3.0)
             draw.add_text((x0 + pad, y0 + pad), imgui.IM_COL32(255, 255, 255, 255), text)
             self.overlay_rects[name] = rect
@@ -581,10 +586,19 @@ class Viewer:
             self._timer.flush()
             self.stats.gpu_seconds = self._timer.seconds
             return
-        with self._timer.measure():  # the whole frame's GPU time, both sides in the split view
-            self.renderer.render_into(target, camera, settings, order)
-            if right is not None:
-                self.renderer.render_into(right_target, camera, right, order)
+        try:
+            with self._timer.measure():  # the whole frame's GPU time, both sides in the split view
+                self.renderer.render_into(target, camera, settings, order)
+                if right is not None:
+                    self.renderer.render_into(right_target, camera, right, order)
+        except UserError as exc:  # settings this GPU cannot render (the panel greys those out)
+            self.panel.error = self._draw_error = f"error: {_one_line(exc)}"
+            self._drawn_key = None
+            return
+        if self._draw_error is not None:  # renderable again: the draw's own error goes
+            if self.panel.error == self._draw_error:
+                self.panel.error = ""
+            self._draw_error = None
         self.stats.gpu_seconds = self._timer.seconds
         self.stats.drawn_serial = serial
         self.stats.draws += 1
@@ -607,14 +621,18 @@ class Viewer:
     def _float_target(self, width: int, height: int):
         return self.ctx.framebuffer(color_attachments=[self.ctx.texture((width, height), 4, dtype="f4")])
 
-    def _capture_window(self, width: int, height: int, x: int, y: int, w: int, h: int) -> np.ndarray:
+    def _capture_window(self, width: int, height: int, x: int, y: int, w: int, h: int,
+                        overlay: bool = True) -> np.ndarray:
         """(H, W, 3) uint8, top row first: the window as shown, panel included, composed
-        again into an offscreen target (reading the default framebuffer is not portable)."""
+        again into an offscreen target (reading the default framebuffer is not portable).
+        ``overlay=False``: the present pass alone, without what imgui draws (panel,
+        split-view divider and labels)."""
         texture = self.ctx.texture((width, height), 4)
         fbo = self.ctx.framebuffer(color_attachments=[texture])
         try:
             self._present_image(fbo, width, height, x, y, w, h)
-            imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
+            if overlay:
+                imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
             fbo.use()  # imgui's backend restores the binding it found; read what it drew
             pixels = np.frombuffer(fbo.read(components=3), np.uint8).reshape(height, width, 3)[::-1].copy()
         finally:

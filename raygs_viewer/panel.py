@@ -11,7 +11,8 @@ import math
 
 from imgui_bundle import imgui
 
-from raygs_viewer.settings import ACCURACY_PRESETS, MAX_MIP_SIGMA2, MAX_SUPERSAMPLE, MODE_LABELS, RENDER_MODES
+from raygs_viewer.settings import (ACCURACY_PRESETS, MAX_MIP_SIGMA2, MAX_SUPERSAMPLE, MODE_LABELS, RENDER_MODES,
+                                   RenderSettings)
 
 P_MIN_RANGE = (1e-4, 0.5)
 SIGMA2_RANGE = (0.0, 1.0)  # the slider's; ctrl-click types any value up to MAX_MIP_SIGMA2
@@ -96,10 +97,11 @@ def _scene_section(viewer) -> None:
 
 
 def _choice(label: str, current: str, choices: dict[str, str], tag: str) -> str:
-    """A combo of ``choices`` (value -> shown text); the combo's rect is remembered as
-    ``tag`` and each open entry's as ``f"{tag} {value}"``. Returns the chosen value."""
+    """A combo of ``choices`` (value -> shown text), every entry visible when it opens;
+    the combo's rect is remembered as ``tag`` and each open entry's as
+    ``f"{tag} {value}"``. Returns the chosen value."""
     chosen = current
-    if imgui.begin_combo(label, choices.get(current, current)):
+    if imgui.begin_combo(label, choices.get(current, current), imgui.ComboFlags_.height_largest.value):
         for value, text in choices.items():
             if imgui.selectable(text, value == current)[0]:
                 chosen = value
@@ -138,7 +140,7 @@ def _render_section(viewer) -> None:
              "the slider shows kappa at opacity o = 1")
     if changed and math.isfinite(value):
         panel.p_min = min(max(value, P_MIN_RANGE[0]), P_MIN_RANGE[1])
-    _accuracy_controls(panel)
+    _accuracy_controls(panel, viewer.renderer)
     changed, degree = imgui.slider_int("SH degree", panel.sh_degree, 0, scene.sh_degree)
     _remember("SH degree")
     if changed:
@@ -158,9 +160,9 @@ def _render_section(viewer) -> None:
     _split_controls(viewer)
 
 
-def _accuracy_controls(panel) -> None:
+def _accuracy_controls(panel, renderer) -> None:
     """MIP, GS compensation, supersampling and the INRIA/GOF parity switches; what does
-    not apply to the current mode is greyed out."""
+    not apply to the current mode, or what this GPU cannot render, is greyed out."""
     exact = panel.mode == "raygs-exact-mip"
     mip_help = ("RayGS mode: the pixel-invariant MIP filter of Eq. 17 (a pixel-sized gaussian convolved into "
                 "every splat). Always on in exact MIP mode; not used by GS.")
@@ -194,10 +196,13 @@ def _accuracy_controls(panel) -> None:
     parity = "matches the images of INRIA 3DGS and GOF (section 10)"
     panel.alpha_clamp = _checkbox("alpha clamp 0.99", panel.alpha_clamp, "alpha clamp",
                                   tooltip=f"clamp each splat's alpha to 0.99: {parity}")
+    unsupported = renderer.supports(RenderSettings(transmittance_cutoff=True))
     panel.transmittance_cutoff = _checkbox("transmittance cut-off 1e-4", panel.transmittance_cutoff,
-                                           "transmittance cut-off",
-                                           tooltip=f"stop compositing a pixel before its transmittance falls "
-                                                   f"below 1e-4: {parity}")
+                                           "transmittance cut-off", enabled=not unsupported or panel.transmittance_cutoff,
+                                           tooltip=unsupported or f"stop compositing a pixel before its transmittance "
+                                                                  f"falls below 1e-4: {parity}.\nINRIA's rule skips the "
+                                                                  f"splat that would cross it, so without the alpha clamp "
+                                                                  f"a nearly opaque splat leaves a hole")
 
 
 def _split_controls(viewer) -> None:

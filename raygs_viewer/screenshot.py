@@ -80,10 +80,14 @@ def render_tiled(renderer: "GLRenderer", camera: Camera, settings: RenderSetting
 
     With ``settings.supersample`` k > 1 the renderer draws k x k samples per pixel, so
     tiles are at most ``tile // k`` pixels a side: the GPU target stays within ``tile``.
+    Not in GS mode: there the linearised projection clamps each ray to the rendered
+    image's borders (plus 15 %), so a tile is not an exact crop of the whole image;
+    GS images are split only when larger than ``tile``.
     """
     if tile < 1:
         raise ValueError(f"tile must be positive, got {tile}")
-    tile = max(1, tile // settings.supersample)
+    if settings.mode != "gs":
+        tile = max(1, tile // settings.supersample)
     width, height = camera.width, camera.height
     if width <= tile and height <= tile:
         return renderer.render(camera, settings)

@@ -5,8 +5,10 @@ queued where the backends would put real input."""
 from __future__ import annotations
 
 import json
+import math
 import threading
 import time
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -15,9 +17,10 @@ from PIL import Image
 
 from raygs_viewer.app import Viewer, ViewerOptions
 from raygs_viewer.loader import load_now
-from raygs_viewer.settings import RenderSettings
+from raygs_viewer.imageio import to_rgb8
+from raygs_viewer.settings import RenderSettings, apply_preset
 from raygs_viewer.sort_worker import BackgroundSorter
-from testkit import assert_matches
+from testkit import assert_differs, assert_matches
 
 WIDTH, HEIGHT = 192, 144
 PANEL_WIDTH, PANEL_HEIGHT = 640, 720  # room for the whole panel
@@ -122,6 +125,34 @@ def window_image(viewer: Viewer) -> np.ndarray:
     target = viewer._target
     w, h = target.size
     return np.frombuffer(target.read(components=4, dtype="f4"), np.float32).reshape(h, w, 4)[::-1]
+
+
+def right_image(viewer: Viewer) -> np.ndarray:
+    """The split view's right side as drawn (its float target), top row first."""
+    target = viewer._target_right
+    w, h = target.size
+    return np.frombuffer(target.read(components=4, dtype="f4"), np.float32).reshape(h, w, 4)[::-1]
+
+
+def presented(viewer: Viewer) -> np.ndarray:
+    """(h, w, 3) int: the viewport as the present pass shows it, without what imgui
+    draws over it (panel, divider, labels)."""
+    width, height = viewer.window.framebuffer_size()
+    x, y, w, h = viewer.viewport
+    return viewer._capture_window(width, height, x, y, w, h, overlay=False)[y:y + h, x:x + w].astype(int)
+
+
+def split_expected(a: np.ndarray, b: np.ndarray, column: int) -> np.ndarray:
+    """(h, w, 3) int: 8-bit ``a`` left of ``column``, ``b`` from it on."""
+    return np.concatenate([to_rgb8(a)[:, :column], to_rgb8(b)[:, column:]], axis=1).astype(int)
+
+
+def click_choice(drive: "Driver", tag: str, value: str) -> None:
+    """Opens the panel's combo ``tag`` and picks ``value`` from it."""
+    from raygs_viewer.panel import item_rects
+    drive.click(item_rects[tag])
+    drive.frames(1)  # a popup's first frame places it; it is where it stays from the second on
+    drive.click(item_rects[f"{tag} {value}"])
 
 
 def headless(viewer: Viewer, settings: RenderSettings | None = None) -> np.ndarray:
@@ -283,6 +314,332 @@ def test_panel_click_changes_the_setting_and_the_image(open_viewer):
     degree0 = window_image(viewer)
     assert np.abs(degree0 - after).max() > 0.05  # the demo's sphere is view-dependent
     assert_matches(degree0, headless(viewer, RenderSettings(viewer.panel.p_min, (1.0, 1.0, 1.0), 0)))
+
+
+def test_panel_accuracy_controls_change_the_settings_and_the_image(open_viewer):
+    """Every accuracy control of the panel reaches Viewer.settings() and redraws the window
+    with exactly those settings; controls that do not apply to the mode are greyed out."""
+    from raygs_viewer.panel import item_rects
+    viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
+    drive.settle()
+    expected = RenderSettings(sh_degree=3)
+    image = window_image(viewer).copy()
+
+    def check(changed: bool | None = True) -> None:
+        """The panel's settings are ``expected`` and the window shows them; ``changed``:
+        the image must differ from the previous step's (None: not checked)."""
+        nonlocal image
+        assert viewer.settings() == expected
+        drive.settle()
+        now = window_image(viewer).copy()
+        assert_matches(now, headless(viewer, expected))
+        if changed:
+            assert_differs(now, image)
+        elif changed is False:
+            np.testing.assert_array_equal(now, image)
+        image = now
+
+    def click(label: str) -> None:
+        drive.click(item_rects[label])
+
+    click_choice(drive, "mode", "gs")
+    expected = replace(expected, mode="gs")
+    check()
+    click("MIP filter")               # greyed out in GS mode
+    click("opacity modulation")
+    check(changed=False)
+    click("GS compensation")
+    expected = replace(expected, gs_compensation=True)
+    check()
+    click_choice(drive, "mode", "raygs")
+    expected = replace(expected, mode="raygs")
+    check()
+    click("GS compensation")          # greyed out in RayGS mode
+    click("opacity modulation")       # ... and so is the modulation while MIP is off
+    check(changed=False)
+    click("MIP filter")
+    expected = replace(expected, mip=True)
+    check()
+    click("opacity modulation")
+    expected = replace(expected, mip_modulation=False)
+    check()
+    click_choice(drive, "mode", "raygs-exact-mip")
+    expected = replace(expected, mode="raygs-exact-mip")
+    check(changed=None)  # close to the pixel-invariant filter at this scale
+    click("MIP filter")               # always on in exact MIP mode: greyed out, the RayGS choice kept
+    assert viewer.panel.mip
+    # sigma^2 slider: a press at its left end gives 0 px^2
+    x0, y0, x1, y1 = item_rects["sigma^2"]
+    drive.move_mouse(x0 + 2, (y0 + y1) / 2)
+    drive.frames(1)
+    drive.button(0, True)
+    drive.frames(1)
+    drive.button(0, False)
+    drive.frames(1)
+    expected = replace(expected, mip_sigma2=0.0)
+    check()
+    click_choice(drive, "mode", "raygs")
+    click_choice(drive, "supersampling", "2")
+    expected = replace(expected, mode="raygs", supersample=2)
+    check()
+    click("alpha clamp")
+    expected = replace(expected, alpha_clamp=True)
+    check()
+    if viewer.renderer.supports(RenderSettings(transmittance_cutoff=True)) is None:
+        click("transmittance cut-off")
+        expected = replace(expected, transmittance_cutoff=True)
+        check()
+
+
+def test_controls_this_gpu_cannot_render_are_greyed_out(open_viewer, monkeypatch):
+    from raygs_viewer.panel import item_rects
+    viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
+    monkeypatch.setattr(viewer.renderer, "supports",
+                        lambda settings: "no framebuffer fetch" if settings.transmittance_cutoff else None)
+    drive.frames(2)
+    drive.click(item_rects["transmittance cut-off"])
+    assert not viewer.panel.transmittance_cutoff and viewer.panel.error == ""
+
+
+def test_settings_the_renderer_refuses_show_an_error_and_keep_running(open_viewer, monkeypatch):
+    from raygs_viewer.errors import UserError
+    viewer, drive = open_viewer(hide_panel=True)
+    render_into = viewer.renderer.render_into
+
+    def refusing(target, camera, settings, order):
+        if settings.transmittance_cutoff:
+            raise UserError("the transmittance cut-off needs GL_EXT_shader_framebuffer_fetch")
+        return render_into(target, camera, settings, order)
+
+    monkeypatch.setattr(viewer.renderer, "render_into", refusing)
+    drive.settle()
+    viewer.panel.transmittance_cutoff = True
+    drive.frames(2)
+    assert viewer.panel.error.startswith("error: the transmittance cut-off") and "\n" not in viewer.panel.error
+    viewer.panel.transmittance_cutoff = False
+    drive.settle()
+    assert viewer.panel.error == ""
+    assert_matches(window_image(viewer), headless(viewer))
+
+
+def test_the_start_settings_come_from_the_options(open_viewer):
+    options = dict(p_min=0.01, mode="gs", gs_compensation=True, supersample=2, alpha_clamp=True, mip=True,
+                   mip_sigma2=0.5, mip_modulation=False)
+    viewer, drive = open_viewer(hide_panel=True, **options)
+    expected = RenderSettings(sh_degree=3, **options)
+    assert viewer.settings() == expected
+    drive.settle()
+    assert_matches(window_image(viewer), headless(viewer, expected))
+    assert_differs(window_image(viewer), headless(viewer, RenderSettings(p_min=0.01)))
+
+
+def test_start_settings_are_checked_before_the_window_opens(restore_gl_ctx, monkeypatch):
+    import glfw
+
+    from raygs_viewer.app import run_viewer
+    from raygs_viewer.errors import UserError
+    from raygs_viewer.render.renderer import GLRenderer
+    with pytest.raises(UserError, match="supersample"):
+        run_viewer(ViewerOptions(supersample=9, frames=1, platform="null"))
+    monkeypatch.setattr(GLRenderer, "supports", lambda self, settings: "needs framebuffer fetch"
+                        if settings.transmittance_cutoff else None)
+    with pytest.raises(UserError, match="framebuffer fetch"):
+        Viewer(ViewerOptions(width=64, height=48, platform="null", transmittance_cutoff=True), load_now("demo"))
+    assert not glfw.get_current_context()  # the window was closed again
+
+
+class RecordingSorter(BackgroundSorter):
+    """Records the (p_min, dilation) of every request."""
+
+    def __init__(self, sorter):
+        super().__init__(sorter)
+        self.asked: list[tuple[float, float | None]] = []
+
+    def request(self, camera, p_min, dilation=0.0):
+        self.asked.append((p_min, dilation))
+        return super().request(camera, p_min, dilation)
+
+
+def test_the_sort_is_asked_with_the_cull_of_what_is_shown(open_viewer):
+    viewer, drive = open_viewer(hide_panel=True, sorter_factory=RecordingSorter)
+    drive.frames(1)
+    asked = viewer.sorter.asked
+    assert asked[-1] == (1 / 255, 0.0)
+    viewer.panel.mip = True
+    drive.frames(1)
+    mip = viewer.settings().cull_dilation(viewer.camera)
+    assert mip > 0 and asked[-1] == (1 / 255, mip)
+    viewer.panel.mode = "raygs-exact-mip"
+    drive.frames(1)
+    assert asked[-1] == (1 / 255, pytest.approx(2 * mip))
+    viewer.panel.mode = "gs"
+    drive.frames(1)
+    assert asked[-1] == (1 / 255, None)
+    drive.settle()
+    assert viewer.sorter.latest().dilation is None  # the drawn order was culled that way
+    # The split view sorts once for both sides, with the more conservative cull of the two.
+    panel = viewer.panel
+    panel.mode, panel.p_min, panel.split_view = "raygs", 0.01, True
+    panel.split_preset = "RayGS p_min 1e-3"  # no MIP: dilation 0
+    drive.frames(1)
+    assert asked[-1] == (1e-3, mip)
+    panel.split_preset = "GS"
+    drive.frames(1)
+    assert asked[-1] == (0.01, None)
+    drive.settle()
+    assert viewer.stats.order_age == 0
+
+
+# -- the A/B split view ---------------------------------------------------------------------
+@pytest.mark.parametrize("preset", ["GS", "RayGS + MIP", "RayGS 2x2 supersampling"])
+def test_split_view_shows_a_left_and_b_right(open_viewer, preset):
+    from raygs_viewer.panel import item_rects
+    viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
+    drive.frames(2)
+    drive.click(item_rects["split view"])
+    assert viewer.panel.split_view
+    click_choice(drive, "split preset", preset)
+    assert viewer.panel.split_preset == preset
+    drive.tap(imgui.Key.h)  # hide the panel: the whole window shows the scene
+    assert not viewer.panel.show_panel
+    drive.settle()
+    a = RenderSettings(sh_degree=3)
+    b = apply_preset(a, preset)
+    assert viewer.settings() == a and viewer.right_settings() == b
+    image_a, image_b = headless(viewer, a), headless(viewer, b)
+    assert_differs(image_a, image_b)
+    # Each side renders the whole viewport with its own settings.
+    assert_matches(window_image(viewer), image_a)
+    assert_matches(right_image(viewer), image_b)
+    # The present pass shows A left of the divider and B from it on, column for column.
+    x, y, w, h = viewer.viewport
+    column = viewer.split_column()
+    assert column == w // 2
+    expected = split_expected(image_a, image_b, column)
+    assert np.abs(presented(viewer) - expected).max() <= 1
+    rgb_a, rgb_b = to_rgb8(image_a).astype(int), to_rgb8(image_b).astype(int)
+    for c in (column - 1, column):  # a boundary one column off would show
+        assert np.abs(rgb_a[:, c] - rgb_b[:, c]).max() > 2
+    # The window as shown: the same, apart from the divider line and the side labels.
+    viewer.capture_window_next = True
+    drive.frames(1)
+    window = viewer.window_capture[y:y + h, x:x + w].astype(int)
+    covered = np.zeros((h, w), bool)
+    for name in ("divider", "left label", "right label"):
+        x0, y0, x1, y1 = viewer.overlay_rects[name]
+        covered[max(int(y0) - y, 0):int(math.ceil(y1)) - y + 1, max(int(x0) - x, 0):int(math.ceil(x1)) - x + 1] = True
+    assert np.abs(window - expected)[~covered].max() <= 1
+    x0, y0, x1, y1 = (int(v) for v in viewer.overlay_rects["divider"])
+    assert np.abs(window[y0:y1, x0:x1 + 1] - expected[y0:y1, x0:x1 + 1]).max() > 50  # the line is drawn
+    x0, y0, x1, y1 = (int(v) for v in viewer.overlay_rects["right label"])
+    assert x0 > column and np.abs(window[y0:y1, x0:x1] - expected[y0:y1, x0:x1]).max() > 50  # so is the label
+    # Switched off: the whole viewport is A again.
+    viewer.panel.split_view = False
+    drive.frames(2)
+    assert np.abs(presented(viewer) - to_rgb8(image_a).astype(int)).max() <= 1
+
+
+@pytest.mark.parametrize("letterboxed", [False, True])
+def test_dragging_the_divider_moves_the_boundary_not_the_camera(open_viewer, tmp_path, letterboxed):
+    options = {}
+    if letterboxed:  # a square training camera: bars left and right, the viewport starts at x = 24
+        from raygs_viewer.camera import camera_to_json, look_at
+        path = tmp_path / "square.json"
+        path.write_text(json.dumps([camera_to_json(look_at((0.5, -0.5, -4), (0, 0, 0), width=300, height=300))]))
+        options["camera"] = str(path)
+    viewer, drive = open_viewer(hide_panel=True, **options)
+    viewer.panel.split_view, viewer.panel.split_preset = True, "GS"
+    drive.settle()
+    x, y, w, h = viewer.viewport
+    assert x == (24 if letterboxed else 0)
+    pose = viewer.camera
+    a, b = headless(viewer, viewer.settings()), headless(viewer, viewer.right_settings())
+    divider = x + w // 2
+    assert viewer.overlay_rects["divider"][0] < divider < viewer.overlay_rects["divider"][2]
+
+    drive.move_mouse(divider + 5, HEIGHT / 2)  # within the grab distance
+    drive.frames(1)
+    drive.button(0, True)
+    drive.frames(1)
+    assert viewer.dragging_divider
+    drive.move_mouse(x + 100, HEIGHT / 2 + 20)
+    drive.frames(1)
+    drive.move_mouse(x + 90, HEIGHT / 2 + 30)
+    drive.frames(1)
+    drive.button(0, False)
+    drive.frames(1)
+    assert not viewer.dragging_divider
+    assert viewer.panel.split_fraction == pytest.approx(90 / w) and viewer.split_column() == 90
+    np.testing.assert_array_equal(viewer.camera.R, pose.R)  # the drag did not turn the camera
+    np.testing.assert_array_equal(viewer.camera.center, pose.center)
+    drive.settle()
+    assert np.abs(presented(viewer) - split_expected(a, b, 90)).max() <= 1
+
+    # Dragged past the edge: it stops at 98 % of the width.
+    drive.move_mouse(x + 90, HEIGHT / 2)
+    drive.frames(1)
+    drive.button(0, True)
+    drive.frames(1)
+    drive.move_mouse(WIDTH + 50, HEIGHT / 2)
+    drive.frames(1)
+    drive.button(0, False)
+    drive.frames(1)
+    assert viewer.panel.split_fraction == 0.98
+
+    # A drag that starts away from the divider looks around and leaves the divider.
+    drive.move_mouse(x + 20, HEIGHT / 2)
+    drive.frames(1)
+    drive.button(0, True)
+    drive.frames(1)
+    drive.move_mouse(x + 50, HEIGHT / 2)
+    drive.frames(1)
+    drive.button(0, False)
+    drive.frames(1)
+    assert viewer.panel.split_fraction == 0.98 and not viewer.dragging_divider
+    assert not np.array_equal(viewer.camera.R, pose.R)
+
+
+def test_split_view_screenshot_saves_each_side_with_its_sidecar(open_viewer, tmp_path):
+    import glfw
+
+    from raygs_viewer.cli import main
+    from raygs_viewer.sidecar import load_sidecar
+    viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
+    viewer.panel.split_view, viewer.panel.split_preset = True, "RayGS + MIP"
+    viewer.panel.split_fraction = 0.3
+    drive.move_mouse(PANEL_WIDTH - 5, PANEL_HEIGHT - 5)
+    drive.settle()
+    a, b = viewer.settings(), viewer.right_settings()
+    expected = {"left": to_rgb8(headless(viewer, a)).astype(int), "right": to_rgb8(headless(viewer, b)).astype(int)}
+    drive.tap(imgui.Key.f12)
+    assert viewer.panel.error == ""
+    saved = viewer.last_screenshots
+    assert [png.stem.rsplit("-", 1)[1] for png, _ in saved] == ["left", "right"]
+    assert viewer.last_screenshot == saved[0]
+    folder = tmp_path / "shots"
+    assert sorted(p.name for p in folder.iterdir()) == sorted(p.name for pair in saved for p in pair)
+    for png, sidecar in saved:
+        assert sidecar == png.with_suffix(".json") and str(png) in viewer.panel.message
+    for (png, sidecar), side, settings in zip(saved, ("left", "right"), (a, b)):
+        shot = np.asarray(Image.open(png)).astype(int)
+        assert shot.shape == (PANEL_HEIGHT, PANEL_WIDTH, 3)  # the whole view, not half of it
+        assert np.abs(shot - expected[side]).max() <= 1
+        loaded = load_sidecar(sidecar)
+        assert loaded.settings == settings and loaded.render_mode == settings.mode
+        assert loaded.raw["extra"]["split_view"]["side"] == side
+    assert np.abs(expected["left"] - expected["right"]).max() > 50
+    # A second capture never overwrites the first.
+    first = [png.read_bytes() for png, _ in saved]
+    drive.tap(imgui.Key.f12)
+    second = viewer.last_screenshots
+    assert len(second) == 2 and not {p for pair in second for p in pair} & {p for pair in saved for p in pair}
+    assert [png.read_bytes() for png, _ in saved] == first
+    # Each side reproduces headlessly from its own sidecar.
+    for png, sidecar in saved:
+        out = tmp_path / f"again-{png.name}"
+        assert main(["render", "--sidecar", str(sidecar), "--out", str(out)]) == 0
+        np.testing.assert_array_equal(np.asarray(Image.open(out)), np.asarray(Image.open(png)))
+    glfw.make_context_current(viewer.window.handle)
 
 
 # -- screenshots -----------------------------------------------------------------------------

@@ -357,6 +357,26 @@ def _bad_cases(tmp_path, write=True):
         "unknown_option": ["render", "--colour", "red", "--out", out],
         "info_missing_scene_argument": ["info"],
         "bad_gl_backend": ["render", "--gl-backend", "metal", "--out", out],
+        "mode_unknown": ["render", "--mode", "ewa", "--out", out],
+        "mode_missing": ["render", "--out", out, "--mode"],
+        "mip_value": ["render", "--mip=yes", "--out", out],
+        "mip_sigma2_negative": ["render", "--mip-sigma2=-0.1", "--out", out],
+        "mip_sigma2_huge": ["render", "--mip-sigma2", "101", "--out", out],
+        "mip_sigma2_nan": ["render", "--mip-sigma2", "nan", "--out", out],
+        "mip_sigma2_word": ["render", "--mip-sigma2", "wide", "--out", out],
+        "gs_compensation_value": ["render", "--gs-compensation=1", "--out", out],
+        "supersample_zero": ["render", "--supersample", "0", "--out", out],
+        "supersample_five": ["render", "--supersample", "5", "--out", out],
+        "supersample_fraction": ["render", "--supersample", "1.5", "--out", out],
+        "supersample_word": ["render", "--supersample", "two", "--out", out],
+        "alpha_clamp_value": ["render", "--alpha-clamp=0.99", "--out", out],
+        "transmittance_cutoff_value": ["render", "--transmittance-cutoff=1e-4", "--out", out],
+        "view_mode_unknown": ["view", "--mode", "EWA"],
+        "view_supersample_five": ["--supersample", "5"],
+        "view_mip_sigma2_huge": ["view", "--mip-sigma2", "1e3"],
+        "verify_mode_unknown": ["verify", "--mode", "nerf"],
+        "sidecar_with_mode": ["render", "--sidecar", good_camera, "--mode", "gs", "--out", out],
+        "bench_unknown_kind": ["bench", "speed"],
     }
 
 
@@ -399,6 +419,12 @@ def test_error_messages_name_what_is_wrong(capsys, tmp_path, monkeypatch):
         "view_screenshot_exists": "taken.png",
         "view_screenshot_sidecar_exists": "sidecar.json",
         "sidecar_with_camera": "--camera",
+        "mode_unknown": "--mode",
+        "mip_sigma2_huge": "--mip-sigma2",
+        "supersample_five": "--supersample",
+        "supersample_fraction": "--supersample",
+        "view_mode_unknown": "--mode",
+        "sidecar_with_mode": "--mode",
     }
     for case, fragment in expect.items():
         code, _, err = run_cli(capsys, *cases[case])
@@ -415,6 +441,101 @@ def test_output_checks_come_before_slow_work(capsys, tmp_path, monkeypatch):
     monkeypatch.setattr(cli, "load_scene_argument", boom)
     code, _, err = run_cli(capsys, "render", "--out", tmp_path / "x.tiff")
     assert_one_line_error(code, err)
+
+
+# --------------------------------------------------------------------------- accuracy options
+
+
+ACCURACY_CASES = [
+    # (argv, the RenderSettings fields it sets beyond the defaults)
+    ([], {}),
+    (["--mode", "gs"], {"mode": "gs"}),
+    (["--mode", "raygs-exact-mip"], {"mode": "raygs-exact-mip"}),
+    (["--mode", "raygs"], {}),
+    (["--mip"], {"mip": True}),
+    (["--no-mip"], {}),
+    (["--mip", "--no-mip"], {}),  # the last one counts
+    (["--mip-sigma2", "0.25"], {"mip": True, "mip_sigma2": 0.25}),           # implies --mip
+    (["--mip-sigma2", "0"], {"mip": True, "mip_sigma2": 0.0}),
+    (["--mip-sigma2", "100"], {"mip": True, "mip_sigma2": 100.0}),
+    (["--mip-sigma2", "0.25", "--no-mip"], {"mip_sigma2": 0.25}),           # ... unless --no-mip
+    (["--no-mip", "--mip-sigma2", "0.25"], {"mip_sigma2": 0.25}),
+    (["--mip-modulation"], {"mip": True}),                                    # also implies --mip
+    (["--no-mip-modulation"], {"mip": True, "mip_modulation": False}),
+    (["--no-mip-modulation", "--no-mip"], {"mip_modulation": False}),
+    (["--mode", "raygs-exact-mip", "--mip-sigma2", "0.3"], {"mode": "raygs-exact-mip", "mip": True, "mip_sigma2": 0.3}),
+    (["--gs-compensation"], {"gs_compensation": True}),
+    (["--supersample", "1"], {}),
+    (["--supersample", "4"], {"supersample": 4}),
+    (["--alpha-clamp"], {"alpha_clamp": True}),
+    (["--transmittance-cutoff"], {"transmittance_cutoff": True}),
+    (["--mode", "gs", "--gs-compensation", "--supersample", "3", "--alpha-clamp", "--transmittance-cutoff"],
+     {"mode": "gs", "gs_compensation": True, "supersample": 3, "alpha_clamp": True, "transmittance_cutoff": True}),
+]
+
+
+@pytest.mark.parametrize("argv,fields", ACCURACY_CASES)
+def test_accuracy_options_reach_the_window(capsys, viewer, argv, fields):
+    from raygs_viewer.app import ViewerOptions
+
+    code, _, err = run_cli(capsys, "view", *argv)
+    assert code == 0, err
+    assert viewer == [ViewerOptions(**fields)]
+    assert viewer[0].settings() == RenderSettings(**fields)
+
+
+@pytest.mark.parametrize("command", ["render", "verify"])
+@pytest.mark.parametrize("argv,fields", ACCURACY_CASES)
+def test_accuracy_options_reach_render_and_verify(command, argv, fields):
+    from raygs_viewer.cli import _settings, build_parser
+
+    args = build_parser().parse_args([command, *argv] + (["--out", "x.png"] if command == "render" else []))
+    assert _settings(args) == RenderSettings(**fields)
+
+
+def test_render_with_accuracy_options_is_the_gl_render_of_those_settings(capsys, tmp_path, gl_ctx, demo, monkeypatch):
+    import raygs_viewer.screenshot as screenshot
+
+    used = []
+    render_tiled = screenshot.render_tiled
+    monkeypatch.setattr(screenshot, "render_tiled", lambda renderer, camera, settings: used.append(settings)
+                        or render_tiled(renderer, camera, settings))
+    out = tmp_path / "gs.npy"
+    code, _, err = run_cli(capsys, "render", *SMALL, "--mode", "gs", "--supersample", "2", "--out", out)
+    assert code == 0, err
+    settings = RenderSettings(mode="gs", supersample=2)
+    assert used == [settings]
+    camera = demo_camera().resized(64, 48)
+    image = np.load(out)
+    with gl_ctx:
+        np.testing.assert_allclose(image, gl_render(gl_ctx, demo, camera, settings), atol=1e-5)
+        assert np.abs(image - gl_render(gl_ctx, demo, camera)).max() > 0.1  # not the default render
+    out = tmp_path / "mip.npy"
+    code, _, err = run_cli(capsys, "render", *SMALL, "--mip-sigma2", "0.5", "--no-mip-modulation", "--alpha-clamp",
+                           "--out", out)
+    assert code == 0, err
+    settings = RenderSettings(mip=True, mip_sigma2=0.5, mip_modulation=False, alpha_clamp=True)
+    assert used[-1] == settings
+    with gl_ctx:
+        np.testing.assert_allclose(np.load(out), gl_render(gl_ctx, demo, camera, settings), atol=1e-5)
+
+
+def test_verify_reports_the_accuracy_settings(capsys):
+    code, out, err = run_cli(capsys, "verify", "--width", "32", "--mode", "gs", "--supersample", "2", "--repeat", "1")
+    assert code == 0, err
+    assert "mode gs" in out and "supersample 2x2" in out and "max error" in out
+
+
+def test_bench_is_a_command(capsys):
+    from raygs_viewer.cli import COMMANDS, route
+    assert "bench" in COMMANDS and route(["bench", "accuracy"]) == ["bench", "accuracy"]
+    with pytest.raises(SystemExit) as info:
+        main(["bench", "--help"])
+    assert info.value.code == 0
+    assert "accuracy" in capsys.readouterr().out
+    with pytest.raises(SystemExit):
+        main(["--help"])
+    assert "bench" in capsys.readouterr().out
 
 
 # --------------------------------------------------------------------------- --sh-degree

@@ -126,9 +126,10 @@ def test_build_sidecar_fields(tmp_path, monkeypatch):
     assert data["world_to_camera"] == {"R": camera.R.tolist(), "t": camera.t.tolist()}
     # Every settings field, so one added later is recorded without touching the sidecar code.
     assert data["settings"] == dataclasses.asdict(RenderSettings())
-    assert demo_sidecar()["settings"] == {"p_min": 0.02, "background": (0.1, 0.2, 0.3), "sh_degree": 1}
+    assert demo_sidecar()["settings"] == dataclasses.asdict(SETTINGS)
+    assert demo_sidecar()["settings"]["p_min"] == 0.02 and demo_sidecar()["settings"]["background"] == (0.1, 0.2, 0.3)
     assert set(data["settings"]) == {f.name for f in dataclasses.fields(RenderSettings)}
-    assert data["render_mode"] == "raygs"
+    assert data["render_mode"] == "raygs" == data["settings"]["mode"]
     assert data["extra"] == {"up_axis": "-y", "navigation": "orbit"}
     assert data["window"]["world_to_camera"]["t"] == window_camera().t.tolist()
     assert data["window"]["camera"]["width"] == 64
@@ -183,6 +184,55 @@ def test_round_trip_through_save_screenshot(tmp_path):
     loaded = load_sidecar(js)
     assert_bit_identical(loaded.camera, window_camera())
     assert loaded.settings == RenderSettings()
+
+
+#: A non-default value of every accuracy field (those after p_min, background, sh_degree).
+ACCURACY = dict(mode="raygs-exact-mip", mip=True, mip_sigma2=0.37, mip_modulation=False, gs_compensation=True,
+                supersample=3, alpha_clamp=True, transmittance_cutoff=True)
+
+
+def test_every_accuracy_setting_round_trips(tmp_path):
+    defaults = RenderSettings()
+    settings = RenderSettings(p_min=0.02, background=(0.1, 0.2, 0.3), sh_degree=1, **ACCURACY)
+    fields = {f.name for f in dataclasses.fields(RenderSettings)}
+    assert set(ACCURACY) == fields - {"p_min", "background", "sh_degree"}  # a new field needs a value here
+    assert all(getattr(settings, name) != getattr(defaults, name) for name in fields)
+    data = demo_sidecar(settings=settings)
+    assert data["render_mode"] == "raygs-exact-mip"
+    _, js = save_screenshot(np.zeros((48, 64, 4), np.float32), data, folder=tmp_path)
+    loaded = load_sidecar(js)
+    assert loaded.settings == settings and loaded.render_mode == "raygs-exact-mip"
+
+
+@pytest.mark.parametrize("mode", ["raygs", "raygs-exact-mip", "gs"])
+def test_render_mode_mirrors_the_settings_mode(tmp_path, mode):
+    import raygs_viewer.settings as settings_module
+    assert sidecar_module.RENDER_MODES == settings_module.RENDER_MODES
+    data = demo_sidecar(settings=RenderSettings(mode=mode))
+    assert data["render_mode"] == data["settings"]["mode"] == mode
+    loaded = load_sidecar(write_json(tmp_path / "shot.json", data))
+    assert loaded.render_mode == loaded.settings.mode == mode
+
+
+@pytest.mark.parametrize("mode", ["raygs", "raygs-exact-mip", "gs"])
+def test_an_older_sidecar_takes_the_mode_from_render_mode(tmp_path, mode):
+    data = demo_sidecar(settings=RenderSettings(p_min=0.02, mip=True))
+    del data["settings"]["mode"]  # written before settings had a mode
+    data["render_mode"] = mode
+    loaded = load_sidecar(write_json(tmp_path / "old.json", data))
+    assert loaded.settings == RenderSettings(p_min=0.02, mip=True, mode=mode) and loaded.render_mode == mode
+
+
+def test_settings_mode_and_render_mode_must_agree(tmp_path):
+    data = demo_sidecar(settings=RenderSettings(mode="gs"))
+    data["render_mode"] = "raygs"
+    path = write_json(tmp_path / "shot.json", data)
+    assert_user_error(lambda: load_sidecar(path), path, "'settings.mode' \"gs\"", "'render_mode' \"raygs\"",
+                      "differs")
+    # An unknown render_mode is reported as such, whatever settings.mode says.
+    data["render_mode"] = "ewa"
+    path = write_json(tmp_path / "unknown.json", data)
+    assert_user_error(lambda: load_sidecar(path), path, "unknown 'render_mode' \"ewa\"")
 
 
 # --------------------------------------------------------------------------- malformed sidecars
@@ -271,6 +321,23 @@ MALFORMED = {
     "sh_degree_fraction": (_set("settings.sh_degree", 1.5), "'settings.sh_degree'"),
     "sh_degree_bool": (_set("settings.sh_degree", True), "'settings.sh_degree'"),
     "render_mode_unknown": (_set("render_mode", "ewa"), "'render_mode'"),
+    "render_mode_differs": (_set("render_mode", "gs"), "differs from 'render_mode'"),
+    "render_mode_number": (_set("render_mode", 1), "'render_mode'"),
+    "mode_unknown": (_set("settings.mode", "ewa"), "'settings.mode'"),
+    "mode_number": (_set("settings.mode", 2), "'settings.mode'"),
+    "mip_string": (_set("settings.mip", "yes"), "'settings.mip'"),
+    "mip_number": (_set("settings.mip", 1), "'settings.mip'"),
+    "mip_modulation_null": (_set("settings.mip_modulation", None), "'settings.mip_modulation'"),
+    "mip_sigma2_negative": (_set("settings.mip_sigma2", -0.1), "sigma^2"),
+    "mip_sigma2_huge": (_set("settings.mip_sigma2", 1000.0), "sigma^2"),
+    "mip_sigma2_string": (_set("settings.mip_sigma2", "0.1"), "'settings.mip_sigma2'"),
+    "gs_compensation_string": (_set("settings.gs_compensation", "true"), "'settings.gs_compensation'"),
+    "supersample_zero": (_set("settings.supersample", 0), "supersample"),
+    "supersample_five": (_set("settings.supersample", 5), "supersample"),
+    "supersample_fraction": (_set("settings.supersample", 1.5), "'settings.supersample'"),
+    "supersample_bool": (_set("settings.supersample", True), "'settings.supersample'"),
+    "alpha_clamp_number": (_set("settings.alpha_clamp", 0), "'settings.alpha_clamp'"),
+    "transmittance_cutoff_list": (_set("settings.transmittance_cutoff", []), "'settings.transmittance_cutoff'"),
     "render_mode_missing": (_delete("render_mode"), "missing 'render_mode'"),
     "extra_list": (_set("extra", []), "'extra'"),
 }
@@ -477,7 +544,10 @@ def test_render_sidecar_after_the_folder_moved(capsys, tmp_path):
 
 @pytest.mark.parametrize("option", [["--camera", "cams.json"], ["--camera-index", "0"], ["--width", "32"],
                                     ["--height", "24"], ["--p-min", "0.1"], ["--background", "1,1,1"],
-                                    ["--sh-degree", "0"]])
+                                    ["--sh-degree", "0"], ["--mode", "gs"], ["--mip"], ["--no-mip"],
+                                    ["--mip-sigma2", "0.2"], ["--mip-modulation"], ["--no-mip-modulation"],
+                                    ["--gs-compensation"], ["--supersample", "2"], ["--alpha-clamp"],
+                                    ["--transmittance-cutoff"]])
 def test_render_sidecar_rejects_view_options(capsys, tmp_path, option):
     js = write_json(tmp_path / "shot.json", demo_sidecar())
     before = listing(tmp_path)

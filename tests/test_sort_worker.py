@@ -32,19 +32,22 @@ class GatedSorter:
     """order() records the view, announces it has started, then waits for one permit.
 
     Returns a 1-element order holding the camera's tag; raises for p_min == FAIL_P_MIN.
+    ``dilations`` records the cull dilation of every call, in order.
     """
 
     def __init__(self) -> None:
         self.calls: list[tuple[int, float]] = []
+        self.dilations: list[float | None] = []
         self._entered = threading.Semaphore(0)
         self._permits = threading.Semaphore(0)
         self.inside = 0
         self.returned = 0
         self.starved = False
 
-    def order(self, camera: Camera, p_min: float) -> np.ndarray:
+    def order(self, camera: Camera, p_min: float, *, dilation: float | None = 0.0) -> np.ndarray:
         tag = int(camera.t[0])
         self.calls.append((tag, p_min))
+        self.dilations.append(dilation)
         self.inside += 1
         self._entered.release()
         try:
@@ -174,6 +177,38 @@ def test_an_identical_request_is_not_queued_again(fake, worker):
     assert worker.repeated == 2
 
 
+def test_dilation_is_passed_to_the_sorter_and_recorded(fake, worker):
+    results = []
+    for k, dilation in ((1, 0.25), (2, None), (3, 0.0)):
+        serial = worker.request(view(k), P_MIN, dilation)
+        fake.allow()
+        results.append(worker.wait(serial, timeout=DEADLOCK))
+    plain = worker.request(view(4), P_MIN)  # the default: 0.0, the tight cull
+    fake.allow()
+    results.append(worker.wait(plain, timeout=DEADLOCK))
+    assert fake.dilations == [0.25, None, 0.0, 0.0]
+    assert [r.dilation for r in results] == [0.25, None, 0.0, 0.0]
+    assert [r.order.tolist() for r in results] == [[1], [2], [3], [4]]
+
+
+def test_dilation_is_part_of_the_request_identity(fake, worker):
+    first = worker.request(view(1), P_MIN, 0.1)
+    fake.wait_entered()
+    assert worker.request(view(1), P_MIN, 0.1) == first  # the same view and cull: not queued again
+    wider = worker.request(view(1), P_MIN, 0.2)          # a wider cull is another order
+    assert wider == first + 1
+    unculled = worker.request(view(1), P_MIN, None)      # None (no frustum cull) differs from any number
+    assert unculled == wider + 1 and worker.superseded == 1
+    assert worker.request(view(1), P_MIN, None) == unculled
+    tight = worker.request(view(1), P_MIN, 0.0)
+    assert tight == unculled + 1
+    assert worker.request(view(1), P_MIN) == tight       # 0.0 is the default
+    fake.allow(2)
+    assert worker.wait(tight, timeout=DEADLOCK).dilation == 0.0
+    assert fake.dilations == [0.1, 0.0]  # 0.2 and None were superseded before they started
+    assert (worker.requested, worker.repeated) == (4, 3)
+
+
 def test_caller_changing_its_camera_in_place_does_not_change_the_queued_sort(fake, worker):
     worker.request(view(1), P_MIN)
     fake.wait_entered()
@@ -232,3 +267,10 @@ def test_real_depth_sorter_gives_the_same_order():
             np.testing.assert_array_equal(result.order, expected)
             np.testing.assert_array_equal(result.camera.R, camera.R)
         assert worker.finished == 6 and worker.error is None
+        # The cull dilation reaches DepthSorter.order: None keeps the gaussians outside
+        # the frustum that the tight cull drops.
+        camera = demo_cameras(160, 120)[4]
+        tight = worker.wait(worker.request(camera, P_MIN, 0.0), timeout=DEADLOCK).order
+        loose = worker.wait(worker.request(camera, P_MIN, None), timeout=DEADLOCK).order
+        np.testing.assert_array_equal(loose, sorter.order(camera, P_MIN, dilation=None))
+        assert loose.size > tight.size
