@@ -26,7 +26,7 @@ uniform vec3 u_camera_center;
 uniform float u_log_p_min;
 uniform float u_pixel_variance;  // MIP: sigma_x^2, the filter's variance at unit distance
 uniform vec4 u_intrinsics;       // GS: fx, fy, cx, cy
-uniform vec2 u_image_size;       // GS: width, height
+uniform vec4 u_ray_bounds;       // GS: the clamp box of x/z, y/z (lower xy, upper zw)
 
 // The scene stores SH_STORED_DEGREE bands; SH_DEGREE (<= it) are evaluated.
 const uint COEFFS = uint((SH_STORED_DEGREE + 1) * (SH_STORED_DEGREE + 1));
@@ -46,14 +46,13 @@ mat3 quaternion_matrix(vec4 q) {
 }
 
 #if MODE_GS
-// The linearised projection at mu (INRIA's, with its ray clamped 15 % of the image
-// beyond each border), Sigma2 = J Sigma J^T + dilation, and the quad spanning its
-// kappa-ellipse along the eigenvectors.
+// The linearised projection at mu (INRIA's, with its ray clamped 15 % of the whole
+// image beyond each border), Sigma2 = J Sigma J^T + dilation, and the quad spanning
+// its kappa-ellipse along the eigenvectors.
 void project_ewa(inout Splat s, vec3 mu, mat3 to_camera, vec3 scale, float opacity) {
     if (mu.z <= GS_NEAR) return;
     vec2 focal = u_intrinsics.xy, principal = u_intrinsics.zw;
-    vec2 margin = 0.15 * u_image_size / focal;
-    vec2 ray = clamp(mu.xy / mu.z, -principal / focal - margin, (u_image_size - principal) / focal + margin);
+    vec2 ray = clamp(mu.xy / mu.z, u_ray_bounds.xy, u_ray_bounds.zw);
     // Rows of J, taken into the gaussian's scaled frame: Sigma2 = [a b]^T [a b].
     vec3 j0 = vec3(focal.x / mu.z, 0.0, -focal.x * ray.x / mu.z);
     vec3 j1 = vec3(0.0, focal.y / mu.z, -focal.y * ray.y / mu.z);

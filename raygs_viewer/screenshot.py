@@ -80,14 +80,11 @@ def render_tiled(renderer: "GLRenderer", camera: Camera, settings: RenderSetting
 
     With ``settings.supersample`` k > 1 the renderer draws k x k samples per pixel, so
     tiles are at most ``tile // k`` pixels a side: the GPU target stays within ``tile``.
-    Not in GS mode: there the linearised projection clamps each ray to the rendered
-    image's borders (plus 15 %), so a tile is not an exact crop of the whole image;
-    GS images are split only when larger than ``tile``.
+    GS clamps its rays to the whole image's borders (``frame=camera``), not the tile's.
     """
     if tile < 1:
         raise ValueError(f"tile must be positive, got {tile}")
-    if settings.mode != "gs":
-        tile = max(1, tile // settings.supersample)
+    tile = max(1, tile // settings.supersample)
     width, height = camera.width, camera.height
     if width <= tile and height <= tile:
         return renderer.render(camera, settings)
@@ -109,7 +106,7 @@ def render_tiled(renderer: "GLRenderer", camera: Camera, settings: RenderSetting
             # changes no pixel; the whole image's order keeps the blending sequence.
             visible = renderer.sort(part, settings)
             tile_order = order[np.isin(order, visible, assume_unique=True)]
-            pixels = renderer.render(part, settings, tile_order)
+            pixels = renderer.render(part, settings, tile_order, frame=camera)
             h, w = min(tile_h, height - y0), min(tile_w, width - x0)
             image[y0:y0 + h, x0:x0 + w] = pixels[:h, :w]
     return image

@@ -27,6 +27,10 @@ def gl_render(gl_ctx):
     from raygs_viewer.settings import RenderSettings
 
     def render(scene, camera, settings=RenderSettings(), order=None, depth_clamp=True, **options):
+        # Current again: a test before may have made another context current (the CLI's,
+        # a viewer's) in this thread. Entered, not used as `with`: leaving a nested `with`
+        # would unbind the context from a caller's own `with gl_ctx:`.
+        gl_ctx.__enter__()
         renderer = GLRenderer(gl_ctx, scene, **options)
         renderer.depth_clamp = depth_clamp
         try:

@@ -146,9 +146,10 @@ class GLRenderer:
     def sort(self, camera: Camera, settings: RenderSettings) -> np.ndarray:
         return self.sorter.order(camera, settings.p_min, dilation=settings.cull_dilation(camera))
 
-    def preprocess(self, camera: Camera, settings: RenderSettings) -> None:
+    def preprocess(self, camera: Camera, settings: RenderSettings, frame: Camera | None = None) -> None:
         """Writes the per-view splat record of every gaussian for ``camera`` (the camera
-        actually rasterized: already supersampled)."""
+        actually rasterized: already supersampled). ``frame``: the whole image's camera
+        when ``camera`` renders one tile of it (GS clamps rays to the whole image)."""
         count = self.scene.count
         layout = self._layout(self._splat_bytes(settings))
         if self._splats.size < max(count, 1) * layout.splat_bytes:
@@ -160,7 +161,7 @@ class GLRenderer:
         program["u_log_p_min"].value = math.log(settings.p_min)
         _set_uniform(program, "u_pixel_variance", settings.pixel_variance(camera))
         _set_uniform(program, "u_intrinsics", (camera.fx, camera.fy, camera.cx, camera.cy))
-        _set_uniform(program, "u_image_size", (camera.width, camera.height))
+        _set_uniform(program, "u_ray_bounds", gs_ray_bounds(frame or camera))
         harmonics_bytes = sh_coefficient_count(self.scene.sh_degree) * 12
         splat_bytes = layout.splat_bytes
         for start in range(0, count, layout.chunk):
@@ -252,17 +253,18 @@ class GLRenderer:
         return self._draw_programs[key]
 
     def render(self, camera: Camera, settings: RenderSettings = RenderSettings(),
-               order: np.ndarray | None = None) -> np.ndarray:
-        """(H, W, 4) float32 image, top row first: RGB over the background, and alpha."""
+               order: np.ndarray | None = None, frame: Camera | None = None) -> np.ndarray:
+        """(H, W, 4) float32 image, top row first: RGB over the background, and alpha.
+        ``frame``: see :meth:`preprocess`."""
         if order is None:
             order = self.sort(camera, settings)
         target = self._target(camera.width, camera.height)
-        self.render_into(target, camera, settings, order)
+        self.render_into(target, camera, settings, order, frame)
         pixels = np.frombuffer(target.read(components=4, dtype="f4"), np.float32)
         return pixels.reshape(camera.height, camera.width, 4)[::-1].copy()
 
     def render_into(self, target: moderngl.Framebuffer, camera: Camera, settings: RenderSettings,
-                    order: np.ndarray) -> None:
+                    order: np.ndarray, frame: Camera | None = None) -> None:
         """Clears ``target`` (camera-sized, float colour) and draws the scene into it:
         background-composited colour in RGB and the accumulated alpha in A.
 
@@ -275,7 +277,7 @@ class GLRenderer:
         if k == 1 and not settings.transmittance_cutoff:
             target.use()
             target.clear(*settings.background, 0.0)
-            self.preprocess(camera, settings)
+            self.preprocess(camera, settings, frame)
             self.draw(camera, settings, order)
             return
         problem = self.supports(settings)
@@ -288,7 +290,7 @@ class GLRenderer:
             samples.clear(0.0, 0.0, 0.0, 0.0)
         else:
             samples.clear(*settings.background, 0.0)
-        self.preprocess(sampled, settings)
+        self.preprocess(sampled, settings, frame or camera)  # the bounds are scale-invariant
         self.draw(sampled, settings, order)
         self._resolve(samples, target, k, settings)
 
@@ -343,6 +345,14 @@ class GLRenderer:
             programs.clear()
         for obj in (self._gaussians, self._harmonics, self._splats, self._order):
             obj.release()
+
+
+def gs_ray_bounds(camera: Camera) -> tuple[float, float, float, float]:
+    """INRIA's clamp box for the ray x/z, y/z of GS's Jacobian: the image's borders
+    widened by 15 % of its size on each side (lower x, lower y, upper x, upper y)."""
+    margin_x, margin_y = 0.15 * camera.width / camera.fx, 0.15 * camera.height / camera.fy
+    return (-camera.cx / camera.fx - margin_x, -camera.cy / camera.fy - margin_y,
+            (camera.width - camera.cx) / camera.fx + margin_x, (camera.height - camera.cy) / camera.fy + margin_y)
 
 
 def _set_uniform(program: moderngl.Program, name: str, value) -> None:
