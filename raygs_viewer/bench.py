@@ -94,6 +94,10 @@ PSNR_CAP = 100.0
 VERDICT_PSNR_CAP = 60.0
 #: "Within this many dB of the best" in the verdict's summary.
 VERDICT_TOLERANCE_DB = 0.5
+#: PSNR gains closer than this count as equal for the Pareto front.
+PARETO_TOLERANCE_DB = 0.1
+#: A time ratio above this counts as slower than RayGS in the verdict (timings are noisy).
+SLOWER = 1.1
 
 HUMAN_VERDICT_BEGIN = "<!-- BEGIN HUMAN VERDICT (kept when the report is regenerated with --overwrite) -->"
 HUMAN_VERDICT_END = "<!-- END HUMAN VERDICT -->"
@@ -511,6 +515,8 @@ class ViewSummary:
     ratio: float         # geometric mean over scenes of the time ratio
     gain_db: float       # mean over scenes of PSNR - PSNR(BASELINE), PSNRs capped at VERDICT_PSNR_CAP
     worst_gain_db: float
+    best_gain_db: float  # the best scene's
+    raw_gain_db: float   # the same without the cap (breaks ties between capped gains)
     pareto: bool = False
 
 
@@ -522,12 +528,15 @@ def summarize(results: BenchResults, view: str) -> list[ViewSummary]:
     for config in cases[0].rows:
         ratios = [c.rows[config].ratio for c in cases]
         gains = [_capped(c.rows[config].psnr) - _capped(c.rows[BASELINE].psnr) for c in cases]
+        raw = [_capped(c.rows[config].psnr, PSNR_CAP) - _capped(c.rows[BASELINE].psnr, PSNR_CAP) for c in cases]
         good = [r for r in ratios if r > 0 and math.isfinite(r)]
         ratio = math.exp(sum(math.log(r) for r in good) / len(good)) if good else math.nan
-        summaries.append(ViewSummary(config, ratio, float(np.mean(gains)), float(np.min(gains))))
-    for s in summaries:
-        s.pareto = not any(o is not s and o.ratio <= s.ratio and o.gain_db >= s.gain_db
-                           and (o.ratio < s.ratio or o.gain_db > s.gain_db) for o in summaries)
+        summaries.append(ViewSummary(config, ratio, float(np.mean(gains)), float(np.min(gains)), float(np.max(gains)),
+                                     float(np.mean(raw))))
+    for s in summaries:  # gains within PARETO_TOLERANCE_DB of each other count as equal
+        s.pareto = not any(o is not s and ((o.ratio < s.ratio and o.gain_db >= s.gain_db - PARETO_TOLERANCE_DB)
+                                           or (o.ratio <= s.ratio and o.gain_db > s.gain_db + PARETO_TOLERANCE_DB))
+                           for o in summaries)
     return summaries
 
 
@@ -537,7 +546,7 @@ def verdict_lines(summaries: list[ViewSummary]) -> list[str]:
     valid = [s for s in summaries if math.isfinite(s.gain_db) and math.isfinite(s.ratio)]
     if not valid:
         return ["no finite results"]
-    best = max(valid, key=lambda s: s.gain_db)
+    best = max(valid, key=lambda s: (s.gain_db, s.raw_gain_db))
     near = [s for s in valid if s.gain_db >= best.gain_db - VERDICT_TOLERANCE_DB]
     cheapest = min(near, key=lambda s: s.ratio)
 
@@ -546,11 +555,11 @@ def verdict_lines(summaries: list[ViewSummary]) -> list[str]:
 
     lines = [f"most accurate: {named(best)}",
              f"cheapest within {VERDICT_TOLERANCE_DB:g} dB of it: {named(cheapest)}",
-             "Pareto front (nothing else is both faster and more accurate): "
+             f"Pareto front (no other configuration is faster and as accurate, within {PARETO_TOLERANCE_DB:g} dB): "
              + ", ".join(named(s) for s in sorted((s for s in valid if s.pareto), key=lambda s: s.ratio))]
-    useless = [s.config for s in valid if s.config != BASELINE and s.ratio > 1.0 and s.worst_gain_db <= 0.0]
+    useless = [s.config for s in valid if s.config != BASELINE and s.ratio > SLOWER and s.best_gain_db <= 0.0]
     if useless:
-        lines.append("slower than RayGS and no more accurate in any scene: " + ", ".join(useless))
+        lines.append(f"over {SLOWER - 1:.0%} slower than RayGS and no more accurate in any scene: " + ", ".join(useless))
     return lines
 
 
@@ -560,7 +569,7 @@ def case_notes(case: CaseResult) -> dict[str, str]:
     rows = [r for r in case.rows.values() if not math.isnan(r.psnr)]
     notes = {BASELINE: "baseline"}
     if rows:
-        best = max(rows, key=lambda r: _capped(r.psnr))
+        best = max(rows, key=lambda r: (_capped(r.psnr), _capped(r.psnr, PSNR_CAP)))
         near = [r for r in rows if _capped(r.psnr) >= _capped(best.psnr) - VERDICT_TOLERANCE_DB]
         cheapest = min(near, key=lambda r: r.ratio if math.isfinite(r.ratio) else math.inf)
         for row, note in ((cheapest, "cheapest near best"), (best, "best")):
@@ -660,7 +669,8 @@ def format_report(results: BenchResults, plot_link: str | None, human_verdict: s
 
 def draw_plot(results: BenchResults):
     """A Pillow image: one panel per view class, PSNR against time ratio to RayGS (log x),
-    a colour per configuration and a marker shape per scene."""
+    a colour per configuration and a marker shape per scene; below, the same per view
+    class averaged over the scenes (PSNR gain over RayGS, as in the verdict's tables)."""
     from raygs_viewer.plot import PALETTE, SHAPES, Panel, Point, scatter_panels
     configs = list(results.cases[0].rows) if results.cases else list(CONFIGS)
     colors = {c: PALETTE[i % len(PALETTE)] for i, c in enumerate(configs)}
@@ -671,10 +681,22 @@ def draw_plot(results: BenchResults):
         points = [Point(row.ratio, _capped(row.psnr, PSNR_CAP), colors[row.config], shapes[case.scene])
                   for case in results.cases if case.view == view for row in case.rows.values()]
         panels.append(Panel(VIEW_TITLES[view], points, guides_x=(1.0,)))
-    return scatter_panels(panels, title="Error against GPU time, per view class",
-                          x_label="GPU time / RayGS time (log scale)", y_label="PSNR against ground truth (dB)",
-                          series=[(c, colors[c]) for c in configs],
-                          groups=[(f"scene: {s}", shapes[s]) for s in scene_names])
+    per_scene = scatter_panels(panels, title="Error against GPU time, per view class and scene",
+                               x_label="GPU time / RayGS time (log scale)", y_label="PSNR against ground truth (dB)",
+                               series=[(c, colors[c]) for c in configs],
+                               groups=[(f"scene: {s}", shapes[s]) for s in scene_names])
+    # The verdict's view: one marker per configuration, averaged over the scenes.
+    panels = [Panel(VIEW_TITLES[view], [Point(s.ratio, s.gain_db, colors[s.config]) for s in summarize(results, view)],
+                    guides_x=(1.0,)) for view in VIEW_CLASSES]
+    mean = scatter_panels(panels, title=f"Mean over scenes (time: geometric mean; PSNR capped at "
+                                        f"{VERDICT_PSNR_CAP:g} dB before averaging)",
+                          x_label="GPU time / RayGS time (log scale)", y_label="PSNR gain over RayGS (dB)",
+                          series=[(c, colors[c]) for c in configs])
+    from PIL import Image
+    image = Image.new("RGB", (per_scene.width, per_scene.height + mean.height), (255, 255, 255))
+    image.paste(per_scene, (0, 0))
+    image.paste(mean, (0, per_scene.height))
+    return image
 
 
 def png_bytes(image) -> bytes:

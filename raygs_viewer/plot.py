@@ -60,7 +60,9 @@ def linear_ticks(low: float, high: float, count: int = 6) -> list[float]:
         return [low]
     raw = (high - low) / max(count - 1, 1)
     power = 10.0 ** math.floor(math.log10(raw))
-    step = next(m * power for m in (1, 2, 2.5, 5, 10) if m * power >= raw)
+    # The round step whose number of ticks comes nearest to ``count`` (the coarser on a tie).
+    step = min((m * power for m in (10, 5, 2.5, 2, 1)),
+               key=lambda step: abs(math.floor(high / step) - math.ceil(low / step) + 1 - count))
     first = math.ceil(low / step - 1e-9) * step
     ticks, value = [], first
     while value <= high + 1e-9 * step:
