@@ -99,6 +99,9 @@ PARETO_TOLERANCE_DB = 0.1
 #: A time ratio above this counts as slower than RayGS in the verdict (timings are noisy).
 SLOWER = 1.1
 
+#: The ground truth's opacity cut-off: far below every configuration's, so the p_min
+#: rows are judged against an image whose faint tails are (nearly) all there.
+GT_P_MIN = 1e-4
 HUMAN_VERDICT_BEGIN = "<!-- BEGIN HUMAN VERDICT (kept when the report is regenerated with --overwrite) -->"
 HUMAN_VERDICT_END = "<!-- END HUMAN VERDICT -->"
 HUMAN_VERDICT_PLACEHOLDER = "_Verdict to be written from the numbers below: which settings are worth their cost, " \
@@ -265,7 +268,7 @@ class BenchResults:
     width: int
     scenes: list[tuple[str, str]]   # (name, "N gaussians, from ...")
     notes: list[str] = field(default_factory=list)
-    gt_p_min: float = DEFAULT_P_MIN
+    gt_p_min: float = GT_P_MIN
 
 
 @dataclass(frozen=True)
@@ -281,7 +284,7 @@ class BenchOptions:
     gl_backend: str | None = None
     configs: tuple[str, ...] = CONFIGS
     notes: tuple[str, ...] = ()
-    gt_p_min: float = DEFAULT_P_MIN   # the ground truth's cut-off
+    gt_p_min: float = GT_P_MIN   # the ground truth's cut-off
 
 
 @dataclass
@@ -781,8 +784,8 @@ def add_parser(commands) -> None:
                                f"(default {DEFAULT_GT_SAMPLES}, --quick {QUICK_GT_SAMPLES}); the far view uses "
                                f"{FAR_GT_FACTOR} times as many")
     accuracy.add_argument("--gt-p-min", type=_probability, metavar="P",
-                          help="opacity cut-off of the ground truth (default 1/255, that of every configuration "
-                               "but the p_min ones; lower it to judge those against a cut-off-free image)")
+                          help=f"opacity cut-off of the ground truth (default {GT_P_MIN:g}, below every "
+                               f"configuration's, so that the p_min rows are judged against the faint tails too)")
     accuracy.add_argument("--report", default=DEFAULT_REPORT, metavar="PATH.md",
                           help=f"markdown report (default {DEFAULT_REPORT})")
     accuracy.add_argument("--plot", default=DEFAULT_PLOT, metavar="PATH.png",
@@ -830,7 +833,7 @@ def options_from_args(args: argparse.Namespace) -> BenchOptions:
         command_line=command_line(args),
         gl_backend=args.gl_backend,
         notes=tuple(notes),
-        gt_p_min=DEFAULT_P_MIN if args.gt_p_min is None else args.gt_p_min,
+        gt_p_min=GT_P_MIN if args.gt_p_min is None else args.gt_p_min,
     )
 
 
