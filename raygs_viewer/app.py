@@ -579,7 +579,7 @@ class Viewer:
             self.stats.visible = int(order.size)
         key = (_camera_key(camera), settings, right, serial)
         target = self._target_for(camera.width, camera.height)
-        right_target = self._right_target_for(camera.width, camera.height) if right is not None else None
+        right_target = self._target_for(camera.width, camera.height, "_target_right") if right is not None else None
         if key == self._drawn_key:
             # Nothing changed: the image in the target is still right. The GPU is idle
             # as far as this view goes, so the last timings can be read without stalling.
@@ -604,22 +604,16 @@ class Viewer:
         self.stats.draws += 1
         self._drawn_key = key
 
-    def _target_for(self, width: int, height: int):
-        if self._target is None or self._target.size != (width, height):
-            _release_framebuffer(self._target)
-            self._target = self._float_target(width, height)
+    def _target_for(self, width: int, height: int, attribute: str = "_target"):
+        """The float target kept in ``attribute`` ("_target", or "_target_right" for the
+        split view's right side), made anew when the size changes."""
+        target = getattr(self, attribute)
+        if target is None or target.size != (width, height):
+            _release_framebuffer(target)
+            target = self.ctx.framebuffer(color_attachments=[self.ctx.texture((width, height), 4, dtype="f4")])
+            setattr(self, attribute, target)
             self._drawn_key = None
-        return self._target
-
-    def _right_target_for(self, width: int, height: int):
-        if self._target_right is None or self._target_right.size != (width, height):
-            _release_framebuffer(self._target_right)
-            self._target_right = self._float_target(width, height)
-            self._drawn_key = None
-        return self._target_right
-
-    def _float_target(self, width: int, height: int):
-        return self.ctx.framebuffer(color_attachments=[self.ctx.texture((width, height), 4, dtype="f4")])
+        return target
 
     def _capture_window(self, width: int, height: int, x: int, y: int, w: int, h: int,
                         overlay: bool = True) -> np.ndarray:

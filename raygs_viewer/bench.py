@@ -43,6 +43,7 @@ import numpy as np
 
 from raygs_viewer.camera import Camera, frame_points
 from raygs_viewer.errors import UserError
+from raygs_viewer.imageio import check_output_path
 from raygs_viewer.scene import Scene, quaternion_to_matrix
 from raygs_viewer.settings import ACCURACY_PRESETS, DEFAULT_P_MIN, RenderSettings, apply_preset
 
@@ -708,19 +709,6 @@ def png_bytes(image) -> bytes:
     return buffer.getvalue()
 
 
-def check_output(path: Path, suffix: str, overwrite: bool) -> Path:
-    """Fails before any slow work on an output the run could not write."""
-    if path.suffix.lower() != suffix:
-        raise UserError(f"{path}: must end in {suffix}")
-    if not path.parent.is_dir():
-        raise UserError(f"{path}: folder '{path.parent}' does not exist")
-    if path.is_dir():
-        raise UserError(f"{path}: is a folder")
-    if path.exists() and not overwrite:
-        raise UserError(f"{path}: already exists (pass --overwrite to replace it)")
-    return path
-
-
 def write_outputs(results: BenchResults, report: Path, plot: Path, overwrite: bool) -> None:
     """Writes the plot and the report, each atomically (a temporary file moved into place)."""
     from raygs_viewer.imageio import write_atomically
@@ -735,30 +723,13 @@ def write_outputs(results: BenchResults, report: Path, plot: Path, overwrite: bo
 
 # --- command line ------------------------------------------------------------------------------
 
-def _count(low: int, high: int):
-    def parse(text: str) -> int:
-        try:
-            value = int(text)
-        except ValueError:
-            raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
-        if not low <= value <= high:
-            raise argparse.ArgumentTypeError(f"{value} is outside {low}..{high}")
-        return value
-    return parse
-
-
-def _probability(text: str) -> float:
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
-    if not 0.0 < value < 1.0:
-        raise argparse.ArgumentTypeError(f"{text} is not in (0, 1)")
-    return value
-
-
 def add_parser(commands) -> None:
     """Adds ``bench`` and its subcommands to the CLI's subparsers."""
+    from raygs_viewer.cli import _real_number, _whole_number  # the CLI's own number types (cli imports bench)
+
+    def count(low: int, high: int):
+        return _whole_number(low, high, f"outside {low}..{high}")
+
     bench = commands.add_parser("bench", help="benchmarks (accuracy against time)")
     kinds = bench.add_subparsers(dest="bench", required=True, parser_class=type(bench))
     accuracy = kinds.add_parser(
@@ -773,17 +744,17 @@ def add_parser(commands) -> None:
     accuracy.add_argument("--scenes", nargs="+", metavar="SCENE",
                           help=f"scene files (or '{DEMO}') instead of the demo and the real scenes in "
                                f"../shared/scenes")
-    accuracy.add_argument("--width", type=_count(4, 16384), metavar="PX",
+    accuracy.add_argument("--width", type=count(4, 16384), metavar="PX",
                           help=f"width of the training-like view (default {DEFAULT_WIDTH}, --quick {QUICK_WIDTH}); "
                                f"the far view has a quarter of it")
-    accuracy.add_argument("--repeat", type=_count(1, 100000), metavar="N",
+    accuracy.add_argument("--repeat", type=count(1, 100000), metavar="N",
                           help=f"timed frames per configuration (default {DEFAULT_REPEAT}, --quick {QUICK_REPEAT}); "
                                f"use at least 10")
-    accuracy.add_argument("--gt-samples", type=_count(1, 64), metavar="N",
+    accuracy.add_argument("--gt-samples", type=count(1, 64), metavar="N",
                           help=f"ground-truth samples per pixel axis for the training-like and close views "
                                f"(default {DEFAULT_GT_SAMPLES}, --quick {QUICK_GT_SAMPLES}); the far view uses "
                                f"{FAR_GT_FACTOR} times as many")
-    accuracy.add_argument("--gt-p-min", type=_probability, metavar="P",
+    accuracy.add_argument("--gt-p-min", type=_real_number(lambda p: 0.0 < p < 1.0, "not in (0, 1)"), metavar="P",
                           help=f"opacity cut-off of the ground truth (default {GT_P_MIN:g}, below every "
                                f"configuration's, so that the p_min rows are judged against the faint tails too)")
     accuracy.add_argument("--report", default=DEFAULT_REPORT, metavar="PATH.md",
@@ -827,8 +798,8 @@ def options_from_args(args: argparse.Namespace) -> BenchOptions:
         width=args.width or (QUICK_WIDTH if args.quick else DEFAULT_WIDTH),
         repeat=args.repeat or (QUICK_REPEAT if args.quick else DEFAULT_REPEAT),
         gt_samples=args.gt_samples or (QUICK_GT_SAMPLES if args.quick else DEFAULT_GT_SAMPLES),
-        report=check_output(report, ".md", args.overwrite),
-        plot=check_output(plot, ".png", args.overwrite),
+        report=check_output_path(report, args.overwrite, (".md",)),
+        plot=check_output_path(plot, args.overwrite, (".png",)),
         overwrite=args.overwrite,
         command_line=command_line(args),
         gl_backend=args.gl_backend,

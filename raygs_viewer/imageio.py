@@ -33,12 +33,12 @@ def encode_image(image: np.ndarray, suffix: str) -> bytes:
     return buffer.getvalue()
 
 
-def check_output_path(path: str | Path, overwrite: bool = False) -> Path:
-    """Validates an output path before any work is done: known suffix, existing folder,
-    and no existing file unless ``overwrite``."""
+def check_output_path(path: str | Path, overwrite: bool = False, suffixes: tuple[str, ...] = IMAGE_SUFFIXES) -> Path:
+    """Validates an output path before any work is done: one of ``suffixes``, an
+    existing folder, and no existing file unless ``overwrite``."""
     path = Path(path)
-    if path.suffix.lower() not in IMAGE_SUFFIXES:
-        raise UserError(f"{path}: output must end in {' or '.join(IMAGE_SUFFIXES)}")
+    if path.suffix.lower() not in suffixes:
+        raise UserError(f"{path}: output must end in {' or '.join(suffixes)}")
     if not path.parent.is_dir():
         raise UserError(f"{path}: folder '{path.parent}' does not exist")
     if path.is_dir():
