@@ -634,7 +634,8 @@ def format_report(results: BenchResults, plot_link: str | None, human_verdict: s
     if results.gt_p_min == DEFAULT_P_MIN:
         notes.append("The ground truth has the baseline's cut-off p_min 1/255, so the rows that change p_min show "
                      "their difference from that cut-off, not from the image without one (see --gt-p-min).")
-    lines += ["", "Notes:", ""] + [f"- {note}" for note in notes]
+    if notes:
+        lines += ["", "Notes:", ""] + [f"- {note}" for note in notes]
     lines += ["", "## Verdict", "", HUMAN_VERDICT_BEGIN, human_verdict or HUMAN_VERDICT_PLACEHOLDER,
               HUMAN_VERDICT_END, ""]
     lines += ["### From the numbers (generated)", "",
