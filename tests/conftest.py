@@ -13,15 +13,23 @@ from raygs_viewer.render.context import create_headless_context
 
 
 @pytest.fixture(scope="session")
-def gl_ctx():
+def gl_session_ctx():
     """One headless GL context for the whole session (creating one costs 50-900 ms)."""
     ctx = create_headless_context()
     yield ctx
     ctx.release()
 
 
+@pytest.fixture
+def gl_ctx(gl_session_ctx):
+    """The session's context, made current for this test: a test before may have made
+    another one current in this thread (the CLI's, a benchmark's, a viewer's)."""
+    gl_session_ctx.__enter__()
+    return gl_session_ctx
+
+
 @pytest.fixture(scope="session")
-def gl_render(gl_ctx):
+def gl_render(gl_session_ctx):
     """render(scene, camera, settings=..., **renderer_options) -> float32 (H, W, 4)."""
     from raygs_viewer.render.renderer import GLRenderer
     from raygs_viewer.settings import RenderSettings
@@ -30,8 +38,8 @@ def gl_render(gl_ctx):
         # Current again: a test before may have made another context current (the CLI's,
         # a viewer's) in this thread. Entered, not used as `with`: leaving a nested `with`
         # would unbind the context from a caller's own `with gl_ctx:`.
-        gl_ctx.__enter__()
-        renderer = GLRenderer(gl_ctx, scene, **options)
+        gl_session_ctx.__enter__()
+        renderer = GLRenderer(gl_session_ctx, scene, **options)
         renderer.depth_clamp = depth_clamp
         try:
             return renderer.render(camera, settings, order)
@@ -57,12 +65,12 @@ def demo():
 
 
 @pytest.fixture(scope="session")
-def demo_renderer(gl_ctx, demo):
+def demo_renderer(gl_session_ctx, demo):
     """A GLRenderer of the demo on the session context. Tests that create and release
     another context in this thread (the CLI's, a viewer's) use it inside ``with gl_ctx:``."""
     from raygs_viewer.render.renderer import GLRenderer
-    with gl_ctx:
-        renderer = GLRenderer(gl_ctx, demo)
+    with gl_session_ctx:
+        renderer = GLRenderer(gl_session_ctx, demo)
     yield renderer
-    with gl_ctx:
+    with gl_session_ctx:
         renderer.release()

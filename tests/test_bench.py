@@ -154,8 +154,10 @@ TINY = ["--width", "16", "--repeat", "2", "--gt-samples", "1"]
 
 
 @pytest.fixture(scope="module")
-def tiny_run(tmp_path_factory, gl_ctx):
+def tiny_run(tmp_path_factory, gl_session_ctx):
     """One run over the demo and a small PLY at 16 px: (args, stdout, report text, results)."""
+    gl_ctx = gl_session_ctx
+    gl_ctx.__enter__()
     folder = tmp_path_factory.mktemp("bench")
     ply = write_ply(folder / "blobs.ply")
     args = parse("--scenes", "demo", ply, *TINY, "--report", folder / "acc.md", "--plot", folder / "acc.png")
