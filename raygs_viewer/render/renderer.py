@@ -280,9 +280,6 @@ class GLRenderer:
             self.preprocess(camera, settings, frame)
             self.draw(camera, settings, order)
             return
-        problem = self.supports(settings)
-        if problem:
-            raise UserError(problem)
         sampled = camera.resized(camera.width * k, camera.height * k) if k > 1 else camera
         samples = self._sample_target(sampled.width, sampled.height)
         samples.use()
