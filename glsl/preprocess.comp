@@ -23,6 +23,7 @@ uniform uint u_count;        // gaussians in this chunk
 uniform uint u_out_offset;   // first output slot of this chunk within the bound range
 uniform mat3 u_world_to_camera;
 uniform vec3 u_camera_center;
+uniform vec3 u_color_origin;  // where SH colour is seen from: the camera, or (stereo) the eyes' midpoint
 uniform float u_log_p_min;
 uniform float u_pixel_variance;  // MIP: sigma_x^2, the filter's variance at unit distance
 uniform vec4 u_intrinsics;       // GS: fx, fy, cx, cy
@@ -95,7 +96,7 @@ void main() {
     vec3 mu = u_world_to_camera * offset;
 
     Splat s;
-    s.color = vec4(sh_color(normalize(offset)), 0.0);
+    s.color = vec4(sh_color(normalize(g.position_opacity.xyz - u_color_origin)), 0.0);
     s.center_c2 = vec4(mu, 0.0);
     s.axis0_half = vec4(0.0);
     s.axis1_opacity = vec4(0.0, 0.0, 0.0, opacity);

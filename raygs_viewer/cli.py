@@ -128,6 +128,7 @@ def build_parser() -> argparse.ArgumentParser:
                         help=".png: 8-bit RGB; .npy: float32 HxWx4 (RGB over background, alpha)")
     render.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
     render.add_argument("--reference", action="store_true", help="use the float64 CPU reference renderer")
+    _add_stereo_options(render)
     _add_backend_option(render)
 
     verify = commands.add_parser("verify", help="render one view with GL and with the float64 reference; "
@@ -140,6 +141,43 @@ def build_parser() -> argparse.ArgumentParser:
     from raygs_viewer import bench
     bench.add_parser(commands)
     return parser
+
+
+def _add_stereo_options(parser: argparse.ArgumentParser) -> None:
+    from raygs_viewer.stereo import DEFAULT_CONVERGENCE, DEFAULT_IPD, DEFAULT_SCENE_SCALE, LAYOUTS
+    parser.add_argument("--stereo", action="store_true",
+                        help="render the two eyes around the camera (which is their midpoint); the image is "
+                             "both eyes side by side unless --layout says otherwise")
+    parser.add_argument("--ipd", type=_real_number(lambda v: 0.0 <= v <= 1.0, "not in [0, 1] metres"),
+                        metavar="METRES", help=f"distance between the eyes (default {DEFAULT_IPD})")
+    parser.add_argument("--convergence", type=_real_number(lambda v: 1e-3 <= v <= 1e6, "not in [0.001, 1e6] metres"),
+                        metavar="METRES", help=f"distance of zero disparity (default {DEFAULT_CONVERGENCE})")
+    parser.add_argument("--scene-scale", type=_real_number(lambda v: 1e-9 <= v <= 1e9, "not a positive scale"),
+                        metavar="METRES_PER_UNIT", help=f"metres per scene unit (default {DEFAULT_SCENE_SCALE})")
+    parser.add_argument("--layout", choices=LAYOUTS,
+                        help="sbs: left eye on the left (default); cross: for cross-eyed viewing; "
+                             "anaglyph: red/cyan; left or right: one eye")
+
+
+def _stereo_rig(args):
+    """The StereoRig of --stereo and its options; None without --stereo (and then the
+    stereo options are an error, not silently ignored)."""
+    given = [flag for flag, dest in (("--ipd", "ipd"), ("--convergence", "convergence"),
+                                     ("--scene-scale", "scene_scale"), ("--layout", "layout"))
+             if getattr(args, dest) is not None]
+    if not args.stereo:
+        if given:
+            raise UserError(f"{', '.join(given)} need{'s' if len(given) == 1 else ''} --stereo")
+        return None
+    if args.reference:
+        raise UserError("--stereo renders with GL (the eyes share one sort and the midpoint's colour); "
+                        "drop --reference")
+    if args.sidecar is not None:
+        raise UserError("--stereo cannot be combined with --sidecar yet")
+    from raygs_viewer.stereo import StereoRig
+    values = {dest: getattr(args, dest) for dest in ("ipd", "convergence", "scene_scale")
+              if getattr(args, dest) is not None}
+    return StereoRig(**values)
 
 
 def _add_view_options(parser: argparse.ArgumentParser) -> None:
@@ -298,6 +336,7 @@ def _command_render(args) -> int:
         given = [flag for flag, dest in SIDECAR_CONFLICTS if getattr(args, dest) is not None]
         if given:
             raise UserError(f"--sidecar already sets the view; drop {', '.join(given)}")
+    rig = _stereo_rig(args)
     out = check_output_path(args.out, args.overwrite)  # fail before any slow work
     if args.sidecar is not None:
         from raygs_viewer.sidecar import load_sidecar, resolve_scene, verify_scene_hash
@@ -324,15 +363,19 @@ def _command_render(args) -> int:
         ctx = create_headless_context(args.gl_backend)
         try:
             renderer = GLRenderer(ctx, scene)
-            # Tiled like the window's screenshots: the same pixels, and sizes beyond
-            # the GPU's largest render target.
-            image = render_tiled(renderer, camera, settings)
+            if rig is not None:
+                from raygs_viewer.stereo import compose, render_stereo
+                image = compose(*render_stereo(renderer, camera, settings, rig), args.layout or "sbs")
+            else:
+                # Tiled like the window's screenshots: the same pixels, and sizes beyond
+                # the GPU's largest render target.
+                image = render_tiled(renderer, camera, settings)
             renderer.release()
         finally:
             ctx.release()
     elapsed = time.perf_counter() - start
     save_image(out, image, args.overwrite)
-    print(f"{out}: {camera.width}x{camera.height}, {scene.count} gaussians, "
+    print(f"{out}: {image.shape[1]}x{image.shape[0]}, {scene.count} gaussians, "
           f"{'reference' if args.reference else 'GL'} render {elapsed * 1000:.0f} ms"
           + (f", view from {args.sidecar}" if args.sidecar is not None else ""))
     return 0

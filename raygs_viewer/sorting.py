@@ -8,7 +8,7 @@ reference composite the same sequence.
 from __future__ import annotations
 
 import math
-from typing import Literal
+from typing import Literal, Sequence
 
 import numpy as np
 
@@ -38,7 +38,7 @@ class DepthSorter:
         return np.sqrt(np.maximum(kappa, 0.0)) * self.max_scale
 
     def order(self, camera: Camera, p_min: float, method: SortMethod = "auto", *,
-              dilation: float | None = 0.0) -> np.ndarray:
+              dilation: float | None = 0.0, cull_cameras: Sequence[Camera] | None = None) -> np.ndarray:
         """(M,) uint32 indices of the gaussians that may be visible, back to front.
 
         A gaussian is dropped only when it cannot reach any pixel: opacity <= p_min
@@ -48,9 +48,23 @@ class DepthSorter:
         sqrt(kappa) * dilation * |mu|, the most a pixel filter of that standard deviation
         per unit distance adds; None keeps every gaussian in front of the camera plane
         (for footprints no sphere bounds, such as EWA's).
+
+        ``cull_cameras``: keep what any of these cameras may see, instead of what
+        ``camera`` may see; the depth order is still ``camera``'s (stereo: one sort from
+        the midpoint between the eyes serves both).
         """
         if self.positions.shape[0] == 0:
             return np.zeros(0, np.uint32)
+        keep = np.zeros(self.positions.shape[0], bool)
+        for culling in cull_cameras or (camera,):
+            keep |= self._may_be_seen(culling, p_min, dilation)
+        visible = np.flatnonzero(keep)
+        R = camera.R.astype(np.float32)
+        depth = self.positions[visible] @ R[2] + np.float32(camera.t[2])
+        return visible[sort_back_to_front(depth, method)].astype(np.uint32)
+
+    def _may_be_seen(self, camera: Camera, p_min: float, dilation: float | None) -> np.ndarray:
+        """(N,) bool: the support sphere may reach a pixel of ``camera``."""
         R = camera.R.astype(np.float32)
         mu = self.positions @ R.T + camera.t.astype(np.float32)
         slack = np.float32(1e-5 * (self.coordinate_scale + float(np.abs(camera.t).max())) + 1e-6)
@@ -62,8 +76,7 @@ class DepthSorter:
         x, y, z = mu[:, 0], mu[:, 1], mu[:, 2]
         keep = (self.log_opacity > np.float32(math.log(p_min))) & (z > -radius)
         if dilation is None:
-            visible = np.flatnonzero(keep)
-            return visible[sort_back_to_front(z[visible], method)].astype(np.uint32)
+            return keep
         # Side planes through the camera centre, at the image border (pixel centres lie
         # half a pixel inside it), with unit normals pointing into the frustum.
         for coordinate, a, b, extent in ((x, camera.fx, camera.cx, camera.width),
@@ -71,9 +84,7 @@ class DepthSorter:
             for normal in ((a, b), (-a, extent - b)):
                 n = np.float32(1.0 / math.hypot(*normal))
                 keep &= (np.float32(normal[0]) * n) * coordinate + (np.float32(normal[1]) * n) * z > -radius
-        visible = np.flatnonzero(keep)
-        depth = z[visible]
-        return visible[sort_back_to_front(depth, method)].astype(np.uint32)
+        return keep
 
 
 def sort_back_to_front(depth: np.ndarray, method: SortMethod = "auto") -> np.ndarray:

@@ -406,10 +406,10 @@ def test_settings_the_renderer_refuses_show_an_error_and_keep_running(open_viewe
     viewer, drive = open_viewer(hide_panel=True)
     render_into = viewer.renderer.render_into
 
-    def refusing(target, camera, settings, order, frame=None):
+    def refusing(target, camera, settings, order, *args):
         if settings.transmittance_cutoff:
             raise UserError("the transmittance cut-off needs GL_EXT_shader_framebuffer_fetch")
-        return render_into(target, camera, settings, order, frame)
+        return render_into(target, camera, settings, order, *args)
 
     monkeypatch.setattr(viewer.renderer, "render_into", refusing)
     drive.settle()

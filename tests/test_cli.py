@@ -719,3 +719,49 @@ def test_installed_module_runs_outside_the_source_tree(tmp_path):
     assert result.returncode == 2
     assert result.stderr.startswith("error: ") and result.stderr.count("\n") == 1, result.stderr
     assert "Traceback" not in result.stderr and "nonexistent.ply" in result.stderr
+
+
+# --------------------------------------------------------------------------- stereo
+
+def test_render_stereo_writes_the_eyes_in_the_chosen_layout(capsys, tmp_path, gl_ctx, demo):
+    from raygs_viewer.render.renderer import GLRenderer
+    from raygs_viewer.stereo import StereoRig, compose, render_stereo
+
+    camera = demo_camera().resized(64, 48)
+    rig = StereoRig(ipd=0.07, convergence=3.0, scene_scale=0.5)
+    outputs = {}
+    for layout in (None, "cross", "anaglyph", "right"):
+        out = tmp_path / f"{layout}.npy"
+        extra = [] if layout is None else ["--layout", layout]
+        code, stdout, err = run_cli(capsys, "render", *SMALL, "--stereo", "--ipd", "0.07", "--convergence", "3",
+                                    "--scene-scale", "0.5", *extra, "--out", out)
+        assert code == 0, err
+        outputs[layout] = np.load(out)
+    with gl_ctx:
+        renderer = GLRenderer(gl_ctx, demo)
+        try:
+            left, right = render_stereo(renderer, camera, RenderSettings(), rig)
+        finally:
+            renderer.release()
+    assert outputs[None].shape == (48, 128, 4)  # side by side by default, each eye the camera's size
+    np.testing.assert_allclose(outputs[None], compose(left, right, "sbs"), atol=1e-6)
+    np.testing.assert_allclose(outputs["cross"], compose(left, right, "cross"), atol=1e-6)
+    np.testing.assert_allclose(outputs["anaglyph"], compose(left, right, "anaglyph"), atol=1e-6)
+    np.testing.assert_allclose(outputs["right"], right, atol=1e-6)
+    assert np.abs(left - right).max() > 0.05  # the eyes differ: the options reached the rig
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["--ipd", "0.06"], "--ipd needs --stereo"),
+    (["--layout", "sbs", "--scene-scale", "2"], "need --stereo"),
+    (["--stereo", "--reference"], "drop --reference"),
+    (["--stereo", "--ipd", "-1"], "--ipd"),
+    (["--stereo", "--convergence", "0"], "--convergence"),
+    (["--stereo", "--scene-scale", "nan"], "--scene-scale"),
+    (["--stereo", "--layout", "top-bottom"], "--layout"),
+])
+def test_bad_stereo_options_are_one_line_errors(capsys, tmp_path, argv, fragment):
+    out = tmp_path / "x.png"
+    code, _, err = run_cli(capsys, "render", *SMALL, *argv, "--out", out)
+    assert fragment in assert_one_line_error(code, err)
+    assert not out.exists()

@@ -146,10 +146,13 @@ class GLRenderer:
     def sort(self, camera: Camera, settings: RenderSettings) -> np.ndarray:
         return self.sorter.order(camera, settings.p_min, dilation=settings.cull_dilation(camera))
 
-    def preprocess(self, camera: Camera, settings: RenderSettings, frame: Camera | None = None) -> None:
+    def preprocess(self, camera: Camera, settings: RenderSettings, frame: Camera | None = None,
+                   color_origin: np.ndarray | None = None) -> None:
         """Writes the per-view splat record of every gaussian for ``camera`` (the camera
         actually rasterized: already supersampled). ``frame``: the whole image's camera
-        when ``camera`` renders one tile of it (GS clamps rays to the whole image)."""
+        when ``camera`` renders one tile of it (GS clamps rays to the whole image).
+        ``color_origin``: the world point SH colour is seen from (default: the camera's
+        centre; stereo shares the eyes' midpoint)."""
         count = self.scene.count
         layout = self._layout(self._splat_bytes(settings))
         if self._splats.size < max(count, 1) * layout.splat_bytes:
@@ -158,6 +161,8 @@ class GLRenderer:
         program = self._preprocess_program(settings)
         program["u_world_to_camera"].write(camera.R.astype(np.float32).tobytes(order="F"))
         program["u_camera_center"].value = tuple(camera.center.astype(np.float32))
+        origin = camera.center if color_origin is None else np.asarray(color_origin, np.float64)
+        _set_uniform(program, "u_color_origin", tuple(origin.astype(np.float32)))  # gone at SH degree 0
         program["u_log_p_min"].value = math.log(settings.p_min)
         _set_uniform(program, "u_pixel_variance", settings.pixel_variance(camera))
         _set_uniform(program, "u_intrinsics", (camera.fx, camera.fy, camera.cx, camera.cy))
@@ -253,18 +258,19 @@ class GLRenderer:
         return self._draw_programs[key]
 
     def render(self, camera: Camera, settings: RenderSettings = RenderSettings(),
-               order: np.ndarray | None = None, frame: Camera | None = None) -> np.ndarray:
+               order: np.ndarray | None = None, frame: Camera | None = None,
+               color_origin: np.ndarray | None = None) -> np.ndarray:
         """(H, W, 4) float32 image, top row first: RGB over the background, and alpha.
-        ``frame``: see :meth:`preprocess`."""
+        ``frame``, ``color_origin``: see :meth:`preprocess`."""
         if order is None:
             order = self.sort(camera, settings)
         target = self._target(camera.width, camera.height)
-        self.render_into(target, camera, settings, order, frame)
+        self.render_into(target, camera, settings, order, frame, color_origin)
         pixels = np.frombuffer(target.read(components=4, dtype="f4"), np.float32)
         return pixels.reshape(camera.height, camera.width, 4)[::-1].copy()
 
     def render_into(self, target: moderngl.Framebuffer, camera: Camera, settings: RenderSettings,
-                    order: np.ndarray, frame: Camera | None = None) -> None:
+                    order: np.ndarray, frame: Camera | None = None, color_origin: np.ndarray | None = None) -> None:
         """Clears ``target`` (camera-sized, float colour) and draws the scene into it:
         background-composited colour in RGB and the accumulated alpha in A.
 
@@ -277,7 +283,7 @@ class GLRenderer:
         if k == 1 and not settings.transmittance_cutoff:
             target.use()
             target.clear(*settings.background, 0.0)
-            self.preprocess(camera, settings, frame)
+            self.preprocess(camera, settings, frame, color_origin)
             self.draw(camera, settings, order)
             return
         sampled = camera.resized(camera.width * k, camera.height * k) if k > 1 else camera
@@ -287,7 +293,7 @@ class GLRenderer:
             samples.clear(0.0, 0.0, 0.0, 0.0)
         else:
             samples.clear(*settings.background, 0.0)
-        self.preprocess(sampled, settings, frame or camera)  # the bounds are scale-invariant
+        self.preprocess(sampled, settings, frame or camera, color_origin)  # the bounds are scale-invariant
         self.draw(sampled, settings, order)
         self._resolve(samples, target, k, settings)
 

@@ -1,0 +1,160 @@
+"""Stereo: two eyes a headset apart, rendered the way the headset would show them.
+
+Conventions (camera space: +x right, +y down, +z forward; the maths page, section 1):
+
+- The given camera is the midpoint between the eyes ("cyclops"). The eyes sit at
+  -/+ ipd/2 along its x axis (left eye at -x), with its rotation.
+- ``scene_scale`` is metres per scene unit: an IPD of 0.063 m is 0.063 / scene_scale
+  units, so a larger scale makes the scene feel smaller (the eyes are relatively
+  farther apart).
+- Each eye has an off-axis (asymmetric) projection: its principal point moves by
+  +/- fx * (ipd/2) / convergence, so that a point on the midpoint's optical axis at
+  the convergence distance lands on the same pixel in both eyes (zero disparity).
+  Nearer points have crossed (positive) disparity: they sit further right in the left
+  eye than in the right eye.
+- One depth sort, from the midpoint, serves both eyes (culled with both eyes'
+  frusta), and SH colour is evaluated from the midpoint; quads, c^2 and opacities
+  are per eye (they depend on the eye's position).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from raygs_viewer.camera import Camera
+from raygs_viewer.errors import UserError
+
+DEFAULT_IPD = 0.063          # metres
+DEFAULT_CONVERGENCE = 2.0    # metres
+DEFAULT_SCENE_SCALE = 1.0    # metres per scene unit
+#: Side by side (left eye on the left), cross-eyed (right eye on the left), red/cyan
+#: anaglyph, or one eye alone.
+LAYOUTS = ("sbs", "cross", "anaglyph", "left", "right")
+#: Frame budgets a headset's refresh rates give, for the budget meter.
+REFRESH_RATES = (72, 90, 120)
+
+
+@dataclass(frozen=True)
+class StereoRig:
+    """ipd: metres between the eyes; convergence: metres from the eyes' midpoint to
+    the plane of zero disparity; scene_scale: metres per scene unit."""
+
+    ipd: float = DEFAULT_IPD
+    convergence: float = DEFAULT_CONVERGENCE
+    scene_scale: float = DEFAULT_SCENE_SCALE
+
+    def __post_init__(self) -> None:
+        for name, low, high in (("ipd", 0.0, 1.0), ("convergence", 1e-3, 1e6), ("scene_scale", 1e-9, 1e9)):
+            value = getattr(self, name)
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+                    or not low <= value <= high:
+                raise UserError(f"stereo {name.replace('_', ' ')} must be a number in [{low:g}, {high:g}], "
+                                f"got {value!r}")
+            object.__setattr__(self, name, float(value))
+
+    @property
+    def half_baseline(self) -> float:
+        """Half the distance between the eyes, in scene units."""
+        return 0.5 * self.ipd / self.scene_scale
+
+    @property
+    def convergence_units(self) -> float:
+        return self.convergence / self.scene_scale
+
+
+def eye_cameras(camera: Camera, rig: StereoRig) -> tuple[Camera, Camera]:
+    """(left, right): ``camera`` (the midpoint) moved by -/+ half the baseline along its
+    x axis, with the principal point shifted for convergence (module docstring)."""
+    b = rig.half_baseline
+    shift = b / rig.convergence_units
+
+    def eye(side: float) -> Camera:
+        # Moving the centre by side*b along camera x changes t by -side*b*e_x.
+        t = np.asarray(camera.t, np.float64) - side * b * np.array([1.0, 0.0, 0.0])
+        return replace(camera, t=t, cx=camera.cx + side * camera.fx * shift)
+    return eye(-1.0), eye(+1.0)
+
+
+@dataclass(frozen=True)
+class HeadsetPreset:
+    """Per eye: the panel's resolution and the (symmetric) field of view in degrees."""
+
+    name: str
+    label: str
+    width: int
+    height: int
+    fov_x: float
+    fov_y: float
+
+    def camera(self, pose: Camera) -> Camera:
+        """The midpoint camera at this preset's per-eye resolution and field of view,
+        with ``pose``'s rotation and position."""
+        fx = self.width / (2.0 * math.tan(math.radians(self.fov_x) / 2.0))
+        fy = self.height / (2.0 * math.tan(math.radians(self.fov_y) / 2.0))
+        return Camera(self.width, self.height, fx, fy, self.width / 2.0, self.height / 2.0,
+                      np.asarray(pose.R, np.float64), np.asarray(pose.t, np.float64))
+
+
+#: Common headsets, per eye (approximate public figures; "class" presets, not exact
+#: optics). "custom" is built from the user's numbers by :func:`custom_preset`.
+PRESETS: dict[str, HeadsetPreset] = {
+    preset.name: preset for preset in (
+        HeadsetPreset("quest3", "Quest 3 class", 2064, 2208, 110.0, 96.0),
+        HeadsetPreset("index", "Valve Index class", 1440, 1600, 108.0, 104.0),
+        HeadsetPreset("generic90", "generic 90°", 1440, 1440, 90.0, 90.0),
+    )
+}
+
+
+def custom_preset(width: int, height: int, fov_x: float, fov_y: float) -> HeadsetPreset:
+    if not (1 <= width <= 16384 and 1 <= height <= 16384):
+        raise UserError(f"custom headset resolution must be 1..16384 per side, got {width}x{height}")
+    for name, value in (("horizontal", fov_x), ("vertical", fov_y)):
+        if not (math.isfinite(value) and 1.0 <= value <= 170.0):
+            raise UserError(f"custom headset {name} field of view must be 1..170 degrees, got {value!r}")
+    return HeadsetPreset("custom", "custom", int(width), int(height), float(fov_x), float(fov_y))
+
+
+def stereo_order(renderer, camera: Camera, settings, rig: StereoRig) -> np.ndarray:
+    """The one back-to-front order both eyes draw: depth from the midpoint, keeping
+    what either eye may see."""
+    left, right = eye_cameras(camera, rig)
+    # Both eyes share fx and fy, hence the filter's dilation.
+    return renderer.sorter.order(camera, settings.p_min, dilation=settings.cull_dilation(left),
+                                 cull_cameras=(left, right))
+
+
+def render_stereo(renderer, camera: Camera, settings, rig: StereoRig, *,
+                  shared: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """(left, right) float32 (H, W, 4) images of the eyes around the midpoint ``camera``.
+
+    shared=True is what the viewer draws: one sort from the midpoint and SH colour seen
+    from it. shared=False sorts each eye from its own position and evaluates colour
+    from it: the per-eye images the shared ones approximate."""
+    left, right = eye_cameras(camera, rig)
+    if shared:
+        order = stereo_order(renderer, camera, settings, rig)
+        return tuple(renderer.render(eye, settings, order, color_origin=camera.center) for eye in (left, right))
+    return tuple(renderer.render(eye, settings) for eye in (left, right))
+
+
+def compose(left: np.ndarray, right: np.ndarray, layout: str) -> np.ndarray:
+    """One image of a stereo pair (H, W, C each): "sbs" (left eye left), "cross" (right
+    eye left, for cross-eyed free viewing), "anaglyph" (red from the left eye, green and
+    blue from the right, for red/cyan glasses), "left" or "right" alone."""
+    if layout == "sbs":
+        return np.concatenate([left, right], axis=1)
+    if layout == "cross":
+        return np.concatenate([right, left], axis=1)
+    if layout == "anaglyph":
+        image = right.copy()
+        image[..., 0] = left[..., 0]
+        return image
+    if layout == "left":
+        return left.copy()
+    if layout == "right":
+        return right.copy()
+    raise UserError(f"stereo layout must be one of {', '.join(LAYOUTS)}, got {layout!r}")
