@@ -575,26 +575,20 @@ def test_dragging_the_divider_moves_the_boundary_not_the_camera(open_viewer, tmp
     drive.settle()
     assert np.abs(presented(viewer) - split_expected(a, b, 90)).max() <= 1
 
-    # Dragged past the edge: it stops at 98 % of the width.
-    drive.move_mouse(x + 90, HEIGHT / 2)
-    drive.frames(1)
-    drive.button(0, True)
-    drive.frames(1)
-    drive.move_mouse(WIDTH + 50, HEIGHT / 2)
-    drive.frames(1)
-    drive.button(0, False)
-    drive.frames(1)
+    def drag(start_x, end_x):
+        drive.move_mouse(start_x, HEIGHT / 2)
+        drive.frames(1)
+        drive.button(0, True)
+        drive.frames(1)
+        drive.move_mouse(end_x, HEIGHT / 2)
+        drive.frames(1)
+        drive.button(0, False)
+        drive.frames(1)
+
+    drag(x + 90, WIDTH + 50)  # past the edge: it stops at 98 % of the width
     assert viewer.panel.split_fraction == 0.98
 
-    # A drag that starts away from the divider looks around and leaves the divider.
-    drive.move_mouse(x + 20, HEIGHT / 2)
-    drive.frames(1)
-    drive.button(0, True)
-    drive.frames(1)
-    drive.move_mouse(x + 50, HEIGHT / 2)
-    drive.frames(1)
-    drive.button(0, False)
-    drive.frames(1)
+    drag(x + 20, x + 50)  # started away from the divider: looks around, leaves the divider
     assert viewer.panel.split_fraction == 0.98 and not viewer.dragging_divider
     assert not np.array_equal(viewer.camera.R, pose.R)
 

@@ -10,13 +10,13 @@ import shlex
 import numpy as np
 import pytest
 from PIL import Image
-from plyfile import PlyData, PlyElement
 
 from raygs_viewer import bench
 from raygs_viewer.camera import look_at
 from raygs_viewer.errors import UserError
 from raygs_viewer.settings import ACCURACY_PRESETS
 from testkit import assert_user_error, make_scene
+from test_scene_io import gaussian_columns, write_ply
 
 
 def parse(*argv) -> argparse.Namespace:
@@ -24,26 +24,6 @@ def parse(*argv) -> argparse.Namespace:
     parser = argparse.ArgumentParser()
     bench.add_parser(parser.add_subparsers(dest="command"))
     return parser.parse_args(["bench", "accuracy", *map(str, argv)])
-
-
-def write_ply(path, n=30, seed=1):
-    """A small INRIA PLY (SH degree 0) of opaque-ish blobs around the origin."""
-    names = ["x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity", "scale_0", "scale_1", "scale_2",
-             "rot_0", "rot_1", "rot_2", "rot_3"]
-    rng = np.random.default_rng(seed)
-    rows = np.zeros(n, dtype=[(name, "<f4") for name in names])
-    for name in "xyz":
-        rows[name] = rng.uniform(-0.5, 0.5, n)
-    for c in range(3):
-        rows[f"f_dc_{c}"] = rng.uniform(-1, 1, n)
-    rows["opacity"] = rng.uniform(0.0, 3.0, n)
-    for a in range(3):
-        rows[f"scale_{a}"] = np.log(rng.uniform(0.02, 0.1, n))
-    q = rng.normal(size=(n, 4))
-    for a in range(4):
-        rows[f"rot_{a}"] = q[:, a]
-    PlyData([PlyElement.describe(rows, "vertex")], text=False, byte_order="<").write(str(path))
-    return path
 
 
 # --- view classes ------------------------------------------------------------------------
@@ -159,7 +139,7 @@ def tiny_run(tmp_path_factory, gl_session_ctx):
     gl_ctx = gl_session_ctx
     gl_ctx.__enter__()
     folder = tmp_path_factory.mktemp("bench")
-    ply = write_ply(folder / "blobs.ply")
+    ply = write_ply(folder / "blobs.ply", gaussian_columns(n=30, degree=0, seed=1))
     args = parse("--scenes", "demo", ply, *TINY, "--report", folder / "acc.md", "--plot", folder / "acc.png")
     captured = []
     options = bench.options_from_args(args)
