@@ -6,6 +6,11 @@ show it letterboxed in the window -> panel -> swap. Screenshots re-render the
 same view offscreen with an exact sort, so they reproduce headlessly from their
 sidecar (``raygs-viewer render --sidecar``).
 
+In the stereo preview the view is the midpoint between the eyes, at the headset
+preset's per-eye size and field of view: one sort culled for both eyes, each eye
+drawn offscreen, the lens preview and the layout composed into one image that the
+present pass scales into the window (see :mod:`raygs_viewer.stereo`).
+
 In the A/B split view both sides render the whole viewport with the same order
 (sorted with the more conservative cull of the two) into their own targets; the
 present pass shows the left target left of the divider and the right one right of it.
@@ -30,6 +35,8 @@ from raygs_viewer.camera import Camera
 from raygs_viewer.errors import UserError
 from raygs_viewer.settings import ACCURACY_PRESETS, DEFAULT_P_MIN, MODE_LABELS, RENDER_MODES, RenderSettings, \
     apply_preset
+from raygs_viewer.stereo import DEFAULT_CONVERGENCE, DEFAULT_HEADSET, DEFAULT_IPD, DEFAULT_SCENE_SCALE, PRESETS, \
+    HeadsetPreset, StereoRig, StereoView, custom_preset
 
 LETTERBOX_GREY = 0.12
 #: The A/B divider's position, as a fraction of the viewport's width, stays in this range.
@@ -87,6 +94,14 @@ class ViewerOptions:
     platform: str = "auto"
     turntable: float = 0.0    # degrees per frame about the up axis (orbit mode); 0: off
     window_screenshot: str | None = None  # PNG of the whole window, panel included, at the end
+    stereo: bool = False      # start in the stereo preview; the fields below are its start values
+    ipd: float = DEFAULT_IPD
+    convergence: float = DEFAULT_CONVERGENCE
+    scene_scale: float = DEFAULT_SCENE_SCALE
+    stereo_layout: str = "sbs"
+    lens_preview: bool = False
+    headset: HeadsetPreset = PRESETS[DEFAULT_HEADSET]
+    save_eyes: bool = False   # stereo screenshots also save each eye
 
     def settings(self) -> RenderSettings:
         """The start settings (UserError when a value is out of range)."""
@@ -101,7 +116,10 @@ class PanelState:
     p_min ... transmittance_cutoff are the RenderSettings fields of the same names (the
     left side's in the split view). split_view: show the A/B split view; split_preset:
     the right side's ACCURACY_PRESETS entry, applied to the panel's settings;
-    split_fraction: where the divider is, as a fraction of the viewport's width."""
+    split_fraction: where the divider is, as a fraction of the viewport's width.
+    stereo ... save_eyes: the stereo preview (ViewerOptions' fields of the same names);
+    headset: a PRESETS key or "custom", whose per-eye size and field of view are
+    custom_size and custom_fov."""
 
     p_min: float
     background: list[float]
@@ -117,6 +135,16 @@ class PanelState:
     split_view: bool = False
     split_preset: str = DEFAULT_SPLIT_PRESET
     split_fraction: float = 0.5
+    stereo: bool = False
+    ipd: float = DEFAULT_IPD
+    convergence: float = DEFAULT_CONVERGENCE
+    scene_scale: float = DEFAULT_SCENE_SCALE
+    stereo_layout: str = "sbs"
+    lens_preview: bool = False
+    headset: str = DEFAULT_HEADSET
+    custom_size: list[int] = field(default_factory=lambda: [PRESETS["generic90"].width, PRESETS["generic90"].height])
+    custom_fov: list[float] = field(default_factory=lambda: [PRESETS["generic90"].fov_x, PRESETS["generic90"].fov_y])
+    save_eyes: bool = False
     screenshot_scale: float = 1.0
     screenshot_dir: str = "screenshots"
     open_path: str = ""
@@ -133,7 +161,8 @@ class FrameStats:
     all_frame_times: deque = field(default_factory=lambda: deque(maxlen=10000))
     all_sort_times: deque = field(default_factory=lambda: deque(maxlen=10000))
     sort_seconds: float = float("nan")
-    gpu_seconds: float = float("nan")
+    gpu_seconds: float = float("nan")     # the scene's draw: both sides in the split view, both eyes in stereo
+    post_seconds: float = float("nan")    # stereo: lens preview and layout
     visible: int = 0
     order_age: int = 0          # frames since the drawn order's view was current; 0: up to date
     drawn_serial: int = 0       # sort request whose order the last draw used
@@ -189,6 +218,23 @@ def _camera_key(camera: Camera) -> tuple:
             camera.R.tobytes(), camera.t.tobytes())
 
 
+def _cameras_key(cameras) -> tuple | None:
+    return None if cameras is None else tuple(_camera_key(c) for c in cameras)
+
+
+def _panel_stereo(options: ViewerOptions) -> dict:
+    """PanelState's stereo fields from the options; a custom headset fills the custom fields."""
+    headset = options.headset
+    values = {name: getattr(options, name) for name in ("stereo", "ipd", "convergence", "scene_scale",
+                                                        "stereo_layout", "lens_preview", "save_eyes")}
+    if headset.name == "custom" or headset.name not in PRESETS:
+        values.update(headset="custom", custom_size=[headset.width, headset.height],
+                      custom_fov=[headset.fov_x, headset.fov_y])
+    else:
+        values["headset"] = headset.name
+    return values
+
+
 class Viewer:
     """The application: owns the window, the scene on the GPU, the sorter and the panel.
 
@@ -210,7 +256,8 @@ class Viewer:
                                 sh_degree=3 if options.sh_degree is None else options.sh_degree,
                                 screenshot_scale=options.screenshot_scale,
                                 screenshot_dir=options.screenshot_dir,
-                                **{name: getattr(options, name) for name in ACCURACY_FIELDS})
+                                **{name: getattr(options, name) for name in ACCURACY_FIELDS},
+                                **_panel_stereo(options))
         self.stats = FrameStats()
         self.frame_index = 0
         self.input_script: Callable[["Viewer"], None] | None = None
@@ -240,9 +287,14 @@ class Viewer:
         self._drawn_key = None
         self._target = None         # the scene (the left side in the split view)
         self._target_right = None   # the split view's right side
+        self._stereo_frame = None   # the stereo preview's targets (render.stereo_frame.StereoFrame)
+        self._stereo_drawn = False  # whether the last draw was stereo (what present shows)
+        self._last_stereo_view: StereoView | None = None
+        self.shown_stereo: StereoView | None = None  # the stereo view of the last frame (None: mono)
         self._present = self.ctx.program(*_present_shaders())
         self._present_vao = self.ctx.vertex_array(self._present, [])
         self._timer = GpuTimer(self.ctx)
+        self._post_timer = GpuTimer(self.ctx)
         self._last_time = None
         try:
             self._install(loaded, start_camera)
@@ -336,10 +388,26 @@ class Viewer:
 
     def right_settings(self) -> RenderSettings | None:
         """The split view's right side: the panel's settings with its preset applied;
-        None when the split view is off."""
-        if not self.panel.split_view:
+        None when the split view is off (it is off in the stereo preview)."""
+        if not self.panel.split_view or self.panel.stereo:
             return None
         return apply_preset(self.settings(), self.panel.split_preset)
+
+    def headset(self) -> HeadsetPreset:
+        """The panel's headset preset (UserError for custom values out of range)."""
+        panel = self.panel
+        if panel.headset == "custom":
+            return custom_preset(*panel.custom_size, *panel.custom_fov)
+        return PRESETS[panel.headset]
+
+    def stereo_view(self) -> StereoView | None:
+        """The panel's stereo preview; None when it is off."""
+        from raygs_viewer.lens_preview import DEFAULT_LENS
+        panel = self.panel
+        if not panel.stereo:
+            return None
+        return StereoView(StereoRig(panel.ipd, panel.convergence, panel.scene_scale), panel.stereo_layout,
+                          DEFAULT_LENS if panel.lens_preview else None, self.headset())
 
     def split_column(self, width: int | None = None) -> int:
         """The first viewport column (framebuffer pixels) of the split view's right side."""
@@ -368,8 +436,18 @@ class Viewer:
         self.lens = self.lens.with_fov(self.lens.fov_y_degrees)  # free lens, same field of view
         width, height = self.window.framebuffer_size()
         aspect = width / height if width > 0 and height > 0 else self.options.width / self.options.height
-        self.navigator.reset(framing_pose(self.center, self.radius, self.navigator.up,
-                                          self.lens.fov_y_degrees, aspect))
+        fov = self.lens.fov_y_degrees
+        if self.panel.stereo:  # frame the scene for the eyes, not the window
+            headset = self._headset_or_none()
+            if headset is not None:
+                fov, aspect = headset.fov_y, headset.width / headset.height
+        self.navigator.reset(framing_pose(self.center, self.radius, self.navigator.up, fov, aspect))
+
+    def _headset_or_none(self) -> HeadsetPreset | None:
+        try:
+            return self.headset()
+        except UserError:
+            return None
 
     def set_fov(self, fov_y_degrees: float) -> None:
         self.training_index = None
@@ -419,7 +497,9 @@ class Viewer:
                 panning = right_button or middle or (left and io.key_shift)
                 if panning and (dx or dy):
                     scale = io.display_framebuffer_scale
-                    focal = self.camera.fy if self.camera is not None else 1000.0
+                    # The image's focal length in window pixels (the stereo preview is scaled).
+                    focal = (self.camera.fy * self.viewport[3] / self.camera.height if self.camera is not None
+                             else 1000.0)
                     nav.pan(dx * scale.x, dy * scale.y, focal)
                 elif left and (dx or dy):
                     nav.rotate(dx, dy)
@@ -491,11 +571,24 @@ class Viewer:
         if self.options.turntable:
             self._turn(self.options.turntable)
 
-        x, y, w, h = self.viewport = self.lens.viewport(width, height)
-        camera = self.camera = self.lens.camera(self.navigator.pose, width, height)  # viewport-sized
         settings, right = self.settings(), self.right_settings()
-        p_min, dilation = sort_cull(camera, settings, right)
-        serial = self.sorter.request(camera, p_min, dilation)
+        stereo = self._current_stereo_view()
+        if stereo is None:
+            x, y, w, h = self.viewport = self.lens.viewport(width, height)
+            camera = self.camera = self.lens.camera(self.navigator.pose, width, height)  # viewport-sized
+            cull_cameras = None
+        else:
+            from raygs_viewer.controls import letterbox
+            from raygs_viewer.render.stereo_passes import composed_size
+            from raygs_viewer.stereo import eye_cameras
+            # The midpoint between the eyes, at the headset's per-eye size and field of view.
+            camera = self.camera = stereo.headset.camera(self.lens.camera(self.navigator.pose, width, height))
+            shown_width, shown_height = composed_size(camera.width, camera.height, stereo.layout)
+            x, y, w, h = self.viewport = letterbox(width, height, shown_width / shown_height)
+            cull_cameras = eye_cameras(camera, stereo.rig)
+        self.shown_stereo = stereo
+        p_min, dilation = sort_cull(camera, settings, right)  # the eyes share the midpoint's fx, fy
+        serial = self.sorter.request(camera, p_min, dilation, cull_cameras)
         self._request_frames.setdefault(serial, self.frame_index)
         if self.wait_for_sort:
             # Only the last frame of a scripted run: its capture must show the finished view.
@@ -510,7 +603,7 @@ class Viewer:
         self._draw_split_overlay(right)
         imgui.render()
 
-        self._draw_scene(camera, settings, right, result, (p_min, dilation))
+        self._draw_scene(camera, settings, right, stereo, result, (p_min, dilation, _cameras_key(cull_cameras)))
         self._split_drawn = right is not None
         self._present_image(self.ctx.screen, width, height, x, y, w, h)
         if self.capture_window_next:
@@ -524,6 +617,17 @@ class Viewer:
                 self.panel.message, self.panel.error = _saved_message(self.last_screenshots), ""
             except (UserError, MemoryError, moderngl.Error) as exc:
                 self.panel.error = f"error: screenshot not saved: {_one_line(exc)}"
+
+    def _current_stereo_view(self) -> StereoView | None:
+        """The stereo view to draw this frame; a custom headset out of range shows its
+        error in the panel and the preview keeps the last good view."""
+        try:
+            view = self.stereo_view()
+        except UserError as exc:
+            self.panel.error = f"error: {_one_line(exc)}"
+            return self._last_stereo_view if self.panel.stereo else None
+        self._last_stereo_view = view
+        return view
 
     def _draw_split_overlay(self, right: RenderSettings | None) -> None:
         """The split view's divider line and a label on each side, on imgui's background
@@ -558,11 +662,12 @@ class Viewer:
             draw.add_text((x0 + pad, y0 + pad), imgui.IM_COL32(255, 255, 255, 255), text)
             self.overlay_rects[name] = rect
 
-    def _draw_scene(self, camera: Camera, settings: RenderSettings, right: RenderSettings | None, result,
-                    cull: tuple[float, float | None]) -> None:
+    def _draw_scene(self, camera: Camera, settings: RenderSettings, right: RenderSettings | None,
+                    stereo: StereoView | None, result, cull: tuple) -> None:
         """Draws the newest order into the target(s) unless view, settings and order
-        are what the targets already hold. ``cull``: the (p_min, dilation) this frame's
-        sort was asked for, to tell whether the drawn order is up to date."""
+        are what the targets already hold. ``cull``: the (p_min, dilation, cull
+        cameras' key) this frame's sort was asked for, to tell whether the drawn order
+        is up to date."""
         if result is None:
             self.stats.order_age = self.frame_index - min(self._request_frames.values(), default=self.frame_index)
             order, serial = np.zeros(0, np.uint32), 0
@@ -571,26 +676,38 @@ class Viewer:
             for older in [n for n in self._request_frames if n < serial]:  # answered or skipped
                 del self._request_frames[older]
             current = (_camera_key(result.camera) == _camera_key(camera)
-                       and (result.p_min, result.dilation) == cull)
+                       and (result.p_min, result.dilation, _cameras_key(result.cull_cameras)) == cull)
             self.stats.order_age = 0 if current else self.frame_index - self._request_frames.get(serial, self.frame_index)
             if serial != self.stats.drawn_serial:
                 self.stats.all_sort_times.append(result.seconds)
             self.stats.sort_seconds = result.seconds
             self.stats.visible = int(order.size)
-        key = (_camera_key(camera), settings, right, serial)
-        target = self._target_for(camera.width, camera.height)
-        right_target = self._target_for(camera.width, camera.height, "_target_right") if right is not None else None
+        key = (_camera_key(camera), settings, right, stereo, serial)
+        if stereo is None:
+            target = self._target_for(camera.width, camera.height)
+            right_target = self._target_for(camera.width, camera.height, "_target_right") if right is not None else None
+        elif self._stereo_frame is None:
+            from raygs_viewer.render.stereo_frame import StereoFrame
+            self._stereo_frame = StereoFrame(self.ctx)
         if key == self._drawn_key:
             # Nothing changed: the image in the target is still right. The GPU is idle
             # as far as this view goes, so the last timings can be read without stalling.
             self._timer.flush()
-            self.stats.gpu_seconds = self._timer.seconds
+            self._post_timer.flush()
+            self.stats.gpu_seconds, self.stats.post_seconds = self._timer.seconds, self._post_timer.seconds
             return
         try:
-            with self._timer.measure():  # the whole frame's GPU time, both sides in the split view
-                self.renderer.render_into(target, camera, settings, order)
-                if right is not None:
-                    self.renderer.render_into(right_target, camera, right, order)
+            if stereo is None:
+                with self._timer.measure():  # the whole frame's GPU time, both sides in the split view
+                    self.renderer.render_into(target, camera, settings, order)
+                    if right is not None:
+                        self.renderer.render_into(right_target, camera, right, order)
+            else:
+                with self._timer.measure():  # both eyes: what the frame-budget meter compares
+                    self._stereo_frame.draw_eyes(self.renderer, camera, settings, stereo.rig, order)
+                with self._post_timer.measure():
+                    self._stereo_frame.finish(stereo)
+            self._stereo_drawn = stereo is not None
         except UserError as exc:  # settings this GPU cannot render (the panel greys those out)
             self.panel.error = self._draw_error = f"error: {_one_line(exc)}"
             self._drawn_key = None
@@ -599,7 +716,7 @@ class Viewer:
             if self.panel.error == self._draw_error:
                 self.panel.error = ""
             self._draw_error = None
-        self.stats.gpu_seconds = self._timer.seconds
+        self.stats.gpu_seconds, self.stats.post_seconds = self._timer.seconds, self._post_timer.seconds
         self.stats.drawn_serial = serial
         self.stats.draws += 1
         self._drawn_key = key
@@ -643,14 +760,19 @@ class Viewer:
         lower = height - y - h  # the viewport's y counts from the top, GL's from the bottom
         screen.viewport = (x, lower, w, h)
         ctx.disable(moderngl.BLEND | moderngl.DEPTH_TEST)
-        split = self._split_drawn and self._target_right is not None \
-            and self._target_right.size == self._target.size
-        self._target.color_attachments[0].use(0)
-        (self._target_right if split else self._target).color_attachments[0].use(1)
+        shown = self._stereo_frame.image if self._stereo_drawn else self._target
+        if shown is None:  # nothing drawn yet (the first draw failed): the grey alone
+            screen.viewport = (0, 0, width, height)
+            return
+        split = not self._stereo_drawn and self._split_drawn and self._target_right is not None \
+            and self._target_right.size == shown.size
+        shown.color_attachments[0].use(0)
+        (self._target_right if split else shown).color_attachments[0].use(1)
         self._present["u_image"].value = 0
         self._present["u_right"].value = 1
         # Viewport columns from split_column() on show the right image (2: none).
         self._present["u_split"].value = self.split_column(w) / w if split else 2.0
+        self._present["u_footprint"].value = (shown.size[0] / w, shown.size[1] / h)
         self._present_vao.render(moderngl.TRIANGLES, vertices=3)
         screen.viewport = (0, 0, width, height)
 
@@ -662,7 +784,11 @@ class Viewer:
 
         In the split view each side is saved whole, with its own settings and sidecar:
         ``<name>-left.png`` and ``<name>-right.png`` (each reproducible with
-        ``render --sidecar``); the returned pair is the left side's."""
+        ``render --sidecar``); the returned pair is the left side's.
+
+        In the stereo preview: the side-by-side pair of eyes at the headset's size times
+        the scale, and with "save each eye" also each eye: ``<name>-pair.png``,
+        ``<name>-left.png``, ``<name>-right.png``; the returned pair is the pair's."""
         from raygs_viewer.render.context import context_description
         from raygs_viewer.screenshot import render_tiled, save_screenshot, save_screenshots, scaled_camera
         from raygs_viewer.sidecar import build_sidecar
@@ -677,34 +803,55 @@ class Viewer:
                  "training_camera_name": (self.loaded.camera_names[self.training_index]
                                           if self.training_index is not None else None),
                  "gl": context_description(self.ctx)}
-        sides = [("left", self.settings())]
-        right = self.right_settings()
-        if right is not None:
-            sides.append(("right", right))
-        shots = []
-        for side, settings in sides:
-            image = render_tiled(self.renderer, camera, settings)
-            side_extra = extra if right is None else {**extra, "split_view": {
-                "side": side, "preset": self.panel.split_preset if side == "right" else None,
-                "divider": self.panel.split_fraction}}
-            sidecar = build_sidecar(scene_path=scene_path, scene_sha256=self.loaded.sha256, scene=self.loaded.scene,
-                                    camera=camera, settings=settings, scale=scale, window_camera=self.camera,
-                                    extra=side_extra)
-            shots.append((image, sidecar))
-        if right is None:
-            if path is not None:
-                saved = [save_screenshot(*shots[0], path=Path(path))]
-            else:
-                saved = [save_screenshot(*shots[0], folder=Path(self.panel.screenshot_dir))]
+        settings = self.settings()
+        if self.shown_stereo is not None:
+            shots = self._stereo_shots(camera, settings, self.shown_stereo, scene_path, scale, extra)
         else:
-            tagged = [(image, sidecar, side) for (image, sidecar), (side, _) in zip(shots, sides)]
+            sides = [("left", settings)]
+            right = self.right_settings()
+            if right is not None:
+                sides.append(("right", right))
+            shots = []
+            for side, side_settings in sides:
+                image = render_tiled(self.renderer, camera, side_settings)
+                side_extra = extra if right is None else {**extra, "split_view": {
+                    "side": side, "preset": self.panel.split_preset if side == "right" else None,
+                    "divider": self.panel.split_fraction}}
+                sidecar = build_sidecar(scene_path=scene_path, scene_sha256=self.loaded.sha256,
+                                        scene=self.loaded.scene, camera=camera, settings=side_settings, scale=scale,
+                                        window_camera=self.camera, extra=side_extra)
+                shots.append((image, sidecar, side))
+        if len(shots) == 1:
+            image, sidecar, _ = shots[0]
             if path is not None:
-                saved = save_screenshots(tagged, path=Path(path))
+                saved = [save_screenshot(image, sidecar, path=Path(path))]
             else:
-                saved = save_screenshots(tagged, folder=Path(self.panel.screenshot_dir))
+                saved = [save_screenshot(image, sidecar, folder=Path(self.panel.screenshot_dir))]
+        elif path is not None:
+            saved = save_screenshots(shots, path=Path(path))
+        else:
+            saved = save_screenshots(shots, folder=Path(self.panel.screenshot_dir))
         self.last_screenshots = saved
         self.last_screenshot = saved[0]
         return saved[0]
+
+    def _stereo_shots(self, camera: Camera, settings: RenderSettings, stereo: StereoView, scene_path: str,
+                      scale: float, extra: dict) -> list[tuple[np.ndarray, dict, str]]:
+        """The side-by-side pair whatever the window's layout (the sidecar notes that
+        layout), and each eye when the panel asks; every image with its own sidecar."""
+        from dataclasses import replace
+
+        from raygs_viewer.sidecar import build_sidecar
+        from raygs_viewer.stereo import render_stereo_view
+        pair = replace(stereo, layout="sbs")
+        image, left, right = render_stereo_view(self.renderer, camera, settings, pair)
+        shots = [(image, pair, "pair")]
+        if self.panel.save_eyes:
+            shots += [(left, replace(stereo, layout="left"), "left"), (right, replace(stereo, layout="right"), "right")]
+        return [(image, build_sidecar(scene_path=scene_path, scene_sha256=self.loaded.sha256, scene=self.loaded.scene,
+                                      camera=camera, settings=settings, scale=scale, window_camera=self.camera,
+                                      extra={**extra, "stereo_window_layout": stereo.layout}, stereo=view), tag)
+                for image, view, tag in shots]
 
     # -- loop ------------------------------------------------------------------------
     def run(self) -> None:
@@ -728,7 +875,14 @@ class Viewer:
             return f"{1000 * float(np.median(values)):.1f} ms" if values else "n/a"
         stats = self.stats
         self._timer.flush()
+        self._post_timer.flush()
         frame = float(np.median(stats.all_frame_times)) if stats.all_frame_times else float("nan")
+        if self.shown_stereo is not None:
+            return (f"{self.frame_index} frames ({stats.draws} drawn), stereo {self.shown_stereo.headset.name} "
+                    f"{camera_size(self.camera)} per eye: median frame {median_ms(stats.all_frame_times)}, "
+                    f"both eyes GPU {median_ms(self._timer.history)}, lens+layout "
+                    f"{median_ms(self._post_timer.history)}, sort {median_ms(stats.all_sort_times)}, "
+                    f"{stats.visible:,} of {self.loaded.scene.count:,} visible")
         return (f"{self.frame_index} frames ({stats.draws} drawn) at {camera_size(self.camera)}: "
                 f"median frame {median_ms(stats.all_frame_times)} ({1 / frame if frame > 0 else 0:.1f} fps), "
                 f"GPU {median_ms(self._timer.history)}, sort {median_ms(stats.all_sort_times)}, "
@@ -746,6 +900,9 @@ class Viewer:
         _release_framebuffer(self._target)
         _release_framebuffer(self._target_right)
         self._target = self._target_right = None
+        if self._stereo_frame is not None:
+            self._stereo_frame.release()
+            self._stereo_frame = None
         self._present_vao.release()
         self._present.release()
         self.window.close()

@@ -731,7 +731,8 @@ def add_parser(commands) -> None:
     def count(low: int, high: int):
         return _whole_number(low, high, f"outside {low}..{high}")
 
-    bench = commands.add_parser("bench", help="benchmarks (accuracy against time)")
+    bench = commands.add_parser("bench", help="benchmarks (accuracy against time; stereo sharing error and "
+                                              "frame budget)")
     kinds = bench.add_subparsers(dest="bench", required=True, parser_class=type(bench))
     accuracy = kinds.add_parser(
         "accuracy", help="GPU time and error against ground truth of every accuracy option",
@@ -766,6 +767,8 @@ def add_parser(commands) -> None:
                           help="replace an existing report and plot (the report's human verdict is kept)")
     accuracy.add_argument("--gl-backend", choices=("auto", "egl", "osmesa"),
                           help="headless OpenGL (default: $RAYGS_GL_BACKEND or auto: EGL, else OSMesa)")
+    from raygs_viewer import bench_stereo  # imports this module: only once both exist
+    bench_stereo.add_parser(kinds, count)
 
 
 def command_line(args: argparse.Namespace) -> str:
@@ -811,6 +814,9 @@ def options_from_args(args: argparse.Namespace) -> BenchOptions:
 
 def command(args: argparse.Namespace, ctx=None) -> int:
     """Runs ``bench <kind>``. ``ctx``: a GL context to use instead of a new one (tests)."""
+    if args.bench == "stereo":
+        from raygs_viewer import bench_stereo
+        return bench_stereo.command(args, ctx)
     if args.bench != "accuracy":
         raise UserError(f"unknown benchmark '{args.bench}'")
     options = options_from_args(args)

@@ -143,11 +143,25 @@ def build_parser() -> argparse.ArgumentParser:
     return parser
 
 
-def _add_stereo_options(parser: argparse.ArgumentParser) -> None:
+_STEREO_OPTIONS = (("--ipd", "ipd"), ("--convergence", "convergence"), ("--scene-scale", "scene_scale"),
+                   ("--layout", "layout"), ("--lens-preview", "lens_preview"))
+_HEADSET_OPTIONS = (("--headset", "headset"), ("--headset-size", "headset_size"), ("--headset-fov", "headset_fov"))
+
+
+def _add_stereo_options(parser: argparse.ArgumentParser, window: bool = False) -> None:
+    """render's stereo options; ``window``: view's, which add the headset preset (the
+    eyes' size and field of view) and start the panel's stereo controls even without
+    --stereo."""
     from raygs_viewer.stereo import DEFAULT_CONVERGENCE, DEFAULT_IPD, DEFAULT_SCENE_SCALE, LAYOUTS
-    parser.add_argument("--stereo", action="store_true",
-                        help="render the two eyes around the camera (which is their midpoint); the image is "
-                             "both eyes side by side unless --layout says otherwise")
+    if window:
+        parser.add_argument("--stereo", action="store_true",
+                            help="open the stereo preview (the panel's Stereo section also switches it); the "
+                                 "stereo options below set its start values either way")
+    else:
+        parser.add_argument("--stereo", action="store_true",
+                            help="render the two eyes around the camera (which is their midpoint), each at the "
+                                 "camera's size; the image is both eyes side by side unless --layout says "
+                                 "otherwise")
     parser.add_argument("--ipd", type=_real_number(lambda v: 0.0 <= v <= 1.0, "not in [0, 1] metres"),
                         metavar="METRES", help=f"distance between the eyes (default {DEFAULT_IPD})")
     parser.add_argument("--convergence", type=_real_number(lambda v: 1e-3 <= v <= 1e6, "not in [0.001, 1e6] metres"),
@@ -157,14 +171,43 @@ def _add_stereo_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--layout", choices=LAYOUTS,
                         help="sbs: left eye on the left (default); cross: for cross-eyed viewing; "
                              "anaglyph: red/cyan; left or right: one eye")
+    parser.add_argument("--lens-preview", action="store_true", default=None,
+                        help="apply the barrel distortion and chromatic aberration correction a headset's "
+                             "compositor applies, to each eye")
+    if window:
+        from raygs_viewer.stereo import DEFAULT_HEADSET, PRESETS
+        parser.add_argument("--headset", choices=(*PRESETS, "custom"),
+                            help=f"per-eye resolution and field of view (default {DEFAULT_HEADSET}: "
+                                 + "; ".join(f"{p.name} {p.width}x{p.height} {p.fov_x:g}x{p.fov_y:g} deg"
+                                             for p in PRESETS.values())
+                                 + "; custom: --headset-size and --headset-fov)")
+        parser.add_argument("--headset-size", type=_size, metavar="WxH",
+                            help="the custom headset's per-eye resolution (implies --headset custom)")
+        parser.add_argument("--headset-fov", type=_fov_pair, metavar="H,V",
+                            help="the custom headset's per-eye field of view in degrees (implies --headset custom)")
 
 
-def _stereo_rig(args):
-    """The StereoRig of --stereo and its options; None without --stereo (and then the
-    stereo options are an error, not silently ignored)."""
-    given = [flag for flag, dest in (("--ipd", "ipd"), ("--convergence", "convergence"),
-                                     ("--scene-scale", "scene_scale"), ("--layout", "layout"))
-             if getattr(args, dest) is not None]
+def _size(text: str) -> tuple[int, int]:
+    parts = text.lower().split("x")
+    try:
+        width, height = (int(p) for p in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not WIDTHxHEIGHT, e.g. 1832x1920") from None
+    return width, height
+
+
+def _fov_pair(text: str) -> tuple[float, float]:
+    try:
+        horizontal, vertical = (float(p) for p in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not two angles H,V in degrees, e.g. 100,95") from None
+    return horizontal, vertical
+
+
+def _stereo_view(args):
+    """render's StereoView from --stereo and its options; None without --stereo (and
+    then the stereo options are an error, not silently ignored)."""
+    given = [flag for flag, dest in _STEREO_OPTIONS if getattr(args, dest) is not None]
     if not args.stereo:
         if given:
             raise UserError(f"{', '.join(given)} need{'s' if len(given) == 1 else ''} --stereo")
@@ -173,11 +216,38 @@ def _stereo_rig(args):
         raise UserError("--stereo renders with GL (the eyes share one sort and the midpoint's colour); "
                         "drop --reference")
     if args.sidecar is not None:
-        raise UserError("--stereo cannot be combined with --sidecar yet")
+        raise UserError("--sidecar already says whether the image is stereo; drop --stereo")
+    from raygs_viewer.lens_preview import DEFAULT_LENS
+    from raygs_viewer.stereo import StereoView
+    return StereoView(_stereo_rig(args), args.layout or "sbs", DEFAULT_LENS if args.lens_preview else None)
+
+
+def _stereo_rig(args):
     from raygs_viewer.stereo import StereoRig
-    values = {dest: getattr(args, dest) for dest in ("ipd", "convergence", "scene_scale")
-              if getattr(args, dest) is not None}
-    return StereoRig(**values)
+    return StereoRig(**{dest: getattr(args, dest) for dest in ("ipd", "convergence", "scene_scale")
+                        if getattr(args, dest) is not None})
+
+
+def _viewer_stereo_options(args) -> dict:
+    """ViewerOptions' stereo fields (the panel's start values)."""
+    from raygs_viewer.stereo import StereoView
+    view = StereoView(_stereo_rig(args), args.layout or "sbs")  # checks the values before the window opens
+    return {"stereo": args.stereo, "ipd": view.rig.ipd, "convergence": view.rig.convergence,
+            "scene_scale": view.rig.scene_scale, "stereo_layout": view.layout,
+            "lens_preview": bool(args.lens_preview), "headset": _headset(args), "save_eyes": args.save_eyes}
+
+
+def _headset(args):
+    """view's headset preset: --headset, or custom when --headset-size/--headset-fov are given."""
+    from raygs_viewer.stereo import DEFAULT_HEADSET, PRESETS, custom_preset
+    custom = args.headset_size is not None or args.headset_fov is not None
+    if args.headset not in (None, "custom") and custom:
+        raise UserError(f"--headset-size and --headset-fov describe a custom headset; drop --headset {args.headset}")
+    if custom or args.headset == "custom":
+        if args.headset_size is None or args.headset_fov is None:
+            raise UserError("a custom headset needs both --headset-size WxH and --headset-fov H,V")
+        return custom_preset(*args.headset_size, *args.headset_fov)
+    return PRESETS[args.headset or DEFAULT_HEADSET]
 
 
 def _add_view_options(parser: argparse.ArgumentParser) -> None:
@@ -255,6 +325,9 @@ def _add_viewer_options(parser: argparse.ArgumentParser) -> None:
                         help="world up, for navigation (default -y, the OpenCV/COLMAP convention)")
     parser.add_argument("--window-platform", choices=("auto", "x11", "wayland", "null"), default="auto",
                         help="GLFW platform (default auto: null without a display)")
+    _add_stereo_options(parser, window=True)
+    parser.add_argument("--save-eyes", action="store_true",
+                        help="stereo screenshots also save each eye on its own (-left, -right), besides the pair")
 
 
 def _add_backend_option(parser: argparse.ArgumentParser) -> None:
@@ -336,14 +409,14 @@ def _command_render(args) -> int:
         given = [flag for flag, dest in SIDECAR_CONFLICTS if getattr(args, dest) is not None]
         if given:
             raise UserError(f"--sidecar already sets the view; drop {', '.join(given)}")
-    rig = _stereo_rig(args)
+    stereo = _stereo_view(args)
     out = check_output_path(args.out, args.overwrite)  # fail before any slow work
     if args.sidecar is not None:
         from raygs_viewer.sidecar import load_sidecar, resolve_scene, verify_scene_hash
         shot = load_sidecar(args.sidecar)
         scene_name = resolve_scene(shot, args.scene)
         verify_scene_hash(shot, scene_name)
-        camera, settings = shot.camera, shot.settings
+        camera, settings, stereo = shot.camera, shot.settings, shot.stereo
         scene = load_scene_argument(scene_name)
         _warn_dropped(scene)
     else:
@@ -363,9 +436,9 @@ def _command_render(args) -> int:
         ctx = create_headless_context(args.gl_backend)
         try:
             renderer = GLRenderer(ctx, scene)
-            if rig is not None:
-                from raygs_viewer.stereo import compose, render_stereo
-                image = compose(*render_stereo(renderer, camera, settings, rig), args.layout or "sbs")
+            if stereo is not None:
+                from raygs_viewer.stereo import render_stereo_view
+                image = render_stereo_view(renderer, camera, settings, stereo)[0]
             else:
                 # Tiled like the window's screenshots: the same pixels, and sizes beyond
                 # the GPU's largest render target.
@@ -454,7 +527,8 @@ def _command_view(args) -> int:
         sh_degree=args.sh_degree, frames=args.frames, screenshot=args.screenshot,
         screenshot_dir=args.screenshot_dir, screenshot_scale=args.screenshot_scale, vsync=not args.no_vsync,
         navigation="orbit" if args.orbit else "fly", up_axis=args.up_axis, platform=args.window_platform,
-        turntable=args.turntable, window_screenshot=args.window_screenshot, **_accuracy_settings(args))
+        turntable=args.turntable, window_screenshot=args.window_screenshot, **_accuracy_settings(args),
+        **_viewer_stereo_options(args))
     return app.run_viewer(options)
 
 

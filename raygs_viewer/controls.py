@@ -220,6 +220,17 @@ class Pose:
         return Camera(int(width), int(height), float(fx), float(fy), float(cx), float(cy), R, -R @ self.position)
 
 
+def letterbox(width: int, height: int, aspect: float) -> tuple[int, int, int, int]:
+    """x, y (from the top-left), w, h of the largest rectangle of ``aspect`` (w / h)
+    centred in a width x height window; each of w, h at least 1."""
+    width, height = max(1, int(width)), max(1, int(height))
+    if width >= height * aspect:   # window wider than the image: bars left and right
+        w, h = max(1, min(width, round(height * aspect))), height
+    else:                          # taller: bars top and bottom
+        w, h = width, max(1, min(height, round(width / aspect)))
+    return (width - w) // 2, (height - h) // 2, w, h
+
+
 @dataclass(frozen=True)
 class Lens:
     """How pose + window size become intrinsics. Either a free lens (vertical field of view,
@@ -254,15 +265,9 @@ class Lens:
     def viewport(self, width: int, height: int) -> tuple[int, int, int, int]:
         """x, y (from the top-left), w, h of the image inside a width x height window, in
         pixels; each of w, h is at least 1 (a minimised window reports 0 x 0)."""
-        width, height = max(1, int(width)), max(1, int(height))
         if self.source is None:
-            return 0, 0, width, height
-        aspect = self.source.width / self.source.height
-        if width >= height * aspect:   # window wider than the camera: bars left and right
-            w, h = max(1, min(width, round(height * aspect))), height
-        else:                          # taller: bars top and bottom
-            w, h = width, max(1, min(height, round(width / aspect)))
-        return (width - w) // 2, (height - h) // 2, w, h
+            return 0, 0, max(1, int(width)), max(1, int(height))
+        return letterbox(width, height, self.source.width / self.source.height)
 
     def camera(self, pose: Pose, width: int, height: int) -> Camera:
         """The camera of the viewport (size w x h from :meth:`viewport`) seen from ``pose``."""

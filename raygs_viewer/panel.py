@@ -47,6 +47,7 @@ def draw_panel(viewer) -> None:
     _statistics(viewer)
     _scene_section(viewer)
     _render_section(viewer)
+    _stereo_section(viewer)
     _view_section(viewer)
     _training_section(viewer)
     _screenshot_section(viewer)
@@ -68,7 +69,8 @@ def _statistics(viewer) -> None:
     imgui.text(f"{stats.fps:6.1f} fps  frame {_ms(stats.frame_ms / 1000)}")
     _tooltip("frames per second and the median frame time of the last 60 frames")
     imgui.text(f"GPU   {_ms(stats.gpu_seconds)}  sort {_ms(stats.sort_seconds)}")
-    _tooltip("GPU: preprocessing + draw of the last redraw (timer queries; both sides in the split view).\n"
+    _tooltip("GPU: preprocessing + draw of the last redraw (timer queries; both sides in the split view,\n"
+             "both eyes in the stereo preview).\n"
              "sort: the last depth sort, on a background thread")
     age = "up to date" if stats.order_age == 0 else f"{stats.order_age} frames old"
     imgui.text(f"visible {stats.visible:,} of {viewer.loaded.scene.count:,}, order {age}")
@@ -157,6 +159,11 @@ def _render_section(viewer) -> None:
     changed, vsync = imgui.checkbox("vsync", viewer.window.vsync)
     if changed:
         viewer.window.vsync = vsync
+    imgui.same_line()
+    panel.stereo = _checkbox("stereo", panel.stereo, "stereo preview",
+                             tooltip="the stereo preview: both eyes as a headset shows them, one sort from their "
+                                     "midpoint, each eye rendered offscreen at the headset's resolution and scaled "
+                                     "into the window (its controls: the Stereo section)")
     _split_controls(viewer)
 
 
@@ -207,9 +214,10 @@ def _accuracy_controls(panel, renderer) -> None:
 
 def _split_controls(viewer) -> None:
     panel = viewer.panel
-    panel.split_view = _checkbox("split view", panel.split_view, "split view",
+    panel.split_view = _checkbox("split view", panel.split_view, "split view", enabled=not panel.stereo,
                                  tooltip="A/B: left of the divider the settings above, right of it the chosen "
-                                         "preset applied to them. Drag the divider with the left mouse button.")
+                                         "preset applied to them. Drag the divider with the left mouse button."
+                                         + ("\n(Off in the stereo preview.)" if panel.stereo else ""))
     imgui.same_line()
     imgui.begin_disabled(not panel.split_view)
     imgui.set_next_item_width(-1)
@@ -217,6 +225,73 @@ def _split_controls(viewer) -> None:
                                  "split preset")
     imgui.end_disabled()
     _tooltip("the right side's accuracy preset: the settings above with these options")
+
+
+STEREO_LAYOUT_LABELS = {"sbs": "side by side (parallel)", "cross": "side by side (cross-eyed)",
+                        "anaglyph": "anaglyph (red/cyan)", "left": "left eye only", "right": "right eye only"}
+IPD_MM_RANGE = (0.0, 80.0)          # the slider's; ctrl-click types up to 1000 mm
+CONVERGENCE_RANGE = (0.1, 100.0)    # metres, logarithmic
+SCENE_SCALE_RANGE = (0.001, 1000.0)  # metres per unit, logarithmic
+
+
+def _stereo_section(viewer) -> None:
+    from raygs_viewer.stereo import MAX_EYE_SIZE, MAX_FOV, MIN_FOV, PRESETS, StereoRig, frame_budget
+    panel = viewer.panel
+    # Only while the preview is on (the Render section's checkbox): the panel stays short.
+    if not panel.stereo or not imgui.collapsing_header("Stereo", imgui.TreeNodeFlags_.default_open.value):
+        return
+    imgui.push_item_width(-imgui.calc_text_size("scene scale (m/unit)").x - 12)  # room for the longest label
+    panel.lens_preview = _checkbox("lens preview", panel.lens_preview, "lens preview",
+                                   tooltip="the barrel distortion and chromatic aberration correction a headset's "
+                                           "compositor applies: what the headset's panel receives")
+    panel.stereo_layout = _choice("layout", panel.stereo_layout, STEREO_LAYOUT_LABELS, "stereo layout")
+    changed, ipd_mm = imgui.slider_float("IPD (mm)", panel.ipd * 1000.0, *IPD_MM_RANGE, "%.1f")
+    _remember("IPD")
+    _tooltip("distance between the eyes (default 63 mm). Ctrl-click to type a value.")
+    if changed and math.isfinite(ipd_mm):
+        panel.ipd = min(max(ipd_mm / 1000.0, 0.0), 1.0)
+    changed, value = imgui.slider_float("convergence (m)", panel.convergence, *CONVERGENCE_RANGE, "%.2f",
+                                        imgui.SliderFlags_.logarithmic.value)
+    _remember("convergence")
+    _tooltip("distance of the plane both eyes see at the same pixel (zero disparity)")
+    if changed and math.isfinite(value):
+        panel.convergence = min(max(value, 1e-3), 1e6)
+    changed, value = imgui.slider_float("scene scale (m/unit)", panel.scene_scale, *SCENE_SCALE_RANGE, "%.4g",
+                                        imgui.SliderFlags_.logarithmic.value)
+    _remember("scene scale")
+    _tooltip("metres per scene unit: how big the scene feels (larger: the scene looks smaller)")
+    if changed and math.isfinite(value) and value > 0:
+        panel.scene_scale = min(max(value, 1e-9), 1e9)
+    rig = StereoRig(panel.ipd, panel.convergence, panel.scene_scale)
+    imgui.text_disabled(f"eyes {2 * rig.half_baseline:.4g} units apart, convergence at "
+                        f"{rig.convergence_units:.4g} units")
+    headsets = {name: f"{p.label}: {p.width}x{p.height}, {p.fov_x:g}x{p.fov_y:g} deg" for name, p in PRESETS.items()}
+    headsets["custom"] = "custom"
+    panel.headset = _choice("headset", panel.headset, headsets, "headset")
+    _tooltip("per-eye resolution and field of view; each eye renders offscreen at this size")
+    if panel.headset == "custom":
+        changed, size = imgui.input_int2("per-eye size", panel.custom_size)
+        if changed:
+            panel.custom_size = [min(max(int(v), 1), MAX_EYE_SIZE) for v in size]
+        changed, fov = imgui.input_float2("field of view (deg)", panel.custom_fov, "%.1f")
+        if changed and all(math.isfinite(v) for v in fov):
+            panel.custom_fov = [min(max(float(v), MIN_FOV), MAX_FOV) for v in fov]
+    panel.save_eyes = _checkbox("screenshots also save each eye", panel.save_eyes, "save eyes",
+                                tooltip="F12 saves the side-by-side pair; this adds -left and -right files")
+    imgui.pop_item_width()
+    stats = viewer.stats
+    imgui.text(f"both eyes {_ms(stats.gpu_seconds)}  lens+layout {_ms(stats.post_seconds)}")
+    _tooltip("GPU time of drawing both eyes (timer queries), against a headset's frame budget")
+    for rate, budget, fraction in frame_budget(stats.gpu_seconds):
+        over = math.isfinite(fraction) and fraction > 1.0
+        if over:
+            imgui.push_style_color(imgui.Col_.plot_histogram.value, (0.85, 0.25, 0.2, 1.0))
+        text = (f"{rate} Hz ({budget * 1000:.1f} ms): "
+                + (f"{fraction:.1f}x over" if over else f"{fraction * 100:.0f} %" if math.isfinite(fraction) else "-"))
+        imgui.progress_bar(min(fraction, 1.0) if math.isfinite(fraction) else 0.0, (-1, 0), text)
+        _remember(f"budget {rate}")
+        if over:
+            imgui.pop_style_color()
 
 
 def _view_section(viewer) -> None:
@@ -277,12 +352,19 @@ def _screenshot_section(viewer) -> None:
         imgui.same_line()
     imgui.new_line()
     if viewer.camera is not None:
-        imgui.text_disabled(f"{round(viewer.camera.width * panel.screenshot_scale)} x "
-                            f"{round(viewer.camera.height * panel.screenshot_scale)} px, offscreen")
+        width = round(viewer.camera.width * panel.screenshot_scale)
+        height = round(viewer.camera.height * panel.screenshot_scale)
+        if viewer.shown_stereo is not None:
+            imgui.text_disabled(f"{2 * width} x {height} px side-by-side pair ({width} x {height} per eye), offscreen")
+        else:
+            imgui.text_disabled(f"{width} x {height} px, offscreen")
     _, panel.screenshot_dir = imgui.input_text("folder", panel.screenshot_dir)
     if imgui.button("Save screenshot (F12)"):
         viewer.screenshot_requested = True
     _remember("Save screenshot")
-    if panel.split_view:
+    if viewer.shown_stereo is not None and panel.save_eyes:
+        imgui.same_line()
+        imgui.text_disabled("(-pair, -left, -right)")
+    elif panel.split_view and viewer.shown_stereo is None:
         imgui.same_line()
         imgui.text_disabled("(each side, -left/-right)")

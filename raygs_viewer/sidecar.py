@@ -18,7 +18,20 @@ Layout (version 1)::
      "window": {"camera": {...}, "world_to_camera": {...}},    # optional: the on-screen view before scaling
      "settings": {every RenderSettings field},
      "render_mode": "raygs",                                   # = settings.mode
+     "stereo": {...},                                          # version 2, stereo images only (below)
      "extra": {...}}                                           # free-form, from the window
+
+A stereo image (version 2) adds::
+
+     "stereo": {"ipd": 0.063, "convergence": 2.0, "scene_scale": 1.0,   # metres, metres, metres/unit
+                "layout": "sbs",                                        # one of stereo.LAYOUTS
+                "lens": null or {"k1": .., "k2": .., "chroma_red": .., "chroma_blue": ..},
+                "headset": null or {"name", "label", "width", "height", "fov_x", "fov_y"}}
+
+Its "camera" is the midpoint between the eyes (each eye has that size) and "image" is
+the composed size (twice the width side by side). A file is written with the lowest
+version that describes it, so older readers keep reading mono sidecars and refuse
+stereo ones instead of rendering them as one eye.
 
 "render_mode" mirrors ``settings.mode`` (one of :data:`raygs_viewer.settings.RENDER_MODES`).
 Sidecars written before "settings" had a "mode" take the mode from "render_mode"; when
@@ -50,9 +63,11 @@ from raygs_viewer.camera import Camera, camera_from_json, camera_to_json, read_j
 from raygs_viewer.errors import UserError
 from raygs_viewer.loader import arrays_sha256, file_sha256
 from raygs_viewer.settings import RENDER_MODES, RenderSettings
+from raygs_viewer.stereo import LAYOUTS, HeadsetPreset, StereoRig, StereoView
 
 SIDECAR_FORMAT = "raygs-viewer screenshot"
-SIDECAR_VERSION = 1
+SIDECAR_VERSION = 2          # the newest this program reads and writes
+STEREO_SIDECAR_VERSION = 2   # the first with "stereo"
 DEMO = "demo"
 
 _SHA256 = re.compile(r"[0-9a-f]{64}")
@@ -96,22 +111,26 @@ def _pose(camera: Camera) -> dict:
 
 
 def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, settings: RenderSettings,
-                  scale: float, window_camera: Camera | None = None, extra: dict | None = None) -> dict:
+                  scale: float, window_camera: Camera | None = None, extra: dict | None = None,
+                  stereo: StereoView | None = None) -> dict:
     """The sidecar of a screenshot rendered at ``camera`` (the window's camera already
     scaled by ``scale``) with ``settings``. ``scene_path`` is the loaded file ("demo"
     for the demo), recorded as an absolute path; ``window_camera`` is the on-screen
     view; ``extra`` holds free-form details of the window (up axis, navigation, GL
-    renderer, ...)."""
+    renderer, ...). ``stereo``: the image is that stereo view around ``camera``."""
     if scene_path == DEMO:
         recorded_path = DEMO
     else:
         recorded_path = os.path.abspath(os.fspath(scene_path))
+    from raygs_viewer.render.stereo_passes import composed_size
+    width, height = (camera.width, camera.height) if stereo is None else \
+        composed_size(camera.width, camera.height, stereo.layout)
     sidecar = {
         "format": SIDECAR_FORMAT,
-        "version": SIDECAR_VERSION,
+        "version": 1 if stereo is None else STEREO_SIDECAR_VERSION,
         "program": {"name": "raygs-viewer", "version": raygs_viewer.__version__},
         "created": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
-        "image": {"width": int(camera.width), "height": int(camera.height), "scale": float(scale)},
+        "image": {"width": int(width), "height": int(height), "scale": float(scale)},
         "scene": {"path": recorded_path, "sha256": scene_sha256, "count": int(scene.count),
                   "sh_degree": int(scene.sh_degree), "filter_fused": bool(scene.filter_fused)},
         "camera": _camera_entry(camera),
@@ -120,9 +139,18 @@ def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, 
         "render_mode": settings.mode,
         "extra": dict(extra or {}),
     }
+    if stereo is not None:
+        sidecar["stereo"] = _stereo_entry(stereo)
     if window_camera is not None:
         sidecar["window"] = {"camera": _camera_entry(window_camera), "world_to_camera": _pose(window_camera)}
     return sidecar
+
+
+def _stereo_entry(view: StereoView) -> dict:
+    return {"ipd": view.rig.ipd, "convergence": view.rig.convergence, "scene_scale": view.rig.scene_scale,
+            "layout": view.layout,
+            "lens": None if view.lens is None else dataclasses.asdict(view.lens),
+            "headset": None if view.headset is None else dataclasses.asdict(view.headset)}
 
 
 # --------------------------------------------------------------------------- reading
@@ -146,6 +174,7 @@ class Sidecar:
     scale: float
     render_mode: str
     raw: dict
+    stereo: StereoView | None = None
 
 
 def load_sidecar(path: str | os.PathLike) -> Sidecar:
@@ -180,10 +209,18 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
         fields.get("scene.relative_path", str)
 
     camera = _load_camera(fields)
+    stereo = _load_stereo(fields) if "stereo" in data else None
+    if stereo is not None and version < STEREO_SIDECAR_VERSION:
+        raise UserError(f"{path}: 'stereo' needs sidecar version {STEREO_SIDECAR_VERSION}, the file says {version}")
     image = fields.get("image", dict)
-    for key, value in (("width", camera.width), ("height", camera.height)):
+    from raygs_viewer.render.stereo_passes import composed_size
+    width, height = (camera.width, camera.height) if stereo is None else \
+        composed_size(camera.width, camera.height, stereo.layout)
+    for key, value in (("width", width), ("height", height)):
         if fields.get(f"image.{key}", int) != value:
-            raise UserError(f"{path}: 'image.{key}' {image[key]} differs from the camera's {value}")
+            raise UserError(f"{path}: 'image.{key}' {image[key]} differs from the camera's {value}" if stereo is None
+                        else f"{path}: 'image.{key}' {image[key]} differs from {value}, the {stereo.layout} "
+                             f"image of two {camera.width}x{camera.height} eyes")
     scale = fields.get("image.scale", float)
     from raygs_viewer.screenshot import MAX_SCALE
     if not 0.0 < scale <= MAX_SCALE:
@@ -196,7 +233,7 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
     settings = _load_settings(fields, render_mode)
     if "extra" in data:
         fields.get("extra", dict)
-    return Sidecar(path, scene_path, sha, camera, settings, scale, render_mode, data)
+    return Sidecar(path, scene_path, sha, camera, settings, scale, render_mode, data, stereo)
 
 
 class _Fields:
@@ -230,9 +267,10 @@ def _typed(value, kind: type, where: str):
         if isinstance(value, bool) or not isinstance(value, int):
             raise UserError(f"{where} must be a whole number, got {_show(value)}")
         return value
-    names = {str: "a string", bool: "true or false", dict: "a JSON object", list: "a JSON array"}
+    names = {str: "a string", bool: "true or false", dict: "a JSON object", list: "a JSON array",
+             (dict, type(None)): "a JSON object or null"}
     if not isinstance(value, kind):
-        raise UserError(f"{where} must be {names.get(kind, kind.__name__)}, got {_show(value)}")
+        raise UserError(f"{where} must be {names.get(kind, getattr(kind, '__name__', kind))}, got {_show(value)}")
     return value
 
 
@@ -284,6 +322,48 @@ def _load_camera(fields: _Fields) -> Camera:
         raise UserError(f"{path}: 'camera' position/rotation and 'world_to_camera' describe different poses "
                         f"(edit both, or remove 'world_to_camera')")
     return Camera(camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy, R, t)
+
+
+_LENS_FIELDS = ("k1", "k2", "chroma_red", "chroma_blue")
+_HEADSET_FIELDS = {"name": str, "label": str, "width": int, "height": int, "fov_x": float, "fov_y": float}
+
+
+def _load_stereo(fields: _Fields) -> StereoView:
+    """The "stereo" section; every key is required and none may be unknown (a newer
+    program's stereo option cannot be honoured)."""
+    path = fields.path
+    entry = fields.get("stereo", dict)
+    known = ("ipd", "convergence", "scene_scale", "layout", "lens", "headset")
+    _only_keys(path, "stereo", entry, known)
+    layout = fields.get("stereo.layout", str)
+    if layout not in LAYOUTS:
+        raise UserError(f"{path}: 'stereo.layout' must be one of {', '.join(LAYOUTS)}, got {_show(layout)}")
+    try:
+        rig = StereoRig(**{name: fields.get(f"stereo.{name}", float) for name in known[:3]})
+        lens = None
+        if fields.get("stereo.lens", (dict, type(None))) is not None:
+            _only_keys(path, "stereo.lens", entry["lens"], _LENS_FIELDS)
+            from raygs_viewer.lens_preview import LensModel
+            lens = LensModel(**{name: fields.get(f"stereo.lens.{name}", float) for name in _LENS_FIELDS})
+        headset = None
+        if fields.get("stereo.headset", (dict, type(None))) is not None:
+            _only_keys(path, "stereo.headset", entry["headset"], tuple(_HEADSET_FIELDS))
+            headset = HeadsetPreset(**{name: fields.get(f"stereo.headset.{name}", kind)
+                                       for name, kind in _HEADSET_FIELDS.items()})
+    except UserError as exc:
+        if str(exc).startswith(str(path)):
+            raise
+        raise UserError(f"{path}: 'stereo': {exc}") from None
+    return StereoView(rig, layout, lens, headset)
+
+
+def _only_keys(path: Path, where: str, entry: dict, known: tuple[str, ...]) -> None:
+    missing = [key for key in known if key not in entry]
+    if missing:
+        raise UserError(f"{path}: missing '{where}.{missing[0]}'")
+    unknown = [key for key in entry if key not in known]
+    if unknown:
+        raise UserError(f"{path}: unknown field '{where}.{unknown[0]}' (it may come from a newer raygs-viewer)")
 
 
 def _load_settings(fields: _Fields, render_mode: str | None = None) -> RenderSettings:

@@ -27,7 +27,8 @@ __all__ = ["BackgroundSorter", "SortResult", "Sorter"]
 class Sorter(Protocol):
     """What :class:`BackgroundSorter` runs: :class:`raygs_viewer.sorting.DepthSorter` or a test double."""
 
-    def order(self, camera: Camera, p_min: float, *, dilation: float | None = 0.0) -> np.ndarray: ...
+    def order(self, camera: Camera, p_min: float, *, dilation: float | None = 0.0,
+              cull_cameras: tuple[Camera, ...] | None = None) -> np.ndarray: ...
 
 
 @dataclass(frozen=True)
@@ -41,6 +42,7 @@ class SortResult:
     dilation: the cull dilation it culled with (``RenderSettings.cull_dilation``; None:
              no frustum culling).
     seconds: how long ``sorter.order`` took (``time.perf_counter``), for the statistics panel.
+    cull_cameras: the cameras it culled for (None: ``camera``'s own view; stereo: both eyes).
     """
 
     order: np.ndarray
@@ -49,6 +51,7 @@ class SortResult:
     p_min: float
     seconds: float
     dilation: float | None = 0.0
+    cull_cameras: tuple[Camera, ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -57,18 +60,30 @@ class _Request:
     camera: Camera
     p_min: float
     dilation: float | None
+    cull_cameras: tuple[Camera, ...] | None
 
 
 def _dilation(value: float | None) -> float | None:
     return None if value is None else float(value)
 
 
-def _view_key(camera: Camera, p_min: float, dilation: float | None = 0.0) -> tuple:
+def _camera_key(camera: Camera) -> tuple:
+    return (camera.width, camera.height, float(camera.fx), float(camera.fy), float(camera.cx),
+            float(camera.cy), np.asarray(camera.R, np.float64).tobytes(), np.asarray(camera.t, np.float64).tobytes())
+
+
+def _view_key(camera: Camera, p_min: float, dilation: float | None = 0.0,
+              cull_cameras: tuple[Camera, ...] | None = None) -> tuple:
     """Everything the order depends on, as exact values: equal keys give equal orders
     (a dilation of None, no frustum culling, differs from every number)."""
-    return (camera.width, camera.height, float(camera.fx), float(camera.fy), float(camera.cx),
-            float(camera.cy), np.asarray(camera.R, np.float64).tobytes(),
-            np.asarray(camera.t, np.float64).tobytes(), float(p_min), _dilation(dilation))
+    culled_for = None if cull_cameras is None else tuple(_camera_key(c) for c in cull_cameras)
+    return _camera_key(camera) + (float(p_min), _dilation(dilation), culled_for)
+
+
+def _snapshot(camera: Camera) -> Camera:
+    """A private copy: the caller may update its camera's arrays in place while the
+    worker is still sorting for them."""
+    return replace(camera, R=np.array(camera.R, np.float64), t=np.array(camera.t, np.float64))
 
 
 def _one_line(exc: BaseException) -> str:
@@ -113,28 +128,28 @@ class BackgroundSorter:
 
     # ------------------------------------------------------------------ frame-loop side
 
-    def request(self, camera: Camera, p_min: float, dilation: float | None = 0.0) -> int:
+    def request(self, camera: Camera, p_min: float, dilation: float | None = 0.0,
+                cull_cameras: tuple[Camera, ...] | None = None) -> int:
         """Non-blocking. Queues a sort for this view and returns its serial; a request
         not yet started is replaced by the newer one (only the newest view matters). A
         request equal to the last one queued (same camera R, t, intrinsics, p_min and
         dilation) is not queued again: returns the old serial. ``dilation`` goes to
         ``sorter.order(camera, p_min, dilation=dilation)`` (see
-        :meth:`raygs_viewer.settings.RenderSettings.cull_dilation`). Raises RuntimeError
-        after :meth:`close`."""
-        key = _view_key(camera, p_min, dilation)
+        :meth:`raygs_viewer.settings.RenderSettings.cull_dilation`), and ``cull_cameras``
+        (stereo: both eyes; None: ``camera``) likewise. Raises RuntimeError after
+        :meth:`close`."""
+        key = _view_key(camera, p_min, dilation, cull_cameras)
         with self._cond:
             if self._closed:
                 raise RuntimeError("BackgroundSorter.request after close()")
             if key == self._last_key:
                 self.repeated += 1
                 return self.requested
-            # A private copy: the caller may update its camera's arrays in place while
-            # the worker is still sorting for them.
-            snapshot = replace(camera, R=np.array(camera.R, np.float64), t=np.array(camera.t, np.float64))
             self.requested += 1
             if self._pending is not None:
                 self.superseded += 1
-            self._pending = _Request(self.requested, snapshot, float(p_min), _dilation(dilation))
+            cull = None if cull_cameras is None else tuple(_snapshot(c) for c in cull_cameras)
+            self._pending = _Request(self.requested, _snapshot(camera), float(p_min), _dilation(dilation), cull)
             self._last_key = key
             self._cond.notify_all()
             return self.requested
@@ -187,8 +202,8 @@ class BackgroundSorter:
                 self.started += 1
             begin = time.perf_counter()
             try:
-                order = np.asarray(self._sorter.order(request.camera, request.p_min, dilation=request.dilation),
-                                   dtype=np.uint32)
+                order = np.asarray(self._sorter.order(request.camera, request.p_min, dilation=request.dilation,
+                                                      cull_cameras=request.cull_cameras), dtype=np.uint32)
             except Exception as exc:  # reported in .error; the thread must keep serving
                 with self._cond:
                     self.failed += 1
@@ -197,7 +212,7 @@ class BackgroundSorter:
                     self._cond.notify_all()
                 continue
             result = SortResult(order, request.serial, request.camera, request.p_min,
-                                time.perf_counter() - begin, request.dilation)
+                                time.perf_counter() - begin, request.dilation, request.cull_cameras)
             with self._cond:
                 self._latest = result
                 self.finished += 1

@@ -26,6 +26,7 @@ import numpy as np
 
 from raygs_viewer.camera import Camera
 from raygs_viewer.errors import UserError
+from raygs_viewer.lens_preview import LensModel
 
 DEFAULT_IPD = 0.063          # metres
 DEFAULT_CONVERGENCE = 2.0    # metres
@@ -35,6 +36,9 @@ DEFAULT_SCENE_SCALE = 1.0    # metres per scene unit
 LAYOUTS = ("sbs", "cross", "anaglyph", "left", "right")
 #: Frame budgets a headset's refresh rates give, for the budget meter.
 REFRESH_RATES = (72, 90, 120)
+#: Limits of a headset preset, per eye.
+MAX_EYE_SIZE = 16384
+MIN_FOV, MAX_FOV = 1.0, 170.0
 
 
 @dataclass(frozen=True)
@@ -89,6 +93,18 @@ class HeadsetPreset:
     fov_x: float
     fov_y: float
 
+    def __post_init__(self) -> None:
+        if not all(isinstance(v, int) and not isinstance(v, bool) and 1 <= v <= MAX_EYE_SIZE
+                   for v in (self.width, self.height)):
+            raise UserError(f"headset resolution must be 1..{MAX_EYE_SIZE} per side, "
+                            f"got {self.width!r}x{self.height!r}")
+        for axis, value in (("horizontal", self.fov_x), ("vertical", self.fov_y)):
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+                    or not MIN_FOV <= value <= MAX_FOV:
+                raise UserError(f"headset {axis} field of view must be {MIN_FOV:g}..{MAX_FOV:g} degrees, "
+                                f"got {value!r}")
+            object.__setattr__(self, f"fov_{axis[0]}", float(value))
+
     def camera(self, pose: Camera) -> Camera:
         """The midpoint camera at this preset's per-eye resolution and field of view,
         with ``pose``'s rotation and position."""
@@ -109,13 +125,35 @@ PRESETS: dict[str, HeadsetPreset] = {
 }
 
 
+def frame_budget(seconds: float) -> list[tuple[int, float, float]]:
+    """(rate in Hz, budget in seconds, fraction of it used) for each of REFRESH_RATES:
+    how ``seconds`` of GPU time for both eyes compares with a headset's frame time."""
+    return [(rate, 1.0 / rate, seconds * rate) for rate in REFRESH_RATES]
+
+
 def custom_preset(width: int, height: int, fov_x: float, fov_y: float) -> HeadsetPreset:
-    if not (1 <= width <= 16384 and 1 <= height <= 16384):
-        raise UserError(f"custom headset resolution must be 1..16384 per side, got {width}x{height}")
-    for name, value in (("horizontal", fov_x), ("vertical", fov_y)):
-        if not (math.isfinite(value) and 1.0 <= value <= 170.0):
-            raise UserError(f"custom headset {name} field of view must be 1..170 degrees, got {value!r}")
-    return HeadsetPreset("custom", "custom", int(width), int(height), float(fov_x), float(fov_y))
+    return HeadsetPreset("custom", "custom", width, height, fov_x, fov_y)
+
+
+DEFAULT_HEADSET = "quest3"
+
+
+@dataclass(frozen=True)
+class StereoView:
+    """What makes a stereo image besides its midpoint camera and render settings.
+
+    layout: one of LAYOUTS. lens: the lens preview's model (None: off). headset: the
+    preset the camera was sized for (a record for the sidecar and the panel; the
+    camera itself carries the size and field of view)."""
+
+    rig: StereoRig = StereoRig()
+    layout: str = "sbs"
+    lens: LensModel | None = None
+    headset: HeadsetPreset | None = None
+
+    def __post_init__(self) -> None:
+        if self.layout not in LAYOUTS:
+            raise UserError(f"stereo layout must be one of {', '.join(LAYOUTS)}, got {self.layout!r}")
 
 
 def stereo_order(renderer, camera: Camera, settings, rig: StereoRig) -> np.ndarray:
@@ -139,6 +177,22 @@ def render_stereo(renderer, camera: Camera, settings, rig: StereoRig, *,
         order = stereo_order(renderer, camera, settings, rig)
         return tuple(renderer.render(eye, settings, order, color_origin=camera.center) for eye in (left, right))
     return tuple(renderer.render(eye, settings) for eye in (left, right))
+
+
+def render_stereo_view(renderer, camera: Camera, settings, view: StereoView
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(image, left, right) float32 (H, W, 4) arrays, top row first: the composed
+    stereo image of ``view`` around the midpoint ``camera``, and each eye as it goes
+    into the layout (after the lens preview). The same GL passes as the window's, with
+    an exact sort: what screenshots and ``render --stereo`` save."""
+    from raygs_viewer.render.stereo_frame import StereoFrame
+    frame = StereoFrame(renderer.ctx)
+    try:
+        frame.draw_eyes(renderer, camera, settings, view.rig, stereo_order(renderer, camera, settings, view.rig))
+        frame.finish(view)
+        return frame.read_image(), *frame.read_eyes()
+    finally:
+        frame.release()
 
 
 def compose(left: np.ndarray, right: np.ndarray, layout: str) -> np.ndarray:

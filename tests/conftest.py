@@ -74,3 +74,14 @@ def demo_renderer(gl_session_ctx, demo):
     yield renderer
     with gl_session_ctx:
         renderer.release()
+
+
+@pytest.fixture
+def open_viewer(restore_gl_ctx, tmp_path):
+    """open_viewer(scene="demo", hide_panel=False, **ViewerOptions fields) -> (viewer,
+    driver): a real viewer window on GLFW's null platform (tests/appkit.py), closed after
+    the test."""
+    from appkit import open_viewer_factory
+    open_, close_all = open_viewer_factory(tmp_path)
+    yield open_
+    close_all()

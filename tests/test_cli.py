@@ -765,3 +765,97 @@ def test_bad_stereo_options_are_one_line_errors(capsys, tmp_path, argv, fragment
     code, _, err = run_cli(capsys, "render", *SMALL, *argv, "--out", out)
     assert fragment in assert_one_line_error(code, err)
     assert not out.exists()
+
+
+@pytest.mark.parametrize("argv, fields", [
+    ([], {}),
+    (["--stereo"], {"stereo": True}),
+    (["--stereo", "--ipd", "0.07", "--convergence", "4", "--scene-scale", "0.1", "--layout", "anaglyph",
+      "--lens-preview", "--save-eyes"],
+     {"stereo": True, "ipd": 0.07, "convergence": 4.0, "scene_scale": 0.1, "stereo_layout": "anaglyph",
+      "lens_preview": True, "save_eyes": True}),
+    (["--ipd", "0.058"], {"ipd": 0.058}),  # the panel's start value, for switching stereo on later
+    (["--stereo", "--headset", "index"], {"stereo": True, "headset": "index"}),
+    (["--stereo", "--headset-size", "1832x1920", "--headset-fov", "104,98"],
+     {"stereo": True, "headset": ("custom", 1832, 1920, 104.0, 98.0)}),
+    (["--headset", "custom", "--headset-size", "800X600", "--headset-fov", "90,70"],
+     {"headset": ("custom", 800, 600, 90.0, 70.0)}),
+])
+def test_stereo_options_reach_the_window(capsys, viewer, argv, fields):
+    from raygs_viewer.app import ViewerOptions
+    from raygs_viewer.stereo import PRESETS, custom_preset
+
+    code, _, err = run_cli(capsys, "view", *argv)
+    assert code == 0, err
+    headset = fields.pop("headset", "quest3")
+    fields["headset"] = PRESETS[headset] if isinstance(headset, str) else custom_preset(*headset[1:])
+    assert viewer == [ViewerOptions(**fields)]
+
+
+@pytest.mark.parametrize("argv, fragment", [
+    (["--headset-size", "800x600"], "needs both --headset-size"),
+    (["--headset", "custom"], "needs both"),
+    (["--headset", "index", "--headset-fov", "90,90"], "drop --headset index"),
+    (["--headset-size", "0x600", "--headset-fov", "90,90"], "resolution"),
+    (["--headset-size", "800x600", "--headset-fov", "90,200"], "field of view"),
+    (["--headset-size", "800 by 600"], "--headset-size"),
+    (["--headset-fov", "90"], "--headset-fov"),
+    (["--stereo", "--ipd", "2"], "--ipd"),
+    (["--stereo", "--layout", "over-under"], "--layout"),
+])
+def test_bad_view_stereo_options_are_one_line_errors(capsys, viewer, argv, fragment):
+    code, _, err = run_cli(capsys, "view", *argv)
+    assert fragment in assert_one_line_error(code, err)
+    assert viewer == []
+
+
+def test_render_stereo_lens_preview_and_sidecar(capsys, tmp_path, gl_ctx, demo):
+    from raygs_viewer.lens_preview import DEFAULT_LENS, lens_warp_reference
+    from raygs_viewer.render.renderer import GLRenderer
+    from raygs_viewer.sidecar import build_sidecar, demo_sha256
+    from raygs_viewer.stereo import StereoRig, StereoView, compose, eye_cameras, render_stereo
+
+    camera = demo_camera().resized(64, 48)
+    out = tmp_path / "lens.npy"
+    code, _, err = run_cli(capsys, "render", *SMALL, "--stereo", "--lens-preview", "--out", out)
+    assert code == 0, err
+    with gl_ctx:
+        renderer = GLRenderer(gl_ctx, demo)
+        try:
+            left, right = render_stereo(renderer, camera, RenderSettings(), StereoRig())
+        finally:
+            renderer.release()
+    eyes = eye_cameras(camera, StereoRig())
+    expected = compose(lens_warp_reference(left, eyes[0], DEFAULT_LENS),
+                       lens_warp_reference(right, eyes[1], DEFAULT_LENS), "sbs")
+    image = np.load(out)
+    assert image.shape == (48, 128, 4)
+    assert np.abs(image[..., :3] - expected[..., :3]).max() < 2e-3
+    assert np.abs(image - compose(left, right, "sbs")).max() > 0.05  # the lens was applied
+    # A stereo sidecar renders the stereo image it describes.
+    view = StereoView(StereoRig(), "cross", DEFAULT_LENS)
+    sidecar = tmp_path / "pair.json"
+    sidecar.write_text(json.dumps(build_sidecar(scene_path="demo", scene_sha256=demo_sha256(), scene=demo,
+                                                camera=camera, settings=RenderSettings(), scale=1.0, stereo=view)))
+    again = tmp_path / "again.npy"
+    code, _, err = run_cli(capsys, "render", "--sidecar", sidecar, "--out", again)
+    assert code == 0, err
+    np.testing.assert_array_equal(np.load(again), compose(image[:, :64], image[:, 64:], "cross"))
+    # --stereo cannot also be given: the sidecar says it.
+    code, _, err = run_cli(capsys, "render", "--sidecar", sidecar, "--stereo", "--out", tmp_path / "x.png")
+    assert "drop --stereo" in assert_one_line_error(code, err)
+
+
+def test_view_stereo_scripted_run_saves_the_pair(capsys, tmp_path, restore_gl_ctx):
+    from raygs_viewer.sidecar import load_sidecar
+
+    shot = tmp_path / "pair.png"
+    code, out, err = run_cli(capsys, "view", "--stereo", "--headset-size", "80x60", "--headset-fov", "90,75",
+                             "--frames", "2", "--window-platform", "null", "--width", "320", "--height", "120",
+                             "--screenshot", shot)
+    assert code == 0, err
+    assert "stereo custom 80x60 per eye" in out and "both eyes GPU" in out
+    from PIL import Image
+    assert Image.open(shot).size == (160, 60)
+    loaded = load_sidecar(tmp_path / "pair.json")
+    assert loaded.stereo.layout == "sbs" and loaded.stereo.headset.width == 80

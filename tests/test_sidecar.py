@@ -24,7 +24,9 @@ from raygs_viewer.imageio import encode_image
 from raygs_viewer.reference import render_reference
 from raygs_viewer.scene_io import load_scene
 from raygs_viewer.screenshot import render_tiled, save_screenshot, scaled_camera
+from raygs_viewer.lens_preview import LensModel
 from raygs_viewer.settings import RenderSettings
+from raygs_viewer.stereo import PRESETS, StereoRig, StereoView
 from raygs_viewer.sidecar import (SIDECAR_FORMAT, SIDECAR_VERSION, Sidecar, build_sidecar, demo_sha256, load_sidecar,
                                   resolve_scene, scene_sha256, verify_scene_hash)
 from test_cli import assert_one_line_error, listing, run_cli, write_inria_ply
@@ -113,7 +115,8 @@ def test_build_sidecar_fields(tmp_path, monkeypatch):
     data = build_sidecar(scene_path="s.ply", scene_sha256=scene_sha256("s.ply"), scene=scene, camera=camera,
                          settings=RenderSettings(), scale=1.5, window_camera=window_camera(),
                          extra={"up_axis": "-y", "navigation": "orbit"})
-    assert data["format"] == SIDECAR_FORMAT and data["version"] == SIDECAR_VERSION == 1
+    # Mono sidecars keep version 1, so that older readers still read them.
+    assert data["format"] == SIDECAR_FORMAT and data["version"] == 1 and SIDECAR_VERSION == 2
     assert data["program"] == {"name": "raygs-viewer", "version": raygs_viewer.__version__}
     created = datetime.fromisoformat(data["created"].replace("Z", "+00:00"))
     assert created.tzinfo is not None and created.utcoffset().total_seconds() == 0
@@ -267,7 +270,7 @@ MALFORMED = {
     "cameras_json": (json.dumps([{"width": 4}]), "not a raygs-viewer screenshot sidecar"),
     "no_format": (_delete("format"), "'format'"),
     "wrong_format": (_set("format", "something else"), "not a raygs-viewer screenshot sidecar"),
-    "newer_version": (_set("version", 2), "newer raygs-viewer"),
+    "newer_version": (_set("version", 3), "newer raygs-viewer"),
     "version_zero": (_set("version", 0), "'version'"),
     "version_string": (_set("version", "1"), "'version'"),
     "version_bool": (_set("version", True), "'version'"),
@@ -379,7 +382,7 @@ def test_malformed_sidecar_cli(capsys, tmp_path, case):
 
 def test_newer_version_says_so(tmp_path):
     path = write_malformed(tmp_path, "newer_version")
-    assert_user_error(lambda: load_sidecar(path), path, "version 2", "newer raygs-viewer", "update")
+    assert_user_error(lambda: load_sidecar(path), path, "version 3", "newer raygs-viewer", "update")
 
 
 def test_the_valid_sidecar_behind_the_cases_loads(tmp_path):
@@ -574,3 +577,65 @@ def test_load_sidecar_messages_are_user_errors_not_crashes(tmp_path):
         path.write_text(text)
         with pytest.raises(UserError):
             load_sidecar(path)
+
+
+# --------------------------------------------------------------------------- stereo
+
+STEREO = StereoView(StereoRig(0.07, 3.5, 0.25), "sbs", LensModel(0.3, 0.1, 0.99, 1.02), PRESETS["index"])
+
+
+def stereo_sidecar(view=STEREO, **kwargs):
+    return demo_sidecar(stereo=view, **kwargs)
+
+
+@pytest.mark.parametrize("layout, width", [("sbs", 128), ("cross", 128), ("anaglyph", 64), ("left", 64),
+                                           ("right", 64)])
+def test_stereo_sidecar_round_trip(tmp_path, layout, width):
+    view = dataclasses.replace(STEREO, layout=layout)
+    data = stereo_sidecar(view)
+    assert data["version"] == 2
+    assert data["image"]["width"] == width and data["image"]["height"] == 48  # the composed image
+    assert data["camera"]["width"] == 64  # the midpoint camera: each eye's size
+    assert data["stereo"] == {"ipd": 0.07, "convergence": 3.5, "scene_scale": 0.25, "layout": layout,
+                              "lens": {"k1": 0.3, "k2": 0.1, "chroma_red": 0.99, "chroma_blue": 1.02},
+                              "headset": {"name": "index", "label": PRESETS["index"].label, "width": 1440,
+                                          "height": 1600, "fov_x": 108.0, "fov_y": 104.0}}
+    loaded = load_sidecar(write_json(tmp_path / "pair.json", data))
+    assert loaded.stereo == view
+    assert_bit_identical(loaded.camera, window_camera())
+    no_lens = dataclasses.replace(view, lens=None, headset=None)
+    assert load_sidecar(write_json(tmp_path / "plain.json", stereo_sidecar(no_lens))).stereo == no_lens
+    assert load_sidecar(write_json(tmp_path / "mono.json", demo_sidecar())).stereo is None
+
+
+MALFORMED_STEREO = {
+    "old_version": (_set("version", 1), "needs sidecar version 2"),
+    "stereo_list": (_set("stereo", []), "'stereo'"),
+    "ipd_missing": (_delete("stereo.ipd"), "'stereo.ipd'"),
+    "ipd_string": (_set("stereo.ipd", "63"), "'stereo.ipd'"),
+    "ipd_negative": (_set("stereo.ipd", -0.01), "ipd"),
+    "convergence_zero": (_set("stereo.convergence", 0.0), "convergence"),
+    "scale_nan": (_set("stereo.scene_scale", float("nan")), "'stereo.scene_scale'"),
+    "layout_unknown": (_set("stereo.layout", "top-bottom"), "'stereo.layout'"),
+    "layout_number": (_set("stereo.layout", 1), "'stereo.layout'"),
+    "unknown_field": (_set("stereo.eye_relief", 0.01), "'stereo.eye_relief'"),
+    "lens_list": (_set("stereo.lens", [0.2]), "'stereo.lens'"),
+    "lens_k1_missing": (_delete("stereo.lens.k1"), "'stereo.lens.k1'"),
+    "lens_k1_huge": (_set("stereo.lens.k1", 1e6), "k1"),
+    "lens_extra": (_set("stereo.lens.k3", 0.1), "'stereo.lens.k3'"),
+    "headset_width_zero": (_set("stereo.headset.width", 0), "headset resolution"),
+    "headset_width_fraction": (_set("stereo.headset.width", 1440.5), "'stereo.headset.width'"),
+    "headset_fov_huge": (_set("stereo.headset.fov_x", 400.0), "field of view"),
+    "headset_name_missing": (_delete("stereo.headset.name"), "'stereo.headset.name'"),
+    "image_mono_width": (_set("image.width", 64), "'image.width' 64 differs"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(MALFORMED_STEREO))
+def test_malformed_stereo_sidecar_is_one_line_user_error(tmp_path, case):
+    change, fragment = MALFORMED_STEREO[case]
+    data = copy.deepcopy(stereo_sidecar())
+    change(data)
+    path = tmp_path / "pair.json"
+    path.write_text(json.dumps(data))
+    assert_user_error(lambda: load_sidecar(path), path, fragment)

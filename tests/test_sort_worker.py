@@ -9,6 +9,7 @@ timeouts below only turn a deadlock into a failure instead of a hang.
 from __future__ import annotations
 
 import threading
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -38,16 +39,18 @@ class GatedSorter:
     def __init__(self) -> None:
         self.calls: list[tuple[int, float]] = []
         self.dilations: list[float | None] = []
+        self.culled_for: list = []  # cull_cameras of every call, as tags of their t[0]
         self._entered = threading.Semaphore(0)
         self._permits = threading.Semaphore(0)
         self.inside = 0
         self.returned = 0
         self.starved = False
 
-    def order(self, camera: Camera, p_min: float, *, dilation: float | None = 0.0) -> np.ndarray:
+    def order(self, camera: Camera, p_min: float, *, dilation: float | None = 0.0, cull_cameras=None) -> np.ndarray:
         tag = int(camera.t[0])
         self.calls.append((tag, p_min))
         self.dilations.append(dilation)
+        self.culled_for.append(None if cull_cameras is None else [int(c.t[0]) for c in cull_cameras])
         self.inside += 1
         self._entered.release()
         try:
@@ -209,6 +212,22 @@ def test_dilation_is_part_of_the_request_identity(fake, worker):
     assert (worker.requested, worker.repeated) == (4, 3)
 
 
+def test_cull_cameras_are_passed_recorded_and_part_of_the_request_identity(fake, worker):
+    first = worker.request(view(1), P_MIN)
+    fake.wait_entered()
+    eyes = (view(2), view(3))
+    both = worker.request(view(1), P_MIN, 0.0, eyes)   # the same view culled for two eyes: another order
+    assert both == first + 1
+    assert worker.request(view(1), P_MIN, 0.0, (view(2), view(3))) == both  # equal values: not again
+    eyes[1].t[0] = 9.0  # changed in place after the request: the queued sort keeps its copy
+    fake.allow(2)
+    result = worker.wait(both, timeout=DEADLOCK)
+    assert fake.culled_for == [None, [2, 3]]
+    assert [int(c.t[0]) for c in result.cull_cameras] == [2, 3]
+    moved = worker.request(view(1), P_MIN, 0.0, (view(2), view(4)))
+    assert moved == both + 1
+
+
 def test_caller_changing_its_camera_in_place_does_not_change_the_queued_sort(fake, worker):
     worker.request(view(1), P_MIN)
     fake.wait_entered()
@@ -274,3 +293,8 @@ def test_real_depth_sorter_gives_the_same_order():
         loose = worker.wait(worker.request(camera, P_MIN, None), timeout=DEADLOCK).order
         np.testing.assert_array_equal(loose, sorter.order(camera, P_MIN, dilation=None))
         assert loose.size > tight.size
+        # Stereo: culled for both eyes, sorted from the midpoint.
+        left, right = replace(camera, cx=camera.cx - 60), replace(camera, cx=camera.cx + 60)
+        union = worker.wait(worker.request(camera, P_MIN, 0.0, (left, right)), timeout=DEADLOCK).order
+        np.testing.assert_array_equal(union, sorter.order(camera, P_MIN, cull_cameras=(left, right)))
+        assert union.size > tight.size

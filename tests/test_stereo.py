@@ -215,3 +215,12 @@ def test_shared_colour_is_the_midpoints(gl_ctx):
     for eye in shared:
         np.testing.assert_allclose(eye[centre][:3], mono[centre][:3], atol=2e-3)
     assert np.abs(own[0][centre][:3] - own[1][centre][:3]).max() > 0.1
+
+
+def test_frame_budget_compares_both_eyes_with_each_refresh_rate():
+    from raygs_viewer.stereo import REFRESH_RATES, frame_budget
+    rows = frame_budget(0.011)
+    assert [rate for rate, _, _ in rows] == list(REFRESH_RATES) == [72, 90, 120]
+    for rate, budget, fraction in rows:
+        assert budget == pytest.approx(1 / rate) and fraction == pytest.approx(0.011 * rate)
+    assert [fraction <= 1 for _, _, fraction in rows] == [True, True, False]  # 11 ms: fits 72 and 90 Hz

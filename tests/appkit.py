@@ -1,0 +1,174 @@
+"""Driving the real viewer loop in tests: synthetic imgui input, and the images the
+window holds and shows. The ``open_viewer`` fixture (conftest.py) opens viewers with it."""
+
+from __future__ import annotations
+
+import time
+
+import numpy as np
+from imgui_bundle import imgui  # before glfw (see raygs_viewer.window)
+
+from raygs_viewer.app import Viewer, ViewerOptions
+from raygs_viewer.imageio import to_rgb8
+from raygs_viewer.loader import load_now
+from raygs_viewer.settings import RenderSettings
+from raygs_viewer.sort_worker import BackgroundSorter
+
+WIDTH, HEIGHT = 192, 144
+PANEL_WIDTH, PANEL_HEIGHT = 640, 720  # room for the whole panel
+
+
+class Driver:
+    """Queues imgui input for the next frames and runs them."""
+
+    def __init__(self, viewer: Viewer):
+        self.viewer = viewer
+        self.mouse: tuple[float, float] | None = None
+        self._queued: list = []
+        viewer.input_script = self._inject
+        viewer.fixed_dt = 0.1
+
+    def _inject(self, viewer) -> None:
+        io = imgui.get_io()
+        if self.mouse is not None:  # the GLFW backend overwrites the position every frame
+            io.add_mouse_pos_event(*self.mouse)
+        for event in self._queued:
+            event(io)
+        self._queued = []
+
+    def key(self, key, down: bool = True) -> None:
+        self._queued.append(lambda io: io.add_key_event(key, down))
+
+    def tap(self, key) -> None:
+        self.key(key, True)
+        self.frames(1)
+        self.key(key, False)
+        self.frames(1)
+
+    def button(self, button: int, down: bool) -> None:
+        self._queued.append(lambda io: io.add_mouse_button_event(button, down))
+
+    def wheel(self, ticks: float) -> None:
+        self._queued.append(lambda io: io.add_mouse_wheel_event(0.0, ticks))
+
+    def move_mouse(self, x: float, y: float) -> None:
+        self.mouse = (x, y)
+
+    def frames(self, count: int = 1) -> None:
+        for _ in range(count):
+            self.viewer.frame()
+
+    def settle(self) -> None:
+        """Frames until the drawn order is the one for the current view."""
+        for _ in range(50):
+            self.frames(1)
+            self.viewer.sorter.wait(self.viewer.sorter.requested, timeout=30)
+            self.frames(1)
+            if self.viewer.stats.order_age == 0:
+                return
+        raise AssertionError("the order never caught up with the view")
+
+    def wait_for_load(self) -> None:
+        """Frames until the background load has finished and the window has taken its result."""
+        for _ in range(3000):
+            if not self.viewer.loader.busy:
+                break
+            time.sleep(0.01)
+        assert not self.viewer.loader.busy
+        self.frames(1)
+
+    def click(self, rect) -> None:
+        x0, y0, x1, y1 = rect
+        self.move_mouse((x0 + x1) / 2, (y0 + y1) / 2)
+        self.frames(1)
+        self.button(0, True)
+        self.frames(1)
+        self.button(0, False)
+        self.frames(1)
+
+
+def _start_camera(options):
+    from raygs_viewer.app import start_camera
+    return start_camera(ViewerOptions(camera=options.get("camera")))
+
+
+def window_image(viewer: Viewer) -> np.ndarray:
+    """The scene image the window shows (its float target), top row first."""
+    target = viewer._target
+    w, h = target.size
+    return np.frombuffer(target.read(components=4, dtype="f4"), np.float32).reshape(h, w, 4)[::-1]
+
+
+def right_image(viewer: Viewer) -> np.ndarray:
+    """The split view's right side as drawn (its float target), top row first."""
+    target = viewer._target_right
+    w, h = target.size
+    return np.frombuffer(target.read(components=4, dtype="f4"), np.float32).reshape(h, w, 4)[::-1]
+
+
+def presented(viewer: Viewer) -> np.ndarray:
+    """(h, w, 3) int: the viewport as the present pass shows it, without what imgui
+    draws over it (panel, divider, labels)."""
+    width, height = viewer.window.framebuffer_size()
+    x, y, w, h = viewer.viewport
+    return viewer._capture_window(width, height, x, y, w, h, overlay=False)[y:y + h, x:x + w].astype(int)
+
+
+def split_expected(a: np.ndarray, b: np.ndarray, column: int) -> np.ndarray:
+    """(h, w, 3) int: 8-bit ``a`` left of ``column``, ``b`` from it on."""
+    return np.concatenate([to_rgb8(a)[:, :column], to_rgb8(b)[:, column:]], axis=1).astype(int)
+
+
+def click_choice(drive: "Driver", tag: str, value: str) -> None:
+    """Opens the panel's combo ``tag`` and picks ``value`` from it."""
+    from raygs_viewer.panel import item_rects
+    drive.click(item_rects[tag])
+    drive.frames(1)  # a popup's first frame places it; it is where it stays from the second on
+    drive.click(item_rects[f"{tag} {value}"])
+
+
+def headless(viewer: Viewer, settings: RenderSettings | None = None) -> np.ndarray:
+    return viewer.renderer.render(viewer.camera, settings or viewer.settings())
+
+
+def project(camera, point) -> np.ndarray:
+    p = camera.R @ np.asarray(point, float) + camera.t
+    return np.array([camera.fx * p[0] / p[2] + camera.cx, camera.fy * p[1] / p[2] + camera.cy, p[2]])
+
+
+
+
+def open_viewer_factory(tmp_path):
+    """(open_, close_all): open_(scene, hide_panel, **ViewerOptions fields) -> (viewer, driver)."""
+    viewers = []
+
+    def open_(scene="demo", hide_panel=False, **options):
+        options.setdefault("width", WIDTH)
+        options.setdefault("height", HEIGHT)
+        options.setdefault("screenshot_dir", str(tmp_path / "shots"))
+        sorter_factory = options.pop("sorter_factory", None)
+        viewer = Viewer(ViewerOptions(scene=scene, platform="null", **options), load_now(scene),
+                        _start_camera(options), sorter_factory=sorter_factory)
+        viewers.append(viewer)
+        viewer.panel.show_panel = not hide_panel
+        return viewer, Driver(viewer)
+
+    def close_all():
+        for viewer in viewers:
+            viewer.close()
+
+    return open_, close_all
+
+
+class RecordingSorter(BackgroundSorter):
+    """Records the (p_min, dilation) of every request, and the cameras it culls for."""
+
+    def __init__(self, sorter):
+        super().__init__(sorter)
+        self.asked: list[tuple[float, float | None]] = []
+        self.culled_for: list[tuple | None] = []
+
+    def request(self, camera, p_min, dilation=0.0, cull_cameras=None):
+        self.asked.append((p_min, dilation))
+        self.culled_for.append(cull_cameras)
+        return super().request(camera, p_min, dilation, cull_cameras)
