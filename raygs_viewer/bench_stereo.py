@@ -91,32 +91,28 @@ def sharing_errors(renderer, camera: Camera, settings: RenderSettings,
 def time_both_eyes(ctx, renderer, camera: Camera, settings: RenderSettings, rig: stereo.StereoRig,
                    repeat: int) -> tuple[list[float], list[float]]:
     """(GPU ms, sort CPU ms), ``repeat`` of each: per frame the stereo sort (timed on the
-    CPU), then both eyes drawn with it into eye-sized float targets under one timer query.
-    One untimed frame first compiles the shaders and primes the query. An elapsed time
-    the driver marks invalid is NaN."""
-    left, right = stereo.eye_cameras(camera, rig)
-    size = (camera.width, camera.height)
-    targets = [ctx.framebuffer(color_attachments=[ctx.texture(size, 4, dtype="f4")]) for _ in range(2)]
+    CPU), then both eyes drawn with it as the window draws them
+    (``StereoFrame.draw_eyes``), under one timer query: what the window's frame-budget
+    meter reads. One untimed frame first compiles the shaders and primes the query. An
+    elapsed time the driver marks invalid is NaN."""
+    from raygs_viewer.render.stereo_frame import StereoFrame
+    frame = StereoFrame(ctx)
     query = ctx.query(time=True)
     gpu_ms, sort_ms = [], []
     try:
-        for frame in range(repeat + 1):
+        for index in range(repeat + 1):
             clock = time.perf_counter()
             order = stereo.stereo_order(renderer, camera, settings, rig)
             sorted_in = time.perf_counter() - clock
             with query:
-                for target, eye in zip(targets, (left, right)):
-                    renderer.render_into(target, eye, settings, order, color_origin=camera.center)
+                frame.draw_eyes(renderer, camera, settings, rig, order)
             elapsed = query.elapsed  # waits for both eyes
-            if frame:
+            if index:
                 gpu_ms.append(math.nan if elapsed >= _INVALID_ELAPSED else elapsed / 1e6)
                 sort_ms.append(sorted_in * 1e3)
         return gpu_ms, sort_ms
     finally:  # (moderngl 5.13 queries have no release(); they go with the context)
-        for target in targets:
-            for attachment in target.color_attachments:
-                attachment.release()
-            target.release()
+        frame.release()
 
 
 def budget_ms(rate: float) -> float:

@@ -262,3 +262,32 @@ def test_stereo_screenshot_at_scale_and_with_the_lens(open_viewer, tmp_path):
     assert main(["render", "--sidecar", str(sidecar), "--out", str(out)]) == 0
     np.testing.assert_array_equal(np.asarray(Image.open(out)), np.asarray(Image.open(png)))
     glfw.make_context_current(viewer.window.handle)
+
+
+def test_stereo_sliders_set_the_rig_in_its_units(open_viewer):
+    from raygs_viewer.panel import CONVERGENCE_RANGE, IPD_MM_RANGE, SCENE_SCALE_RANGE, item_rects
+    # Tall enough for the whole panel with its Stereo section.
+    viewer, drive = open_viewer(width=PANEL_WIDTH, height=1100, stereo=True, headset=EYE)
+    item_rects.clear()
+    drive.frames(2)
+    assert item_rects["scene scale"][3] < 1100
+
+    def click_end(tag, right):
+        x0, y0, x1, y1 = item_rects[tag]  # the slider's frame, then its label
+        label = {"IPD": "IPD (mm)", "convergence": "convergence (m)", "scene scale": "scene scale (m/unit)"}[tag]
+        x1 -= imgui.calc_text_size(label).x + imgui.get_style().item_inner_spacing.x
+        drive.move_mouse(x1 - 2 if right else x0 + 2, (y0 + y1) / 2)
+        drive.frames(1)
+        drive.button(0, True)
+        drive.frames(1)
+        drive.button(0, False)
+        drive.frames(2)
+
+    click_end("IPD", right=True)       # the slider shows millimetres; the rig takes metres
+    click_end("convergence", right=False)
+    click_end("scene scale", right=True)
+    rig = viewer.stereo_view().rig
+    assert rig.ipd == pytest.approx(IPD_MM_RANGE[1] / 1000)
+    assert rig.convergence == pytest.approx(CONVERGENCE_RANGE[0])
+    assert rig.scene_scale == pytest.approx(SCENE_SCALE_RANGE[1])
+    assert viewer.shown_stereo.rig == rig  # and the frame draws with it

@@ -131,6 +131,10 @@ class _Log:
     def texture(self, *args, **kwargs):
         return self.ctx.texture(*args, **kwargs)
 
+    @property
+    def info(self):
+        return self.ctx.info
+
     def query(self, **kwargs):
         real, log = self.ctx.query(**kwargs), self
 
