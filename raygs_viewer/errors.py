@@ -1,5 +1,7 @@
 """The one exception type that reaches the user as a one-line message."""
 
+import math
+
 
 class UserError(Exception):
     """Bad input or an unusable environment, described in one line.
@@ -7,3 +9,12 @@ class UserError(Exception):
     The CLI prints ``error: <message>`` and exits with status 2; the window shows
     the message in its panel. Anything else escaping is a bug.
     """
+
+
+def checked_number(value, low: float, high: float, what: str) -> float:
+    """``value`` as a float if it is a finite number (not a bool) in [low, high];
+    otherwise UserError "<what> must be a number in [low, high], got <value>"."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
+            or not low <= value <= high:
+        raise UserError(f"{what} must be a number in [{low:g}, {high:g}], got {value!r}")
+    return float(value)

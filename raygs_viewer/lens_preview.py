@@ -21,13 +21,12 @@ The mapping (pixel coordinates, the image's top-left origin, y down):
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from raygs_viewer.camera import Camera
-from raygs_viewer.errors import UserError
+from raygs_viewer.errors import checked_number
 
 
 @dataclass(frozen=True)
@@ -48,12 +47,8 @@ class LensModel:
     def __post_init__(self) -> None:
         for name, low, high in (("k1", 0.0, 10.0), ("k2", 0.0, 10.0),
                                 ("chroma_red", 0.5, 2.0), ("chroma_blue", 0.5, 2.0)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-                    or not low <= value <= high:
-                raise UserError(f"lens {name.replace('_', ' ')} must be a number in [{low:g}, {high:g}], "
-                                f"got {value!r}")
-            object.__setattr__(self, name, float(value))
+            object.__setattr__(self, name, checked_number(getattr(self, name), low, high,
+                                                          f"lens {name.replace('_', ' ')}"))
 
     @property
     def edge_gain(self) -> float:

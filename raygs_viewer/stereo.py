@@ -25,7 +25,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from raygs_viewer.camera import Camera
-from raygs_viewer.errors import UserError
+from raygs_viewer.errors import UserError, checked_number
 from raygs_viewer.lens_preview import LensModel
 
 DEFAULT_IPD = 0.063          # metres
@@ -52,12 +52,8 @@ class StereoRig:
 
     def __post_init__(self) -> None:
         for name, low, high in (("ipd", 0.0, 1.0), ("convergence", 1e-3, 1e6), ("scene_scale", 1e-9, 1e9)):
-            value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-                    or not low <= value <= high:
-                raise UserError(f"stereo {name.replace('_', ' ')} must be a number in [{low:g}, {high:g}], "
-                                f"got {value!r}")
-            object.__setattr__(self, name, float(value))
+            object.__setattr__(self, name, checked_number(getattr(self, name), low, high,
+                                                          f"stereo {name.replace('_', ' ')}"))
 
     @property
     def half_baseline(self) -> float:
@@ -99,11 +95,8 @@ class HeadsetPreset:
             raise UserError(f"headset resolution must be 1..{MAX_EYE_SIZE} per side, "
                             f"got {self.width!r}x{self.height!r}")
         for axis, value in (("horizontal", self.fov_x), ("vertical", self.fov_y)):
-            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) \
-                    or not MIN_FOV <= value <= MAX_FOV:
-                raise UserError(f"headset {axis} field of view must be {MIN_FOV:g}..{MAX_FOV:g} degrees, "
-                                f"got {value!r}")
-            object.__setattr__(self, f"fov_{axis[0]}", float(value))
+            object.__setattr__(self, f"fov_{axis[0]}", checked_number(value, MIN_FOV, MAX_FOV,
+                                                                    f"headset {axis} field of view (degrees)"))
 
     def camera(self, pose: Camera) -> Camera:
         """The midpoint camera at this preset's per-eye resolution and field of view,
