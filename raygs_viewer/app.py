@@ -290,6 +290,7 @@ class Viewer:
         self._stereo_frame = None   # the stereo preview's targets (render.stereo_frame.StereoFrame)
         self._stereo_drawn = False  # whether the last draw was stereo (what present shows)
         self._last_stereo_view: StereoView | None = None
+        self._stereo_error: str | None = None  # the panel's error about the stereo values, while it stands
         self.shown_stereo: StereoView | None = None  # the stereo view of the last frame (None: mono)
         self._present = self.ctx.program(*_present_shaders())
         self._present_vao = self.ctx.vertex_array(self._present, [])
@@ -510,7 +511,7 @@ class Viewer:
         """The split view's divider: a left press within SPLIT_GRAB screen pixels of it
         (not on the panel) grabs it, and it follows the mouse until the button is
         released. True while the mouse belongs to the divider (the camera ignores it)."""
-        if not self.panel.split_view:
+        if self.right_settings() is None:  # no split view (or the stereo preview, which has none)
             self.dragging_divider = False
             return False
         scale = io.display_framebuffer_scale
@@ -624,8 +625,12 @@ class Viewer:
         try:
             view = self.stereo_view()
         except UserError as exc:
-            self.panel.error = f"error: {_one_line(exc)}"
+            self.panel.error = self._stereo_error = f"error: {_one_line(exc)}"
             return self._last_stereo_view if self.panel.stereo else None
+        if self._stereo_error is not None:  # valid again: its error goes
+            if self.panel.error == self._stereo_error:
+                self.panel.error = ""
+            self._stereo_error = None
         self._last_stereo_view = view
         return view
 

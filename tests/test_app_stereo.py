@@ -184,6 +184,10 @@ def test_a_custom_headset_out_of_range_is_a_panel_error_and_the_preview_stays(op
     drive.frames(2)
     assert viewer.panel.error.startswith("error: ") and "field of view" in viewer.panel.error
     assert viewer.shown_stereo is not None and viewer.camera.width == EYE.width
+    # Mended: the error goes and the new headset is drawn.
+    viewer.panel.custom_fov = [100.0, 80.0]
+    drive.frames(1)
+    assert viewer.panel.error == "" and viewer.shown_stereo.headset.fov_x == 100.0
 
 
 def test_frame_budget_meter_reports_both_eyes_against_each_rate(open_viewer):
@@ -291,3 +295,18 @@ def test_stereo_sliders_set_the_rig_in_its_units(open_viewer):
     assert rig.convergence == pytest.approx(CONVERGENCE_RANGE[0])
     assert rig.scene_scale == pytest.approx(SCENE_SCALE_RANGE[1])
     assert viewer.shown_stereo.rig == rig  # and the frame draws with it
+
+
+def test_the_split_view_is_off_in_stereo_and_its_divider_cannot_be_grabbed(open_viewer):
+    viewer, drive = stereo_viewer(open_viewer)
+    viewer.panel.split_view = True  # left on from the mono view
+    drive.settle()
+    assert viewer.right_settings() is None and viewer.overlay_rects == {}
+    x, y, w, h = viewer.viewport
+    drive.move_mouse(x + viewer.split_column(w), y + h / 2)  # where the divider would be
+    drive.frames(1)
+    drive.button(0, True)
+    drive.frames(1)
+    assert not viewer.dragging_divider
+    drive.button(0, False)
+    drive.frames(1)
