@@ -22,12 +22,15 @@ layout(std430, binding = 2) writeonly buffer Splats { Splat splats[]; };
 uniform uint u_count;        // gaussians in this chunk
 uniform uint u_out_offset;   // first output slot of this chunk within the bound range
 uniform mat3 u_world_to_camera;
-uniform vec3 u_camera_center;
+uniform vec3 u_translation;   // t of the world-to-camera transform: mu = R p + t
 uniform vec3 u_color_origin;  // where SH colour is seen from: the camera, or (stereo) the eyes' midpoint
 uniform float u_log_p_min;
 uniform float u_pixel_variance;  // MIP: sigma_x^2, the filter's variance at unit distance
 uniform vec4 u_intrinsics;       // GS: fx, fy, cx, cy
 uniform vec4 u_ray_bounds;       // GS: the clamp box of x/z, y/z (lower xy, upper zw)
+
+// The largest quad half-size, in whitened units (kappa <= 2 ln(1/p_min) ~ 18 at most).
+const float MAX_HALF_SIZE = 1.0e4;
 
 // The scene stores SH_STORED_DEGREE bands; SH_DEGREE (<= it) are evaluated.
 const uint COEFFS = uint((SH_STORED_DEGREE + 1) * (SH_STORED_DEGREE + 1));
@@ -90,10 +93,13 @@ void main() {
     Gaussian g = gaussians[i];
     vec3 scale = g.scale.xyz;
     float opacity = g.position_opacity.w;
-    vec3 offset = g.position_opacity.xyz - u_camera_center;  // world, camera -> centre
     mat3 rotation = quaternion_matrix(g.rotation);
     mat3 to_camera = u_world_to_camera * rotation;
-    vec3 mu = u_world_to_camera * offset;
+    // R p + t, not R (p - C): a camera far from the origin looking at a small object
+    // then keeps the object's lateral offsets at full float32 precision (only the
+    // large depth rounds, relatively); p - C would round every coordinate to the
+    // ulp of |C| (maths page, section 8).
+    vec3 mu = u_world_to_camera * g.position_opacity.xyz + u_translation;
 
     Splat s;
     s.color = vec4(sh_color(normalize(g.position_opacity.xyz - u_color_origin)), 0.0);
@@ -103,23 +109,26 @@ void main() {
 #if MODE_GS
     project_ewa(s, mu, to_camera, scale, opacity);
 #else
-    vec3 local = transpose(rotation) * offset;  // mu in the gaussian's rotated frame
+    vec3 local = transpose(to_camera) * mu;  // mu in the gaussian's rotated frame
 #if EXACT_MIP
     // The quad must hold every pixel's support: bound the filter by the farthest peak.
     float kappa = 2.0 * (log(opacity) - u_log_p_min);
-    vec3 s_mip = sqrt(scale * scale + u_pixel_variance * dot(offset, offset));
-    float tau_max = length(offset) + sqrt(max(kappa, 0.0)) * max(max(s_mip.x, s_mip.y), s_mip.z);
+    vec3 s_mip = sqrt(scale * scale + u_pixel_variance * dot(mu, mu));
+    float tau_max = length(mu) + sqrt(max(kappa, 0.0)) * max(max(s_mip.x, s_mip.y), s_mip.z);
     vec3 unfiltered = scale;
     scale = sqrt(scale * scale + u_pixel_variance * tau_max * tau_max);
     s.local_center = vec4(local, unfiltered.x);
     s.local_axis0 = vec4(0.0, 0.0, 0.0, unfiltered.y);
     s.local_axis1 = vec4(0.0, 0.0, 0.0, unfiltered.z);
 #elif MIP
-    vec3 s_hat = sqrt(scale * scale + u_pixel_variance * dot(offset, offset));
+    vec3 s_hat = sqrt(scale * scale + u_pixel_variance * dot(mu, mu));
 #if MIP_MODULATION
     // Eq. 17's sqrt(|Sigma| c^2 / (|Sigma_hat| c_hat^2)), as ratios that cannot underflow.
     vec3 shrink = scale / s_hat;
-    opacity *= shrink.x * shrink.y * shrink.z * (length(local / scale) / length(local / s_hat));
+    // c / c_hat is 0/0 with the camera at the centre (skipped below: c^2 <= kappa); 1 keeps
+    // the record finite.
+    float c_hat = length(local / s_hat);
+    opacity *= shrink.x * shrink.y * shrink.z * (c_hat > 0.0 ? length(local / scale) / c_hat : 1.0);
     s.axis1_opacity.w = opacity;
 #endif
     scale = s_hat;
@@ -132,8 +141,13 @@ void main() {
     float c2 = dot(w, w);
     if (kappa > 0.0 && c2 > kappa) {
         vec3 m = w * inversesqrt(c2);
-        float b = sqrt(1.0 - kappa / c2);
-        float half_size = sqrt(kappa) / b;
+        // c2 - kappa first: exact when they are close (Sterbenz) and never <= 0 here, so
+        // b > 0 even where a GPU's approximate division would take kappa / c2 to 1 or
+        // beyond. The cap keeps the quad finite as c2 -> kappa: rays beyond it have
+        // D > c2 (1 - c2 / MAX_HALF_SIZE^2), within float32 rounding of c2 > kappa, so
+        // only fragments at the p_min threshold are lost (maths page, section 8).
+        float b = sqrt((c2 - kappa) / c2);
+        float half_size = min(sqrt(kappa) / b, MAX_HALF_SIZE);
         // Rotation taking e_z to m, its first two columns (stable Householder form).
         float sigma = m.z >= 0.0 ? 1.0 : -1.0;
         vec3 h = vec3(m.xy, m.z + sigma);

@@ -7,7 +7,7 @@ in vec2 v_plane;
 flat in vec4 v_color_opacity;
 flat in vec2 v_c2_kappa;
 #if EXACT_MIP
-in vec3 v_local;
+in vec3 v_offset;             // the quad point relative to the centre (rotated frame)
 flat in vec3 v_local_center;
 flat in vec3 v_scale;
 uniform float u_pixel_variance;  // sigma_x^2: the filter's variance at unit distance
@@ -20,15 +20,19 @@ void main() {
     // The quad bounds the support of the widest filter this gaussian can get; outside
     // that support the exact opacity is below p_min too.
     if (divergence > v_c2_kappa.y) discard;
-    vec3 ray = normalize(v_local);
+    vec3 point = v_local_center + v_offset;                // on the pixel's ray
+    vec3 ray = normalize(point);
     vec3 s2 = v_scale * v_scale;
     float ray_metric = dot(ray * ray, 1.0 / s2);            // x^T Sigma^-1 x
     float tau = dot(ray * v_local_center, 1.0 / s2) / ray_metric;
     if (tau <= 0.0) discard;                                // the peak is behind the camera
     vec3 s2_hat = s2 + u_pixel_variance * tau * tau;
     vec3 s_hat = sqrt(s2_hat);
-    vec3 y = ray / s_hat, w = v_local_center / s_hat;
-    vec3 across = cross(y, w);
+    // D = |y x w|^2 / |y|^2 with y = point / s_hat. y x w = (offset / s_hat) x w, since
+    // w x w = 0: far from the camera y and w are nearly parallel and their cross
+    // product would cancel to the float32 noise of |w| (maths page, section 8).
+    vec3 y = point / s_hat, w = v_local_center / s_hat;
+    vec3 across = cross(v_offset / s_hat, w);
     divergence = dot(across, across) / dot(y, y);
     float opacity = v_color_opacity.a;
 #if MIP_MODULATION

@@ -7,7 +7,7 @@ out vec2 v_plane;            // position in the quad's plane, whitened units (z 
 flat out vec4 v_color_opacity;
 flat out vec2 v_c2_kappa;
 #if EXACT_MIP
-out vec3 v_local;            // the quad point in the gaussian's rotated frame: along the pixel's ray
+out vec3 v_offset;           // the quad point minus the centre, in the gaussian's rotated frame
 flat out vec3 v_local_center;
 flat out vec3 v_scale;
 #endif
@@ -19,7 +19,7 @@ void main() {
 #if EXACT_MIP
     v_local_center = s.local_center.xyz;
     v_scale = vec3(s.local_center.w, s.local_axis0.w, s.local_axis1.w);
-    v_local = vec3(0.0);
+    v_offset = vec3(0.0);
 #endif
     if (s.center_c2.w == 0.0) {  // not drawn: a degenerate quad makes no fragments
         gl_Position = vec4(0.0);
@@ -30,7 +30,7 @@ void main() {
     vec3 position = s.center_c2.xyz + corner.x * s.axis0_half.xyz + corner.y * s.axis1_opacity.xyz;
     v_plane = corner * s.axis0_half.w;
 #if EXACT_MIP
-    v_local = s.local_center.xyz + corner.x * s.local_axis0.xyz + corner.y * s.local_axis1.xyz;
+    v_offset = corner.x * s.local_axis0.xyz + corner.y * s.local_axis1.xyz;
 #endif
     gl_Position = u_projection * vec4(position, 1.0);
 }

@@ -160,7 +160,7 @@ class GLRenderer:
         self._last_layout = layout
         program = self._preprocess_program(settings)
         program["u_world_to_camera"].write(camera.R.astype(np.float32).tobytes(order="F"))
-        program["u_camera_center"].value = tuple(camera.center.astype(np.float32))
+        program["u_translation"].value = tuple(np.asarray(camera.t, np.float64).astype(np.float32))
         origin = camera.center if color_origin is None else np.asarray(color_origin, np.float64)
         _set_uniform(program, "u_color_origin", tuple(origin.astype(np.float32)))  # gone at SH degree 0
         program["u_log_p_min"].value = math.log(settings.p_min)
