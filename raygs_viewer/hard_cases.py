@@ -115,11 +115,12 @@ def _just_above(epsilon: float, ambiguous_below: float = 1e-6) -> HardCase:
         _scene(hard + positions, [[s, s, s], [1.5, 0.6, s]] + scales,
                rotations=[[1, 0, 0, 0], tilted] + [[1, 0, 0, 0]] * 3),
         _forward_camera(),
-        "b -> 0: the quad's half-size sqrt(kappa)/b explodes, and is infinite once kappa/c^2 "
-        "rounds to 1 in float32",
-        f"the half-size is capped at MAX_HALF_SIZE (maths page: a size that still covers the screen): "
-        f"beyond it D is within float32 rounding of c^2 >= kappa, so only fragments at the p_min "
-        f"threshold are lost", 2 * DEFAULT_P_MIN,
+        "b -> 0: the quad's half-size sqrt(kappa)/b explodes; with 1 - kappa/c^2 it is infinite (or "
+        "NaN) once an approximate GPU division takes kappa/c^2 to 1 or beyond",
+        "b = sqrt((c^2 - kappa)/c^2): the difference is exact when the two are close, so b > 0; the "
+        "half-size is capped at 1e4 (a size that still covers the screen: beyond it D is within "
+        "float32 rounding of c^2 > kappa, so only fragments at the p_min threshold are lost)",
+        2 * DEFAULT_P_MIN,
         ambiguous=(0, 1) if epsilon < ambiguous_below else (),
         drawn=_just_above(1e-6).scene if epsilon < ambiguous_below else None)
 

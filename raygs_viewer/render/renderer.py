@@ -87,7 +87,8 @@ class GLRenderer:
     to exercise the splitting).
     """
 
-    def __init__(self, ctx: moderngl.Context, scene: Scene, *, block_limit: int | None = None):
+    def __init__(self, ctx: moderngl.Context, scene: Scene, *, block_limit: int | None = None,
+                 memory_limit: int | None = None):
         self.ctx = ctx
         self.scene = scene
         self.sorter = DepthSorter(scene)
@@ -97,16 +98,35 @@ class GLRenderer:
         self._block_limit = min(block_limit or gpu_limit, gpu_limit)
         self._layouts: dict[int, StorageLayout] = {}
         self.layout = self._layout(SPLAT_BYTES)
+        self.gpu_bytes = gpu_bytes(count, scene.sh_degree)
+        if memory_limit is not None and self.gpu_bytes > memory_limit:
+            raise UserError(f"scene of {count:,} gaussians needs {_mib(self.gpu_bytes)} of GPU buffers, more than "
+                            f"the {_mib(memory_limit)} allowed")
 
-        packed = np.zeros((count, 12), np.float32)
-        packed[:, 0:3] = scene.positions
-        packed[:, 3] = scene.opacities
-        packed[:, 4:7] = scene.scales
-        packed[:, 8:12] = scene.rotations
-        self._gaussians = _buffer(ctx, packed)
-        self._harmonics = _buffer(ctx, scene.sh.reshape(count, coeffs * 3))
-        self._splats = ctx.buffer(reserve=max(count, 1) * SPLAT_BYTES)
-        self._order = ctx.buffer(reserve=max(count, 1) * 4)
+        try:
+            packed = np.zeros((count, 12), np.float32)
+            packed[:, 0:3] = scene.positions
+            packed[:, 3] = scene.opacities
+            packed[:, 4:7] = scene.scales
+            packed[:, 8:12] = scene.rotations
+        except MemoryError:
+            raise UserError(f"scene of {count:,} gaussians: not enough memory to pack it for the GPU") from None
+        buffers = []
+        try:
+            ctx.error  # noqa: B018 - clears an earlier error, so the check below sees only these
+            for make in (lambda: _buffer(ctx, packed), lambda: _buffer(ctx, scene.sh.reshape(count, coeffs * 3)),
+                         lambda: ctx.buffer(reserve=max(count, 1) * SPLAT_BYTES),
+                         lambda: ctx.buffer(reserve=max(count, 1) * 4)):
+                buffers.append(make())
+            if ctx.error == "GL_OUT_OF_MEMORY":  # drivers report it here, not by failing the call
+                raise moderngl.Error("GL_OUT_OF_MEMORY")
+        except (moderngl.Error, MemoryError) as exc:
+            for buffer in buffers:
+                buffer.release()
+            raise UserError(f"scene of {count:,} gaussians does not fit in this GPU's memory "
+                            f"({_mib(self.gpu_bytes)} of buffers: {' '.join(str(exc).split()) or 'out of memory'})"
+                            ) from None
+        self._gaussians, self._harmonics, self._splats, self._order = buffers
         self._last_layout = self.layout
 
         # Shader variants, compiled on first use: keyed by their #defines.
@@ -155,8 +175,11 @@ class GLRenderer:
         centre; stereo shares the eyes' midpoint)."""
         count = self.scene.count
         layout = self._layout(self._splat_bytes(settings))
-        if self._splats.size < max(count, 1) * layout.splat_bytes:
+        if self._splats.size < max(count, 1) * layout.splat_bytes:  # the exact MIP record, on first use
+            self.ctx.error  # noqa: B018 - clears an earlier error, so the check below sees only this one
             self._splats.orphan(max(count, 1) * layout.splat_bytes)
+            if self.ctx.error == "GL_OUT_OF_MEMORY":
+                raise UserError(f"not enough GPU memory for the {settings.mode} records of {count:,} gaussians")
         self._last_layout = layout
         program = self._preprocess_program(settings)
         program["u_world_to_camera"].write(camera.R.astype(np.float32).tobytes(order="F"))
@@ -375,6 +398,16 @@ def _release_framebuffer(fbo: moderngl.Framebuffer) -> None:
     for attachment in fbo.color_attachments:
         attachment.release()
     fbo.release()
+
+
+def gpu_bytes(count: int, sh_degree: int) -> int:
+    """The storage buffers a scene takes on the GPU: gaussians, SH, one splat record
+    each (the exact MIP record, the largest) and the order."""
+    return count * (GAUSSIAN_BYTES + sh_coefficient_count(sh_degree) * 12 + EXACT_MIP_SPLAT_BYTES + 4)
+
+
+def _mib(size: int) -> str:
+    return f"{size / (1 << 20):,.1f} MiB"
 
 
 def _buffer(ctx: moderngl.Context, array: np.ndarray) -> moderngl.Buffer:
