@@ -272,3 +272,71 @@ HARD_CASES: dict[str, Callable[[], HardCase]] = {
     "opacity-extremes": opacity_extremes,
     "coincident": coincident,
 }
+
+
+MODES: dict[str, RenderSettings] = {
+    "RayGS": RenderSettings(),
+    "RayGS + MIP": RenderSettings(mip=True),
+    "exact MIP": RenderSettings(mode="raygs-exact-mip"),
+    "GS": RenderSettings(mode="gs"),
+}
+
+
+def render_gl(ctx, case: HardCase, settings: RenderSettings) -> tuple[np.ndarray, np.ndarray]:
+    """(the GL image of ``case`` in ``settings``, (N,) bool: which gaussians GL drew)."""
+    from raygs_viewer.render.renderer import GLRenderer
+    renderer = GLRenderer(ctx, case.scene)
+    try:
+        image = renderer.render(case.camera, settings)
+        # A record's c^2 (its fourth float; glsl/splat.glsl) is 0 when it is not drawn.
+        drawn = renderer.read_splats()[:, 3] != 0 if settings.mode != "gs" else np.ones(case.scene.count, bool)
+    finally:
+        renderer.release()
+    return image, drawn
+
+
+def as_gl_decided(case: HardCase, drawn: np.ndarray) -> Scene:
+    """The case's scene as GL decided it: an ambiguous gaussian GL skipped is left out,
+    one it drew comes from ``case.drawn`` (where it is drawn for certain); every other
+    gaussian stays, and its decision must match the reference's."""
+    if not case.ambiguous:
+        return case.scene
+    from dataclasses import replace
+    scene, ambiguous = case.scene, list(case.ambiguous)
+    positions = scene.positions.copy()
+    positions[ambiguous] = case.drawn.positions[ambiguous]
+    keep = np.array([i for i in range(scene.count) if i not in case.ambiguous or drawn[i]], int)
+    return replace(scene, positions=positions[keep], rotations=scene.rotations[keep], scales=scene.scales[keep],
+                   opacities=scene.opacities[keep], sh=scene.sh[keep])
+
+
+def measure(ctx, case: HardCase, settings: RenderSettings) -> tuple[float, int]:
+    """(largest |GL - reference| over pixels and channels, non-finite GL pixels) of
+    ``case`` in ``settings``' mode."""
+    from raygs_viewer.reference import render_reference
+    image, drawn = render_gl(ctx, case, settings)
+    reference = render_reference(as_gl_decided(case, drawn), case.camera, settings)
+    bad = int((~np.isfinite(image)).any(axis=-1).sum())
+    return float(np.abs(np.nan_to_num(image, nan=9.0).astype(np.float64) - reference).max()), bad
+
+
+def main() -> None:
+    """``python -m raygs_viewer.hard_cases``: the largest GL-vs-reference difference of
+    every case in every mode, as the markdown table docs/robustness.md quotes."""
+    from raygs_viewer.render.context import context_description, create_headless_context
+    ctx = create_headless_context()
+    print(f"GL: {context_description(ctx)}; {WIDTH}x{HEIGHT}, p_min 1/255\n")
+    print("| case | " + " | ".join(MODES) + " |")
+    print("|---|" + "---:|" * len(MODES))
+    for name, factory in HARD_CASES.items():
+        case = factory()
+        cells = []
+        for settings in MODES.values():
+            error, bad = measure(ctx, case, settings)
+            cells.append(f"{error:.1e}" + (f" ({bad} non-finite)" if bad else ""))
+        print(f"| {name} | " + " | ".join(cells) + " |")
+    ctx.release()
+
+
+if __name__ == "__main__":
+    main()

@@ -10,50 +10,13 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from raygs_viewer.hard_cases import HARD_CASES, KAPPA, HardCase
+from raygs_viewer.hard_cases import HARD_CASES, KAPPA, MODES, as_gl_decided, render_gl
 from raygs_viewer.reference import render_reference
 from raygs_viewer.render.renderer import GLRenderer
-from raygs_viewer.scene import Scene
 from raygs_viewer.settings import RenderSettings
 from testkit import assert_matches
 
-MODES = {
-    "RayGS": RenderSettings(),
-    "RayGS + MIP": RenderSettings(mip=True),
-    "exact MIP": RenderSettings(mode="raygs-exact-mip"),
-    "GS": RenderSettings(mode="gs"),
-}
 C2 = 3  # the splat record's float holding c^2 (0: not drawn); glsl/splat.glsl
-
-
-def subset(scene: Scene, keep) -> Scene:
-    keep = np.asarray(keep, int)
-    return replace(scene, positions=scene.positions[keep], rotations=scene.rotations[keep],
-                   scales=scene.scales[keep], opacities=scene.opacities[keep], sh=scene.sh[keep])
-
-
-def reference_of_gl_decisions(case: HardCase, drawn: np.ndarray) -> Scene:
-    """The case's scene as GL decided it: an ambiguous gaussian GL skipped is left out,
-    one it drew comes from ``case.drawn`` (where it is drawn for certain); every other
-    gaussian is as it is, and its decision must match the reference's."""
-    if not case.ambiguous:
-        return case.scene
-    positions = case.scene.positions.copy()
-    positions[list(case.ambiguous)] = case.drawn.positions[list(case.ambiguous)]
-    moved = replace(case.scene, positions=positions)
-    keep = [i for i in range(case.scene.count) if i not in case.ambiguous or drawn[i]]
-    return subset(moved, keep)
-
-
-def render_case(gl_ctx, case: HardCase, settings: RenderSettings) -> tuple[np.ndarray, np.ndarray]:
-    """(GL image, which gaussians GL drew)."""
-    renderer = GLRenderer(gl_ctx, case.scene)
-    try:
-        image = renderer.render(case.camera, settings)
-        drawn = renderer.read_splats()[:, C2] != 0 if settings.mode != "gs" else np.ones(case.scene.count, bool)
-    finally:
-        renderer.release()
-    return image, drawn
 
 
 @pytest.mark.parametrize("mode", MODES)
@@ -61,9 +24,9 @@ def render_case(gl_ctx, case: HardCase, settings: RenderSettings) -> tuple[np.nd
 def test_hard_case_is_finite_and_matches_the_reference(gl_ctx, name, mode):
     case = HARD_CASES[name]()
     settings = replace(MODES[mode], p_min=case.settings.p_min)
-    image, drawn = render_case(gl_ctx, case, settings)
+    image, drawn = render_gl(gl_ctx, case, settings)
     assert np.all(np.isfinite(image)), f"{name}: NaN or Inf pixels"
-    reference = render_reference(reference_of_gl_decisions(case, drawn), case.camera, settings)
+    reference = render_reference(as_gl_decided(case, drawn), case.camera, settings)
     assert np.all(np.isfinite(reference))
     if case.ambiguous:
         # The drawn variant sits a relative 1e-6 farther out, which moves opacities by up
@@ -143,7 +106,7 @@ def test_the_far_camera_formulation_keeps_the_object_sharp(gl_ctx):
     mu = R (p - C) the float32 subtraction rounds every coordinate to 1e-3 and edges
     jitter (0.3 % of pixels off by up to p_min); mu = R p + t keeps it to 1e-6."""
     case = HARD_CASES["far-camera"]()
-    image, _ = render_case(gl_ctx, case, case.settings)
+    image, _ = render_gl(gl_ctx, case, case.settings)
     reference = render_reference(case.scene, case.camera, case.settings)
     stats = assert_matches(image, reference, max_error=1e-4)
     assert stats["max"] < 1e-4
