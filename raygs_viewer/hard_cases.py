@@ -214,7 +214,9 @@ def far_camera() -> HardCase:
         "mu = R (p - C) in float32 rounds every coordinate to the ulp of |C| (1e-3 here, 1/1000 of "
         "the object): edges jitter by 0.02 px and 0.3 % of pixels were off by up to p_min",
         "mu = R p + t: the object's lateral offsets keep full float32 precision and only the large "
-        "depth rounds, relatively; the gaussian's frame is then taken from mu", 2 * DEFAULT_P_MIN)
+        "depth rounds, relatively; the gaussian's frame is then taken from mu. Exact MIP's per-fragment "
+        "D = |y x w|^2/|y|^2 takes y x w as (offset/s) x w, since y and w are nearly parallel there",
+        2 * DEFAULT_P_MIN)
 
 
 def grazing() -> HardCase:
