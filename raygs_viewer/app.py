@@ -371,6 +371,13 @@ class Viewer:
             self.panel.error = f"error: {str(result).splitlines()[0]}"
             self.panel.message = ""
             return
+        if result.scene.count == 0:
+            # scene_io accepts an empty file, and one whose every gaussian is invalid, as an
+            # empty scene; swapping the shown scene for a black window is never what was meant.
+            why = "; ".join(result.warnings)
+            self.panel.error = f"error: {result.path}: no gaussians to show" + (f" ({why})" if why else "")
+            self.panel.message = ""
+            return
         try:
             self._install(result)
         except (UserError, MemoryError, moderngl.Error) as exc:  # e.g. too large for this GPU
@@ -600,7 +607,12 @@ class Viewer:
 
         if self.panel.show_panel:
             from raygs_viewer.panel import draw_panel
+            # Tab is the fly/orbit key. imgui would also tab into the panel (focused from
+            # its first frame): a slider tabbed into turns into a text field that then
+            # takes every key, so WASD, R and Tab itself stop reaching the camera.
+            imgui.push_item_flag(imgui.ItemFlags_.no_tab_stop.value, True)
             draw_panel(self)
+            imgui.pop_item_flag()
         self._draw_split_overlay(right)
         imgui.render()
 

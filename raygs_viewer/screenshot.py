@@ -275,8 +275,8 @@ def _write_pair(png: Path, png_bytes: bytes, sidecar: dict) -> Path:
             os.unlink(png)
         except OSError:
             pass  # the sidecar's error is the one worth reporting
-        if isinstance(exc, UserError):
-            raise UserError(f"{json_path}: screenshot not saved: {exc}") from None
+        if isinstance(exc, UserError):  # it names the sidecar already
+            raise UserError(f"{exc} (its PNG was removed: no screenshot without its sidecar)") from None
         raise
     return json_path
 

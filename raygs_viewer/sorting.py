@@ -35,7 +35,8 @@ class DepthSorter:
         opacity >= p_min: the kappa-ellipsoid fits in a sphere of sqrt(kappa)*max(s);
         NaN-free, 0 where kappa <= 0 (those are culled separately)."""
         kappa = 2.0 * (self.log_opacity - np.float32(math.log(p_min)))
-        return np.sqrt(np.maximum(kappa, 0.0)) * self.max_scale
+        with np.errstate(over="ignore"):  # absurd scales give inf: a sphere that culls nothing
+            return np.sqrt(np.maximum(kappa, 0.0)) * self.max_scale
 
     def order(self, camera: Camera, p_min: float, method: SortMethod = "auto", *,
               dilation: float | None = 0.0, cull_cameras: Sequence[Camera] | None = None) -> np.ndarray:

@@ -408,7 +408,8 @@ def test_png_removed_when_the_sidecar_cannot_be_written(tmp_path, monkeypatch, f
     monkeypatch.setattr(screenshot, "write_atomically", full_disk)
     where = {"path": tmp_path / "shot.png"} if mode == "path" else {"folder": tmp_path}
     message = assert_user_error(lambda: save_screenshot(small_image(), sidecar_dict(), **where), "",
-                                "No space left on device", "not saved")
+                                "No space left on device", "its PNG was removed")
+    assert message.count(".json") == 1  # named once, not once per layer
     assert ".json" in message
     assert listing(tmp_path) == []
 
