@@ -100,15 +100,25 @@ def look_at(eye, target, up=(0.0, -1.0, 0.0), *, width: int = 640, height: int =
 
 
 def _number(value, what: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
+    if isinstance(value, bool) or not isinstance(value, (int, float)) or not _finite(value):
         raise UserError(f"{what} must be a finite number")
     return float(value)
 
 
-def _numbers(values) -> bool:
-    """A (nested) JSON list of numbers only: numpy would quietly take "1" and true."""
-    return isinstance(values, list) and all(
-        _numbers(v) if isinstance(v, list) else isinstance(v, (int, float)) and not isinstance(v, bool)
+def _finite(value: int | float) -> bool:
+    """math.isfinite, but False for an integer beyond float range (JSON numbers have no
+    limit) instead of an OverflowError."""
+    try:
+        return math.isfinite(value)
+    except OverflowError:
+        return False
+
+
+def _numbers(values, depth: int) -> bool:
+    """A JSON list of numbers only, nested at most ``depth`` deep: numpy would quietly take
+    "1" and true (and the depth bound keeps a deeply nested file from exhausting the stack)."""
+    return isinstance(values, list) and depth > 0 and all(
+        _numbers(v, depth - 1) if isinstance(v, list) else isinstance(v, (int, float)) and not isinstance(v, bool)
         for v in values)
 
 
@@ -126,18 +136,23 @@ def camera_from_json(entry, where: str) -> Camera:
     fx, fy = (_number(entry[k], f"{where}: '{k}'") for k in ("fx", "fy"))
     if fx <= 0 or fy <= 0:
         raise UserError(f"{where}: fx and fy must be positive")
-    if not (_numbers(entry["position"]) and _numbers(entry["rotation"])):
+    if not (_numbers(entry["position"], 1) and _numbers(entry["rotation"], 2)):
         raise UserError(f"{where}: 'position' and 'rotation' must be arrays of numbers")
     try:
         position = np.array(entry["position"], dtype=np.float64)
         rotation = np.array(entry["rotation"], dtype=np.float64)
     except (TypeError, ValueError):  # ragged nesting
         raise UserError(f"{where}: 'position' and 'rotation' must be arrays of numbers") from None
+    except OverflowError:  # an integer beyond float range
+        raise UserError(f"{where}: 'position' and 'rotation' must be finite") from None
     if position.shape != (3,) or rotation.shape != (3, 3):
         raise UserError(f"{where}: 'position' must have 3 numbers and 'rotation' be 3x3")
     if not (np.all(np.isfinite(position)) and np.all(np.isfinite(rotation))):
         raise UserError(f"{where}: 'position' and 'rotation' must be finite")
-    if np.abs(rotation.T @ rotation - np.eye(3)).max() > 1e-3 or np.linalg.det(rotation) < 0:
+    # Entries of a rotation lie in [-1, 1]; bounding them first keeps the product from
+    # overflowing (a RuntimeWarning on the user's terminal) for absurd ones.
+    if (np.abs(rotation).max() > 2 or np.abs(rotation.T @ rotation - np.eye(3)).max() > 1e-3
+            or np.linalg.det(rotation) < 0):
         raise UserError(f"{where}: 'rotation' is not a rotation matrix")
     # Re-orthonormalise: JSON round-trips leave ~1e-7 drift.
     u, _, vt = np.linalg.svd(rotation)
@@ -162,6 +177,8 @@ def read_json_file(path: Path, expected: str):
         return json.loads(text)
     except (json.JSONDecodeError, RecursionError) as exc:
         raise UserError(f"{path}: not valid JSON ({exc})") from None
+    except ValueError:  # an integer of over 4300 digits, which Python refuses to parse
+        raise UserError(f"{path}: not valid JSON (a number with too many digits)") from None
 
 
 def load_cameras(path: str | Path) -> list[Camera]:

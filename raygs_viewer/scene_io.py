@@ -75,6 +75,9 @@ DROP_REASONS = (
 )
 
 _HEADER_LIMIT = 1 << 20  # bytes searched for end_header
+# numpy (and so plyfile) cannot shape an array past the largest signed 64-bit integer, not
+# even the zero-byte rows of an element without properties, whose count no size check bounds.
+_MAX_COUNT = 2**63 - 1
 
 #: Gaussian data is read (PLY: gathered from the memory map) this many bytes at a time,
 #: with a progress report and a cancel check after each chunk. A few MiB keeps a
@@ -269,6 +272,8 @@ def _parse_header(path, shown: str) -> tuple[int, list[_Element]]:
             name = words[1]
             if not words[2].isdigit():
                 raise _error(shown, f"{where}: element {_shown(name)} has a bad count {_shown(words[2])}")
+            if int(words[2]) > _MAX_COUNT:
+                raise _error(shown, f"{where}: element {_shown(name)} count {_shown(words[2], 30)} is too large")
             if any(e.name == name for e in elements):
                 raise _error(shown, f"{where}: duplicate element {_shown(name)}")
             elements.append(_Element(name, int(words[2])))
@@ -356,7 +361,7 @@ def _load_ply(path, shown: str, report: _Reporter) -> Scene:
 
     with open(path, "rb") as f:
         try:
-            ply = PlyData.read(f, mmap="c")
+            ply = PlyData.read(_BoundedReads(f, size), mmap="c")
         except (PlyParseError, ValueError) as exc:
             detail = " ".join(str(exc).split()) or type(exc).__name__
             raise _error(shown, f"cannot read PLY data ({_shown(detail, 120)[1:-1]})") from None
@@ -366,6 +371,28 @@ def _load_ply(path, shown: str, report: _Reporter) -> Scene:
         columns = _gather_chunked(data, [data.dtype.fields[name][1] for name in used], report)
         del data, ply
     return _scene_from_columns(shown, columns, degree, has_filter, report)
+
+
+class _BoundedReads:
+    """The open file as plyfile reads it, refusing reads past its end.
+
+    plyfile reads each list of a row with ``stream.read(length * itemsize)``, the length
+    taken from the row itself, and a buffered read allocates what it is asked for before
+    it finds the file short: 16 GiB for a bogus uint length. Refused here, the read turns
+    into plyfile's "early end-of-file" without allocating anything.
+    """
+
+    def __init__(self, f, size: int) -> None:
+        self._f = f
+        self._size = size
+
+    def read(self, n: int = -1) -> bytes:
+        if n is None or n < 0 or n > self._size - self._f.tell():
+            raise ValueError("read past the end of the file")
+        return self._f.read(n)
+
+    def __getattr__(self, name):
+        return getattr(self._f, name)
 
 
 def _gather_chunked(data: np.ndarray, offsets: list[int], report: _Reporter) -> np.ndarray:
@@ -424,11 +451,13 @@ def _scene_from_columns(shown: str, m: np.ndarray, degree: int, has_filter: bool
     k = sh_coefficient_count(degree) - 1
     positions = m[:, 0:3]
     dc = m[:, 3:6]
-    logit = m[:, 6].astype(np.float64)
-    log_scale = m[:, 7:10].astype(np.float64)
-    rot = m[:, 10:14].astype(np.float64)
     rest = m[:, 14:14 + 3 * k]
+    # The casts too: a signalling NaN (a flipped bit of +-inf) raises "invalid" when widened
+    # to float64, and its gaussian is dropped as "nan" without a RuntimeWarning.
     with np.errstate(all="ignore"):
+        logit = m[:, 6].astype(np.float64)
+        log_scale = m[:, 7:10].astype(np.float64)
+        rot = m[:, 10:14].astype(np.float64)
         opacity = _sigmoid(logit)
         scale = np.exp(log_scale)
         if has_filter:

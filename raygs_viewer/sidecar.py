@@ -260,9 +260,13 @@ def _typed(value, kind: type, where: str):
     if kind is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise UserError(f"{where} must be a number, got {_show(value)}")
-        if not math.isfinite(value):
+        try:
+            number = float(value)
+        except OverflowError:  # an integer beyond float range (JSON has no limit)
+            raise UserError(f"{where} must be finite, got {_show(value)}") from None
+        if not math.isfinite(number):
             raise UserError(f"{where} must be finite, got {_show(value)}")
-        return float(value)
+        return number
     if kind is int:
         if isinstance(value, bool) or not isinstance(value, int):
             raise UserError(f"{where} must be a whole number, got {_show(value)}")
@@ -283,6 +287,11 @@ def _show(value) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
+def _key(name: str) -> str:
+    """A JSON key from the file as a message shows it: a newline in it would split the one line."""
+    return ascii(name)[1:-1]
+
+
 def _array(fields: _Fields, dotted: str, shape: tuple[int, ...]) -> np.ndarray:
     value = fields.get(dotted, list)
     where = f"{fields.path}: '{dotted}'"
@@ -295,7 +304,10 @@ def _array(fields: _Fields, dotted: str, shape: tuple[int, ...]) -> np.ndarray:
 
     if not numbers(value, 0):
         raise UserError(f"{where} must be {what}, got {_show(value)}")
-    array = np.array(value, dtype=np.float64)
+    try:
+        array = np.array(value, dtype=np.float64)
+    except OverflowError:  # an integer beyond float range
+        raise UserError(f"{where} must be finite, got {_show(value)}") from None
     if not np.all(np.isfinite(array)):
         raise UserError(f"{where} must be finite, got {_show(value)}")
     return array
@@ -312,7 +324,8 @@ def _load_camera(fields: _Fields) -> Camera:
     fields.get("world_to_camera", dict)
     R = _array(fields, "world_to_camera.R", (3, 3))
     t = _array(fields, "world_to_camera.t", (3,))
-    if np.abs(R @ R.T - np.eye(3)).max() > _ROTATION_TOLERANCE or np.linalg.det(R) <= 0:
+    # Entries of a rotation lie in [-1, 1]: bounded first, the product cannot overflow.
+    if np.abs(R).max() > 2 or np.abs(R @ R.T - np.eye(3)).max() > _ROTATION_TOLERANCE or np.linalg.det(R) <= 0:
         raise UserError(f"{path}: 'world_to_camera.R' is not a rotation matrix")
     center = -R.T @ t
     rotation = np.array(entry["rotation"], dtype=np.float64)  # shape and finiteness checked by camera_from_json
@@ -363,7 +376,7 @@ def _only_keys(path: Path, where: str, entry: dict, known: tuple[str, ...]) -> N
         raise UserError(f"{path}: missing '{where}.{missing[0]}'")
     unknown = [key for key in entry if key not in known]
     if unknown:
-        raise UserError(f"{path}: unknown field '{where}.{unknown[0]}' (it may come from a newer raygs-viewer)")
+        raise UserError(f"{path}: unknown field '{where}.{_key(unknown[0])}' (it may come from a newer raygs-viewer)")
 
 
 def _load_settings(fields: _Fields, render_mode: str | None = None) -> RenderSettings:
@@ -384,7 +397,7 @@ def _load_settings(fields: _Fields, render_mode: str | None = None) -> RenderSet
     values = {}
     for name, value in raw.items():
         if name not in known:
-            raise UserError(f"{path}: unknown setting 'settings.{name}' (it may come from a newer raygs-viewer)")
+            raise UserError(f"{path}: unknown setting 'settings.{_key(name)}' (it may come from a newer raygs-viewer)")
         values[name] = _setting(value, hints[name], f"{path}: 'settings.{name}'")
     try:
         return RenderSettings(**values)
