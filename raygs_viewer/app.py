@@ -36,7 +36,7 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.settings import ACCURACY_PRESETS, DEFAULT_P_MIN, MODE_LABELS, RENDER_MODES, RenderSettings, \
     apply_preset
 from raygs_viewer.stereo import DEFAULT_CONVERGENCE, DEFAULT_HEADSET, DEFAULT_IPD, DEFAULT_SCENE_SCALE, PRESETS, \
-    HeadsetPreset, StereoRig, StereoView, custom_preset
+    HeadsetPreset, StereoRig, StereoView, composed_size, custom_preset, eye_cameras
 
 LETTERBOX_GREY = 0.12
 #: The A/B divider's position, as a fraction of the viewport's width, stays in this range.
@@ -289,7 +289,6 @@ class Viewer:
         self._target_right = None   # the split view's right side
         self._stereo_frame = None   # the stereo preview's targets (render.stereo_frame.StereoFrame)
         self._stereo_drawn = False  # whether the last draw was stereo (what present shows)
-        self._last_stereo_view: StereoView | None = None
         self._stereo_error: str | None = None  # the panel's error about the stereo values, while it stands
         self.shown_stereo: StereoView | None = None  # the stereo view of the last frame (None: mono)
         self._present = self.ctx.program(*_present_shaders())
@@ -445,17 +444,10 @@ class Viewer:
         width, height = self.window.framebuffer_size()
         aspect = width / height if width > 0 and height > 0 else self.options.width / self.options.height
         fov = self.lens.fov_y_degrees
-        if self.panel.stereo:  # frame the scene for the eyes, not the window
-            headset = self._headset_or_none()
-            if headset is not None:
-                fov, aspect = headset.fov_y, headset.width / headset.height
+        if self.shown_stereo is not None:  # frame the scene for the eyes, not the window
+            headset = self.shown_stereo.headset
+            fov, aspect = headset.fov_y, headset.width / headset.height
         self.navigator.reset(framing_pose(self.center, self.radius, self.navigator.up, fov, aspect))
-
-    def _headset_or_none(self) -> HeadsetPreset | None:
-        try:
-            return self.headset()
-        except UserError:
-            return None
 
     def set_fov(self, fov_y_degrees: float) -> None:
         self.training_index = None
@@ -587,8 +579,6 @@ class Viewer:
             cull_cameras = None
         else:
             from raygs_viewer.controls import letterbox
-            from raygs_viewer.render.stereo_passes import composed_size
-            from raygs_viewer.stereo import eye_cameras
             # The midpoint between the eyes, at the headset's per-eye size and field of view.
             camera = self.camera = stereo.headset.camera(self.lens.camera(self.navigator.pose, width, height))
             shown_width, shown_height = composed_size(camera.width, camera.height, stereo.layout)
@@ -633,17 +623,16 @@ class Viewer:
 
     def _current_stereo_view(self) -> StereoView | None:
         """The stereo view to draw this frame; a custom headset out of range shows its
-        error in the panel and the preview keeps the last good view."""
+        error in the panel and the preview keeps the last frame's view."""
         try:
             view = self.stereo_view()
         except UserError as exc:
             self.panel.error = self._stereo_error = f"error: {_one_line(exc)}"
-            return self._last_stereo_view if self.panel.stereo else None
+            return self.shown_stereo if self.panel.stereo else None
         if self._stereo_error is not None:  # valid again: its error goes
             if self.panel.error == self._stereo_error:
                 self.panel.error = ""
             self._stereo_error = None
-        self._last_stereo_view = view
         return view
 
     def _draw_split_overlay(self, right: RenderSettings | None) -> None:

@@ -63,7 +63,7 @@ from raygs_viewer.camera import Camera, camera_from_json, camera_to_json, read_j
 from raygs_viewer.errors import UserError
 from raygs_viewer.loader import arrays_sha256, file_sha256
 from raygs_viewer.settings import RENDER_MODES, RenderSettings
-from raygs_viewer.stereo import LAYOUTS, HeadsetPreset, StereoRig, StereoView
+from raygs_viewer.stereo import LAYOUTS, HeadsetPreset, StereoRig, StereoView, composed_size
 
 SIDECAR_FORMAT = "raygs-viewer screenshot"
 SIDECAR_VERSION = 2          # the newest this program reads and writes
@@ -122,7 +122,6 @@ def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, 
         recorded_path = DEMO
     else:
         recorded_path = os.path.abspath(os.fspath(scene_path))
-    from raygs_viewer.render.stereo_passes import composed_size
     width, height = (camera.width, camera.height) if stereo is None else \
         composed_size(camera.width, camera.height, stereo.layout)
     sidecar = {
@@ -213,7 +212,6 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
     if stereo is not None and version < STEREO_SIDECAR_VERSION:
         raise UserError(f"{path}: 'stereo' needs sidecar version {STEREO_SIDECAR_VERSION}, the file says {version}")
     image = fields.get("image", dict)
-    from raygs_viewer.render.stereo_passes import composed_size
     width, height = (camera.width, camera.height) if stereo is None else \
         composed_size(camera.width, camera.height, stereo.layout)
     for key, value in (("width", width), ("height", height)):

@@ -131,6 +131,18 @@ def custom_preset(width: int, height: int, fov_x: float, fov_y: float) -> Headse
 DEFAULT_HEADSET = "quest3"
 
 
+def check_layout(layout: str) -> str:
+    """``layout`` if it is one of LAYOUTS, else UserError."""
+    if layout not in LAYOUTS:
+        raise UserError(f"stereo layout must be one of {', '.join(LAYOUTS)}, got {layout!r}")
+    return layout
+
+
+def composed_size(width: int, height: int, layout: str) -> tuple[int, int]:
+    """(width, height) of ``layout``'s image of two width x height eyes."""
+    return (2 * width, height) if check_layout(layout) in ("sbs", "cross") else (width, height)
+
+
 @dataclass(frozen=True)
 class StereoView:
     """What makes a stereo image besides its midpoint camera and render settings.
@@ -145,8 +157,7 @@ class StereoView:
     headset: HeadsetPreset | None = None
 
     def __post_init__(self) -> None:
-        if self.layout not in LAYOUTS:
-            raise UserError(f"stereo layout must be one of {', '.join(LAYOUTS)}, got {self.layout!r}")
+        check_layout(self.layout)
 
 
 def stereo_order(renderer, camera: Camera, settings, rig: StereoRig) -> np.ndarray:
@@ -192,7 +203,7 @@ def compose(left: np.ndarray, right: np.ndarray, layout: str) -> np.ndarray:
     """One image of a stereo pair (H, W, C each): "sbs" (left eye left), "cross" (right
     eye left, for cross-eyed free viewing), "anaglyph" (red from the left eye, green and
     blue from the right, for red/cyan glasses), "left" or "right" alone."""
-    if layout == "sbs":
+    if check_layout(layout) == "sbs":
         return np.concatenate([left, right], axis=1)
     if layout == "cross":
         return np.concatenate([right, left], axis=1)
@@ -200,8 +211,4 @@ def compose(left: np.ndarray, right: np.ndarray, layout: str) -> np.ndarray:
         image = right.copy()
         image[..., 0] = left[..., 0]
         return image
-    if layout == "left":
-        return left.copy()
-    if layout == "right":
-        return right.copy()
-    raise UserError(f"stereo layout must be one of {', '.join(LAYOUTS)}, got {layout!r}")
+    return left.copy() if layout == "left" else right.copy()

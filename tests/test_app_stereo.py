@@ -310,3 +310,12 @@ def test_the_split_view_is_off_in_stereo_and_its_divider_cannot_be_grabbed(open_
     assert not viewer.dragging_divider
     drive.button(0, False)
     drive.frames(1)
+
+
+def test_reset_view_frames_the_scene_for_the_eyes(open_viewer):
+    from raygs_viewer.controls import framing_pose
+    viewer, drive = stereo_viewer(open_viewer, width=400, height=100)  # a window of another shape
+    drive.frames(1)
+    drive.tap(imgui.Key.r)
+    expected = framing_pose(viewer.center, viewer.radius, viewer.navigator.up, EYE.fov_y, EYE.width / EYE.height)
+    np.testing.assert_allclose(viewer.navigator.pose.position, expected.position, atol=1e-9)

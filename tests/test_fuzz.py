@@ -29,7 +29,7 @@ from raygs_viewer import cli
 from raygs_viewer.camera import Camera, load_camera, load_cameras
 from raygs_viewer.errors import UserError
 from raygs_viewer.lens_preview import LensModel
-from raygs_viewer.render.stereo_passes import composed_size
+from raygs_viewer.stereo import composed_size
 from raygs_viewer.scene_io import DROP_REASONS, load_scene
 from raygs_viewer.settings import RENDER_MODES, RenderSettings
 from raygs_viewer.sidecar import Sidecar, load_sidecar

@@ -8,8 +8,8 @@ import pytest
 from raygs_viewer.camera import Camera
 from raygs_viewer.errors import UserError
 from raygs_viewer.lens_preview import DEFAULT_LENS, LensModel, lens_warp_reference, source_point
-from raygs_viewer.render.stereo_passes import StereoPasses, composed_size
-from raygs_viewer.stereo import LAYOUTS, compose
+from raygs_viewer.render.stereo_passes import StereoPasses
+from raygs_viewer.stereo import LAYOUTS, compose, composed_size
 
 IDENTITY = LensModel(k1=0.0, k2=0.0, chroma_red=1.0, chroma_blue=1.0)
 STRONG = LensModel(k1=0.5, k2=0.0, chroma_red=0.98, chroma_blue=1.03)

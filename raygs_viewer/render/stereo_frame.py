@@ -13,8 +13,8 @@ import numpy as np
 
 from raygs_viewer.camera import Camera
 from raygs_viewer.errors import UserError
-from raygs_viewer.render.stereo_passes import StereoPasses, composed_size
-from raygs_viewer.stereo import StereoRig, StereoView, eye_cameras
+from raygs_viewer.render.stereo_passes import StereoPasses
+from raygs_viewer.stereo import StereoRig, StereoView, composed_size, eye_cameras
 
 
 class StereoFrame:

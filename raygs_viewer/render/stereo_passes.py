@@ -16,9 +16,8 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.lens_preview import LensModel, lens_radius
 from raygs_viewer.render.renderer import _set_uniform
 from raygs_viewer.render.shaders import shader_source
-from raygs_viewer.stereo import LAYOUTS
+from raygs_viewer.stereo import composed_size
 
-_SIDE_BY_SIDE = ("sbs", "cross")
 _LEFT, _RIGHT = (0, 0, 0, 0), (1, 1, 1, 1)
 # Per layout, for each eye-wide half of the target: which channels come from the right eye.
 _FROM_RIGHT = {
@@ -28,17 +27,6 @@ _FROM_RIGHT = {
     "left": (_LEFT, _LEFT),
     "right": (_RIGHT, _LEFT),
 }
-
-
-def _check_layout(layout: str) -> None:
-    if layout not in LAYOUTS:
-        raise UserError(f"stereo layout must be one of {', '.join(LAYOUTS)}, got {layout!r}")
-
-
-def composed_size(width: int, height: int, layout: str) -> tuple[int, int]:
-    """(width, height) of ``layout``'s image of two width x height eyes."""
-    _check_layout(layout)
-    return (2 * width, height) if layout in _SIDE_BY_SIDE else (width, height)
 
 
 class StereoPasses:
@@ -92,7 +80,7 @@ class StereoPasses:
         right.use(1)
         _set_uniform(program, "u_left", 0)
         _set_uniform(program, "u_right", 1)
-        _set_uniform(program, "u_halves", 2 if layout in _SIDE_BY_SIDE else 1)
+        _set_uniform(program, "u_halves", expected[0] // left.size[0])  # eye-wide halves: 2 side by side
         _set_uniform(program, "u_from_right", np.asarray(_FROM_RIGHT[layout], np.int32).tobytes())
         self._draw(vao, target)
 
