@@ -115,15 +115,10 @@ def time_both_eyes(ctx, renderer, camera: Camera, settings: RenderSettings, rig:
         frame.release()
 
 
-def budget_ms(rate: float) -> float:
-    return 1000.0 / rate
-
-
-def budget_text(ms: float, rate: float) -> str:
-    """How ``ms`` compares with the frame budget of ``rate`` Hz: "×4.2 over" or "fits, 63 %"."""
-    if not math.isfinite(ms):
+def budget_text(fraction: float) -> str:
+    """A fraction of a frame budget (``stereo.frame_budget``) as "×4.2 over" or "fits, 63 %"."""
+    if not math.isfinite(fraction):
         return "nan"
-    fraction = ms / budget_ms(rate)
     return f"×{fraction:.1f} over" if fraction > 1.0 else f"fits, {fraction * 100:.0f} %"
 
 
@@ -195,7 +190,7 @@ def budget_lines(row: BudgetRow) -> list[str]:
     fraction-of-RATEHz for every refresh rate."""
     head = f"stereo-budget {row.scene} {row.preset}"
     lines = [f"{head} ms {row.gpu_ms:.6g}", f"{head} sort-ms {row.sort_ms:.6g}"]
-    lines += [f"{head} fraction-of-{rate}Hz {row.gpu_ms / budget_ms(rate):.6g}" for rate in stereo.REFRESH_RATES]
+    lines += [f"{head} fraction-of-{rate}Hz {fraction:.6g}" for rate, _, fraction in stereo.frame_budget(row.gpu_ms / 1e3)]
     return lines
 
 
@@ -349,12 +344,14 @@ def format_report(results: StereoResults) -> str:
         "P % of it.",
         "",
         "| scene | headset | per eye | both eyes GPU ms | sort CPU ms | "
-        + " | ".join(f"{rate} Hz ({budget_ms(rate):.1f} ms)" for rate in rates) + " |",
+        + " | ".join(f"{rate} Hz ({budget * 1e3:.1f} ms)" for rate, budget, _ in stereo.frame_budget(0.0)) + " |",
         "|---|---|---|---:|---:|" + "---:|" * len(rates),
     ]
     for row in results.budgets:
         lines.append(f"| {row.scene} | {row.label} | {row.width}×{row.height} | {row.gpu_ms:.1f} | "
-                     f"{row.sort_ms:.2f} | " + " | ".join(budget_text(row.gpu_ms, rate) for rate in rates) + " |")
+                     f"{row.sort_ms:.2f} | "
+                     + " | ".join(budget_text(fraction) for _, _, fraction in stereo.frame_budget(row.gpu_ms / 1e3))
+                     + " |")
     lines.append("")
     return "\n".join(lines)
 
