@@ -10,6 +10,7 @@
 #if FRONT_TO_BACK
 #extension GL_EXT_shader_framebuffer_fetch : require
 #endif
+#include "features.glsl"
 
 uniform float u_p_min;
 
@@ -21,9 +22,7 @@ out vec4 frag_color;
 
 void emit(vec3 rgb, float alpha) {
     if (alpha < u_p_min) discard;
-#if ALPHA_CLAMP
-    alpha = min(alpha, ALPHA_MAX);
-#endif
+    if (ALPHA_CLAMP) alpha = min(alpha, ALPHA_MAX);
 #if FRONT_TO_BACK
     vec4 so_far = frag_color;
     if (so_far.a < -0.5) discard;

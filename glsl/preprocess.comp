@@ -5,8 +5,12 @@
 //   MIP              RayGS with the pixel-invariant MIP filter (Eq. 17), MIP_MODULATION
 //   EXACT_MIP        RayGS with the pixel-dependent filter: the quad bounds the widest
 //                    filter a pixel can apply; the fragments evaluate the filter.
+// Feature switches (features.glsl): SH_DEGREE, MIP, MIP_MODULATION, GS_COMPENSATION;
+// COLOR_AT_LOAD: binding 1 holds each gaussian's RGB, computed once at load (SH degree
+// 0 is view-independent), instead of SH coefficients.
 layout(local_size_x = 128) in;
 
+#include "features.glsl"
 #include "splat.glsl"
 
 struct Gaussian {
@@ -33,7 +37,7 @@ uniform vec4 u_ray_bounds;       // GS: the clamp box of x/z, y/z (lower xy, upp
 const float MAX_HALF_SIZE = 1.0e4;
 
 // The scene stores SH_STORED_DEGREE bands; SH_DEGREE (<= it) are evaluated.
-const uint COEFFS = uint((SH_STORED_DEGREE + 1) * (SH_STORED_DEGREE + 1));
+const uint COEFFS = COLOR_AT_LOAD ? 1u : uint((SH_STORED_DEGREE + 1) * (SH_STORED_DEGREE + 1));
 uint g_index;
 vec3 coeff(int k) {
     uint base = (g_index * COEFFS + uint(k)) * 3u;
@@ -70,9 +74,7 @@ void project_ewa(inout Splat s, vec3 mu, mat3 to_camera, vec3 scale, float opaci
     float det = det_unfiltered + GS_DILATION * (xx + yy) + GS_DILATION * GS_DILATION;
     xx += GS_DILATION;
     yy += GS_DILATION;
-#if GS_COMPENSATION
-    opacity *= sqrt(det_unfiltered / det);
-#endif
+    if (GS_COMPENSATION) opacity *= sqrt(det_unfiltered / det);
     float kappa = 2.0 * (log(opacity) - u_log_p_min);
     if (kappa <= 0.0) return;
     float mid = 0.5 * (xx + yy), radius = sqrt(0.25 * (xx - yy) * (xx - yy) + xy * xy);
@@ -102,7 +104,8 @@ void main() {
     vec3 mu = u_world_to_camera * g.position_opacity.xyz + u_translation;
 
     Splat s;
-    s.color = vec4(sh_color(normalize(g.position_opacity.xyz - u_color_origin)), 0.0);
+    s.color = vec4(COLOR_AT_LOAD ? coeff(0) : sh_color(normalize(g.position_opacity.xyz - u_color_origin)),
+                   0.0);
     s.center_c2 = vec4(mu, 0.0);
     s.axis0_half = vec4(0.0);
     s.axis1_opacity = vec4(0.0, 0.0, 0.0, opacity);
@@ -120,18 +123,20 @@ void main() {
     s.local_center = vec4(local, unfiltered.x);
     s.local_axis0 = vec4(0.0, 0.0, 0.0, unfiltered.y);
     s.local_axis1 = vec4(0.0, 0.0, 0.0, unfiltered.z);
-#elif MIP
-    vec3 s_hat = sqrt(scale * scale + u_pixel_variance * dot(mu, mu));
-#if MIP_MODULATION
-    // Eq. 17's sqrt(|Sigma| c^2 / (|Sigma_hat| c_hat^2)), as ratios that cannot underflow.
-    vec3 shrink = scale / s_hat;
-    // c / c_hat is 0/0 with the camera at the centre (skipped below: c^2 <= kappa); 1 keeps
-    // the record finite.
-    float c_hat = length(local / s_hat);
-    opacity *= shrink.x * shrink.y * shrink.z * (c_hat > 0.0 ? length(local / scale) / c_hat : 1.0);
-    s.axis1_opacity.w = opacity;
-#endif
-    scale = s_hat;
+#else
+    if (MIP) {
+        vec3 s_hat = sqrt(scale * scale + u_pixel_variance * dot(mu, mu));
+        if (MIP_MODULATION) {
+            // Eq. 17's sqrt(|Sigma| c^2 / (|Sigma_hat| c_hat^2)), as ratios that cannot underflow.
+            vec3 shrink = scale / s_hat;
+            // c / c_hat is 0/0 with the camera at the centre (skipped below: c^2 <= kappa);
+            // 1 keeps the record finite.
+            float c_hat = length(local / s_hat);
+            opacity *= shrink.x * shrink.y * shrink.z * (c_hat > 0.0 ? length(local / scale) / c_hat : 1.0);
+            s.axis1_opacity.w = opacity;
+        }
+        scale = s_hat;
+    }
 #endif
 #if !EXACT_MIP
     float kappa = 2.0 * (log(opacity) - u_log_p_min);  // exact log (maths page, section 3)

@@ -35,12 +35,12 @@ void main() {
     vec3 across = cross(v_offset / s_hat, w);
     divergence = dot(across, across) / dot(y, y);
     float opacity = v_color_opacity.a;
-#if MIP_MODULATION
-    // sqrt(|Sigma| x^T Sigma^-1 x / (|Sigma_hat| x^T Sigma_hat^-1 x)), as a product of
-    // ratios <= 1 so tiny scales do not underflow a determinant.
-    vec3 shrink = s2 / s2_hat;
-    opacity *= sqrt(shrink.x * shrink.y * shrink.z * ray_metric / dot(ray * ray, 1.0 / s2_hat));
-#endif
+    if (MIP_MODULATION) {
+        // sqrt(|Sigma| x^T Sigma^-1 x / (|Sigma_hat| x^T Sigma_hat^-1 x)), as a product of
+        // ratios <= 1 so tiny scales do not underflow a determinant.
+        vec3 shrink = s2 / s2_hat;
+        opacity *= sqrt(shrink.x * shrink.y * shrink.z * ray_metric / dot(ray * ray, 1.0 / s2_hat));
+    }
     emit(v_color_opacity.rgb, opacity * exp(-0.5 * divergence));
 #else
     emit(v_color_opacity.rgb, v_color_opacity.a * exp(-0.5 * divergence));

@@ -31,7 +31,7 @@ import moderngl
 import numpy as np
 
 from raygs_viewer.window import Window, glfw, imgui  # noqa: I001  (imgui before glfw: see window)
-from raygs_viewer.camera import Camera
+from raygs_viewer.camera import Camera, camera_key
 from raygs_viewer.errors import UserError
 from raygs_viewer.settings import ACCURACY_PRESETS, DEFAULT_P_MIN, MODE_LABELS, RENDER_MODES, RenderSettings, \
     apply_preset
@@ -213,13 +213,8 @@ class GpuTimer:
         self.history.append(self.seconds)
 
 
-def _camera_key(camera: Camera) -> tuple:
-    return (camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy,
-            camera.R.tobytes(), camera.t.tobytes())
-
-
 def _cameras_key(cameras) -> tuple | None:
-    return None if cameras is None else tuple(_camera_key(c) for c in cameras)
+    return None if cameras is None else tuple(camera_key(c) for c in cameras)
 
 
 def _panel_stereo(options: ViewerOptions) -> dict:
@@ -681,14 +676,14 @@ class Viewer:
             order, serial = result.order, result.serial
             for older in [n for n in self._request_frames if n < serial]:  # answered or skipped
                 del self._request_frames[older]
-            current = (_camera_key(result.camera) == _camera_key(camera)
+            current = (camera_key(result.camera) == camera_key(camera)
                        and (result.p_min, result.dilation, _cameras_key(result.cull_cameras)) == cull)
             self.stats.order_age = 0 if current else self.frame_index - self._request_frames.get(serial, self.frame_index)
             if serial != self.stats.drawn_serial:
                 self.stats.all_sort_times.append(result.seconds)
             self.stats.sort_seconds = result.seconds
             self.stats.visible = int(order.size)
-        key = (_camera_key(camera), settings, right, stereo, serial)
+        key = (camera_key(camera), settings, right, stereo, serial)
         if stereo is None:
             target = self._target_for(camera.width, camera.height)
             right_target = self._target_for(camera.width, camera.height, "_target_right") if right is not None else None

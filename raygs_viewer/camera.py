@@ -72,6 +72,13 @@ class Camera:
         return proj @ np.diag([1.0, -1.0, -1.0, 1.0])
 
 
+def camera_key(camera: Camera) -> tuple:
+    """Everything that defines ``camera``'s view, as exact, hashable values: equal keys
+    render equal images (for caches that skip work when the view has not changed)."""
+    return (camera.width, camera.height, float(camera.fx), float(camera.fy), float(camera.cx), float(camera.cy),
+            np.asarray(camera.R, np.float64).tobytes(), np.asarray(camera.t, np.float64).tobytes())
+
+
 def intrinsics_from_fov(width: int, height: int, fov_y_degrees: float) -> tuple[float, float, float, float]:
     """fx, fy, cx, cy for square pixels, a vertical field of view and a centred principal point."""
     f = 0.5 * height / math.tan(math.radians(fov_y_degrees) / 2)

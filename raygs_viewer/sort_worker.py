@@ -19,7 +19,7 @@ from typing import Protocol
 
 import numpy as np
 
-from raygs_viewer.camera import Camera
+from raygs_viewer.camera import Camera, camera_key
 
 __all__ = ["BackgroundSorter", "SortResult", "Sorter"]
 
@@ -67,17 +67,12 @@ def _dilation(value: float | None) -> float | None:
     return None if value is None else float(value)
 
 
-def _camera_key(camera: Camera) -> tuple:
-    return (camera.width, camera.height, float(camera.fx), float(camera.fy), float(camera.cx),
-            float(camera.cy), np.asarray(camera.R, np.float64).tobytes(), np.asarray(camera.t, np.float64).tobytes())
-
-
 def _view_key(camera: Camera, p_min: float, dilation: float | None = 0.0,
               cull_cameras: tuple[Camera, ...] | None = None) -> tuple:
     """Everything the order depends on, as exact values: equal keys give equal orders
     (a dilation of None, no frustum culling, differs from every number)."""
-    culled_for = None if cull_cameras is None else tuple(_camera_key(c) for c in cull_cameras)
-    return _camera_key(camera) + (float(p_min), _dilation(dilation), culled_for)
+    culled_for = None if cull_cameras is None else tuple(camera_key(c) for c in cull_cameras)
+    return camera_key(camera) + (float(p_min), _dilation(dilation), culled_for)
 
 
 def _snapshot(camera: Camera) -> Camera:

@@ -8,6 +8,7 @@ reference composite the same sequence.
 from __future__ import annotations
 
 import math
+import threading
 from typing import Literal, Sequence
 
 import numpy as np
@@ -19,7 +20,12 @@ SortMethod = Literal["auto", "radix", "float"]
 
 
 class DepthSorter:
-    """Caches what culling needs per scene, then sorts for any camera and p_min."""
+    """Caches what culling needs per scene, then culls and sorts for any camera and p_min.
+
+    The N-sized intermediates of culling live in scratch arrays made on first use and
+    reused by every later call, so a frame allocates only its M-sized results. A lock
+    serialises callers that share one sorter (the window's sort thread and screenshots).
+    """
 
     def __init__(self, scene: Scene):
         self.positions = scene.positions
@@ -29,18 +35,37 @@ class DepthSorter:
         # float32 camera transforms lose ~1e-7 of the coordinates' magnitude: widen the
         # culling bounds by that much so rounding never drops a visible gaussian.
         self.coordinate_scale = float(np.abs(self.positions).max()) if scene.count else 0.0
+        self._lock = threading.RLock()
+        self._scratch: _Scratch | None = None
+        self._support: tuple[float, np.ndarray, np.ndarray, np.ndarray] | None = None
 
     def support_radius(self, p_min: float) -> np.ndarray:
         """(N,) float32 world-space radius of a sphere that holds every peak point with
         opacity >= p_min: the kappa-ellipsoid fits in a sphere of sqrt(kappa)*max(s);
         NaN-free, 0 where kappa <= 0 (those are culled separately)."""
-        kappa = 2.0 * (self.log_opacity - np.float32(math.log(p_min)))
-        with np.errstate(over="ignore"):  # absurd scales give inf: a sphere that culls nothing
-            return np.sqrt(np.maximum(kappa, 0.0)) * self.max_scale
+        return self._support_for(p_min)[1]
+
+    def _support_for(self, p_min: float) -> tuple[float, np.ndarray, np.ndarray, np.ndarray]:
+        """(p_min, support radius, sqrt(max(kappa, 0)), opacity > p_min), cached for the
+        last p_min: they change only with it."""
+        if self._support is None or self._support[0] != p_min:
+            kappa = 2.0 * (self.log_opacity - np.float32(math.log(p_min)))
+            root_kappa = np.sqrt(np.maximum(kappa, 0.0))
+            with np.errstate(over="ignore"):  # absurd scales give inf: a sphere that culls nothing
+                radius = root_kappa * self.max_scale
+            self._support = (p_min, radius, root_kappa, self.log_opacity > np.float32(math.log(p_min)))
+        return self._support
 
     def order(self, camera: Camera, p_min: float, method: SortMethod = "auto", *,
               dilation: float | None = 0.0, cull_cameras: Sequence[Camera] | None = None) -> np.ndarray:
-        """(M,) uint32 indices of the gaussians that may be visible, back to front.
+        """(M,) uint32 indices of the gaussians that may be visible, back to front:
+        :meth:`cull`, then :meth:`sort` (see them for the arguments)."""
+        with self._lock:
+            return self.sort(camera, self.cull(camera, p_min, dilation=dilation, cull_cameras=cull_cameras), method)
+
+    def cull(self, camera: Camera, p_min: float, *, dilation: float | None = 0.0,
+             cull_cameras: Sequence[Camera] | None = None) -> np.ndarray:
+        """(M,) int64 indices, ascending, of the gaussians that may be visible.
 
         A gaussian is dropped only when it cannot reach any pixel: opacity <= p_min
         (kappa <= 0), its support sphere entirely behind the camera plane, or entirely
@@ -51,41 +76,73 @@ class DepthSorter:
         (for footprints no sphere bounds, such as EWA's).
 
         ``cull_cameras``: keep what any of these cameras may see, instead of what
-        ``camera`` may see; the depth order is still ``camera``'s (stereo: one sort from
-        the midpoint between the eyes serves both).
+        ``camera`` may see (stereo: one sort from the midpoint between the eyes serves both).
         """
-        if self.positions.shape[0] == 0:
-            return np.zeros(0, np.uint32)
-        keep = np.zeros(self.positions.shape[0], bool)
-        for culling in cull_cameras or (camera,):
-            keep |= self._may_be_seen(culling, p_min, dilation)
-        visible = np.flatnonzero(keep)
+        count = self.positions.shape[0]
+        if count == 0:
+            return np.zeros(0, np.int64)
+        with self._lock:
+            if self._scratch is None:
+                self._scratch = _Scratch(count)
+            scratch = self._scratch
+            cameras = tuple(cull_cameras or (camera,))
+            for index, culling in enumerate(cameras):
+                self._may_be_seen(culling, p_min, dilation, scratch)
+                if index == 0:
+                    scratch.union[:] = scratch.keep
+                else:
+                    scratch.union |= scratch.keep
+            return np.flatnonzero(scratch.union)
+
+    def sort(self, camera: Camera, visible: np.ndarray, method: SortMethod = "auto") -> np.ndarray:
+        """(M,) uint32: ``visible`` (indices) back to front, by ``camera``'s depth."""
         R = camera.R.astype(np.float32)
         depth = self.positions[visible] @ R[2] + np.float32(camera.t[2])
         return visible[sort_back_to_front(depth, method)].astype(np.uint32)
 
-    def _may_be_seen(self, camera: Camera, p_min: float, dilation: float | None) -> np.ndarray:
-        """(N,) bool: the support sphere may reach a pixel of ``camera``."""
-        R = camera.R.astype(np.float32)
-        mu = self.positions @ R.T + camera.t.astype(np.float32)
+    def _may_be_seen(self, camera: Camera, p_min: float, dilation: float | None, scratch: "_Scratch") -> None:
+        """Sets ``scratch.keep`` to whether each support sphere may reach a pixel of ``camera``."""
+        mu, radius, product, term, keep, test = (scratch.mu, scratch.radius, scratch.product, scratch.term,
+                                                 scratch.keep, scratch.test)
+        np.matmul(self.positions, camera.R.astype(np.float32).T, out=mu)
+        mu += camera.t.astype(np.float32)
         slack = np.float32(1e-5 * (self.coordinate_scale + float(np.abs(camera.t).max())) + 1e-6)
-        radius = self.support_radius(p_min)
+        _, support, root_kappa, opaque_enough = self._support_for(p_min)
+        radius[:] = support
         if dilation:
-            kappa = 2.0 * (self.log_opacity - np.float32(math.log(p_min)))
-            radius = radius + np.sqrt(np.maximum(kappa, 0.0)) * np.float32(dilation) * np.linalg.norm(mu, axis=1)
-        radius = radius * np.float32(1.0 + 1e-5) + slack
+            np.einsum("ij,ij->i", mu, mu, out=term)
+            np.sqrt(term, out=term)
+            term *= root_kappa
+            term *= np.float32(dilation)
+            radius += term
+        radius *= np.float32(1.0 + 1e-5)
+        radius += slack
+        np.negative(radius, out=radius)  # from here on: -radius, the bound every test compares with
         x, y, z = mu[:, 0], mu[:, 1], mu[:, 2]
-        keep = (self.log_opacity > np.float32(math.log(p_min))) & (z > -radius)
+        np.greater(z, radius, out=keep)
+        keep &= opaque_enough
         if dilation is None:
-            return keep
+            return
         # Side planes through the camera centre, at the image border (pixel centres lie
         # half a pixel inside it), with unit normals pointing into the frustum.
         for coordinate, a, b, extent in ((x, camera.fx, camera.cx, camera.width),
                                          (y, camera.fy, camera.cy, camera.height)):
             for normal in ((a, b), (-a, extent - b)):
                 n = np.float32(1.0 / math.hypot(*normal))
-                keep &= (np.float32(normal[0]) * n) * coordinate + (np.float32(normal[1]) * n) * z > -radius
-        return keep
+                np.multiply(coordinate, np.float32(normal[0]) * n, out=product)
+                np.multiply(z, np.float32(normal[1]) * n, out=term)
+                product += term
+                np.greater(product, radius, out=test)
+                keep &= test
+
+
+class _Scratch:
+    """The N-sized working arrays of :meth:`DepthSorter.cull`."""
+
+    def __init__(self, count: int):
+        self.mu = np.empty((count, 3), np.float32)
+        self.radius, self.product, self.term = (np.empty(count, np.float32) for _ in range(3))
+        self.keep, self.test, self.union = (np.empty(count, bool) for _ in range(3))
 
 
 def sort_back_to_front(depth: np.ndarray, method: SortMethod = "auto") -> np.ndarray:

@@ -71,12 +71,12 @@ class RecordingContext:
 def test_a_memory_limit_refuses_the_scene_before_any_upload(gl_ctx):
     scene = random_scene(n=1000, seed=2, degree=3)
     needed = gpu_bytes(1000, 3)
-    assert needed == 1000 * (48 + 16 * 12 + 112 + 4)
+    assert needed == 1000 * (48 + 16 * 12 + 12 + 112 + 4)  # gaussians, SH, colours at load, records, order
     ctx = RecordingContext(gl_ctx)
     with pytest.raises(UserError) as info:
         GLRenderer(ctx, scene, memory_limit=needed - 1)
     message = str(info.value)
-    assert "\n" not in message and "1,000 gaussians" in message and "0.3 MiB" in message
+    assert "\n" not in message and "1,000 gaussians" in message and "0.4 MiB" in message
     assert ctx.buffers == []  # refused before anything was allocated
     GLRenderer(ctx, scene, memory_limit=needed).release()  # exactly enough is enough
     assert len(ctx.buffers) == 4

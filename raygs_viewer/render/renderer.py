@@ -6,10 +6,17 @@ opacity, c^2, quad axes); the vertex stage draws one quad per sorted index and
 the fragment stage evaluates Eq. 16, blending premultiplied colour back to front
 into a float32 target with depth clamp on (no near-plane clipping).
 
-The accuracy options of :class:`RenderSettings` select shader variants by
-``#define`` (EWA splatting, the two MIP filters, the parity switches), so a frame
-pays only for what is on. Supersampling and the transmittance cut-off render into
-a sample target first; a resolve pass filters it down into the caller's target.
+The accuracy options of :class:`RenderSettings` and the scene select shader
+variants by ``#define`` (EWA splatting, the two MIP filters, the parity switches,
+the SH degree), so a frame pays only for what is on; at SH degree 0 the colours are
+computed once, at load. ``general=True`` forces the one variant that switches every
+feature by uniforms instead, to measure what specialising saves. Supersampling and
+the transmittance cut-off render into a sample target first; a resolve pass filters
+it down into the caller's target.
+
+Work that the view has not changed is skipped: :meth:`GLRenderer.preprocess` for the
+view, settings and colour origin it last wrote the records for, and the order's
+upload for the order array it last uploaded (orders are never modified once made).
 """
 
 from __future__ import annotations
@@ -20,10 +27,11 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
-from raygs_viewer.camera import Camera
+from raygs_viewer.camera import Camera, camera_key
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.shaders import shader_source
 from raygs_viewer.scene import Scene, sh_coefficient_count
+from raygs_viewer.sh import C0 as SH_C0
 from raygs_viewer.settings import (ALPHA_CLAMP, GS_DILATION, GS_NEAR, TRANSMITTANCE_CUTOFF,
                                    RenderSettings)
 from raygs_viewer.sorting import DepthSorter
@@ -35,6 +43,7 @@ RANGE_ALIGNMENT = 256
 
 GAUSSIAN_BYTES = 48  # struct Gaussian in preprocess.comp
 SPLAT_BYTES = 64     # struct Splat in splat.glsl
+COLOR_BYTES = 12     # RGB computed at load, for SH degree 0
 EXACT_MIP_SPLAT_BYTES = 112  # ... with EXACT_MIP's three extra vec4
 GL_EXT_FRAMEBUFFER_FETCH = "GL_EXT_shader_framebuffer_fetch"
 MAX_SPLAT_BLOCKS = 8  # bindings raygs.vert declares
@@ -80,16 +89,29 @@ class StorageLayout:
         return max(1, -(-self.count // self.splats_per_block))
 
 
+@dataclass
+class WorkCounters:
+    """What the renderer did and skipped since it was made (for tests and the panel)."""
+
+    preprocessed: int = 0       # preprocessing passes run
+    preprocess_skipped: int = 0  # ... skipped: the records were already this view's
+    uploads: int = 0            # order uploads
+    upload_skipped: int = 0     # ... skipped: that order was already on the GPU
+
+
 class GLRenderer:
     """Renders one scene; keeps its storage buffers until :meth:`release`.
 
     ``block_limit`` overrides the GPU's per-block storage limit (tests use a tiny one
-    to exercise the splitting).
+    to exercise the splitting). ``general``: draw with the all-features variant (see
+    the module docstring).
     """
 
     def __init__(self, ctx: moderngl.Context, scene: Scene, *, block_limit: int | None = None,
-                 memory_limit: int | None = None):
+                 memory_limit: int | None = None, general: bool = False):
         self.ctx = ctx
+        self.general = bool(general)
+        self.counters = WorkCounters()
         self.scene = scene
         self.sorter = DepthSorter(scene)
         count = scene.count
@@ -127,7 +149,10 @@ class GLRenderer:
                             f"({_mib(self.gpu_bytes)} of buffers: {' '.join(str(exc).split()) or 'out of memory'})"
                             ) from None
         self._gaussians, self._harmonics, self._splats, self._order = buffers
+        self._colors: moderngl.Buffer | None = None  # made on first use of SH degree 0
         self._last_layout = self.layout
+        self._preprocessed_key: tuple | None = None  # what the records in _splats were made for
+        self._uploaded_order: np.ndarray | None = None  # the array whose indices _order holds
 
         # Shader variants, compiled on first use: keyed by their #defines.
         self._preprocess_programs: dict[tuple, moderngl.ComputeShader] = {}
@@ -173,6 +198,12 @@ class GLRenderer:
         when ``camera`` renders one tile of it (GS clamps rays to the whole image).
         ``color_origin``: the world point SH colour is seen from (default: the camera's
         centre; stereo shares the eyes' midpoint)."""
+        origin = camera.center if color_origin is None else np.asarray(color_origin, np.float64)
+        key = (camera_key(camera), settings, None if frame is None else camera_key(frame), origin.tobytes())
+        if key == self._preprocessed_key:
+            self.counters.preprocess_skipped += 1
+            return
+        self._preprocessed_key = None  # until this pass has written every record
         count = self.scene.count
         layout = self._layout(self._splat_bytes(settings))
         if self._splats.size < max(count, 1) * layout.splat_bytes:  # the exact MIP record, on first use
@@ -182,20 +213,25 @@ class GLRenderer:
                 raise UserError(f"not enough GPU memory for the {settings.mode} records of {count:,} gaussians")
         self._last_layout = layout
         program = self._preprocess_program(settings)
+        colors_at_load = self._colors_at_load(settings)
+        if self.general:
+            _set_general_uniforms(program, settings, self.scene.sh_degree)
         program["u_world_to_camera"].write(camera.R.astype(np.float32).tobytes(order="F"))
         program["u_translation"].value = tuple(np.asarray(camera.t, np.float64).astype(np.float32))
-        origin = camera.center if color_origin is None else np.asarray(color_origin, np.float64)
         _set_uniform(program, "u_color_origin", tuple(origin.astype(np.float32)))  # gone at SH degree 0
         program["u_log_p_min"].value = math.log(settings.p_min)
         _set_uniform(program, "u_pixel_variance", settings.pixel_variance(camera))
         _set_uniform(program, "u_intrinsics", (camera.fx, camera.fy, camera.cx, camera.cy))
         _set_uniform(program, "u_ray_bounds", gs_ray_bounds(frame or camera))
-        harmonics_bytes = sh_coefficient_count(self.scene.sh_degree) * 12
+        if colors_at_load:
+            colors, harmonics_bytes = self._color_buffer(), COLOR_BYTES
+        else:
+            colors, harmonics_bytes = self._harmonics, sh_coefficient_count(self.scene.sh_degree) * 12
         splat_bytes = layout.splat_bytes
         for start in range(0, count, layout.chunk):
             n = min(layout.chunk, count - start)
             self._gaussians.bind_to_storage_buffer(0, offset=start * GAUSSIAN_BYTES, size=n * GAUSSIAN_BYTES)
-            self._harmonics.bind_to_storage_buffer(1, offset=start * harmonics_bytes, size=n * harmonics_bytes)
+            colors.bind_to_storage_buffer(1, offset=start * harmonics_bytes, size=n * harmonics_bytes)
             block_start = start - start % layout.splats_per_block
             block_count = min(layout.splats_per_block, count - block_start)
             self._splats.bind_to_storage_buffer(2, offset=block_start * splat_bytes, size=block_count * splat_bytes)
@@ -203,21 +239,45 @@ class GLRenderer:
             program["u_out_offset"].value = start - block_start
             program.run(group_x=-(-n // WORKGROUP))
         self.ctx.memory_barrier()
+        self.counters.preprocessed += 1
+        self._preprocessed_key = key
+
+    def _colors_at_load(self, settings: RenderSettings) -> bool:
+        """Whether this variant reads colours computed at load instead of evaluating SH."""
+        return not self.general and settings.effective_sh_degree(self.scene.sh_degree) == 0
+
+    def _color_buffer(self) -> moderngl.Buffer:
+        """(N, 3) float32 RGB of SH degree 0, view-independent: computed once, on first use."""
+        if self._colors is None:
+            dc = self.scene.sh[:, 0, :].astype(np.float64)
+            self._colors = _buffer(self.ctx, np.maximum(SH_C0 * dc + 0.5, 0.0))
+        return self._colors
 
     def _preprocess_program(self, settings: RenderSettings) -> moderngl.ComputeShader:
-        defines = {"SH_DEGREE": settings.effective_sh_degree(self.scene.sh_degree),
-                   "SH_STORED_DEGREE": self.scene.sh_degree,
+        defines = {"SH_STORED_DEGREE": self.scene.sh_degree,
                    "MODE_GS": int(settings.mode == "gs"),
-                   "GS_COMPENSATION": int(settings.mode == "gs" and settings.gs_compensation),
                    "GS_DILATION": _glsl_float(GS_DILATION),
                    "GS_NEAR": _glsl_float(GS_NEAR),
-                   "MIP": int(settings.mode == "raygs" and settings.mip),
-                   "MIP_MODULATION": int(settings.mip_modulation),
-                   "EXACT_MIP": int(settings.mode == "raygs-exact-mip")}
+                   "EXACT_MIP": int(settings.mode == "raygs-exact-mip"),
+                   **self._feature_defines(settings)}
+        if not self.general:
+            defines["COLOR_AT_LOAD"] = _glsl_bool(self._colors_at_load(settings))
         key = tuple(sorted(defines.items()))
         if key not in self._preprocess_programs:
             self._preprocess_programs[key] = self.ctx.compute_shader(shader_source("preprocess.comp", defines))
         return self._preprocess_programs[key]
+
+    def _feature_defines(self, settings: RenderSettings) -> dict[str, object]:
+        """The feature switches of features.glsl: literals for this scene and these
+        settings, or GENERAL (uniforms, set by :func:`_set_general_uniforms`)."""
+        if self.general:
+            return {"GENERAL": 1}
+        return {"GENERAL": 0,
+                "SH_DEGREE": settings.effective_sh_degree(self.scene.sh_degree),
+                "MIP": _glsl_bool(settings.mode == "raygs" and settings.mip),
+                "MIP_MODULATION": _glsl_bool(settings.mip_modulation),
+                "GS_COMPENSATION": _glsl_bool(settings.mode == "gs" and settings.gs_compensation),
+                "ALPHA_CLAMP": _glsl_bool(settings.alpha_clamp)}
 
     def read_splats(self) -> np.ndarray:
         """(N, F) float32 copy of the per-view records of the last :meth:`preprocess`
@@ -235,7 +295,7 @@ class GLRenderer:
             raise ValueError("order longer than the scene")
         layout, count = self._layout(self._splat_bytes(settings)), self.scene.count
         program, vao = self._draw_program(settings, layout)
-        self._order.write(np.ascontiguousarray(order, dtype=np.uint32))
+        self.upload_order(order)
         self._order.bind_to_storage_buffer(0, size=order.size * 4)
         for block in range(layout.splat_blocks):
             start = block * layout.splats_per_block
@@ -247,6 +307,8 @@ class GLRenderer:
         _set_uniform(program, "u_pixel_variance", settings.pixel_variance(camera))
         _set_uniform(program, "u_order_count", int(order.size))
         program["u_p_min"].value = settings.p_min
+        if self.general:
+            _set_general_uniforms(program, settings, self.scene.sh_degree)
         ctx = self.ctx
         ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
         if settings.transmittance_cutoff:
@@ -261,6 +323,18 @@ class GLRenderer:
             ctx.disable_direct(GL_DEPTH_CLAMP)
         vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=int(order.size))
 
+    def upload_order(self, order: np.ndarray) -> None:
+        """Puts ``order`` (M,) in the GPU's order buffer, unless this very array is
+        already there (orders are not modified once made: a new view makes a new one)."""
+        if order is self._uploaded_order:
+            self.counters.upload_skipped += 1
+            return
+        if order.size > self.scene.count:
+            raise ValueError("order longer than the scene")
+        self._order.write(np.ascontiguousarray(order, dtype=np.uint32))
+        self._uploaded_order = order
+        self.counters.uploads += 1
+
     def _draw_program(self, settings: RenderSettings, layout: StorageLayout):
         problem = self.supports(settings)
         if problem:
@@ -268,10 +342,10 @@ class GLRenderer:
         gs = settings.mode == "gs"
         defines = {"SPLAT_BLOCKS": layout.splat_blocks, "SPLATS_PER_BLOCK": layout.splats_per_block,
                    "EXACT_MIP": int(settings.mode == "raygs-exact-mip"),
-                   "MIP_MODULATION": int(settings.mip_modulation),
-                   "ALPHA_CLAMP": int(settings.alpha_clamp), "ALPHA_MAX": _glsl_float(ALPHA_CLAMP),
+                   "ALPHA_MAX": _glsl_float(ALPHA_CLAMP),
                    "FRONT_TO_BACK": int(settings.transmittance_cutoff),
-                   "MIN_TRANSMITTANCE": _glsl_float(TRANSMITTANCE_CUTOFF)}
+                   "MIN_TRANSMITTANCE": _glsl_float(TRANSMITTANCE_CUTOFF),
+                   **self._feature_defines(settings)}
         key = (gs, *sorted(defines.items()))
         if key not in self._draw_programs:
             stage = "gs" if gs else "raygs"
@@ -369,8 +443,10 @@ class GLRenderer:
                 vao.release()
                 program.release()
             programs.clear()
-        for obj in (self._gaussians, self._harmonics, self._splats, self._order):
-            obj.release()
+        for obj in (self._gaussians, self._harmonics, self._splats, self._order, self._colors):
+            if obj is not None:
+                obj.release()
+        self._colors = None
 
 
 def gs_ray_bounds(camera: Camera) -> tuple[float, float, float, float]:
@@ -381,6 +457,15 @@ def gs_ray_bounds(camera: Camera) -> tuple[float, float, float, float]:
             (camera.width - camera.cx) / camera.fx + margin_x, (camera.height - camera.cy) / camera.fy + margin_y)
 
 
+def _set_general_uniforms(program, settings: RenderSettings, stored_degree: int) -> None:
+    """The general variant's feature uniforms (features.glsl), from ``settings``."""
+    _set_uniform(program, "u_sh_degree", settings.effective_sh_degree(stored_degree))
+    _set_uniform(program, "u_mip", settings.mode == "raygs" and settings.mip)
+    _set_uniform(program, "u_mip_modulation", settings.mip_modulation)
+    _set_uniform(program, "u_gs_compensation", settings.mode == "gs" and settings.gs_compensation)
+    _set_uniform(program, "u_alpha_clamp", settings.alpha_clamp)
+
+
 def _set_uniform(program: moderngl.Program, name: str, value) -> None:
     """Sets a uniform the variant uses; variants that compiled it away are skipped."""
     if name in program:
@@ -388,6 +473,10 @@ def _set_uniform(program: moderngl.Program, name: str, value) -> None:
             program[name].write(value)
         else:
             program[name].value = value
+
+
+def _glsl_bool(value: bool) -> str:
+    return "true" if value else "false"
 
 
 def _glsl_float(value: float) -> str:
@@ -401,9 +490,10 @@ def _release_framebuffer(fbo: moderngl.Framebuffer) -> None:
 
 
 def gpu_bytes(count: int, sh_degree: int) -> int:
-    """The storage buffers a scene takes on the GPU: gaussians, SH, one splat record
-    each (the exact MIP record, the largest) and the order."""
-    return count * (GAUSSIAN_BYTES + sh_coefficient_count(sh_degree) * 12 + EXACT_MIP_SPLAT_BYTES + 4)
+    """The storage buffers a scene takes on the GPU: gaussians, SH, colours computed
+    at load (SH degree 0), one splat record each (the exact MIP record, the largest)
+    and the order."""
+    return count * (GAUSSIAN_BYTES + sh_coefficient_count(sh_degree) * 12 + COLOR_BYTES + EXACT_MIP_SPLAT_BYTES + 4)
 
 
 def _mib(size: int) -> str:
