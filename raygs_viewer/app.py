@@ -94,6 +94,7 @@ class ViewerOptions:
     platform: str = "auto"
     turntable: float = 0.0    # degrees per frame about the up axis (orbit mode); 0: off
     window_screenshot: str | None = None  # PNG of the whole window, panel included, at the end
+    general: bool = False     # the all-features shader variant (GLRenderer(general=)), to compare
     stereo: bool = False      # start in the stereo preview; the fields below are its start values
     ipd: float = DEFAULT_IPD
     convergence: float = DEFAULT_CONVERGENCE
@@ -310,7 +311,7 @@ class Viewer:
         from raygs_viewer.render.renderer import GLRenderer
         from raygs_viewer.sort_worker import BackgroundSorter
 
-        renderer = GLRenderer(self.ctx, loaded.scene)  # UserError (too large) leaves everything as it was
+        renderer = GLRenderer(self.ctx, loaded.scene, general=self.options.general)  # UserError (too large) leaves everything as it was
         if self.renderer is not None:
             self.renderer.release()
         if self.sorter is not None:
@@ -887,7 +888,8 @@ class Viewer:
         return (f"{self.frame_index} frames ({stats.draws} drawn) at {camera_size(self.camera)}: "
                 f"median frame {median_ms(stats.all_frame_times)} ({1 / frame if frame > 0 else 0:.1f} fps), "
                 f"GPU {median_ms(self._timer.history)}, sort {median_ms(stats.all_sort_times)}, "
-                f"{stats.visible:,} of {self.loaded.scene.count:,} visible")
+                f"{stats.visible:,} of {self.loaded.scene.count:,} visible"
+                + (", general shaders" if self.renderer.general else ""))
 
     def close(self) -> None:
         if self.window is None:

@@ -732,7 +732,7 @@ def add_parser(commands) -> None:
         return _whole_number(low, high, f"outside {low}..{high}")
 
     bench = commands.add_parser("bench", help="benchmarks (accuracy against time; stereo sharing error and "
-                                              "frame budget)")
+                                              "frame budget; per-stage frame times and cost ratios)")
     kinds = bench.add_subparsers(dest="bench", required=True, parser_class=type(bench))
     accuracy = kinds.add_parser(
         "accuracy", help="GPU time and error against ground truth of every accuracy option",
@@ -769,6 +769,8 @@ def add_parser(commands) -> None:
                           help="headless OpenGL (default: $RAYGS_GL_BACKEND or auto: EGL, else OSMesa)")
     from raygs_viewer import bench_stereo  # imports this module: only once both exist
     bench_stereo.add_parser(kinds, count)
+    from raygs_viewer import bench_perf
+    bench_perf.add_parser(kinds, count)
 
 
 def command_line(args: argparse.Namespace) -> str:
@@ -817,6 +819,9 @@ def command(args: argparse.Namespace, ctx=None) -> int:
     if args.bench == "stereo":
         from raygs_viewer import bench_stereo
         return bench_stereo.command(args, ctx)
+    if args.bench == "perf":
+        from raygs_viewer import bench_perf
+        return bench_perf.command(args, ctx)
     if args.bench != "accuracy":
         raise UserError(f"unknown benchmark '{args.bench}'")
     options = options_from_args(args)

@@ -129,11 +129,13 @@ def build_parser() -> argparse.ArgumentParser:
     render.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
     render.add_argument("--reference", action="store_true", help="use the float64 CPU reference renderer")
     _add_stereo_options(render)
+    _add_general_option(render)
     _add_backend_option(render)
 
     verify = commands.add_parser("verify", help="render one view with GL and with the float64 reference; "
                                                 "print their difference and timings")
     _add_view_options(verify)
+    _add_general_option(verify)
     _add_backend_option(verify)
     verify.add_argument("--repeat", type=_positive_int, default=5, metavar="N",
                         help="GL renders to time, after one warm-up (default 5)")
@@ -326,8 +328,16 @@ def _add_viewer_options(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--window-platform", choices=("auto", "x11", "wayland", "null"), default="auto",
                         help="GLFW platform (default auto: null without a display)")
     _add_stereo_options(parser, window=True)
+    _add_general_option(parser)
     parser.add_argument("--save-eyes", action="store_true",
                         help="stereo screenshots also save each eye on its own (-left, -right), besides the pair")
+
+
+def _add_general_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--general", action="store_true",
+                        help="draw with the one all-features shader variant (features switched by uniforms) "
+                             "instead of the variant specialised to the scene and settings; the same image, "
+                             "slower: it shows what specialising saves")
 
 
 def _add_backend_option(parser: argparse.ArgumentParser) -> None:
@@ -435,7 +445,7 @@ def _command_render(args) -> int:
         from raygs_viewer.screenshot import render_tiled
         ctx = create_headless_context(args.gl_backend)
         try:
-            renderer = GLRenderer(ctx, scene)
+            renderer = GLRenderer(ctx, scene, general=args.general)
             if stereo is not None:
                 from raygs_viewer.stereo import render_stereo_view
                 image = render_stereo_view(renderer, camera, settings, stereo)[0]
@@ -468,7 +478,7 @@ def _command_verify(args) -> int:
     camera = choose_camera(scene, scene_name, args.camera, args.camera_index, args.width, args.height)
     ctx = create_headless_context(args.gl_backend)
     try:
-        renderer = GLRenderer(ctx, scene)
+        renderer = GLRenderer(ctx, scene, general=args.general)
         image = renderer.render(camera, settings)  # warm-up: shader compilation, first upload
         gl_times = []
         for _ in range(args.repeat):
@@ -527,7 +537,8 @@ def _command_view(args) -> int:
         sh_degree=args.sh_degree, frames=args.frames, screenshot=args.screenshot,
         screenshot_dir=args.screenshot_dir, screenshot_scale=args.screenshot_scale, vsync=not args.no_vsync,
         navigation="orbit" if args.orbit else "fly", up_axis=args.up_axis, platform=args.window_platform,
-        turntable=args.turntable, window_screenshot=args.window_screenshot, **_accuracy_settings(args),
+        turntable=args.turntable, window_screenshot=args.window_screenshot, general=args.general,
+        **_accuracy_settings(args),
         **_viewer_stereo_options(args))
     return app.run_viewer(options)
 

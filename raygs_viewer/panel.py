@@ -76,6 +76,13 @@ def _statistics(viewer) -> None:
     imgui.text(f"visible {stats.visible:,} of {viewer.loaded.scene.count:,}, order {age}")
     _tooltip(f"sorts: {sorter.requested} asked, {sorter.finished} done, {sorter.superseded} skipped "
              f"(superseded by a newer view before they started)")
+    work = viewer.renderer.counters
+    imgui.text(f"{'general' if viewer.renderer.general else 'specialised'} shaders, "
+               f"preprocess {work.preprocessed} run / {work.preprocess_skipped} skipped")
+    _tooltip("specialised: each shader variant carries only the features the scene and the settings use\n"
+             "(--general: one variant switches all of them at run time, to compare).\n"
+             f"preprocessing is skipped when the view has not changed; order uploads: {work.uploads} done, "
+             f"{work.upload_skipped} skipped (the order had not changed)")
     imgui.separator()
 
 

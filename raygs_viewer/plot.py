@@ -125,11 +125,12 @@ def _padded_range(values: list[float], log: bool) -> tuple[float, float]:
 
 def scatter_panels(panels: list[Panel], *, title: str, x_label: str, y_label: str,
                    series: list[tuple[str, tuple[int, int, int]]],
-                   groups: list[tuple[str, str]] = ()) -> Image.Image:
+                   groups: list[tuple[str, str]] = (), log_y: bool = False) -> Image.Image:
     """An RGB image: one panel per entry of ``panels`` side by side (x logarithmic, y
-    linear, each panel with its own ranges), a title above and a legend on the right
-    listing ``series`` (label, colour) and ``groups`` (label, marker shape).
-    Points with a non-finite coordinate or x <= 0 are left out."""
+    linear or, with ``log_y``, logarithmic; each panel with its own ranges), a title
+    above and a legend on the right listing ``series`` (label, colour) and ``groups``
+    (label, marker shape). Points with a non-finite coordinate, x <= 0 or (log_y) y <= 0
+    are left out."""
     font, small, big = _font(14), _font(12), _font(17)
     width = PANEL_WIDTH * max(len(panels), 1) + LEGEND_WIDTH
     height = PANEL_HEIGHT + TITLE_HEIGHT
@@ -142,15 +143,19 @@ def scatter_panels(panels: list[Panel], *, title: str, x_label: str, y_label: st
         ox, oy = index * PANEL_WIDTH, TITLE_HEIGHT
         left, right = ox + MARGIN_LEFT, ox + PANEL_WIDTH - MARGIN_RIGHT
         top, bottom = oy + MARGIN_TOP, oy + PANEL_HEIGHT - MARGIN_BOTTOM
-        points = [p for p in panel.points if math.isfinite(p.x) and math.isfinite(p.y) and p.x > 0]
+        points = [p for p in panel.points if math.isfinite(p.x) and math.isfinite(p.y) and p.x > 0
+                  and (p.y > 0 or not log_y)]
         xs = [p.x for p in points] + [g for g in panel.guides_x if g > 0]
         ys = [p.y for p in points]
         x_low, x_high = _padded_range(xs or [1.0], log=True)
-        y_low, y_high = _padded_range(ys or [0.0], log=False)
+        y_low, y_high = _padded_range(ys or [1.0 if log_y else 0.0], log=log_y)
 
         def to_px(x: float, y: float) -> tuple[float, float]:
             fx = (math.log10(x) - math.log10(x_low)) / (math.log10(x_high) - math.log10(x_low))
-            fy = (y - y_low) / (y_high - y_low)
+            if log_y:
+                fy = (math.log10(y) - math.log10(y_low)) / (math.log10(y_high) - math.log10(y_low))
+            else:
+                fy = (y - y_low) / (y_high - y_low)
             return left + fx * (right - left), bottom - fy * (bottom - top)
 
         tw, th = _text_size(draw, panel.title, font)
@@ -162,7 +167,7 @@ def scatter_panels(panels: list[Panel], *, title: str, x_label: str, y_label: st
             label = _tick_label(tick)
             lw, _ = _text_size(draw, label, small)
             draw.text((x - lw / 2, bottom + 6), label, fill=(0, 0, 0), font=small)
-        for tick in linear_ticks(y_low, y_high):
+        for tick in (log_ticks if log_y else linear_ticks)(y_low, y_high):
             _, y = to_px(x_low, tick)
             draw.line((left, y, right, y), fill=(232, 232, 232))
             draw.line((left - 4, y, left, y), fill=(0, 0, 0))

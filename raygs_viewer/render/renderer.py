@@ -286,15 +286,17 @@ class GLRenderer:
         count, floats = self.scene.count, self._last_layout.splat_bytes // 4
         return np.frombuffer(self._splats.read(size=count * floats * 4), np.float32).reshape(count, floats)
 
-    def draw(self, camera: Camera, settings: RenderSettings, order: np.ndarray) -> None:
+    def draw(self, camera: Camera, settings: RenderSettings, order: np.ndarray, *, floor: bool = False) -> None:
         """Draws the quads of ``order`` (back to front) into the bound framebuffer, as
-        the last :meth:`preprocess` (same camera and settings) prepared them."""
+        the last :meth:`preprocess` (same camera and settings) prepared them.
+        ``floor``: the same quads with a constant, never discarded fragment instead
+        (glsl/quads.*): the least this rasterizer can spend on them (bench perf)."""
         if order.size == 0:
             return
         if order.size > self.scene.count:
             raise ValueError("order longer than the scene")
         layout, count = self._layout(self._splat_bytes(settings)), self.scene.count
-        program, vao = self._draw_program(settings, layout)
+        program, vao = self._draw_program(settings, layout, floor)
         self.upload_order(order)
         self._order.bind_to_storage_buffer(0, size=order.size * 4)
         for block in range(layout.splat_blocks):
@@ -306,7 +308,7 @@ class GLRenderer:
         _set_uniform(program, "u_image_size", (camera.width, camera.height))
         _set_uniform(program, "u_pixel_variance", settings.pixel_variance(camera))
         _set_uniform(program, "u_order_count", int(order.size))
-        program["u_p_min"].value = settings.p_min
+        _set_uniform(program, "u_p_min", settings.p_min)
         if self.general:
             _set_general_uniforms(program, settings, self.scene.sh_degree)
         ctx = self.ctx
@@ -335,20 +337,22 @@ class GLRenderer:
         self._uploaded_order = order
         self.counters.uploads += 1
 
-    def _draw_program(self, settings: RenderSettings, layout: StorageLayout):
+    def _draw_program(self, settings: RenderSettings, layout: StorageLayout, floor: bool = False):
         problem = self.supports(settings)
         if problem:
             raise UserError(problem)
         gs = settings.mode == "gs"
+        if floor and gs:
+            raise ValueError("the floor pass draws RayGS quads; EWA's records are not quads in space")
         defines = {"SPLAT_BLOCKS": layout.splat_blocks, "SPLATS_PER_BLOCK": layout.splats_per_block,
                    "EXACT_MIP": int(settings.mode == "raygs-exact-mip"),
                    "ALPHA_MAX": _glsl_float(ALPHA_CLAMP),
                    "FRONT_TO_BACK": int(settings.transmittance_cutoff),
                    "MIN_TRANSMITTANCE": _glsl_float(TRANSMITTANCE_CUTOFF),
                    **self._feature_defines(settings)}
-        key = (gs, *sorted(defines.items()))
+        key = (gs, floor, *sorted(defines.items()))
         if key not in self._draw_programs:
-            stage = "gs" if gs else "raygs"
+            stage = "quads" if floor else "gs" if gs else "raygs"
             program = self.ctx.program(vertex_shader=shader_source(f"{stage}.vert", defines),
                                        fragment_shader=shader_source(f"{stage}.frag", defines))
             self._draw_programs[key] = program, self.ctx.vertex_array(program, [])
