@@ -74,15 +74,14 @@ def _statistics(viewer) -> None:
              "sort: the last depth sort, on a background thread")
     age = "up to date" if stats.order_age == 0 else f"{stats.order_age} frames old"
     imgui.text(f"visible {stats.visible:,} of {viewer.loaded.scene.count:,}, order {age}")
-    _tooltip(f"sorts: {sorter.requested} asked, {sorter.finished} done, {sorter.superseded} skipped "
-             f"(superseded by a newer view before they started)")
     work = viewer.renderer.counters
-    imgui.text(f"{'general' if viewer.renderer.general else 'specialised'} shaders, "
-               f"preprocess {work.preprocessed} run / {work.preprocess_skipped} skipped")
-    _tooltip("specialised: each shader variant carries only the features the scene and the settings use\n"
-             "(--general: one variant switches all of them at run time, to compare).\n"
-             f"preprocessing is skipped when the view has not changed; order uploads: {work.uploads} done, "
-             f"{work.upload_skipped} skipped (the order had not changed)")
+    _tooltip(f"sorts: {sorter.requested} asked, {sorter.finished} done, {sorter.superseded} skipped "
+             f"(superseded by a newer view before they started)\n"
+             f"{'general' if viewer.renderer.general else 'specialised'} shaders: "
+             + ("one variant switches every feature at run time (--general)" if viewer.renderer.general else
+                "each variant carries only the features the scene and the settings use") + "\n"
+             f"preprocessing: {work.preprocessed} passes, {work.preprocess_skipped} skipped (same view)\n"
+             f"order uploads: {work.uploads}, {work.upload_skipped} skipped (same order)")
     imgui.separator()
 
 
