@@ -16,10 +16,11 @@ uniform float u_pixel_variance;  // sigma_x^2: the filter's variance at unit dis
 void main() {
     float r2 = dot(v_plane, v_plane);
     float divergence = r2 / (1.0 + r2 / v_c2_kappa.x);
-#if EXACT_MIP
-    // The quad bounds the support of the widest filter this gaussian can get; outside
-    // that support the exact opacity is below p_min too.
+    // Outside the support (D > kappa) the opacity is below p_min: no exp to find that out.
+    // EXACT_MIP: the quad bounds the support of the widest filter this gaussian can get;
+    // outside that support the exact opacity is below p_min too.
     if (divergence > v_c2_kappa.y) discard;
+#if EXACT_MIP
     vec3 point = v_local_center + v_offset;                // on the pixel's ray
     vec3 ray = normalize(point);
     vec3 s2 = v_scale * v_scale;
