@@ -5,7 +5,7 @@
 // sigma_x^2 tau^2 I only widens the scales.
 in vec2 v_plane;
 flat in vec4 v_color_opacity;
-flat in vec2 v_c2_kappa;
+flat in vec2 v_inv_c2_kappa;
 #if EXACT_MIP
 in vec3 v_offset;             // the quad point relative to the centre (rotated frame)
 flat in vec3 v_local_center;
@@ -15,11 +15,11 @@ uniform float u_pixel_variance;  // sigma_x^2: the filter's variance at unit dis
 
 void main() {
     float r2 = dot(v_plane, v_plane);
-    float divergence = r2 / (1.0 + r2 / v_c2_kappa.x);
+    float divergence = r2 / (1.0 + r2 * v_inv_c2_kappa.x);
     // Outside the support (D > kappa) the opacity is below p_min: no exp to find that out.
     // EXACT_MIP: the quad bounds the support of the widest filter this gaussian can get;
     // outside that support the exact opacity is below p_min too.
-    if (divergence > v_c2_kappa.y) discard;
+    if (divergence > v_inv_c2_kappa.y) discard;
 #if EXACT_MIP
     vec3 point = v_local_center + v_offset;                // on the pixel's ray
     vec3 ray = normalize(point);

@@ -5,7 +5,7 @@ uniform mat4 u_projection;  // OpenCV camera space -> clip space
 
 out vec2 v_plane;            // position in the quad's plane, whitened units (z of Eq. 16)
 flat out vec4 v_color_opacity;
-flat out vec2 v_c2_kappa;
+flat out vec2 v_inv_c2_kappa;  // 1 / c^2 (one division per quad, not per fragment), kappa
 #if EXACT_MIP
 out vec3 v_offset;           // the quad point minus the centre, in the gaussian's rotated frame
 flat out vec3 v_local_center;
@@ -15,7 +15,7 @@ flat out vec3 v_scale;
 void main() {
     Splat s = this_instance_splat();
     v_color_opacity = vec4(s.color.rgb, s.axis1_opacity.w);
-    v_c2_kappa = vec2(s.center_c2.w, s.color.a);
+    v_inv_c2_kappa = vec2(1.0 / s.center_c2.w, s.color.a);
 #if EXACT_MIP
     v_local_center = s.local_center.xyz;
     v_scale = vec3(s.local_center.w, s.local_axis0.w, s.local_axis1.w);
