@@ -431,7 +431,7 @@ def draw_plot(results: PerfResults):
     sizes = [s for s in SIZES if any(c.kind == s for c in results.cases)]
     panels = []
     for width, height in results.options.resolutions:
-        panel = Panel(f"{width}×{height}")
+        panel = Panel(f"{width} x {height}")  # the plot's font has no multiplication sign
         for c in results.cases:
             if c.kind in SIZES and (c.width, c.height) == (width, height):
                 color = PALETTE[sizes.index(c.kind) % len(PALETTE)]
@@ -441,7 +441,7 @@ def draw_plot(results: PerfResults):
         panels.append(panel)
     series = [(f"{size} ({SIZES[size]:g} px std. dev. at 720 rows)", PALETTE[i % len(PALETTE)])
               for i, size in enumerate(sizes)]
-    return scatter_panels(panels, title=f"Frame time against N ({results.device.split(',')[0]})",
+    return scatter_panels(panels, title=f"Frame time against N ({results.device.split(' (')[0]})",
                           x_label="gaussians", y_label="ms per frame (log)", series=series,
                           groups=[("RayGS", "circle"), ("GS (EWA)", "square")], log_y=True)
 
