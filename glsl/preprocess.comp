@@ -6,8 +6,8 @@
 //   EXACT_MIP        RayGS with the pixel-dependent filter: the quad bounds the widest
 //                    filter a pixel can apply; the fragments evaluate the filter.
 // Feature switches (features.glsl): SH_DEGREE, MIP, MIP_MODULATION, GS_COMPENSATION;
-// COLOR_AT_LOAD: binding 1 holds each gaussian's RGB, computed once at load (SH degree
-// 0 is view-independent), instead of SH coefficients.
+// COLOR_AT_LOAD: binding 1 holds each gaussian's RGB (and a pad), computed once at load
+// (SH degree 0 is view-independent), instead of SH coefficients.
 layout(local_size_x = 128) in;
 
 #include "features.glsl"
@@ -37,10 +37,11 @@ uniform vec4 u_ray_bounds;       // GS: the clamp box of x/z, y/z (lower xy, upp
 const float MAX_HALF_SIZE = 1.0e4;
 
 // The scene stores SH_STORED_DEGREE bands; SH_DEGREE (<= it) are evaluated.
-const uint COEFFS = COLOR_AT_LOAD ? 1u : uint((SH_STORED_DEGREE + 1) * (SH_STORED_DEGREE + 1));
+const uint COEFFS = uint((SH_STORED_DEGREE + 1) * (SH_STORED_DEGREE + 1));
 uint g_index;
 vec3 coeff(int k) {
-    uint base = (g_index * COEFFS + uint(k)) * 3u;
+    // Colours at load are padded to 16 bytes, so every chunk's range stays aligned.
+    uint base = COLOR_AT_LOAD ? g_index * 4u : (g_index * COEFFS + uint(k)) * 3u;
     return vec3(harmonics[base], harmonics[base + 1u], harmonics[base + 2u]);
 }
 #include "sh.glsl"

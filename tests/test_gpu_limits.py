@@ -71,7 +71,7 @@ class RecordingContext:
 def test_a_memory_limit_refuses_the_scene_before_any_upload(gl_ctx):
     scene = random_scene(n=1000, seed=2, degree=3)
     needed = gpu_bytes(1000, 3)
-    assert needed == 1000 * (48 + 16 * 12 + 12 + 112 + 4)  # gaussians, SH, colours at load, records, order
+    assert needed == 1000 * (48 + 16 * 12 + 16 + 112 + 4)  # gaussians, SH, colours at load, records, order
     ctx = RecordingContext(gl_ctx)
     with pytest.raises(UserError) as info:
         GLRenderer(ctx, scene, memory_limit=needed - 1)
@@ -123,3 +123,18 @@ def test_storage_layout_never_exceeds_the_limit():
                 assert layout.splats_per_block * splat_bytes <= limit
                 assert layout.chunk * max(48, 16 * 12, splat_bytes) <= limit
                 assert layout.splat_blocks * layout.splats_per_block >= count
+
+
+def test_colours_at_load_stay_aligned_under_a_small_block_limit(gl_ctx):
+    # SH 3 records (192 bytes) make 32-gaussian chunks at 8 KiB: the colours at load
+    # must still start every chunk at an aligned offset, and draw what the SH does.
+    from raygs_viewer.render.renderer import COLOR_BYTES, RANGE_ALIGNMENT
+    scene = random_scene(n=300, seed=4, degree=3)
+    camera = look_at([0.0, 0.0, -4.0], [0.0, 0.0, 0.0], width=64, height=48)
+    small = GLRenderer(gl_ctx, scene, block_limit=8192)
+    assert small.layout.chunk * COLOR_BYTES % RANGE_ALIGNMENT == 0 and small.layout.chunk < scene.count
+    whole = GLRenderer(gl_ctx, scene.with_sh_degree(0))
+    settings = RenderSettings(sh_degree=0)
+    assert np.array_equal(small.render(camera, settings), whole.render(camera, settings))
+    small.release()
+    whole.release()

@@ -201,7 +201,9 @@ def test_colour_buffer_is_computed_once(gl_ctx, make_renderer, monkeypatch):
     colors = renderer._colors
     assert colors is not None
     expected = np.maximum(SH_C0 * scene.sh[:, 0, :].astype(np.float64) + 0.5, 0.0).astype(np.float32)
-    np.testing.assert_array_equal(np.frombuffer(colors.read(), np.float32).reshape(-1, 3), expected)
+    stored = np.frombuffer(colors.read(), np.float32).reshape(-1, 4)  # RGB and a zero pad (16-byte records)
+    np.testing.assert_array_equal(stored[:, :3], expected)
+    assert not stored[:, 3].any()
     made = []
     original = moderngl.Context.buffer
     monkeypatch.setattr(moderngl.Context, "buffer", lambda self, *a, **k: made.append(k) or original(self, *a, **k))

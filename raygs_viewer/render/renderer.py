@@ -43,7 +43,7 @@ RANGE_ALIGNMENT = 256
 
 GAUSSIAN_BYTES = 48  # struct Gaussian in preprocess.comp
 SPLAT_BYTES = 64     # struct Splat in splat.glsl
-COLOR_BYTES = 12     # RGB computed at load, for SH degree 0
+COLOR_BYTES = 16     # RGB computed at load, for SH degree 0, padded so chunk ranges stay aligned
 EXACT_MIP_SPLAT_BYTES = 112  # ... with EXACT_MIP's three extra vec4
 GL_EXT_FRAMEBUFFER_FETCH = "GL_EXT_shader_framebuffer_fetch"
 MAX_SPLAT_BLOCKS = 8  # bindings raygs.vert declares
@@ -75,7 +75,7 @@ class StorageLayout:
     @classmethod
     def plan(cls, count: int, harmonics_bytes: int, block_limit: int, alignment: int = RANGE_ALIGNMENT,
              splat_bytes: int = SPLAT_BYTES) -> "StorageLayout":
-        record_bytes = (GAUSSIAN_BYTES, harmonics_bytes, splat_bytes)
+        record_bytes = (GAUSSIAN_BYTES, harmonics_bytes, COLOR_BYTES, splat_bytes)
         splats_per_block = _power_of_two_at_most(block_limit // splat_bytes)
         chunk = min(_power_of_two_at_most(block_limit // max(record_bytes)), splats_per_block, MAX_CHUNK)
         # Every bound offset is a multiple of chunk * record size: keep those aligned.
@@ -247,10 +247,12 @@ class GLRenderer:
         return not self.general and settings.effective_sh_degree(self.scene.sh_degree) == 0
 
     def _color_buffer(self) -> moderngl.Buffer:
-        """(N, 3) float32 RGB of SH degree 0, view-independent: computed once, on first use."""
+        """(N, 4) float32: RGB of SH degree 0 (view-independent) and a zero pad;
+        computed once, on first use."""
         if self._colors is None:
-            dc = self.scene.sh[:, 0, :].astype(np.float64)
-            self._colors = _buffer(self.ctx, np.maximum(SH_C0 * dc + 0.5, 0.0))
+            colors = np.zeros((self.scene.count, 4))
+            colors[:, :3] = np.maximum(SH_C0 * self.scene.sh[:, 0, :].astype(np.float64) + 0.5, 0.0)
+            self._colors = _buffer(self.ctx, colors)
         return self._colors
 
     def _preprocess_program(self, settings: RenderSettings) -> moderngl.ComputeShader:
