@@ -491,11 +491,8 @@ def add_parser(kinds, count) -> None:
 
 
 def _resolution(text: str) -> tuple[int, int]:
-    parts = text.lower().split("x")
-    try:
-        width, height = (int(p) for p in parts)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"'{text}' is not WIDTHxHEIGHT, e.g. 1280x720") from None
+    from raygs_viewer.cli import _size  # the CLI's own WxH type (cli imports bench)
+    width, height = _size(text)
     if not (1 <= width <= 16384 and 1 <= height <= 16384):
         raise argparse.ArgumentTypeError(f"'{text}': each side must be 1..16384 pixels")
     return width, height
