@@ -307,12 +307,18 @@ def shared_scenes_dir() -> Path | None:
 
 def default_scenes(quick: bool) -> tuple[tuple[str, ...], list[str]]:
     """The demo plus the real scenes found in the shared folder; notes for those absent."""
-    names = QUICK_REAL_SCENES if quick else REAL_SCENES
+    found, notes = shared_scene_paths(QUICK_REAL_SCENES if quick else REAL_SCENES)
+    return (DEMO, *found), notes
+
+
+def shared_scene_paths(names: tuple[str, ...]) -> tuple[tuple[str, ...], list[str]]:
+    """The paths (relative to the current directory) of those of ``names`` found in the
+    shared scenes folder, and a note for each one missing."""
     folder = shared_scenes_dir()
     if folder is None:
-        return (DEMO,), ["no ../shared/scenes folder next to the current directory or the repository: "
-                         "benchmarking the demo scene only"]
-    found, notes = [DEMO], []
+        return (), ["no ../shared/scenes folder next to the current directory or the repository: "
+                    "benchmarking without the real scenes"]
+    found, notes = [], []
     for name in names:
         path = folder / name
         if path.is_file():

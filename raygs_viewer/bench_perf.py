@@ -522,20 +522,12 @@ def command_line(args: argparse.Namespace) -> str:
 
 def options_from_args(args: argparse.Namespace) -> PerfOptions:
     """Checks everything that can be checked before any work."""
-    from raygs_viewer.bench import shared_scenes_dir
+    from raygs_viewer.bench import shared_scene_paths
     notes: list[str] = []
     if args.scenes is not None:
         scenes = tuple(args.scenes)
     else:
-        names = QUICK_REAL_SCENES if args.quick else REAL_SCENES
-        folder = shared_scenes_dir()
-        found = []
-        for name in names:
-            if folder is not None and (folder / name).is_file():
-                found.append(os.path.relpath(folder / name))
-            else:
-                notes.append(f"{name} not found in ../shared/scenes: skipped")
-        scenes = tuple(found)
+        scenes, notes = shared_scene_paths(QUICK_REAL_SCENES if args.quick else REAL_SCENES)
     report = None if args.report is None else check_output_path(args.report, args.overwrite, (".md",))
     plot = None if args.plot is None else check_output_path(args.plot, args.overwrite, (".png",))
     if report is not None and plot is not None and os.path.abspath(report) == os.path.abspath(plot):
