@@ -1,3 +1,3 @@
-from raygs_viewer.cli import main
+from raygs_viewer.cli.main import main
 
 raise SystemExit(main())

@@ -6,13 +6,13 @@ from __future__ import annotations
 import time
 
 import numpy as np
-from imgui_bundle import imgui  # before glfw (see raygs_viewer.window)
+from imgui_bundle import imgui  # before glfw (see raygs_viewer.viewer.window)
 
-from raygs_viewer.app import Viewer, ViewerOptions
-from raygs_viewer.imageio import to_rgb8
-from raygs_viewer.loader import load_now
-from raygs_viewer.settings import RenderSettings
-from raygs_viewer.sort_worker import BackgroundSorter
+from raygs_viewer.capture.image_io import to_rgb8
+from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.scene.loader import load_now
+from raygs_viewer.sort.worker import BackgroundSorter
+from raygs_viewer.viewer.app import Viewer, ViewerOptions
 
 WIDTH, HEIGHT = 192, 144
 PANEL_WIDTH, PANEL_HEIGHT = 640, 720  # room for the whole panel
@@ -88,7 +88,7 @@ class Driver:
 
 
 def _start_camera(options):
-    from raygs_viewer.app import start_camera
+    from raygs_viewer.viewer.app import start_camera
     return start_camera(ViewerOptions(camera=options.get("camera")))
 
 
@@ -121,7 +121,7 @@ def split_expected(a: np.ndarray, b: np.ndarray, column: int) -> np.ndarray:
 
 def click_choice(drive: "Driver", tag: str, value: str) -> None:
     """Opens the panel's combo ``tag`` and picks ``value`` from it."""
-    from raygs_viewer.panel import item_rects
+    from raygs_viewer.viewer.panel import item_rects
     drive.click(item_rects[tag])
     drive.frames(1)  # a popup's first frame places it; it is where it stays from the second on
     drive.click(item_rects[f"{tag} {value}"])

@@ -9,7 +9,7 @@ settings.register_profile("ci", derandomize=True)
 if os.environ.get("CI"):
     settings.load_profile("ci")
 
-from raygs_viewer.render.context import create_headless_context
+from raygs_viewer.render.gl.context import create_headless_context
 
 
 @pytest.fixture(scope="session")
@@ -31,8 +31,8 @@ def gl_ctx(gl_session_ctx):
 @pytest.fixture(scope="session")
 def gl_render(gl_session_ctx):
     """render(scene, camera, settings=..., **renderer_options) -> float32 (H, W, 4)."""
-    from raygs_viewer.render.renderer import GLRenderer
-    from raygs_viewer.settings import RenderSettings
+    from raygs_viewer.render.gl.renderer import GLRenderer
+    from raygs_viewer.render.settings import RenderSettings
 
     def render(scene, camera, settings=RenderSettings(), order=None, depth_clamp=True, **options):
         # Current again: a test before may have made another context current (the CLI's,
@@ -60,7 +60,7 @@ def restore_gl_ctx(gl_ctx):
 @pytest.fixture(scope="session")
 def demo():
     """The built-in demo scene (generating it takes a fraction of a second)."""
-    from raygs_viewer.demo import demo_scene
+    from raygs_viewer.scene.demo import demo_scene
     return demo_scene()
 
 
@@ -68,7 +68,7 @@ def demo():
 def demo_renderer(gl_session_ctx, demo):
     """A GLRenderer of the demo on the session context. Tests that create and release
     another context in this thread (the CLI's, a viewer's) use it inside ``with gl_ctx:``."""
-    from raygs_viewer.render.renderer import GLRenderer
+    from raygs_viewer.render.gl.renderer import GLRenderer
     with gl_session_ctx:
         renderer = GLRenderer(gl_session_ctx, demo)
     yield renderer

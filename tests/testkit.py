@@ -6,10 +6,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from plyfile import PlyData, PlyElement
 
+from raygs_viewer.camera.pinhole import Camera, look_at
+from raygs_viewer.capture.sidecar import build_sidecar, demo_sha256
+from raygs_viewer.cli.main import main
 from raygs_viewer.errors import UserError
-
-from raygs_viewer.scene import Scene, sh_coefficient_count
+from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.scene.demo import demo_scene
+from raygs_viewer.scene.model import Scene, sh_coefficient_count
 
 SHARED_SCENES = Path(__file__).resolve().parents[2] / "shared" / "scenes"
 
@@ -103,3 +108,146 @@ def assert_user_error(call, path, *fragments):
     for fragment in fragments:
         assert fragment in message, message
     return message
+
+
+# ------------------------------------------------ files, CLI runs and sidecars the tests share
+
+
+_NP_TYPES = {"float": "f4", "double": "f8", "uchar": "u1", "char": "i1", "short": "i2",
+             "ushort": "u2", "int": "i4", "uint": "u4"}
+
+
+def gaussian_columns(n=4, degree=0, seed=0, normals=False, filter_3d=None):
+    """Ordered {name: float64 values} for n valid gaussians in the INRIA layout."""
+    rng = np.random.default_rng(seed)
+    cols = {}
+    for name in ("x", "y", "z"):
+        cols[name] = rng.uniform(-5, 5, n)
+    if normals:
+        for name in ("nx", "ny", "nz"):
+            cols[name] = np.zeros(n)
+    for c in range(3):
+        cols[f"f_dc_{c}"] = rng.uniform(-1, 1, n)
+    k = (degree + 1) ** 2 - 1
+    for j in range(3 * k):
+        cols[f"f_rest_{j}"] = 1000.0 * np.arange(n) + j  # distinct per (gaussian, channel, coefficient)
+    cols["opacity"] = rng.uniform(-4, 4, n)
+    for a in range(3):
+        cols[f"scale_{a}"] = rng.uniform(-6, 0, n)
+    for a in range(4):
+        cols[f"rot_{a}"] = rng.uniform(-2, 2, n)
+    if filter_3d is not None:
+        cols["filter_3D"] = np.broadcast_to(np.asarray(filter_3d, np.float64), (n,)).copy()
+    return cols
+
+
+def ply_bytes(columns, *, types=None, count=None, fmt="binary_little_endian", nl="\n",
+              elements_before=(), elements_after=(), header_lines=None):
+    """Raw PLY bytes. columns: ordered {name: values}; types: {name: ply type} (default float).
+
+    elements_before / elements_after: (header text, raw data bytes) pairs.
+    header_lines: replace the whole header (a list of lines, without 'ply').
+    """
+    types = types or {}
+    names = list(columns)
+    n = len(next(iter(columns.values()))) if columns else 0
+    endian = ">" if fmt == "binary_big_endian" else "<"
+    dtype = np.dtype([(name, endian + _NP_TYPES[types.get(name, "float")]) for name in names])
+    rows = np.zeros(n, dtype)
+    for name in names:
+        rows[name] = columns[name]
+    if header_lines is None:
+        header_lines = [f"format {fmt} 1.0", "comment written by test_scene_io"]
+        header_lines += [h for h, _ in elements_before]
+        header_lines.append(f"element vertex {n if count is None else count}")
+        header_lines += [f"property {types.get(name, 'float')} {name}" for name in names]
+        header_lines += [h for h, _ in elements_after]
+        header_lines.append("end_header")
+    header = nl.join(["ply"] + header_lines) + nl
+    return (header.encode("ascii") + b"".join(d for _, d in elements_before) + rows.tobytes()
+            + b"".join(d for _, d in elements_after))
+
+
+def write_ply(path, columns, **kwargs):
+    path.write_bytes(ply_bytes(columns, **kwargs))
+    return path
+
+
+def splat_bytes(positions, scales, rgba, quat_bytes):
+    dtype = np.dtype([("p", "<f4", (3,)), ("s", "<f4", (3,)), ("c", "u1", (4,)), ("q", "u1", (4,))])
+    rows = np.zeros(len(positions), dtype)
+    rows["p"], rows["s"], rows["c"], rows["q"] = positions, scales, rgba, quat_bytes
+    assert dtype.itemsize == 32
+    return rows.tobytes()
+
+
+INRIA_PROPERTIES = ["x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
+                    "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3"]
+
+
+def write_inria_ply(path, n=5, seed=0, spread=0.5):
+    """A small INRIA PLY (SH degree 0, float32 properties) written with plyfile: gaussians
+    of 0.03..0.08 around the origin, opaque-ish."""
+    rng = np.random.default_rng(seed)
+    rows = np.zeros(n, dtype=[(name, "<f4") for name in INRIA_PROPERTIES])
+    for axis, name in enumerate("xyz"):
+        rows[name] = rng.uniform(-spread, spread, n)
+    for c in range(3):
+        rows[f"f_dc_{c}"] = rng.uniform(-1, 1, n)
+    rows["opacity"] = rng.uniform(1.0, 3.0, n)            # sigmoid: 0.73..0.95
+    for a in range(3):
+        rows[f"scale_{a}"] = np.log(rng.uniform(0.03, 0.08, n))
+    q = rng.normal(size=(n, 4))
+    for a in range(4):
+        rows[f"rot_{a}"] = q[:, a]
+    PlyData([PlyElement.describe(rows, "vertex")], text=False, byte_order="<").write(str(path))
+    return path
+
+
+def run_cli(capsys, *argv):
+    """main(argv) -> (return code, stdout, stderr)."""
+    code = main([str(a) for a in argv])
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def assert_one_line_error(code, err):
+    assert code == 2, err
+    assert "Traceback" not in err
+    assert err.startswith("error: "), err
+    assert err.endswith("\n") and err.count("\n") == 1, repr(err)
+    return err
+
+
+def listing(folder):
+    return sorted(p.name for p in Path(folder).iterdir())
+
+
+SETTINGS = RenderSettings(p_min=0.02, background=(0.1, 0.2, 0.3), sh_degree=1)
+
+
+def window_camera(width=64, height=48):
+    """Like a camera the window produces after some navigation: an arbitrary float64
+    pose (digits that JSON must not lose), fx != fy, off-centre principal point."""
+    pose = look_at([0.6123456789012345, -1.1 / 3, -4.2 - 1e-13], [0.2, 0.1 + 1e-9, 1.0 / 7])
+    return Camera(width, height, 70.0 / 3 * width / 21, 55.0 * height / 48 + 1e-11, width / 2 - 1.0 / 3,
+                  height / 2 + 0.125, pose.R, pose.t)
+
+
+def demo_sidecar(camera=None, settings=SETTINGS, scale=1.0, **kwargs):
+    camera = camera or window_camera()
+    return build_sidecar(scene_path="demo", scene_sha256=demo_sha256(), scene=demo_scene_cached(), camera=camera,
+                         settings=settings, scale=scale, **kwargs)
+
+
+_DEMO = []
+
+
+def demo_scene_cached():
+    if not _DEMO:
+        _DEMO.append(demo_scene())
+    return _DEMO[0]
+
+
+DEMO_ARRAYS_SHA256 = "681ba16b73b4b817a049a853be122a212abe52c7cd0cf34d9f0bb0c41c312ef4"
+

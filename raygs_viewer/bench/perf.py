@@ -1,0 +1,556 @@
+"""``raygs-viewer bench perf``: where a frame's time goes, stage by stage, and what the
+savings are worth, measured side by side in one run.
+
+Each case (generated gaussians, small or large on screen, or a real scene, at one
+resolution) renders ``frames`` frames of a moving view: the camera alternates between
+two views 0.1 degree apart, so that culling, the sort, the upload and the
+preprocessing all run every frame, as they do while the user flies. Every stage is
+timed on the CPU with the GPU drained before and after it (``ctx.finish``), and the
+preprocessing and draw also with GPU timer queries. The stages:
+
+- cull: :meth:`DepthSorter.cull` (conservative: nothing whose support reaches the view is dropped);
+- sort: :meth:`DepthSorter.sort` (uint16 keys, numpy's radix sort);
+- upload: the order into its storage buffer;
+- preprocess: the compute pass writing every gaussian's per-view record;
+- draw: the instanced quads into a float32 target.
+
+In the same frames, interleaved so that drift affects all alike, each case also times
+EWA splatting (GS) with its own order, the floor pass (the same quads with a constant
+fragment), the general shader variant, and a float argsort of the same depths. The
+ratios, each a ratio of medians over the frames:
+
+- ``RayGS/GS``: preprocess + draw, RayGS over EWA splatting;
+- ``RayGS/quads``: the draw over the floor pass's;
+- ``specialised/general``: preprocess + draw, the specialised variant over the general one;
+- ``radix/argsort``: the uint16 radix sort over a float32 argsort of the same depths;
+- ``fragments-kept``: fragments that pass the p_min cut-off over those the quads
+  rasterize (samples-passed queries; how tight the quads are).
+
+Each is printed per case as ``NAME@CASE VALUE`` and, as the median over the cases, as
+``NAME VALUE``.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import shlex
+import sys
+import time
+from dataclasses import dataclass, field, replace
+from pathlib import Path
+
+import numpy as np
+
+from raygs_viewer.camera.pinhole import Camera, look_at
+from raygs_viewer.capture.image_io import check_output_path
+from raygs_viewer.errors import UserError
+from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.scene.model import Scene, sh_coefficient_count
+
+STAGES = ("cull", "sort", "upload", "preprocess", "draw")
+RATIOS = ("RayGS/GS", "RayGS/quads", "specialised/general", "radix/argsort", "fragments-kept")
+RATIO_TARGETS = {"RayGS/GS": "<= 1.10", "RayGS/quads": "<= 1.5"}
+
+COUNTS = (10_000, 100_000, 1_000_000)
+QUICK_COUNTS = (10_000, 100_000)
+RESOLUTIONS = ((1280, 720), (1920, 1080))
+QUICK_RESOLUTIONS = ((1280, 720),)
+#: Footprint of a generated gaussian: its mean standard deviation in pixels at 720 rows
+#: (its quad, at p_min 1/255 and opacity 0.6, is about 6.5 of them across).
+SIZES = {"small": 1.0, "large": 4.0}
+GENERATED_SH_DEGREE = 3  # as trained scenes have
+DEFAULT_FRAMES = 10
+QUICK_REAL_SCENES = ("ss-fruit_drops_minimal.ply",)
+REAL_SCENES = ("ss-fruit_drops_minimal.ply", "donut-mip-fused.ply", "gs3d-pr477-lod3_tile_0.ply",
+               "schwa-centered_lastchance.splat")
+#: The two views of a case differ by this rotation about the camera's own y axis.
+NUDGE_DEGREES = 0.1
+GENERATED_DISTANCE = 3.0
+GENERATED_FOV_Y = 60.0
+DEFAULT_REPORT = "docs/performance-figures.md"
+DEFAULT_PLOT = "docs/images/performance.png"
+_INVALID_ELAPSED = 0xFFFFFFFF
+
+
+# --- cases ----------------------------------------------------------------------------------------
+
+def count_label(count: int) -> str:
+    if count >= 1_000_000 and count % 1_000_000 == 0:
+        return f"{count // 1_000_000}M"
+    if count >= 1000 and count % 1000 == 0:
+        return f"{count // 1000}k"
+    return str(count)
+
+
+def generated_scene(count: int, size: str, seed: int = 0) -> Scene:
+    """``count`` gaussians filling a cube of side 2 at the origin, every one in view of
+    :func:`generated_camera`: random rotations, anisotropic scales around ``SIZES[size]``
+    pixels (at 720 rows, seen from the cube's centre distance), opacities 0.2..1, SH
+    degree 3 with small view-dependent terms."""
+    if size not in SIZES:
+        raise UserError(f"unknown footprint '{size}': use one of {', '.join(SIZES)}")
+    rng = np.random.default_rng(seed)
+    positions = rng.uniform(-1.0, 1.0, (count, 3)).astype(np.float32)
+    rotations = rng.normal(size=(count, 4)).astype(np.float32)
+    rotations /= np.linalg.norm(rotations, axis=1, keepdims=True)
+    focal = 360.0 / math.tan(math.radians(GENERATED_FOV_Y) / 2)  # at 720 rows
+    sigma = SIZES[size] * GENERATED_DISTANCE / focal
+    scales = (sigma * rng.uniform(0.5, 1.5, (count, 3))).astype(np.float32)
+    opacities = rng.uniform(0.2, 1.0, count).astype(np.float32)
+    sh = np.empty((count, sh_coefficient_count(GENERATED_SH_DEGREE), 3), np.float32)
+    sh[:, 0] = rng.uniform(-1.5, 1.5, (count, 3))
+    sh[:, 1:] = rng.normal(0.0, 0.1, (count, sh.shape[1] - 1, 3))
+    return Scene(positions, rotations, scales, opacities, sh, GENERATED_SH_DEGREE, source=f"generated {size}")
+
+
+def generated_camera(width: int, height: int) -> Camera:
+    return look_at((0.0, 0.0, -GENERATED_DISTANCE), (0.0, 0.0, 0.0), width=width, height=height,
+                   fov_y_degrees=GENERATED_FOV_Y)
+
+
+def at_resolution(camera: Camera, width: int, height: int) -> Camera:
+    """``camera``'s view at ``width`` x ``height``: its vertical field of view, square
+    pixels, the principal point centred."""
+    fy = camera.fy * height / camera.height
+    return replace(camera, width=width, height=height, fx=fy, fy=fy, cx=width / 2, cy=height / 2)
+
+
+def nudged(camera: Camera, degrees: float) -> Camera:
+    """``camera`` turned about its own y axis (its centre stays)."""
+    a = math.radians(degrees)
+    turn = np.array([[math.cos(a), 0.0, math.sin(a)], [0.0, 1.0, 0.0], [-math.sin(a), 0.0, math.cos(a)]])
+    return replace(camera, R=turn @ camera.R, t=turn @ camera.t)
+
+
+@dataclass(frozen=True)
+class PerfCase:
+    """One scene at one resolution. ``kind``: "small", "large" (generated) or "scene"."""
+
+    name: str
+    scene: Scene
+    camera: Camera
+    kind: str
+
+    @property
+    def label(self) -> str:
+        """For ``NAME@LABEL VALUE`` lines: no spaces."""
+        return f"{self.name.replace(' ', '-')}-{self.camera.width}x{self.camera.height}"
+
+
+# --- measuring ------------------------------------------------------------------------------------
+
+@dataclass
+class CaseResult:
+    name: str
+    kind: str
+    count: int
+    width: int
+    height: int
+    visible: int = 0
+    stages: dict[str, float] = field(default_factory=dict)      # ms, median over frames (CPU, GPU drained)
+    gpu: dict[str, float] = field(default_factory=dict)         # ms, median timer-query time: preprocess, draw
+    other: dict[str, float] = field(default_factory=dict)       # ms, medians: gs, quads, general, argsort
+    ratios: dict[str, float] = field(default_factory=dict)
+    frames: int = 0
+
+    @property
+    def frame_ms(self) -> float:
+        """Every stage of a moving-view frame, one after the other."""
+        return sum(self.stages[s] for s in STAGES)
+
+    @property
+    def label(self) -> str:
+        return f"{self.name.replace(' ', '-')}-{self.width}x{self.height}"
+
+
+class _Clock:
+    """CPU time of a piece of GL work with the GPU drained on both sides, and (when
+    asked) its GPU time from a timer query."""
+
+    def __init__(self, ctx):
+        self.ctx = ctx
+        self.query = ctx.query(time=True)
+
+    def cpu(self, work) -> float:
+        self.ctx.finish()
+        start = time.perf_counter()
+        work()
+        self.ctx.finish()
+        return (time.perf_counter() - start) * 1e3
+
+    def both(self, work) -> tuple[float, float]:
+        self.ctx.finish()
+        start = time.perf_counter()
+        with self.query:
+            work()
+        self.ctx.finish()
+        cpu = (time.perf_counter() - start) * 1e3
+        elapsed = self.query.elapsed
+        return cpu, (math.nan if elapsed >= _INVALID_ELAPSED else elapsed / 1e6)
+
+
+def _median(values: list[float]) -> float:
+    finite = [v for v in values if math.isfinite(v)]
+    return float(np.median(finite)) if finite else math.nan
+
+
+def measure_case(ctx, case: PerfCase, frames: int, settings: RenderSettings = RenderSettings()) -> CaseResult:
+    """Times ``frames`` moving-view frames of ``case`` (after one untimed warm-up frame
+    that compiles every variant)."""
+    from raygs_viewer.render.gl.renderer import GLRenderer
+    from raygs_viewer.sort.depth import sort_back_to_front
+
+    gs_settings = replace(settings, mode="gs")
+    renderer = GLRenderer(ctx, case.scene)
+    general = None
+    target = ctx.framebuffer(color_attachments=[ctx.texture((case.camera.width, case.camera.height), 4, dtype="f4")])
+    clock = _Clock(ctx)
+    samples = ctx.query(samples=True)
+    views = (case.camera, nudged(case.camera, NUDGE_DEGREES))
+    times: dict[str, list[float]] = {}
+    result = CaseResult(case.name, case.kind, case.scene.count, case.camera.width, case.camera.height, frames=frames)
+
+    def record(name: str, value: float) -> None:
+        times.setdefault(name, []).append(value)
+
+    def clear() -> None:
+        target.use()
+        target.clear(*settings.background, 0.0)
+
+    try:
+        general = GLRenderer(ctx, case.scene, general=True)
+        sorter = renderer.sorter
+        for frame in range(frames + 1):
+            camera = views[frame % 2]
+            timed = frame > 0
+            dilation = settings.cull_dilation(camera)
+            box: dict[str, np.ndarray] = {}
+            cull = clock.cpu(lambda: box.update(visible=sorter.cull(camera, settings.p_min, dilation=dilation)))
+            sort = clock.cpu(lambda: box.update(order=sorter.sort(camera, box["visible"])))
+            order = box["order"]
+            upload = clock.cpu(lambda: renderer.upload_order(order))
+            preprocess, preprocess_gpu = clock.both(lambda: renderer.preprocess(camera, settings))
+            clear()
+            draw, draw_gpu = clock.both(lambda: renderer.draw(camera, settings, order))
+            clear()
+            quads = clock.cpu(lambda: renderer.draw(camera, settings, order, floor=True))
+            if frame == 0:  # fragments: counted once, untimed
+                result.visible = int(order.size)
+                clear()
+                with samples:
+                    renderer.draw(camera, settings, order)
+                kept = samples.samples
+                clear()
+                with samples:
+                    renderer.draw(camera, settings, order, floor=True)
+                rasterized = samples.samples
+                result.ratios["fragments-kept"] = kept / rasterized if rasterized else math.nan
+            gs_order = renderer.sort(camera, gs_settings)  # its own cull: EWA's footprint has no bounding sphere
+            renderer.upload_order(gs_order)
+            gs_pre = clock.cpu(lambda: renderer.preprocess(camera, gs_settings))
+            clear()
+            gs_draw = clock.cpu(lambda: renderer.draw(camera, gs_settings, gs_order))
+            general.upload_order(order)
+            general_pre = clock.cpu(lambda: general.preprocess(camera, settings))
+            clear()
+            general_draw = clock.cpu(lambda: general.draw(camera, settings, order))
+            depth = case.scene.positions[box["visible"]] @ camera.R.astype(np.float32)[2] + np.float32(camera.t[2])
+            radix = _cpu(lambda: sort_back_to_front(depth, "radix"))
+            argsort = _cpu(lambda: sort_back_to_front(depth, "float"))
+            if not timed:
+                continue
+            for name, value in (("cull", cull), ("sort", sort), ("upload", upload), ("preprocess", preprocess),
+                                ("draw", draw), ("gpu preprocess", preprocess_gpu), ("gpu draw", draw_gpu),
+                                ("quads", quads), ("gs", gs_pre + gs_draw), ("general", general_pre + general_draw),
+                                ("raygs", preprocess + draw), ("radix", radix), ("argsort", argsort)):
+                record(name, value)
+    finally:
+        renderer.release()
+        if general is not None:
+            general.release()
+        for attachment in target.color_attachments:
+            attachment.release()
+        target.release()
+
+    result.stages = {s: _median(times[s]) for s in STAGES}
+    result.gpu = {"preprocess": _median(times["gpu preprocess"]), "draw": _median(times["gpu draw"])}
+    result.other = {name: _median(times[name]) for name in ("quads", "gs", "general", "raygs", "radix", "argsort")}
+    raygs = result.other["raygs"]
+    result.ratios.update({
+        "RayGS/GS": raygs / result.other["gs"],
+        "RayGS/quads": result.stages["draw"] / result.other["quads"],
+        "specialised/general": raygs / result.other["general"],
+        "radix/argsort": result.other["radix"] / result.other["argsort"],
+    })
+    return result
+
+
+def _cpu(work) -> float:
+    start = time.perf_counter()
+    work()
+    return (time.perf_counter() - start) * 1e3
+
+
+# --- the run --------------------------------------------------------------------------------------
+
+@dataclass(frozen=True)
+class PerfOptions:
+    counts: tuple[int, ...]
+    sizes: tuple[str, ...]
+    resolutions: tuple[tuple[int, int], ...]
+    scenes: tuple[str, ...]
+    frames: int
+    command_line: str
+    report: Path | None = None
+    plot: Path | None = None
+    overwrite: bool = False
+    gl_backend: str | None = None
+    notes: tuple[str, ...] = ()
+
+
+@dataclass
+class PerfResults:
+    options: PerfOptions
+    device: str
+    cases: list[CaseResult]
+    seconds: float
+
+    def summary(self) -> dict[str, float]:
+        """Each ratio's median over the cases."""
+        return {name: _median([c.ratios.get(name, math.nan) for c in self.cases]) for name in RATIOS}
+
+
+def build_cases(options: PerfOptions):
+    """Yields the cases one at a time (a 1M scene is made only when its turn comes)."""
+    from raygs_viewer.bench.accuracy import _load_scenes
+    for count in options.counts:
+        for size in options.sizes:
+            scene = generated_scene(count, size)
+            for width, height in options.resolutions:
+                yield PerfCase(f"{count_label(count)} {size}", scene, generated_camera(width, height), size)
+    for item in _load_scenes(options.scenes):
+        for width, height in options.resolutions:
+            yield PerfCase(item.name, item.scene, at_resolution(item.camera, width, height), "scene")
+
+
+def run_perf(options: PerfOptions, ctx=None, out=None) -> PerfResults:
+    """Runs every case; prints a line per case as it finishes and the ratio lines at the end."""
+    from raygs_viewer.render.gl.context import (
+        context_description,
+        create_headless_context,
+    )
+    out = out or sys.stdout
+    own = ctx is None
+    if own:
+        ctx = create_headless_context(options.gl_backend)
+    start = time.perf_counter()
+    try:
+        device = context_description(ctx)
+        print(f"device: {device}", file=out, flush=True)
+        cases = []
+        for case in build_cases(options):
+            result = measure_case(ctx, case, options.frames)
+            cases.append(result)
+            print(case_line(result), file=out, flush=True)
+    finally:
+        if own:
+            ctx.release()
+    results = PerfResults(options, device, cases, time.perf_counter() - start)
+    print("", file=out)
+    for line in ratio_lines(results):
+        print(line, file=out, flush=True)
+    return results
+
+
+def case_line(result: CaseResult) -> str:
+    stages = ", ".join(f"{s} {_ms(result.stages[s])}" for s in STAGES)
+    return (f"{result.label}: {result.visible:,} of {result.count:,} visible; {stages}; frame "
+            f"{_ms(result.frame_ms)} ({1000 / result.frame_ms:.1f} fps)")
+
+
+def ratio_lines(results: PerfResults) -> list[str]:
+    """``NAME@CASE VALUE`` for every case, then ``NAME VALUE`` (the median over cases)."""
+    lines = [f"{name}@{case.label} {_ratio(case.ratios[name])}" for case in results.cases for name in RATIOS]
+    lines += [f"{name} {_ratio(value)}" for name, value in results.summary().items()]
+    return lines
+
+
+def _ms(value: float) -> str:
+    if not math.isfinite(value):
+        return "n/a"
+    return f"{value:.2f} ms" if value < 10 else f"{value:.1f} ms" if value < 100 else f"{value:.0f} ms"
+
+
+def _ratio(value: float) -> str:
+    return f"{value:.3f}" if math.isfinite(value) else "nan"
+
+
+# --- report ---------------------------------------------------------------------------------------
+
+def format_report(results: PerfResults) -> str:
+    options = results.options
+    lines = [
+        "# Performance figures (generated)",
+        "",
+        f"Produced by `{options.command_line}` on {results.device}, in {results.seconds / 60:.1f} minutes. "
+        f"Every time is the median of {options.frames} moving-view frames; see `docs/performance.md` "
+        f"for what the stages and ratios mean.",
+        "",
+    ]
+    lines += [f"- note: {note}" for note in options.notes]
+    if options.notes:
+        lines.append("")
+    lines += ["## Stages (CPU ms with the GPU drained around each stage)", "",
+              "| case | size | visible / N | cull | sort | upload | preprocess | draw | frame | fps | "
+              "timer queries: preprocess, draw |",
+              "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
+    for c in results.cases:
+        lines.append(f"| {c.name} | {c.width}×{c.height} | {c.visible:,} / {c.count:,} | "
+                     + " | ".join(_ms(c.stages[s]) for s in STAGES)
+                     + f" | {_ms(c.frame_ms)} | {1000 / c.frame_ms:.1f} | {_ms(c.gpu['preprocess'])}, "
+                       f"{_ms(c.gpu['draw'])} |")
+    lines += ["", "## Side by side (ms) and ratios", "",
+              "| case | size | RayGS pre+draw | GS pre+draw | general pre+draw | floor draw | radix | argsort | "
+              + " | ".join(RATIOS) + " |",
+              "|---|---|" + "---:|" * (6 + len(RATIOS))]
+    for c in results.cases:
+        lines.append(f"| {c.name} | {c.width}×{c.height} | "
+                     + " | ".join(_ms(c.other[k]) for k in ("raygs", "gs", "general", "quads", "radix", "argsort"))
+                     + " | " + " | ".join(_ratio(c.ratios[name]) for name in RATIOS) + " |")
+    lines += ["", "## Ratios: median over the cases", "", "| ratio | median | range | target |", "|---|---:|---|---|"]
+    for name, value in results.summary().items():
+        values = [c.ratios[name] for c in results.cases if math.isfinite(c.ratios[name])]
+        spread = f"{min(values):.3f} – {max(values):.3f}" if values else "n/a"
+        lines.append(f"| {name} | {_ratio(value)} | {spread} | {RATIO_TARGETS.get(name, '')} |")
+    lines += ["", "Machine-readable lines (as printed):", "", "```"] + ratio_lines(results)[-len(RATIOS):] + ["```", ""]
+    return "\n".join(lines)
+
+
+def draw_plot(results: PerfResults):
+    """Frame time (every stage) against N for the generated cases, one panel per resolution."""
+    from raygs_viewer.bench.plot import PALETTE, Panel, Point, scatter_panels
+    sizes = [s for s in SIZES if any(c.kind == s for c in results.cases)]
+    panels = []
+    for width, height in results.options.resolutions:
+        panel = Panel(f"{width} x {height}")  # the plot's font has no multiplication sign
+        for c in results.cases:
+            if c.kind in SIZES and (c.width, c.height) == (width, height):
+                color = PALETTE[sizes.index(c.kind) % len(PALETTE)]
+                panel.points.append(Point(c.count, c.frame_ms, color, "circle"))
+                panel.points.append(Point(c.count, c.other["gs"] + c.stages["cull"] + c.stages["sort"]
+                                          + c.stages["upload"], color, "square"))
+        panels.append(panel)
+    series = [(f"{size} ({SIZES[size]:g} px std. dev. at 720 rows)", PALETTE[i % len(PALETTE)])
+              for i, size in enumerate(sizes)]
+    return scatter_panels(panels, title=f"Frame time against N ({results.device.split(' (')[0]})",
+                          x_label="gaussians", y_label="ms per frame (log)", series=series,
+                          groups=[("RayGS", "circle"), ("GS (EWA)", "square")], log_y=True)
+
+
+def write_outputs(results: PerfResults) -> list[Path]:
+    from raygs_viewer.bench.accuracy import png_bytes
+    from raygs_viewer.capture.image_io import write_atomically
+    options, written = results.options, []
+    if options.report is not None:
+        write_atomically(options.report, format_report(results).encode("utf-8"), options.overwrite)
+        written.append(options.report)
+    if options.plot is not None:
+        write_atomically(options.plot, png_bytes(draw_plot(results)), options.overwrite)
+        written.append(options.plot)
+    return written
+
+
+# --- command line ---------------------------------------------------------------------------------
+
+def add_parser(kinds, count) -> None:
+    """Adds ``bench perf`` to ``bench``'s subparsers; ``count(low, high)``: the CLI's whole-number type."""
+    parser = kinds.add_parser(
+        "perf", help="per-stage frame times and the cost ratios (RayGS/GS, floor, specialisation, sort)",
+        description="Times every stage of a moving-view frame (cull, sort, upload, preprocess, draw) for "
+                    "generated scenes of 10k, 100k and 1M gaussians, small and large on screen, and the shared "
+                    "real scenes, at 1280x720 and 1920x1080; in the same frames EWA splatting, the floor pass "
+                    "(the same quads, constant fragment), the general shader variant and a float argsort. "
+                    "Prints a line per case and the ratios as 'NAME VALUE' lines.")
+    parser.add_argument("--quick", action="store_true",
+                        help="10k and 100k gaussians, one real scene, 1280x720 only (under two minutes on two "
+                             "CPU cores)")
+    parser.add_argument("--counts", nargs="+", type=count(1, 100_000_000), metavar="N",
+                        help="generated scene sizes (default 10000 100000 1000000; --quick 10000 100000)")
+    parser.add_argument("--sizes", nargs="+", choices=tuple(SIZES), help="footprints (default: both)")
+    parser.add_argument("--resolutions", nargs="+", type=_resolution, metavar="WxH",
+                        help="default 1280x720 1920x1080; --quick 1280x720")
+    parser.add_argument("--scenes", nargs="*", metavar="SCENE",
+                        help="real scene files (or 'demo') instead of those found in ../shared/scenes; "
+                             "none: generated scenes only")
+    parser.add_argument("--frames", type=count(1, 100000), default=DEFAULT_FRAMES, metavar="N",
+                        help=f"timed frames per case, after one warm-up (default {DEFAULT_FRAMES})")
+    parser.add_argument("--report", metavar="PATH.md", help="also write a markdown report there")
+    parser.add_argument("--plot", metavar="PATH.png", help="also write the plot of frame time against N there")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing report or plot")
+    parser.add_argument("--gl-backend", choices=("auto", "egl", "osmesa"),
+                        help="headless OpenGL (default: $RAYGS_GL_BACKEND or auto: EGL, else OSMesa)")
+
+
+def _resolution(text: str) -> tuple[int, int]:
+    from raygs_viewer.cli.main import (
+        _size,  # the CLI's own WxH type (cli imports bench)
+    )
+    width, height = _size(text)
+    if not (1 <= width <= 16384 and 1 <= height <= 16384):
+        raise argparse.ArgumentTypeError(f"'{text}': each side must be 1..16384 pixels")
+    return width, height
+
+
+def command_line(args: argparse.Namespace) -> str:
+    parts = ["raygs-viewer", "bench", "perf"]
+    if args.quick:
+        parts.append("--quick")
+    if args.counts:
+        parts += ["--counts", *map(str, args.counts)]
+    if args.sizes:
+        parts += ["--sizes", *args.sizes]
+    if args.resolutions:
+        parts += ["--resolutions", *(f"{w}x{h}" for w, h in args.resolutions)]
+    if args.scenes is not None:
+        parts += ["--scenes", *args.scenes]
+    if args.frames != DEFAULT_FRAMES:
+        parts += ["--frames", str(args.frames)]
+    for flag, dest in (("--report", "report"), ("--plot", "plot"), ("--gl-backend", "gl_backend")):
+        if getattr(args, dest) is not None:
+            parts += [flag, str(getattr(args, dest))]
+    if args.overwrite:
+        parts.append("--overwrite")
+    return shlex.join(parts)
+
+
+def options_from_args(args: argparse.Namespace) -> PerfOptions:
+    """Checks everything that can be checked before any work."""
+    from raygs_viewer.bench.accuracy import shared_scene_paths
+    notes: list[str] = []
+    if args.scenes is not None:
+        scenes = tuple(args.scenes)
+    else:
+        scenes, notes = shared_scene_paths(QUICK_REAL_SCENES if args.quick else REAL_SCENES)
+    report = None if args.report is None else check_output_path(args.report, args.overwrite, (".md",))
+    plot = None if args.plot is None else check_output_path(args.plot, args.overwrite, (".png",))
+    if report is not None and plot is not None and os.path.abspath(report) == os.path.abspath(plot):
+        raise UserError(f"{report}: the report and the plot must be different files")
+    return PerfOptions(
+        counts=tuple(dict.fromkeys(args.counts or (QUICK_COUNTS if args.quick else COUNTS))),
+        sizes=tuple(dict.fromkeys(args.sizes or SIZES)),
+        resolutions=tuple(dict.fromkeys(args.resolutions or (QUICK_RESOLUTIONS if args.quick else RESOLUTIONS))),
+        scenes=scenes, frames=args.frames, command_line=command_line(args), report=report, plot=plot,
+        overwrite=args.overwrite, gl_backend=args.gl_backend, notes=tuple(notes))
+
+
+def command(args: argparse.Namespace, ctx=None) -> int:
+    """Runs ``bench perf``. ``ctx``: a GL context to use instead of a new one (tests)."""
+    options = options_from_args(args)
+    for note in options.notes:
+        print(f"note: {note}", flush=True)
+    results = run_perf(options, ctx)
+    for path in write_outputs(results):
+        print(f"wrote {path}", flush=True)
+    return 0

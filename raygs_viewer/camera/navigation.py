@@ -1,0 +1,610 @@
+"""Camera navigation for the interactive window, in plain float64 numpy.
+
+The window calls a :class:`Navigator` every frame with the held keys and the mouse
+deltas; it keeps the view pose, the fly speed and the orbit target. :class:`Lens` turns
+that pose and the window size into a :class:`~raygs_viewer.camera.pinhole.Camera`.
+
+Axes are OpenCV's (+x right, +y down, +z forward), as in ``camera.py``: a pose's ``R``
+maps world to camera, so its rows are the camera's right, down and forward axes in world
+coordinates. "Up" is a property of the scene, not of the camera, and is picked from
+:data:`UP_AXES`.
+
+Nothing here imports GL, GLFW or imgui, so all of it is tested headless.
+"""
+
+from __future__ import annotations
+
+import functools
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from raygs_viewer.camera.pinhole import Camera, intrinsics_from_fov
+
+# "-y" is the COLMAP/INRIA convention (default), "+z" is common for Blender and
+# photogrammetry exports.
+UP_AXES: dict[str, tuple[float, float, float]] = {
+    "-y": (0.0, -1.0, 0.0),
+    "+y": (0.0, 1.0, 0.0),
+    "+z": (0.0, 0.0, 1.0),
+    "-z": (0.0, 0.0, -1.0),
+    "+x": (1.0, 0.0, 0.0),
+    "-x": (-1.0, 0.0, 0.0),
+}
+
+MODES = ("fly", "orbit")
+
+LOOK_RADIANS_PER_PIXEL = 0.003
+# Forward never comes closer than this to the up axis (or to its opposite): at the pole
+# "yaw about up" turns into a roll and the view would flip over.
+POLE_MARGIN = math.radians(1.0)
+MAX_DT = 0.1              # seconds; a stalled frame must not teleport the camera
+SPEED_STEP = 1.25         # per wheel tick, fly mode
+SPEED_RANGE = (1e-4, 1e4)  # times the default speed
+ZOOM_STEP = 0.85          # distance factor per wheel tick, orbit mode
+MIN_DISTANCE = 1e-6       # times the scene radius
+MAX_DISTANCE = 1e6        # times the scene radius
+FAST, SLOW = 4.0, 0.25
+# Pixel deltas beyond this are input garbage (a warped cursor, a broken driver); they
+# are clamped so one event cannot throw the camera out to 1e300.
+MAX_PIXELS = 1e6
+
+
+def up_vector(up: str) -> np.ndarray:
+    """(3,) float64 unit vector of an :data:`UP_AXES` name; ValueError for other names."""
+    if up not in UP_AXES:
+        raise ValueError(f"unknown up axis {up!r}; expected one of {', '.join(UP_AXES)}")
+    return np.array(UP_AXES[up], dtype=np.float64)
+
+
+# --------------------------------------------------------------------------- rotations
+
+
+def _quiet(method):
+    """Silences numpy's overflow warnings: absurd input may overflow mid-way, and the
+    result is then dropped (see Navigator._set) rather than worth a warning per frame."""
+    @functools.wraps(method)
+    def wrapper(*args, **kwargs):
+        with np.errstate(over="ignore", invalid="ignore"):
+            return method(*args, **kwargs)
+    return wrapper
+
+
+def _finite(*values: float) -> bool:
+    try:
+        return all(math.isfinite(float(v)) for v in values)
+    except (TypeError, ValueError, OverflowError):
+        return False
+
+
+def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    """(3, 3) rotation by ``angle`` (right-handed) about the unit vector ``axis``."""
+    x, y, z = axis
+    c, s = math.cos(angle), math.sin(angle)
+    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    return c * np.eye(3) + s * k + (1.0 - c) * np.outer(axis, axis)
+
+
+def _orthonormalize(R: np.ndarray) -> np.ndarray:
+    """Nearest proper rotation that keeps the forward row's direction exactly.
+
+    Keeping forward (rather than an SVD projection) matters in orbit mode: the target
+    lies on that axis, so it stays on the image centre however long the session.
+    """
+    f = R[2] / np.linalg.norm(R[2])
+    r = R[0] - np.dot(R[0], f) * f
+    r /= np.linalg.norm(r)
+    return np.stack([r, np.cross(f, r), f])  # rows right, down, forward with right x down = forward
+
+
+def _level_rotation(forward: np.ndarray, up: np.ndarray, right_hint: np.ndarray | None = None) -> np.ndarray:
+    """World-to-camera rotation looking along ``forward`` with no roll about ``up``.
+
+    Forward is tilted to at most 89 degrees from the horizon (the pole margin), so the
+    result is always something yaw/pitch can carry on from.
+    """
+    f = forward / np.linalg.norm(forward)
+    elevation = math.asin(max(-1.0, min(1.0, float(np.dot(f, up)))))
+    elevation = max(-(math.pi / 2 - POLE_MARGIN), min(math.pi / 2 - POLE_MARGIN, elevation))
+    horizontal = f - np.dot(f, up) * up
+    if np.linalg.norm(horizontal) < 1e-9:
+        # Straight along the up axis: the only hint of a heading left is the old right
+        # axis (horizontal here, being perpendicular to forward).
+        hint = np.array([1.0, 0.0, 0.0]) if right_hint is None else right_hint
+        hint = hint - np.dot(hint, up) * up
+        if np.linalg.norm(hint) < 1e-9:
+            hint = np.cross(up, [0.0, 0.0, 1.0]) if abs(up[2]) < 0.9 else np.cross(up, [1.0, 0.0, 0.0])
+        horizontal = np.cross(up, hint / np.linalg.norm(hint))  # = forward of a level camera with that right
+    horizontal /= np.linalg.norm(horizontal)
+    f = math.cos(elevation) * horizontal + math.sin(elevation) * up
+    right = np.cross(f, up)  # camera +y (down) is -up for a level camera
+    right /= np.linalg.norm(right)
+    return _orthonormalize(np.stack([right, np.cross(f, right), f]))
+
+
+def _matrix_to_quaternion(R: np.ndarray) -> np.ndarray:
+    """(4,) unit quaternion (w, x, y, z) of a rotation matrix (Shepperd's method, which
+    picks the largest diagonal term so no branch divides by a tiny number)."""
+    m = R
+    trace = m[0, 0] + m[1, 1] + m[2, 2]
+    if trace > 0:
+        s = 2.0 * math.sqrt(trace + 1.0)
+        q = [0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
+    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
+        q = [(m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s]
+    elif m[1, 1] > m[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
+        q = [(m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s]
+    else:
+        s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
+        q = [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s]
+    q = np.array(q, dtype=np.float64)
+    return q / np.linalg.norm(q)
+
+
+def _quaternion_to_matrix(q: np.ndarray) -> np.ndarray:
+    w, x, y, z = q / np.linalg.norm(q)
+    return np.array([
+        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
+        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
+        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
+    ])
+
+
+def _slerp(q0: np.ndarray, q1: np.ndarray, s: float) -> np.ndarray:
+    dot = float(np.dot(q0, q1))
+    if dot < 0:  # q and -q are the same rotation; the other sign is the long way round
+        q1, dot = -q1, -dot
+    if dot > 0.9995:
+        # Nearly equal: sin(theta) ~ 0 would amplify rounding, and lerp is exact enough.
+        q = q0 + s * (q1 - q0)
+        return q / np.linalg.norm(q)
+    theta = math.acos(min(1.0, dot))
+    sin_theta = math.sin(theta)
+    q = (math.sin((1 - s) * theta) * q0 + math.sin(s * theta) * q1) / sin_theta
+    return q / np.linalg.norm(q)
+
+
+def _smoothstep(s: float) -> float:
+    s = max(0.0, min(1.0, s))
+    return s * s * (3.0 - 2.0 * s)
+
+
+# --------------------------------------------------------------------------- pose and lens
+
+
+@dataclass(frozen=True, eq=False)
+class Pose:
+    """position: (3,) float64 camera centre in world space; R: (3, 3) float64
+    world-to-camera rotation (rows = camera right, down, forward in world coordinates).
+
+    Both are copied and made read-only, so a pose handed out never changes under its
+    holder. ValueError for wrong shapes, non-finite values or an R that is not a rotation
+    (R within 1e-3 of one is snapped onto it, as JSON round-trips leave ~1e-7 of drift).
+    """
+
+    position: np.ndarray
+    R: np.ndarray
+
+    def __post_init__(self) -> None:
+        position = np.array(self.position, dtype=np.float64).reshape(-1)
+        R = np.array(self.R, dtype=np.float64)
+        if position.shape != (3,) or R.shape != (3, 3):
+            raise ValueError("a pose needs a (3,) position and a (3, 3) rotation")
+        if not (np.all(np.isfinite(position)) and np.all(np.isfinite(R))):
+            raise ValueError("a pose must be finite")
+        error = np.abs(R @ R.T - np.eye(3)).max()
+        if error > 1e-3 or np.linalg.det(R) < 0:
+            raise ValueError("pose R is not a rotation matrix")
+        if error > 1e-12:
+            u, _, vt = np.linalg.svd(R)
+            R = u @ vt
+        position.flags.writeable = False
+        R.flags.writeable = False
+        object.__setattr__(self, "position", position)
+        object.__setattr__(self, "R", R)
+
+    @classmethod
+    def from_camera(cls, camera: Camera) -> "Pose":
+        return cls(camera.center, camera.R)
+
+    @property
+    def forward(self) -> np.ndarray:
+        """(3,) viewing direction in world space."""
+        return self.R[2].copy()
+
+    def camera(self, width: int, height: int, fx: float, fy: float, cx: float, cy: float) -> Camera:
+        R = np.array(self.R)
+        return Camera(int(width), int(height), float(fx), float(fy), float(cx), float(cy), R, -R @ self.position)
+
+
+def letterbox(width: int, height: int, aspect: float) -> tuple[int, int, int, int]:
+    """x, y (from the top-left), w, h of the largest rectangle of ``aspect`` (w / h)
+    centred in a width x height window; each of w, h at least 1."""
+    width, height = max(1, int(width)), max(1, int(height))
+    if width >= height * aspect:   # window wider than the image: bars left and right
+        w, h = max(1, min(width, round(height * aspect))), height
+    else:                          # taller: bars top and bottom
+        w, h = width, max(1, min(height, round(width / aspect)))
+    return (width - w) // 2, (height - h) // 2, w, h
+
+
+@dataclass(frozen=True)
+class Lens:
+    """How pose + window size become intrinsics. Either a free lens (vertical field of view,
+    centred principal point, square pixels, fills the whole window) or a training camera's
+    intrinsics (fx, fy, cx, cy at its own width x height), which is shown letterboxed: the
+    largest rectangle of the camera's aspect ratio that fits the window, centred, with the
+    intrinsics scaled to it (Camera.resized).
+
+    fov_y_degrees: in (0, 180), ValueError otherwise. For a training-camera lens it is that
+    camera's own vertical field of view (what a panel shows); the intrinsics come from
+    ``source``.
+    """
+
+    fov_y_degrees: float = 60.0
+    source: Camera | None = None
+
+    def __post_init__(self) -> None:
+        if not _finite(self.fov_y_degrees) or not 0.0 < float(self.fov_y_degrees) < 180.0:
+            raise ValueError(f"field of view must be between 0 and 180 degrees, got {self.fov_y_degrees!r}")
+        object.__setattr__(self, "fov_y_degrees", float(self.fov_y_degrees))
+
+    @classmethod
+    def of_camera(cls, camera: Camera) -> "Lens":
+        return cls(math.degrees(2.0 * math.atan(0.5 * camera.height / camera.fy)), camera)
+
+    def with_fov(self, fov_y_degrees: float) -> "Lens":
+        """A free lens; the angle is clamped to 1..179 degrees (ValueError if not finite)."""
+        if not _finite(fov_y_degrees):
+            raise ValueError(f"field of view must be finite, got {fov_y_degrees!r}")
+        return Lens(min(179.0, max(1.0, float(fov_y_degrees))), None)
+
+    def viewport(self, width: int, height: int) -> tuple[int, int, int, int]:
+        """x, y (from the top-left), w, h of the image inside a width x height window, in
+        pixels; each of w, h is at least 1 (a minimised window reports 0 x 0)."""
+        if self.source is None:
+            return 0, 0, max(1, int(width)), max(1, int(height))
+        return letterbox(width, height, self.source.width / self.source.height)
+
+    def camera(self, pose: Pose, width: int, height: int) -> Camera:
+        """The camera of the viewport (size w x h from :meth:`viewport`) seen from ``pose``."""
+        _, _, w, h = self.viewport(width, height)
+        if self.source is None:
+            fx, fy, cx, cy = intrinsics_from_fov(w, h, self.fov_y_degrees)
+        elif (w, h) == (self.source.width, self.source.height):
+            fx, fy, cx, cy = self.source.fx, self.source.fy, self.source.cx, self.source.cy
+        else:
+            scaled = self.source.resized(w, h)
+            fx, fy, cx, cy = scaled.fx, scaled.fy, scaled.cx, scaled.cy
+        return pose.camera(w, h, fx, fy, cx, cy)
+
+
+# --------------------------------------------------------------------------- framing
+
+
+@_quiet
+def scene_bounds(positions: np.ndarray) -> tuple[np.ndarray, float]:
+    """Robust centre and radius (1st..99th percentile box of finite positions, like
+    camera.frame_points); radius >= 1e-6; (0,0,0), 1.0 for an empty scene.
+
+    positions: (N, 3), any float dtype. Returns a (3,) float64 centre and a float radius.
+    """
+    points = np.asarray(positions, dtype=np.float64).reshape(-1, 3)
+    finite = points[np.all(np.isfinite(points), axis=1)]
+    if finite.shape[0] == 0:
+        return np.zeros(3), 1.0
+    # Working on halved coordinates (exact in binary) gives frame_points' numbers bit for
+    # bit, yet a cloud spanning +-1e308 no longer overflows in the differences.
+    low, high = np.percentile(finite * 0.5, [1, 99], axis=0)
+    center = low + high
+    half = high - low
+    radius = float(np.linalg.norm(half))
+    if not math.isfinite(radius):
+        radius = float(np.abs(half).max() * math.sqrt(3.0))
+    return center, min(max(radius, 1e-6), 1e300)
+
+
+def _default_forward(up: np.ndarray) -> np.ndarray:
+    # +z, like frame_points, unless that is the up axis; then +y, which for "+z" up is
+    # Blender's front view (camera on -y, x to the right).
+    return np.array([0.0, 1.0, 0.0]) if abs(up[2]) > 0.5 else np.array([0.0, 0.0, 1.0])
+
+
+def framing_pose(center, radius: float, up: str, fov_y_degrees: float, aspect: float) -> Pose:
+    """A pose looking at center from a horizontal direction (perpendicular to up), far
+    enough that the sphere fits the view; for up "-y" it looks along +z like
+    camera.frame_points, so reset-view of a scene without cameras matches the CLI's
+    default view.
+
+    center: (3,); radius > 0 (smaller or non-finite values become 1e-6 / 1.0); aspect =
+    width / height of the view (non-positive or non-finite is taken as 1).
+    """
+    up_vec = up_vector(up)
+    center = np.asarray(center, dtype=np.float64).reshape(3)
+    radius = float(radius) if _finite(radius) else 1.0
+    radius = max(radius, 1e-6)
+    aspect = float(aspect) if _finite(aspect) and float(aspect) > 0 else 1.0
+    fov = float(fov_y_degrees) if _finite(fov_y_degrees) else 60.0
+    half_y = math.radians(min(179.0, max(1e-3, fov))) / 2
+    # The narrower of the two half-angles decides: the sphere's cone must fit both ways.
+    half = min(half_y, math.atan(math.tan(half_y) * aspect))
+    distance = radius / math.sin(half)
+    forward = _default_forward(up_vec)
+    return Pose(center - distance * forward, _level_rotation(forward, up_vec))
+
+
+# --------------------------------------------------------------------------- navigator
+
+
+class Navigator:
+    """Holds the view pose and navigation state. Modes: "fly" and "orbit".
+
+    Fly: ``move(dt, right, up, forward)`` moves along camera x (right, +1 = D key, -1 = A),
+    world up (+1 = E, -1 = Q) and camera z (forward, +1 = W, -1 = S); the direction's
+    length is capped at 1 so diagonals are not faster. ``speed`` (scene units per second)
+    starts at 0.5 * scene radius; ``scale(ticks)`` (mouse wheel) multiplies it by
+    1.25**ticks, clamped to 1e-4..1e4 times the default; ``fast`` (Shift) multiplies by 4
+    and ``slow`` (Ctrl) by 0.25 for that move. dt is clamped to 0.1 s.
+    ``look(dx, dy)`` from mouse pixels: 0.003 rad per pixel; dx > 0 turns the view right
+    (yaw about the world up axis), dy > 0 tilts it down (pitch about the camera x axis).
+    Forward stays at least 1 degree from the up axis and its opposite. Yaw and pitch both
+    keep the camera x axis's angle to up, so a training camera's roll neither grows nor
+    vanishes.
+
+    Orbit: a target point on the forward axis at ``distance``. ``rotate(dx, dy)`` turns
+    the camera about the target like look() turns it about itself, so the scene follows
+    the mouse (drag right: camera moves left around the up axis through the target;
+    drag down: it moves up over the target), and the target stays on the image centre.
+    ``pan(dx, dy, focal_px)`` slides camera and target in the camera plane so the target
+    follows the mouse pixel for pixel. ``zoom(ticks)``: distance *= 0.85**ticks (ticks > 0
+    = closer), within 1e-6..1e6 scene radii.
+
+    The target is always ``position + distance * forward``, so switching fly -> orbit
+    puts it on the forward axis at the current orbit distance, and orbit -> fly keeps
+    the pose. The first orbit distance is the scene centre's depth when the centre lies
+    in front (more than 0.1 radius), else the scene radius.
+
+    All methods take any mode. Calls with a non-finite argument are ignored, and calls
+    that do nothing (zero keys, zero mouse delta) leave a :meth:`fly_to` animation
+    running, so the window can call move() every frame; calls that do move the view
+    cancel it, keeping the in-between pose.
+    """
+
+    def __init__(self, pose: Pose, center: np.ndarray, radius: float, up: str = "-y", mode: str = "fly") -> None:
+        """pose: the start view; center (3,), radius: the scene's bounds (scene_bounds);
+        up: an UP_AXES name; mode: "fly" or "orbit". ValueError for bad names or
+        non-finite bounds."""
+        center = np.array(center, dtype=np.float64).reshape(-1)
+        if center.shape != (3,) or not np.all(np.isfinite(center)):
+            raise ValueError("scene centre must be 3 finite numbers")
+        if not _finite(radius):
+            raise ValueError("scene radius must be finite")
+        self._check_mode(mode)
+        self._up = up
+        self._up_vec = up_vector(up)
+        self.center = center
+        self.radius = min(max(float(radius), 1e-6), 1e300)
+        self.default_speed = 0.5 * self.radius
+        self._mode = mode
+        self._animation: tuple[Pose, Pose, float, float] | None = None
+        self._set(pose.position, pose.R)
+        self.speed = self.default_speed
+        self._distance = self._initial_distance()
+
+    # ----------------------------------------------------------------- state
+
+    @property
+    def pose(self) -> Pose:
+        return Pose(self._position, self._R)
+
+    @property
+    def mode(self) -> str:
+        return self._mode
+
+    @property
+    def up(self) -> str:
+        return self._up
+
+    @property
+    def up_vector(self) -> np.ndarray:
+        """(3,) world up as a unit vector."""
+        return self._up_vec.copy()
+
+    @property
+    def distance(self) -> float:
+        """Orbit distance: camera centre to target."""
+        return self._distance
+
+    @property
+    def target(self) -> np.ndarray:
+        """(3,) orbit target, world space; on the forward axis at ``distance``."""
+        return self._position + self._distance * self._R[2]
+
+    @property
+    def animating(self) -> bool:
+        return self._animation is not None
+
+    @staticmethod
+    def _check_mode(mode: str) -> None:
+        if mode not in MODES:
+            raise ValueError(f"unknown navigation mode {mode!r}; expected 'fly' or 'orbit'")
+
+    def _set(self, position: np.ndarray, R: np.ndarray) -> None:
+        """Commits a new pose, or keeps the old one when overflow made it non-finite.
+
+        R must already be orthonormal (every rotation path re-orthonormalises; poses
+        from outside are checked by Pose), so a set_pose keeps a training camera's bits.
+        """
+        R = np.array(R, dtype=np.float64)
+        position = np.array(position, dtype=np.float64)
+        if np.all(np.isfinite(position)) and np.all(np.isfinite(R)):
+            self._position, self._R = position, R
+
+    def _initial_distance(self) -> float:
+        depth = float(np.dot(self.center - self._position, self._R[2]))
+        return depth if math.isfinite(depth) and depth > 0.1 * self.radius else self.radius
+
+    def _distance_limits(self) -> tuple[float, float]:
+        return MIN_DISTANCE * self.radius, MAX_DISTANCE * self.radius
+
+    def _cancel(self) -> None:
+        self._animation = None
+
+    def set_mode(self, mode: str) -> None:
+        self._check_mode(mode)
+        self._mode = mode
+
+    @_quiet
+    def set_up(self, up: str) -> None:
+        """Changes the world up axis and re-levels the view to it (keeps position and,
+        unless it is within 1 degree of the new pole, forward). ValueError for unknown names."""
+        up_vec = up_vector(up)
+        self._cancel()
+        self._up, self._up_vec = up, up_vec
+        self._set(self._position, _level_rotation(self._R[2], up_vec, self._R[0]))
+
+    # ----------------------------------------------------------------- fly
+
+    @_quiet
+    def move(self, dt: float, right: float, up: float, forward: float,
+             fast: bool = False, slow: bool = False) -> None:
+        if not _finite(dt, right, up, forward) or dt <= 0:
+            return
+        direction = np.array([right, up, forward], dtype=np.float64)
+        length = float(np.linalg.norm(direction))
+        if length == 0:
+            return
+        if length > 1:
+            direction /= length
+        factor = (FAST if fast else 1.0) * (SLOW if slow else 1.0)
+        step = self.speed * factor * min(float(dt), MAX_DT)
+        offset = direction[0] * self._R[0] + direction[1] * self._up_vec + direction[2] * self._R[2]
+        self._cancel()
+        self._set(self._position + step * offset, self._R)
+
+    def scale(self, ticks: float) -> None:
+        """Fly speed *= 1.25**ticks, clamped (worked in logs: 1.25**1e6 overflows)."""
+        if not _finite(ticks):
+            return
+        low, high = (math.log(self.default_speed * k) for k in SPEED_RANGE)
+        log_speed = math.log(self.speed) + float(ticks) * math.log(SPEED_STEP)
+        self.speed = math.exp(max(low, min(high, log_speed)))
+
+    def _turned(self, dx: float, dy: float) -> np.ndarray:
+        """R after yaw ``dx`` and pitch ``dy`` pixels (the shared half of look and rotate)."""
+        u = self._up_vec
+        yaw = (LOOK_RADIANS_PER_PIXEL * float(dx)) % (2 * math.pi)  # huge dx: keep sin/cos accurate
+        # Yaw right = forward towards right = a negative turn about up (right x forward = up).
+        R = self._R @ _axis_rotation(u, -yaw).T
+        R = _orthonormalize(R)
+
+        # Pitch about camera x: forward moves in the plane spanned by forward and camera
+        # up (g). There f.u = A sin(psi) with psi = psi0 + phi, so the pole limit is a
+        # clamp on psi; with roll, A < 1 and the pole is farther than psi = 89 degrees.
+        f, g = R[2], -R[1]
+        phi = -LOOK_RADIANS_PER_PIXEL * float(dy)  # dy > 0: view tilts down
+        p, q = float(np.dot(f, u)), float(np.dot(g, u))
+        if math.hypot(p, q) > 1e-12:
+            psi0 = math.atan2(p, q)
+            limit = math.pi / 2 - POLE_MARGIN
+            if abs(psi0) <= math.pi / 2:
+                lo, hi = -limit, limit
+            else:
+                # Upside down relative to up: the allowed band is the one through 180 deg.
+                psi0 %= 2 * math.pi
+                lo, hi = math.pi - limit, math.pi + limit
+            # Already inside the margin (a camera looking straight down): allow moving out,
+            # never further in.
+            psi = max(min(lo, psi0), min(max(hi, psi0), psi0 + phi))
+            phi = psi - psi0
+        else:
+            phi %= 2 * math.pi  # rolled 90 degrees: pitch cannot reach the pole
+        c, s = math.cos(phi), math.sin(phi)
+        f_new, g_new = c * f + s * g, c * g - s * f
+        return _orthonormalize(np.stack([R[0], -g_new, f_new]))
+
+    @_quiet
+    def look(self, dx: float, dy: float) -> None:
+        if not _finite(dx, dy) or (dx == 0 and dy == 0):
+            return
+        dx, dy = (max(-MAX_PIXELS, min(MAX_PIXELS, float(v))) for v in (dx, dy))
+        self._cancel()
+        self._set(self._position, self._turned(dx, dy))
+
+    # ----------------------------------------------------------------- orbit
+
+    @_quiet
+    def rotate(self, dx: float, dy: float) -> None:
+        if not _finite(dx, dy) or (dx == 0 and dy == 0):
+            return
+        dx, dy = (max(-MAX_PIXELS, min(MAX_PIXELS, float(v))) for v in (dx, dy))
+        self._cancel()
+        target = self.target
+        R = self._turned(dx, dy)
+        self._set(target - self._distance * R[2], R)
+
+    @_quiet
+    def pan(self, dx: float, dy: float, focal_px: float) -> None:
+        if not _finite(dx, dy, focal_px) or focal_px <= 0 or (dx == 0 and dy == 0):
+            return
+        dx, dy = (max(-MAX_PIXELS, min(MAX_PIXELS, float(v))) for v in (dx, dy))
+        # At the target's depth one pixel spans distance / focal world units; the camera
+        # moves against the mouse so the scene follows it.
+        scale = self._distance / float(focal_px)
+        self._cancel()
+        self._set(self._position - scale * (dx * self._R[0] + dy * self._R[1]), self._R)
+
+    @_quiet
+    def zoom(self, ticks: float) -> None:
+        if not _finite(ticks) or ticks == 0:
+            return
+        low, high = self._distance_limits()
+        # Never pull an already-farther camera in just because it is past the limit.
+        high = max(high, self._distance)
+        low = min(low, self._distance)
+        log_d = math.log(self._distance) + float(ticks) * math.log(ZOOM_STEP)
+        distance = math.exp(max(math.log(low), min(math.log(high), log_d)))
+        target = self.target
+        self._cancel()
+        self._distance = distance
+        self._set(target - distance * self._R[2], self._R)
+
+    # ----------------------------------------------------------------- jumps and animation
+
+    @_quiet
+    def set_pose(self, pose: Pose) -> None:
+        self._cancel()
+        self._set(pose.position, pose.R)
+
+    def reset(self, pose: Pose) -> None:
+        self.set_pose(pose)
+        self.speed = self.default_speed
+        self._distance = self._initial_distance()
+
+    @_quiet
+    def fly_to(self, pose: Pose, duration: float = 0.6) -> None:
+        """Moves smoothly to ``pose`` over ``duration`` seconds of :meth:`advance`:
+        position smoothstep-interpolated, rotation slerped along the shortest arc. A
+        non-positive or non-finite duration jumps at once."""
+        if not _finite(duration) or duration <= 0:
+            self.set_pose(pose)
+            return
+        self._animation = (self.pose, pose, float(duration), 0.0)
+
+    @_quiet
+    def advance(self, dt: float) -> None:
+        if self._animation is None or not _finite(dt) or dt <= 0:
+            return
+        start, end, duration, elapsed = self._animation
+        elapsed = min(duration, elapsed + float(dt))
+        if elapsed >= duration:
+            self._animation = None
+            self._set(end.position, end.R)  # exactly the requested pose, not the slerp's rounding of it
+            return
+        self._animation = (start, end, duration, elapsed)
+        w = _smoothstep(elapsed / duration)
+        q = _slerp(_matrix_to_quaternion(start.R), _matrix_to_quaternion(end.R), w)
+        self._set(start.position + w * (end.position - start.position), _orthonormalize(_quaternion_to_matrix(q)))

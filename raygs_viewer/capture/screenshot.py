@@ -1,0 +1,313 @@
+"""Screenshots: the offscreen camera at a chosen scale, tiled rendering, and saving a PNG
+with its JSON sidecar (:mod:`raygs_viewer.capture.sidecar`) beside it.
+
+The window (F12, the panel button, ``view --screenshot``) and ``render --sidecar`` both
+render through :func:`render_tiled`, so a screenshot re-rendered headlessly on the same
+GPU gives the same PNG, byte for byte.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from dataclasses import replace
+from datetime import datetime
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from raygs_viewer.camera.pinhole import Camera
+from raygs_viewer.capture.image_io import encode_image, write_atomically
+from raygs_viewer.errors import UserError
+from raygs_viewer.render.settings import RenderSettings
+
+if TYPE_CHECKING:  # importing the renderer pulls in moderngl; the CLI's option parsing must not
+    from raygs_viewer.render.gl.renderer import GLRenderer
+
+#: Largest screenshot side in pixels: 16384^2 float32 RGBA is already 4 GiB of read-back.
+MAX_SCREENSHOT_SIDE = 16384
+#: Largest offscreen scale of the window's view.
+MAX_SCALE = 8.0
+#: Default tile side: small enough for any GL 4.3 GPU's render-target limit and memory.
+DEFAULT_TILE = 2048
+
+SCREENSHOT_PREFIX = "raygs-"
+SIDECAR_SUFFIX = ".json"
+# Bounds the retries when other writers keep taking the names we pick.
+_MAX_NAME_ATTEMPTS = 10000
+
+
+def check_scale(scale: float) -> float:
+    """``scale`` as a float if it is finite and in (0, MAX_SCALE], else UserError."""
+    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not math.isfinite(scale) \
+            or not 0.0 < scale <= MAX_SCALE:
+        raise UserError(f"screenshot scale must be a finite number in (0, {MAX_SCALE:g}], got {scale!r}")
+    return float(scale)
+
+
+def scaled_camera(camera: Camera, scale: float) -> Camera:
+    """The same view at round(width * scale) x round(height * scale); fx, fy, cx, cy
+    scale with it (:meth:`Camera.resized`)."""
+    scale = check_scale(scale)
+    width, height = round(camera.width * scale), round(camera.height * scale)
+    if width < 1 or height < 1:
+        raise UserError(f"screenshot scale {scale:g} makes the {camera.width}x{camera.height} view "
+                        f"{width}x{height} pixels")
+    if max(width, height) > MAX_SCREENSHOT_SIDE:
+        raise UserError(f"screenshot of {width}x{height} pixels ({camera.width}x{camera.height} at scale "
+                        f"{scale:g}) exceeds {MAX_SCREENSHOT_SIDE} pixels a side")
+    return camera.resized(width, height)
+
+
+def tile_camera(camera: Camera, x0: int, y0: int, width: int, height: int) -> Camera:
+    """The ``width`` x ``height`` window of ``camera``'s image whose top-left pixel is
+    (x0, y0): the principal point moves by the offset, so pixel (u, v) of the tile
+    has the ray of pixel (x0 + u, y0 + v) of the whole image."""
+    return replace(camera, width=int(width), height=int(height), cx=camera.cx - x0, cy=camera.cy - y0)
+
+
+def render_tiled(renderer: "GLRenderer", camera: Camera, settings: RenderSettings = RenderSettings(),
+                 tile: int = DEFAULT_TILE) -> np.ndarray:
+    """(H, W, 4) float32 image, top row first, like :meth:`GLRenderer.render`, drawn in
+    tiles of at most ``tile`` x ``tile`` pixels so a large screenshot never needs one
+    huge render target.
+
+    Every tile composites the whole image's back-to-front order (restricted to the
+    gaussians that can reach the tile), so blending sequences, and hence pixels,
+    match a single render up to the rasterizer's float rounding.
+
+    With ``settings.supersample`` k > 1 the renderer draws k x k samples per pixel, so
+    tiles are at most ``tile // k`` pixels a side: the GPU target stays within ``tile``.
+    GS clamps its rays to the whole image's borders (``frame=camera``), not the tile's.
+    """
+    if tile < 1:
+        raise ValueError(f"tile must be positive, got {tile}")
+    tile = max(1, tile // settings.supersample)
+    width, height = camera.width, camera.height
+    if width <= tile and height <= tile:
+        return renderer.render(camera, settings)
+    if max(width, height) > MAX_SCREENSHOT_SIDE:
+        # Tiling lifts the GPU's size limit; this one keeps the read-back within memory.
+        raise UserError(f"image size {width}x{height} exceeds {MAX_SCREENSHOT_SIDE} pixels a side")
+    try:
+        image = np.empty((height, width, 4), np.float32)
+    except MemoryError:
+        raise UserError(f"not enough memory for a {width}x{height} float32 RGBA image") from None
+    order = renderer.sort(camera, settings)
+    # Edge tiles are drawn at full tile size and cropped: one render target for all
+    # tiles (the renderer reallocates its target whenever the size changes).
+    tile_w, tile_h = min(tile, width), min(tile, height)
+    for y0 in range(0, height, tile_h):
+        for x0 in range(0, width, tile_w):
+            part = tile_camera(camera, x0, y0, tile_w, tile_h)
+            # The sorter's cull is conservative, so dropping what it culls for the tile
+            # changes no pixel; the whole image's order keeps the blending sequence.
+            visible = renderer.sort(part, settings)
+            tile_order = order[np.isin(order, visible, assume_unique=True)]
+            pixels = renderer.render(part, settings, tile_order, frame=camera)
+            h, w = min(tile_h, height - y0), min(tile_w, width - x0)
+            image[y0:y0 + h, x0:x0 + w] = pixels[:h, :w]
+    return image
+
+
+# --------------------------------------------------------------------------- saving
+
+
+def check_screenshot_path(path: str | Path) -> Path:
+    """Validates an explicit screenshot path before any slow work: ends in .png, its
+    folder exists, and neither the PNG nor its .json sidecar exists."""
+    path = Path(path)
+    if path.suffix.lower() != ".png":
+        raise UserError(f"{path}: a screenshot must end in .png")
+    if not path.parent.is_dir():
+        raise UserError(f"{path}: folder '{path.parent}' does not exist")
+    for existing in (path, sidecar_path(path)):
+        if os.path.lexists(existing):
+            raise UserError(f"{existing}: already exists (screenshots never replace a file)")
+    return path
+
+
+def sidecar_path(png: Path) -> Path:
+    """The JSON sidecar beside a screenshot: same stem, ``.json``."""
+    return png.with_suffix(SIDECAR_SUFFIX)
+
+
+def next_screenshot_path(folder: str | Path, now: datetime | None = None) -> Path:
+    """``folder/raygs-YYYYmmdd-HHMMSS.png``, local time; ``-2``, ``-3``, ... appended while
+    that PNG or its .json sidecar exists."""
+    folder = Path(folder)
+    stem = SCREENSHOT_PREFIX + (now or datetime.now()).strftime("%Y%m%d-%H%M%S")
+    return _free_path(folder, stem, 1)
+
+
+def _free_path(folder: Path, stem: str, number: int) -> Path:
+    """The first of stem.png (number 1), stem-2.png, ... from ``number`` on whose PNG and
+    sidecar are both free."""
+    for n in range(number, number + _MAX_NAME_ATTEMPTS):
+        candidate = folder / (f"{stem}.png" if n == 1 else f"{stem}-{n}.png")
+        if not (os.path.lexists(candidate) or os.path.lexists(sidecar_path(candidate))):
+            return candidate
+    raise UserError(f"{folder}: no free screenshot name from {stem}-{number}.png on")
+
+
+def save_screenshot(image: np.ndarray, sidecar: dict, path: str | Path | None = None,
+                    folder: str | Path | None = None) -> tuple[Path, Path]:
+    """Writes ``image`` ((H, W, >=3) float, as :func:`render_tiled` returns) as an 8-bit
+    PNG and ``sidecar`` as JSON beside it; returns (png, json).
+
+    Give exactly one of ``path`` (an explicit .png: UserError if it or its sidecar
+    exists) or ``folder`` (created if missing; a fresh ``raygs-<time>.png`` name, the
+    next suffix taken whenever another writer claims a name first). Both files are
+    written atomically and never replace an existing file; if the sidecar cannot be
+    written the PNG is removed again, so no screenshot is left without its sidecar.
+    """
+    if (path is None) == (folder is None):
+        raise ValueError("save_screenshot takes exactly one of path and folder")
+    png_bytes = encode_image(image, ".png")
+    if path is not None:
+        png = check_screenshot_path(path)
+        try:
+            return png, _write_pair(png, png_bytes, sidecar)
+        except _NameTaken as taken:  # appeared since the check: still never replaced
+            raise UserError(f"{taken}: already exists (screenshots never replace a file)") from None
+
+    folder = _screenshot_folder(folder)
+    png = next_screenshot_path(folder)
+    stem = png.stem
+    number = 1
+    for _ in range(_MAX_NAME_ATTEMPTS):
+        try:
+            return png, _write_pair(png, png_bytes, sidecar)
+        except _NameTaken:
+            number = _suffix_number(png, stem) + 1
+            png = _free_path(folder, stem, number)
+    raise UserError(f"{folder}: no free screenshot name after {_MAX_NAME_ATTEMPTS} attempts")
+
+
+def save_screenshots(shots: list[tuple[np.ndarray, dict, str]], path: str | Path | None = None,
+                     folder: str | Path | None = None) -> list[tuple[Path, Path]]:
+    """Saves several images of one view (the split view's sides), each ``(image,
+    sidecar, tag)``, as PNG + sidecar pairs named ``<name>-<tag>.png`` and
+    ``<name>-<tag>.json``; returns the (png, json) pairs in order.
+
+    ``path`` (an explicit .png) gives ``<name>``: UserError, before anything is written,
+    if any of the files exists. ``folder`` gives ``raygs-<time>``, with ``-2``, ``-3``,
+    ... where any of the tagged names is taken, so the pairs of one capture share a
+    number. Like :func:`save_screenshot`, nothing is ever replaced."""
+    if (path is None) == (folder is None):
+        raise ValueError("save_screenshots takes exactly one of path and folder")
+    tags = [tag for _, _, tag in shots]
+    if len(set(tags)) != len(tags) or not all(tags):
+        raise ValueError(f"screenshot tags must be distinct and non-empty, got {tags}")
+    encoded = [(encode_image(image, ".png"), sidecar, tag) for image, sidecar, tag in shots]
+    if path is not None:
+        path = Path(path)
+        pngs = [check_screenshot_path(path.with_name(f"{path.stem}-{tag}{path.suffix}")) for tag in tags]
+        written = []
+        for png, (data, sidecar, _) in zip(pngs, encoded):
+            try:
+                written.append((png, _write_pair(png, data, sidecar)))
+            except _NameTaken as taken:
+                raise UserError(f"{taken}: already exists (screenshots never replace a file)") from None
+        return written
+
+    folder = _screenshot_folder(folder)
+    stem = next_screenshot_path(folder).stem  # a fresh time stamp
+    number, written = 1, []
+    for data, sidecar, tag in encoded:
+        for _ in range(_MAX_NAME_ATTEMPTS):
+            number = _free_number(folder, stem, number, tags[len(written):])
+            png = folder / (f"{stem}-{tag}.png" if number == 1 else f"{stem}-{number}-{tag}.png")
+            try:
+                written.append((png, _write_pair(png, data, sidecar)))
+                break
+            except _NameTaken:
+                number += 1
+        else:
+            raise UserError(f"{folder}: no free screenshot name after {_MAX_NAME_ATTEMPTS} attempts")
+    return written
+
+
+def _free_number(folder: Path, stem: str, number: int, tags: list[str]) -> int:
+    """The first n >= ``number`` for which every tag's PNG and sidecar name is free."""
+    for n in range(number, number + _MAX_NAME_ATTEMPTS):
+        pngs = [folder / (f"{stem}-{tag}.png" if n == 1 else f"{stem}-{n}-{tag}.png") for tag in tags]
+        if not any(os.path.lexists(p) or os.path.lexists(sidecar_path(p)) for p in pngs):
+            return n
+    raise UserError(f"{folder}: no free screenshot name from {stem}-{number}-{tags[0]}.png on")
+
+
+def _screenshot_folder(folder: str | Path) -> Path:
+    """``folder``, created if missing; UserError if it cannot be."""
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except FileExistsError:
+        raise UserError(f"{folder}: cannot save screenshots there: not a folder") from None
+    except OSError as exc:
+        raise UserError(f"{folder}: cannot create the screenshot folder: {exc.strerror or exc}") from None
+    if not folder.is_dir():
+        raise UserError(f"{folder}: cannot save screenshots there: not a folder")
+    return folder
+
+
+class _NameTaken(Exception):
+    """Another writer created the PNG or sidecar name between our check and our write."""
+
+
+def _suffix_number(png: Path, stem: str) -> int:
+    rest = png.stem[len(stem):]
+    return int(rest[1:]) if rest.startswith("-") else 1
+
+
+def _write_pair(png: Path, png_bytes: bytes, sidecar: dict) -> Path:
+    """Writes the PNG, then the sidecar; removes the PNG if the sidecar fails. Raises
+    _NameTaken when either name turns out to exist, else UserError."""
+    json_path = sidecar_path(png)
+    text = _sidecar_text(_with_relative_scene_path(sidecar, png.parent), json_path)
+    _write_new(png, png_bytes)
+    try:
+        _write_new(json_path, text.encode("utf-8"))
+    except BaseException as exc:
+        try:
+            os.unlink(png)
+        except OSError:
+            pass  # the sidecar's error is the one worth reporting
+        if isinstance(exc, UserError):  # it names the sidecar already
+            raise UserError(f"{exc} (its PNG was removed: no screenshot without its sidecar)") from None
+        raise
+    return json_path
+
+
+def _write_new(path: Path, data: bytes) -> None:
+    try:
+        write_atomically(path, data, overwrite=False)
+    except UserError:
+        # write_atomically reports a name that appeared meanwhile as "already exists";
+        # telling that apart from other failures lets the folder mode try the next name.
+        if os.path.lexists(path):
+            raise _NameTaken(str(path)) from None
+        raise
+
+
+def _sidecar_text(sidecar: dict, where: Path) -> str:
+    try:
+        # allow_nan=False: NaN and Infinity are not JSON; float repr round-trips exactly.
+        return json.dumps(sidecar, indent=2, allow_nan=False) + "\n"
+    except (TypeError, ValueError) as exc:
+        raise UserError(f"{where}: screenshot sidecar is not valid JSON: {exc}") from None
+
+
+def _with_relative_scene_path(sidecar: dict, folder: Path) -> dict:
+    """Adds scene.relative_path (from the sidecar's folder) when the scene path is
+    absolute, so a folder tree moved as a whole still finds its scene."""
+    scene = sidecar.get("scene")
+    if not isinstance(scene, dict) or not isinstance(scene.get("path"), str) or not os.path.isabs(scene["path"]):
+        return sidecar
+    try:
+        relative = os.path.relpath(scene["path"], os.path.abspath(folder))
+    except ValueError:  # another drive on Windows: no relative path exists
+        return sidecar
+    return {**sidecar, "scene": {**scene, "relative_path": relative}}

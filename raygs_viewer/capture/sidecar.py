@@ -1,0 +1,488 @@
+"""The JSON sidecar saved beside every screenshot: everything needed to render it again.
+
+``raygs-viewer render --sidecar SHOT.json --out SHOT2.png`` reads it back, finds the
+scene (checking its SHA-256), and renders the same camera with the same settings
+through :func:`raygs_viewer.capture.screenshot.render_tiled`, like the window did.
+
+Layout (version 1)::
+
+    {"format": "raygs-viewer screenshot", "version": 1,
+     "program": {"name": "raygs-viewer", "version": "0.1.0"},
+     "created": "2025-01-31T12:00:00Z",                        # UTC
+     "image": {"width": W, "height": H, "scale": K},           # the screenshot's size
+     "scene": {"path": "/abs/scene.ply" or "demo", "sha256": "...", "count": N,
+               "sh_degree": d, "filter_fused": false,
+               "relative_path": "../scene.ply"},               # added when saved, from the sidecar's folder
+     "camera": {INRIA cameras.json entry, cx and cy always present},
+     "world_to_camera": {"R": 3x3, "t": 3},                    # the exact float64 pose
+     "window": {"camera": {...}, "world_to_camera": {...}},    # optional: the on-screen view before scaling
+     "settings": {every RenderSettings field},
+     "render_mode": "raygs",                                   # = settings.mode
+     "stereo": {...},                                          # version 2, stereo images only (below)
+     "extra": {...}}                                           # free-form, from the window
+
+A stereo image (version 2) adds::
+
+     "stereo": {"ipd": 0.063, "convergence": 2.0, "scene_scale": 1.0,   # metres, metres, metres/unit
+                "layout": "sbs",                                        # one of stereo.LAYOUTS
+                "lens": null or {"k1": .., "k2": .., "chroma_red": .., "chroma_blue": ..},
+                "headset": null or {"name", "label", "width", "height", "fov_x", "fov_y"}}
+
+Its "camera" is the midpoint between the eyes (each eye has that size) and "image" is
+the composed size (twice the width side by side). A file is written with the lowest
+version that describes it, so older readers keep reading mono sidecars and refuse
+stereo ones instead of rendering them as one eye.
+
+"render_mode" mirrors ``settings.mode`` (one of :data:`raygs_viewer.render.settings.RENDER_MODES`).
+Sidecars written before "settings" had a "mode" take the mode from "render_mode"; when
+both are present they must agree.
+
+"camera" and "world_to_camera" describe the screenshot's camera, already scaled to
+the image size. Python writes a float as the shortest repr that reads back to the
+same bits, so the pose and intrinsics survive the JSON round trip exactly.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import functools
+import json
+import math
+import os
+import re
+import types
+import typing
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+import raygs_viewer
+from raygs_viewer.camera.pinhole import (
+    Camera,
+    camera_from_json,
+    camera_to_json,
+    read_json_file,
+)
+from raygs_viewer.camera.stereo import (
+    LAYOUTS,
+    HeadsetPreset,
+    StereoRig,
+    StereoView,
+    composed_size,
+)
+from raygs_viewer.errors import UserError
+from raygs_viewer.render.settings import RENDER_MODES, RenderSettings
+from raygs_viewer.scene.loader import arrays_sha256, file_sha256
+
+SIDECAR_FORMAT = "raygs-viewer screenshot"
+SIDECAR_VERSION = 2          # the newest this program reads and writes
+STEREO_SIDECAR_VERSION = 2   # the first with "stereo"
+DEMO = "demo"
+
+_SHA256 = re.compile(r"[0-9a-f]{64}")
+# A pose written by this program is orthonormal to ~1e-15; anything far off is an
+# edited or corrupted file, not rounding.
+_ROTATION_TOLERANCE = 1e-5
+# "camera" repeats the pose of "world_to_camera" (for INRIA tools); they must agree,
+# or an edit to one of them would silently be ignored.
+_POSE_AGREEMENT = 1e-6
+
+
+# --------------------------------------------------------------------------- hashes
+
+
+def scene_sha256(path: str | os.PathLike) -> str:
+    """SHA-256 (hex) of the file's bytes, streamed (the digest the window records)."""
+    return file_sha256(path)
+
+
+@functools.lru_cache(maxsize=1)
+def demo_sha256() -> str:
+    """:func:`arrays_sha256` of the built-in demo scene: a screenshot of the demo made by
+    a version with another demo generator is detected like a changed scene file."""
+    from raygs_viewer.scene.demo import demo_scene
+    return arrays_sha256(demo_scene())
+
+
+# --------------------------------------------------------------------------- writing
+
+
+def _camera_entry(camera: Camera) -> dict:
+    entry = camera_to_json(camera)
+    # Plain Python numbers: json cannot write numpy's ints or float32.
+    entry.update(width=int(camera.width), height=int(camera.height), fx=float(camera.fx), fy=float(camera.fy),
+                 cx=float(camera.cx), cy=float(camera.cy))  # cx, cy always: INRIA readers default to the centre
+    return entry
+
+
+def _pose(camera: Camera) -> dict:
+    return {"R": np.asarray(camera.R, np.float64).tolist(), "t": np.asarray(camera.t, np.float64).tolist()}
+
+
+def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, settings: RenderSettings,
+                  scale: float, window_camera: Camera | None = None, extra: dict | None = None,
+                  stereo: StereoView | None = None) -> dict:
+    """The sidecar of a screenshot rendered at ``camera`` (the window's camera already
+    scaled by ``scale``) with ``settings``. ``scene_path`` is the loaded file ("demo"
+    for the demo), recorded as an absolute path; ``window_camera`` is the on-screen
+    view; ``extra`` holds free-form details of the window (up axis, navigation, GL
+    renderer, ...). ``stereo``: the image is that stereo view around ``camera``."""
+    if scene_path == DEMO:
+        recorded_path = DEMO
+    else:
+        recorded_path = os.path.abspath(os.fspath(scene_path))
+    width, height = (camera.width, camera.height) if stereo is None else \
+        composed_size(camera.width, camera.height, stereo.layout)
+    sidecar = {
+        "format": SIDECAR_FORMAT,
+        "version": 1 if stereo is None else STEREO_SIDECAR_VERSION,
+        "program": {"name": "raygs-viewer", "version": raygs_viewer.__version__},
+        "created": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "image": {"width": int(width), "height": int(height), "scale": float(scale)},
+        "scene": {"path": recorded_path, "sha256": scene_sha256, "count": int(scene.count),
+                  "sh_degree": int(scene.sh_degree), "filter_fused": bool(scene.filter_fused)},
+        "camera": _camera_entry(camera),
+        "world_to_camera": _pose(camera),
+        "settings": dataclasses.asdict(settings),
+        "render_mode": settings.mode,
+        "extra": dict(extra or {}),
+    }
+    if stereo is not None:
+        sidecar["stereo"] = _stereo_entry(stereo)
+    if window_camera is not None:
+        sidecar["window"] = {"camera": _camera_entry(window_camera), "world_to_camera": _pose(window_camera)}
+    return sidecar
+
+
+def _stereo_entry(view: StereoView) -> dict:
+    return {"ipd": view.rig.ipd, "convergence": view.rig.convergence, "scene_scale": view.rig.scene_scale,
+            "layout": view.layout,
+            "lens": None if view.lens is None else dataclasses.asdict(view.lens),
+            "headset": None if view.headset is None else dataclasses.asdict(view.headset)}
+
+
+# --------------------------------------------------------------------------- reading
+
+
+@dataclass(frozen=True)
+class Sidecar:
+    """A validated sidecar. path: the .json file. scene_path: the recorded scene
+    (absolute path or "demo"). scene_sha256: hex digest of the scene file (or of the
+    demo's arrays). camera: the screenshot's camera (R (3, 3), t (3,) float64, exactly
+    as written). settings: the render settings. scale: the window-to-screenshot scale
+    (informational: camera already has the screenshot's size). render_mode: the
+    settings' mode (one of RENDER_MODES).
+    raw: the parsed JSON, for fields only the window reads."""
+
+    path: Path
+    scene_path: str
+    scene_sha256: str
+    camera: Camera
+    settings: RenderSettings
+    scale: float
+    render_mode: str
+    raw: dict
+    stereo: StereoView | None = None
+
+
+def load_sidecar(path: str | os.PathLike) -> Sidecar:
+    """Reads and validates a screenshot sidecar; any problem is a one-line UserError
+    naming the file and the field."""
+    path = Path(path)
+    data = read_json_file(path, "a screenshot's .json sidecar")
+    if not isinstance(data, dict):
+        raise UserError(f"{path}: not a raygs-viewer screenshot sidecar (expected a JSON object)")
+    fields = _Fields(path, data)
+
+    if "format" not in data:
+        raise UserError(f"{path}: not a raygs-viewer screenshot sidecar (no 'format' field)")
+    if data["format"] != SIDECAR_FORMAT:
+        raise UserError(f"{path}: not a raygs-viewer screenshot sidecar ('format' is "
+                        f"{_show(data.get('format'))}, expected {_show(SIDECAR_FORMAT)})")
+    version = fields.get("version", int)
+    if version > SIDECAR_VERSION:
+        raise UserError(f"{path}: sidecar version {version} was written by a newer raygs-viewer "
+                        f"(this one reads version {SIDECAR_VERSION}); update raygs-viewer")
+    if version < 1:
+        raise UserError(f"{path}: 'version' {version} is not a sidecar version (expected {SIDECAR_VERSION})")
+
+    scene = fields.get("scene", dict)
+    scene_path = fields.get("scene.path", str)
+    if not scene_path:
+        raise UserError(f"{path}: 'scene.path' is empty")
+    sha = fields.get("scene.sha256", str)
+    if not _SHA256.fullmatch(sha):
+        raise UserError(f"{path}: 'scene.sha256' must be 64 lowercase hex digits, got {_show(sha)}")
+    if "relative_path" in scene:
+        fields.get("scene.relative_path", str)
+
+    camera = _load_camera(fields)
+    stereo = _load_stereo(fields) if "stereo" in data else None
+    if stereo is not None and version < STEREO_SIDECAR_VERSION:
+        raise UserError(f"{path}: 'stereo' needs sidecar version {STEREO_SIDECAR_VERSION}, the file says {version}")
+    image = fields.get("image", dict)
+    width, height = (camera.width, camera.height) if stereo is None else \
+        composed_size(camera.width, camera.height, stereo.layout)
+    for key, value in (("width", width), ("height", height)):
+        if fields.get(f"image.{key}", int) != value:
+            raise UserError(f"{path}: 'image.{key}' {image[key]} differs from the camera's {value}" if stereo is None
+                        else f"{path}: 'image.{key}' {image[key]} differs from {value}, the {stereo.layout} "
+                             f"image of two {camera.width}x{camera.height} eyes")
+    scale = fields.get("image.scale", float)
+    from raygs_viewer.capture.screenshot import MAX_SCALE
+    if not 0.0 < scale <= MAX_SCALE:
+        raise UserError(f"{path}: 'image.scale' must be in (0, {MAX_SCALE:g}], got {_show(scale)}")
+
+    render_mode = fields.get("render_mode", str)
+    if render_mode not in RENDER_MODES:
+        raise UserError(f"{path}: unknown 'render_mode' {_show(render_mode)} (this raygs-viewer renders "
+                        f"{', '.join(map(repr, RENDER_MODES))}; the sidecar may come from a newer one)")
+    settings = _load_settings(fields, render_mode)
+    if "extra" in data:
+        fields.get("extra", dict)
+    return Sidecar(path, scene_path, sha, camera, settings, scale, render_mode, data, stereo)
+
+
+class _Fields:
+    """Typed access to dotted fields of the parsed JSON, with errors naming file and field."""
+
+    def __init__(self, path: Path, data: dict):
+        self.path, self.data = path, data
+
+    def get(self, dotted: str, kind: type):
+        value = self.data
+        for depth, key in enumerate(dotted.split(".")):
+            if not isinstance(value, dict):
+                parent = ".".join(dotted.split(".")[:depth])
+                raise UserError(f"{self.path}: '{parent}' must be a JSON object")
+            if key not in value:
+                raise UserError(f"{self.path}: missing '{dotted}'")
+            value = value[key]
+        return _typed(value, kind, f"{self.path}: '{dotted}'")
+
+
+def _typed(value, kind: type, where: str):
+    """``value`` checked against a JSON type: int (not bool), float (any finite number),
+    str, bool, dict or list."""
+    if kind is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise UserError(f"{where} must be a number, got {_show(value)}")
+        try:
+            number = float(value)
+        except OverflowError:  # an integer beyond float range (JSON has no limit)
+            raise UserError(f"{where} must be finite, got {_show(value)}") from None
+        if not math.isfinite(number):
+            raise UserError(f"{where} must be finite, got {_show(value)}")
+        return number
+    if kind is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise UserError(f"{where} must be a whole number, got {_show(value)}")
+        return value
+    names = {str: "a string", bool: "true or false", dict: "a JSON object", list: "a JSON array",
+             (dict, type(None)): "a JSON object or null"}
+    if not isinstance(value, kind):
+        raise UserError(f"{where} must be {names.get(kind, getattr(kind, '__name__', kind))}, got {_show(value)}")
+    return value
+
+
+def _show(value) -> str:
+    """A short one-line rendering of a JSON value for messages."""
+    try:
+        text = json.dumps(value)
+    except (TypeError, ValueError):
+        text = repr(value)
+    return text if len(text) <= 60 else text[:57] + "..."
+
+
+def _key(name: str) -> str:
+    """A JSON key from the file as a message shows it: a newline in it would split the one line."""
+    return ascii(name)[1:-1]
+
+
+def _array(fields: _Fields, dotted: str, shape: tuple[int, ...]) -> np.ndarray:
+    value = fields.get(dotted, list)
+    where = f"{fields.path}: '{dotted}'"
+    what = "3x3 numbers" if shape == (3, 3) else f"{shape[0]} numbers"
+
+    def numbers(v, depth):
+        if depth == len(shape):
+            return isinstance(v, (int, float)) and not isinstance(v, bool)
+        return isinstance(v, list) and len(v) == shape[depth] and all(numbers(x, depth + 1) for x in v)
+
+    if not numbers(value, 0):
+        raise UserError(f"{where} must be {what}, got {_show(value)}")
+    try:
+        array = np.array(value, dtype=np.float64)
+    except OverflowError:  # an integer beyond float range
+        raise UserError(f"{where} must be finite, got {_show(value)}") from None
+    if not np.all(np.isfinite(array)):
+        raise UserError(f"{where} must be finite, got {_show(value)}")
+    return array
+
+
+def _load_camera(fields: _Fields) -> Camera:
+    """The screenshot's camera: intrinsics from "camera", the exact pose from
+    "world_to_camera" (older or hand-made files without it: the INRIA pose)."""
+    path = fields.path
+    entry = fields.get("camera", dict)
+    camera = camera_from_json(entry, f"{path}: 'camera'")
+    if "world_to_camera" not in fields.data:
+        return camera
+    fields.get("world_to_camera", dict)
+    R = _array(fields, "world_to_camera.R", (3, 3))
+    t = _array(fields, "world_to_camera.t", (3,))
+    # Entries of a rotation lie in [-1, 1]: bounded first, the product cannot overflow.
+    if np.abs(R).max() > 2 or np.abs(R @ R.T - np.eye(3)).max() > _ROTATION_TOLERANCE or np.linalg.det(R) <= 0:
+        raise UserError(f"{path}: 'world_to_camera.R' is not a rotation matrix")
+    center = -R.T @ t
+    rotation = np.array(entry["rotation"], dtype=np.float64)  # shape and finiteness checked by camera_from_json
+    position = np.array(entry["position"], dtype=np.float64)
+    if (np.abs(rotation - R.T).max() > _POSE_AGREEMENT
+            or np.abs(position - center).max() > _POSE_AGREEMENT * (1.0 + np.abs(center).max())):
+        raise UserError(f"{path}: 'camera' position/rotation and 'world_to_camera' describe different poses "
+                        f"(edit both, or remove 'world_to_camera')")
+    return Camera(camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy, R, t)
+
+
+_LENS_FIELDS = ("k1", "k2", "chroma_red", "chroma_blue")
+_HEADSET_FIELDS = {"name": str, "label": str, "width": int, "height": int, "fov_x": float, "fov_y": float}
+
+
+def _load_stereo(fields: _Fields) -> StereoView:
+    """The "stereo" section; every key is required and none may be unknown (a newer
+    program's stereo option cannot be honoured)."""
+    path = fields.path
+    entry = fields.get("stereo", dict)
+    known = ("ipd", "convergence", "scene_scale", "layout", "lens", "headset")
+    _only_keys(path, "stereo", entry, known)
+    layout = fields.get("stereo.layout", str)
+    if layout not in LAYOUTS:
+        raise UserError(f"{path}: 'stereo.layout' must be one of {', '.join(LAYOUTS)}, got {_show(layout)}")
+    try:
+        rig = StereoRig(**{name: fields.get(f"stereo.{name}", float) for name in known[:3]})
+        lens = None
+        if fields.get("stereo.lens", (dict, type(None))) is not None:
+            _only_keys(path, "stereo.lens", entry["lens"], _LENS_FIELDS)
+            from raygs_viewer.camera.lens_model import LensModel
+            lens = LensModel(**{name: fields.get(f"stereo.lens.{name}", float) for name in _LENS_FIELDS})
+        headset = None
+        if fields.get("stereo.headset", (dict, type(None))) is not None:
+            _only_keys(path, "stereo.headset", entry["headset"], tuple(_HEADSET_FIELDS))
+            headset = HeadsetPreset(**{name: fields.get(f"stereo.headset.{name}", kind)
+                                       for name, kind in _HEADSET_FIELDS.items()})
+    except UserError as exc:
+        if str(exc).startswith(str(path)):
+            raise
+        raise UserError(f"{path}: 'stereo': {exc}") from None
+    return StereoView(rig, layout, lens, headset)
+
+
+def _only_keys(path: Path, where: str, entry: dict, known: tuple[str, ...]) -> None:
+    missing = [key for key in known if key not in entry]
+    if missing:
+        raise UserError(f"{path}: missing '{where}.{missing[0]}'")
+    unknown = [key for key in entry if key not in known]
+    if unknown:
+        raise UserError(f"{path}: unknown field '{where}.{_key(unknown[0])}' (it may come from a newer raygs-viewer)")
+
+
+def _load_settings(fields: _Fields, render_mode: str | None = None) -> RenderSettings:
+    """RenderSettings from "settings": every key must be a field (a newer program's
+    setting cannot be honoured, so it is an error); missing fields take their defaults
+    (sidecars written before the field existed), except "mode", which older sidecars
+    recorded only as ``render_mode``: a "settings.mode" must equal it."""
+    path = fields.path
+    raw = fields.get("settings", dict)
+    if render_mode is not None:
+        if "mode" not in raw:
+            raw = {**raw, "mode": render_mode}
+        elif raw["mode"] != render_mode:
+            raise UserError(f"{path}: 'settings.mode' {_show(raw['mode'])} differs from 'render_mode' "
+                            f"{_show(render_mode)} (they must agree; edit both)")
+    hints = typing.get_type_hints(RenderSettings)
+    known = {f.name for f in dataclasses.fields(RenderSettings)}
+    values = {}
+    for name, value in raw.items():
+        if name not in known:
+            raise UserError(f"{path}: unknown setting 'settings.{_key(name)}' (it may come from a newer raygs-viewer)")
+        values[name] = _setting(value, hints[name], f"{path}: 'settings.{name}'")
+    try:
+        return RenderSettings(**values)
+    except UserError as exc:
+        raise UserError(f"{path}: 'settings': {exc}") from None
+    except (TypeError, ValueError) as exc:  # a field type _setting does not know how to check
+        raise UserError(f"{path}: 'settings': {exc}") from None
+
+
+def _setting(value, hint, where: str):
+    """A JSON value converted to a RenderSettings field's annotated type: float, int,
+    bool, str, tuple[...] (from a JSON array) and X | None are checked; other types pass
+    through to RenderSettings' own validation."""
+    origin, args = typing.get_origin(hint), typing.get_args(hint)
+    if origin in (typing.Union, types.UnionType):
+        if value is None and type(None) in args:
+            return None
+        options = [a for a in args if a is not type(None)]
+        errors = []
+        for option in options:
+            try:
+                return _setting(value, option, where)
+            except UserError as exc:
+                errors.append(exc)
+        if len(options) == 1:
+            raise errors[0]
+        raise UserError(f"{where} has the wrong type, got {_show(value)}")
+    if origin is tuple:
+        if not isinstance(value, list):
+            raise UserError(f"{where} must be a JSON array, got {_show(value)}")
+        if len(args) == 2 and args[1] is Ellipsis:
+            return tuple(_setting(v, args[0], where) for v in value)
+        if len(value) != len(args):
+            raise UserError(f"{where} must have {len(args)} entries, got {_show(value)}")
+        return tuple(_setting(v, a, where) for v, a in zip(value, args))
+    if hint in (float, int, bool, str):
+        if hint is int and isinstance(value, bool):
+            raise UserError(f"{where} must be a whole number, got {_show(value)}")
+        return _typed(value, hint, where)
+    return value
+
+
+# --------------------------------------------------------------------------- the scene
+
+
+def resolve_scene(sidecar: Sidecar, override: str | None = None) -> str:
+    """The scene to load for ``sidecar``: ``override`` if given; else "demo"; else the
+    recorded absolute path; else, if that file is gone, the recorded path relative to
+    the sidecar's folder (a folder tree moved as a whole), then the same file name in
+    the sidecar's folder (scene and screenshot moved together)."""
+    if override is not None:
+        return override
+    recorded = sidecar.scene_path
+    if recorded == DEMO:
+        return DEMO
+    candidates = [Path(recorded)]
+    relative = sidecar.raw.get("scene", {}).get("relative_path")
+    if relative:
+        candidates.append(sidecar.path.parent / relative)
+    candidates.append(sidecar.path.parent / Path(recorded).name)
+    for candidate in candidates:
+        if candidate.is_file():
+            return str(candidate)
+    tried = ", ".join(dict.fromkeys(str(c) for c in candidates[1:]))
+    raise UserError(f"{sidecar.path}: scene {recorded} not found (nor {tried}); "
+                    f"give the scene file as the SCENE argument")
+
+
+def verify_scene_hash(sidecar: Sidecar, scene_path: str) -> None:
+    """UserError unless ``scene_path`` ("demo" or a file) hashes to the sidecar's sha256."""
+    if scene_path == DEMO:
+        actual = demo_sha256()
+        what = "the built-in demo scene differs from the one the screenshot was taken with (another demo " \
+               "generator)"
+    else:
+        actual = scene_sha256(scene_path)
+        what = f"{scene_path}: scene file differs from the one the screenshot was taken with"
+    if actual != sidecar.scene_sha256:
+        raise UserError(f"{what} (sha256 {actual[:12]}… vs {sidecar.scene_sha256[:12]}… in {sidecar.path.name})")

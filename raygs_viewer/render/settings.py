@@ -1,0 +1,148 @@
+"""Render settings shared by the GL renderer, the reference renderer and the CLI.
+
+The accuracy options of the maths page, sections 6, 7 and 10, live here so that the
+GL path, the float64 reference, the sidecar and the benchmark read one definition.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from raygs_viewer.camera.pinhole import Camera
+from raygs_viewer.errors import UserError
+
+DEFAULT_P_MIN = 1.0 / 255.0
+
+#: "raygs": RayGS, with the pixel-invariant MIP filter of Eq. 17 when ``mip`` is on.
+#: "raygs-exact-mip": RayGS with the pixel-dependent MIP filter (Appendix A.5),
+#: evaluated per fragment; MIP is on by definition in this mode.
+#: "gs": EWA splatting, the linearised projection with a 0.3 px^2 dilation.
+RENDER_MODES = ("raygs", "raygs-exact-mip", "gs")
+MODE_LABELS = {"raygs": "RayGS", "raygs-exact-mip": "RayGS exact MIP", "gs": "GS (EWA)"}
+
+#: Variance (px^2) added to every projected 2D covariance in GS mode, as INRIA training does.
+GS_DILATION = 0.3
+#: GS skips gaussians whose centre is nearer than this (camera-space z, scene units):
+#: the linearised projection is undefined at z = 0.
+GS_NEAR = 0.01
+#: INRIA and GOF clamp a splat's alpha to this (section 10).
+ALPHA_CLAMP = 0.99
+#: ... and stop compositing a pixel front to back before its transmittance falls below this.
+TRANSMITTANCE_CUTOFF = 1e-4
+#: Supersampling factors per axis the renderers accept (k x k samples per pixel).
+MAX_SUPERSAMPLE = 4
+#: Largest MIP filter variance accepted, px^2 (a filter 10 px wide is no longer anti-aliasing).
+MAX_MIP_SIGMA2 = 100.0
+#: The exact MIP quad widens the filter for the farthest peak, tau_max = |mu| + sqrt(kappa)
+#: max(s_mip) (see preprocess.comp); culling widens the approximate filter's margin by
+#: this factor. It is conservative: tau_max <= 2|mu| unless sqrt(kappa) max(s_mip) > |mu|,
+#: and then the cull sphere already holds the camera centre, so nothing is culled.
+EXACT_MIP_CULL_FACTOR = 2.0
+
+
+@dataclass(frozen=True)
+class RenderSettings:
+    """How to render.
+
+    p_min: opacity below which a fragment is discarded; it sets the support
+    kappa = -2 ln(p_min / o) of every gaussian (Eq. 3). background: linear RGB the
+    image is composited over. sh_degree: highest spherical-harmonics band
+    evaluated, capped at the scene's; None uses all the scene has.
+
+    mode: one of RENDER_MODES. mip: the pixel-invariant MIP filter in "raygs" mode
+    (ignored by the other modes). mip_sigma2: the pixel filter's variance in px^2
+    of the rendered (supersampled) image, for both MIP forms. mip_modulation: scale
+    opacity so the total opacity matches the unfiltered gaussian's (Eq. 17's root;
+    in exact MIP mode the per-pixel root). gs_compensation: in "gs" mode, scale
+    opacity by sqrt(det(Sigma2) / det(Sigma2 + dilation)) as Mip-Splatting does.
+
+    supersample: render k x k samples per pixel and average them (box filter).
+    alpha_clamp: clamp each splat's alpha to ALPHA_CLAMP. transmittance_cutoff:
+    composite front to back and stop a pixel before its transmittance falls below
+    TRANSMITTANCE_CUTOFF, as INRIA and GOF do (section 10).
+    """
+
+    p_min: float = DEFAULT_P_MIN
+    background: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    sh_degree: int | None = None
+    mode: str = "raygs"
+    mip: bool = False
+    mip_sigma2: float = 0.1
+    mip_modulation: bool = True
+    gs_compensation: bool = False
+    supersample: int = 1
+    alpha_clamp: bool = False
+    transmittance_cutoff: bool = False
+
+    def effective_sh_degree(self, scene_degree: int) -> int:
+        return scene_degree if self.sh_degree is None else min(self.sh_degree, scene_degree)
+
+    @property
+    def mip_active(self) -> bool:
+        """Whether a RayGS MIP filter (either form) is applied."""
+        return self.mode == "raygs-exact-mip" or (self.mode == "raygs" and self.mip)
+
+    def pixel_variance(self, camera: Camera) -> float:
+        """sigma_x^2: the MIP filter's variance at unit distance along a ray, for
+        ``camera`` as rendered (already supersampled); 0 when no MIP filter is applied."""
+        return self.mip_sigma2 / (camera.fx * camera.fy) if self.mip_active else 0.0
+
+    def cull_dilation(self, camera: Camera) -> float | None:
+        """Extra world-space standard deviation per unit of distance that the support
+        may gain from filtering (for conservative culling); None where the support is
+        not bounded by a dilated 3D ellipsoid (GS: its linearised footprint), so only
+        gaussians behind the camera may be culled."""
+        if self.mode == "gs":
+            return None
+        sigma = math.sqrt(self.pixel_variance(camera))
+        return sigma * EXACT_MIP_CULL_FACTOR if self.mode == "raygs-exact-mip" else sigma
+
+    def __post_init__(self) -> None:
+        if not (isinstance(self.p_min, (int, float)) and 0.0 < self.p_min < 1.0):
+            raise UserError(f"p_min must be a number in (0, 1), got {self.p_min!r}")
+        if len(self.background) != 3 or not all(math.isfinite(c) for c in self.background):
+            raise UserError(f"background must be three finite numbers, got {self.background!r}")
+        object.__setattr__(self, "background", tuple(float(c) for c in self.background))
+        if self.sh_degree is not None and (isinstance(self.sh_degree, bool) or self.sh_degree not in (0, 1, 2, 3)):
+            raise UserError(f"sh_degree must be 0, 1, 2 or 3, got {self.sh_degree!r}")
+        if self.mode not in RENDER_MODES:
+            raise UserError(f"render mode must be one of {', '.join(RENDER_MODES)}, got {self.mode!r}")
+        sigma2 = self.mip_sigma2
+        if isinstance(sigma2, bool) or not isinstance(sigma2, (int, float)) or not 0.0 <= sigma2 <= MAX_MIP_SIGMA2:
+            raise UserError(f"MIP sigma^2 must be a number in [0, {MAX_MIP_SIGMA2:g}] px^2, got {sigma2!r}")
+        object.__setattr__(self, "mip_sigma2", float(sigma2))
+        k = self.supersample
+        if isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= MAX_SUPERSAMPLE:
+            raise UserError(f"supersample must be a whole number from 1 to {MAX_SUPERSAMPLE}, got {k!r}")
+        for name in ("mip", "mip_modulation", "gs_compensation", "alpha_clamp", "transmittance_cutoff"):
+            if not isinstance(getattr(self, name), bool):
+                raise UserError(f"{name} must be true or false, got {getattr(self, name)!r}")
+
+
+#: Named accuracy configurations, as overrides of RenderSettings: the A/B split view's
+#: choices for its right side and the rows of ``raygs-viewer bench accuracy``.
+#: "RayGS" (the default settings) is the baseline every ratio is taken against.
+ACCURACY_PRESETS: dict[str, dict[str, object]] = {
+    "GS": {"mode": "gs"},
+    "GS + compensation": {"mode": "gs", "gs_compensation": True},
+    "RayGS": {},
+    "RayGS + MIP": {"mip": True, "mip_modulation": True},
+    "RayGS + MIP, no modulation": {"mip": True, "mip_modulation": False},
+    "RayGS exact MIP": {"mode": "raygs-exact-mip", "mip_modulation": True},
+    "RayGS p_min e^-4": {"p_min": math.exp(-4.0)},
+    "RayGS p_min 1e-3": {"p_min": 1e-3},
+    "RayGS 2x2 supersampling": {"supersample": 2},
+}
+
+
+def apply_preset(settings: RenderSettings, name: str) -> RenderSettings:
+    """``settings`` with the accuracy options of preset ``name`` (the options a preset
+    does not name are reset to their defaults; p_min, background and SH degree are kept
+    unless the preset sets them)."""
+    from dataclasses import replace
+    accuracy_fields = ("mode", "mip", "mip_sigma2", "mip_modulation", "gs_compensation", "supersample",
+                       "alpha_clamp", "transmittance_cutoff")
+    defaults = RenderSettings()
+    reset = {name_: getattr(defaults, name_) for name_ in accuracy_fields}
+    return replace(settings, **{**reset, **ACCURACY_PRESETS[name]})

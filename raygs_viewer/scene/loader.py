@@ -1,0 +1,365 @@
+"""Loading a scene with everything the window shows about it: the gaussians, the
+training cameras found beside it, a content hash, and warnings.
+
+:func:`load_now` does it synchronously (the scene named on the command line, so a
+bad file fails before a window opens); :class:`SceneLoader` does it on a daemon
+thread while the window keeps drawing, reporting progress and discarding a load
+that a newer one replaced.
+"""
+
+from __future__ import annotations
+
+import fnmatch
+import hashlib
+import json
+import os
+import threading
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from raygs_viewer.camera.pinhole import Camera, load_cameras
+from raygs_viewer.errors import UserError
+from raygs_viewer.scene.demo import DEMO_VIEW_NAMES, demo_cameras, demo_scene
+from raygs_viewer.scene.io import ProgressCallback, dropped_summary, load_scene
+from raygs_viewer.scene.model import Scene
+
+__all__ = [
+    "DEMO",
+    "HASH_CHUNK_BYTES",
+    "LoadedScene",
+    "SceneLoader",
+    "arrays_sha256",
+    "file_sha256",
+    "find_training_cameras",
+    "load_now",
+]
+
+#: The scene "path" that means the built-in demo scene.
+DEMO = "demo"
+
+#: The file hash reads this many bytes at a time (one reused buffer): hashing a
+#: multi-GB scene never holds more than this of it.
+HASH_CHUNK_BYTES = 1 << 20
+
+# Shares of the whole job in load_now's progress: reading and activating the scene
+# dominates; the hash re-reads a file that is now in the page cache.
+_SCENE_END = 0.85
+_HASH_END = 0.98
+
+_DEMO_ARRAYS = ("positions", "rotations", "scales", "opacities", "sh")
+
+
+def find_training_cameras(scene_path: str | os.PathLike) -> Path | None:
+    """cameras.json beside the scene file, or in the INRIA model folder when the scene is
+    MODEL/point_cloud/iteration_*/point_cloud.ply (MODEL/cameras.json). None if neither exists.
+
+    The file beside the scene wins when both exist. Any file name inside the
+    ``iteration_*`` folder counts (trainers differ in what they write there).
+    """
+    scene_path = Path(scene_path)
+    beside = scene_path.parent / "cameras.json"
+    if beside.is_file():
+        return beside
+    # abspath, not resolve(): a symlinked scene keeps the folder it was opened from,
+    # and a bare "point_cloud.ply" still knows its parents.
+    iteration = Path(os.path.abspath(scene_path)).parent
+    if fnmatch.fnmatchcase(iteration.name, "iteration_*") and iteration.parent.name == "point_cloud":
+        model = iteration.parent.parent / "cameras.json"
+        if model.is_file():
+            return model
+    return None
+
+
+@dataclass(frozen=True)
+class LoadedScene:
+    """A loaded scene and what the window shows about it.
+
+    scene:        the gaussians (see :class:`raygs_viewer.scene.model.Scene`).
+    path:         the scene path as given, or "demo".
+    sha256:       hex SHA-256 of the file's bytes; for the demo, :func:`arrays_sha256`.
+    cameras:      training cameras (the demo: ``demo_cameras()``), [] if none.
+    cameras_path: the cameras.json they came from (None for none, and for the demo's own).
+    camera_names: one per camera: its ``img_name`` when present, else "camera i";
+                  the demo: ``DEMO_VIEW_NAMES``.
+    warnings:     one-line warnings without a "warning:" prefix: the dropped-gaussian
+                  summary, and why a discovered cameras.json was skipped.
+    """
+
+    scene: Scene
+    path: str
+    sha256: str
+    cameras: list[Camera]
+    cameras_path: str | None
+    camera_names: list[str]
+    warnings: list[str]
+
+
+def arrays_sha256(scene: Scene) -> str:
+    """Hex SHA-256 of the scene's positions, rotations, scales, opacities and sh, in that
+    order, as C-contiguous float32 bytes (for the demo, where there is no file to hash)."""
+    digest = hashlib.sha256()
+    for name in _DEMO_ARRAYS:
+        digest.update(np.ascontiguousarray(getattr(scene, name), dtype=np.float32).tobytes())
+    return digest.hexdigest()
+
+
+def file_sha256(path: str | os.PathLike, progress: ProgressCallback | None = None,
+                cancel: threading.Event | None = None) -> str:
+    """Hex SHA-256 of a file, read HASH_CHUNK_BYTES at a time into one buffer.
+
+    ``progress(fraction, "hashing")`` follows each read; a set ``cancel`` stops it with
+    ``UserError("loading cancelled")``. Read failures are a one-line UserError naming the file.
+    """
+    shown = os.fspath(path)
+    digest = hashlib.sha256()
+    buffer = bytearray(max(1, HASH_CHUNK_BYTES))
+    view = memoryview(buffer)
+    try:
+        with open(path, "rb") as f:
+            size = os.fstat(f.fileno()).st_size
+            done = 0
+            while True:
+                if cancel is not None and cancel.is_set():
+                    raise UserError("loading cancelled")
+                got = f.readinto(buffer)
+                if not got:
+                    break
+                digest.update(view[:got])
+                done += got
+                if progress is not None:
+                    progress(min(1.0, done / size) if size else 1.0, "hashing")
+    except FileNotFoundError:
+        raise UserError(f"{shown}: no such file") from None
+    except IsADirectoryError:
+        raise UserError(f"{shown}: is a folder, expected a scene file") from None
+    except OSError as exc:
+        raise UserError(f"{shown}: cannot read: {exc.strerror or exc}") from None
+    return digest.hexdigest()
+
+
+def _camera_names(path: Path, count: int) -> list[str]:
+    """img_name of each camera in an already validated cameras.json, else "camera i"."""
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError, RecursionError):
+        data = None  # it parsed a moment ago; if it changed since, fall back to numbers
+    entries = data if isinstance(data, list) else [data]
+    names = []
+    for i in range(count):
+        entry = entries[i] if i < len(entries) else None
+        name = entry.get("img_name") if isinstance(entry, dict) else None
+        # One line for the panel's list, whatever the JSON holds.
+        name = " ".join(name.split()) if isinstance(name, str) else ""
+        names.append(name or f"camera {i}")
+    return names
+
+
+def _scaled(progress: ProgressCallback | None, start: float, end: float,
+            then: str) -> ProgressCallback | None:
+    """A step's progress mapped into [start, end] of the whole job; the step's own
+    "done" is renamed ``then`` (the next stage), so "done" comes once, at the end."""
+    if progress is None:
+        return None
+    return lambda fraction, stage: progress(start + (end - start) * fraction, then if stage == "done" else stage)
+
+
+def load_now(path: str | os.PathLike, cameras: str | os.PathLike | None = None,
+             progress: ProgressCallback | None = None, *,
+             cancel: threading.Event | None = None) -> LoadedScene:
+    """Loads a scene (a .ply/.splat path, or "demo") with its training cameras, synchronously.
+
+    ``cameras``: an explicit cameras.json; a bad one is a UserError. Without it the
+    file found by :func:`find_training_cameras` is used, and a bad one only adds a
+    warning (the scene still loads, with no cameras). For the demo, ``cameras``
+    replaces its built-in views.
+
+    ``progress(fraction, stage)``: non-decreasing fractions in [0, 1], ending with
+    ``(1.0, "done")``. ``cancel``: when set, stops at the next progress point with
+    ``UserError("loading cancelled")``. Every failure is a one-line UserError.
+    """
+    shown = os.fspath(path)
+
+    def report(fraction: float, stage: str) -> None:
+        if cancel is not None and cancel.is_set():
+            raise UserError("loading cancelled")
+        if progress is not None:
+            progress(fraction, stage)
+
+    try:
+        if shown == DEMO:
+            report(0.0, "building")
+            scene = demo_scene()
+            report(_SCENE_END, "hashing")
+            digest = arrays_sha256(scene)
+            found: list[Camera] = demo_cameras()
+            names = list(DEMO_VIEW_NAMES)
+            cameras_path = None
+        else:
+            scene = load_scene(path, progress=_scaled(progress, 0.0, _SCENE_END, "hashing"), cancel=cancel)
+            digest = file_sha256(path, _scaled(progress, _SCENE_END, _HASH_END, "cameras"), cancel)
+            found, names, cameras_path = [], [], None
+        warnings = dropped_summary(scene)
+        report(_HASH_END, "cameras")
+        if cameras is not None:
+            found = load_cameras(cameras)
+            cameras_path = os.fspath(cameras)
+            names = _camera_names(Path(cameras), len(found))
+        elif shown != DEMO:
+            discovered = find_training_cameras(path)
+            if discovered is not None:
+                try:
+                    found = load_cameras(discovered)
+                except UserError as exc:
+                    warnings.append(f"training cameras skipped: {exc}")
+                else:
+                    cameras_path = os.fspath(discovered)
+                    names = _camera_names(discovered, len(found))
+        report(1.0, "done")
+    except MemoryError:
+        raise UserError(f"{shown}: not enough memory to load this scene") from None
+    except OSError as exc:
+        raise UserError(f"{shown}: cannot read: {exc.strerror or exc}") from None
+    return LoadedScene(scene, shown, digest, found, cameras_path, names, warnings)
+
+
+class _Job:
+    """One load on its own thread; its fields are written by that thread only."""
+
+    def __init__(self, path: str, cameras: str | None) -> None:
+        self.path = path
+        self.cameras = cameras
+        self.cancel = threading.Event()
+        self.progress = 0.0
+        self.stage = "queued"
+        self.done = False
+
+
+class SceneLoader:
+    """Loads one scene at a time on a daemon thread.
+
+    The window calls :meth:`start` and then, every frame, reads ``progress``/``stage``
+    and :meth:`poll`s for the result; none of those wait for the load. Starting a new
+    load cancels the one in progress: its thread stops at its next progress point
+    (every few MiB) and its result, whatever it is, is never delivered.
+
+    Counters for tests and the statistics panel: ``started``, ``delivered`` (results
+    handed to poll/wait), ``discarded`` (results of loads that a newer start or
+    :meth:`cancel` replaced).
+    """
+
+    def __init__(self) -> None:
+        self._cond = threading.Condition()
+        self._job: _Job | None = None
+        self._result: LoadedScene | UserError | None = None
+        self._running: set[threading.Thread] = set()
+        self._closed = False
+        self.started = 0
+        self.delivered = 0
+        self.discarded = 0
+
+    def start(self, path: str, cameras: str | None = None) -> None:
+        """Cancels a load in progress (its result is discarded) and starts this one;
+        a finished result not yet polled is dropped too. RuntimeError after :meth:`close`."""
+        job = _Job(os.fspath(path), None if cameras is None else os.fspath(cameras))
+        thread = threading.Thread(target=self._run, args=(job,), name="raygs-load", daemon=True)
+        with self._cond:
+            if self._closed:
+                raise RuntimeError("SceneLoader.start after close()")
+            self._abandon()
+            self._job = job
+            self._running.add(thread)
+            self.started += 1
+        thread.start()
+
+    def cancel(self) -> None:
+        """Cancels the load in progress, if any; poll() then returns None for it."""
+        with self._cond:
+            self._abandon()
+            self._job = None
+            self._cond.notify_all()
+
+    @property
+    def progress(self) -> float:
+        """Fraction in [0, 1] of the current load (1.0 once finished; 0.0 with none)."""
+        job = self._job
+        return job.progress if job is not None else 0.0
+
+    @property
+    def stage(self) -> str:
+        """What the current load is doing ("reading", "hashing", "done", ...; "" with none)."""
+        job = self._job
+        return job.stage if job is not None else ""
+
+    @property
+    def busy(self) -> bool:
+        """A load is in progress (its result not yet available)."""
+        job = self._job
+        return job is not None and not job.done
+
+    def poll(self) -> LoadedScene | UserError | None:
+        """Non-blocking: the finished result once (then None); a failed load gives the
+        UserError object, for the window to show."""
+        with self._cond:
+            result, self._result = self._result, None
+            if result is not None:
+                self.delivered += 1
+            return result
+
+    def wait(self, timeout: float | None = None) -> LoadedScene | UserError | None:
+        """Blocks until the current load finishes, then returns what :meth:`poll` would.
+        None when there is no load, its result was already polled, or ``timeout`` passed."""
+        with self._cond:
+            self._cond.wait_for(lambda: self._job is None or self._job.done, timeout)
+        return self.poll()
+
+    def join(self, timeout: float | None = None) -> bool:
+        """Waits for every load thread, cancelled ones included, to end (tests and
+        scripted shutdown). True when none is left running."""
+        with self._cond:
+            return self._cond.wait_for(lambda: not self._running, timeout)
+
+    def close(self) -> None:
+        """Cancels the load in progress and returns without waiting for its thread."""
+        with self._cond:
+            self._closed = True
+            self._abandon()
+            self._job = None
+            self._cond.notify_all()
+
+    def __enter__(self) -> "SceneLoader":
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------ internals
+
+    def _abandon(self) -> None:
+        """(Lock held.) Cancel the current job and drop an undelivered result."""
+        if self._job is not None and not self._job.done:
+            self._job.cancel.set()
+        if self._result is not None:
+            self.discarded += 1
+            self._result = None
+
+    def _run(self, job: _Job) -> None:
+        def progress(fraction: float, stage: str) -> None:
+            job.progress, job.stage = fraction, stage
+
+        try:
+            result: LoadedScene | UserError = load_now(job.path, job.cameras, progress, cancel=job.cancel)
+        except UserError as exc:
+            result = exc
+        except Exception as exc:  # a bug or an odd OS failure: still one line for the panel
+            detail = " ".join(str(exc).split())
+            result = UserError(f"{job.path}: loading failed ({type(exc).__name__}{': ' + detail if detail else ''})")
+        with self._cond:
+            job.done = True
+            if job is self._job:
+                self._result = result
+            else:
+                self.discarded += 1
+            self._running.discard(threading.current_thread())
+            self._cond.notify_all()

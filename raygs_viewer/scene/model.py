@@ -1,0 +1,92 @@
+"""Gaussian scenes: the activated, validated arrays every later stage reads.
+
+Loading (INRIA PLY and .splat files) lives in :mod:`raygs_viewer.scene.io`; the
+built-in demo scene in :mod:`raygs_viewer.scene.demo`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+#: f_rest count -> SH degree (section 2 of the maths page).
+SH_DEGREE_OF_REST_COUNT = {0: 0, 9: 1, 24: 2, 45: 3}
+
+
+def sh_coefficient_count(degree: int) -> int:
+    """Coefficients per colour channel for an SH degree: (d + 1)^2."""
+    return (degree + 1) ** 2
+
+
+@dataclass(frozen=True)
+class Scene:
+    """N activated gaussians in world space (OpenCV axes), float32 throughout.
+
+    positions:  (N, 3) float32, centres p.
+    rotations:  (N, 4) float32, unit quaternions (w, x, y, z).
+    scales:     (N, 3) float32, linear standard deviations s > 0 (any 3D filter
+                already fused in).
+    opacities:  (N,)   float32 in [0, 1] (0 and 1 exactly for logits -inf/+inf).
+    sh:         (N, (d+1)^2, 3) float32; sh[i, k, c] is SH coefficient k of
+                colour channel c (k = 0 is the DC term).
+    sh_degree:  d in 0..3.
+    filter_fused: True when the file carried a ``filter_3D`` column that was fused.
+    source:     where it came from (a path, or "demo").
+    dropped:    invalid gaussians skipped at load, by reason -> count.
+    """
+
+    positions: np.ndarray
+    rotations: np.ndarray
+    scales: np.ndarray
+    opacities: np.ndarray
+    sh: np.ndarray
+    sh_degree: int
+    filter_fused: bool = False
+    source: str = ""
+    dropped: dict[str, int] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        n = self.positions.shape[0]
+        expected = {
+            "positions": (n, 3),
+            "rotations": (n, 4),
+            "scales": (n, 3),
+            "opacities": (n,),
+            "sh": (n, sh_coefficient_count(self.sh_degree), 3),
+        }
+        for name, shape in expected.items():
+            array = getattr(self, name)
+            if array.shape != shape or array.dtype != np.float32:
+                raise ValueError(f"Scene.{name}: expected float32 {shape}, got {array.dtype} {array.shape}")
+
+    @property
+    def count(self) -> int:
+        return int(self.positions.shape[0])
+
+    def with_sh_degree(self, degree: int) -> "Scene":
+        """The same scene with SH truncated to ``degree`` (<= the scene's)."""
+        degree = max(0, min(int(degree), self.sh_degree))
+        if degree == self.sh_degree:
+            return self
+        return Scene(
+            self.positions, self.rotations, self.scales, self.opacities,
+            np.ascontiguousarray(self.sh[:, : sh_coefficient_count(degree)]),
+            degree, self.filter_fused, self.source, dict(self.dropped),
+        )
+
+
+def quaternion_to_matrix(q: np.ndarray) -> np.ndarray:
+    """(N, 4) unit quaternions (w, x, y, z) -> (N, 3, 3) rotation matrices, in q's dtype."""
+    w, x, y, z = (q[:, i] for i in range(4))
+    m = np.empty(q.shape[:1] + (3, 3), dtype=q.dtype)
+    m[:, 0, 0] = 1 - 2 * (y * y + z * z)
+    m[:, 0, 1] = 2 * (x * y - w * z)
+    m[:, 0, 2] = 2 * (x * z + w * y)
+    m[:, 1, 0] = 2 * (x * y + w * z)
+    m[:, 1, 1] = 1 - 2 * (x * x + z * z)
+    m[:, 1, 2] = 2 * (y * z - w * x)
+    m[:, 2, 0] = 2 * (x * z - w * y)
+    m[:, 2, 1] = 2 * (y * z + w * x)
+    m[:, 2, 2] = 1 - 2 * (x * x + y * y)
+    return m

@@ -1,0 +1,216 @@
+"""Depth sorting off the frame loop: the window asks for a sort and draws with the
+newest finished order, never waiting for one.
+
+One daemon thread per :class:`BackgroundSorter` runs ``sorter.order`` on the
+newest requested view. A request that arrives while a sort runs waits in a
+single slot; a newer request replaces it (only the newest view matters, and a
+moving camera would otherwise build a backlog of stale sorts). Locks are held
+only to swap references and bump counters, never across a sort, so
+:meth:`BackgroundSorter.request` and :meth:`BackgroundSorter.latest` return at
+once however long a sort takes.
+"""
+
+from __future__ import annotations
+
+import threading
+import time
+from dataclasses import dataclass, replace
+from typing import Protocol
+
+import numpy as np
+
+from raygs_viewer.camera.pinhole import Camera, camera_key
+
+__all__ = ["BackgroundSorter", "SortResult", "Sorter"]
+
+
+class Sorter(Protocol):
+    """What :class:`BackgroundSorter` runs: :class:`raygs_viewer.sort.depth.DepthSorter` or a test double."""
+
+    def order(self, camera: Camera, p_min: float, *, dilation: float | None = 0.0,
+              cull_cameras: tuple[Camera, ...] | None = None) -> np.ndarray: ...
+
+
+@dataclass(frozen=True)
+class SortResult:
+    """One finished sort.
+
+    order:   (M,) uint32 gaussian indices, back to front (what ``DepthSorter.order`` returns).
+    serial:  the serial :meth:`BackgroundSorter.request` returned for the view (1, 2, ...).
+    camera:  the view it was sorted for (a private copy of the requested camera).
+    p_min:   the opacity cut-off it culled with.
+    dilation: the cull dilation it culled with (``RenderSettings.cull_dilation``; None:
+             no frustum culling).
+    seconds: how long ``sorter.order`` took (``time.perf_counter``), for the statistics panel.
+    cull_cameras: the cameras it culled for (None: ``camera``'s own view; stereo: both eyes).
+    """
+
+    order: np.ndarray
+    serial: int
+    camera: Camera
+    p_min: float
+    seconds: float
+    dilation: float | None = 0.0
+    cull_cameras: tuple[Camera, ...] | None = None
+
+
+@dataclass(frozen=True)
+class _Request:
+    serial: int
+    camera: Camera
+    p_min: float
+    dilation: float | None
+    cull_cameras: tuple[Camera, ...] | None
+
+
+def _dilation(value: float | None) -> float | None:
+    return None if value is None else float(value)
+
+
+def _view_key(camera: Camera, p_min: float, dilation: float | None = 0.0,
+              cull_cameras: tuple[Camera, ...] | None = None) -> tuple:
+    """Everything the order depends on, as exact values: equal keys give equal orders
+    (a dilation of None, no frustum culling, differs from every number)."""
+    culled_for = None if cull_cameras is None else tuple(camera_key(c) for c in cull_cameras)
+    return camera_key(camera) + (float(p_min), _dilation(dilation), culled_for)
+
+
+def _snapshot(camera: Camera) -> Camera:
+    """A private copy: the caller may update its camera's arrays in place while the
+    worker is still sorting for them."""
+    return replace(camera, R=np.array(camera.R, np.float64), t=np.array(camera.t, np.float64))
+
+
+def _one_line(exc: BaseException) -> str:
+    text = " ".join(str(exc).split())
+    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
+
+
+class BackgroundSorter:
+    """Sorts on a daemon worker thread; the frame loop only calls :meth:`request` and :meth:`latest`.
+
+    Counters (plain ints, read without locking by the statistics panel and tests):
+
+    - ``requested``: requests queued, i.e. serials handed out (identical repeats not counted);
+    - ``repeated``: requests identical to the last one queued, answered with its serial;
+    - ``started``: sorts begun; ``finished``: sorts that produced a result;
+    - ``failed``: sorts whose ``order`` raised;
+    - ``superseded``: queued requests replaced by a newer one before they started.
+
+    ``requested == started + superseded + (1 if a request is waiting else 0)``.
+    ``error`` is the one-line message of the last failed sort, cleared by the next
+    successful one; a failed view is not retried until a different view (or p_min,
+    or dilation) is requested, so a frame loop re-requesting the same view cannot spin on it.
+    """
+
+    def __init__(self, sorter: Sorter) -> None:
+        self._sorter = sorter
+        self._cond = threading.Condition()
+        self._pending: _Request | None = None
+        self._latest: SortResult | None = None
+        self._answered = 0  # highest serial whose sort finished or failed; wait() compares with it
+        self._last_key: tuple | None = None
+        self._closed = False
+        self.requested = 0
+        self.repeated = 0
+        self.started = 0
+        self.finished = 0
+        self.failed = 0
+        self.superseded = 0
+        self.error: str | None = None
+        self._thread = threading.Thread(target=self._run, name="raygs-sort", daemon=True)
+        self._thread.start()
+
+    # ------------------------------------------------------------------ frame-loop side
+
+    def request(self, camera: Camera, p_min: float, dilation: float | None = 0.0,
+                cull_cameras: tuple[Camera, ...] | None = None) -> int:
+        """Non-blocking. Queues a sort for this view and returns its serial; a request
+        not yet started is replaced by the newer one (only the newest view matters). A
+        request equal to the last one queued (same camera R, t, intrinsics, p_min and
+        dilation) is not queued again: returns the old serial. ``dilation`` goes to
+        ``sorter.order(camera, p_min, dilation=dilation)`` (see
+        :meth:`raygs_viewer.render.settings.RenderSettings.cull_dilation`), and ``cull_cameras``
+        (stereo: both eyes; None: ``camera``) likewise. Raises RuntimeError after
+        :meth:`close`."""
+        key = _view_key(camera, p_min, dilation, cull_cameras)
+        with self._cond:
+            if self._closed:
+                raise RuntimeError("BackgroundSorter.request after close()")
+            if key == self._last_key:
+                self.repeated += 1
+                return self.requested
+            self.requested += 1
+            if self._pending is not None:
+                self.superseded += 1
+            cull = None if cull_cameras is None else tuple(_snapshot(c) for c in cull_cameras)
+            self._pending = _Request(self.requested, _snapshot(camera), float(p_min), _dilation(dilation), cull)
+            self._last_key = key
+            self._cond.notify_all()
+            return self.requested
+
+    def latest(self) -> SortResult | None:
+        """Non-blocking: the newest finished result (None before the first)."""
+        return self._latest  # one reference read: atomic, no lock needed
+
+    # ------------------------------------------------------------------ scripted side
+
+    def wait(self, serial: int, timeout: float | None = None) -> SortResult | None:
+        """Blocks until request ``serial`` is answered (for screenshots and tests, never
+        the frame loop) and returns the newest result, whose serial is >= ``serial``.
+
+        Returns None when ``timeout`` (seconds) passes first, when the sorter is closed
+        first, or when that request's sort failed with no newer result (see ``error``).
+        """
+        with self._cond:
+            self._cond.wait_for(lambda: self._answered >= serial or self._closed, timeout)
+            latest = self._latest
+        return latest if latest is not None and latest.serial >= serial else None
+
+    def close(self) -> None:
+        """Stops the worker and drops a queued request. Returns at once even while a
+        sort runs: the daemon thread finishes that sort, publishes it, and exits."""
+        with self._cond:
+            self._closed = True
+            self._pending = None
+            self._cond.notify_all()
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    def __enter__(self) -> "BackgroundSorter":
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------ worker
+
+    def _run(self) -> None:
+        while True:
+            with self._cond:
+                self._cond.wait_for(lambda: self._pending is not None or self._closed)
+                if self._closed:
+                    return
+                request, self._pending = self._pending, None
+                self.started += 1
+            begin = time.perf_counter()
+            try:
+                order = np.asarray(self._sorter.order(request.camera, request.p_min, dilation=request.dilation,
+                                                      cull_cameras=request.cull_cameras), dtype=np.uint32)
+            except Exception as exc:  # reported in .error; the thread must keep serving
+                with self._cond:
+                    self.failed += 1
+                    self.error = _one_line(exc)
+                    self._answered = max(self._answered, request.serial)
+                    self._cond.notify_all()
+                continue
+            result = SortResult(order, request.serial, request.camera, request.p_min,
+                                time.perf_counter() - begin, request.dilation, request.cull_cameras)
+            with self._cond:
+                self._latest = result
+                self.finished += 1
+                self.error = None
+                self._answered = max(self._answered, request.serial)
+                self._cond.notify_all()
