@@ -94,16 +94,12 @@ def _start_camera(options):
 
 def window_image(viewer: Viewer) -> np.ndarray:
     """The scene image the window shows (its float target), top row first."""
-    target = viewer._target
-    w, h = target.size
-    return np.frombuffer(target.read(components=4, dtype="f4"), np.float32).reshape(h, w, 4)[::-1]
+    return viewer._target.read()
 
 
 def right_image(viewer: Viewer) -> np.ndarray:
     """The split view's right side as drawn (its float target), top row first."""
-    target = viewer._target_right
-    w, h = target.size
-    return np.frombuffer(target.read(components=4, dtype="f4"), np.float32).reshape(h, w, 4)[::-1]
+    return viewer._target_right.read()
 
 
 def presented(viewer: Viewer) -> np.ndarray:

@@ -44,6 +44,8 @@ import numpy as np
 from raygs_viewer.camera.pinhole import Camera, frame_points
 from raygs_viewer.capture.image_io import check_output_path
 from raygs_viewer.errors import UserError
+from raygs_viewer.render.gl.targets import FloatTarget
+from raygs_viewer.render.gl.timing import GpuTimer
 from raygs_viewer.render.settings import (
     ACCURACY_PRESETS,
     DEFAULT_P_MIN,
@@ -115,7 +117,6 @@ HUMAN_VERDICT_PLACEHOLDER = "_Verdict to be written from the numbers below: whic
 
 #: A timer query that returns this (2^32 - 1 ns) did not measure anything (seen on llvmpipe
 #: for the first query of a context).
-_INVALID_ELAPSED = 0xFFFFFFFF
 
 
 # --- view classes --------------------------------------------------------------------------
@@ -364,11 +365,6 @@ def _ground_truth(scene: Scene, camera: Camera, settings: RenderSettings, sample
     return reference.ground_truth(scene, camera, settings, samples)
 
 
-def _read_rgba(target, camera: Camera) -> np.ndarray:
-    pixels = np.frombuffer(target.read(components=4, dtype="f4"), np.float32)
-    return pixels.reshape(camera.height, camera.width, 4)[::-1].copy()
-
-
 def measure(ctx, renderer, camera: Camera, settings: dict[str, RenderSettings], repeat: int
             ) -> tuple[dict[str, list[float]], dict[str, np.ndarray]]:
     """GPU times (ms, ``repeat`` per configuration) and the image of every configuration.
@@ -376,27 +372,20 @@ def measure(ctx, renderer, camera: Camera, settings: dict[str, RenderSettings], 
     Each configuration is sorted once and rendered once untimed (compiling its shaders;
     that image is the one compared against the ground truth); then the timed renders
     go round-robin over the configurations ``repeat`` times."""
-    target = ctx.framebuffer(color_attachments=[ctx.texture((camera.width, camera.height), 4, dtype="f4")])
-    query = ctx.query(time=True)
+    target = FloatTarget(ctx, camera.width, camera.height)
+    timer = GpuTimer(ctx)
     try:
         orders = {name: renderer.sort(camera, s) for name, s in settings.items()}
         images = {}
         for name, s in settings.items():
-            with query:
-                renderer.render_into(target, camera, s, orders[name])
-            query.elapsed  # noqa: B018 - waits for the render (and primes the query)
-            images[name] = _read_rgba(target, camera)
+            timer.time_ms(lambda: renderer.render_into(target, camera, s, orders[name]))  # primes the query
+            images[name] = target.read()
         times: dict[str, list[float]] = {name: [] for name in settings}
         for _ in range(repeat):
             for name, s in settings.items():
-                with query:
-                    renderer.render_into(target, camera, s, orders[name])
-                elapsed = query.elapsed
-                times[name].append(math.nan if elapsed >= _INVALID_ELAPSED else elapsed / 1e6)
+                times[name].append(timer.time_ms(lambda: renderer.render_into(target, camera, s, orders[name])))
         return times, images
     finally:  # (moderngl 5.13 queries have no release(); they go with the context)
-        for attachment in target.color_attachments:
-            attachment.release()
         target.release()
 
 

@@ -46,6 +46,8 @@ import numpy as np
 from raygs_viewer.camera.pinhole import Camera, look_at
 from raygs_viewer.capture.image_io import check_output_path
 from raygs_viewer.errors import UserError
+from raygs_viewer.render.gl.targets import FloatTarget
+from raygs_viewer.render.gl.timing import GpuTimer
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
 
@@ -71,7 +73,6 @@ GENERATED_DISTANCE = 3.0
 GENERATED_FOV_Y = 60.0
 DEFAULT_REPORT = "docs/performance-figures.md"
 DEFAULT_PLOT = "docs/images/performance.png"
-_INVALID_ELAPSED = 0xFFFFFFFF
 
 
 # --- cases ----------------------------------------------------------------------------------------
@@ -171,7 +172,7 @@ class _Clock:
 
     def __init__(self, ctx):
         self.ctx = ctx
-        self.query = ctx.query(time=True)
+        self.timer = GpuTimer(ctx)
 
     def cpu(self, work) -> float:
         self.ctx.finish()
@@ -183,12 +184,9 @@ class _Clock:
     def both(self, work) -> tuple[float, float]:
         self.ctx.finish()
         start = time.perf_counter()
-        with self.query:
-            work()
+        gpu = self.timer.time_ms(work)  # waits for the GPU
         self.ctx.finish()
-        cpu = (time.perf_counter() - start) * 1e3
-        elapsed = self.query.elapsed
-        return cpu, (math.nan if elapsed >= _INVALID_ELAPSED else elapsed / 1e6)
+        return (time.perf_counter() - start) * 1e3, gpu
 
 
 def _median(values: list[float]) -> float:
@@ -205,7 +203,7 @@ def measure_case(ctx, case: PerfCase, frames: int, settings: RenderSettings = Re
     gs_settings = replace(settings, mode="gs")
     renderer = GLRenderer(ctx, case.scene)
     general = None
-    target = ctx.framebuffer(color_attachments=[ctx.texture((case.camera.width, case.camera.height), 4, dtype="f4")])
+    target = FloatTarget(ctx, case.camera.width, case.camera.height)
     clock = _Clock(ctx)
     samples = ctx.query(samples=True)
     views = (case.camera, nudged(case.camera, NUDGE_DEGREES))
@@ -217,7 +215,7 @@ def measure_case(ctx, case: PerfCase, frames: int, settings: RenderSettings = Re
 
     def clear() -> None:
         target.use()
-        target.clear(*settings.background, 0.0)
+        target.fbo.clear(*settings.background, 0.0)
 
     try:
         general = GLRenderer(ctx, case.scene, general=True)
@@ -270,8 +268,6 @@ def measure_case(ctx, case: PerfCase, frames: int, settings: RenderSettings = Re
         renderer.release()
         if general is not None:
             general.release()
-        for attachment in target.color_attachments:
-            attachment.release()
         target.release()
 
     result.stages = {s: _median(times[s]) for s in STAGES}

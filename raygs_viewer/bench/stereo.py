@@ -36,7 +36,6 @@ from pathlib import Path
 import numpy as np
 
 from raygs_viewer.bench.accuracy import (
-    _INVALID_ELAPSED,
     CLOSE_FRACTION,
     CLOSE_SUPPORT_MARGIN,
     DEMO,
@@ -55,6 +54,8 @@ from raygs_viewer.camera.navigation import scene_bounds
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.capture.image_io import check_output_path
 from raygs_viewer.errors import UserError
+from raygs_viewer.render.gl.stereo_frame import StereoFrame, render_stereo, stereo_order
+from raygs_viewer.render.gl.timing import GpuTimer
 from raygs_viewer.render.settings import RenderSettings
 
 #: The views of ``bench`` measured here: where sharing costs least and where it costs most.
@@ -90,11 +91,11 @@ def sharing_errors(renderer, camera: Camera, settings: RenderSettings,
     "whole": per-eye ones (own sort, own colour); "sort-only": each eye's own sort with the
     midpoint's colour; "colour-only": the shared order with each eye's own colour."""
     eyes = stereo.eye_cameras(camera, rig)
-    shared = _pair(stereo.render_stereo(renderer, camera, settings, rig, shared=True))
-    own = _pair(stereo.render_stereo(renderer, camera, settings, rig, shared=False))
+    shared = _pair(render_stereo(renderer, camera, settings, rig, shared=True))
+    own = _pair(render_stereo(renderer, camera, settings, rig, shared=False))
     sort_only = _pair(renderer.render(eye, settings, renderer.sort(eye, settings), color_origin=camera.center)
                       for eye in eyes)
-    order = stereo.stereo_order(renderer, camera, settings, rig)
+    order = stereo_order(renderer, camera, settings, rig)
     colour_only = _pair(renderer.render(eye, settings, order) for eye in eyes)
     return {"whole": error_metrics(shared, own), "sort-only": error_metrics(shared, sort_only),
             "colour-only": error_metrics(shared, colour_only)}
@@ -107,20 +108,17 @@ def time_both_eyes(ctx, renderer, camera: Camera, settings: RenderSettings, rig:
     (``StereoFrame.draw_eyes``), under one timer query: what the window's frame-budget
     meter reads. One untimed frame first compiles the shaders and primes the query. An
     elapsed time the driver marks invalid is NaN."""
-    from raygs_viewer.render.gl.stereo_frame import StereoFrame
     frame = StereoFrame(ctx)
-    query = ctx.query(time=True)
+    timer = GpuTimer(ctx)
     gpu_ms, sort_ms = [], []
     try:
         for index in range(repeat + 1):
             clock = time.perf_counter()
-            order = stereo.stereo_order(renderer, camera, settings, rig)
+            order = stereo_order(renderer, camera, settings, rig)
             sorted_in = time.perf_counter() - clock
-            with query:
-                frame.draw_eyes(renderer, camera, settings, rig, order)
-            elapsed = query.elapsed  # waits for both eyes
+            elapsed = timer.time_ms(lambda: frame.draw_eyes(renderer, camera, settings, rig, order))
             if index:
-                gpu_ms.append(math.nan if elapsed >= _INVALID_ELAPSED else elapsed / 1e6)
+                gpu_ms.append(elapsed)
                 sort_ms.append(sorted_in * 1e3)
         return gpu_ms, sort_ms
     finally:  # (moderngl 5.13 queries have no release(); they go with the context)
@@ -354,7 +352,7 @@ def format_report(results: StereoResults) -> str:
         "scene's training-like pose as the midpoint, drawn with the shared order into two eye-sized float "
         "targets: the GPU time of the two `GLRenderer.render_into` calls (preprocessing pass and draw, per eye) "
         f"under one OpenGL timer query, median of {options.repeat} frames after one untimed warm-up. The stereo "
-        "sort (`stereo.stereo_order`, on the CPU) is timed apart, median over the same frames, and is not in the "
+        "sort (`stereo_frame.stereo_order`, on the CPU) is timed apart, median over the same frames, and is not in the "
         "GPU time. Each rate's budget is 1000 / rate ms: *×N over* takes N times the budget, *fits, P %* takes "
         "P % of it.",
         "",

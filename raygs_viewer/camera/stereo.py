@@ -160,45 +160,6 @@ class StereoView:
         check_layout(self.layout)
 
 
-def stereo_order(renderer, camera: Camera, settings, rig: StereoRig) -> np.ndarray:
-    """The one back-to-front order both eyes draw: depth from the midpoint, keeping
-    what either eye may see."""
-    left, right = eye_cameras(camera, rig)
-    # Both eyes share fx and fy, hence the filter's dilation.
-    return renderer.sorter.order(camera, settings.p_min, dilation=settings.cull_dilation(left),
-                                 cull_cameras=(left, right))
-
-
-def render_stereo(renderer, camera: Camera, settings, rig: StereoRig, *,
-                  shared: bool = True) -> tuple[np.ndarray, np.ndarray]:
-    """(left, right) float32 (H, W, 4) images of the eyes around the midpoint ``camera``.
-
-    shared=True is what the viewer draws: one sort from the midpoint and SH colour seen
-    from it. shared=False sorts each eye from its own position and evaluates colour
-    from it: the per-eye images the shared ones approximate."""
-    left, right = eye_cameras(camera, rig)
-    if shared:
-        order = stereo_order(renderer, camera, settings, rig)
-        return tuple(renderer.render(eye, settings, order, color_origin=camera.center) for eye in (left, right))
-    return tuple(renderer.render(eye, settings) for eye in (left, right))
-
-
-def render_stereo_view(renderer, camera: Camera, settings, view: StereoView
-                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(image, left, right) float32 (H, W, 4) arrays, top row first: the composed
-    stereo image of ``view`` around the midpoint ``camera``, and each eye as it goes
-    into the layout (after the lens preview). The same GL passes as the window's, with
-    an exact sort: what screenshots and ``render --stereo`` save."""
-    from raygs_viewer.render.gl.stereo_frame import StereoFrame
-    frame = StereoFrame(renderer.ctx)
-    try:
-        frame.draw_eyes(renderer, camera, settings, view.rig, stereo_order(renderer, camera, settings, view.rig))
-        frame.finish(view)
-        return frame.read_image(), *frame.read_eyes()
-    finally:
-        frame.release()
-
-
 def compose(left: np.ndarray, right: np.ndarray, layout: str) -> np.ndarray:
     """One image of a stereo pair (H, W, C each): "sbs" (left eye left), "cross" (right
     eye left, for cross-eyed free viewing), "anaglyph" (red from the left eye, green and

@@ -456,7 +456,7 @@ def _command_render(args) -> int:
         try:
             renderer = GLRenderer(ctx, scene, general=args.general)
             if stereo is not None:
-                from raygs_viewer.camera.stereo import render_stereo_view
+                from raygs_viewer.render.gl.stereo_frame import render_stereo_view
                 image = render_stereo_view(renderer, camera, settings, stereo)[0]
             else:
                 # Tiled like the window's screenshots: the same pixels, and sizes beyond

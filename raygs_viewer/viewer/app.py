@@ -45,6 +45,8 @@ from raygs_viewer.camera.stereo import (
     eye_cameras,
 )
 from raygs_viewer.errors import UserError
+from raygs_viewer.render.gl.targets import FloatTarget, release_all, sized
+from raygs_viewer.render.gl.timing import GpuTimer
 from raygs_viewer.render.settings import (
     ACCURACY_PRESETS,
     DEFAULT_P_MIN,
@@ -200,35 +202,6 @@ class FrameStats:
     def frame_ms(self) -> float:
         recent = self.recent_frame_times
         return 1000 * float(np.median(recent)) if recent else float("nan")
-
-
-class GpuTimer:
-    """GPU time of a pass from timer queries, read a couple of frames late so that
-    reading never stalls the CPU on a real GPU. ``history`` keeps every result."""
-
-    def __init__(self, ctx, depth: int = 3):
-        self._queries = [ctx.query(time=True) for _ in range(depth)]
-        self._pending: deque = deque()
-        self.seconds = float("nan")
-        self.history: deque = deque(maxlen=10000)
-
-    def measure(self):
-        query = self._queries[0]
-        self._queries.append(self._queries.pop(0))
-        if query in self._pending:  # the oldest: its result is due now
-            self._pending.remove(query)
-            self._record(query)
-        self._pending.append(query)
-        return query
-
-    def flush(self) -> None:
-        """Reads every pending result (waits for the GPU: for the end of a run)."""
-        while self._pending:
-            self._record(self._pending.popleft())
-
-    def _record(self, query) -> None:
-        self.seconds = query.elapsed * 1e-9
-        self.history.append(self.seconds)
 
 
 def _cameras_key(cameras) -> tuple | None:
@@ -751,8 +724,7 @@ class Viewer:
         split view's right side), made anew when the size changes."""
         target = getattr(self, attribute)
         if target is None or target.size != (width, height):
-            _release_framebuffer(target)
-            target = self.ctx.framebuffer(color_attachments=[self.ctx.texture((width, height), 4, dtype="f4")])
+            target = sized(target, self.ctx, width, height)
             setattr(self, attribute, target)
             self._drawn_key = None
         return target
@@ -763,19 +735,16 @@ class Viewer:
         again into an offscreen target (reading the default framebuffer is not portable).
         ``overlay=False``: the present pass alone, without what imgui draws (panel,
         split-view divider and labels)."""
-        texture = self.ctx.texture((width, height), 4)
-        fbo = self.ctx.framebuffer(color_attachments=[texture])
+        capture = FloatTarget(self.ctx, width, height, dtype="f1")
         try:
-            self._present_image(fbo, width, height, x, y, w, h)
+            self._present_image(capture.fbo, width, height, x, y, w, h)
             if overlay:
                 imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
-            fbo.use()  # imgui's backend restores the binding it found; read what it drew
-            pixels = np.frombuffer(fbo.read(components=3), np.uint8).reshape(height, width, 3)[::-1].copy()
+            capture.use()  # imgui's backend restores the binding it found; read what it drew
+            return capture.read(components=3)
         finally:
-            fbo.release()
-            texture.release()
+            capture.release()
             self.ctx.screen.use()
-        return pixels
 
     def _present_image(self, screen, width: int, height: int, x: int, y: int, w: int, h: int) -> None:
         ctx = self.ctx
@@ -791,8 +760,8 @@ class Viewer:
             return
         split = not self._stereo_drawn and self._split_drawn and self._target_right is not None \
             and self._target_right.size == shown.size
-        shown.color_attachments[0].use(0)
-        (self._target_right if split else shown).color_attachments[0].use(1)
+        shown.texture.use(0)
+        (self._target_right if split else shown).texture.use(1)
         self._present["u_image"].value = 0
         self._present["u_right"].value = 1
         # Viewport columns from split_column() on show the right image (2: none).
@@ -871,7 +840,7 @@ class Viewer:
         layout), and each eye when the panel asks; every image with its own sidecar."""
         from dataclasses import replace
 
-        from raygs_viewer.camera.stereo import render_stereo_view
+        from raygs_viewer.render.gl.stereo_frame import render_stereo_view
         from raygs_viewer.capture.sidecar import build_sidecar
         pair = replace(stereo, layout="sbs")
         image, left, right = render_stereo_view(self.renderer, camera, settings, pair)
@@ -928,8 +897,7 @@ class Viewer:
         glfw.make_context_current(self.window.handle)
         if self.renderer is not None:
             self.renderer.release()
-        _release_framebuffer(self._target)
-        _release_framebuffer(self._target_right)
+        release_all(self._target, self._target_right)
         self._target = self._target_right = None
         if self._stereo_frame is not None:
             self._stereo_frame.release()
@@ -972,14 +940,6 @@ def describe_settings(settings: RenderSettings) -> str:
     if settings.p_min != DEFAULT_P_MIN:
         parts.append(f"p_min {settings.p_min:.3g}")
     return " + ".join(parts[:2]) + "".join(f", {part}" for part in parts[2:])
-
-
-def _release_framebuffer(fbo) -> None:
-    if fbo is None:
-        return
-    for attachment in fbo.color_attachments:
-        attachment.release()
-    fbo.release()
 
 
 def _saved_message(saved: list[tuple[Path, Path]]) -> str:

@@ -26,7 +26,9 @@ from raygs_viewer.bench import stereo as bench_stereo
 from raygs_viewer.camera import stereo
 from raygs_viewer.camera.navigation import scene_bounds
 from raygs_viewer.cli.main import build_parser, main
+from raygs_viewer.render.gl import stereo_frame
 from raygs_viewer.render.gl.renderer import GLRenderer
+from raygs_viewer.render.gl.timing import INVALID_ELAPSED
 from raygs_viewer.render.settings import RenderSettings
 
 #: Headset presets small enough for llvmpipe to time in milliseconds; their names are
@@ -157,7 +159,7 @@ class _Log:
             def elapsed(self):
                 value = real.elapsed
                 log.frame += 1
-                return bench._INVALID_ELAPSED if log.frame - 1 in log.invalid_frames else value
+                return INVALID_ELAPSED if log.frame - 1 in log.invalid_frames else value
 
         return Query()
 
@@ -185,7 +187,7 @@ def test_both_eyes_are_drawn_with_one_order_under_one_query(demo_renderer, gl_ct
         assert first[3] is second[3]  # ... one order for both eyes ...
         for eye in (first, second):  # ... colour from the midpoint
             assert np.array_equal(eye[4], camera.center)
-    assert np.array_equal(frames[0][1][3], stereo.stereo_order(demo_renderer, camera, RenderSettings(), rig))
+    assert np.array_equal(frames[0][1][3], stereo_frame.stereo_order(demo_renderer, camera, RenderSettings(), rig))
 
 
 # --- the whole benchmark, tiny ------------------------------------------------------------------

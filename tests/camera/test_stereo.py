@@ -13,11 +13,10 @@ from raygs_viewer.camera.stereo import (
     compose,
     custom_preset,
     eye_cameras,
-    render_stereo,
-    stereo_order,
 )
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.renderer import GLRenderer
+from raygs_viewer.render.gl.stereo_frame import render_stereo, stereo_order
 from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.settings import RenderSettings
 

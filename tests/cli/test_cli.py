@@ -692,8 +692,9 @@ def test_installed_module_runs_outside_the_source_tree(tmp_path):
 # --------------------------------------------------------------------------- stereo
 
 def test_render_stereo_writes_the_eyes_in_the_chosen_layout(capsys, tmp_path, gl_ctx, demo):
-    from raygs_viewer.camera.stereo import StereoRig, compose, render_stereo
+    from raygs_viewer.camera.stereo import StereoRig, compose
     from raygs_viewer.render.gl.renderer import GLRenderer
+    from raygs_viewer.render.gl.stereo_frame import render_stereo
 
     camera = demo_camera().resized(64, 48)
     rig = StereoRig(ipd=0.07, convergence=3.0, scene_scale=0.5)
@@ -779,15 +780,10 @@ def test_bad_view_stereo_options_are_one_line_errors(capsys, viewer, argv, fragm
 
 def test_render_stereo_lens_preview_and_sidecar(capsys, tmp_path, gl_ctx, demo):
     from raygs_viewer.camera.lens_model import DEFAULT_LENS, lens_warp_reference
-    from raygs_viewer.camera.stereo import (
-        StereoRig,
-        StereoView,
-        compose,
-        eye_cameras,
-        render_stereo,
-    )
+    from raygs_viewer.camera.stereo import StereoRig, StereoView, compose, eye_cameras
     from raygs_viewer.capture.sidecar import build_sidecar, demo_sha256
     from raygs_viewer.render.gl.renderer import GLRenderer
+    from raygs_viewer.render.gl.stereo_frame import render_stereo
 
     camera = demo_camera().resized(64, 48)
     out = tmp_path / "lens.npy"

@@ -29,10 +29,9 @@ from raygs_viewer.camera.stereo import (
     compose,
     custom_preset,
     eye_cameras,
-    render_stereo,
-    stereo_order,
 )
 from raygs_viewer.capture.image_io import to_rgb8
+from raygs_viewer.render.gl.stereo_frame import render_stereo, stereo_order
 
 EYE = custom_preset(96, 72, 90.0, 72.0)
 
@@ -53,9 +52,7 @@ def headless_eyes(viewer) -> tuple[np.ndarray, np.ndarray]:
 
 
 def composed(viewer) -> np.ndarray:
-    image = viewer._stereo_frame.image
-    width, height = image.size
-    return np.frombuffer(image.read(components=4, dtype="f4"), np.float32).reshape(height, width, 4)[::-1]
+    return viewer._stereo_frame.image.read()
 
 
 @pytest.mark.parametrize("layout", LAYOUTS)

@@ -30,6 +30,7 @@ import numpy as np
 from raygs_viewer.camera.pinhole import Camera, camera_key
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.shaders import shader_source
+from raygs_viewer.render.gl.targets import FloatTarget, release_all, sized
 from raygs_viewer.render.settings import (
     ALPHA_CLAMP,
     GS_DILATION,
@@ -165,8 +166,8 @@ class GLRenderer:
         self._resolve_programs: dict[bool, tuple[moderngl.Program, moderngl.VertexArray]] = {}
         #: Off only to demonstrate the near-plane seam that depth clamp prevents.
         self.depth_clamp = True
-        self._targets: dict[tuple[int, int], moderngl.Framebuffer] = {}
-        self._sample_targets: dict[tuple[int, int], moderngl.Framebuffer] = {}
+        self._target: FloatTarget | None = None          # render()'s image, the latest size
+        self._samples: FloatTarget | None = None         # supersampling and front to back
 
     def _layout(self, splat_bytes: int) -> StorageLayout:
         if splat_bytes not in self._layouts:
@@ -372,12 +373,11 @@ class GLRenderer:
         ``frame``, ``color_origin``: see :meth:`preprocess`."""
         if order is None:
             order = self.sort(camera, settings)
-        target = self._target(camera.width, camera.height)
-        self.render_into(target, camera, settings, order, frame, color_origin)
-        pixels = np.frombuffer(target.read(components=4, dtype="f4"), np.float32)
-        return pixels.reshape(camera.height, camera.width, 4)[::-1].copy()
+        self._target = sized(self._target, self.ctx, camera.width, camera.height)
+        self.render_into(self._target, camera, settings, order, frame, color_origin)
+        return self._target.read()
 
-    def render_into(self, target: moderngl.Framebuffer, camera: Camera, settings: RenderSettings,
+    def render_into(self, target: FloatTarget, camera: Camera, settings: RenderSettings,
                     order: np.ndarray, frame: Camera | None = None, color_origin: np.ndarray | None = None) -> None:
         """Clears ``target`` (camera-sized, float colour) and draws the scene into it:
         background-composited colour in RGB and the accumulated alpha in A.
@@ -390,22 +390,22 @@ class GLRenderer:
         k = settings.supersample
         if k == 1 and not settings.transmittance_cutoff:
             target.use()
-            target.clear(*settings.background, 0.0)
+            target.fbo.clear(*settings.background, 0.0)
             self.preprocess(camera, settings, frame, color_origin)
             self.draw(camera, settings, order)
             return
         sampled = camera.resized(camera.width * k, camera.height * k) if k > 1 else camera
-        samples = self._sample_target(sampled.width, sampled.height)
+        self._samples = samples = sized(self._samples, self.ctx, sampled.width, sampled.height)
         samples.use()
         if settings.transmittance_cutoff:
-            samples.clear(0.0, 0.0, 0.0, 0.0)
+            samples.fbo.clear(0.0, 0.0, 0.0, 0.0)
         else:
-            samples.clear(*settings.background, 0.0)
+            samples.fbo.clear(*settings.background, 0.0)
         self.preprocess(sampled, settings, frame or camera, color_origin)  # the bounds are scale-invariant
         self.draw(sampled, settings, order)
         self._resolve(samples, target, k, settings)
 
-    def _resolve(self, samples: moderngl.Framebuffer, target: moderngl.Framebuffer, k: int,
+    def _resolve(self, samples: FloatTarget, target: FloatTarget, k: int,
                  settings: RenderSettings) -> None:
         front_to_back = settings.transmittance_cutoff
         if front_to_back not in self._resolve_programs:
@@ -416,36 +416,15 @@ class GLRenderer:
         program, vao = self._resolve_programs[front_to_back]
         target.use()
         self.ctx.disable(moderngl.BLEND)
-        samples.color_attachments[0].use(0)
+        samples.texture.use(0)
         program["u_samples"].value = 0
         program["u_factor"].value = k
         _set_uniform(program, "u_background", settings.background)
         vao.render(moderngl.TRIANGLES, vertices=3)
 
-    def _target(self, width: int, height: int) -> moderngl.Framebuffer:
-        return self._cached_target(self._targets, width, height)
-
-    def _sample_target(self, width: int, height: int) -> moderngl.Framebuffer:
-        return self._cached_target(self._sample_targets, width, height)
-
-    def _cached_target(self, cache: dict, width: int, height: int) -> moderngl.Framebuffer:
-        """A float32 RGBA framebuffer of this size; the cache keeps only the latest size."""
-        limit = _limit(self.ctx, "GL_MAX_TEXTURE_SIZE", 16384)
-        if not (1 <= width <= limit and 1 <= height <= limit):
-            raise UserError(f"image size {width}x{height} is outside what this GPU renders (1..{limit})")
-        if (width, height) not in cache:
-            for fbo in cache.values():
-                _release_framebuffer(fbo)
-            cache.clear()
-            cache[(width, height)] = self.ctx.framebuffer(
-                color_attachments=[self.ctx.texture((width, height), 4, dtype="f4")])
-        return cache[(width, height)]
-
     def release(self) -> None:
-        for cache in (self._targets, self._sample_targets):
-            for fbo in cache.values():
-                _release_framebuffer(fbo)
-            cache.clear()
+        release_all(self._target, self._samples)
+        self._target = self._samples = None
         for program in self._preprocess_programs.values():
             program.release()
         self._preprocess_programs.clear()
@@ -492,12 +471,6 @@ def _glsl_bool(value: bool) -> str:
 
 def _glsl_float(value: float) -> str:
     return repr(float(value))
-
-
-def _release_framebuffer(fbo: moderngl.Framebuffer) -> None:
-    for attachment in fbo.color_attachments:
-        attachment.release()
-    fbo.release()
 
 
 def gpu_bytes(count: int, sh_degree: int) -> int:

@@ -3,7 +3,7 @@ targets, the optional lens preview on each, and the layout composed into one ima
 
 The window keeps one :class:`StereoFrame` and shows its composed target; screenshots
 and ``render --stereo`` use a fresh one through
-:func:`raygs_viewer.camera.stereo.render_stereo_view`, so both go through the same passes.
+:func:`render_stereo_view`, so both go through the same passes.
 """
 
 from __future__ import annotations
@@ -13,8 +13,46 @@ import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.camera.stereo import StereoRig, StereoView, composed_size, eye_cameras
-from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.stereo_passes import StereoPasses
+from raygs_viewer.render.gl.targets import FloatTarget, release_all, sized
+
+
+def stereo_order(renderer, camera: Camera, settings, rig: StereoRig) -> np.ndarray:
+    """The one back-to-front order both eyes draw: depth from the midpoint, keeping
+    what either eye may see."""
+    left, right = eye_cameras(camera, rig)
+    # Both eyes share fx and fy, hence the filter's dilation.
+    return renderer.sorter.order(camera, settings.p_min, dilation=settings.cull_dilation(left),
+                                 cull_cameras=(left, right))
+
+
+def render_stereo(renderer, camera: Camera, settings, rig: StereoRig, *,
+                  shared: bool = True) -> tuple[np.ndarray, np.ndarray]:
+    """(left, right) float32 (H, W, 4) images of the eyes around the midpoint ``camera``.
+
+    shared=True is what the viewer draws: one sort from the midpoint and SH colour seen
+    from it. shared=False sorts each eye from its own position and evaluates colour
+    from it: the per-eye images the shared ones approximate."""
+    left, right = eye_cameras(camera, rig)
+    if shared:
+        order = stereo_order(renderer, camera, settings, rig)
+        return tuple(renderer.render(eye, settings, order, color_origin=camera.center) for eye in (left, right))
+    return tuple(renderer.render(eye, settings) for eye in (left, right))
+
+
+def render_stereo_view(renderer, camera: Camera, settings, view: StereoView
+                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(image, left, right) float32 (H, W, 4) arrays, top row first: the composed
+    stereo image of ``view`` around the midpoint ``camera``, and each eye as it goes
+    into the layout (after the lens preview). The same GL passes as the window's, with
+    an exact sort: what screenshots and ``render --stereo`` save."""
+    frame = StereoFrame(renderer.ctx)
+    try:
+        frame.draw_eyes(renderer, camera, settings, view.rig, stereo_order(renderer, camera, settings, view.rig))
+        frame.finish(view)
+        return frame.read_image(), *frame.read_eyes()
+    finally:
+        frame.release()
 
 
 class StereoFrame:
@@ -24,13 +62,13 @@ class StereoFrame:
         self.ctx = ctx
         self.passes = StereoPasses(ctx)
         self.eyes: tuple[Camera, Camera] | None = None   # the eye cameras of the last draw
-        self._eye_targets: list[moderngl.Framebuffer | None] = [None, None]
-        self._lens_targets: list[moderngl.Framebuffer | None] = [None, None]
-        self._image: moderngl.Framebuffer | None = None
-        self._shown: list[moderngl.Framebuffer] = []      # what went into the layout
+        self._eye_targets: list[FloatTarget | None] = [None, None]
+        self._lens_targets: list[FloatTarget | None] = [None, None]
+        self._image: FloatTarget | None = None
+        self._shown: list[FloatTarget] = []      # what went into the layout
 
     @property
-    def image(self) -> moderngl.Framebuffer | None:
+    def image(self) -> FloatTarget | None:
         """The composed target of the last :meth:`finish`."""
         return self._image
 
@@ -42,7 +80,7 @@ class StereoFrame:
             target = self._sized(self._eye_targets, side, eye.width, eye.height)
             renderer.render_into(target, eye, settings, order, color_origin=camera.center)
 
-    def finish(self, view: StereoView) -> moderngl.Framebuffer:
+    def finish(self, view: StereoView) -> FloatTarget:
         """The lens preview (if on) and the layout, into the composed target."""
         if self.eyes is None:
             raise RuntimeError("StereoFrame.finish before draw_eyes")
@@ -50,54 +88,29 @@ class StereoFrame:
         if view.lens is not None:
             for side, eye in enumerate(self.eyes):
                 target = self._sized(self._lens_targets, side, eye.width, eye.height)
-                self.passes.lens(self._eye_targets[side].color_attachments[0], target, eye, view.lens)
+                self.passes.lens(self._eye_targets[side].texture, target.fbo, eye, view.lens)
             shown = self._lens_targets
         self._shown = list(shown)
         width, height = composed_size(self.eyes[0].width, self.eyes[0].height, view.layout)
-        if self._image is None or self._image.size != (width, height):
-            _release(self._image)
-            self._image = None
-            self._image = self._framebuffer(width, height)
-        self.passes.compose(shown[0].color_attachments[0], shown[1].color_attachments[0], self._image, view.layout)
+        self._image = sized(self._image, self.ctx, width, height, **_SIZE_ERROR)
+        self.passes.compose(shown[0].texture, shown[1].texture, self._image.fbo, view.layout)
         return self._image
 
     def read_image(self) -> np.ndarray:
-        return _read(self._image)
+        return self._image.read()
 
     def read_eyes(self) -> tuple[np.ndarray, np.ndarray]:
         """Each eye as it went into the layout (after the lens preview)."""
-        return _read(self._shown[0]), _read(self._shown[1])
+        return self._shown[0].read(), self._shown[1].read()
 
     def release(self) -> None:
-        for fbo in [*self._eye_targets, *self._lens_targets, self._image]:
-            _release(fbo)
+        release_all(*self._eye_targets, *self._lens_targets, self._image)
         self._eye_targets, self._lens_targets, self._image, self._shown = [None, None], [None, None], None, []
         self.passes.release()
 
-    def _sized(self, targets: list, side: int, width: int, height: int) -> moderngl.Framebuffer:
-        if targets[side] is None or targets[side].size != (width, height):
-            _release(targets[side])
-            targets[side] = None
-            targets[side] = self._framebuffer(width, height)
+    def _sized(self, targets: list, side: int, width: int, height: int) -> FloatTarget:
+        targets[side] = sized(targets[side], self.ctx, width, height, **_SIZE_ERROR)
         return targets[side]
 
-    def _framebuffer(self, width: int, height: int) -> moderngl.Framebuffer:
-        limit = int(self.ctx.info.get("GL_MAX_TEXTURE_SIZE", 16384))
-        if not (1 <= width <= limit and 1 <= height <= limit):
-            raise UserError(f"stereo image size {width}x{height} is outside what this GPU renders (1..{limit} "
-                            f"per side); use a smaller scale")
-        return self.ctx.framebuffer(color_attachments=[self.ctx.texture((width, height), 4, dtype="f4")])
 
-
-def _read(fbo: moderngl.Framebuffer) -> np.ndarray:
-    width, height = fbo.size
-    pixels = np.frombuffer(fbo.read(components=4, dtype="f4"), np.float32)
-    return pixels.reshape(height, width, 4)[::-1].copy()
-
-
-def _release(fbo: moderngl.Framebuffer | None) -> None:
-    if fbo is None:
-        return
-    for attachment in fbo.color_attachments:
-        attachment.release()
-    fbo.release()
+_SIZE_ERROR = {"label": "stereo image", "advice": " per side; use a smaller scale"}

@@ -1,0 +1,77 @@
+"""The one offscreen target type: an RGBA texture in a framebuffer, made after a size
+check, read back top row first, released once.
+
+Every pass that draws offscreen goes through it: the renderer's image and sample
+targets, the stereo eyes and their composed image, the window's scene targets and its
+capture, and the benchmarks' timed renders.
+"""
+
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from raygs_viewer.errors import UserError
+
+#: What a driver that reports no GL_MAX_TEXTURE_SIZE is assumed to draw.
+DEFAULT_TEXTURE_LIMIT = 16384
+
+
+def texture_limit(ctx: moderngl.Context) -> int:
+    return int(ctx.info.get("GL_MAX_TEXTURE_SIZE", DEFAULT_TEXTURE_LIMIT))
+
+
+class FloatTarget:
+    """A ``width`` x ``height`` colour target: float32 RGBA by default (``dtype="f4"``),
+    or normalised 8-bit (``"f1"``) for what is shown as it is.
+
+    ``label`` and ``advice`` word the UserError for a size the GPU cannot render,
+    e.g. "stereo image" and "; use a smaller scale"."""
+
+    def __init__(self, ctx: moderngl.Context, width: int, height: int, *, dtype: str = "f4",
+                 label: str = "image", advice: str = ""):
+        limit = texture_limit(ctx)
+        if not (1 <= width <= limit and 1 <= height <= limit):
+            raise UserError(f"{label} size {width}x{height} is outside what this GPU renders (1..{limit}){advice}")
+        self.ctx = ctx
+        self.dtype = dtype
+        self.texture = ctx.texture((width, height), 4, dtype=dtype)
+        self.fbo = ctx.framebuffer(color_attachments=[self.texture])
+
+    @property
+    def size(self) -> tuple[int, int]:
+        return self.fbo.size
+
+    def use(self) -> None:
+        self.fbo.use()
+
+    def read(self, components: int = 4) -> np.ndarray:
+        """(H, W, components), top row first: float32 for "f4", uint8 for "f1"."""
+        width, height = self.size
+        if self.dtype == "f4":
+            pixels = np.frombuffer(self.fbo.read(components=components, dtype="f4"), np.float32)
+        else:
+            pixels = np.frombuffer(self.fbo.read(components=components), np.uint8)
+        return pixels.reshape(height, width, components)[::-1].copy()
+
+    def release(self) -> None:
+        if self.fbo is not None:
+            self.fbo.release()
+            self.texture.release()
+            self.fbo = self.texture = None
+
+
+def sized(target: FloatTarget | None, ctx: moderngl.Context, width: int, height: int, **options) -> FloatTarget:
+    """``target`` when it already has this size, else a new one (``target`` released
+    first: one size held at a time)."""
+    if target is not None and target.size == (width, height):
+        return target
+    if target is not None:
+        target.release()
+    return FloatTarget(ctx, width, height, **options)
+
+
+def release_all(*targets: FloatTarget | None) -> None:
+    for target in targets:
+        if target is not None:
+            target.release()
