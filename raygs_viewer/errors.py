@@ -18,3 +18,10 @@ def checked_number(value, low: float, high: float, what: str) -> float:
             or not low <= value <= high:
         raise UserError(f"{what} must be a number in [{low:g}, {high:g}], got {value!r}")
     return float(value)
+
+
+def one_line(exc: BaseException, limit: int | None = None) -> str:
+    """``exc``'s message on one line (its type's name when it has none), cut to
+    ``limit`` characters with "..." when given."""
+    text = " ".join(str(exc).split()) or type(exc).__name__
+    return text if limit is None or len(text) <= limit else text[:limit - 3] + "..."

@@ -42,6 +42,7 @@ from pathlib import Path
 import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera, frame_points
+from raygs_viewer.camera.rotation import quaternion_to_matrix
 from raygs_viewer.capture.image_io import check_output_path
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.targets import FloatTarget
@@ -52,7 +53,7 @@ from raygs_viewer.render.settings import (
     RenderSettings,
     apply_preset,
 )
-from raygs_viewer.scene.model import Scene, quaternion_to_matrix
+from raygs_viewer.scene.model import Scene
 
 #: Every configuration, in the order of the presets; ratios are taken against BASELINE.
 CONFIGS = tuple(ACCURACY_PRESETS)

@@ -20,7 +20,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from raygs_viewer.camera.pinhole import Camera, intrinsics_from_fov
+from raygs_viewer.camera.pinhole import Camera
+from raygs_viewer.camera.rotation import (
+    POLE_MARGIN,
+    axis_rotation,
+    level_rotation,
+    matrix_to_quaternion,
+    orthonormalize,
+    quaternion_to_matrix,
+    slerp,
+)
 
 # "-y" is the COLMAP/INRIA convention (default), "+z" is common for Blender and
 # photogrammetry exports.
@@ -36,9 +45,6 @@ UP_AXES: dict[str, tuple[float, float, float]] = {
 MODES = ("fly", "orbit")
 
 LOOK_RADIANS_PER_PIXEL = 0.003
-# Forward never comes closer than this to the up axis (or to its opposite): at the pole
-# "yaw about up" turns into a roll and the view would flip over.
-POLE_MARGIN = math.radians(1.0)
 MAX_DT = 0.1              # seconds; a stalled frame must not teleport the camera
 SPEED_STEP = 1.25         # per wheel tick, fly mode
 SPEED_RANGE = (1e-4, 1e4)  # times the default speed
@@ -71,100 +77,11 @@ def _quiet(method):
     return wrapper
 
 
-def _finite(*values: float) -> bool:
+def finite(*values: float) -> bool:
     try:
         return all(math.isfinite(float(v)) for v in values)
     except (TypeError, ValueError, OverflowError):
         return False
-
-
-def _axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
-    """(3, 3) rotation by ``angle`` (right-handed) about the unit vector ``axis``."""
-    x, y, z = axis
-    c, s = math.cos(angle), math.sin(angle)
-    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
-    return c * np.eye(3) + s * k + (1.0 - c) * np.outer(axis, axis)
-
-
-def _orthonormalize(R: np.ndarray) -> np.ndarray:
-    """Nearest proper rotation that keeps the forward row's direction exactly.
-
-    Keeping forward (rather than an SVD projection) matters in orbit mode: the target
-    lies on that axis, so it stays on the image centre however long the session.
-    """
-    f = R[2] / np.linalg.norm(R[2])
-    r = R[0] - np.dot(R[0], f) * f
-    r /= np.linalg.norm(r)
-    return np.stack([r, np.cross(f, r), f])  # rows right, down, forward with right x down = forward
-
-
-def _level_rotation(forward: np.ndarray, up: np.ndarray, right_hint: np.ndarray | None = None) -> np.ndarray:
-    """World-to-camera rotation looking along ``forward`` with no roll about ``up``.
-
-    Forward is tilted to at most 89 degrees from the horizon (the pole margin), so the
-    result is always something yaw/pitch can carry on from.
-    """
-    f = forward / np.linalg.norm(forward)
-    elevation = math.asin(max(-1.0, min(1.0, float(np.dot(f, up)))))
-    elevation = max(-(math.pi / 2 - POLE_MARGIN), min(math.pi / 2 - POLE_MARGIN, elevation))
-    horizontal = f - np.dot(f, up) * up
-    if np.linalg.norm(horizontal) < 1e-9:
-        # Straight along the up axis: the only hint of a heading left is the old right
-        # axis (horizontal here, being perpendicular to forward).
-        hint = np.array([1.0, 0.0, 0.0]) if right_hint is None else right_hint
-        hint = hint - np.dot(hint, up) * up
-        if np.linalg.norm(hint) < 1e-9:
-            hint = np.cross(up, [0.0, 0.0, 1.0]) if abs(up[2]) < 0.9 else np.cross(up, [1.0, 0.0, 0.0])
-        horizontal = np.cross(up, hint / np.linalg.norm(hint))  # = forward of a level camera with that right
-    horizontal /= np.linalg.norm(horizontal)
-    f = math.cos(elevation) * horizontal + math.sin(elevation) * up
-    right = np.cross(f, up)  # camera +y (down) is -up for a level camera
-    right /= np.linalg.norm(right)
-    return _orthonormalize(np.stack([right, np.cross(f, right), f]))
-
-
-def _matrix_to_quaternion(R: np.ndarray) -> np.ndarray:
-    """(4,) unit quaternion (w, x, y, z) of a rotation matrix (Shepperd's method, which
-    picks the largest diagonal term so no branch divides by a tiny number)."""
-    m = R
-    trace = m[0, 0] + m[1, 1] + m[2, 2]
-    if trace > 0:
-        s = 2.0 * math.sqrt(trace + 1.0)
-        q = [0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
-    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
-        s = 2.0 * math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
-        q = [(m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s]
-    elif m[1, 1] > m[2, 2]:
-        s = 2.0 * math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
-        q = [(m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s]
-    else:
-        s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
-        q = [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s]
-    q = np.array(q, dtype=np.float64)
-    return q / np.linalg.norm(q)
-
-
-def _quaternion_to_matrix(q: np.ndarray) -> np.ndarray:
-    w, x, y, z = q / np.linalg.norm(q)
-    return np.array([
-        [1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)],
-        [2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)],
-        [2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)],
-    ])
-
-
-def _slerp(q0: np.ndarray, q1: np.ndarray, s: float) -> np.ndarray:
-    dot = float(np.dot(q0, q1))
-    if dot < 0:  # q and -q are the same rotation; the other sign is the long way round
-        q1, dot = -q1, -dot
-    if dot > 0.9995:
-        # Nearly equal: sin(theta) ~ 0 would amplify rounding, and lerp is exact enough.
-        q = q0 + s * (q1 - q0)
-        return q / np.linalg.norm(q)
-    theta = math.acos(min(1.0, dot))
-    sin_theta = math.sin(theta)
-    q = (math.sin((1 - s) * theta) * q0 + math.sin(s * theta) * q1) / sin_theta
-    return q / np.linalg.norm(q)
 
 
 def _smoothstep(s: float) -> float:
@@ -220,68 +137,6 @@ class Pose:
         return Camera(int(width), int(height), float(fx), float(fy), float(cx), float(cy), R, -R @ self.position)
 
 
-def letterbox(width: int, height: int, aspect: float) -> tuple[int, int, int, int]:
-    """x, y (from the top-left), w, h of the largest rectangle of ``aspect`` (w / h)
-    centred in a width x height window; each of w, h at least 1."""
-    width, height = max(1, int(width)), max(1, int(height))
-    if width >= height * aspect:   # window wider than the image: bars left and right
-        w, h = max(1, min(width, round(height * aspect))), height
-    else:                          # taller: bars top and bottom
-        w, h = width, max(1, min(height, round(width / aspect)))
-    return (width - w) // 2, (height - h) // 2, w, h
-
-
-@dataclass(frozen=True)
-class Lens:
-    """How pose + window size become intrinsics. Either a free lens (vertical field of view,
-    centred principal point, square pixels, fills the whole window) or a training camera's
-    intrinsics (fx, fy, cx, cy at its own width x height), which is shown letterboxed: the
-    largest rectangle of the camera's aspect ratio that fits the window, centred, with the
-    intrinsics scaled to it (Camera.resized).
-
-    fov_y_degrees: in (0, 180), ValueError otherwise. For a training-camera lens it is that
-    camera's own vertical field of view (what a panel shows); the intrinsics come from
-    ``source``.
-    """
-
-    fov_y_degrees: float = 60.0
-    source: Camera | None = None
-
-    def __post_init__(self) -> None:
-        if not _finite(self.fov_y_degrees) or not 0.0 < float(self.fov_y_degrees) < 180.0:
-            raise ValueError(f"field of view must be between 0 and 180 degrees, got {self.fov_y_degrees!r}")
-        object.__setattr__(self, "fov_y_degrees", float(self.fov_y_degrees))
-
-    @classmethod
-    def of_camera(cls, camera: Camera) -> "Lens":
-        return cls(math.degrees(2.0 * math.atan(0.5 * camera.height / camera.fy)), camera)
-
-    def with_fov(self, fov_y_degrees: float) -> "Lens":
-        """A free lens; the angle is clamped to 1..179 degrees (ValueError if not finite)."""
-        if not _finite(fov_y_degrees):
-            raise ValueError(f"field of view must be finite, got {fov_y_degrees!r}")
-        return Lens(min(179.0, max(1.0, float(fov_y_degrees))), None)
-
-    def viewport(self, width: int, height: int) -> tuple[int, int, int, int]:
-        """x, y (from the top-left), w, h of the image inside a width x height window, in
-        pixels; each of w, h is at least 1 (a minimised window reports 0 x 0)."""
-        if self.source is None:
-            return 0, 0, max(1, int(width)), max(1, int(height))
-        return letterbox(width, height, self.source.width / self.source.height)
-
-    def camera(self, pose: Pose, width: int, height: int) -> Camera:
-        """The camera of the viewport (size w x h from :meth:`viewport`) seen from ``pose``."""
-        _, _, w, h = self.viewport(width, height)
-        if self.source is None:
-            fx, fy, cx, cy = intrinsics_from_fov(w, h, self.fov_y_degrees)
-        elif (w, h) == (self.source.width, self.source.height):
-            fx, fy, cx, cy = self.source.fx, self.source.fy, self.source.cx, self.source.cy
-        else:
-            scaled = self.source.resized(w, h)
-            fx, fy, cx, cy = scaled.fx, scaled.fy, scaled.cx, scaled.cy
-        return pose.camera(w, h, fx, fy, cx, cy)
-
-
 # --------------------------------------------------------------------------- framing
 
 
@@ -324,16 +179,16 @@ def framing_pose(center, radius: float, up: str, fov_y_degrees: float, aspect: f
     """
     up_vec = up_vector(up)
     center = np.asarray(center, dtype=np.float64).reshape(3)
-    radius = float(radius) if _finite(radius) else 1.0
+    radius = float(radius) if finite(radius) else 1.0
     radius = max(radius, 1e-6)
-    aspect = float(aspect) if _finite(aspect) and float(aspect) > 0 else 1.0
-    fov = float(fov_y_degrees) if _finite(fov_y_degrees) else 60.0
+    aspect = float(aspect) if finite(aspect) and float(aspect) > 0 else 1.0
+    fov = float(fov_y_degrees) if finite(fov_y_degrees) else 60.0
     half_y = math.radians(min(179.0, max(1e-3, fov))) / 2
     # The narrower of the two half-angles decides: the sphere's cone must fit both ways.
     half = min(half_y, math.atan(math.tan(half_y) * aspect))
     distance = radius / math.sin(half)
     forward = _default_forward(up_vec)
-    return Pose(center - distance * forward, _level_rotation(forward, up_vec))
+    return Pose(center - distance * forward, level_rotation(forward, up_vec))
 
 
 # --------------------------------------------------------------------------- navigator
@@ -380,7 +235,7 @@ class Navigator:
         center = np.array(center, dtype=np.float64).reshape(-1)
         if center.shape != (3,) or not np.all(np.isfinite(center)):
             raise ValueError("scene centre must be 3 finite numbers")
-        if not _finite(radius):
+        if not finite(radius):
             raise ValueError("scene radius must be finite")
         self._check_mode(mode)
         self._up = up
@@ -464,14 +319,14 @@ class Navigator:
         up_vec = up_vector(up)
         self._cancel()
         self._up, self._up_vec = up, up_vec
-        self._set(self._position, _level_rotation(self._R[2], up_vec, self._R[0]))
+        self._set(self._position, level_rotation(self._R[2], up_vec, self._R[0]))
 
     # ----------------------------------------------------------------- fly
 
     @_quiet
     def move(self, dt: float, right: float, up: float, forward: float,
              fast: bool = False, slow: bool = False) -> None:
-        if not _finite(dt, right, up, forward) or dt <= 0:
+        if not finite(dt, right, up, forward) or dt <= 0:
             return
         direction = np.array([right, up, forward], dtype=np.float64)
         length = float(np.linalg.norm(direction))
@@ -487,7 +342,7 @@ class Navigator:
 
     def scale(self, ticks: float) -> None:
         """Fly speed *= 1.25**ticks, clamped (worked in logs: 1.25**1e6 overflows)."""
-        if not _finite(ticks):
+        if not finite(ticks):
             return
         low, high = (math.log(self.default_speed * k) for k in SPEED_RANGE)
         log_speed = math.log(self.speed) + float(ticks) * math.log(SPEED_STEP)
@@ -498,8 +353,8 @@ class Navigator:
         u = self._up_vec
         yaw = (LOOK_RADIANS_PER_PIXEL * float(dx)) % (2 * math.pi)  # huge dx: keep sin/cos accurate
         # Yaw right = forward towards right = a negative turn about up (right x forward = up).
-        R = self._R @ _axis_rotation(u, -yaw).T
-        R = _orthonormalize(R)
+        R = self._R @ axis_rotation(u, -yaw).T
+        R = orthonormalize(R)
 
         # Pitch about camera x: forward moves in the plane spanned by forward and camera
         # up (g). There f.u = A sin(psi) with psi = psi0 + phi, so the pole limit is a
@@ -524,11 +379,11 @@ class Navigator:
             phi %= 2 * math.pi  # rolled 90 degrees: pitch cannot reach the pole
         c, s = math.cos(phi), math.sin(phi)
         f_new, g_new = c * f + s * g, c * g - s * f
-        return _orthonormalize(np.stack([R[0], -g_new, f_new]))
+        return orthonormalize(np.stack([R[0], -g_new, f_new]))
 
     @_quiet
     def look(self, dx: float, dy: float) -> None:
-        if not _finite(dx, dy) or (dx == 0 and dy == 0):
+        if not finite(dx, dy) or (dx == 0 and dy == 0):
             return
         dx, dy = (max(-MAX_PIXELS, min(MAX_PIXELS, float(v))) for v in (dx, dy))
         self._cancel()
@@ -538,7 +393,7 @@ class Navigator:
 
     @_quiet
     def rotate(self, dx: float, dy: float) -> None:
-        if not _finite(dx, dy) or (dx == 0 and dy == 0):
+        if not finite(dx, dy) or (dx == 0 and dy == 0):
             return
         dx, dy = (max(-MAX_PIXELS, min(MAX_PIXELS, float(v))) for v in (dx, dy))
         self._cancel()
@@ -548,7 +403,7 @@ class Navigator:
 
     @_quiet
     def pan(self, dx: float, dy: float, focal_px: float) -> None:
-        if not _finite(dx, dy, focal_px) or focal_px <= 0 or (dx == 0 and dy == 0):
+        if not finite(dx, dy, focal_px) or focal_px <= 0 or (dx == 0 and dy == 0):
             return
         dx, dy = (max(-MAX_PIXELS, min(MAX_PIXELS, float(v))) for v in (dx, dy))
         # At the target's depth one pixel spans distance / focal world units; the camera
@@ -559,7 +414,7 @@ class Navigator:
 
     @_quiet
     def zoom(self, ticks: float) -> None:
-        if not _finite(ticks) or ticks == 0:
+        if not finite(ticks) or ticks == 0:
             return
         low, high = self._distance_limits()
         # Never pull an already-farther camera in just because it is past the limit.
@@ -589,14 +444,14 @@ class Navigator:
         """Moves smoothly to ``pose`` over ``duration`` seconds of :meth:`advance`:
         position smoothstep-interpolated, rotation slerped along the shortest arc. A
         non-positive or non-finite duration jumps at once."""
-        if not _finite(duration) or duration <= 0:
+        if not finite(duration) or duration <= 0:
             self.set_pose(pose)
             return
         self._animation = (self.pose, pose, float(duration), 0.0)
 
     @_quiet
     def advance(self, dt: float) -> None:
-        if self._animation is None or not _finite(dt) or dt <= 0:
+        if self._animation is None or not finite(dt) or dt <= 0:
             return
         start, end, duration, elapsed = self._animation
         elapsed = min(duration, elapsed + float(dt))
@@ -606,5 +461,5 @@ class Navigator:
             return
         self._animation = (start, end, duration, elapsed)
         w = _smoothstep(elapsed / duration)
-        q = _slerp(_matrix_to_quaternion(start.R), _matrix_to_quaternion(end.R), w)
-        self._set(start.position + w * (end.position - start.position), _orthonormalize(_quaternion_to_matrix(q)))
+        q = slerp(matrix_to_quaternion(start.R), matrix_to_quaternion(end.R), w)
+        self._set(start.position + w * (end.position - start.position), orthonormalize(quaternion_to_matrix(q[None])[0]))

@@ -34,6 +34,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera
+from raygs_viewer.camera.rotation import quaternion_to_matrix
 from raygs_viewer.render.settings import (
     ALPHA_CLAMP,
     GS_DILATION,
@@ -41,7 +42,7 @@ from raygs_viewer.render.settings import (
     TRANSMITTANCE_CUTOFF,
     RenderSettings,
 )
-from raygs_viewer.scene.model import Scene, quaternion_to_matrix
+from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.sh import sh_to_rgb
 from raygs_viewer.sort.depth import DepthSorter
 

@@ -74,19 +74,3 @@ class Scene:
             np.ascontiguousarray(self.sh[:, : sh_coefficient_count(degree)]),
             degree, self.filter_fused, self.source, dict(self.dropped),
         )
-
-
-def quaternion_to_matrix(q: np.ndarray) -> np.ndarray:
-    """(N, 4) unit quaternions (w, x, y, z) -> (N, 3, 3) rotation matrices, in q's dtype."""
-    w, x, y, z = (q[:, i] for i in range(4))
-    m = np.empty(q.shape[:1] + (3, 3), dtype=q.dtype)
-    m[:, 0, 0] = 1 - 2 * (y * y + z * z)
-    m[:, 0, 1] = 2 * (x * y - w * z)
-    m[:, 0, 2] = 2 * (x * z + w * y)
-    m[:, 1, 0] = 2 * (x * y + w * z)
-    m[:, 1, 1] = 1 - 2 * (x * x + z * z)
-    m[:, 1, 2] = 2 * (y * z - w * x)
-    m[:, 2, 0] = 2 * (x * z - w * y)
-    m[:, 2, 1] = 2 * (y * z + w * x)
-    m[:, 2, 2] = 1 - 2 * (x * x + y * y)
-    return m

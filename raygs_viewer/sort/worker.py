@@ -20,6 +20,7 @@ from typing import Protocol
 import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera, camera_key
+from raygs_viewer.errors import one_line
 
 __all__ = ["BackgroundSorter", "SortResult", "Sorter"]
 
@@ -81,9 +82,6 @@ def _snapshot(camera: Camera) -> Camera:
     return replace(camera, R=np.array(camera.R, np.float64), t=np.array(camera.t, np.float64))
 
 
-def _one_line(exc: BaseException) -> str:
-    text = " ".join(str(exc).split())
-    return f"{type(exc).__name__}: {text}" if text else type(exc).__name__
 
 
 class BackgroundSorter:
@@ -202,7 +200,7 @@ class BackgroundSorter:
             except Exception as exc:  # reported in .error; the thread must keep serving
                 with self._cond:
                     self.failed += 1
-                    self.error = _one_line(exc)
+                    self.error = f"{type(exc).__name__}: {one_line(exc)}" if str(exc).strip() else type(exc).__name__
                     self._answered = max(self._answered, request.serial)
                     self._cond.notify_all()
                 continue

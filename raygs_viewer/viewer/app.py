@@ -297,13 +297,8 @@ class Viewer:
     # -- scene ---------------------------------------------------------------------
     def _install(self, loaded, start_camera: Camera | None = None) -> None:
         """Puts a loaded scene on the GPU; on failure the current scene stays."""
-        from raygs_viewer.camera.navigation import (
-            Lens,
-            Navigator,
-            Pose,
-            framing_pose,
-            scene_bounds,
-        )
+        from raygs_viewer.camera.navigation import Navigator, Pose, framing_pose, scene_bounds
+        from raygs_viewer.camera.lens import Lens
         from raygs_viewer.render.gl.renderer import GLRenderer
         from raygs_viewer.sort.worker import BackgroundSorter
 
@@ -415,7 +410,8 @@ class Viewer:
 
     def select_training_camera(self, index: int) -> None:
         """Flies to training camera ``index`` (wrapping) and renders with its intrinsics."""
-        from raygs_viewer.camera.navigation import Lens, Pose
+        from raygs_viewer.camera.navigation import Pose
+        from raygs_viewer.camera.lens import Lens
         cameras = self.loaded.cameras
         if not cameras:
             self.panel.message = "this scene has no training cameras"
@@ -570,7 +566,7 @@ class Viewer:
             camera = self.camera = self.lens.camera(self.navigator.pose, width, height)  # viewport-sized
             cull_cameras = None
         else:
-            from raygs_viewer.camera.navigation import letterbox
+            from raygs_viewer.camera.lens import letterbox
             # The midpoint between the eyes, at the headset's per-eye size and field of view.
             camera = self.camera = stereo.headset.camera(self.lens.camera(self.navigator.pose, width, height))
             shown_width, shown_height = composed_size(camera.width, camera.height, stereo.layout)

@@ -10,9 +10,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from testkit import random_rotation
 
+from raygs_viewer.camera.lens import Lens
 from raygs_viewer.camera.navigation import (
     UP_AXES,
-    Lens,
     Navigator,
     Pose,
     framing_pose,

@@ -12,9 +12,9 @@ from hypothesis import strategies as st
 from testkit import random_scene
 
 from raygs_viewer.camera.pinhole import look_at
+from raygs_viewer.camera.rotation import quaternion_to_matrix
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import RenderSettings
-from raygs_viewer.scene.model import quaternion_to_matrix
 from raygs_viewer.scene.sh import sh_to_rgb
 
 

@@ -9,6 +9,7 @@ import pytest
 from testkit import make_scene, random_rotation, random_scene
 
 from raygs_viewer.camera.pinhole import Camera, look_at
+from raygs_viewer.camera.rotation import quaternion_to_matrix
 from raygs_viewer.render import reference
 from raygs_viewer.render.reference import ground_truth, render_reference
 from raygs_viewer.render.settings import (
@@ -20,7 +21,6 @@ from raygs_viewer.render.settings import (
     apply_preset,
 )
 from raygs_viewer.scene.demo import demo_camera
-from raygs_viewer.scene.model import quaternion_to_matrix
 from raygs_viewer.sort.depth import DepthSorter
 
 # Odd size, fx != fy, off-centre principal point: any axis or half-pixel slip shows.

@@ -8,8 +8,9 @@ import numpy as np
 import pytest
 
 from raygs_viewer.camera.pinhole import Camera
+from raygs_viewer.camera.rotation import quaternion_to_matrix
 from raygs_viewer.scene.demo import FLOOR_Y, demo_camera, demo_cameras, demo_scene
-from raygs_viewer.scene.model import Scene, quaternion_to_matrix
+from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.sh import sh_to_rgb
 
 ARRAYS = ("positions", "rotations", "scales", "opacities", "sh")

@@ -11,7 +11,7 @@ import weakref
 
 import moderngl
 
-from raygs_viewer.errors import UserError
+from raygs_viewer.errors import UserError, one_line
 
 REQUIRE = 430
 ENV_VAR = "RAYGS_GL_BACKEND"
@@ -24,9 +24,6 @@ INSTALL_OSMESA = "apt-get install libosmesa6"
 _backend_of: "weakref.WeakKeyDictionary[moderngl.Context, str]" = weakref.WeakKeyDictionary()
 
 
-def _one_line(exc: BaseException) -> str:
-    text = " ".join(str(exc).split()) or type(exc).__name__
-    return text if len(text) <= 160 else text[:157] + "..."
 
 
 def _create_egl() -> moderngl.Context:
@@ -83,7 +80,7 @@ def create_headless_context(backend: str | None = None) -> moderngl.Context:
         try:
             ctx = _CREATORS[name]()
         except Exception as exc:  # noqa: BLE001 - every failure becomes one line below
-            failures.append(f"{name}: {_one_line(exc)}")
+            failures.append(f"{name}: {one_line(exc, 160)}")
             continue
         _backend_of[ctx] = name
         return ctx

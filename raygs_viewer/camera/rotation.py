@@ -1,0 +1,106 @@
+"""Rotations in float64 numpy: quaternions (w, x, y, z) and matrices, the level
+(roll-free) rotation a camera looks along, and slerp for smooth flights."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+#: Level rotations keep forward at least this far from the up axis (yaw and pitch stay defined).
+POLE_MARGIN = math.radians(1.0)
+
+def quaternion_to_matrix(q: np.ndarray) -> np.ndarray:
+    """(N, 4) unit quaternions (w, x, y, z) -> (N, 3, 3) rotation matrices, in q's dtype."""
+    w, x, y, z = (q[:, i] for i in range(4))
+    m = np.empty(q.shape[:1] + (3, 3), dtype=q.dtype)
+    m[:, 0, 0] = 1 - 2 * (y * y + z * z)
+    m[:, 0, 1] = 2 * (x * y - w * z)
+    m[:, 0, 2] = 2 * (x * z + w * y)
+    m[:, 1, 0] = 2 * (x * y + w * z)
+    m[:, 1, 1] = 1 - 2 * (x * x + z * z)
+    m[:, 1, 2] = 2 * (y * z - w * x)
+    m[:, 2, 0] = 2 * (x * z - w * y)
+    m[:, 2, 1] = 2 * (y * z + w * x)
+    m[:, 2, 2] = 1 - 2 * (x * x + y * y)
+    return m
+
+
+def axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
+    """(3, 3) rotation by ``angle`` (right-handed) about the unit vector ``axis``."""
+    x, y, z = axis
+    c, s = math.cos(angle), math.sin(angle)
+    k = np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
+    return c * np.eye(3) + s * k + (1.0 - c) * np.outer(axis, axis)
+
+
+def orthonormalize(R: np.ndarray) -> np.ndarray:
+    """Nearest proper rotation that keeps the forward row's direction exactly.
+
+    Keeping forward (rather than an SVD projection) matters in orbit mode: the target
+    lies on that axis, so it stays on the image centre however long the session.
+    """
+    f = R[2] / np.linalg.norm(R[2])
+    r = R[0] - np.dot(R[0], f) * f
+    r /= np.linalg.norm(r)
+    return np.stack([r, np.cross(f, r), f])  # rows right, down, forward with right x down = forward
+
+
+def level_rotation(forward: np.ndarray, up: np.ndarray, right_hint: np.ndarray | None = None) -> np.ndarray:
+    """World-to-camera rotation looking along ``forward`` with no roll about ``up``.
+
+    Forward is tilted to at most 89 degrees from the horizon (the pole margin), so the
+    result is always something yaw/pitch can carry on from.
+    """
+    f = forward / np.linalg.norm(forward)
+    elevation = math.asin(max(-1.0, min(1.0, float(np.dot(f, up)))))
+    elevation = max(-(math.pi / 2 - POLE_MARGIN), min(math.pi / 2 - POLE_MARGIN, elevation))
+    horizontal = f - np.dot(f, up) * up
+    if np.linalg.norm(horizontal) < 1e-9:
+        # Straight along the up axis: the only hint of a heading left is the old right
+        # axis (horizontal here, being perpendicular to forward).
+        hint = np.array([1.0, 0.0, 0.0]) if right_hint is None else right_hint
+        hint = hint - np.dot(hint, up) * up
+        if np.linalg.norm(hint) < 1e-9:
+            hint = np.cross(up, [0.0, 0.0, 1.0]) if abs(up[2]) < 0.9 else np.cross(up, [1.0, 0.0, 0.0])
+        horizontal = np.cross(up, hint / np.linalg.norm(hint))  # = forward of a level camera with that right
+    horizontal /= np.linalg.norm(horizontal)
+    f = math.cos(elevation) * horizontal + math.sin(elevation) * up
+    right = np.cross(f, up)  # camera +y (down) is -up for a level camera
+    right /= np.linalg.norm(right)
+    return orthonormalize(np.stack([right, np.cross(f, right), f]))
+
+
+def matrix_to_quaternion(R: np.ndarray) -> np.ndarray:
+    """(4,) unit quaternion (w, x, y, z) of a rotation matrix (Shepperd's method, which
+    picks the largest diagonal term so no branch divides by a tiny number)."""
+    m = R
+    trace = m[0, 0] + m[1, 1] + m[2, 2]
+    if trace > 0:
+        s = 2.0 * math.sqrt(trace + 1.0)
+        q = [0.25 * s, (m[2, 1] - m[1, 2]) / s, (m[0, 2] - m[2, 0]) / s, (m[1, 0] - m[0, 1]) / s]
+    elif m[0, 0] > m[1, 1] and m[0, 0] > m[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + m[0, 0] - m[1, 1] - m[2, 2])
+        q = [(m[2, 1] - m[1, 2]) / s, 0.25 * s, (m[0, 1] + m[1, 0]) / s, (m[0, 2] + m[2, 0]) / s]
+    elif m[1, 1] > m[2, 2]:
+        s = 2.0 * math.sqrt(1.0 + m[1, 1] - m[0, 0] - m[2, 2])
+        q = [(m[0, 2] - m[2, 0]) / s, (m[0, 1] + m[1, 0]) / s, 0.25 * s, (m[1, 2] + m[2, 1]) / s]
+    else:
+        s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
+        q = [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s]
+    q = np.array(q, dtype=np.float64)
+    return q / np.linalg.norm(q)
+
+
+def slerp(q0: np.ndarray, q1: np.ndarray, s: float) -> np.ndarray:
+    dot = float(np.dot(q0, q1))
+    if dot < 0:  # q and -q are the same rotation; the other sign is the long way round
+        q1, dot = -q1, -dot
+    if dot > 0.9995:
+        # Nearly equal: sin(theta) ~ 0 would amplify rounding, and lerp is exact enough.
+        q = q0 + s * (q1 - q0)
+        return q / np.linalg.norm(q)
+    theta = math.acos(min(1.0, dot))
+    sin_theta = math.sin(theta)
+    q = (math.sin((1 - s) * theta) * q0 + math.sin(s * theta) * q1) / sin_theta
+    return q / np.linalg.norm(q)
