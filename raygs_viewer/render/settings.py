@@ -7,7 +7,7 @@ GL path, the float64 reference, the sidecar and the benchmark read one definitio
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, fields, replace
 
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.errors import UserError
@@ -120,6 +120,10 @@ class RenderSettings:
                 raise UserError(f"{name} must be true or false, got {getattr(self, name)!r}")
 
 
+#: The accuracy options: the RenderSettings fields beyond p_min, background and SH degree
+#: (what a preset sets, and what the command line's render-settings options carry).
+ACCURACY_FIELDS = tuple(f.name for f in fields(RenderSettings) if f.name not in ("p_min", "background", "sh_degree"))
+
 #: Named accuracy configurations, as overrides of RenderSettings: the A/B split view's
 #: choices for its right side and the rows of ``raygs-viewer bench accuracy``.
 #: "RayGS" (the default settings) is the baseline every ratio is taken against.
@@ -140,9 +144,6 @@ def apply_preset(settings: RenderSettings, name: str) -> RenderSettings:
     """``settings`` with the accuracy options of preset ``name`` (the options a preset
     does not name are reset to their defaults; p_min, background and SH degree are kept
     unless the preset sets them)."""
-    from dataclasses import replace
-    accuracy_fields = ("mode", "mip", "mip_sigma2", "mip_modulation", "gs_compensation", "supersample",
-                       "alpha_clamp", "transmittance_cutoff")
     defaults = RenderSettings()
-    reset = {name_: getattr(defaults, name_) for name_ in accuracy_fields}
+    reset = {name_: getattr(defaults, name_) for name_ in ACCURACY_FIELDS}
     return replace(settings, **{**reset, **ACCURACY_PRESETS[name]})
