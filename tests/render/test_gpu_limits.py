@@ -10,7 +10,8 @@ from testkit import assert_matches, random_scene
 
 from raygs_viewer.camera.pinhole import look_at
 from raygs_viewer.errors import UserError
-from raygs_viewer.render.gl.renderer import GLRenderer, StorageLayout, gpu_bytes
+from raygs_viewer.render.gl.renderer import GLRenderer
+from raygs_viewer.render.gl.storage import StorageLayout, gpu_bytes
 from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.settings import RenderSettings
 
@@ -28,7 +29,7 @@ def test_an_artificially_small_block_limit_changes_no_bit(gl_ctx, settings):
     for limit in (None, 8192):
         renderer = GLRenderer(gl_ctx, scene, block_limit=limit)
         try:
-            layout = renderer._layout(renderer._splat_bytes(settings))
+            layout = renderer.layout_for(settings)
             images[limit] = renderer.render(CAMERA, settings)
         finally:
             renderer.release()
@@ -128,7 +129,7 @@ def test_storage_layout_never_exceeds_the_limit():
 def test_colours_at_load_stay_aligned_under_a_small_block_limit(gl_ctx):
     # SH 3 records (192 bytes) make 32-gaussian chunks at 8 KiB: the colours at load
     # must still start every chunk at an aligned offset, and draw what the SH does.
-    from raygs_viewer.render.gl.renderer import COLOR_BYTES, RANGE_ALIGNMENT
+    from raygs_viewer.render.gl.storage import COLOR_BYTES, RANGE_ALIGNMENT
     scene = random_scene(n=300, seed=4, degree=3)
     camera = look_at([0.0, 0.0, -4.0], [0.0, 0.0, 0.0], width=64, height=48)
     small = GLRenderer(gl_ctx, scene, block_limit=8192)

@@ -160,9 +160,9 @@ GARBAGE_SEED = 99
 
 def _spoil_harmonics(renderer: GLRenderer) -> None:
     """Overwrites the SH coefficients on the GPU with large random numbers."""
-    size = renderer._harmonics.size // 4
+    size = renderer.storage.harmonics.size // 4
     garbage = np.random.default_rng(GARBAGE_SEED).normal(0.0, 5.0, size).astype(np.float32)
-    renderer._harmonics.write(garbage.tobytes())
+    renderer.storage.harmonics.write(garbage.tobytes())
 
 
 @pytest.mark.parametrize("degree, settings, general, uses_harmonics", [
@@ -196,9 +196,9 @@ def test_colour_buffer_is_computed_once(gl_ctx, make_renderer, monkeypatch):
     scene = scene_of(3)
     renderer = make_renderer(scene)
     renderer.render(FRONT, S())
-    assert renderer._colors is None  # SH degree 3 evaluates SH: no colours needed
+    assert renderer.storage.colors is None  # SH degree 3 evaluates SH: no colours needed
     renderer.render(FRONT, S(sh_degree=0))
-    colors = renderer._colors
+    colors = renderer.storage.colors
     assert colors is not None
     expected = np.maximum(SH_C0 * scene.sh[:, 0, :].astype(np.float64) + 0.5, 0.0).astype(np.float32)
     stored = np.frombuffer(colors.read(), np.float32).reshape(-1, 4)  # RGB and a zero pad (16-byte records)
@@ -210,12 +210,12 @@ def test_colour_buffer_is_computed_once(gl_ctx, make_renderer, monkeypatch):
     for camera, settings in ((INSIDE, S(sh_degree=0)), (FRONT, S()), (FRONT, S(sh_degree=0, mode="gs")),
                              (INSIDE, S(sh_degree=0, supersample=2))):
         renderer.render(camera, settings)
-        assert renderer._colors is colors
+        assert renderer.storage.colors is colors
     assert made == []
     # The general variant never reads them.
     general = make_renderer(scene, general=True)
     general.render(FRONT, S(sh_degree=0))
-    assert general._colors is None
+    assert general.storage.colors is None
 
 
 # -------------------------------------------------------------- 3. preprocess skipping
@@ -342,9 +342,9 @@ def test_a_pass_cut_short_leaves_no_stale_records(gl_ctx, make_renderer, monkeyp
     assert renderer.layout.chunk < scene.count // 4
     other = look_at([2.5, 0.5, 1.0], [0, 0, 0], width=80, height=60)
     image = renderer.render(FRONT, S())
-    original = GLRenderer._preprocess_program
-    monkeypatch.setattr(renderer, "_preprocess_program", lambda settings: _FailingProgram(
-        original(renderer, settings), runs=3))
+    original = renderer.variants.preprocess
+    monkeypatch.setattr(renderer.variants, "preprocess", lambda settings: _FailingProgram(
+        original(settings), runs=3))
     with pytest.raises(RuntimeError, match="simulated"):
         renderer.preprocess(other, S())
     monkeypatch.undo()
@@ -370,7 +370,7 @@ def test_a_pass_refused_with_user_error_leaves_the_renderer_usable(gl_ctx, make_
 
 # ------------------------------------------------------------------ 4. upload skipping
 def _uploaded(renderer: GLRenderer, size: int) -> np.ndarray:
-    return np.frombuffer(renderer._order.read(size=size * 4), np.uint32)
+    return np.frombuffer(renderer.storage.order.read(size=size * 4), np.uint32)
 
 
 def test_same_order_array_is_uploaded_once(make_renderer):

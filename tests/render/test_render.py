@@ -127,7 +127,7 @@ def test_storage_blocks_split_by_an_artificial_limit(gl_render):
 
 def test_block_layout():
     from raygs_viewer.errors import UserError
-    from raygs_viewer.render.gl.renderer import StorageLayout
+    from raygs_viewer.render.gl.storage import StorageLayout
     layout = StorageLayout.plan(300, 16 * 12, 4096)
     assert (layout.splats_per_block, layout.chunk, layout.splat_blocks) == (64, 16, 5)
     big = StorageLayout.plan(2_000_000, 16 * 12, 1 << 27)

@@ -1,4 +1,5 @@
-"""GLSL sources: one file per stage in ``glsl/``, ``#include`` expanded, variants by ``#define``.
+"""GLSL sources: one file per stage in ``glsl/``, ``#include`` expanded, variants by
+``#define``; and :func:`set_uniform`, which every pass uses to feed them.
 
 The ``glsl/`` folder ships inside the installed package as ``raygs_viewer.glsl``;
 in a source checkout it is read where it stands.
@@ -10,6 +11,8 @@ import re
 from functools import lru_cache
 from importlib import resources
 from pathlib import Path
+
+import moderngl
 
 _INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.MULTILINE)
 
@@ -36,3 +39,13 @@ def shader_source(name: str, defines: dict[str, object] | None = None) -> str:
     """The complete source of ``glsl/<name>`` for GLSL 4.30 with ``defines`` prepended."""
     header = ["#version 430 core"] + [f"#define {key} {value}" for key, value in sorted((defines or {}).items())]
     return "\n".join(header) + "\n#line 1\n" + _expand(name)
+
+
+def set_uniform(program: moderngl.Program | moderngl.ComputeShader, name: str, value) -> None:
+    """Sets a uniform the variant uses; variants that compiled it away are skipped.
+    ``bytes`` are written as they are (matrices, arrays), anything else by value."""
+    if name in program:
+        if isinstance(value, bytes):
+            program[name].write(value)
+        else:
+            program[name].value = value

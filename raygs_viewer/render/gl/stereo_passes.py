@@ -15,8 +15,7 @@ from raygs_viewer.camera.lens_model import LensModel, lens_radius
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.camera.stereo import composed_size
 from raygs_viewer.errors import UserError
-from raygs_viewer.render.gl.renderer import _set_uniform
-from raygs_viewer.render.gl.shaders import shader_source
+from raygs_viewer.render.gl.shaders import set_uniform, shader_source
 
 _LEFT, _RIGHT = (0, 0, 0, 0), (1, 1, 1, 1)
 # Per layout, for each eye-wide half of the target: which channels come from the right eye.
@@ -57,13 +56,13 @@ class StereoPasses:
             raise ValueError(f"lens pass: source {source.size} and target {target.size} must be the eye's {size}")
         program, vao = self._program("lens.frag")
         source.use(0)
-        _set_uniform(program, "u_image", 0)
-        _set_uniform(program, "u_center", (float(eye.cx), float(eye.cy)))
-        _set_uniform(program, "u_radius", lens_radius(eye))
-        _set_uniform(program, "u_k1", model.k1)
-        _set_uniform(program, "u_k2", model.k2)
-        _set_uniform(program, "u_edge_gain", model.edge_gain)
-        _set_uniform(program, "u_scales", model.channel_scales)
+        set_uniform(program, "u_image", 0)
+        set_uniform(program, "u_center", (float(eye.cx), float(eye.cy)))
+        set_uniform(program, "u_radius", lens_radius(eye))
+        set_uniform(program, "u_k1", model.k1)
+        set_uniform(program, "u_k2", model.k2)
+        set_uniform(program, "u_edge_gain", model.edge_gain)
+        set_uniform(program, "u_scales", model.channel_scales)
         self._draw(vao, target)
 
     def compose(self, left: moderngl.Texture, right: moderngl.Texture, target: moderngl.Framebuffer,
@@ -78,10 +77,10 @@ class StereoPasses:
         program, vao = self._program("stereo_compose.frag")
         left.use(0)
         right.use(1)
-        _set_uniform(program, "u_left", 0)
-        _set_uniform(program, "u_right", 1)
-        _set_uniform(program, "u_halves", expected[0] // left.size[0])  # eye-wide halves: 2 side by side
-        _set_uniform(program, "u_from_right", np.asarray(_FROM_RIGHT[layout], np.int32).tobytes())
+        set_uniform(program, "u_left", 0)
+        set_uniform(program, "u_right", 1)
+        set_uniform(program, "u_halves", expected[0] // left.size[0])  # eye-wide halves: 2 side by side
+        set_uniform(program, "u_from_right", np.asarray(_FROM_RIGHT[layout], np.int32).tobytes())
         self._draw(vao, target)
 
     def release(self) -> None:

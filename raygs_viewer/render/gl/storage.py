@@ -1,0 +1,240 @@
+"""A scene's storage buffers on the GPU, and how they are cut into bindable ranges.
+
+GPUs cap one bound storage range (``GL_MAX_SHADER_STORAGE_BLOCK_SIZE``, 128 MiB on
+real drivers), so large scenes are split: :class:`StorageLayout` plans the cut and
+:class:`SceneBuffers` holds the buffers and binds them range by range for the
+preprocessing pass (chunks) and the draw (one binding per splat block).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+from dataclasses import dataclass
+
+import moderngl
+import numpy as np
+
+from raygs_viewer.errors import UserError
+from raygs_viewer.scene.model import Scene, sh_coefficient_count
+from raygs_viewer.scene.sh import C0 as SH_C0
+
+# The largest GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT drivers report (moderngl's
+# ctx.info omits it); every range offset we bind is a multiple of it.
+RANGE_ALIGNMENT = 256
+
+GAUSSIAN_BYTES = 48  # struct Gaussian in preprocess.comp
+SPLAT_BYTES = 64     # struct Splat in splat.glsl
+COLOR_BYTES = 16     # RGB computed at load, for SH degree 0, padded so chunk ranges stay aligned
+EXACT_MIP_SPLAT_BYTES = 112  # ... with EXACT_MIP's three extra vec4
+MAX_SPLAT_BLOCKS = 8  # bindings raygs.vert declares
+# GL guarantees 65535 workgroups per dispatch; drivers that report a 2 GiB block
+# limit would otherwise ask for more in one chunk.
+MAX_CHUNK = 1 << 22
+
+
+def _power_of_two_at_most(value: int) -> int:
+    return 1 << (max(int(value), 1).bit_length() - 1)
+
+
+@dataclass(frozen=True)
+class StorageLayout:
+    """How N gaussians are cut so that no bound storage range exceeds ``block_limit`` bytes.
+
+    Splat records live in ``splat_blocks`` bindings of ``splats_per_block``; the
+    preprocessing pass runs in chunks of ``chunk`` gaussians (a power of two that
+    divides ``splats_per_block``, so a chunk never straddles two splat blocks).
+    """
+
+    count: int
+    block_limit: int
+    splats_per_block: int
+    chunk: int
+    splat_bytes: int = SPLAT_BYTES
+
+    @classmethod
+    def plan(cls, count: int, harmonics_bytes: int, block_limit: int, alignment: int = RANGE_ALIGNMENT,
+             splat_bytes: int = SPLAT_BYTES) -> "StorageLayout":
+        record_bytes = (GAUSSIAN_BYTES, harmonics_bytes, COLOR_BYTES, splat_bytes)
+        splats_per_block = _power_of_two_at_most(block_limit // splat_bytes)
+        chunk = min(_power_of_two_at_most(block_limit // max(record_bytes)), splats_per_block, MAX_CHUNK)
+        # Every bound offset is a multiple of chunk * record size: keep those aligned.
+        if chunk * max(record_bytes) > block_limit or any(chunk * b % alignment for b in record_bytes):
+            raise UserError(f"a storage block limit of {block_limit} bytes is too small for "
+                            f"{max(record_bytes)}-byte gaussian records")
+        return cls(count, block_limit, splats_per_block, chunk, splat_bytes)
+
+    @property
+    def splat_blocks(self) -> int:
+        return max(1, -(-self.count // self.splats_per_block))
+
+
+@dataclass(frozen=True)
+class Chunk:
+    """One preprocessing chunk, its ranges bound: ``count`` gaussians from ``start``,
+    whose records go to ``offset`` within the bound splat block."""
+
+    start: int
+    count: int
+    offset: int
+
+
+def gpu_bytes(count: int, sh_degree: int) -> int:
+    """The storage buffers a scene takes on the GPU: gaussians, SH, colours computed
+    at load (SH degree 0), one splat record each (the exact MIP record, the largest)
+    and the order."""
+    return count * (GAUSSIAN_BYTES + sh_coefficient_count(sh_degree) * 12 + COLOR_BYTES + EXACT_MIP_SPLAT_BYTES + 4)
+
+
+def gpu_limit(ctx: moderngl.Context, name: str, default: int) -> int:
+    """The GL limit ``name`` from ``ctx.info``, or ``default`` where the driver reports none."""
+    value = ctx.info.get(name)
+    return int(value) if isinstance(value, int) and value > 0 else default
+
+
+def _mib(size: int) -> str:
+    return f"{size / (1 << 20):,.1f} MiB"
+
+
+def _float_buffer(ctx: moderngl.Context, array: np.ndarray) -> moderngl.Buffer:
+    data = np.ascontiguousarray(array, dtype=np.float32)
+    return ctx.buffer(data.tobytes() if data.size else bytes(16))
+
+
+class SceneBuffers:
+    """The storage buffers of one scene, made at once and kept until :meth:`release`:
+    ``gaussians`` (N, 12) float32 (position, opacity, scale, pad, rotation),
+    ``harmonics`` (N, 3 * coefficients) float32, ``splats`` (the per-view records),
+    ``order`` (N,) uint32, and ``colors`` (N, 4) float32, made on first use of SH
+    degree 0 (None before).
+
+    ``block_limit`` overrides the GPU's per-block storage limit; ``memory_limit``
+    refuses, with a UserError, a scene whose buffers would exceed it.
+    """
+
+    def __init__(self, ctx: moderngl.Context, scene: Scene, *, block_limit: int | None = None,
+                 memory_limit: int | None = None):
+        self.ctx = ctx
+        self.scene = scene
+        count = scene.count
+        coeffs = sh_coefficient_count(scene.sh_degree)
+        limit = gpu_limit(ctx, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 1 << 27)
+        self.block_limit = min(block_limit or limit, limit)
+        self._layouts: dict[int, StorageLayout] = {}
+        self.layout = self.layout_for(SPLAT_BYTES)
+        self.gpu_bytes = gpu_bytes(count, scene.sh_degree)
+        if memory_limit is not None and self.gpu_bytes > memory_limit:
+            raise UserError(f"scene of {count:,} gaussians needs {_mib(self.gpu_bytes)} of GPU buffers, more than "
+                            f"the {_mib(memory_limit)} allowed")
+
+        try:
+            packed = np.zeros((count, 12), np.float32)
+            packed[:, 0:3] = scene.positions
+            packed[:, 3] = scene.opacities
+            packed[:, 4:7] = scene.scales
+            packed[:, 8:12] = scene.rotations
+        except MemoryError:
+            raise UserError(f"scene of {count:,} gaussians: not enough memory to pack it for the GPU") from None
+        buffers = []
+        try:
+            ctx.error  # noqa: B018 - clears an earlier error, so the check below sees only these
+            for make in (lambda: _float_buffer(ctx, packed),
+                         lambda: _float_buffer(ctx, scene.sh.reshape(count, coeffs * 3)),
+                         lambda: ctx.buffer(reserve=max(count, 1) * SPLAT_BYTES),
+                         lambda: ctx.buffer(reserve=max(count, 1) * 4)):
+                buffers.append(make())
+            if ctx.error == "GL_OUT_OF_MEMORY":  # drivers report it here, not by failing the call
+                raise moderngl.Error("GL_OUT_OF_MEMORY")
+        except (moderngl.Error, MemoryError) as exc:
+            for buffer in buffers:
+                buffer.release()
+            raise UserError(f"scene of {count:,} gaussians does not fit in this GPU's memory "
+                            f"({_mib(self.gpu_bytes)} of buffers: {' '.join(str(exc).split()) or 'out of memory'})"
+                            ) from None
+        self.gaussians, self.harmonics, self.splats, self.order = buffers
+        self.colors: moderngl.Buffer | None = None
+        self._uploaded_order: np.ndarray | None = None  # the array whose indices `order` holds
+
+    def layout_for(self, splat_bytes: int) -> StorageLayout:
+        """The layout of records of ``splat_bytes``, planned once; UserError when it
+        needs more splat blocks than this GPU and the vertex stage can bind."""
+        if splat_bytes not in self._layouts:
+            count = self.scene.count
+            harmonics_bytes = sh_coefficient_count(self.scene.sh_degree) * 12
+            layout = StorageLayout.plan(count, harmonics_bytes, self.block_limit, splat_bytes=splat_bytes)
+            vertex_blocks = gpu_limit(self.ctx, "GL_MAX_VERTEX_SHADER_STORAGE_BLOCKS", 16) - 1  # one holds the order
+            if layout.splat_blocks > min(MAX_SPLAT_BLOCKS, vertex_blocks):
+                raise UserError(f"scene of {count} gaussians needs {layout.splat_blocks} storage blocks "
+                                f"of {layout.block_limit} bytes; this GPU and renderer allow "
+                                f"{min(MAX_SPLAT_BLOCKS, vertex_blocks)}")
+            self._layouts[splat_bytes] = layout
+        return self._layouts[splat_bytes]
+
+    def hold_records(self, layout: StorageLayout, what: str) -> None:
+        """Grows ``splats`` to records of ``layout.splat_bytes`` (the exact MIP record,
+        on first use); ``what`` names them in the out-of-memory UserError."""
+        count = self.scene.count
+        if self.splats.size < max(count, 1) * layout.splat_bytes:
+            self.ctx.error  # noqa: B018 - clears an earlier error, so the check below sees only this one
+            self.splats.orphan(max(count, 1) * layout.splat_bytes)
+            if self.ctx.error == "GL_OUT_OF_MEMORY":
+                raise UserError(f"not enough GPU memory for the {what} records of {count:,} gaussians")
+
+    def color_buffer(self) -> moderngl.Buffer:
+        """(N, 4) float32: RGB of SH degree 0 (view-independent) and a zero pad;
+        computed once, on first use."""
+        if self.colors is None:
+            colors = np.zeros((self.scene.count, 4))
+            colors[:, :3] = np.maximum(SH_C0 * self.scene.sh[:, 0, :].astype(np.float64) + 0.5, 0.0)
+            self.colors = _float_buffer(self.ctx, colors)
+        return self.colors
+
+    def preprocess_chunks(self, layout: StorageLayout, colors_at_load: bool) -> Iterator[Chunk]:
+        """Binds each chunk's ranges in turn (gaussians at 0, the colours at load or the
+        SH at 1, the chunk's splat block at 2) and yields it, for one dispatch each."""
+        count = self.scene.count
+        if colors_at_load:
+            colors, harmonics_bytes = self.color_buffer(), COLOR_BYTES
+        else:
+            colors, harmonics_bytes = self.harmonics, sh_coefficient_count(self.scene.sh_degree) * 12
+        splat_bytes = layout.splat_bytes
+        for start in range(0, count, layout.chunk):
+            n = min(layout.chunk, count - start)
+            self.gaussians.bind_to_storage_buffer(0, offset=start * GAUSSIAN_BYTES, size=n * GAUSSIAN_BYTES)
+            colors.bind_to_storage_buffer(1, offset=start * harmonics_bytes, size=n * harmonics_bytes)
+            block_start = start - start % layout.splats_per_block
+            block_count = min(layout.splats_per_block, count - block_start)
+            self.splats.bind_to_storage_buffer(2, offset=block_start * splat_bytes, size=block_count * splat_bytes)
+            yield Chunk(start, n, start - block_start)
+
+    def bind_for_draw(self, layout: StorageLayout, order_count: int) -> None:
+        """Binds the first ``order_count`` indices of ``order`` at 0 and every splat
+        block at 1, 2, ... for the vertex stage."""
+        count = self.scene.count
+        self.order.bind_to_storage_buffer(0, size=order_count * 4)
+        for block in range(layout.splat_blocks):
+            start = block * layout.splats_per_block
+            n = max(1, min(layout.splats_per_block, count - start))
+            self.splats.bind_to_storage_buffer(1 + block, offset=start * layout.splat_bytes,
+                                               size=n * layout.splat_bytes)
+
+    def upload_order(self, order: np.ndarray) -> bool:
+        """Puts ``order`` (M,) in ``order`` unless this very array is already there;
+        True when it was written."""
+        if order is self._uploaded_order:
+            return False
+        if order.size > self.scene.count:
+            raise ValueError("order longer than the scene")
+        self.order.write(np.ascontiguousarray(order, dtype=np.uint32))
+        self._uploaded_order = order
+        return True
+
+    def read_records(self, layout: StorageLayout) -> np.ndarray:
+        """(N, splat_bytes / 4) float32 copy of the records as ``layout`` writes them."""
+        count, floats = self.scene.count, layout.splat_bytes // 4
+        return np.frombuffer(self.splats.read(size=count * floats * 4), np.float32).reshape(count, floats)
+
+    def release(self) -> None:
+        for obj in (self.gaussians, self.harmonics, self.splats, self.order, self.colors):
+            if obj is not None:
+                obj.release()
+        self.colors = None

@@ -1,0 +1,128 @@
+"""The renderer's shader variants: which ``#define`` each pass gets for a scene and its
+settings, compiled on first use and kept by those defines.
+
+The accuracy options of :class:`~raygs_viewer.render.settings.RenderSettings` and the
+scene's SH degree become literals, so a frame pays only for what is on; ``general=True``
+compiles the one variant that switches every feature by uniforms instead
+(:meth:`ShaderVariants.set_features`), to measure what specialising saves.
+"""
+
+from __future__ import annotations
+
+import moderngl
+
+from raygs_viewer.render.gl.shaders import set_uniform, shader_source
+from raygs_viewer.render.gl.storage import StorageLayout
+from raygs_viewer.render.settings import (
+    ALPHA_CLAMP,
+    GS_DILATION,
+    GS_NEAR,
+    TRANSMITTANCE_CUTOFF,
+    RenderSettings,
+)
+
+#: A compiled draw or full-screen program with the (attribute-less) vertex array that runs it.
+ProgramAndArray = tuple[moderngl.Program, moderngl.VertexArray]
+
+
+def _glsl_bool(value: bool) -> str:
+    return "true" if value else "false"
+
+
+def _glsl_float(value: float) -> str:
+    return repr(float(value))
+
+
+class ShaderVariants:
+    """The programs of one renderer: ``sh_degree`` is its scene's stored degree,
+    ``general`` selects the all-features variant. Release with :meth:`release`."""
+
+    def __init__(self, ctx: moderngl.Context, sh_degree: int, general: bool = False):
+        self.ctx = ctx
+        self.sh_degree = sh_degree
+        self.general = bool(general)
+        # Keyed by their #defines.
+        self._preprocess: dict[tuple, moderngl.ComputeShader] = {}
+        self._draw: dict[tuple, ProgramAndArray] = {}
+        self._resolve: dict[bool, ProgramAndArray] = {}
+
+    def colors_at_load(self, settings: RenderSettings) -> bool:
+        """Whether this variant reads colours computed at load instead of evaluating SH."""
+        return not self.general and settings.effective_sh_degree(self.sh_degree) == 0
+
+    def feature_defines(self, settings: RenderSettings) -> dict[str, object]:
+        """The feature switches of features.glsl: literals for this scene and these
+        settings, or GENERAL (uniforms, set by :meth:`set_features`)."""
+        if self.general:
+            return {"GENERAL": 1}
+        return {"GENERAL": 0,
+                "SH_DEGREE": settings.effective_sh_degree(self.sh_degree),
+                "MIP": _glsl_bool(settings.mode == "raygs" and settings.mip),
+                "MIP_MODULATION": _glsl_bool(settings.mip_modulation),
+                "GS_COMPENSATION": _glsl_bool(settings.mode == "gs" and settings.gs_compensation),
+                "ALPHA_CLAMP": _glsl_bool(settings.alpha_clamp)}
+
+    def set_features(self, program, settings: RenderSettings) -> None:
+        """The general variant's feature uniforms (features.glsl), from ``settings``;
+        nothing for a specialised variant, which has them as literals."""
+        if not self.general:
+            return
+        set_uniform(program, "u_sh_degree", settings.effective_sh_degree(self.sh_degree))
+        set_uniform(program, "u_mip", settings.mode == "raygs" and settings.mip)
+        set_uniform(program, "u_mip_modulation", settings.mip_modulation)
+        set_uniform(program, "u_gs_compensation", settings.mode == "gs" and settings.gs_compensation)
+        set_uniform(program, "u_alpha_clamp", settings.alpha_clamp)
+
+    def preprocess(self, settings: RenderSettings) -> moderngl.ComputeShader:
+        """preprocess.comp for ``settings``."""
+        defines = {"SH_STORED_DEGREE": self.sh_degree,
+                   "MODE_GS": int(settings.mode == "gs"),
+                   "GS_DILATION": _glsl_float(GS_DILATION),
+                   "GS_NEAR": _glsl_float(GS_NEAR),
+                   "EXACT_MIP": int(settings.mode == "raygs-exact-mip"),
+                   **self.feature_defines(settings)}
+        if not self.general:
+            defines["COLOR_AT_LOAD"] = _glsl_bool(self.colors_at_load(settings))
+        key = tuple(sorted(defines.items()))
+        if key not in self._preprocess:
+            self._preprocess[key] = self.ctx.compute_shader(shader_source("preprocess.comp", defines))
+        return self._preprocess[key]
+
+    def draw(self, settings: RenderSettings, layout: StorageLayout, floor: bool = False) -> ProgramAndArray:
+        """The quad stages for ``settings`` reading the splat blocks of ``layout``;
+        ``floor``: glsl/quads.*, the same quads with a constant fragment."""
+        gs = settings.mode == "gs"
+        if floor and gs:
+            raise ValueError("the floor pass draws RayGS quads; EWA's records are not quads in space")
+        defines = {"SPLAT_BLOCKS": layout.splat_blocks, "SPLATS_PER_BLOCK": layout.splats_per_block,
+                   "EXACT_MIP": int(settings.mode == "raygs-exact-mip"),
+                   "ALPHA_MAX": _glsl_float(ALPHA_CLAMP),
+                   "FRONT_TO_BACK": int(settings.transmittance_cutoff),
+                   "MIN_TRANSMITTANCE": _glsl_float(TRANSMITTANCE_CUTOFF),
+                   **self.feature_defines(settings)}
+        key = (gs, floor, *sorted(defines.items()))
+        if key not in self._draw:
+            stage = "quads" if floor else "gs" if gs else "raygs"
+            program = self.ctx.program(vertex_shader=shader_source(f"{stage}.vert", defines),
+                                       fragment_shader=shader_source(f"{stage}.frag", defines))
+            self._draw[key] = program, self.ctx.vertex_array(program, [])
+        return self._draw[key]
+
+    def resolve(self, front_to_back: bool) -> ProgramAndArray:
+        """The full-screen pass that averages a sample target down (resolve.frag)."""
+        if front_to_back not in self._resolve:
+            program = self.ctx.program(vertex_shader=shader_source("present.vert"),
+                                       fragment_shader=shader_source("resolve.frag",
+                                                                     {"FRONT_TO_BACK": int(front_to_back)}))
+            self._resolve[front_to_back] = program, self.ctx.vertex_array(program, [])
+        return self._resolve[front_to_back]
+
+    def release(self) -> None:
+        for program in self._preprocess.values():
+            program.release()
+        self._preprocess.clear()
+        for programs in (self._draw, self._resolve):
+            for program, vao in programs.values():
+                vao.release()
+                program.release()
+            programs.clear()
