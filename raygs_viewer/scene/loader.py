@@ -14,6 +14,7 @@ import hashlib
 import json
 import os
 import threading
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -25,11 +26,16 @@ from raygs_viewer.scene.demo import DEMO_VIEW_NAMES, demo_cameras, demo_scene
 from raygs_viewer.scene.io import ProgressCallback, dropped_summary, load_scene
 from raygs_viewer.scene.model import Scene
 
+#: ``read_scene(path, *, progress, cancel) -> Scene``: what reads the scene file
+#: (:func:`~raygs_viewer.scene.io.load_scene`; tests hand in a steered one).
+SceneReader = Callable[..., Scene]
+
 __all__ = [
     "DEMO",
     "HASH_CHUNK_BYTES",
     "LoadedScene",
     "SceneLoader",
+    "SceneReader",
     "arrays_sha256",
     "file_sha256",
     "find_training_cameras",
@@ -106,15 +112,15 @@ def arrays_sha256(scene: Scene) -> str:
 
 
 def file_sha256(path: str | os.PathLike, progress: ProgressCallback | None = None,
-                cancel: threading.Event | None = None) -> str:
-    """Hex SHA-256 of a file, read HASH_CHUNK_BYTES at a time into one buffer.
+                cancel: threading.Event | None = None, *, chunk_bytes: int | None = None) -> str:
+    """Hex SHA-256 of a file, read HASH_CHUNK_BYTES (or ``chunk_bytes``) at a time into one buffer.
 
     ``progress(fraction, "hashing")`` follows each read; a set ``cancel`` stops it with
     ``UserError("loading cancelled")``. Read failures are a one-line UserError naming the file.
     """
     shown = os.fspath(path)
     digest = hashlib.sha256()
-    buffer = bytearray(max(1, HASH_CHUNK_BYTES))
+    buffer = bytearray(max(1, HASH_CHUNK_BYTES if chunk_bytes is None else chunk_bytes))
     view = memoryview(buffer)
     try:
         with open(path, "rb") as f:
@@ -167,7 +173,7 @@ def _scaled(progress: ProgressCallback | None, start: float, end: float,
 
 def load_now(path: str | os.PathLike, cameras: str | os.PathLike | None = None,
              progress: ProgressCallback | None = None, *,
-             cancel: threading.Event | None = None) -> LoadedScene:
+             cancel: threading.Event | None = None, read_scene: SceneReader = load_scene) -> LoadedScene:
     """Loads a scene (a .ply/.splat path, or "demo") with its training cameras, synchronously.
 
     ``cameras``: an explicit cameras.json; a bad one is a UserError. Without it the
@@ -178,6 +184,7 @@ def load_now(path: str | os.PathLike, cameras: str | os.PathLike | None = None,
     ``progress(fraction, stage)``: non-decreasing fractions in [0, 1], ending with
     ``(1.0, "done")``. ``cancel``: when set, stops at the next progress point with
     ``UserError("loading cancelled")``. Every failure is a one-line UserError.
+    ``read_scene`` reads the scene file (:func:`load_scene`).
     """
     shown = os.fspath(path)
 
@@ -197,7 +204,7 @@ def load_now(path: str | os.PathLike, cameras: str | os.PathLike | None = None,
             names = list(DEMO_VIEW_NAMES)
             cameras_path = None
         else:
-            scene = load_scene(path, progress=_scaled(progress, 0.0, _SCENE_END, "hashing"), cancel=cancel)
+            scene = read_scene(path, progress=_scaled(progress, 0.0, _SCENE_END, "hashing"), cancel=cancel)
             digest = file_sha256(path, _scaled(progress, _SCENE_END, _HASH_END, "cameras"), cancel)
             found, names, cameras_path = [], [], None
         warnings = dropped_summary(scene)
@@ -247,9 +254,12 @@ class SceneLoader:
     Counters for tests and the statistics panel: ``started``, ``delivered`` (results
     handed to poll/wait), ``discarded`` (results of loads that a newer start or
     :meth:`cancel` replaced).
+
+    ``read_scene`` reads each scene file (:func:`load_scene`), on the load's thread.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, read_scene: SceneReader = load_scene) -> None:
+        self.read_scene = read_scene
         self._cond = threading.Condition()
         self._job: _Job | None = None
         self._result: LoadedScene | UserError | None = None
@@ -349,7 +359,8 @@ class SceneLoader:
             job.progress, job.stage = fraction, stage
 
         try:
-            result: LoadedScene | UserError = load_now(job.path, job.cameras, progress, cancel=job.cancel)
+            result: LoadedScene | UserError = load_now(job.path, job.cameras, progress, cancel=job.cancel,
+                                                       read_scene=self.read_scene)
         except UserError as exc:
             result = exc
         except Exception as exc:  # a bug or an odd OS failure: still one line for the panel

@@ -1,12 +1,13 @@
 """Loading a scene with its cameras, hash and warnings, in the foreground and in the
 background (raygs_viewer.scene.loader).
 
-Background tests steer a monkeypatched ``load_scene`` with events; none measures
+Background tests steer the loader's ``read_scene`` with events; none measures
 time. DEADLOCK only bounds a wait that a broken implementation would never end.
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 import json
 import threading
@@ -17,7 +18,6 @@ import pytest
 import testkit
 from testkit import gaussian_columns, write_ply
 
-import raygs_viewer.scene.io as scene_io
 import raygs_viewer.scene.loader as loader
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.demo import (
@@ -26,6 +26,7 @@ from raygs_viewer.scene.demo import (
     demo_cameras_json,
     demo_scene,
 )
+from raygs_viewer.scene.io import load_scene
 from raygs_viewer.scene.loader import (
     LoadedScene,
     SceneLoader,
@@ -176,13 +177,12 @@ def test_dropped_gaussians_are_warnings(tmp_path):
     assert loaded.warnings == ["dropped 1 gaussian: nan"]
 
 
-def test_sha256_is_the_files(tmp_path, monkeypatch):
+def test_sha256_is_the_files(tmp_path):
     scene = small_ply(tmp_path / "scene.ply", n=40)
     expected = hashlib.sha256(scene.read_bytes()).hexdigest()
     assert load_now(scene).sha256 == expected
-    monkeypatch.setattr(loader, "HASH_CHUNK_BYTES", 100)  # many reads, one buffer
     calls = []
-    assert file_sha256(scene, lambda f, s: calls.append((f, s))) == expected
+    assert file_sha256(scene, lambda f, s: calls.append((f, s)), chunk_bytes=100) == expected  # many reads, one buffer
     size = scene.stat().st_size
     assert len(calls) == -(-size // 100) and calls[-1] == (1.0, "hashing")
     assert [f for f, _ in calls] == sorted(f for f, _ in calls)
@@ -197,10 +197,9 @@ def test_hash_read_failure_is_a_user_error(tmp_path):
 
 def test_progress_is_monotone_and_ends_at_done(tmp_path, monkeypatch):
     scene = small_ply(tmp_path / "scene.ply", n=30)
-    monkeypatch.setattr(scene_io, "READ_CHUNK_BYTES", 200)
     monkeypatch.setattr(loader, "HASH_CHUNK_BYTES", 500)
     calls = []
-    load_now(scene, progress=lambda f, s: calls.append((f, s)))
+    load_now(scene, progress=lambda f, s: calls.append((f, s)), read_scene=functools.partial(load_scene, chunk_bytes=200))
     fractions = [f for f, _ in calls]
     assert fractions == sorted(fractions) and 0.0 <= fractions[0] and fractions[-1] == 1.0
     assert calls[-1] == (1.0, "done") and [s for _, s in calls].count("done") == 1
@@ -291,7 +290,7 @@ def test_a_corrupt_ply_is_a_one_line_error_from_poll(tmp_path, scene_loader, dam
 
 
 class SteeredLoad:
-    """Replaces loader.load_scene: loads of "slow.ply" stop after their first progress
+    """Stands in for the loader's read_scene: loads of "slow.ply" stop after their first progress
     report until the test says so; everything else loads for real."""
 
     def __init__(self, real, honour_cancel: bool) -> None:
@@ -316,10 +315,10 @@ class SteeredLoad:
 
 
 @pytest.fixture
-def steered(monkeypatch):
+def steered(scene_loader):
     def install(honour_cancel: bool) -> SteeredLoad:
-        fake = SteeredLoad(loader.load_scene, honour_cancel)
-        monkeypatch.setattr(loader, "load_scene", fake)
+        fake = SteeredLoad(load_scene, honour_cancel)
+        scene_loader.read_scene = fake
         return fake
     return install
 
@@ -377,11 +376,11 @@ def test_cancel_and_close_do_not_wait_for_the_load(tmp_path, steered, scene_load
     (MemoryError(), "not enough memory"),
     (OSError(5, "Input/output error"), "cannot read: Input/output error"),
 ])
-def test_unexpected_exceptions_become_one_line_errors(tmp_path, monkeypatch, scene_loader, exc, fragment):
+def test_unexpected_exceptions_become_one_line_errors(tmp_path, scene_loader, exc, fragment):
     def failing_load(path, **kwargs):
         raise exc
 
-    monkeypatch.setattr(loader, "load_scene", failing_load)
+    scene_loader.read_scene = failing_load
     path = small_ply(tmp_path / "scene.ply")
     scene_loader.start(str(path))
     error = scene_loader.wait(DEADLOCK)

@@ -12,7 +12,6 @@ import numpy as np
 import pytest
 import testkit
 
-import raygs_viewer.scene.io as scene_io
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.io import (
     DROP_REASONS,
@@ -501,14 +500,13 @@ def _assert_progress_shape(calls):
 
 
 @pytest.mark.parametrize("chunk", [1, 200, 1000, 1 << 22])
-def test_chunked_ply_reading_reports_progress_and_gives_the_same_scene(tmp_path, monkeypatch, chunk):
+def test_chunked_ply_reading_reports_progress_and_gives_the_same_scene(tmp_path, chunk):
     base = gaussian_columns(23, degree=2, filter_3d=0.01)
     cols = {"red": np.arange(23) % 250}  # a uchar first misaligns the floats: every gather path
     cols.update(base)
     path = write_ply(tmp_path / "chunks.ply", cols, types={"red": "uchar"})
     whole = load_scene(path)
-    monkeypatch.setattr(scene_io, "READ_CHUNK_BYTES", chunk)
-    scene, calls = _recorded_load(path)
+    scene, calls = _recorded_load(path, chunk_bytes=chunk)
     _assert_progress_shape(calls)
     row = 1 + 4 * (len(cols) - 1)
     rows_per_chunk = max(1, chunk // row)
@@ -518,15 +516,14 @@ def test_chunked_ply_reading_reports_progress_and_gives_the_same_scene(tmp_path,
 
 
 @pytest.mark.parametrize("chunk", [1, 50, 64, 1 << 22])
-def test_chunked_splat_reading_reports_progress_and_gives_the_same_scene(tmp_path, monkeypatch, chunk):
+def test_chunked_splat_reading_reports_progress_and_gives_the_same_scene(tmp_path, chunk):
     rng = np.random.default_rng(3)
     n = 9
     path = tmp_path / "chunks.splat"
     path.write_bytes(splat_bytes(rng.normal(size=(n, 3)), rng.uniform(0.1, 1, (n, 3)),
                                  rng.integers(0, 256, (n, 4)), rng.integers(0, 256, (n, 4))))
     whole = load_scene(path)
-    monkeypatch.setattr(scene_io, "READ_CHUNK_BYTES", chunk)
-    scene, calls = _recorded_load(path)
+    scene, calls = _recorded_load(path, chunk_bytes=chunk)
     _assert_progress_shape(calls)
     assert [s for _, s in calls].count("reading") == 1 + -(-32 * n // chunk)
     for field in ("positions", "rotations", "scales", "opacities", "sh"):
@@ -557,14 +554,13 @@ def test_cancel_before_loading(tmp_path):
 
 
 @pytest.mark.parametrize("suffix", [".ply", ".splat"])
-def test_cancel_stops_at_the_next_progress_point(tmp_path, monkeypatch, suffix):
+def test_cancel_stops_at_the_next_progress_point(tmp_path, suffix):
     path = tmp_path / f"cancel{suffix}"
     if suffix == ".ply":
         write_ply(path, gaussian_columns(20))
     else:
         path.write_bytes(splat_bytes([[0, 0, 0]] * 20, [[1, 1, 1]] * 20, [[1, 2, 3, 4]] * 20,
                                      [[200, 128, 128, 128]] * 20))
-    monkeypatch.setattr(scene_io, "READ_CHUNK_BYTES", 64)
     cancel = threading.Event()
     calls = []
 
@@ -574,6 +570,6 @@ def test_cancel_stops_at_the_next_progress_point(tmp_path, monkeypatch, suffix):
             cancel.set()
 
     with pytest.raises(UserError) as info:
-        load_scene(path, progress=progress, cancel=cancel)
+        load_scene(path, progress=progress, cancel=cancel, chunk_bytes=64)
     assert str(info.value) == "loading cancelled"
     assert len(calls) == 3 and [s for _, s in calls] == ["reading"] * 3

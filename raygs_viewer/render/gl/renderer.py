@@ -6,10 +6,12 @@ opacity, c^2, quad axes); the vertex stage draws one quad per sorted index and
 the fragment stage evaluates Eq. 16, blending premultiplied colour back to front
 into a float32 target with depth clamp on (no near-plane clipping).
 
-The accuracy options of :class:`RenderSettings` and the scene select shader
-variants by ``#define`` (EWA splatting, the two MIP filters, the parity switches,
-the SH degree), so a frame pays only for what is on; at SH degree 0 the colours are
-computed once, at load. ``general=True`` forces the one variant that switches every
+The scene's storage buffers, and how they are cut into ranges a GPU can bind, are
+:mod:`raygs_viewer.render.gl.storage`. The accuracy options of :class:`RenderSettings`
+and the scene select shader variants by ``#define``
+(:mod:`raygs_viewer.render.gl.variants`: EWA splatting, the two MIP filters, the parity
+switches, the SH degree), so a frame pays only for what is on; at SH degree 0 the
+colours are computed once, at load. ``general=True`` forces the one variant that switches every
 feature by uniforms instead, to measure what specialising saves. Supersampling and
 the transmittance cut-off render into a sample target first; a resolve pass filters
 it down into the caller's target.
@@ -30,7 +32,12 @@ import numpy as np
 from raygs_viewer.camera.pinhole import Camera, camera_key
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.shaders import set_uniform
-from raygs_viewer.render.gl.storage import EXACT_MIP_SPLAT_BYTES, SPLAT_BYTES, SceneBuffers, StorageLayout
+from raygs_viewer.render.gl.storage import (
+    EXACT_MIP_SPLAT_BYTES,
+    SPLAT_BYTES,
+    SceneBuffers,
+    StorageLayout,
+)
 from raygs_viewer.render.gl.targets import FloatTarget, release_all, sized
 from raygs_viewer.render.gl.variants import ShaderVariants
 from raygs_viewer.render.settings import RenderSettings

@@ -1,0 +1,108 @@
+"""What the PLY and ``.splat`` readers share: progress and cancel points, one-line
+errors naming the file, and the last step that drops invalid gaussians and builds the
+:class:`~raygs_viewer.scene.model.Scene` (see :mod:`raygs_viewer.scene.io` for the rules).
+"""
+
+from __future__ import annotations
+
+import threading
+from collections.abc import Callable
+
+import numpy as np
+
+from raygs_viewer.errors import UserError
+from raygs_viewer.scene.model import Scene
+
+#: Every reason a gaussian can be dropped for, in the order they are tested.
+DROP_REASONS = (
+    "nan",
+    "infinite position",
+    "infinite scale",
+    "zero scale",
+    "negative scale",
+    "infinite rotation",
+    "zero quaternion",
+    "infinite colour",
+)
+
+#: Gaussian data is read (PLY: gathered from the memory map) this many bytes at a time,
+#: with a progress report and a cancel check after each chunk. A few MiB keeps a
+#: progress bar moving on multi-GB files at a negligible per-chunk overhead; tests
+#: pass a small ``chunk_bytes`` to get many chunks from a tiny file.
+READ_CHUNK_BYTES = 4 << 20
+
+#: ``progress(fraction, stage)``: fraction in [0, 1], never decreasing; stage is a
+#: short word ("reading", "activating", "validating", "done").
+ProgressCallback = Callable[[float, str], None]
+
+# Where each stage starts, as a fraction of the whole load. Reading dominates on a
+# cold file; the rest are vectorised passes over arrays already in memory.
+READ_END = 0.7
+ACTIVATE_AT = 0.72
+VALIDATE_AT = 0.85
+BUILD_AT = 0.93
+
+
+def shown_token(text: str, limit: int = 60) -> str:
+    """A header token made safe for a one-line message (quoted, ASCII, clipped)."""
+    if len(text) > limit:
+        text = text[:limit] + "..."
+    return ascii(text)
+
+
+def file_error(path, message: str) -> UserError:
+    """``UserError("<path>: <message>")`` on one line."""
+    line = f"{path}: {message}"
+    return UserError(" ".join(line.splitlines()))
+
+
+class Reporter:
+    """Forwards progress to the caller's callback and turns a set cancel event into
+    ``UserError("loading cancelled")``: every progress point is also a cancel point."""
+
+    def __init__(self, progress: ProgressCallback | None, cancel: threading.Event | None) -> None:
+        self.progress = progress
+        self.cancel = cancel
+        self.last = 0.0
+
+    def __call__(self, fraction: float, stage: str) -> None:
+        if self.cancel is not None and self.cancel.is_set():
+            raise UserError("loading cancelled")
+        if self.progress is not None:
+            # Clamped so a caller's bar never runs backwards, whatever the stage maths says.
+            self.last = min(1.0, max(self.last, float(fraction)))
+            self.progress(self.last, stage)
+
+
+def build_scene(shown: str, positions, rotations, scales, opacities, sh, degree: int, fused: bool,
+                tests: dict[str, np.ndarray], report: Reporter) -> Scene:
+    """Drop invalid gaussians (``tests``: reason -> (N,) bool mask; the first failing
+    reason of :data:`DROP_REASONS` wins) and build the Scene."""
+    report(BUILD_AT, "validating")
+    n = positions.shape[0]
+    bad = np.zeros(n, dtype=bool)
+    dropped: dict[str, int] = {}
+    for reason in DROP_REASONS:
+        mask = tests.get(reason)
+        if mask is None:
+            continue
+        new = mask & ~bad
+        count = int(np.count_nonzero(new))
+        if count:
+            dropped[reason] = count
+            bad |= new
+    if dropped:
+        keep = ~bad
+        positions, rotations, scales, opacities, sh = (
+            a[keep] for a in (positions, rotations, scales, opacities, sh))
+    return Scene(
+        positions=np.ascontiguousarray(positions, dtype=np.float32),
+        rotations=np.ascontiguousarray(rotations, dtype=np.float32),
+        scales=np.ascontiguousarray(scales, dtype=np.float32),
+        opacities=np.ascontiguousarray(opacities, dtype=np.float32),
+        sh=np.ascontiguousarray(sh, dtype=np.float32),
+        sh_degree=degree,
+        filter_fused=fused,
+        source=shown,
+        dropped=dropped,
+    )
