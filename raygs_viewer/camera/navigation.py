@@ -1,10 +1,12 @@
 """Camera navigation for the interactive window, in plain float64 numpy.
 
 The window calls a :class:`Navigator` every frame with the held keys and the mouse
-deltas; it keeps the view pose, the fly speed and the orbit target. :class:`Lens` turns
-that pose and the window size into a :class:`~raygs_viewer.camera.pinhole.Camera`.
+deltas; it keeps the view pose, the fly speed and the orbit target.
+:class:`~raygs_viewer.camera.lens.Lens` turns that pose and the window size into a
+:class:`~raygs_viewer.camera.pinhole.Camera`; the rotation maths is
+:mod:`raygs_viewer.camera.rotation`.
 
-Axes are OpenCV's (+x right, +y down, +z forward), as in ``camera.py``: a pose's ``R``
+Axes are OpenCV's (+x right, +y down, +z forward), as in :mod:`raygs_viewer.camera.pinhole`: a pose's ``R``
 maps world to camera, so its rows are the camera's right, down and forward axes in world
 coordinates. "Up" is a property of the scene, not of the camera, and is picked from
 :data:`UP_AXES`.
@@ -22,13 +24,12 @@ import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.camera.rotation import (
-    POLE_MARGIN,
-    axis_rotation,
     level_rotation,
     matrix_to_quaternion,
     orthonormalize,
     quaternion_to_matrix,
     slerp,
+    yaw_pitch,
 )
 
 # "-y" is the COLMAP/INRIA convention (default), "+z" is common for Blender and
@@ -82,6 +83,14 @@ def finite(*values: float) -> bool:
         return all(math.isfinite(float(v)) for v in values)
     except (TypeError, ValueError, OverflowError):
         return False
+
+
+def _mouse_pixels(dx: float, dy: float) -> tuple[float, float] | None:
+    """A mouse delta clamped to +-MAX_PIXELS, or None when it is not finite or zero
+    (nothing to do, and a running flight goes on)."""
+    if not finite(dx, dy) or (dx == 0 and dy == 0):
+        return None
+    return max(-MAX_PIXELS, min(MAX_PIXELS, float(dx))), max(-MAX_PIXELS, min(MAX_PIXELS, float(dy)))
 
 
 def _smoothstep(s: float) -> float:
@@ -143,7 +152,7 @@ class Pose:
 @_quiet
 def scene_bounds(positions: np.ndarray) -> tuple[np.ndarray, float]:
     """Robust centre and radius (1st..99th percentile box of finite positions, like
-    camera.frame_points); radius >= 1e-6; (0,0,0), 1.0 for an empty scene.
+    pinhole.frame_points); radius >= 1e-6; (0,0,0), 1.0 for an empty scene.
 
     positions: (N, 3), any float dtype. Returns a (3,) float64 centre and a float radius.
     """
@@ -171,7 +180,7 @@ def _default_forward(up: np.ndarray) -> np.ndarray:
 def framing_pose(center, radius: float, up: str, fov_y_degrees: float, aspect: float) -> Pose:
     """A pose looking at center from a horizontal direction (perpendicular to up), far
     enough that the sphere fits the view; for up "-y" it looks along +z like
-    camera.frame_points, so reset-view of a scene without cameras matches the CLI's
+    pinhole.frame_points, so reset-view of a scene without cameras matches the CLI's
     default view.
 
     center: (3,); radius > 0 (smaller or non-finite values become 1e-6 / 1.0); aspect =
@@ -348,64 +357,34 @@ class Navigator:
         log_speed = math.log(self.speed) + float(ticks) * math.log(SPEED_STEP)
         self.speed = math.exp(max(low, min(high, log_speed)))
 
-    def _turned(self, dx: float, dy: float) -> np.ndarray:
-        """R after yaw ``dx`` and pitch ``dy`` pixels (the shared half of look and rotate)."""
-        u = self._up_vec
-        yaw = (LOOK_RADIANS_PER_PIXEL * float(dx)) % (2 * math.pi)  # huge dx: keep sin/cos accurate
-        # Yaw right = forward towards right = a negative turn about up (right x forward = up).
-        R = self._R @ axis_rotation(u, -yaw).T
-        R = orthonormalize(R)
-
-        # Pitch about camera x: forward moves in the plane spanned by forward and camera
-        # up (g). There f.u = A sin(psi) with psi = psi0 + phi, so the pole limit is a
-        # clamp on psi; with roll, A < 1 and the pole is farther than psi = 89 degrees.
-        f, g = R[2], -R[1]
-        phi = -LOOK_RADIANS_PER_PIXEL * float(dy)  # dy > 0: view tilts down
-        p, q = float(np.dot(f, u)), float(np.dot(g, u))
-        if math.hypot(p, q) > 1e-12:
-            psi0 = math.atan2(p, q)
-            limit = math.pi / 2 - POLE_MARGIN
-            if abs(psi0) <= math.pi / 2:
-                lo, hi = -limit, limit
-            else:
-                # Upside down relative to up: the allowed band is the one through 180 deg.
-                psi0 %= 2 * math.pi
-                lo, hi = math.pi - limit, math.pi + limit
-            # Already inside the margin (a camera looking straight down): allow moving out,
-            # never further in.
-            psi = max(min(lo, psi0), min(max(hi, psi0), psi0 + phi))
-            phi = psi - psi0
-        else:
-            phi %= 2 * math.pi  # rolled 90 degrees: pitch cannot reach the pole
-        c, s = math.cos(phi), math.sin(phi)
-        f_new, g_new = c * f + s * g, c * g - s * f
-        return orthonormalize(np.stack([R[0], -g_new, f_new]))
-
     @_quiet
     def look(self, dx: float, dy: float) -> None:
-        if not finite(dx, dy) or (dx == 0 and dy == 0):
-            return
-        dx, dy = (max(-MAX_PIXELS, min(MAX_PIXELS, float(v))) for v in (dx, dy))
-        self._cancel()
-        self._set(self._position, self._turned(dx, dy))
+        self._turn(dx, dy, about_target=False)
 
     # ----------------------------------------------------------------- orbit
 
     @_quiet
     def rotate(self, dx: float, dy: float) -> None:
-        if not finite(dx, dy) or (dx == 0 and dy == 0):
+        self._turn(dx, dy, about_target=True)
+
+    def _turn(self, dx: float, dy: float, about_target: bool) -> None:
+        """Yaw ``dx`` and pitch ``dy`` pixels, about the camera itself (look) or about the
+        orbit target, which then stays on the image centre (rotate)."""
+        pixels = _mouse_pixels(dx, dy)
+        if pixels is None:
             return
-        dx, dy = (max(-MAX_PIXELS, min(MAX_PIXELS, float(v))) for v in (dx, dy))
         self._cancel()
         target = self.target
-        R = self._turned(dx, dy)
-        self._set(target - self._distance * R[2], R)
+        R = yaw_pitch(self._R, self._up_vec, LOOK_RADIANS_PER_PIXEL * pixels[0],
+                      -LOOK_RADIANS_PER_PIXEL * pixels[1])  # dy > 0: view tilts down
+        self._set(target - self._distance * R[2] if about_target else self._position, R)
 
     @_quiet
     def pan(self, dx: float, dy: float, focal_px: float) -> None:
-        if not finite(dx, dy, focal_px) or focal_px <= 0 or (dx == 0 and dy == 0):
+        pixels = _mouse_pixels(dx, dy)
+        if pixels is None or not finite(focal_px) or focal_px <= 0:
             return
-        dx, dy = (max(-MAX_PIXELS, min(MAX_PIXELS, float(v))) for v in (dx, dy))
+        dx, dy = pixels
         # At the target's depth one pixel spans distance / focal world units; the camera
         # moves against the mouse so the scene follows it.
         scale = self._distance / float(focal_px)

@@ -1,5 +1,6 @@
 """Rotations in float64 numpy: quaternions (w, x, y, z) and matrices, the level
-(roll-free) rotation a camera looks along, and slerp for smooth flights."""
+(roll-free) rotation a camera looks along, yaw and pitch that stop short of the
+poles, and slerp for smooth flights."""
 
 from __future__ import annotations
 
@@ -9,6 +10,7 @@ import numpy as np
 
 #: Level rotations keep forward at least this far from the up axis (yaw and pitch stay defined).
 POLE_MARGIN = math.radians(1.0)
+
 
 def quaternion_to_matrix(q: np.ndarray) -> np.ndarray:
     """(N, 4) unit quaternions (w, x, y, z) -> (N, 3, 3) rotation matrices, in q's dtype."""
@@ -104,3 +106,40 @@ def slerp(q0: np.ndarray, q1: np.ndarray, s: float) -> np.ndarray:
     sin_theta = math.sin(theta)
     q = (math.sin((1 - s) * theta) * q0 + math.sin(s * theta) * q1) / sin_theta
     return q / np.linalg.norm(q)
+
+
+def yaw_pitch(R: np.ndarray, up: np.ndarray, yaw: float, pitch: float) -> np.ndarray:
+    """World-to-camera ``R`` (3, 3) turned by ``yaw`` radians about the unit world ``up``
+    (> 0: the view turns right) and then ``pitch`` radians about the camera x axis
+    (> 0: the view tilts up), forward kept at least :data:`POLE_MARGIN` from up and its
+    opposite. Both keep the camera x axis's angle to up, so a camera's roll neither
+    grows nor vanishes."""
+    yaw %= 2 * math.pi  # a huge turn: keep sin/cos accurate
+    # Yaw right = forward towards right = a negative turn about up (right x forward = up).
+    R = R @ axis_rotation(up, -yaw).T
+    R = orthonormalize(R)
+
+    # Pitch about camera x: forward moves in the plane spanned by forward and camera
+    # up (g). There f.u = A sin(psi) with psi = psi0 + phi, so the pole limit is a
+    # clamp on psi; with roll, A < 1 and the pole is farther than psi = 89 degrees.
+    f, g = R[2], -R[1]
+    phi = pitch
+    p, q = float(np.dot(f, up)), float(np.dot(g, up))
+    if math.hypot(p, q) > 1e-12:
+        psi0 = math.atan2(p, q)
+        limit = math.pi / 2 - POLE_MARGIN
+        if abs(psi0) <= math.pi / 2:
+            lo, hi = -limit, limit
+        else:
+            # Upside down relative to up: the allowed band is the one through 180 deg.
+            psi0 %= 2 * math.pi
+            lo, hi = math.pi - limit, math.pi + limit
+        # Already inside the margin (a camera looking straight down): allow moving out,
+        # never further in.
+        psi = max(min(lo, psi0), min(max(hi, psi0), psi0 + phi))
+        phi = psi - psi0
+    else:
+        phi %= 2 * math.pi  # rolled 90 degrees: pitch cannot reach the pole
+    c, s = math.cos(phi), math.sin(phi)
+    f_new, g_new = c * f + s * g, c * g - s * f
+    return orthonormalize(np.stack([R[0], -g_new, f_new]))

@@ -18,9 +18,6 @@ from raygs_viewer.scene.model import (
 )
 from raygs_viewer.scene.ply_header import parse_header
 from raygs_viewer.scene.reading import (
-    ACTIVATE_AT,
-    READ_END,
-    VALIDATE_AT,
     Reporter,
     build_scene,
     file_error,
@@ -129,7 +126,7 @@ def _gather_chunked(data: np.ndarray, offsets: list[int], report: Reporter, chun
     for start in range(0, n, step):
         stop = min(n, start + step)
         out[start:stop] = _gather_float32(data[start:stop], offsets)
-        report(READ_END * stop / n, "reading")
+        report.reading(stop, n)
     return out
 
 
@@ -166,7 +163,7 @@ def _sigmoid(x: np.ndarray) -> np.ndarray:
 def _scene_from_columns(shown: str, m: np.ndarray, degree: int, has_filter: bool,
                         report: Reporter) -> Scene:
     """Columns in the order x y z f_dc_0..2 opacity scale_0..2 rot_0..3 f_rest_* [filter_3D]."""
-    report(ACTIVATE_AT, "activating")
+    report.activating()
     n = m.shape[0]
     k = sh_coefficient_count(degree) - 1
     positions = m[:, 0:3]
@@ -194,7 +191,7 @@ def _scene_from_columns(shown: str, m: np.ndarray, degree: int, has_filter: bool
         sh[:, 0, :] = dc
         sh[:, 1:, :] = rest.reshape(n, 3, k).transpose(0, 2, 1)
 
-        report(VALIDATE_AT, "validating")
+        report.validating()
         # Cheap prefilter: a row sum is finite unless the row holds a NaN or an inf
         # (or overflows, which only makes the row a candidate for the exact tests).
         suspect = np.flatnonzero(~np.isfinite(m @ np.ones(m.shape[1], dtype=np.float32)))

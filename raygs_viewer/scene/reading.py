@@ -37,10 +37,10 @@ ProgressCallback = Callable[[float, str], None]
 
 # Where each stage starts, as a fraction of the whole load. Reading dominates on a
 # cold file; the rest are vectorised passes over arrays already in memory.
-READ_END = 0.7
-ACTIVATE_AT = 0.72
-VALIDATE_AT = 0.85
-BUILD_AT = 0.93
+_READ_END = 0.7
+_ACTIVATE_AT = 0.72
+_VALIDATE_AT = 0.85
+_BUILD_AT = 0.93
 
 
 def shown_token(text: str, limit: int = 60) -> str:
@@ -73,12 +73,22 @@ class Reporter:
             self.last = min(1.0, max(self.last, float(fraction)))
             self.progress(self.last, stage)
 
+    def reading(self, done: int, total: int) -> None:
+        """``done`` of ``total`` (rows, bytes) of the gaussian data read."""
+        self(_READ_END * done / total, "reading")
+
+    def activating(self) -> None:
+        self(_ACTIVATE_AT, "activating")
+
+    def validating(self) -> None:
+        self(_VALIDATE_AT, "validating")
+
 
 def build_scene(shown: str, positions, rotations, scales, opacities, sh, degree: int, fused: bool,
                 tests: dict[str, np.ndarray], report: Reporter) -> Scene:
     """Drop invalid gaussians (``tests``: reason -> (N,) bool mask; the first failing
     reason of :data:`DROP_REASONS` wins) and build the Scene."""
-    report(BUILD_AT, "validating")
+    report(_BUILD_AT, "validating")
     n = positions.shape[0]
     bad = np.zeros(n, dtype=bool)
     dropped: dict[str, int] = {}

@@ -8,9 +8,6 @@ import numpy as np
 
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.reading import (
-    ACTIVATE_AT,
-    READ_END,
-    VALIDATE_AT,
     Reporter,
     build_scene,
     file_error,
@@ -43,9 +40,9 @@ def load_splat(path, shown: str, report: Reporter, chunk_bytes: int) -> Scene:
             if not got:
                 raise file_error(shown, "truncated .splat file (the file shrank while reading)")
             done += got
-            report(READ_END * done / size, "reading")
+            report.reading(done, size)
     del buffer
-    report(ACTIVATE_AT, "activating")
+    report.activating()
     positions = rows["position"].astype(np.float32)
     scale = rows["scale"].astype(np.float32)
     rgba = rows["rgba"].astype(np.float64)
@@ -55,7 +52,7 @@ def load_splat(path, shown: str, report: Reporter, chunk_bytes: int) -> Scene:
         quat = (q / norm[:, None]).astype(np.float32)
     sh = ((rgba[:, None, :3] / 255.0 - 0.5) / C0).astype(np.float32)
     opacity = (rgba[:, 3] / 255.0).astype(np.float32)
-    report(VALIDATE_AT, "validating")
+    report.validating()
     tests = {
         "nan": np.isnan(positions).any(axis=1) | np.isnan(scale).any(axis=1),
         "infinite position": np.isinf(positions).any(axis=1),
