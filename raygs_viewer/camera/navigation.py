@@ -6,9 +6,9 @@ deltas; it keeps the view pose, the fly speed and the orbit target.
 :class:`~raygs_viewer.camera.pinhole.Camera`; the rotation maths is
 :mod:`raygs_viewer.camera.rotation`.
 
-Axes are OpenCV's (+x right, +y down, +z forward), as in :mod:`raygs_viewer.camera.pinhole`: a pose's ``R``
-maps world to camera, so its rows are the camera's right, down and forward axes in world
-coordinates. "Up" is a property of the scene, not of the camera, and is picked from
+Axes are OpenCV's (+x right, +y down, +z forward), as in
+:mod:`raygs_viewer.camera.pinhole`: a pose's ``R`` maps world to camera, so its rows
+are the camera's right, down and forward axes in world coordinates. "Up" is a property of the scene, not of the camera, and is picked from
 :data:`UP_AXES`.
 
 Nothing here imports GL, GLFW or imgui, so all of it is tested headless.
