@@ -15,7 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
-from raygs_viewer.errors import UserError
+from raygs_viewer.errors import UserError, finite_number, is_number
 
 
 @dataclass(frozen=True)
@@ -107,25 +107,17 @@ def look_at(eye, target, up=(0.0, -1.0, 0.0), *, width: int = 640, height: int =
 
 
 def _number(value, what: str) -> float:
-    if isinstance(value, bool) or not isinstance(value, (int, float)) or not _finite(value):
+    number = finite_number(value)
+    if number is None:
         raise UserError(f"{what} must be a finite number")
-    return float(value)
-
-
-def _finite(value: int | float) -> bool:
-    """math.isfinite, but False for an integer beyond float range (JSON numbers have no
-    limit) instead of an OverflowError."""
-    try:
-        return math.isfinite(value)
-    except OverflowError:
-        return False
+    return number
 
 
 def _numbers(values, depth: int) -> bool:
     """A JSON list of numbers only, nested at most ``depth`` deep: numpy would quietly take
     "1" and true (and the depth bound keeps a deeply nested file from exhausting the stack)."""
     return isinstance(values, list) and depth > 0 and all(
-        _numbers(v, depth - 1) if isinstance(v, list) else isinstance(v, (int, float)) and not isinstance(v, bool)
+        _numbers(v, depth - 1) if isinstance(v, list) else is_number(v)
         for v in values)
 
 

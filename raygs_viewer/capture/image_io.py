@@ -8,6 +8,7 @@ import tempfile
 from pathlib import Path
 
 import numpy as np
+from PIL import Image
 
 from raygs_viewer.errors import UserError
 
@@ -26,7 +27,6 @@ def encode_image(image: np.ndarray, suffix: str) -> bytes:
     if suffix == ".npy":
         np.save(buffer, np.ascontiguousarray(image, dtype=np.float32))
     elif suffix == ".png":
-        from PIL import Image
         Image.fromarray(to_rgb8(image), "RGB").save(buffer, format="PNG")
     else:
         raise UserError(f"unsupported image type '{suffix}' (use {' or '.join(IMAGE_SUFFIXES)})")

@@ -9,7 +9,6 @@ GPU gives the same PNG, byte for byte.
 from __future__ import annotations
 
 import json
-import math
 import os
 from dataclasses import replace
 from datetime import datetime
@@ -20,10 +19,12 @@ import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.capture.image_io import encode_image, write_atomically
-from raygs_viewer.errors import UserError
+from raygs_viewer.errors import UserError, finite_number
 from raygs_viewer.render.settings import RenderSettings
 
-if TYPE_CHECKING:  # importing the renderer pulls in moderngl; the CLI's option parsing must not
+if TYPE_CHECKING:
+    # Only for the annotations: importing the renderer pulls in moderngl, and the CLI's
+    # option parsing (which reads MAX_SCALE from here) must not.
     from raygs_viewer.render.gl.renderer import GLRenderer
 
 #: Largest screenshot side in pixels: 16384^2 float32 RGBA is already 4 GiB of read-back.
@@ -41,10 +42,10 @@ _MAX_NAME_ATTEMPTS = 10000
 
 def check_scale(scale: float) -> float:
     """``scale`` as a float if it is finite and in (0, MAX_SCALE], else UserError."""
-    if isinstance(scale, bool) or not isinstance(scale, (int, float)) or not math.isfinite(scale) \
-            or not 0.0 < scale <= MAX_SCALE:
+    number = finite_number(scale)
+    if number is None or not 0.0 < number <= MAX_SCALE:
         raise UserError(f"screenshot scale must be a finite number in (0, {MAX_SCALE:g}], got {scale!r}")
-    return float(scale)
+    return number
 
 
 def scaled_camera(camera: Camera, scale: float) -> Camera:

@@ -47,11 +47,11 @@ from __future__ import annotations
 import dataclasses
 import functools
 import json
-import math
 import os
 import re
 import types
 import typing
+from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
@@ -59,6 +59,7 @@ from pathlib import Path
 import numpy as np
 
 import raygs_viewer
+from raygs_viewer.camera.lens_model import LensModel
 from raygs_viewer.camera.pinhole import (
     Camera,
     camera_from_json,
@@ -72,9 +73,12 @@ from raygs_viewer.camera.stereo import (
     StereoView,
     composed_size,
 )
-from raygs_viewer.errors import UserError
+from raygs_viewer.capture.screenshot import MAX_SCALE
+from raygs_viewer.errors import UserError, finite_number, is_number
 from raygs_viewer.render.settings import RENDER_MODES, RenderSettings
+from raygs_viewer.scene.demo import demo_scene
 from raygs_viewer.scene.loader import arrays_sha256, file_sha256
+from raygs_viewer.scene.model import Scene
 
 SIDECAR_FORMAT = "raygs-viewer screenshot"
 SIDECAR_VERSION = 2          # the newest this program reads and writes
@@ -99,11 +103,11 @@ def scene_sha256(path: str | os.PathLike) -> str:
 
 
 @functools.lru_cache(maxsize=1)
-def demo_sha256() -> str:
-    """:func:`arrays_sha256` of the built-in demo scene: a screenshot of the demo made by
-    a version with another demo generator is detected like a changed scene file."""
-    from raygs_viewer.scene.demo import demo_scene
-    return arrays_sha256(demo_scene())
+def demo_sha256(generator: Callable[[], Scene] = demo_scene) -> str:
+    """:func:`arrays_sha256` of the built-in demo scene (made by ``generator``): a
+    screenshot of the demo made by a version with another demo generator is detected
+    like a changed scene file."""
+    return arrays_sha256(generator())
 
 
 # --------------------------------------------------------------------------- writing
@@ -231,7 +235,6 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
                         else f"{path}: 'image.{key}' {image[key]} differs from {value}, the {stereo.layout} "
                              f"image of two {camera.width}x{camera.height} eyes")
     scale = fields.get("image.scale", float)
-    from raygs_viewer.capture.screenshot import MAX_SCALE
     if not 0.0 < scale <= MAX_SCALE:
         raise UserError(f"{path}: 'image.scale' must be in (0, {MAX_SCALE:g}], got {_show(scale)}")
 
@@ -267,13 +270,10 @@ def _typed(value, kind: type, where: str):
     """``value`` checked against a JSON type: int (not bool), float (any finite number),
     str, bool, dict or list."""
     if kind is float:
-        if isinstance(value, bool) or not isinstance(value, (int, float)):
+        if not is_number(value):
             raise UserError(f"{where} must be a number, got {_show(value)}")
-        try:
-            number = float(value)
-        except OverflowError:  # an integer beyond float range (JSON has no limit)
-            raise UserError(f"{where} must be finite, got {_show(value)}") from None
-        if not math.isfinite(number):
+        number = finite_number(value)
+        if number is None:
             raise UserError(f"{where} must be finite, got {_show(value)}")
         return number
     if kind is int:
@@ -308,7 +308,7 @@ def _array(fields: _Fields, dotted: str, shape: tuple[int, ...]) -> np.ndarray:
 
     def numbers(v, depth):
         if depth == len(shape):
-            return isinstance(v, (int, float)) and not isinstance(v, bool)
+            return is_number(v)
         return isinstance(v, list) and len(v) == shape[depth] and all(numbers(x, depth + 1) for x in v)
 
     if not numbers(value, 0):
@@ -365,7 +365,6 @@ def _load_stereo(fields: _Fields) -> StereoView:
         lens = None
         if fields.get("stereo.lens", (dict, type(None))) is not None:
             _only_keys(path, "stereo.lens", entry["lens"], _LENS_FIELDS)
-            from raygs_viewer.camera.lens_model import LensModel
             lens = LensModel(**{name: fields.get(f"stereo.lens.{name}", float) for name in _LENS_FIELDS})
         headset = None
         if fields.get("stereo.headset", (dict, type(None))) is not None:
@@ -388,8 +387,9 @@ def _only_keys(path: Path, where: str, entry: dict, known: tuple[str, ...]) -> N
         raise UserError(f"{path}: unknown field '{where}.{_key(unknown[0])}' (it may come from a newer raygs-viewer)")
 
 
-def _load_settings(fields: _Fields, render_mode: str | None = None) -> RenderSettings:
-    """RenderSettings from "settings": every key must be a field (a newer program's
+def _load_settings(fields: _Fields, render_mode: str | None = None,
+                   settings_type: type[RenderSettings] = RenderSettings) -> RenderSettings:
+    """``settings_type`` from "settings": every key must be a field (a newer program's
     setting cannot be honoured, so it is an error); missing fields take their defaults
     (sidecars written before the field existed), except "mode", which older sidecars
     recorded only as ``render_mode``: a "settings.mode" must equal it."""
@@ -401,15 +401,15 @@ def _load_settings(fields: _Fields, render_mode: str | None = None) -> RenderSet
         elif raw["mode"] != render_mode:
             raise UserError(f"{path}: 'settings.mode' {_show(raw['mode'])} differs from 'render_mode' "
                             f"{_show(render_mode)} (they must agree; edit both)")
-    hints = typing.get_type_hints(RenderSettings)
-    known = {f.name for f in dataclasses.fields(RenderSettings)}
+    hints = typing.get_type_hints(settings_type)
+    known = {f.name for f in dataclasses.fields(settings_type)}
     values = {}
     for name, value in raw.items():
         if name not in known:
             raise UserError(f"{path}: unknown setting 'settings.{_key(name)}' (it may come from a newer raygs-viewer)")
         values[name] = _setting(value, hints[name], f"{path}: 'settings.{name}'")
     try:
-        return RenderSettings(**values)
+        return settings_type(**values)
     except UserError as exc:
         raise UserError(f"{path}: 'settings': {exc}") from None
     except (TypeError, ValueError) as exc:  # a field type _setting does not know how to check

@@ -36,11 +36,13 @@ of the arrays). Quaternions are normalised after that rounding.
 
 from __future__ import annotations
 
+import json
 import math
+from pathlib import Path
 
 import numpy as np
 
-from raygs_viewer.camera.pinhole import Camera, look_at
+from raygs_viewer.camera.pinhole import Camera, camera_to_json, look_at
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
 from raygs_viewer.scene.sh import C0, sh_basis
 
@@ -429,13 +431,10 @@ DEMO_VIEW_NAMES = ("default", "front-left", "through-the-sheets", "high-behind",
 
 def demo_cameras_json() -> list[dict]:
     """:func:`demo_cameras` in INRIA ``cameras.json`` layout (``assets/demo_cameras.json``)."""
-    from raygs_viewer.camera.pinhole import camera_to_json
     return [camera_to_json(camera, i, name) for i, (camera, name) in enumerate(zip(demo_cameras(), DEMO_VIEW_NAMES))]
 
 
 if __name__ == "__main__":  # regenerate assets/demo_cameras.json from a source checkout
-    import json
-    from pathlib import Path
-    target = Path(__file__).resolve().parents[1] / "assets" / "demo_cameras.json"
+    target = Path(__file__).resolve().parents[2] / "assets" / "demo_cameras.json"
     target.write_text(json.dumps(demo_cameras_json(), indent=1) + "\n", encoding="utf-8")
     print(target)

@@ -89,15 +89,13 @@ def test_scene_sha256_streams_the_file(tmp_path):
     assert_user_error(lambda: scene_sha256(tmp_path), tmp_path, "folder")
 
 
-def test_demo_sha256_follows_the_generator(monkeypatch):
+def test_demo_sha256_follows_the_generator():
     assert demo_sha256() == DEMO_ARRAYS_SHA256  # the digest test_demo pins
     scene = demo_scene()
     changed = dataclasses.replace(scene, opacities=scene.opacities * np.float32(0.5))
-    import raygs_viewer.scene.demo as demo_module
-    monkeypatch.setattr(demo_module, "demo_scene", lambda: changed)
     demo_sha256.cache_clear()
     try:
-        assert demo_sha256() != DEMO_ARRAYS_SHA256
+        assert demo_sha256(lambda: changed) != DEMO_ARRAYS_SHA256
     finally:
         demo_sha256.cache_clear()
 
@@ -138,19 +136,16 @@ def test_build_sidecar_fields(tmp_path, monkeypatch):
     assert demo_sidecar()["scene"]["path"] == "demo"
 
 
-def test_settings_fields_flow_in_automatically(monkeypatch):
+def test_settings_fields_flow_in_automatically():
     """A RenderSettings field added later is written and read back with no sidecar change."""
-    import raygs_viewer.render.settings as settings_module
-
     @dataclasses.dataclass(frozen=True)
     class Extended(RenderSettings):
         exposure: float = 1.0
 
     data = demo_sidecar(settings=Extended(exposure=2.5))
     assert data["settings"]["exposure"] == 2.5
-    monkeypatch.setattr(sidecar_module, "RenderSettings", Extended)
-    monkeypatch.setattr(settings_module, "RenderSettings", Extended)
-    loaded = sidecar_module._load_settings(sidecar_module._Fields(Path("x.json"), json.loads(json.dumps(data))))
+    loaded = sidecar_module._load_settings(sidecar_module._Fields(Path("x.json"), json.loads(json.dumps(data))),
+                                           settings_type=Extended)
     assert loaded == Extended(exposure=2.5) and loaded != Extended()
 
 

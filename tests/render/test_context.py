@@ -162,11 +162,10 @@ def test_nothing_works_names_what_was_tried_and_what_to_install(monkeypatch):
             raise RuntimeError(f"{name} is broken\non two lines")
         return create
 
-    monkeypatch.setitem(context_mod._CREATORS, "egl", broken("egl"))
-    monkeypatch.setitem(context_mod._CREATORS, "osmesa", broken("osmesa"))
+    creators = {"egl": broken("egl"), "osmesa": broken("osmesa")}
     monkeypatch.setenv(ENV_VAR, "auto")
     with pytest.raises(UserError) as info:
-        create_headless_context()
+        create_headless_context(creators=creators)
     message = str(info.value)
     assert "\n" not in message
     assert "egl: egl is broken on two lines" in message
@@ -174,7 +173,7 @@ def test_nothing_works_names_what_was_tried_and_what_to_install(monkeypatch):
     assert "libegl1" in message and "libosmesa6" in message
 
     with pytest.raises(UserError) as info:
-        create_headless_context("egl")
+        create_headless_context("egl", creators=creators)
     assert "libegl1" in str(info.value) and "libosmesa6" not in str(info.value)
 
 
@@ -183,11 +182,10 @@ def test_auto_falls_back_to_osmesa_when_egl_fails(monkeypatch):
     def no_egl():
         raise RuntimeError("eglInitialize failed")
 
-    monkeypatch.setitem(context_mod._CREATORS, "egl", no_egl)
     monkeypatch.setenv(ENV_VAR, "auto")
 
     def work():
-        ctx = create_headless_context()
+        ctx = create_headless_context(creators={**context_mod.CREATORS, "egl": no_egl})
         try:
             return context_backend(ctx), ctx.version_code, context_description(ctx)
         finally:

@@ -8,10 +8,12 @@ from __future__ import annotations
 
 import os
 import weakref
+from collections.abc import Callable, Mapping
 
 import moderngl
 
 from raygs_viewer.errors import UserError, one_line
+from raygs_viewer.render.gl.osmesa import OSMesaLoader
 
 REQUIRE = 430
 ENV_VAR = "RAYGS_GL_BACKEND"
@@ -31,8 +33,6 @@ def _create_egl() -> moderngl.Context:
 
 
 def _create_osmesa() -> moderngl.Context:
-    from raygs_viewer.render.gl.osmesa import OSMesaLoader
-
     loader = OSMesaLoader()
     try:
         # moderngl 5.13 passes extra settings to its C create_context, which
@@ -45,7 +45,8 @@ def _create_osmesa() -> moderngl.Context:
         raise
 
 
-_CREATORS = {"egl": _create_egl, "osmesa": _create_osmesa}
+#: How each backend makes a context (tests hand in failing ones).
+CREATORS: Mapping[str, Callable[[], moderngl.Context]] = {"egl": _create_egl, "osmesa": _create_osmesa}
 _HINTS = {"egl": INSTALL_EGL, "osmesa": INSTALL_OSMESA}
 
 
@@ -64,21 +65,22 @@ def _resolve_backend(backend: str | None) -> str:
     return value
 
 
-def create_headless_context(backend: str | None = None) -> moderngl.Context:
+def create_headless_context(backend: str | None = None, *,
+                            creators: Mapping[str, Callable[[], moderngl.Context]] = CREATORS) -> moderngl.Context:
     """A standalone moderngl context with OpenGL >= 4.3 and no window.
 
     ``backend`` is ``"egl"``, ``"osmesa"``, ``"auto"`` or None (read
     ``RAYGS_GL_BACKEND``, default auto). Auto tries EGL, then OSMesa. Raises
     UserError naming what was tried and what to install when none works. The
     context has no default framebuffer: render into your own. Release it with
-    ``ctx.release()``.
+    ``ctx.release()``. ``creators`` makes the context of each backend (:data:`CREATORS`).
     """
     choice = _resolve_backend(backend)
     order = ("egl", "osmesa") if choice == "auto" else (choice,)
     failures = []
     for name in order:
         try:
-            ctx = _CREATORS[name]()
+            ctx = creators[name]()
         except Exception as exc:  # noqa: BLE001 - every failure becomes one line below
             failures.append(f"{name}: {one_line(exc, 160)}")
             continue
