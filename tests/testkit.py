@@ -33,6 +33,23 @@ def unit_quaternions(rng, n):
     return (q / np.linalg.norm(q, axis=1, keepdims=True)).astype(np.float32)
 
 
+def point_on_pixel_ray(camera, u, v, depth):
+    """World point on the ray of pixel (u, v) at camera-space depth ``depth``."""
+    ray = np.array([(u + 0.5 - camera.cx) / camera.fx, (v + 0.5 - camera.cy) / camera.fy, 1.0])
+    return camera.R.T @ (ray * depth - camera.t)
+
+
+def independent_eye(camera: Camera, rig, side: float) -> Camera:
+    """A stereo eye built from first principles: centre moved along the camera's right
+    axis (R's first row, in world space), t = -R c, principal point shifted so the
+    midline point at the convergence distance keeps its pixel."""
+    baseline = rig.ipd / rig.scene_scale / 2
+    center = camera.center + side * baseline * camera.R[0]
+    shift = camera.fx * baseline / (rig.convergence / rig.scene_scale)
+    return Camera(camera.width, camera.height, camera.fx, camera.fy, camera.cx + side * shift, camera.cy,
+                  camera.R, -camera.R @ center)
+
+
 def make_scene(positions, scales, rotations=None, opacities=None, colors=None, sh=None, degree=0):
     """A Scene from plain arrays; colours are RGB (SH DC chosen to give them head-on)."""
     positions = np.asarray(positions, np.float32).reshape(-1, 3)

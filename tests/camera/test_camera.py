@@ -1,11 +1,12 @@
-"""Cameras: cameras.json, the pixel convention of section 1, look_at, resizing, framing,
-and one GL render that checks the projection lands on the exact pixel."""
+"""Cameras: cameras.json, the pixel convention of section 1, look_at, resizing, framing.
+The GL render that checks the projection lands on the exact pixel is in
+tests/render/test_pixel_alignment.py."""
 
 import json
 
 import numpy as np
 import pytest
-from testkit import assert_user_error, make_scene, random_rotation
+from testkit import assert_user_error, point_on_pixel_ray, random_rotation
 
 from raygs_viewer.camera.pinhole import (
     Camera,
@@ -32,12 +33,6 @@ def random_camera(rng, width=None, height=None):
     R = random_rotation(rng)
     t = rng.normal(size=3) * 3
     return Camera(width, height, fx, fy, cx, cy, R, t)
-
-
-def point_on_pixel_ray(camera, u, v, depth):
-    """World point on the ray of pixel (u, v) at camera-space depth ``depth``."""
-    ray = np.array([(u + 0.5 - camera.cx) / camera.fx, (v + 0.5 - camera.cy) / camera.fy, 1.0])
-    return camera.R.T @ (ray * depth - camera.t)
 
 
 def project_window(camera, world):
@@ -432,34 +427,3 @@ def test_frame_points_ignores_non_finite_points_and_handles_empty_clouds():
     camera = frame_points(np.array([[1.0, 2.0, 3.0]], np.float32), width=64, height=48)
     col, row, depth = project_pixel(camera, np.array([1.0, 2.0, 3.0]))
     assert depth > 0 and col == pytest.approx(32) and row == pytest.approx(24)
-
-
-# --------------------------------------------------------------------------- GL pixel alignment
-
-
-def test_gl_render_puts_a_tiny_gaussian_on_its_pixel(gl_ctx):
-    from raygs_viewer.render.gl.renderer import GLRenderer
-
-    rng = np.random.default_rng(30)
-    pose = look_at([0.7, -0.4, -2.0], [0.1, 0.2, 0.5])
-    camera = Camera(57, 43, 60.0, 47.0, 25.3, 24.6, pose.R, pose.t)  # odd, fx != fy, off-centre
-    w, h = camera.width, camera.height
-    pixels = [(0, 0), (w - 1, 0), (0, h - 1), (w - 1, h - 1), (int(camera.cx), int(camera.cy))]
-    pixels += [(int(rng.integers(w)), int(rng.integers(h))) for _ in range(5)]
-    for u, v in pixels:
-        depth = float(rng.uniform(1.5, 3.0))
-        scene = make_scene(point_on_pixel_ray(camera, u, v, depth), 0.002, opacities=1.0, colors=(1.0, 1.0, 1.0))
-        renderer = GLRenderer(gl_ctx, scene)
-        try:
-            image = renderer.render(camera)
-        finally:
-            renderer.release()
-        assert image.shape == (h, w, 4)
-        brightness = image[..., :3].sum(axis=-1)
-        row, col = np.unravel_index(np.argmax(brightness), brightness.shape)
-        assert (row, col) == (v, u), f"pixel ({u}, {v}) rendered at ({col}, {row})"
-        assert image[v, u, 3] > 0.5
-        # Nothing else lights up: the gaussian is 0.1 px wide.
-        others = image[..., 3].copy()
-        others[v, u] = 0
-        assert others.max() < 1e-3
