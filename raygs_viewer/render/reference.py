@@ -62,28 +62,31 @@ def render_reference(scene: Scene, camera: Camera, settings: RenderSettings = Re
     """
     if order is None:
         order = DepthSorter(scene).order(camera, settings.p_min, dilation=settings.cull_dilation(camera))
-    return _render(scene, camera, settings, order, settings.supersample)
+    return _render(scene, camera, settings, order, settings.supersample, BAND_SAMPLES)
 
 
 def ground_truth(scene: Scene, camera: Camera, settings: RenderSettings = RenderSettings(),
-                 samples: int = 8) -> np.ndarray:
+                 samples: int = 8, *, band_samples: int = BAND_SAMPLES) -> np.ndarray:
     """(H, W, 4) float64: exact RayGS (no MIP filter, no alpha clamp, no cut-off)
     integrated over each pixel's area with ``samples`` x ``samples`` samples (a box
     filter); p_min, background and SH degree come from ``settings``. ``samples`` may
-    exceed the renderers' MAX_SUPERSAMPLE; memory stays about one band's."""
+    exceed the renderers' MAX_SUPERSAMPLE; memory stays about one band's
+    (``band_samples`` samples, :data:`BAND_SAMPLES` unless given)."""
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
         raise ValueError(f"samples must be a whole number >= 1, got {samples!r}")
     exact = replace(settings, mode="raygs", mip=False, supersample=1, alpha_clamp=False,
                     transmittance_cutoff=False)
     order = DepthSorter(scene).order(camera, exact.p_min, dilation=exact.cull_dilation(camera))
-    return _render(scene, camera, exact, order, samples)
+    return _render(scene, camera, exact, order, samples, band_samples)
 
 
 # --- the render loop shared by every mode ------------------------------------------------
 
-def _render(scene: Scene, camera: Camera, settings: RenderSettings, order, samples: int) -> np.ndarray:
+def _render(scene: Scene, camera: Camera, settings: RenderSettings, order, samples: int,
+            band_samples: int) -> np.ndarray:
     """``render_reference`` with an explicit sample count per axis (``settings.supersample``
-    is ignored), so ground truth can go past the settings' limit."""
+    is ignored), so ground truth can go past the settings' limit, in bands of about
+    ``band_samples`` samples."""
     order = np.asarray(order, dtype=np.int64)
     scene = scene.with_sh_degree(settings.effective_sh_degree(scene.sh_degree))
     height, width = camera.height, camera.width
@@ -100,7 +103,7 @@ def _render(scene: Scene, camera: Camera, settings: RenderSettings, order, sampl
     model = _MODELS[settings.mode](gaussians, rendered, settings)
 
     # Bands of whole output rows, so each band's block mean is complete.
-    rows_per_band = max(1, BAND_SAMPLES // (samples * samples * width))
+    rows_per_band = max(1, band_samples // (samples * samples * width))
     for top in range(0, height, rows_per_band):
         bottom = min(height, top + rows_per_band)
         band = _composite(model, gaussians.colors, rendered, settings, top * samples, bottom * samples)

@@ -10,7 +10,6 @@ from testkit import make_scene, random_rotation, random_scene
 
 from raygs_viewer.camera.pinhole import Camera, look_at
 from raygs_viewer.camera.rotation import quaternion_to_matrix
-from raygs_viewer.render import reference
 from raygs_viewer.render.reference import ground_truth, render_reference
 from raygs_viewer.render.settings import (
     ACCURACY_PRESETS,
@@ -448,14 +447,14 @@ def test_ground_truth_is_exact_supersampled_raygs():
         assert np.abs(changed - exact).max() > 1e-5, switch  # the cut-off moves T by ~1e-4
 
 
-def test_ground_truth_bands_equal_the_whole_image(monkeypatch):
+def test_ground_truth_bands_equal_the_whole_image():
     scene = random_scene(n=150, seed=10)
     camera = replace(CAMERA, width=24, height=18, cx=11.3, cy=9.6)
     whole = ground_truth(scene, camera, samples=6)
-    monkeypatch.setattr(reference, "BAND_SAMPLES", 5 * 36 * camera.width)  # 5 rows a band, a short last one
-    np.testing.assert_allclose(ground_truth(scene, camera, samples=6), whole, rtol=0, atol=1e-14)
-    monkeypatch.setattr(reference, "BAND_SAMPLES", 1)  # one row a band
-    np.testing.assert_allclose(ground_truth(scene, camera, samples=6), whole, rtol=0, atol=1e-14)
+    bands = 5 * 36 * camera.width  # 5 rows a band, a short last one
+    np.testing.assert_allclose(ground_truth(scene, camera, samples=6, band_samples=bands), whole, rtol=0, atol=1e-14)
+    bands = 1  # one row a band
+    np.testing.assert_allclose(ground_truth(scene, camera, samples=6, band_samples=bands), whole, rtol=0, atol=1e-14)
 
 
 def test_ground_truth_converges():
