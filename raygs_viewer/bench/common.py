@@ -20,10 +20,8 @@ from raygs_viewer.camera.pinhole import Camera, frame_points
 from raygs_viewer.capture.image_io import write_atomically
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.context import create_headless_context
-from raygs_viewer.scene.loader import load_now
+from raygs_viewer.scene.loader import DEMO, load_now
 from raygs_viewer.scene.model import Scene
-
-DEMO = "demo"
 
 
 @dataclass
