@@ -11,12 +11,15 @@ positions below read directly as camera-space offsets.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Callable
 
 import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera, look_at
+from raygs_viewer.render.gl.context import context_description, create_headless_context
+from raygs_viewer.render.gl.renderer import GLRenderer
+from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.settings import DEFAULT_P_MIN, RenderSettings
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
 
@@ -68,6 +71,11 @@ def _forward_camera(fov_y_degrees: float = 60.0, eye=(0.0, 0.0, 0.0)) -> Camera:
     return look_at(eye, eye + [0.0, 0.0, 1.0], width=WIDTH, height=HEIGHT, fov_y_degrees=fov_y_degrees)
 
 
+def _looking_ahead(name: str, scene: Scene, risk: str, remedy: str, bound: float = 2 * DEFAULT_P_MIN) -> HardCase:
+    """A case seen by :func:`_forward_camera`, with the usual bound of twice the default cut-off."""
+    return HardCase(name, scene, _forward_camera(), risk, remedy, bound)
+
+
 def _quaternion(axis, angle: float) -> np.ndarray:
     axis = np.asarray(axis, np.float64)
     axis = axis / np.linalg.norm(axis)
@@ -81,21 +89,21 @@ def _background_blobs() -> tuple[list, list]:
 
 def camera_at_centre() -> HardCase:
     positions, scales = _background_blobs()
-    return HardCase(
-        "camera at a centre", _scene([[0.0, 0.0, 0.0]] + positions, [[0.5, 0.3, 0.4]] + scales), _forward_camera(),
+    return _looking_ahead(
+        "camera at a centre", _scene([[0.0, 0.0, 0.0]] + positions, [[0.5, 0.3, 0.4]] + scales),
         "c = 0: the whitened direction w/|w| is 0/0",
         "c^2 <= kappa (the camera inside the support) skips the gaussian before any division, as the "
-        "maths page's section 3 says; the reference does the same", 2 * DEFAULT_P_MIN)
+        "maths page's section 3 says; the reference does the same")
 
 
 def camera_just_inside() -> HardCase:
     positions, scales = _background_blobs()
     # c^2 = 0.999 kappa: just inside the support.
     d = 0.4 * math.sqrt(0.999 * KAPPA)
-    return HardCase(
+    return _looking_ahead(
         "camera just inside a support", _scene([[0.0, 0.0, d]] + positions, [[0.4, 0.4, 0.4]] + scales),
-        _forward_camera(), "b = sqrt(1 - kappa/c^2) of a negative number",
-        "skipped by the same c^2 <= kappa test", 2 * DEFAULT_P_MIN)
+        "b = sqrt(1 - kappa/c^2) of a negative number",
+        "skipped by the same c^2 <= kappa test")
 
 
 def _just_above(epsilon: float, ambiguous_below: float = 1e-6) -> HardCase:
@@ -137,67 +145,62 @@ def behind_camera() -> HardCase:
     # Straight behind the camera: in the whitened frame w points exactly along -z (the
     # Householder branch's sign), and a long tilted axis carries the support in front.
     tilted = _quaternion([1.0, 0.0, 0.0], 0.9)
-    return HardCase(
+    return _looking_ahead(
         "straight behind the camera", _scene([[0.0, 0.0, -2.0], [0.0, 0.0, -1.5]] + positions,
                                              [[0.4, 0.4, 0.4], [0.25, 4.0, 0.25]] + scales,
                                              rotations=[[1, 0, 0, 0], tilted] + [[1, 0, 0, 0]] * 3),
-        _forward_camera(),
         "mu-hat = -e_z: the rotation taking e_z to mu-hat is singular in the naive form",
         "the Householder form with the sign of mu-hat_z (|h|^2 >= 2); behind-the-camera peaks are "
-        "clipped by the side planes, as the reference skips peaks with x^T Sigma^-1 mu <= 0", 2 * DEFAULT_P_MIN)
+        "clipped by the side planes, as the reference skips peaks with x^T Sigma^-1 mu <= 0")
 
 
 def straddling() -> HardCase:
     positions, scales = _background_blobs()
-    return HardCase(
+    return _looking_ahead(
         "straddling the camera plane", _scene([[0.8, 0.0, 0.0], [-0.5, 0.4, 0.3]] + positions,
                                               [[0.15, 2.0, 2.5], [0.1, 1.5, 3.0]] + scales),
-        _forward_camera(),
         "quad corners with w <= 0: near-plane clipping would cut a seam, the projection divides by ~0",
-        "depth clamp instead of near clipping; the side planes still clip what is behind", 2 * DEFAULT_P_MIN)
+        "depth clamp instead of near clipping; the side planes still clip what is behind")
 
 
 def isotropic() -> HardCase:
     ones = [1.0, 1.0, 1.0]
-    return HardCase(
+    return _looking_ahead(
         "isotropic and nearly isotropic", _scene(
             [[-0.8, 0.0, 4.0], [0.0, 0.0, 4.0], [0.8, 0.0, 4.0], [0.0, 0.7, 3.0]],
             [np.multiply(ones, 0.2), [0.2, 0.2 * (1 + 1e-7), 0.2 * (1 - 1e-7)], [0.2, 0.2, 0.2 * (1 + 1e-5)],
              [0.15, 0.15, 0.15]],
             rotations=[[1, 0, 0, 0], _quaternion([1, 2, 3], 1.0), _quaternion([3, 1, 2], 2.0), [1, 0, 0, 0]]),
-        _forward_camera(),
         "B = s^2 I: the eigenvector of the quad's orientation is undefined (atan2(0, 0))",
         "any unit vector is fine for B = s^2 I: angle 0 when b01 = 0 and b00 = b11, and atan2 is "
-        "continuous enough near it that the square still bounds the (near-)circle", 2 * DEFAULT_P_MIN)
+        "continuous enough near it that the square still bounds the (near-)circle")
 
 
 def needles_and_pancakes() -> HardCase:
     rotations = [_quaternion([1, 1, 0], 0.5), _quaternion([0, 1, 1], 1.1), _quaternion([1, 0, 1], 0.3),
                  _quaternion([1, 2, 0], 2.0), [1, 0, 0, 0], _quaternion([2, 1, 1], 0.8)]
-    return HardCase(
+    return _looking_ahead(
         "needles and pancakes (ratios to 1e6, scales to 1e-10)", _scene(
             [[-0.6, -0.3, 4.0], [0.6, -0.3, 4.0], [0.0, 0.4, 4.0], [-0.5, 0.5, 3.0], [0.5, 0.5, 3.0],
              [0.0, 0.0, 5.0]],
             [[1.0, 1e-6, 1e-6], [1e-6, 1.0, 1.0], [1.0, 1.0, 1e-6], [0.3, 3e-7, 0.3], [1e-10, 1e-10, 1e-10],
              [2e-4, 2e-10, 1e-3]],
             rotations=rotations),
-        _forward_camera(),
         "w = S^-1 R^T mu overflows and B = Q2^T Q2 loses the thin axis (1e-12 next to 1)",
         "the whitened frame works with s (never s^-2): c^2 = |mu/s|^2 stays below 1e25; sub-pixel "
-        "needles are hit at pixel centres only, like the reference samples them", 2 * DEFAULT_P_MIN)
+        "needles are hit at pixel centres only, like the reference samples them")
 
 
 def far_centres() -> HardCase:
     rng = np.random.default_rng(7)
     centre = np.array([0.0, 0.0, 1.0e4])
     positions = centre + rng.uniform(-1500.0, 1500.0, (12, 3)) * [1, 1, 0.3]
-    return HardCase(
+    return _looking_ahead(
         "centres 1e4 away", _scene(positions, rng.uniform(100.0, 400.0, (12, 3)),
                                    rotations=rng.normal(size=(12, 4))),
-        _forward_camera(),
         "|mu| ~ 1e4: c^2 ~ 1e3..1e4 and the quad corners ~1e4 in float32 (ulp 1e-3)",
         "nothing special: every quantity is relative to the gaussian's own size and distance, so "
-        "float32 keeps about 1e-7 of each", 2 * DEFAULT_P_MIN)
+        "float32 keeps about 1e-7 of each")
 
 
 def far_camera() -> HardCase:
@@ -223,37 +226,33 @@ def grazing() -> HardCase:
     # Pancakes seen almost edge-on: the support's image is a long thin sliver, and for
     # the one whose plane nearly contains the camera a half-hyperbola.
     edge = _quaternion([1.0, 0.0, 0.0], math.pi / 2 - 0.01)
-    return HardCase(
+    return _looking_ahead(
         "grazing views", _scene([[0.0, 0.3, 4.0], [0.0, -0.05, 2.0], [0.5, 0.0, 3.0]],
                                 [[1.5, 2.0, 0.002], [3.0, 6.0, 0.01], [0.4, 0.4, 0.004]],
                                 rotations=[edge, _quaternion([1.0, 0.0, 0.0], math.pi / 2 - 0.002),
                                            _quaternion([0.0, 1.0, 0.0], math.pi / 2 - 0.05)]),
-        _forward_camera(),
         "the quad is seen edge-on: its interpolated plane coordinate varies fast and far",
-        "the plane coordinate is a perspective-correct varying of the 3D quad, exact up to float32",
-        2 * DEFAULT_P_MIN)
+        "the plane coordinate is a perspective-correct varying of the 3D quad, exact up to float32")
 
 
 def opacity_extremes() -> HardCase:
-    return HardCase(
+    return _looking_ahead(
         "opacity exactly 0 and 1", _scene([[-0.5, 0.0, 4.0], [0.5, 0.0, 4.0], [0.0, 0.0, 5.0]],
                                           [[0.3, 0.3, 0.3]] * 3, opacities=[1.0, 0.0, 1.0]),
-        _forward_camera(), "ln 0 = -inf in kappa; o = 1 exactly saturates",
-        "kappa = 2 (ln o - ln p_min) is -inf for o = 0, so kappa <= 0 skips it; o = 1 is ordinary",
-        2 * DEFAULT_P_MIN)
+        "ln 0 = -inf in kappa; o = 1 exactly saturates",
+        "kappa = 2 (ln o - ln p_min) is -inf for o = 0, so kappa <= 0 skips it; o = 1 is ordinary")
 
 
 def coincident() -> HardCase:
     n = 2000
     rng = np.random.default_rng(9)
     positions = np.tile([[0.1, -0.05, 3.0]], (n, 1))
-    return HardCase(
+    return _looking_ahead(
         "2,000 coincident gaussians", _scene(positions, rng.uniform(0.05, 0.6, (n, 3)),
                                              rotations=rng.normal(size=(n, 4)),
                                              opacities=rng.uniform(0.02, 0.3, n), colors=rng.uniform(0, 1, (n, 3))),
-        _forward_camera(),
         "equal depths: an unstable sort would composite them in another order each frame",
-        "both sorts are stable: equal depths keep scene order in GL and the reference", 2 * DEFAULT_P_MIN)
+        "both sorts are stable: equal depths keep scene order in GL and the reference")
 
 
 #: name -> factory, in the order of docs/robustness.md.
@@ -286,7 +285,6 @@ MODES: dict[str, RenderSettings] = {
 
 def render_gl(ctx, case: HardCase, settings: RenderSettings) -> tuple[np.ndarray, np.ndarray]:
     """(the GL image of ``case`` in ``settings``, (N,) bool: which gaussians GL drew)."""
-    from raygs_viewer.render.gl.renderer import GLRenderer
     renderer = GLRenderer(ctx, case.scene)
     try:
         image = renderer.render(case.camera, settings)
@@ -303,7 +301,6 @@ def as_gl_decided(case: HardCase, drawn: np.ndarray) -> Scene:
     gaussian stays, and its decision must match the reference's."""
     if not case.ambiguous:
         return case.scene
-    from dataclasses import replace
     scene, ambiguous = case.scene, list(case.ambiguous)
     positions = scene.positions.copy()
     positions[ambiguous] = case.drawn.positions[ambiguous]
@@ -315,7 +312,6 @@ def as_gl_decided(case: HardCase, drawn: np.ndarray) -> Scene:
 def measure(ctx, case: HardCase, settings: RenderSettings) -> tuple[float, int]:
     """(largest |GL - reference| over pixels and channels, non-finite GL pixels) of
     ``case`` in ``settings``' mode."""
-    from raygs_viewer.render.reference import render_reference
     image, drawn = render_gl(ctx, case, settings)
     reference = render_reference(as_gl_decided(case, drawn), case.camera, settings)
     bad = int((~np.isfinite(image)).any(axis=-1).sum())
@@ -325,10 +321,6 @@ def measure(ctx, case: HardCase, settings: RenderSettings) -> tuple[float, int]:
 def main() -> None:
     """``python -m raygs_viewer.bench.hard_cases``: the largest GL-vs-reference difference of
     every case in every mode, as the markdown table docs/robustness.md quotes."""
-    from raygs_viewer.render.gl.context import (
-        context_description,
-        create_headless_context,
-    )
     ctx = create_headless_context()
     print(f"GL: {context_description(ctx)}; {WIDTH}x{HEIGHT}, p_min 1/255\n")
     print("| case | " + " | ".join(MODES) + " |")

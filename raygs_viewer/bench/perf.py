@@ -32,24 +32,31 @@ Each is printed per case as ``NAME@CASE VALUE`` and, as the median over the case
 
 from __future__ import annotations
 
-import argparse
 import math
-import os
-import shlex
-import sys
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import TextIO
 
 import numpy as np
 
+from raygs_viewer.bench.common import (
+    gl_context,
+    load_scenes,
+    median,
+    printer,
+    write_plot,
+    write_report,
+)
 from raygs_viewer.camera.pinhole import Camera, look_at
-from raygs_viewer.capture.image_io import check_output_path
 from raygs_viewer.errors import UserError
+from raygs_viewer.render.gl.context import context_description
+from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.gl.targets import FloatTarget
 from raygs_viewer.render.gl.timing import GpuTimer
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
+from raygs_viewer.sort.depth import sort_back_to_front
 
 STAGES = ("cull", "sort", "upload", "preprocess", "draw")
 RATIOS = ("RayGS/GS", "RayGS/quads", "specialised/general", "radix/argsort", "fragments-kept")
@@ -182,26 +189,19 @@ class _Clock:
         return (time.perf_counter() - start) * 1e3
 
     def both(self, work) -> tuple[float, float]:
-        self.ctx.finish()
-        start = time.perf_counter()
-        gpu = self.timer.time_ms(work)  # waits for the GPU
-        self.ctx.finish()
-        return (time.perf_counter() - start) * 1e3, gpu
+        """(CPU ms, GPU ms) of ``work``, its GPU time measured inside the CPU span."""
+        gpu: list[float] = []
+        cpu = self.cpu(lambda: gpu.append(self.timer.time_ms(work)))
+        return cpu, gpu[0]
 
 
-def _median(values: list[float]) -> float:
-    finite = [v for v in values if math.isfinite(v)]
-    return float(np.median(finite)) if finite else math.nan
-
-
-def measure_case(ctx, case: PerfCase, frames: int, settings: RenderSettings = RenderSettings()) -> CaseResult:
+def measure_case(ctx, case: PerfCase, frames: int, settings: RenderSettings = RenderSettings(),
+                 renderer_type: type[GLRenderer] = GLRenderer) -> CaseResult:
     """Times ``frames`` moving-view frames of ``case`` (after one untimed warm-up frame
-    that compiles every variant)."""
-    from raygs_viewer.render.gl.renderer import GLRenderer
-    from raygs_viewer.sort.depth import sort_back_to_front
-
+    that compiles every variant). ``renderer_type``: makes the specialised and the
+    general renderer."""
     gs_settings = replace(settings, mode="gs")
-    renderer = GLRenderer(ctx, case.scene)
+    renderer = renderer_type(ctx, case.scene)
     general = None
     target = FloatTarget(ctx, case.camera.width, case.camera.height)
     clock = _Clock(ctx)
@@ -218,7 +218,7 @@ def measure_case(ctx, case: PerfCase, frames: int, settings: RenderSettings = Re
         target.fbo.clear(*settings.background, 0.0)
 
     try:
-        general = GLRenderer(ctx, case.scene, general=True)
+        general = renderer_type(ctx, case.scene, general=True)
         sorter = renderer.sorter
         for frame in range(frames + 1):
             camera = views[frame % 2]
@@ -270,9 +270,9 @@ def measure_case(ctx, case: PerfCase, frames: int, settings: RenderSettings = Re
             general.release()
         target.release()
 
-    result.stages = {s: _median(times[s]) for s in STAGES}
-    result.gpu = {"preprocess": _median(times["gpu preprocess"]), "draw": _median(times["gpu draw"])}
-    result.other = {name: _median(times[name]) for name in ("quads", "gs", "general", "raygs", "radix", "argsort")}
+    result.stages = {s: median(times[s]) for s in STAGES}
+    result.gpu = {"preprocess": median(times["gpu preprocess"]), "draw": median(times["gpu draw"])}
+    result.other = {name: median(times[name]) for name in ("quads", "gs", "general", "raygs", "radix", "argsort")}
     raygs = result.other["raygs"]
     result.ratios.update({
         "RayGS/GS": raygs / result.other["gs"],
@@ -315,48 +315,37 @@ class PerfResults:
 
     def summary(self) -> dict[str, float]:
         """Each ratio's median over the cases."""
-        return {name: _median([c.ratios.get(name, math.nan) for c in self.cases]) for name in RATIOS}
+        return {name: median([c.ratios.get(name, math.nan) for c in self.cases]) for name in RATIOS}
 
 
 def build_cases(options: PerfOptions):
     """Yields the cases one at a time (a 1M scene is made only when its turn comes)."""
-    from raygs_viewer.bench.accuracy import _load_scenes
     for count in options.counts:
         for size in options.sizes:
             scene = generated_scene(count, size)
             for width, height in options.resolutions:
                 yield PerfCase(f"{count_label(count)} {size}", scene, generated_camera(width, height), size)
-    for item in _load_scenes(options.scenes):
+    for item in load_scenes(options.scenes):
         for width, height in options.resolutions:
             yield PerfCase(item.name, item.scene, at_resolution(item.camera, width, height), "scene")
 
 
-def run_perf(options: PerfOptions, ctx=None, out=None) -> PerfResults:
+def run_perf(options: PerfOptions, ctx=None, out: TextIO | None = None) -> PerfResults:
     """Runs every case; prints a line per case as it finishes and the ratio lines at the end."""
-    from raygs_viewer.render.gl.context import (
-        context_description,
-        create_headless_context,
-    )
-    out = out or sys.stdout
-    own = ctx is None
-    if own:
-        ctx = create_headless_context(options.gl_backend)
+    say = printer(out)
     start = time.perf_counter()
-    try:
+    with gl_context(ctx, options.gl_backend) as ctx:
         device = context_description(ctx)
-        print(f"device: {device}", file=out, flush=True)
+        say(f"device: {device}")
         cases = []
         for case in build_cases(options):
             result = measure_case(ctx, case, options.frames)
             cases.append(result)
-            print(case_line(result), file=out, flush=True)
-    finally:
-        if own:
-            ctx.release()
+            say(case_line(result))
     results = PerfResults(options, device, cases, time.perf_counter() - start)
-    print("", file=out)
+    say()
     for line in ratio_lines(results):
-        print(line, file=out, flush=True)
+        say(line)
     return results
 
 
@@ -426,6 +415,7 @@ def format_report(results: PerfResults) -> str:
 
 def draw_plot(results: PerfResults):
     """Frame time (every stage) against N for the generated cases, one panel per resolution."""
+    # Pillow only when a plot is drawn.
     from raygs_viewer.bench.plot import PALETTE, Panel, Point, scatter_panels
     sizes = [s for s in SIZES if any(c.kind == s for c in results.cases)]
     panels = []
@@ -446,107 +436,12 @@ def draw_plot(results: PerfResults):
 
 
 def write_outputs(results: PerfResults) -> list[Path]:
-    from raygs_viewer.bench.accuracy import png_bytes
-    from raygs_viewer.capture.image_io import write_atomically
+    """Writes the report and the plot that the options ask for; their paths."""
     options, written = results.options, []
     if options.report is not None:
-        write_atomically(options.report, format_report(results).encode("utf-8"), options.overwrite)
+        write_report(options.report, format_report(results), options.overwrite)
         written.append(options.report)
     if options.plot is not None:
-        write_atomically(options.plot, png_bytes(draw_plot(results)), options.overwrite)
+        write_plot(options.plot, draw_plot(results), options.overwrite)
         written.append(options.plot)
     return written
-
-
-# --- command line ---------------------------------------------------------------------------------
-
-def add_parser(kinds, count) -> None:
-    """Adds ``bench perf`` to ``bench``'s subparsers; ``count(low, high)``: the CLI's whole-number type."""
-    parser = kinds.add_parser(
-        "perf", help="per-stage frame times and the cost ratios (RayGS/GS, floor, specialisation, sort)",
-        description="Times every stage of a moving-view frame (cull, sort, upload, preprocess, draw) for "
-                    "generated scenes of 10k, 100k and 1M gaussians, small and large on screen, and the shared "
-                    "real scenes, at 1280x720 and 1920x1080; in the same frames EWA splatting, the floor pass "
-                    "(the same quads, constant fragment), the general shader variant and a float argsort. "
-                    "Prints a line per case and the ratios as 'NAME VALUE' lines.")
-    parser.add_argument("--quick", action="store_true",
-                        help="10k and 100k gaussians, one real scene, 1280x720 only (under two minutes on two "
-                             "CPU cores)")
-    parser.add_argument("--counts", nargs="+", type=count(1, 100_000_000), metavar="N",
-                        help="generated scene sizes (default 10000 100000 1000000; --quick 10000 100000)")
-    parser.add_argument("--sizes", nargs="+", choices=tuple(SIZES), help="footprints (default: both)")
-    parser.add_argument("--resolutions", nargs="+", type=_resolution, metavar="WxH",
-                        help="default 1280x720 1920x1080; --quick 1280x720")
-    parser.add_argument("--scenes", nargs="*", metavar="SCENE",
-                        help="real scene files (or 'demo') instead of those found in ../shared/scenes; "
-                             "none: generated scenes only")
-    parser.add_argument("--frames", type=count(1, 100000), default=DEFAULT_FRAMES, metavar="N",
-                        help=f"timed frames per case, after one warm-up (default {DEFAULT_FRAMES})")
-    parser.add_argument("--report", metavar="PATH.md", help="also write a markdown report there")
-    parser.add_argument("--plot", metavar="PATH.png", help="also write the plot of frame time against N there")
-    parser.add_argument("--overwrite", action="store_true", help="replace an existing report or plot")
-    parser.add_argument("--gl-backend", choices=("auto", "egl", "osmesa"),
-                        help="headless OpenGL (default: $RAYGS_GL_BACKEND or auto: EGL, else OSMesa)")
-
-
-def _resolution(text: str) -> tuple[int, int]:
-    from raygs_viewer.cli.main import (
-        _size,  # the CLI's own WxH type (cli imports bench)
-    )
-    width, height = _size(text)
-    if not (1 <= width <= 16384 and 1 <= height <= 16384):
-        raise argparse.ArgumentTypeError(f"'{text}': each side must be 1..16384 pixels")
-    return width, height
-
-
-def command_line(args: argparse.Namespace) -> str:
-    parts = ["raygs-viewer", "bench", "perf"]
-    if args.quick:
-        parts.append("--quick")
-    if args.counts:
-        parts += ["--counts", *map(str, args.counts)]
-    if args.sizes:
-        parts += ["--sizes", *args.sizes]
-    if args.resolutions:
-        parts += ["--resolutions", *(f"{w}x{h}" for w, h in args.resolutions)]
-    if args.scenes is not None:
-        parts += ["--scenes", *args.scenes]
-    if args.frames != DEFAULT_FRAMES:
-        parts += ["--frames", str(args.frames)]
-    for flag, dest in (("--report", "report"), ("--plot", "plot"), ("--gl-backend", "gl_backend")):
-        if getattr(args, dest) is not None:
-            parts += [flag, str(getattr(args, dest))]
-    if args.overwrite:
-        parts.append("--overwrite")
-    return shlex.join(parts)
-
-
-def options_from_args(args: argparse.Namespace) -> PerfOptions:
-    """Checks everything that can be checked before any work."""
-    from raygs_viewer.bench.accuracy import shared_scene_paths
-    notes: list[str] = []
-    if args.scenes is not None:
-        scenes = tuple(args.scenes)
-    else:
-        scenes, notes = shared_scene_paths(QUICK_REAL_SCENES if args.quick else REAL_SCENES)
-    report = None if args.report is None else check_output_path(args.report, args.overwrite, (".md",))
-    plot = None if args.plot is None else check_output_path(args.plot, args.overwrite, (".png",))
-    if report is not None and plot is not None and os.path.abspath(report) == os.path.abspath(plot):
-        raise UserError(f"{report}: the report and the plot must be different files")
-    return PerfOptions(
-        counts=tuple(dict.fromkeys(args.counts or (QUICK_COUNTS if args.quick else COUNTS))),
-        sizes=tuple(dict.fromkeys(args.sizes or SIZES)),
-        resolutions=tuple(dict.fromkeys(args.resolutions or (QUICK_RESOLUTIONS if args.quick else RESOLUTIONS))),
-        scenes=scenes, frames=args.frames, command_line=command_line(args), report=report, plot=plot,
-        overwrite=args.overwrite, gl_backend=args.gl_backend, notes=tuple(notes))
-
-
-def command(args: argparse.Namespace, ctx=None) -> int:
-    """Runs ``bench perf``. ``ctx``: a GL context to use instead of a new one (tests)."""
-    options = options_from_args(args)
-    for note in options.notes:
-        print(f"note: {note}", flush=True)
-    results = run_perf(options, ctx)
-    for path in write_outputs(results):
-        print(f"wrote {path}", flush=True)
-    return 0

@@ -202,3 +202,14 @@ def scatter_panels(panels: list[Panel], *, title: str, x_label: str, y_label: st
             draw.text((x0 + 22, y), label, fill=(0, 0, 0), font=small)
             y += 20
     return image
+
+
+def stacked(images: list[Image.Image]) -> Image.Image:
+    """``images`` one below the other on white, as wide as the widest."""
+    width = max(image.width for image in images)
+    result = Image.new("RGB", (width, sum(image.height for image in images)), (255, 255, 255))
+    top = 0
+    for image in images:
+        result.paste(image, (0, top))
+        top += image.height
+    return result

@@ -23,37 +23,29 @@ report, also written to ``--out`` when given.
 
 from __future__ import annotations
 
-import argparse
 import datetime
 import math
 import os
-import shlex
-import sys
 import time
 from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import TextIO
 
 import numpy as np
 
-from raygs_viewer.bench.accuracy import (
+from raygs_viewer.bench import common
+from raygs_viewer.bench.views import (
     CLOSE_FRACTION,
     CLOSE_SUPPORT_MARGIN,
-    DEMO,
     VIEW_TITLES,
-    _BenchScene,
-    _fmt_error,
-    _load_scenes,
-    _median,
     close_view,
-    default_scenes,
-    error_metrics,
     training_view,
 )
 from raygs_viewer.camera import stereo
 from raygs_viewer.camera.navigation import scene_bounds
 from raygs_viewer.camera.pinhole import Camera
-from raygs_viewer.capture.image_io import check_output_path
-from raygs_viewer.errors import UserError
+from raygs_viewer.render.gl.context import context_description
+from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.gl.stereo_frame import StereoFrame, render_stereo, stereo_order
 from raygs_viewer.render.gl.timing import GpuTimer
 from raygs_viewer.render.settings import RenderSettings
@@ -97,8 +89,8 @@ def sharing_errors(renderer, camera: Camera, settings: RenderSettings,
                       for eye in eyes)
     order = stereo_order(renderer, camera, settings, rig)
     colour_only = _pair(renderer.render(eye, settings, order) for eye in eyes)
-    return {"whole": error_metrics(shared, own), "sort-only": error_metrics(shared, sort_only),
-            "colour-only": error_metrics(shared, colour_only)}
+    return {"whole": common.error_metrics(shared, own), "sort-only": common.error_metrics(shared, sort_only),
+            "colour-only": common.error_metrics(shared, colour_only)}
 
 
 def time_both_eyes(ctx, renderer, camera: Camera, settings: RenderSettings, rig: stereo.StereoRig,
@@ -204,74 +196,63 @@ def budget_lines(row: BudgetRow) -> list[str]:
     return lines
 
 
-def _describe(item: _BenchScene) -> str:
+def _describe(item: common.BenchScene) -> str:
     sh = item.scene.sh
     if item.scene.sh_degree > 0 and not np.any(sh[:, 1:]):
         return f"{item.description} (its higher SH bands are all zero: colour does not depend on the view)"
     return item.description
 
 
-def run_stereo(options: StereoOptions, ctx=None, out=None) -> StereoResults:
+def _error_rows(renderer, item: common.BenchScene, options: StereoOptions, settings: RenderSettings):
+    """Yields the sharing error of ``item`` in every view at every scene scale, one row at
+    a time (each is printed as it comes)."""
+    training = training_view(item.camera, options.width)
+    views = {"training": training, "close": close_view(training, item.scene, settings.p_min)}
+    across, _ = one_metre_scale(item.scene)
+    for view in VIEWS:
+        camera = views[view]
+        for scale, scene_scale in ((UNIT_SCALE, 1.0), (ACROSS_SCALE, across)):
+            rig = replace(options.rig, scene_scale=scene_scale)
+            yield ErrorRow(item.name, view, scale, scene_scale, camera.width, camera.height,
+                           sharing_errors(renderer, camera, settings, rig))
+
+
+def run_stereo(options: StereoOptions, ctx=None, out: TextIO | None = None) -> StereoResults:
     """Runs both measurements; prints progress and the machine-readable lines to ``out``
     (stdout). ``ctx``: a GL context to use (default: a new headless one, released at the
     end)."""
-    from raygs_viewer.render.gl.context import (
-        context_description,
-        create_headless_context,
-    )
-    from raygs_viewer.render.gl.renderer import GLRenderer
-
-    out = out or sys.stdout
-
-    def say(line: str = "") -> None:
-        print(line, file=out, flush=True)
-
-    scenes = _load_scenes(options.scenes)
+    say = common.printer(out)
+    scenes = common.load_scenes(options.scenes)
     presets = [stereo.PRESETS[name] for name in options.presets]
     settings = RenderSettings()
-    own_ctx = ctx is None
-    if own_ctx:
-        ctx = create_headless_context(options.gl_backend)
     errors: list[ErrorRow] = []
     budgets: list[BudgetRow] = []
     started = time.perf_counter()
-    try:
-        with ctx:
-            machine = context_description(ctx)
-            say(f"bench stereo: {len(scenes)} scene(s); sharing error in {len(VIEWS)} views x {len(SCALES)} "
-                f"scales; frame budget for {', '.join(options.presets)}, {options.repeat} timed frames each; "
-                f"on {machine}")
-            for item in scenes:
-                say(f"[{item.name}] {_describe(item)}")
-                renderer = GLRenderer(ctx, item.scene)
-                try:
-                    training = training_view(item.camera, options.width)
-                    views = {"training": training, "close": close_view(training, item.scene, settings.p_min)}
-                    across, _ = one_metre_scale(item.scene)
-                    for view in VIEWS:
-                        camera = views[view]
-                        for scale, scene_scale in ((UNIT_SCALE, 1.0), (ACROSS_SCALE, across)):
-                            rig = replace(options.rig, scene_scale=scene_scale)
-                            row = ErrorRow(item.name, view, scale, scene_scale, camera.width, camera.height,
-                                           sharing_errors(renderer, camera, settings, rig))
-                            errors.append(row)
-                            for line in error_lines(row):
-                                say(line)
-                    for preset in presets:
-                        camera = preset.camera(item.camera)
-                        say(f"[{item.name} / {preset.name}] {camera.width}x{camera.height} per eye: "
-                            f"timing {options.repeat} frames ...")
-                        gpu, sort = time_both_eyes(ctx, renderer, camera, settings, options.rig, options.repeat)
-                        row = BudgetRow(item.name, preset.name, preset.label, camera.width, camera.height,
-                                        _median(gpu), _median(sort), gpu, sort)
-                        budgets.append(row)
-                        for line in budget_lines(row):
-                            say(line)
-                finally:
-                    renderer.release()
-    finally:
-        if own_ctx:
-            ctx.release()
+    with common.gl_context(ctx, options.gl_backend) as ctx, ctx:  # made current for the run
+        machine = context_description(ctx)
+        say(f"bench stereo: {len(scenes)} scene(s); sharing error in {len(VIEWS)} views x {len(SCALES)} "
+            f"scales; frame budget for {', '.join(options.presets)}, {options.repeat} timed frames each; "
+            f"on {machine}")
+        for item in scenes:
+            say(f"[{item.name}] {_describe(item)}")
+            renderer = GLRenderer(ctx, item.scene)
+            try:
+                for row in _error_rows(renderer, item, options, settings):
+                    errors.append(row)
+                    for line in error_lines(row):
+                        say(line)
+                for preset in presets:
+                    camera = preset.camera(item.camera)
+                    say(f"[{item.name} / {preset.name}] {camera.width}x{camera.height} per eye: "
+                        f"timing {options.repeat} frames ...")
+                    gpu, sort = time_both_eyes(ctx, renderer, camera, settings, options.rig, options.repeat)
+                    row = BudgetRow(item.name, preset.name, preset.label, camera.width, camera.height,
+                                    common.median(gpu), common.median(sort), gpu, sort)
+                    budgets.append(row)
+                    for line in budget_lines(row):
+                        say(line)
+            finally:
+                renderer.release()
     seconds = time.perf_counter() - started
     say(f"bench stereo: done in {seconds:.1f} s")
     notes = list(options.notes)
@@ -341,9 +322,10 @@ def format_report(results: StereoResults) -> str:
     for row in results.errors:
         whole, sort, colour = (row.parts[part] for part in PARTS)
         lines.append(f"| {row.scene} | {VIEW_TITLES[row.view]} | {row.width}×{row.height} | {_scale_text(row)} | "
-                     f"{_psnr_text(whole['psnr'])} | {_fmt_error(whole['p99'])} | {_fmt_error(whole['max'])} | "
-                     f"{_psnr_text(sort['psnr'])} | {_fmt_error(sort['max'])} | "
-                     f"{_psnr_text(colour['psnr'])} | {_fmt_error(colour['max'])} |")
+                     f"{_psnr_text(whole['psnr'])} | {common.fmt_error(whole['p99'])} | "
+                     f"{common.fmt_error(whole['max'])} | "
+                     f"{_psnr_text(sort['psnr'])} | {common.fmt_error(sort['max'])} | "
+                     f"{_psnr_text(colour['psnr'])} | {common.fmt_error(colour['max'])} |")
     lines += [
         "",
         "## Frame budget",
@@ -367,85 +349,3 @@ def format_report(results: StereoResults) -> str:
                      + " |")
     lines.append("")
     return "\n".join(lines)
-
-
-# --- command line -------------------------------------------------------------------------------
-
-def add_parser(kinds, count) -> None:
-    """Adds ``bench stereo`` to ``bench``'s subparsers; ``count(low, high)``: the CLI's
-    whole-number type."""
-    parser = kinds.add_parser(
-        "stereo", help="what the shared stereo sort and colour cost, and both eyes' time per headset preset",
-        description="For the demo and the shared real scenes: the error of the shared stereo images (one sort "
-                    "and SH colour from the eyes' midpoint) against per-eye ones, in the training-like and very "
-                    "close views at 1 m per unit and with the scene 1 m across, taken apart into sort and "
-                    "colour; and the GPU time of both eyes at every headset preset's resolution against each "
-                    "refresh rate's frame budget. Prints markdown tables and machine-readable lines.")
-    parser.add_argument("--quick", action="store_true",
-                        help=f"the demo scene only, {QUICK_REPEAT} timed frames per preset (a few seconds)")
-    parser.add_argument("--scenes", nargs="+", metavar="SCENE",
-                        help=f"scene files (or '{DEMO}') instead of the demo and the real scenes in ../shared/scenes")
-    parser.add_argument("--presets", nargs="+", metavar="PRESET",
-                        help="headset presets to time (default: all of " + ", ".join(stereo.PRESETS) + ")")
-    parser.add_argument("--width", type=count(4, 16384), metavar="PX",
-                        help=f"width of the views the sharing error is measured in (default {DEFAULT_WIDTH})")
-    parser.add_argument("--repeat", type=count(1, 100000), metavar="N",
-                        help=f"timed frames per preset (default {DEFAULT_REPEAT}, --quick {QUICK_REPEAT})")
-    parser.add_argument("--out", metavar="PATH.md", help="also write the markdown report there")
-    parser.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
-    parser.add_argument("--gl-backend", choices=("auto", "egl", "osmesa"),
-                        help="headless OpenGL (default: $RAYGS_GL_BACKEND or auto: EGL, else OSMesa)")
-
-
-def command_line(args: argparse.Namespace) -> str:
-    """The command that reproduces this run (options in a fixed order)."""
-    parts = ["raygs-viewer", "bench", "stereo"]
-    if args.quick:
-        parts.append("--quick")
-    for flag, dest in (("--scenes", "scenes"), ("--presets", "presets")):
-        if getattr(args, dest):
-            parts += [flag, *getattr(args, dest)]
-    for flag, dest in (("--width", "width"), ("--repeat", "repeat"), ("--out", "out"), ("--gl-backend", "gl_backend")):
-        if getattr(args, dest) is not None:
-            parts += [flag, str(getattr(args, dest))]
-    if args.overwrite:
-        parts.append("--overwrite")
-    return shlex.join(parts)
-
-
-def options_from_args(args: argparse.Namespace) -> StereoOptions:
-    """Checks everything that can be checked before any work (presets, the output path)."""
-    presets = tuple(dict.fromkeys(args.presets or stereo.PRESETS))
-    for name in presets:
-        if name not in stereo.PRESETS:
-            raise UserError(f"unknown headset preset '{name}': use one of {', '.join(stereo.PRESETS)}")
-    notes: list[str] = []
-    if args.scenes:
-        scenes = tuple(args.scenes)
-    elif args.quick:
-        scenes = (DEMO,)
-    else:
-        scenes, notes = default_scenes(False)
-    return StereoOptions(
-        scenes=scenes, presets=presets,
-        width=args.width or DEFAULT_WIDTH,
-        repeat=args.repeat or (QUICK_REPEAT if args.quick else DEFAULT_REPEAT),
-        out=None if args.out is None else check_output_path(args.out, args.overwrite, (".md",)),
-        overwrite=args.overwrite, command_line=command_line(args), gl_backend=args.gl_backend,
-        notes=tuple(notes))
-
-
-def command(args: argparse.Namespace, ctx=None) -> int:
-    """Runs ``bench stereo``. ``ctx``: a GL context to use instead of a new one (tests)."""
-    from raygs_viewer.capture.image_io import write_atomically
-    options = options_from_args(args)
-    for note in options.notes:
-        print(f"note: {note}", flush=True)
-    results = run_stereo(options, ctx)
-    report = format_report(results)
-    print("", flush=True)
-    print(report, flush=True)
-    if options.out is not None:
-        write_atomically(options.out, report.encode("utf-8"), options.overwrite)
-        print(f"wrote {options.out}", flush=True)
-    return 0

@@ -13,15 +13,19 @@ from PIL import Image
 from testkit import assert_user_error, gaussian_columns, make_scene, write_ply
 
 from raygs_viewer.bench import accuracy as bench
+from raygs_viewer.bench import accuracy_report as bench_report
+from raygs_viewer.bench import common as bench_common
+from raygs_viewer.bench import views as bench_views
 from raygs_viewer.camera.pinhole import look_at
+from raygs_viewer.cli import bench as bench_cli
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.settings import ACCURACY_PRESETS
 
 
 def parse(*argv) -> argparse.Namespace:
-    """What the CLI hands to bench.command for ``raygs-viewer bench accuracy ARGV``."""
+    """What the CLI hands to cli.bench.command for ``raygs-viewer bench accuracy ARGV``."""
     parser = argparse.ArgumentParser()
-    bench.add_parser(parser.add_subparsers(dest="command"))
+    bench_cli.add_parser(parser.add_subparsers(dest="command"))
     return parser.parse_args(["bench", "accuracy", *map(str, argv)])
 
 
@@ -30,7 +34,7 @@ def parse(*argv) -> argparse.Namespace:
 @pytest.mark.parametrize("centre", [(0.0, 0.0, 5.0), (1.5, -0.7, 3.0)])
 def test_far_view_is_twice_as_far_along_the_axis_at_a_quarter_of_the_resolution(centre):
     camera = look_at((0.2, -0.3, -1.0), (0.0, 0.0, 4.0), width=320, height=240)
-    far = bench.far_view(camera, np.array(centre))
+    far = bench_views.far_view(camera, np.array(centre))
     distance = np.linalg.norm(camera.center - centre)
     assert np.linalg.norm(far.center - centre) == pytest.approx(2 * distance, rel=1e-9)
     back = far.center - camera.center
@@ -42,7 +46,7 @@ def test_far_view_is_twice_as_far_along_the_axis_at_a_quarter_of_the_resolution(
 
 def test_training_view_keeps_the_aspect_ratio():
     camera = look_at((0, 0, -3), (0, 0, 0), width=640, height=480)
-    view = bench.training_view(camera, 160)
+    view = bench_views.training_view(camera, 160)
     assert (view.width, view.height) == (160, 120)
     assert view.fx == pytest.approx(camera.fx / 4)
 
@@ -62,54 +66,54 @@ def cluster_scene(blocker: bool):
 def test_close_view_is_nearer_and_outside_every_support(blocker):
     scene = cluster_scene(blocker)
     camera = look_at((0.0, 0.0, 0.0), (0.0, 0.0, 5.0), width=64, height=48)
-    close = bench.close_view(camera, scene)
+    close = bench_views.close_view(camera, scene)
     assert np.array_equal(close.R, camera.R) and close.width == camera.width
     step = close.center - camera.center
     assert np.allclose(step / np.linalg.norm(step), camera.R[2])  # forward along the optical axis
-    assert bench.central_depth(close, scene, bench.DEFAULT_P_MIN) < bench.central_depth(camera, scene, bench.DEFAULT_P_MIN)
-    assert not bench.inside_support(scene, close.center, bench.DEFAULT_P_MIN).any()
-    assert not bench.inside_support(scene, close.center, bench.DEFAULT_P_MIN, bench.CLOSE_SUPPORT_MARGIN).any()
+    assert bench_views.central_depth(close, scene, bench.DEFAULT_P_MIN) < bench_views.central_depth(camera, scene, bench.DEFAULT_P_MIN)
+    assert not bench_views.inside_support(scene, close.center, bench.DEFAULT_P_MIN).any()
+    assert not bench_views.inside_support(scene, close.center, bench.DEFAULT_P_MIN, bench_views.CLOSE_SUPPORT_MARGIN).any()
     if blocker:  # it had to stop in front of the big gaussian, well short of 5 % of the way
         assert close.center[2] < 4.6 - 0.3 * math.sqrt(-2 * math.log(bench.DEFAULT_P_MIN / 0.8))
     else:  # 5 % of the depth of the cluster's near side is left
-        depth = bench.central_depth(camera, scene, bench.DEFAULT_P_MIN)
-        assert close.center[2] == pytest.approx(depth * (1 - bench.CLOSE_FRACTION))
+        depth = bench_views.central_depth(camera, scene, bench.DEFAULT_P_MIN)
+        assert close.center[2] == pytest.approx(depth * (1 - bench_views.CLOSE_FRACTION))
 
 
 def test_close_view_of_an_empty_view_is_the_camera_itself():
     scene = make_scene([[0.0, 0.0, -5.0]], 0.1)  # behind the camera
     camera = look_at((0.0, 0.0, 0.0), (0.0, 0.0, 5.0), width=32, height=24)
-    assert bench.close_view(camera, scene) is camera
+    assert bench_views.close_view(camera, scene) is camera
 
 
 def test_view_cameras_of_the_demo(demo):
     from raygs_viewer.scene.demo import demo_cameras
-    views = bench.view_cameras(demo, demo_cameras()[0], 160)
+    views = bench_views.view_cameras(demo, demo_cameras()[0], 160)
     assert [(v.width, v.height) for v in views.values()] == [(160, 120), (40, 30), (160, 120)]
-    assert not bench.inside_support(demo, views["close"].center, bench.DEFAULT_P_MIN).any()
+    assert not bench_views.inside_support(demo, views["close"].center, bench.DEFAULT_P_MIN).any()
 
 
 # --- metrics -----------------------------------------------------------------------------
 
 def test_psnr():
-    assert bench.psnr(0.01) == pytest.approx(20.0)
-    assert bench.psnr(1.0) == 0.0
-    assert bench.psnr(0.0) == math.inf
+    assert bench_common.psnr(0.01) == pytest.approx(20.0)
+    assert bench_common.psnr(1.0) == 0.0
+    assert bench_common.psnr(0.0) == math.inf
 
 
 def test_error_metrics_on_known_arrays():
     truth = np.zeros((10, 10, 4))
     image = truth.copy()
     image[..., 3] = 0.7  # alpha is not compared
-    assert bench.error_metrics(image, truth) == {"psnr": math.inf, "p99": 0.0, "max": 0.0}
+    assert bench_common.error_metrics(image, truth) == {"psnr": math.inf, "p99": 0.0, "max": 0.0}
     image[..., :3] = 0.1  # every RGB value off by 0.1: MSE 0.01
     image[0, 0, 1] = -0.4  # one value off by 0.4, negative: no clipping
-    metrics = bench.error_metrics(image.astype(np.float32), truth)
+    metrics = bench_common.error_metrics(image.astype(np.float32), truth)
     assert metrics["max"] == pytest.approx(0.4)
     assert metrics["p99"] == pytest.approx(0.1, rel=1e-6)  # one value in 300 is above the 99th percentile
     assert metrics["psnr"] == pytest.approx(10 * math.log10(1 / ((299 * 0.01 + 0.16) / 300)), rel=1e-6)
     with pytest.raises(ValueError):
-        bench.error_metrics(np.zeros((4, 4, 4)), np.zeros((5, 4, 4)))
+        bench_common.error_metrics(np.zeros((4, 4, 4)), np.zeros((5, 4, 4)))
 
 
 def test_slug():
@@ -141,9 +145,9 @@ def tiny_run(tmp_path_factory, gl_session_ctx):
     ply = write_ply(folder / "blobs.ply", gaussian_columns(n=30, degree=0, seed=1))
     args = parse("--scenes", "demo", ply, *TINY, "--report", folder / "acc.md", "--plot", folder / "acc.png")
     captured = []
-    options = bench.options_from_args(args)
+    options = bench_cli.accuracy_options(args)
     results = bench.run_accuracy(options, ctx=gl_ctx, out=_Lines(captured))
-    bench.write_outputs(results, options.report, options.plot, options.overwrite)
+    bench_report.write_outputs(results, options.report, options.plot, options.overwrite)
     return args, "".join(captured), (folder / "acc.md").read_text(encoding="utf-8"), results
 
 
@@ -161,7 +165,7 @@ class _Lines:
 def test_tiny_run_covers_every_configuration_and_view(tiny_run):
     args, out, report, results = tiny_run
     assert [(c.scene, c.view) for c in results.cases] == [
-        (scene, view) for scene in ("demo", "blobs") for view in bench.VIEW_CLASSES]
+        (scene, view) for scene in ("demo", "blobs") for view in bench_views.VIEW_CLASSES]
     for case in results.cases:
         assert list(case.rows) == list(ACCURACY_PRESETS)
         assert case.rows["RayGS"].ratio == 1.0
@@ -172,7 +176,7 @@ def test_tiny_run_covers_every_configuration_and_view(tiny_run):
     assert (far.width, far.height, far.gt_samples) == (4, 3, 2)
     # Machine-readable lines: one per key, scene, view and configuration.
     for scene in ("demo", "blobs"):
-        for view in bench.VIEW_CLASSES:
+        for view in bench_views.VIEW_CLASSES:
             assert f"ratio {scene} {view} raygs 1\n" in out
             for name in ACCURACY_PRESETS:
                 assert re.search(rf"^psnr {scene} {view} {re.escape(bench.slug(name))} \S+$", out, re.M)
@@ -182,17 +186,17 @@ def test_tiny_report_has_every_table(tiny_run):
     args, out, report, results = tiny_run
     assert "`raygs-viewer bench accuracy --scenes demo" in report and "--width 16 --repeat 2" in report
     assert "llvmpipe" in report or "Machine:" in report
-    assert bench.HUMAN_VERDICT_BEGIN in report and bench.HUMAN_VERDICT_END in report
+    assert bench_report.HUMAN_VERDICT_BEGIN in report and bench_report.HUMAN_VERDICT_END in report
     assert "![PSNR against GPU time ratio to RayGS, per view class](acc.png)" in report
     for scene in ("demo", "blobs"):
-        for view in bench.VIEW_CLASSES:
-            section = report.split(f"### {scene}: {bench.VIEW_TITLES[view]}\n", 1)[1].split("\n### ", 1)[0]
+        for view in bench_views.VIEW_CLASSES:
+            section = report.split(f"### {scene}: {bench_views.VIEW_TITLES[view]}\n", 1)[1].split("\n### ", 1)[0]
             rows = [line for line in section.splitlines() if line.startswith("| ") and "---" not in line][1:]
             assert [row.split(" | ")[0][2:] for row in rows] == list(ACCURACY_PRESETS)
             baseline = next(row for row in rows if row.startswith("| RayGS |"))
             assert baseline.split(" | ")[2] == "1.00"
-    for view in bench.VIEW_CLASSES:
-        assert f"#### {bench.VIEW_TITLES[view]}" in report
+    for view in bench_views.VIEW_CLASSES:
+        assert f"#### {bench_views.VIEW_TITLES[view]}" in report
     assert "cheapest within 0.5 dB" in report
 
 
@@ -206,10 +210,10 @@ def test_tiny_plot_is_a_png(tiny_run):
 def test_report_is_never_replaced_without_overwrite(tiny_run, monkeypatch):
     args = tiny_run[0]
     monkeypatch.setattr(bench, "run_accuracy", lambda *a, **k: pytest.fail("ran before refusing"))
-    assert_user_error(lambda: bench.command(parse("--scenes", "demo", "--report", args.report, "--plot",
+    assert_user_error(lambda: bench_cli.command(parse("--scenes", "demo", "--report", args.report, "--plot",
                                                   args.plot + ".new.png")),
                       args.report, "already exists", "--overwrite")
-    assert_user_error(lambda: bench.command(parse("--scenes", "demo", "--report", args.report + ".new.md",
+    assert_user_error(lambda: bench_cli.command(parse("--scenes", "demo", "--report", args.report + ".new.md",
                                                   "--plot", args.plot)),
                       args.plot, "already exists")
 
@@ -218,12 +222,12 @@ def test_overwrite_replaces_the_numbers_and_keeps_the_human_verdict(tiny_run, tm
     args, out, report, results = tiny_run
     path = tmp_path / "acc.md"
     plot = tmp_path / "acc.png"
-    bench.write_outputs(results, path, plot, overwrite=False)
+    bench_report.write_outputs(results, path, plot, overwrite=False)
     with pytest.raises(UserError, match="already exists"):
-        bench.write_outputs(results, path, plot, overwrite=False)
-    edited = path.read_text(encoding="utf-8").replace(bench.HUMAN_VERDICT_PLACEHOLDER, "GS is not worth it.")
+        bench_report.write_outputs(results, path, plot, overwrite=False)
+    edited = path.read_text(encoding="utf-8").replace(bench_report.HUMAN_VERDICT_PLACEHOLDER, "GS is not worth it.")
     path.write_text(edited.replace("| RayGS | ", "| RayGS-old | "), encoding="utf-8")
-    bench.write_outputs(results, path, plot, overwrite=True)
+    bench_report.write_outputs(results, path, plot, overwrite=True)
     rewritten = path.read_text(encoding="utf-8")
     assert "GS is not worth it." in rewritten and "RayGS-old" not in rewritten
     assert not list(tmp_path.glob(".*partial"))  # no temporary files left behind
@@ -231,35 +235,35 @@ def test_overwrite_replaces_the_numbers_and_keeps_the_human_verdict(tiny_run, tm
 
 def test_the_recorded_command_line_reproduces_the_options(tiny_run):
     args = tiny_run[0]
-    command = bench.command_line(args)
+    command = bench_cli.accuracy_command_line(args)
     again = parse(*shlex.split(command)[3:])
     assert vars(again) == vars(args)
 
 
 def test_bad_scene_path_is_a_one_line_error(tmp_path):
     missing = tmp_path / "missing.ply"
-    assert_user_error(lambda: bench.command(parse("--scenes", "demo", missing, *TINY, "--report",
+    assert_user_error(lambda: bench_cli.command(parse("--scenes", "demo", missing, *TINY, "--report",
                                                   tmp_path / "a.md", "--plot", tmp_path / "a.png")),
                       missing, "no such file")
     assert not (tmp_path / "a.md").exists()
 
 
 def test_bad_outputs_fail_before_any_work(tmp_path):
-    assert_user_error(lambda: bench.options_from_args(parse("--report", tmp_path / "a.txt", "--plot", tmp_path / "a.png")),
+    assert_user_error(lambda: bench_cli.accuracy_options(parse("--report", tmp_path / "a.txt", "--plot", tmp_path / "a.png")),
                       "a.txt", ".md")
-    assert_user_error(lambda: bench.options_from_args(parse("--report", tmp_path / "no" / "a.md",
+    assert_user_error(lambda: bench_cli.accuracy_options(parse("--report", tmp_path / "no" / "a.md",
                                                             "--plot", tmp_path / "a.png")), "a.md", "does not exist")
-    assert_user_error(lambda: bench.options_from_args(parse("--report", tmp_path / "a.md",
+    assert_user_error(lambda: bench_cli.accuracy_options(parse("--report", tmp_path / "a.md",
                                                             "--plot", tmp_path / "a.md")), "a.md", "different")
 
 
 def test_quick_defaults(tmp_path):
-    options = bench.options_from_args(parse("--quick", "--report", tmp_path / "a.md", "--plot", tmp_path / "a.png"))
+    options = bench_cli.accuracy_options(parse("--quick", "--report", tmp_path / "a.md", "--plot", tmp_path / "a.png"))
     assert (options.width, options.repeat, options.gt_samples) == (160, 10, 4)
     assert options.scenes[0] == "demo" and len(options.scenes) <= 2
-    full = bench.options_from_args(parse("--report", tmp_path / "a.md", "--plot", tmp_path / "a.png", "--repeat", "12"))
+    full = bench_cli.accuracy_options(parse("--report", tmp_path / "a.md", "--plot", tmp_path / "a.png", "--repeat", "12"))
     assert (full.width, full.repeat, full.gt_samples) == (320, 12, 8)
-    if bench.shared_scenes_dir() is not None:
+    if bench_common.shared_scenes_dir() is not None:
         assert any("fruit" in s for s in options.scenes)
         assert not any(s.startswith("/") for s in options.scenes)  # paths stay relative
 
@@ -269,7 +273,7 @@ def synthetic_results(table):
     cases = [bench.CaseResult(scene, view, 8, 6, 1, 0.0,
                               {c: bench.ConfigResult(c, 10.0 * r, r, p, 0.0, 0.0) for c, (r, p) in rows.items()})
              for (scene, view), rows in table.items()]
-    return bench.BenchResults(cases, "test", 2, "cmd", "today", 2, 8, [])
+    return bench.AccuracyResults(cases, "test", 2, "cmd", "today", 2, 8, [])
 
 
 def test_verdict_facts():
@@ -279,15 +283,15 @@ def test_verdict_facts():
         ("b", "far"): {"RayGS": (1.0, 70.0), "MIP": (1.05, 75.0), "exact": (1.8, 75.0), "SS": (2.0, 90.0),
                        "slow": (1.5, 29.0), "mixed": (1.5, 20.0)},
     })
-    summaries = {s.config: s for s in bench.summarize(results, "far")}
+    summaries = {s.config: s for s in bench_report.summarize(results, "far")}
     # PSNRs above VERDICT_PSNR_CAP count as the cap: scene b's gains are all 0 or losses.
     assert summaries["MIP"].gain_db == pytest.approx(2.5) and summaries["SS"].gain_db == pytest.approx(3.0)
     assert summaries["SS"].ratio == pytest.approx(2.0) and summaries["RayGS"].ratio == 1.0
     # exact is no better than MIP (within the tolerance) and slower: off the front.
     assert [c for c, s in summaries.items() if s.pareto] == ["RayGS", "MIP", "SS"]
-    lines = bench.verdict_lines(list(summaries.values()))
+    lines = bench_report.verdict_lines(list(summaries.values()))
     assert lines[0].startswith("most accurate: SS") and lines[1].startswith("cheapest within 0.5 dB of it: MIP")
     # "mixed" is more accurate in one scene, "slow" in none.
     assert lines[-1].endswith("no more accurate in any scene: slow")
-    notes = bench.case_notes(results.cases[1])
+    notes = bench_report.case_notes(results.cases[1])
     assert notes["SS"] == "best" and notes["RayGS"] == "baseline, cheapest near best"

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 from testkit import assert_user_error, make_scene
 
-from raygs_viewer.bench import accuracy as bench
+from raygs_viewer.bench import common as bench_common
 from raygs_viewer.bench import perf as bench_perf
 from raygs_viewer.camera.pinhole import look_at
+from raygs_viewer.cli import bench as bench_cli
 from raygs_viewer.cli.main import build_parser, main
-from raygs_viewer.render.gl import renderer as renderer_module
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.sort.depth import DepthSorter
@@ -26,7 +26,7 @@ from raygs_viewer.sort.depth import DepthSorter
 
 def parse(*argv) -> argparse.Namespace:
     parser = argparse.ArgumentParser()
-    bench.add_parser(parser.add_subparsers(dest="command"))
+    bench_cli.add_parser(parser.add_subparsers(dest="command"))
     return parser.parse_args(["bench", "perf", *map(str, argv)])
 
 
@@ -136,7 +136,7 @@ def test_there_is_no_floor_pass_for_ewa_splatting(gl_ctx):
 
 # --- one case -------------------------------------------------------------------------------------
 
-def test_a_measured_case_runs_every_stage_every_frame(gl_ctx, monkeypatch):
+def test_a_measured_case_runs_every_stage_every_frame(gl_ctx):
     made = []
 
     class Recording(GLRenderer):
@@ -144,11 +144,10 @@ def test_a_measured_case_runs_every_stage_every_frame(gl_ctx, monkeypatch):
             super().__init__(*args, **kwargs)
             made.append(self)
 
-    monkeypatch.setattr(renderer_module, "GLRenderer", Recording)
     scene = bench_perf.generated_scene(400, "small", seed=2)
     case = bench_perf.PerfCase("400 small", scene, bench_perf.generated_camera(96, 54), "small")
     frames = 3
-    result = bench_perf.measure_case(gl_ctx, case, frames)
+    result = bench_perf.measure_case(gl_ctx, case, frames, renderer_type=Recording)
     assert [r.general for r in made] == [False, True]
     specialised, general = made
     # Every frame (and the warm-up) ran its own preprocessing for RayGS and for GS, and
@@ -182,7 +181,7 @@ def tiny_run(tmp_path_factory, gl_session_ctx):
     args = parse(*TINY, "--scenes", "demo", "--report", folder / "perf.md", "--plot", folder / "perf.png")
     printed = io.StringIO()
     with contextlib.redirect_stdout(printed):
-        assert bench.command(args, gl_session_ctx) == 0
+        assert bench_cli.command(args, gl_session_ctx) == 0
     return args, printed.getvalue()
 
 
@@ -209,7 +208,7 @@ def test_tiny_run_prints_every_ratio_per_case_and_their_medians(tiny_run):
 def test_tiny_report_and_plot(tiny_run):
     args, out = tiny_run
     report = open(args.report, encoding="utf-8").read()
-    assert f"`{bench_perf.command_line(args)}`" in report and "llvmpipe" in report or "OpenGL" in report
+    assert f"`{bench_cli.perf_command_line(args)}`" in report and "llvmpipe" in report or "OpenGL" in report
     for table in ("## Stages", "## Side by side", "## Ratios"):
         assert table in report
     stage_rows = [line for line in report.split("## Stages", 1)[1].split("##", 1)[0].splitlines()
@@ -224,7 +223,7 @@ def test_tiny_report_and_plot(tiny_run):
 
 def test_the_recorded_command_line_reproduces_the_options(tiny_run):
     args = tiny_run[0]
-    again = parse(*shlex.split(bench_perf.command_line(args))[3:])
+    again = parse(*shlex.split(bench_cli.perf_command_line(args))[3:])
     assert vars(again) == vars(args)
 
 
@@ -232,11 +231,11 @@ def test_outputs_are_never_replaced_without_overwrite(tiny_run, monkeypatch):
     args = tiny_run[0]
     before = open(args.report, encoding="utf-8").read()
     monkeypatch.setattr(bench_perf, "run_perf", lambda *a, **k: pytest.fail("ran before refusing"))
-    assert_user_error(lambda: bench.command(parse(*TINY, "--report", args.report)), args.report,
+    assert_user_error(lambda: bench_cli.command(parse(*TINY, "--report", args.report)), args.report,
                       "already exists", "--overwrite")
-    assert_user_error(lambda: bench.command(parse(*TINY, "--plot", args.plot)), args.plot, "already exists")
+    assert_user_error(lambda: bench_cli.command(parse(*TINY, "--plot", args.plot)), args.plot, "already exists")
     assert open(args.report, encoding="utf-8").read() == before
-    assert_user_error(lambda: bench.command(parse(*TINY, "--report", str(args.report) + ".txt")),
+    assert_user_error(lambda: bench_cli.command(parse(*TINY, "--report", str(args.report) + ".txt")),
                       "perf.md.txt", ".md")
 
 
@@ -245,7 +244,7 @@ def test_overwrite_replaces_the_report(gl_ctx, tmp_path, capsys):
     path.write_text("old", encoding="utf-8")
     args = parse("--counts", "100", "--sizes", "small", "--resolutions", "32x18", "--frames", "1", "--scenes",
                  "--report", path, "--overwrite")
-    assert bench.command(args, gl_ctx) == 0
+    assert bench_cli.command(args, gl_ctx) == 0
     text = path.read_text(encoding="utf-8")
     assert text.startswith("# Performance figures") and "--overwrite" in text
     assert not list(tmp_path.glob(".*partial"))
@@ -268,25 +267,25 @@ def test_bad_options_are_one_line_errors(argv, fragment, capsys, monkeypatch):
 def test_the_report_and_the_plot_must_differ(tmp_path, monkeypatch):
     monkeypatch.setattr(bench_perf, "run_perf", lambda *a, **k: pytest.fail("ran before refusing"))
     # Different suffixes are required anyway; the same path fails on the suffix first.
-    assert_user_error(lambda: bench.command(parse("--report", tmp_path / "x.md", "--plot", tmp_path / "x.md")),
+    assert_user_error(lambda: bench_cli.command(parse("--report", tmp_path / "x.md", "--plot", tmp_path / "x.md")),
                       "x.md", ".png")
 
 
 def test_missing_scene_is_a_one_line_error(tmp_path):
     missing = tmp_path / "missing.ply"
-    assert_user_error(lambda: bench.command(parse("--counts", "10", "--sizes", "small", "--resolutions", "8x8",
+    assert_user_error(lambda: bench_cli.command(parse("--counts", "10", "--sizes", "small", "--resolutions", "8x8",
                                                   "--frames", "1", "--scenes", missing)), missing, "no such file")
 
 
 def test_cli_parses_quick_and_the_defaults():
-    quick = bench_perf.options_from_args(build_parser().parse_args(["bench", "perf", "--quick"]))
+    quick = bench_cli.perf_options(build_parser().parse_args(["bench", "perf", "--quick"]))
     assert quick.counts == (10_000, 100_000) and quick.resolutions == ((1280, 720),)
     assert quick.sizes == ("small", "large") and quick.frames == 10
     assert quick.command_line == "raygs-viewer bench perf --quick"
-    full = bench_perf.options_from_args(build_parser().parse_args(["bench", "perf"]))
+    full = bench_cli.perf_options(build_parser().parse_args(["bench", "perf"]))
     assert full.counts == (10_000, 100_000, 1_000_000) and full.resolutions == ((1280, 720), (1920, 1080))
     assert full.frames >= 10 and full.report is None and full.plot is None
-    if bench.shared_scenes_dir() is not None:
+    if bench_common.shared_scenes_dir() is not None:
         assert len(full.scenes) + len(full.notes) == len(bench_perf.REAL_SCENES)
         assert len(quick.scenes) + len(quick.notes) == len(bench_perf.QUICK_REAL_SCENES)
 

@@ -22,9 +22,12 @@ from testkit import (
 )
 
 from raygs_viewer.bench import accuracy as bench
+from raygs_viewer.bench import common as bench_common
 from raygs_viewer.bench import stereo as bench_stereo
+from raygs_viewer.bench import views as bench_views
 from raygs_viewer.camera import stereo
 from raygs_viewer.camera.navigation import scene_bounds
+from raygs_viewer.cli import bench as bench_cli
 from raygs_viewer.cli.main import build_parser, main
 from raygs_viewer.render.gl import stereo_frame
 from raygs_viewer.render.gl.renderer import GLRenderer
@@ -40,9 +43,9 @@ TINY_PRESETS = {
 
 
 def parse(*argv) -> argparse.Namespace:
-    """What the CLI hands to bench.command for ``raygs-viewer bench stereo ARGV``."""
+    """What the CLI hands to cli.bench.command for ``raygs-viewer bench stereo ARGV``."""
     parser = argparse.ArgumentParser()
-    bench.add_parser(parser.add_subparsers(dest="command"))
+    bench_cli.add_parser(parser.add_subparsers(dest="command"))
     return parser.parse_args(["bench", "stereo", *map(str, argv)])
 
 
@@ -53,7 +56,7 @@ def tiny_presets(monkeypatch):
 
 def demo_view(width=96):
     from raygs_viewer.scene.demo import demo_cameras
-    return bench.training_view(demo_cameras()[0], width)
+    return bench_views.training_view(demo_cameras()[0], width)
 
 
 # --- the sharing error --------------------------------------------------------------------------
@@ -205,7 +208,7 @@ def tiny_run(tmp_path_factory, gl_session_ctx):
     printed = io.StringIO()
     with pytest.MonkeyPatch.context() as patch, contextlib.redirect_stdout(printed):
         patch.setattr(stereo, "PRESETS", dict(TINY_PRESETS))
-        assert bench.command(args, gl_session_ctx) == 0
+        assert bench_cli.command(args, gl_session_ctx) == 0
     return args, printed.getvalue()
 
 
@@ -239,7 +242,7 @@ def test_tiny_report_has_both_tables(tiny_run):
     args, out = tiny_run
     report = open(args.out, encoding="utf-8").read()
     assert report.strip() in out  # the file is what was printed
-    assert f"- Command: `{bench_stereo.command_line(args)}`" in report
+    assert f"- Command: `{bench_cli.stereo_command_line(args)}`" in report
     assert re.search(r"^- Machine: .+, OpenGL .+, \d+ CPU cores$", report, re.M)
     budget = [line for line in report.split("## Frame budget", 1)[1].splitlines() if line.startswith("| ")][1:]
     assert [row.split(" | ")[:3] for row in budget] == [
@@ -257,7 +260,7 @@ def test_tiny_report_has_both_tables(tiny_run):
 
 def test_the_recorded_command_line_reproduces_the_options(tiny_run):
     args = tiny_run[0]
-    again = parse(*shlex.split(bench_stereo.command_line(args))[3:])
+    again = parse(*shlex.split(bench_cli.stereo_command_line(args))[3:])
     assert vars(again) == vars(args)
 
 
@@ -265,16 +268,16 @@ def test_out_is_never_replaced_without_overwrite(tiny_run, monkeypatch, tiny_pre
     args = tiny_run[0]
     before = open(args.out, encoding="utf-8").read()
     monkeypatch.setattr(bench_stereo, "run_stereo", lambda *a, **k: pytest.fail("ran before refusing"))
-    assert_user_error(lambda: bench.command(parse("--scenes", "demo", *TINY, "--out", args.out)),
+    assert_user_error(lambda: bench_cli.command(parse("--scenes", "demo", *TINY, "--out", args.out)),
                       args.out, "already exists", "--overwrite")
     assert open(args.out, encoding="utf-8").read() == before
-    assert_user_error(lambda: bench.command(parse("--out", args.out + ".txt")), "stereo.md.txt", ".md")
+    assert_user_error(lambda: bench_cli.command(parse("--out", args.out + ".txt")), "stereo.md.txt", ".md")
 
 
 def test_overwrite_replaces_the_report(gl_ctx, tmp_path, tiny_presets, capsys):
     path = tmp_path / "stereo.md"
     path.write_text("old", encoding="utf-8")
-    assert bench.command(parse("--scenes", "demo", *TINY, "--out", path, "--overwrite"), gl_ctx) == 0
+    assert bench_cli.command(parse("--scenes", "demo", *TINY, "--out", path, "--overwrite"), gl_ctx) == 0
     text = path.read_text(encoding="utf-8")
     assert text.startswith("# Stereo") and "--overwrite" in text
     assert not list(tmp_path.glob(".*partial"))
@@ -285,7 +288,7 @@ def test_overwrite_replaces_the_report(gl_ctx, tmp_path, tiny_presets, capsys):
 
 def test_unknown_preset_is_a_one_line_error_before_any_work(monkeypatch, capsys):
     monkeypatch.setattr(bench_stereo, "run_stereo", lambda *a, **k: pytest.fail("ran before refusing"))
-    message = assert_user_error(lambda: bench.command(parse("--presets", "quest3", "vive")),
+    message = assert_user_error(lambda: bench_cli.command(parse("--presets", "quest3", "vive")),
                                 "vive", "unknown headset preset", "quest3, index, generic90")
     assert "'vive'" in message
     assert main(["bench", "stereo", "--presets", "vive"]) == 2
@@ -295,19 +298,19 @@ def test_unknown_preset_is_a_one_line_error_before_any_work(monkeypatch, capsys)
 
 def test_missing_scene_is_a_one_line_error(tmp_path, tiny_presets):
     missing = tmp_path / "missing.ply"
-    assert_user_error(lambda: bench.command(parse("--scenes", "demo", missing, *TINY)), missing, "no such file")
+    assert_user_error(lambda: bench_cli.command(parse("--scenes", "demo", missing, *TINY)), missing, "no such file")
 
 
 def test_cli_parses_quick():
     args = build_parser().parse_args(["bench", "stereo", "--quick"])
     assert (args.command, args.bench, args.quick) == ("bench", "stereo", True)
-    options = bench_stereo.options_from_args(args)
+    options = bench_cli.stereo_options(args)
     assert options.scenes == ("demo",) and options.repeat == bench_stereo.QUICK_REPEAT == 3
     assert options.presets == tuple(stereo.PRESETS) and options.width == 320 and options.out is None
     assert options.command_line == "raygs-viewer bench stereo --quick"
-    full = bench_stereo.options_from_args(build_parser().parse_args(["bench", "stereo", "--presets", "index", "index"]))
+    full = bench_cli.stereo_options(build_parser().parse_args(["bench", "stereo", "--presets", "index", "index"]))
     assert full.repeat == 10 and full.presets == ("index",) and full.scenes[0] == "demo"
-    if bench.shared_scenes_dir() is not None:
+    if bench_common.shared_scenes_dir() is not None:
         assert len(full.scenes) == 1 + len(bench.REAL_SCENES) - len(full.notes)
 
 

@@ -553,7 +553,7 @@ def test_render_sidecar_rejects_view_options(capsys, tmp_path, option):
 
 
 def test_render_sidecar_checks_the_output_first(capsys, tmp_path, monkeypatch):
-    import raygs_viewer.cli.main as cli
+    import raygs_viewer.cli.commands as cli
 
     monkeypatch.setattr(cli, "load_scene_argument", lambda name: pytest.fail("scene loaded before the checks"))
     js = write_json(tmp_path / "shot.json", demo_sidecar())

@@ -401,7 +401,7 @@ def test_error_messages_name_what_is_wrong(capsys, tmp_path, monkeypatch):
 
 def test_output_checks_come_before_slow_work(capsys, tmp_path, monkeypatch):
     """An unusable --out fails before the scene is loaded or anything rendered."""
-    import raygs_viewer.cli.main as cli
+    import raygs_viewer.cli.commands as cli
 
     def boom(name):
         raise AssertionError("scene loaded before the output was checked")
@@ -455,7 +455,8 @@ def test_accuracy_options_reach_the_window(capsys, viewer, argv, fields):
 @pytest.mark.parametrize("command", ["render", "verify"])
 @pytest.mark.parametrize("argv,fields", ACCURACY_CASES)
 def test_accuracy_options_reach_render_and_verify(command, argv, fields):
-    from raygs_viewer.cli.main import _settings, build_parser
+    from raygs_viewer.cli.main import build_parser
+    from raygs_viewer.cli.options import render_settings as _settings
 
     args = build_parser().parse_args([command, *argv] + (["--out", "x.png"] if command == "render" else []))
     assert _settings(args) == RenderSettings(**fields)
@@ -617,7 +618,7 @@ def test_up_axis(capsys, viewer, argv, axis):
 
 
 def test_up_axes_match_the_controls():
-    from raygs_viewer.cli.main import UP_AXES
+    from raygs_viewer.cli.view import UP_AXES
     controls = pytest.importorskip("raygs_viewer.camera.navigation")
     if not hasattr(controls, "UP_AXES"):
         pytest.skip("controls.UP_AXES not written yet")
@@ -663,7 +664,7 @@ def test_help_and_version_stay_top_level(capsys, viewer):
 
 
 def test_join_up_axis_stops_at_double_dash():
-    from raygs_viewer.cli.main import join_up_axis
+    from raygs_viewer.cli.view import join_up_axis
     assert join_up_axis(["--up-axis", "-y", "--", "--up-axis", "-y"]) == ["--up-axis=-y", "--", "--up-axis", "-y"]
     assert join_up_axis(["--up-axis", "--frames"]) == ["--up-axis", "--frames"]
 

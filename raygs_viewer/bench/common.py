@@ -1,0 +1,161 @@
+"""What the benchmarks share: their scenes (the demo and the shared real scenes, each
+with a training-like camera), a headless GL context of their own, the error metrics
+against a ground truth, medians that skip invalid timings, and writing their reports.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import math
+import os
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable, Iterator, TextIO
+
+import numpy as np
+
+from raygs_viewer.camera.pinhole import Camera, frame_points
+from raygs_viewer.capture.image_io import write_atomically
+from raygs_viewer.errors import UserError
+from raygs_viewer.render.gl.context import create_headless_context
+from raygs_viewer.scene.loader import DEMO, load_now
+from raygs_viewer.scene.model import Scene
+
+
+@dataclass
+class BenchScene:
+    name: str
+    scene: Scene
+    camera: Camera        # the training camera, at its own resolution
+    description: str
+
+
+# --- scenes ---------------------------------------------------------------------------------------
+
+def shared_scenes_dir() -> Path | None:
+    """``../shared/scenes`` next to the current directory, else next to this repository."""
+    for base in (Path.cwd(), Path(__file__).resolve().parents[2]):
+        candidate = base.parent / "shared" / "scenes"
+        if candidate.is_dir():
+            return candidate
+    return None
+
+
+def shared_scene_paths(names: tuple[str, ...]) -> tuple[tuple[str, ...], list[str]]:
+    """The paths (relative to the current directory) of those of ``names`` found in the
+    shared scenes folder, and a note for each one missing."""
+    folder = shared_scenes_dir()
+    if folder is None:
+        return (), ["no ../shared/scenes folder next to the current directory or the repository: "
+                    "benchmarking without the real scenes"]
+    found, notes = [], []
+    for name in names:
+        path = folder / name
+        if path.is_file():
+            found.append(os.path.relpath(path))
+        else:
+            notes.append(f"{name} not found in {os.path.relpath(folder)}: skipped")
+    return tuple(found), notes
+
+
+def load_scenes(specs: tuple[str, ...]) -> list[BenchScene]:
+    """Every scene of ``specs`` ("demo" or a file; all checked to exist before the first
+    loads), named after its file (made unique), with its first camera or one framing it."""
+    loaded, names = [], set()
+    for spec in specs:
+        if spec != DEMO and not os.path.isfile(spec):
+            raise UserError(f"{spec}: no such file" if not os.path.exists(spec) else f"{spec}: not a scene file")
+    for spec in specs:
+        result = load_now(spec)
+        for warning in result.warnings:
+            print(f"warning: {warning}", file=sys.stderr)
+        scene = result.scene
+        if result.cameras:
+            camera, origin = result.cameras[0], ("its first view" if spec == DEMO
+                                                 else f"the first camera of {result.cameras_path}")
+        else:
+            camera, origin = frame_points(scene.positions), "a camera framing its gaussians (no cameras.json)"
+        name = DEMO if spec == DEMO else Path(spec).stem
+        base, n = name, 2
+        while name in names:
+            name, n = f"{base}-{n}", n + 1
+        names.add(name)
+        description = f"{scene.count:,} gaussians, SH degree {scene.sh_degree}; training-like view: {origin}"
+        loaded.append(BenchScene(name, scene, camera, description))
+    return loaded
+
+
+# --- running ----------------------------------------------------------------------------------------
+
+@contextlib.contextmanager
+def gl_context(ctx=None, backend: str | None = None) -> Iterator:
+    """``ctx``, or a new headless context (``backend``) released on leaving."""
+    if ctx is not None:
+        yield ctx
+        return
+    ctx = create_headless_context(backend)
+    try:
+        yield ctx
+    finally:
+        ctx.release()
+
+
+def printer(out: TextIO | None = None) -> Callable[..., None]:
+    """say(line): one line to ``out`` (stdout), flushed so progress shows while it runs."""
+    out = out or sys.stdout
+
+    def say(line: str = "") -> None:
+        print(line, file=out, flush=True)
+
+    return say
+
+
+def median(values: list[float]) -> float:
+    """The median of the finite values (NaN marks a timing the driver did not deliver);
+    NaN for none."""
+    finite = [v for v in values if math.isfinite(v)]
+    return float(np.median(finite)) if finite else math.nan
+
+
+# --- error metrics ----------------------------------------------------------------------------------
+
+def psnr(mse: float) -> float:
+    """10 log10(1 / MSE) for a peak of 1; inf for an exact match."""
+    return math.inf if mse == 0 else 10.0 * math.log10(1.0 / mse)
+
+
+def error_metrics(image: np.ndarray, truth: np.ndarray) -> dict[str, float]:
+    """PSNR (dB), 99th percentile and maximum of |image - truth| over all RGB values
+    (alpha ignored), in float64, unclipped."""
+    if image.shape[:2] != truth.shape[:2]:
+        raise ValueError(f"image {image.shape} and ground truth {truth.shape} differ in size")
+    error = np.abs(np.asarray(image, np.float64)[..., :3] - np.asarray(truth, np.float64)[..., :3])
+    return {"psnr": psnr(float(np.mean(error * error))),
+            "p99": float(np.quantile(error, 0.99)),
+            "max": float(error.max())}
+
+
+def fmt_error(value: float) -> str:
+    """An absolute error for a table: two significant digits when small, else three decimals."""
+    return "nan" if math.isnan(value) else f"{value:.2g}" if value < 0.01 else f"{value:.3f}"
+
+
+# --- outputs ----------------------------------------------------------------------------------------
+
+def png_bytes(image) -> bytes:
+    """A Pillow image encoded as PNG."""
+    buffer = io.BytesIO()
+    image.save(buffer, format="PNG")
+    return buffer.getvalue()
+
+
+def write_report(path: Path, text: str, overwrite: bool) -> None:
+    """A markdown report, written atomically (UTF-8)."""
+    write_atomically(path, text.encode("utf-8"), overwrite)
+
+
+def write_plot(path: Path, image, overwrite: bool) -> None:
+    """A Pillow image, written atomically as PNG."""
+    write_atomically(path, png_bytes(image), overwrite)

@@ -1,0 +1,113 @@
+"""The command line's argument types and the options every parser shares.
+
+A type raises ``argparse.ArgumentTypeError`` with what is wrong; :class:`Parser` turns
+that, and every other parsing error, into a :class:`UserError`, which ``main`` prints as
+one line, ``error: <what and where>``, with exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from typing import Callable
+
+from raygs_viewer.capture.screenshot import MAX_SCALE
+from raygs_viewer.errors import UserError
+from raygs_viewer.render.settings import MAX_MIP_SIGMA2, MAX_SUPERSAMPLE
+
+#: The longest side of an image the benchmarks accept, in pixels.
+MAX_SIDE = 16384
+
+
+class Parser(argparse.ArgumentParser):
+    def error(self, message: str):  # one line, like every other error
+        raise UserError(f"{message} (see '{self.prog} --help')")
+
+
+def whole_number(low: int, high: float, meaning: str | None = None) -> Callable[[str], int]:
+    """An argparse type: a whole number in [low, high]; ``meaning`` says the range in
+    words (default "outside LOW..HIGH")."""
+    meaning = meaning or f"outside {low}..{high}"
+
+    def parse(text: str) -> int:
+        try:
+            value = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"'{text}' is not a whole number") from None
+        if not low <= value <= high:
+            raise argparse.ArgumentTypeError(f"{value} is {meaning}")
+        return value
+    return parse
+
+
+def real_number(accept: Callable[[float], bool], meaning: str) -> Callable[[str], float]:
+    """An argparse type: a finite number that ``accept`` takes; ``meaning`` says which in words."""
+    def parse(text: str) -> float:
+        try:
+            value = float(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"'{text}' is not a number") from None
+        if not (math.isfinite(value) and accept(value)):
+            raise argparse.ArgumentTypeError(f"{text} is {meaning}")
+        return value
+    return parse
+
+
+positive_int = whole_number(1, 65536)
+sh_degree = whole_number(0, 3, "not 0, 1, 2 or 3")
+frames = whole_number(1, math.inf, "not at least 1")
+supersample = whole_number(1, MAX_SUPERSAMPLE)
+p_min = real_number(lambda v: 0.0 < v < 1.0, "not in (0, 1)")
+turntable = real_number(lambda v: abs(v) <= 180, "not between -180 and 180")
+mip_sigma2 = real_number(lambda v: 0.0 <= v <= MAX_MIP_SIGMA2, f"not in [0, {MAX_MIP_SIGMA2:g}] px^2")
+screenshot_scale = real_number(lambda v: 0.0 < v <= MAX_SCALE, f"not in (0, {MAX_SCALE:g}]")
+
+
+def color(text: str) -> tuple[float, float, float]:
+    """An argparse type: R,G,B, three finite numbers."""
+    try:
+        parts = tuple(float(part) for part in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not three numbers R,G,B") from None
+    if len(parts) != 3 or not all(math.isfinite(p) for p in parts):
+        raise argparse.ArgumentTypeError(f"'{text}' is not three finite numbers R,G,B")
+    return parts
+
+
+def size(text: str) -> tuple[int, int]:
+    """An argparse type: WIDTHxHEIGHT, two whole numbers (their range is the caller's to check)."""
+    parts = text.lower().split("x")
+    try:
+        width, height = (int(p) for p in parts)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not WIDTHxHEIGHT, e.g. 1832x1920") from None
+    return width, height
+
+
+def resolution(text: str) -> tuple[int, int]:
+    """An argparse type: WIDTHxHEIGHT with each side 1..MAX_SIDE."""
+    width, height = size(text)
+    if not (1 <= width <= MAX_SIDE and 1 <= height <= MAX_SIDE):
+        raise argparse.ArgumentTypeError(f"'{text}': each side must be 1..{MAX_SIDE} pixels")
+    return width, height
+
+
+def fov_pair(text: str) -> tuple[float, float]:
+    """An argparse type: H,V, two angles in degrees."""
+    try:
+        horizontal, vertical = (float(p) for p in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not two angles H,V in degrees, e.g. 100,95") from None
+    return horizontal, vertical
+
+
+def add_general_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--general", action="store_true",
+                        help="draw with the one all-features shader variant (features switched by uniforms) "
+                             "instead of the variant specialised to the scene and settings; the same image, "
+                             "slower: it shows what specialising saves")
+
+
+def add_backend_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--gl-backend", choices=("auto", "egl", "osmesa"),
+                        help="headless OpenGL (default: $RAYGS_GL_BACKEND or auto: EGL, else OSMesa)")

@@ -1,0 +1,307 @@
+"""``raygs-viewer bench accuracy|stereo|perf``: their options, the command line each run
+records (so that the report says how to reproduce it), the options handed to the
+benchmark (everything that can be checked is, before any work) and the dispatch.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import shlex
+from pathlib import Path
+
+from raygs_viewer.bench import accuracy, accuracy_report, perf
+from raygs_viewer.bench import stereo as stereo_bench
+from raygs_viewer.bench.common import DEMO, shared_scene_paths, write_report
+from raygs_viewer.camera import stereo as camera_stereo
+from raygs_viewer.capture.image_io import check_output_path
+from raygs_viewer.cli import argtypes
+from raygs_viewer.errors import UserError
+
+
+def add_parser(commands) -> None:
+    """Adds ``bench`` and its subcommands to the CLI's subparsers."""
+    bench = commands.add_parser("bench", help="benchmarks (accuracy against time; stereo sharing error and "
+                                              "frame budget; per-stage frame times and cost ratios)")
+    kinds = bench.add_subparsers(dest="bench", required=True, parser_class=type(bench))
+    _add_accuracy_parser(kinds)
+    _add_stereo_parser(kinds)
+    _add_perf_parser(kinds)
+
+
+def command(args: argparse.Namespace, ctx=None) -> int:
+    """Runs ``bench <kind>``. ``ctx``: a GL context to use instead of a new one (tests)."""
+    runs = {"accuracy": _run_accuracy, "stereo": _run_stereo, "perf": _run_perf}
+    if args.bench not in runs:
+        raise UserError(f"unknown benchmark '{args.bench}'")
+    return runs[args.bench](args, ctx)
+
+
+# --- shared ---------------------------------------------------------------------------------------
+
+def recorded_command(kind: str, args: argparse.Namespace, flags: tuple[str, ...],
+                     defaults: dict[str, object] | None = None) -> str:
+    """``raygs-viewer bench KIND`` and, in the order of ``flags``, every option given: a
+    switch alone, a list (even empty) as its words, WxH sizes as such. An option whose
+    value is None, False or its entry in ``defaults`` (by argparse dest) is left out."""
+    parts = ["raygs-viewer", "bench", kind]
+    for flag in flags:
+        dest = flag.removeprefix("--").replace("-", "_")
+        value = getattr(args, dest)
+        if value is None or value is False or (defaults and dest in defaults and value == defaults[dest]):
+            continue
+        if value is True:
+            parts.append(flag)
+        else:
+            words = value if isinstance(value, list) else [value]
+            parts += [flag, *("x".join(map(str, w)) if isinstance(w, tuple) else str(w) for w in words)]
+    return shlex.join(parts)
+
+
+def _report_path(path: str | Path | None, overwrite: bool) -> Path | None:
+    return None if path is None else check_output_path(path, overwrite, (".md",))
+
+
+def _plot_path(path: str | Path | None, overwrite: bool) -> Path | None:
+    return None if path is None else check_output_path(path, overwrite, (".png",))
+
+
+def _check_distinct(report: Path, plot: Path) -> None:
+    if os.path.abspath(report) == os.path.abspath(plot):
+        raise UserError(f"{report}: the report and the plot must be different files")
+
+
+def _add_scenes_option(parser: argparse.ArgumentParser) -> None:
+    """accuracy's and stereo's --scenes (perf's may be empty: generated scenes only)."""
+    parser.add_argument("--scenes", nargs="+", metavar="SCENE",
+                        help=f"scene files (or '{DEMO}') instead of the demo and the real scenes in ../shared/scenes")
+
+
+def _add_width_and_repeat(parser: argparse.ArgumentParser, width_help: str, repeat_help: str) -> None:
+    """accuracy's and stereo's --width (of the views measured) and --repeat (timed frames)."""
+    parser.add_argument("--width", type=argtypes.whole_number(4, argtypes.MAX_SIDE), metavar="PX", help=width_help)
+    parser.add_argument("--repeat", type=argtypes.whole_number(1, 100000), metavar="N", help=repeat_help)
+
+
+def _print_notes(notes: tuple[str, ...]) -> None:
+    for note in notes:
+        print(f"note: {note}", flush=True)
+
+
+# --- accuracy ------------------------------------------------------------------------------------
+
+#: The options of a recorded ``bench accuracy`` command, in their order there.
+ACCURACY_FLAGS = ("--quick", "--scenes", "--width", "--repeat", "--gt-samples", "--gt-p-min", "--gl-backend",
+                  "--report", "--plot", "--overwrite")
+
+
+ACCURACY_DESCRIPTION = ("For every accuracy configuration and every view class (training-like, far at 1/4 "
+                        "resolution, very close) of the demo and the shared real scenes: GPU time per frame "
+                        "(timer queries, as a ratio to plain RayGS) and the error against the ground truth "
+                        "(PSNR, p99, max). Writes a markdown report and a PNG plot.")
+
+
+def _add_accuracy_parser(kinds) -> None:
+    parser = kinds.add_parser("accuracy", help="GPU time and error against ground truth of every accuracy option",
+                              description=ACCURACY_DESCRIPTION)
+    parser.add_argument("--quick", action="store_true",
+                        help=f"the demo and one small real scene, {accuracy.QUICK_WIDTH} px wide, "
+                             f"{accuracy.QUICK_REPEAT} timed frames, ground truth "
+                             f"{accuracy.QUICK_GT_SAMPLES}x{accuracy.QUICK_GT_SAMPLES} samples (about two minutes)")
+    _add_scenes_option(parser)
+    _add_width_and_repeat(parser,
+                          f"width of the training-like view (default {accuracy.DEFAULT_WIDTH}, --quick "
+                          f"{accuracy.QUICK_WIDTH}); the far view has a quarter of it",
+                          f"timed frames per configuration (default {accuracy.DEFAULT_REPEAT}, --quick "
+                          f"{accuracy.QUICK_REPEAT}); use at least 10")
+    parser.add_argument("--gt-samples", type=argtypes.whole_number(1, 64), metavar="N",
+                        help=f"ground-truth samples per pixel axis for the training-like and close views "
+                             f"(default {accuracy.DEFAULT_GT_SAMPLES}, --quick {accuracy.QUICK_GT_SAMPLES}); the "
+                             f"far view uses {accuracy.FAR_GT_FACTOR} times as many")
+    parser.add_argument("--gt-p-min", type=argtypes.p_min, metavar="P",
+                        help=f"opacity cut-off of the ground truth (default {accuracy.GT_P_MIN:g}, below every "
+                             f"configuration's, so that the p_min rows are judged against the faint tails too)")
+    parser.add_argument("--report", default=accuracy.DEFAULT_REPORT, metavar="PATH.md",
+                        help=f"markdown report (default {accuracy.DEFAULT_REPORT})")
+    parser.add_argument("--plot", default=accuracy.DEFAULT_PLOT, metavar="PATH.png",
+                        help=f"plot of PSNR against time (default {accuracy.DEFAULT_PLOT})")
+    parser.add_argument("--overwrite", action="store_true",
+                        help="replace an existing report and plot (the report's human verdict is kept)")
+    argtypes.add_backend_option(parser)
+
+
+def accuracy_command_line(args: argparse.Namespace) -> str:
+    """The command that reproduces this run (options in a fixed order)."""
+    return recorded_command("accuracy", args, ACCURACY_FLAGS)
+
+
+def accuracy_options(args: argparse.Namespace) -> accuracy.AccuracyOptions:
+    notes: list[str] = []
+    if args.scenes:
+        scenes = tuple(args.scenes)
+    else:
+        scenes, notes = accuracy.default_scenes(args.quick)
+    report, plot = Path(args.report), Path(args.plot)
+    _check_distinct(report, plot)
+    return accuracy.AccuracyOptions(
+        scenes=scenes,
+        width=args.width or (accuracy.QUICK_WIDTH if args.quick else accuracy.DEFAULT_WIDTH),
+        repeat=args.repeat or (accuracy.QUICK_REPEAT if args.quick else accuracy.DEFAULT_REPEAT),
+        gt_samples=args.gt_samples or (accuracy.QUICK_GT_SAMPLES if args.quick else accuracy.DEFAULT_GT_SAMPLES),
+        report=_report_path(report, args.overwrite),
+        plot=_plot_path(plot, args.overwrite),
+        overwrite=args.overwrite,
+        command_line=accuracy_command_line(args),
+        gl_backend=args.gl_backend,
+        notes=tuple(notes),
+        gt_p_min=accuracy.GT_P_MIN if args.gt_p_min is None else args.gt_p_min,
+    )
+
+
+def _run_accuracy(args: argparse.Namespace, ctx) -> int:
+    options = accuracy_options(args)
+    _print_notes(options.notes)
+    results = accuracy.run_accuracy(options, ctx)
+    accuracy_report.write_outputs(results, options.report, options.plot, options.overwrite)
+    print(f"wrote {options.report} and {options.plot}", flush=True)
+    return 0
+
+
+# --- stereo --------------------------------------------------------------------------------------
+
+#: The options of a recorded ``bench stereo`` command, in their order there.
+STEREO_FLAGS = ("--quick", "--scenes", "--presets", "--width", "--repeat", "--out", "--gl-backend", "--overwrite")
+
+
+STEREO_DESCRIPTION = ("For the demo and the shared real scenes: the error of the shared stereo images (one sort "
+                      "and SH colour from the eyes' midpoint) against per-eye ones, in the training-like and very "
+                      "close views at 1 m per unit and with the scene 1 m across, taken apart into sort and "
+                      "colour; and the GPU time of both eyes at every headset preset's resolution against each "
+                      "refresh rate's frame budget. Prints markdown tables and machine-readable lines.")
+
+
+def _add_stereo_parser(kinds) -> None:
+    parser = kinds.add_parser(
+        "stereo", help="what the shared stereo sort and colour cost, and both eyes' time per headset preset",
+        description=STEREO_DESCRIPTION)
+    parser.add_argument("--quick", action="store_true",
+                        help=f"the demo scene only, {stereo_bench.QUICK_REPEAT} timed frames per preset (a few "
+                             f"seconds)")
+    _add_scenes_option(parser)
+    parser.add_argument("--presets", nargs="+", metavar="PRESET",
+                        help="headset presets to time (default: all of " + ", ".join(camera_stereo.PRESETS) + ")")
+    _add_width_and_repeat(parser,
+                          f"width of the views the sharing error is measured in (default {stereo_bench.DEFAULT_WIDTH})",
+                          f"timed frames per preset (default {stereo_bench.DEFAULT_REPEAT}, --quick "
+                          f"{stereo_bench.QUICK_REPEAT})")
+    parser.add_argument("--out", metavar="PATH.md", help="also write the markdown report there")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
+    argtypes.add_backend_option(parser)
+
+
+def stereo_command_line(args: argparse.Namespace) -> str:
+    """The command that reproduces this run (options in a fixed order)."""
+    return recorded_command("stereo", args, STEREO_FLAGS)
+
+
+def stereo_options(args: argparse.Namespace) -> stereo_bench.StereoOptions:
+    """Checks everything that can be checked before any work (presets, the output path)."""
+    presets = tuple(dict.fromkeys(args.presets or camera_stereo.PRESETS))
+    for name in presets:
+        if name not in camera_stereo.PRESETS:
+            raise UserError(f"unknown headset preset '{name}': use one of {', '.join(camera_stereo.PRESETS)}")
+    notes: list[str] = []
+    if args.scenes:
+        scenes = tuple(args.scenes)
+    elif args.quick:
+        scenes = (DEMO,)
+    else:
+        scenes, notes = accuracy.default_scenes(False)
+    return stereo_bench.StereoOptions(
+        scenes=scenes, presets=presets,
+        width=args.width or stereo_bench.DEFAULT_WIDTH,
+        repeat=args.repeat or (stereo_bench.QUICK_REPEAT if args.quick else stereo_bench.DEFAULT_REPEAT),
+        out=_report_path(args.out, args.overwrite),
+        overwrite=args.overwrite, command_line=stereo_command_line(args), gl_backend=args.gl_backend,
+        notes=tuple(notes))
+
+
+def _run_stereo(args: argparse.Namespace, ctx) -> int:
+    options = stereo_options(args)
+    _print_notes(options.notes)
+    results = stereo_bench.run_stereo(options, ctx)
+    report = stereo_bench.format_report(results)
+    print("", flush=True)
+    print(report, flush=True)
+    if options.out is not None:
+        write_report(options.out, report, options.overwrite)
+        print(f"wrote {options.out}", flush=True)
+    return 0
+
+
+# --- perf ----------------------------------------------------------------------------------------
+
+#: The options of a recorded ``bench perf`` command, in their order there.
+PERF_FLAGS = ("--quick", "--counts", "--sizes", "--resolutions", "--scenes", "--frames", "--report", "--plot",
+              "--gl-backend", "--overwrite")
+
+
+def _add_perf_parser(kinds) -> None:
+    parser = kinds.add_parser(
+        "perf", help="per-stage frame times and the cost ratios (RayGS/GS, floor, specialisation, sort)",
+        description="Times every stage of a moving-view frame (cull, sort, upload, preprocess, draw) for "
+                    "generated scenes of 10k, 100k and 1M gaussians, small and large on screen, and the shared "
+                    "real scenes, at 1280x720 and 1920x1080; in the same frames EWA splatting, the floor pass "
+                    "(the same quads, constant fragment), the general shader variant and a float argsort. "
+                    "Prints a line per case and the ratios as 'NAME VALUE' lines.")
+    parser.add_argument("--quick", action="store_true",
+                        help="10k and 100k gaussians, one real scene, 1280x720 only (under two minutes on two "
+                             "CPU cores)")
+    parser.add_argument("--counts", nargs="+", type=argtypes.whole_number(1, 100_000_000), metavar="N",
+                        help="generated scene sizes (default 10000 100000 1000000; --quick 10000 100000)")
+    parser.add_argument("--sizes", nargs="+", choices=tuple(perf.SIZES), help="footprints (default: both)")
+    parser.add_argument("--resolutions", nargs="+", type=argtypes.resolution, metavar="WxH",
+                        help="default 1280x720 1920x1080; --quick 1280x720")
+    parser.add_argument("--scenes", nargs="*", metavar="SCENE",
+                        help="real scene files (or 'demo') instead of those found in ../shared/scenes; "
+                             "none: generated scenes only")
+    parser.add_argument("--frames", type=argtypes.whole_number(1, 100000), default=perf.DEFAULT_FRAMES, metavar="N",
+                        help=f"timed frames per case, after one warm-up (default {perf.DEFAULT_FRAMES})")
+    parser.add_argument("--report", metavar="PATH.md", help="also write a markdown report there")
+    parser.add_argument("--plot", metavar="PATH.png", help="also write the plot of frame time against N there")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing report or plot")
+    argtypes.add_backend_option(parser)
+
+
+def perf_command_line(args: argparse.Namespace) -> str:
+    """The command that reproduces this run (options in a fixed order, --frames only when not the default)."""
+    return recorded_command("perf", args, PERF_FLAGS, {"frames": perf.DEFAULT_FRAMES})
+
+
+def perf_options(args: argparse.Namespace) -> perf.PerfOptions:
+    """Checks everything that can be checked before any work."""
+    notes: list[str] = []
+    if args.scenes is not None:
+        scenes = tuple(args.scenes)
+    else:
+        scenes, notes = shared_scene_paths(perf.QUICK_REAL_SCENES if args.quick else perf.REAL_SCENES)
+    report = _report_path(args.report, args.overwrite)
+    plot = _plot_path(args.plot, args.overwrite)
+    if report is not None and plot is not None:
+        _check_distinct(report, plot)
+    return perf.PerfOptions(
+        counts=tuple(dict.fromkeys(args.counts or (perf.QUICK_COUNTS if args.quick else perf.COUNTS))),
+        sizes=tuple(dict.fromkeys(args.sizes or perf.SIZES)),
+        resolutions=tuple(dict.fromkeys(args.resolutions
+                                        or (perf.QUICK_RESOLUTIONS if args.quick else perf.RESOLUTIONS))),
+        scenes=scenes, frames=args.frames, command_line=perf_command_line(args), report=report, plot=plot,
+        overwrite=args.overwrite, gl_backend=args.gl_backend, notes=tuple(notes))
+
+
+def _run_perf(args: argparse.Namespace, ctx) -> int:
+    options = perf_options(args)
+    _print_notes(options.notes)
+    results = perf.run_perf(options, ctx)
+    for path in perf.write_outputs(results):
+        print(f"wrote {path}", flush=True)
+    return 0

@@ -1,0 +1,121 @@
+"""``raygs-viewer view``: the interactive window, the default command.
+
+Parsing its options imports no window code: glfw and imgui load only when the window
+opens.
+"""
+
+from __future__ import annotations
+
+from raygs_viewer.camera.navigation import UP_AXES as NAVIGATION_UP_AXES
+from raygs_viewer.camera.stereo import (
+    DEFAULT_HEADSET,
+    PRESETS,
+    StereoView,
+    custom_preset,
+)
+from raygs_viewer.capture.screenshot import check_screenshot_path
+from raygs_viewer.cli import argtypes
+from raygs_viewer.cli.options import (
+    DEFAULT_BACKGROUND,
+    accuracy_settings,
+    add_settings_options,
+    add_stereo_options,
+    stereo_rig,
+)
+from raygs_viewer.errors import UserError
+from raygs_viewer.render.settings import DEFAULT_P_MIN
+from raygs_viewer.scene.loader import DEMO
+
+#: --up-axis's choices, in the navigation's order.
+UP_AXES = tuple(NAVIGATION_UP_AXES)
+
+
+def add_parser(commands) -> None:
+    """Adds ``view`` to the CLI's subparsers: the fields of app.ViewerOptions."""
+    parser = commands.add_parser("view", help="open the interactive window (the default command)")
+    parser.add_argument("scene", nargs="?", default=DEMO, help=f"a .ply or .splat file, or '{DEMO}' (default)")
+    parser.add_argument("--cameras", metavar="CAMERAS.json",
+                        help="the scene's training cameras (default: a cameras.json found next to the scene)")
+    parser.add_argument("--camera", metavar="CAMERAS.json", help="start at a camera of this INRIA cameras.json")
+    parser.add_argument("--camera-index", type=int, default=0, metavar="I",
+                        help="which camera of --camera to start at (default 0)")
+    parser.add_argument("--width", type=argtypes.positive_int, default=1280, help="window width (default 1280)")
+    parser.add_argument("--height", type=argtypes.positive_int, default=720, help="window height (default 720)")
+    add_settings_options(parser, DEFAULT_P_MIN, DEFAULT_BACKGROUND)
+    parser.add_argument("--frames", type=argtypes.frames, metavar="N", help="quit after drawing N frames")
+    parser.add_argument("--screenshot", metavar="PATH.png",
+                        help="save the last frame there, with a .json sidecar beside it (never replaces a file)")
+    parser.add_argument("--screenshot-dir", default="screenshots", metavar="DIR",
+                        help="where F12 and the panel save screenshots (default ./screenshots)")
+    parser.add_argument("--screenshot-scale", type=argtypes.screenshot_scale, default=1.0, metavar="K",
+                        help="screenshots render offscreen at K times the window size, 0 < K <= 8 (default 1)")
+    parser.add_argument("--no-vsync", action="store_true", help="draw as fast as possible")
+    parser.add_argument("--orbit", action="store_true", help="start in orbit navigation instead of fly")
+    parser.add_argument("--window-screenshot", metavar="PATH.png",
+                        help="with --frames: save the whole window, panel included, after the last frame")
+    parser.add_argument("--turntable", type=argtypes.turntable, default=0.0, metavar="DEG",
+                        help="orbit about the up axis by DEG degrees every frame (a reproducible "
+                             "fly-around, e.g. to measure the frame rate with --frames)")
+    parser.add_argument("--up-axis", choices=UP_AXES, default="-y",
+                        help="world up, for navigation (default -y, the OpenCV/COLMAP convention)")
+    parser.add_argument("--window-platform", choices=("auto", "x11", "wayland", "null"), default="auto",
+                        help="GLFW platform (default auto: null without a display)")
+    add_stereo_options(parser, window=True)
+    argtypes.add_general_option(parser)
+    parser.add_argument("--save-eyes", action="store_true",
+                        help="stereo screenshots also save each eye on its own (-left, -right), besides the pair")
+
+
+def join_up_axis(argv: list[str]) -> list[str]:
+    """``--up-axis -y`` -> ``--up-axis=-y``: argparse takes a value starting with '-' for
+    an option and would report the axis missing."""
+    joined, i = [], 0
+    while i < len(argv):
+        if argv[i] == "--":
+            joined.extend(argv[i:])
+            break
+        if argv[i] == "--up-axis" and i + 1 < len(argv) and argv[i + 1] in UP_AXES:
+            joined.append(f"--up-axis={argv[i + 1]}")
+            i += 2
+        else:
+            joined.append(argv[i])
+            i += 1
+    return joined
+
+
+def _viewer_stereo_options(args) -> dict:
+    """ViewerOptions' stereo fields (the panel's start values)."""
+    view = StereoView(stereo_rig(args), args.layout or "sbs")  # checks the values before the window opens
+    return {"stereo": args.stereo, "ipd": view.rig.ipd, "convergence": view.rig.convergence,
+            "scene_scale": view.rig.scene_scale, "stereo_layout": view.layout,
+            "lens_preview": bool(args.lens_preview), "headset": _headset(args), "save_eyes": args.save_eyes}
+
+
+def _headset(args):
+    """view's headset preset: --headset, or custom when --headset-size/--headset-fov are given."""
+    custom = args.headset_size is not None or args.headset_fov is not None
+    if args.headset not in (None, "custom") and custom:
+        raise UserError(f"--headset-size and --headset-fov describe a custom headset; drop --headset {args.headset}")
+    if custom or args.headset == "custom":
+        if args.headset_size is None or args.headset_fov is None:
+            raise UserError("a custom headset needs both --headset-size WxH and --headset-fov H,V")
+        return custom_preset(*args.headset_size, *args.headset_fov)
+    return PRESETS[args.headset or DEFAULT_HEADSET]
+
+
+def command_view(args) -> int:
+    # The window's imports (glfw, imgui) only when it opens.
+    from raygs_viewer.viewer import app
+
+    if args.screenshot is not None:
+        check_screenshot_path(args.screenshot)  # before the window opens and the scene loads
+    options = app.ViewerOptions(
+        scene=args.scene, cameras=args.cameras, camera=args.camera, camera_index=args.camera_index,
+        width=args.width, height=args.height, p_min=args.p_min, background=args.background,
+        sh_degree=args.sh_degree, frames=args.frames, screenshot=args.screenshot,
+        screenshot_dir=args.screenshot_dir, screenshot_scale=args.screenshot_scale, vsync=not args.no_vsync,
+        navigation="orbit" if args.orbit else "fly", up_axis=args.up_axis, platform=args.window_platform,
+        turntable=args.turntable, window_screenshot=args.window_screenshot, general=args.general,
+        **accuracy_settings(args),
+        **_viewer_stereo_options(args))
+    return app.run_viewer(options)
