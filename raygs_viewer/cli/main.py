@@ -235,13 +235,13 @@ def _stereo_rig(args):
                         if getattr(args, dest) is not None})
 
 
-def _viewer_stereo_options(args) -> dict:
-    """ViewerOptions' stereo fields (the panel's start values)."""
-    from raygs_viewer.camera.stereo import StereoView
-    view = StereoView(_stereo_rig(args), args.layout or "sbs")  # checks the values before the window opens
-    return {"stereo": args.stereo, "ipd": view.rig.ipd, "convergence": view.rig.convergence,
-            "scene_scale": view.rig.scene_scale, "stereo_layout": view.layout,
-            "lens_preview": bool(args.lens_preview), "headset": _headset(args), "save_eyes": args.save_eyes}
+def _viewer_stereo_options(args):
+    """The stereo preview's start value (app.StereoPreview; the panel's, for switching
+    it on later too)."""
+    from raygs_viewer.viewer import app  # the window's imports (glfw, imgui) only when it opens
+    rig = _stereo_rig(args)  # checks the values before the window opens
+    return app.StereoPreview.of(_headset(args), on=args.stereo, rig=rig, layout=args.layout or "sbs",
+                                lens_preview=bool(args.lens_preview), save_eyes=args.save_eyes)
 
 
 def _headset(args):
@@ -538,22 +538,21 @@ def _describe_accuracy(settings) -> str:
 
 
 def _command_view(args) -> int:
+    # Each command imports what it needs when it runs: --help and the other commands start fast.
     from raygs_viewer.capture.screenshot import check_screenshot_path
-    from raygs_viewer.viewer import (
-        app,  # the window's imports (glfw, imgui) only when it opens
-    )
+    from raygs_viewer.viewer import app  # the window's imports (glfw, imgui) only when it opens
 
     if args.screenshot is not None:
         check_screenshot_path(args.screenshot)  # before the window opens and the scene loads
     options = app.ViewerOptions(
         scene=args.scene, cameras=args.cameras, camera=args.camera, camera_index=args.camera_index,
-        width=args.width, height=args.height, p_min=args.p_min, background=args.background,
-        sh_degree=args.sh_degree, frames=args.frames, screenshot=args.screenshot,
-        screenshot_dir=args.screenshot_dir, screenshot_scale=args.screenshot_scale, vsync=not args.no_vsync,
-        navigation="orbit" if args.orbit else "fly", up_axis=args.up_axis, platform=args.window_platform,
-        turntable=args.turntable, window_screenshot=args.window_screenshot, general=args.general,
-        **_accuracy_settings(args),
-        **_viewer_stereo_options(args))
+        width=args.width, height=args.height, settings=_settings(args), frames=args.frames,
+        screenshot=args.screenshot, window_screenshot=args.window_screenshot,
+        screenshots=app.ScreenshotOptions(folder=args.screenshot_dir, scale=args.screenshot_scale),
+        vsync=not args.no_vsync, platform=args.window_platform, general=args.general,
+        navigation=app.NavigationChoices(mode="orbit" if args.orbit else "fly", up_axis=args.up_axis,
+                                         turntable=args.turntable),
+        stereo=_viewer_stereo_options(args))
     return app.run_viewer(options)
 
 
