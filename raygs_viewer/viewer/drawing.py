@@ -15,10 +15,10 @@ import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera, camera_key
 from raygs_viewer.camera.stereo import StereoView
+from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.gl.mono_frame import MonoFrame
 from raygs_viewer.render.gl.stereo_frame import StereoFrame
 from raygs_viewer.render.gl.timing import GpuTimer
-from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.viewer.state import PanelState
 from raygs_viewer.viewer.stats import FrameStats

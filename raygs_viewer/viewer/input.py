@@ -11,7 +11,7 @@ from __future__ import annotations
 import math
 from typing import Callable, Mapping
 
-from imgui_bundle import imgui  # noqa: I001  (before glfw anywhere: see raygs_viewer.viewer.window)
+from imgui_bundle import imgui
 
 from raygs_viewer.camera.navigation import Navigator
 from raygs_viewer.camera.pinhole import Camera

@@ -4,7 +4,7 @@ panel)."""
 
 from __future__ import annotations
 
-from imgui_bundle import imgui  # noqa: I001  (before glfw anywhere: see raygs_viewer.viewer.window)
+from imgui_bundle import imgui
 
 from raygs_viewer.render.settings import DEFAULT_P_MIN, MODE_LABELS, RenderSettings
 from raygs_viewer.viewer.state import SplitView

@@ -60,9 +60,9 @@ def take_screenshots(renderer, loaded: LoadedScene, shown: ShownView, options: S
     camera = scaled_camera(shown.camera, scale)
     scene_path = loaded.path if loaded.path == "demo" else os.path.abspath(loaded.path)
 
-    def sidecar(settings: RenderSettings, extra_: dict, stereo: StereoView | None = None) -> dict:
+    def sidecar(settings: RenderSettings, details: dict, stereo: StereoView | None = None) -> dict:
         return build_sidecar(scene_path=scene_path, scene_sha256=loaded.sha256, scene=loaded.scene, camera=camera,
-                             settings=settings, scale=scale, window_camera=shown.camera, extra=extra_, stereo=stereo)
+                             settings=settings, scale=scale, window_camera=shown.camera, extra=details, stereo=stereo)
 
     if shown.stereo is not None:
         shots = [(image, sidecar(shown.settings, {**extra, "stereo_window_layout": shown.stereo.layout}, view), tag)

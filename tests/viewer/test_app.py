@@ -79,7 +79,8 @@ def test_e_and_q_move_along_the_world_up_axis(open_viewer, key_name, sign, up_ax
     drive.frames(1)
     drive.key(getattr(imgui.Key, key_name), False)
     drive.frames(1)
-    np.testing.assert_allclose(viewer.camera.center - before, sign * up_vector(up_axis) * viewer.view.navigator.speed * 0.1,
+    np.testing.assert_allclose(viewer.camera.center - before,
+                               sign * up_vector(up_axis) * viewer.view.navigator.speed * 0.1,
                                atol=1e-9)
 
 
@@ -98,7 +99,8 @@ def test_shift_moves_faster_and_wheel_changes_speed(open_viewer):
     drive.key(imgui.Key.w, False)
     drive.key(imgui.Key.mod_shift, False)
     drive.frames(1)
-    assert np.linalg.norm(viewer.camera.center - before) == pytest.approx(4 * viewer.view.navigator.speed * 0.1, rel=1e-6)
+    assert np.linalg.norm(viewer.camera.center - before) == pytest.approx(4 * viewer.view.navigator.speed * 0.1,
+                                                                          rel=1e-6)
 
 
 def test_mouse_drag_looks_around_in_fly_mode(open_viewer):
@@ -189,7 +191,7 @@ def test_panel_click_changes_the_setting_and_the_image(open_viewer):
 
 
 def test_panel_accuracy_controls_change_the_settings_and_the_image(open_viewer):
-    """Every accuracy control of the panel reaches Viewer.settings() and redraws the window
+    """Every accuracy control of the panel reaches Viewer.settings and redraws the window
     with exactly those settings; controls that do not apply to the mode are greyed out."""
     from raygs_viewer.viewer.panel.widgets import item_rects
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)

@@ -519,11 +519,12 @@ def test_tab_switches_navigation_with_the_panel_open_and_the_keys_keep_steering(
             drive.key(key, False)
         drive.frames(1)
         assert not imgui.get_io().want_capture_keyboard, chord
-        assert viewer.view.navigator.mode == (mode if imgui.Key.tab not in chord else {"fly": "orbit", "orbit": "fly"}[mode])
+        assert viewer.view.navigator.mode == (mode if imgui.Key.tab not in chord
+                                              else {"fly": "orbit", "orbit": "fly"}[mode])
     assert_w_moves_at_default_speed(viewer, drive)
     drive.tap(imgui.Key.r)
-    expected = framing_pose(viewer.view.center, viewer.view.radius, viewer.view.navigator.up, viewer.view.lens.fov_y_degrees,
-                            PANEL_WIDTH / PANEL_HEIGHT)
+    expected = framing_pose(viewer.view.center, viewer.view.radius, viewer.view.navigator.up,
+                            viewer.view.lens.fov_y_degrees, PANEL_WIDTH / PANEL_HEIGHT)
     np.testing.assert_allclose(viewer.camera.R, expected.R, atol=1e-12)
     np.testing.assert_allclose(viewer.camera.center, expected.position, atol=1e-9 * viewer.view.radius)
     assert viewer.settings == settings_before and viewer.panel.open_path == open_path
@@ -580,8 +581,8 @@ def test_any_sequence_of_extreme_input_keeps_the_viewer_sane_and_usable(open_vie
         assert_matches(window_image(viewer), headless(viewer))
         # ...reset view frames the scene as documented, and W still moves the camera.
         drive.tap(imgui.Key.r)
-        expected = framing_pose(viewer.view.center, viewer.view.radius, viewer.view.navigator.up, viewer.view.lens.fov_y_degrees,
-                                WIDTH / HEIGHT)
+        expected = framing_pose(viewer.view.center, viewer.view.radius, viewer.view.navigator.up,
+                                viewer.view.lens.fov_y_degrees, WIDTH / HEIGHT)
         np.testing.assert_allclose(viewer.camera.R, expected.R, atol=1e-12)
         np.testing.assert_allclose(viewer.camera.center, expected.position, atol=1e-9 * viewer.view.radius)
         assert_w_moves_at_default_speed(viewer, drive)

@@ -337,5 +337,6 @@ def test_reset_view_frames_the_scene_for_the_eyes(open_viewer):
     viewer, drive = stereo_viewer(open_viewer, width=400, height=100)  # a window of another shape
     drive.frames(1)
     drive.tap(imgui.Key.r)
-    expected = framing_pose(viewer.view.center, viewer.view.radius, viewer.view.navigator.up, EYE.fov_y, EYE.width / EYE.height)
+    expected = framing_pose(viewer.view.center, viewer.view.radius, viewer.view.navigator.up, EYE.fov_y,
+                            EYE.width / EYE.height)
     np.testing.assert_allclose(viewer.view.navigator.pose.position, expected.position, atol=1e-9)

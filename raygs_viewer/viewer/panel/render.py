@@ -11,7 +11,7 @@ import math
 from dataclasses import replace
 from typing import Callable
 
-from imgui_bundle import imgui  # noqa: I001  (before glfw anywhere: see raygs_viewer.viewer.window)
+from imgui_bundle import imgui
 
 from raygs_viewer.render.settings import (
     ACCURACY_PRESETS,

@@ -3,7 +3,7 @@ drawn order is; the tooltips break the work down."""
 
 from __future__ import annotations
 
-from imgui_bundle import imgui  # noqa: I001  (before glfw anywhere: see raygs_viewer.viewer.window)
+from imgui_bundle import imgui
 
 from raygs_viewer.render.gl.renderer import WorkCounters
 from raygs_viewer.sort.worker import BackgroundSorter

@@ -7,7 +7,7 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
-from imgui_bundle import imgui  # noqa: I001  (before glfw anywhere: see raygs_viewer.viewer.window)
+from imgui_bundle import imgui
 
 from raygs_viewer.camera.stereo import MAX_EYE_SIZE, MAX_FOV, MIN_FOV, PRESETS, frame_budget
 from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, ms, remember, slider, tooltip

@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from typing import Callable
 
-from imgui_bundle import imgui  # noqa: I001  (before glfw anywhere: see raygs_viewer.viewer.window)
+from imgui_bundle import imgui
 
 from raygs_viewer.camera.navigation import UP_AXES, Navigator
 from raygs_viewer.viewer.panel.widgets import header, remember, slider, tooltip

@@ -8,7 +8,7 @@ from __future__ import annotations
 
 import math
 
-from imgui_bundle import imgui  # noqa: I001  (before glfw anywhere: see raygs_viewer.viewer.window)
+from imgui_bundle import imgui
 
 #: label -> (x0, y0, x1, y1) in screen coordinates of the last frame's widget.
 item_rects: dict[str, tuple[float, float, float, float]] = {}
