@@ -12,7 +12,9 @@ from raygs_viewer.capture.image_io import to_rgb8
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.loader import load_now
 from raygs_viewer.sort.worker import BackgroundSorter
-from raygs_viewer.viewer.app import Viewer, ViewerOptions
+from raygs_viewer.viewer.app import Viewer, ViewerOptions, start_camera
+from raygs_viewer.viewer.panel.widgets import item_rects
+from raygs_viewer.viewer.state import ScreenshotOptions
 
 WIDTH, HEIGHT = 192, 144
 PANEL_WIDTH, PANEL_HEIGHT = 640, 720  # room for the whole panel
@@ -71,10 +73,10 @@ class Driver:
     def wait_for_load(self) -> None:
         """Frames until the background load has finished and the window has taken its result."""
         for _ in range(3000):
-            if not self.viewer.loader.busy:
+            if not self.viewer.scenes.loader.busy:
                 break
             time.sleep(0.01)
-        assert not self.viewer.loader.busy
+        assert not self.viewer.scenes.loader.busy
         self.frames(1)
 
     def click(self, rect) -> None:
@@ -87,27 +89,21 @@ class Driver:
         self.frames(1)
 
 
-def _start_camera(options):
-    from raygs_viewer.viewer.app import start_camera
-    return start_camera(ViewerOptions(camera=options.get("camera")))
-
-
 def window_image(viewer: Viewer) -> np.ndarray:
     """The scene image the window shows (its float target), top row first."""
-    return viewer._target.read()
+    return viewer.drawer.mono.left.read()
 
 
 def right_image(viewer: Viewer) -> np.ndarray:
     """The split view's right side as drawn (its float target), top row first."""
-    return viewer._target_right.read()
+    return viewer.drawer.mono.right.read()
 
 
 def presented(viewer: Viewer) -> np.ndarray:
     """(h, w, 3) int: the viewport as the present pass shows it, without what imgui
     draws over it (panel, divider, labels)."""
-    width, height = viewer.window.framebuffer_size()
     x, y, w, h = viewer.viewport
-    return viewer._capture_window(width, height, x, y, w, h, overlay=False)[y:y + h, x:x + w].astype(int)
+    return viewer.capture_window(overlay=False)[y:y + h, x:x + w].astype(int)
 
 
 def split_expected(a: np.ndarray, b: np.ndarray, column: int) -> np.ndarray:
@@ -117,14 +113,13 @@ def split_expected(a: np.ndarray, b: np.ndarray, column: int) -> np.ndarray:
 
 def click_choice(drive: "Driver", tag: str, value: str) -> None:
     """Opens the panel's combo ``tag`` and picks ``value`` from it."""
-    from raygs_viewer.viewer.panel import item_rects
     drive.click(item_rects[tag])
     drive.frames(1)  # a popup's first frame places it; it is where it stays from the second on
     drive.click(item_rects[f"{tag} {value}"])
 
 
 def headless(viewer: Viewer, settings: RenderSettings | None = None) -> np.ndarray:
-    return viewer.renderer.render(viewer.camera, settings or viewer.settings())
+    return viewer.renderer.render(viewer.camera, settings or viewer.settings)
 
 
 def project(camera, point) -> np.ndarray:
@@ -135,16 +130,17 @@ def project(camera, point) -> np.ndarray:
 
 
 def open_viewer_factory(tmp_path):
-    """(open_, close_all): open_(scene, hide_panel, **ViewerOptions fields) -> (viewer, driver)."""
+    """(open_, close_all): open_(scene, hide_panel, **ViewerOptions fields and the Viewer's
+    renderer_factory / sorter_factory) -> (viewer, driver)."""
     viewers = []
 
     def open_(scene="demo", hide_panel=False, **options):
         options.setdefault("width", WIDTH)
         options.setdefault("height", HEIGHT)
-        options.setdefault("screenshot_dir", str(tmp_path / "shots"))
-        sorter_factory = options.pop("sorter_factory", None)
-        viewer = Viewer(ViewerOptions(scene=scene, platform="null", **options), load_now(scene),
-                        _start_camera(options), sorter_factory=sorter_factory)
+        options.setdefault("screenshots", ScreenshotOptions(folder=str(tmp_path / "shots")))
+        factories = {name: options.pop(name) for name in ("renderer_factory", "sorter_factory") if name in options}
+        viewer_options = ViewerOptions(scene=scene, platform="null", **options)
+        viewer = Viewer(viewer_options, load_now(scene), start_camera(viewer_options), **factories)
         viewers.append(viewer)
         viewer.panel.show_panel = not hide_panel
         return viewer, Driver(viewer)

@@ -10,10 +10,13 @@ from __future__ import annotations
 import ctypes
 import os
 import sys
+from collections import deque
 
+from imgui_bundle import imgui  # before glfw, see above
+
+# isort: split
 import glfw
 import moderngl
-from imgui_bundle import imgui  # noqa: I001  (must come before glfw, see above)
 
 from raygs_viewer.errors import UserError
 
@@ -64,7 +67,6 @@ def _context_from_current(window) -> moderngl.Context:
     ctx._extensions = None
     ctx.extra = None
     ctx._gc_mode = None
-    from collections import deque
     ctx._objects = deque()
     ctx._screen = ctx.detect_framebuffer(0)
     ctx.fbo = ctx.detect_framebuffer()
@@ -154,8 +156,28 @@ class Window:
         imgui.backends.glfw_new_frame()
 
     def end_frame(self) -> None:
-        imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
+        self.draw_imgui()
         glfw.swap_buffers(self.handle)
+
+    @staticmethod
+    def draw_imgui() -> None:
+        """Draws imgui's rendered frame (imgui.render()) into the bound framebuffer."""
+        imgui.backends.opengl3_render_draw_data(imgui.get_draw_data())
+
+    @staticmethod
+    def poll_events() -> None:
+        glfw.poll_events()
+
+    @staticmethod
+    def wait_events(timeout: float) -> None:
+        """Sleeps until an event arrives or ``timeout`` seconds pass."""
+        glfw.wait_events_timeout(timeout)
+
+    def make_current(self) -> None:
+        glfw.make_context_current(self.handle)
+
+    def set_title(self, title: str) -> None:
+        glfw.set_window_title(self.handle, title)
 
     @property
     def should_close(self) -> bool:

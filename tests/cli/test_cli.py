@@ -448,8 +448,8 @@ def test_accuracy_options_reach_the_window(capsys, viewer, argv, fields):
 
     code, _, err = run_cli(capsys, "view", *argv)
     assert code == 0, err
-    assert viewer == [ViewerOptions(**fields)]
-    assert viewer[0].settings() == RenderSettings(**fields)
+    assert viewer == [ViewerOptions(settings=RenderSettings(**fields))]
+    assert viewer[0].settings == RenderSettings(**fields)
 
 
 @pytest.mark.parametrize("command", ["render", "verify"])
@@ -569,7 +569,7 @@ def test_no_arguments_open_the_demo(capsys, viewer, argv):
     code, out, err = run_cli(capsys, *argv)
     assert (code, out, err) == (0, "", "")
     assert viewer == [ViewerOptions()]
-    assert viewer[0].p_min == 1 / 255 and viewer[0].background == (0.0, 0.0, 0.0)
+    assert viewer[0].settings.p_min == 1 / 255 and viewer[0].settings.background == (0.0, 0.0, 0.0)
 
 
 def test_scene_first_means_view(capsys, viewer, tmp_path):
@@ -589,7 +589,7 @@ def test_scene_first_means_view(capsys, viewer, tmp_path):
 
 
 def test_every_view_option(capsys, viewer, tmp_path):
-    from raygs_viewer.viewer.app import ViewerOptions
+    from raygs_viewer.viewer.app import NavigationChoices, ScreenshotOptions, ViewerOptions
 
     code, _, err = run_cli(capsys, "view", "scene.ply", "--cameras", "train.json", "--camera", "start.json",
                            "--camera-index", "4", "--width", "800", "--height", "600", "--p-min", "0.05",
@@ -600,9 +600,10 @@ def test_every_view_option(capsys, viewer, tmp_path):
     assert code == 0, err
     assert viewer == [ViewerOptions(
         scene="scene.ply", cameras="train.json", camera="start.json", camera_index=4, width=800, height=600,
-        p_min=0.05, background=(0.5, 0.25, 1.0), sh_degree=2, frames=10, screenshot=str(tmp_path / "last.png"),
-        screenshot_dir=str(tmp_path / "shots"), screenshot_scale=2.5, vsync=False, navigation="orbit",
-        up_axis="+z", platform="null")]
+        settings=RenderSettings(p_min=0.05, background=(0.5, 0.25, 1.0), sh_degree=2), frames=10,
+        screenshot=str(tmp_path / "last.png"),
+        screenshots=ScreenshotOptions(folder=str(tmp_path / "shots"), scale=2.5), vsync=False,
+        navigation=NavigationChoices(mode="orbit", up_axis="+z"), platform="null")]
     assert listing(tmp_path) == []  # the CLI only checks the screenshot path; nothing created
 
 
@@ -614,7 +615,7 @@ def test_every_view_option(capsys, viewer, tmp_path):
 def test_up_axis(capsys, viewer, argv, axis):
     code, _, err = run_cli(capsys, *argv)
     assert code == 0, err
-    assert viewer.pop().up_axis == axis
+    assert viewer.pop().navigation.up_axis == axis
 
 
 def test_up_axes_match_the_controls():
@@ -628,7 +629,7 @@ def test_up_axes_match_the_controls():
 @pytest.mark.parametrize("scale", ["8", "0.25", "1e-3"])
 def test_screenshot_scale_range(capsys, viewer, scale):
     assert run_cli(capsys, "--screenshot-scale", scale)[0] == 0
-    assert viewer.pop().screenshot_scale == float(scale)
+    assert viewer.pop().screenshots.scale == float(scale)
 
 
 def test_view_returns_the_viewers_status(capsys, monkeypatch):
@@ -752,14 +753,18 @@ def test_bad_stereo_options_are_one_line_errors(capsys, tmp_path, argv, fragment
      {"headset": ("custom", 800, 600, 90.0, 70.0)}),
 ])
 def test_stereo_options_reach_the_window(capsys, viewer, argv, fields):
-    from raygs_viewer.camera.stereo import PRESETS, custom_preset
-    from raygs_viewer.viewer.app import ViewerOptions
+    from raygs_viewer.camera.stereo import PRESETS, StereoRig, custom_preset
+    from raygs_viewer.viewer.app import StereoPreview, ViewerOptions
 
     code, _, err = run_cli(capsys, "view", *argv)
     assert code == 0, err
     headset = fields.pop("headset", "quest3")
     fields["headset"] = PRESETS[headset] if isinstance(headset, str) else custom_preset(*headset[1:])
-    assert viewer == [ViewerOptions(**fields)]
+    # The table's ViewerOptions-era names, as the StereoPreview they describe.
+    rig = StereoRig(**{name: fields.pop(name) for name in ("ipd", "convergence", "scene_scale") if name in fields})
+    stereo = StereoPreview.of(fields.pop("headset"), on=fields.pop("stereo", False), rig=rig,
+                              layout=fields.pop("stereo_layout", "sbs"), **fields)
+    assert viewer == [ViewerOptions(stereo=stereo)]
 
 
 @pytest.mark.parametrize("argv, fragment", [

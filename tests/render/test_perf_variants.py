@@ -482,7 +482,7 @@ def test_new_order_for_the_drawn_view_uploads_without_preprocessing(open_viewer)
     after = _work(viewer)
     assert after["preprocessed"] == 1 and after["preprocess_skipped"] == work["preprocess_skipped"] + 1
     assert after["uploads"] == 1
-    expected = render(viewer.ctx, viewer.loaded.scene, viewer.camera, viewer.settings(), result.order)
+    expected = render(viewer.ctx, viewer.loaded.scene, viewer.camera, viewer.settings, result.order)
     np.testing.assert_array_equal(window_image(viewer), expected)
     drive.frames(3)
     assert _work(viewer) == after
@@ -492,13 +492,15 @@ def test_new_order_for_the_drawn_view_uploads_without_preprocessing(open_viewer)
 def test_turning_camera_makes_no_gl_objects_per_frame(open_viewer, monkeypatch, view):
     """Ten frames of a turning camera, each drawing a new view with a new order: the
     passes run every frame, and not one GL object is made."""
-    options = {"turntable": 3.0}
+    from raygs_viewer.viewer.state import NavigationChoices
+    options = {"navigation": NavigationChoices(turntable=3.0)}
     if view == "stereo":
         from raygs_viewer.camera.stereo import custom_preset
-        options.update(stereo=True, headset=custom_preset(96, 72, 90.0, 72.0), width=192, height=72)
+        from raygs_viewer.viewer.state import StereoPreview
+        options.update(stereo=StereoPreview.of(custom_preset(96, 72, 90.0, 72.0), on=True), width=192, height=72)
     viewer, drive = open_viewer(**options)
     if view == "split":
-        viewer.panel.split_view = True
+        viewer.split.on = True
         assert viewer.right_settings() is not None
     for _ in range(4):  # warm-up: targets, shader variants, the first orders
         drive.frames(1)

@@ -33,7 +33,7 @@ from raygs_viewer.capture.image_io import to_rgb8
 from raygs_viewer.render.settings import RenderSettings, apply_preset
 from raygs_viewer.scene.loader import load_now
 from raygs_viewer.sort.worker import BackgroundSorter
-from raygs_viewer.viewer.app import Viewer, ViewerOptions
+from raygs_viewer.viewer.app import NavigationChoices, Viewer, ViewerOptions
 
 
 # -- the window shows the right image ---------------------------------------------------
@@ -62,7 +62,7 @@ def test_keys_move_the_camera(open_viewer, key_name, axis, sign):
     after = viewer.camera
     # The displacement in the old camera's axes (x right, y down, z forward).
     step = before.R @ (after.center - before.center)
-    expected = viewer.navigator.speed * 0.1
+    expected = viewer.view.navigator.speed * 0.1
     assert step[axis] == pytest.approx(sign * expected, rel=1e-6)
     assert np.abs(np.delete(step, axis)).max() < 1e-9 * expected
     np.testing.assert_array_equal(after.R, before.R)
@@ -72,25 +72,26 @@ def test_keys_move_the_camera(open_viewer, key_name, axis, sign):
 @pytest.mark.parametrize("up_axis", ["-y", "+z"])
 def test_e_and_q_move_along_the_world_up_axis(open_viewer, key_name, sign, up_axis):
     from raygs_viewer.camera.navigation import up_vector
-    viewer, drive = open_viewer(hide_panel=True, up_axis=up_axis)
+    viewer, drive = open_viewer(hide_panel=True, navigation=NavigationChoices(up_axis=up_axis))
     drive.frames(1)
     before = viewer.camera.center
     drive.key(getattr(imgui.Key, key_name), True)
     drive.frames(1)
     drive.key(getattr(imgui.Key, key_name), False)
     drive.frames(1)
-    np.testing.assert_allclose(viewer.camera.center - before, sign * up_vector(up_axis) * viewer.navigator.speed * 0.1,
+    np.testing.assert_allclose(viewer.camera.center - before,
+                               sign * up_vector(up_axis) * viewer.view.navigator.speed * 0.1,
                                atol=1e-9)
 
 
 def test_shift_moves_faster_and_wheel_changes_speed(open_viewer):
     viewer, drive = open_viewer(hide_panel=True)
     drive.frames(1)
-    speed = viewer.navigator.speed
+    speed = viewer.view.navigator.speed
     drive.move_mouse(WIDTH / 2, HEIGHT / 2)
     drive.wheel(2)
     drive.frames(2)
-    assert viewer.navigator.speed == pytest.approx(speed * 1.25 ** 2)
+    assert viewer.view.navigator.speed == pytest.approx(speed * 1.25 ** 2)
     before = viewer.camera.center
     drive.key(imgui.Key.mod_shift, True)  # what the GLFW backend sends with left_shift
     drive.key(imgui.Key.w, True)
@@ -98,7 +99,8 @@ def test_shift_moves_faster_and_wheel_changes_speed(open_viewer):
     drive.key(imgui.Key.w, False)
     drive.key(imgui.Key.mod_shift, False)
     drive.frames(1)
-    assert np.linalg.norm(viewer.camera.center - before) == pytest.approx(4 * viewer.navigator.speed * 0.1, rel=1e-6)
+    assert np.linalg.norm(viewer.camera.center - before) == pytest.approx(4 * viewer.view.navigator.speed * 0.1,
+                                                                          rel=1e-6)
 
 
 def test_mouse_drag_looks_around_in_fly_mode(open_viewer):
@@ -124,8 +126,8 @@ def test_orbit_mode_drag_keeps_the_target_centred(open_viewer):
     drive.move_mouse(WIDTH / 2, HEIGHT / 2)
     drive.frames(1)
     drive.tap(imgui.Key.tab)
-    assert viewer.navigator.mode == "orbit"
-    target, distance = viewer.navigator.target.copy(), viewer.navigator.distance
+    assert viewer.view.navigator.mode == "orbit"
+    target, distance = viewer.view.navigator.target.copy(), viewer.view.navigator.distance
     drive.button(0, True)
     drive.frames(1)
     drive.move_mouse(WIDTH / 2 + 30, HEIGHT / 2 + 10)
@@ -136,17 +138,17 @@ def test_orbit_mode_drag_keeps_the_target_centred(open_viewer):
     u, v, z = project(camera, target)
     assert (u, v) == pytest.approx((camera.cx, camera.cy), abs=1e-6)
     assert np.linalg.norm(camera.center - target) == pytest.approx(distance, rel=1e-9)
-    assert camera.R[0] @ (camera.center - viewer.navigator.target) != 0
+    assert camera.R[0] @ (camera.center - viewer.view.navigator.target) != 0
     # the wheel zooms towards the target
     drive.wheel(1)
     drive.frames(2)
-    assert viewer.navigator.distance == pytest.approx(distance * 0.85, rel=1e-9)
+    assert viewer.view.navigator.distance == pytest.approx(distance * 0.85, rel=1e-9)
 
 
 def test_mouse_over_the_panel_does_not_move_the_camera(open_viewer):
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
     drive.frames(2)
-    from raygs_viewer.viewer.panel import item_rects
+    from raygs_viewer.viewer.panel.widgets import item_rects
     x0, y0, x1, y1 = item_rects["Reset view"]
     drive.move_mouse(x0 - 2, y0)  # on the panel, beside the button
     drive.frames(1)
@@ -165,13 +167,13 @@ def test_panel_click_changes_the_setting_and_the_image(open_viewer):
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
     drive.settle()
     before = window_image(viewer).copy()
-    from raygs_viewer.viewer.panel import item_rects
+    from raygs_viewer.viewer.panel.widgets import item_rects
     drive.click(item_rects["background white"])
-    assert viewer.panel.background == [1.0, 1.0, 1.0]
+    assert list(viewer.settings.background) == [1.0, 1.0, 1.0]
     drive.settle()
     after = window_image(viewer)
     assert np.abs(after - before).max() > 0.5
-    assert_matches(after, headless(viewer, RenderSettings(viewer.panel.p_min, (1.0, 1.0, 1.0), 3)))
+    assert_matches(after, headless(viewer, RenderSettings(viewer.settings.p_min, (1.0, 1.0, 1.0), 3)))
 
     # Dragging the SH degree slider to its left end evaluates band 0 only.
     x0, y0, x1, y1 = item_rects["SH degree"]
@@ -181,17 +183,17 @@ def test_panel_click_changes_the_setting_and_the_image(open_viewer):
     drive.frames(1)
     drive.button(0, False)
     drive.frames(1)
-    assert viewer.panel.sh_degree == 0
+    assert viewer.settings.sh_degree == 0
     drive.settle()
     degree0 = window_image(viewer)
     assert np.abs(degree0 - after).max() > 0.05  # the demo's sphere is view-dependent
-    assert_matches(degree0, headless(viewer, RenderSettings(viewer.panel.p_min, (1.0, 1.0, 1.0), 0)))
+    assert_matches(degree0, headless(viewer, RenderSettings(viewer.settings.p_min, (1.0, 1.0, 1.0), 0)))
 
 
 def test_panel_accuracy_controls_change_the_settings_and_the_image(open_viewer):
-    """Every accuracy control of the panel reaches Viewer.settings() and redraws the window
+    """Every accuracy control of the panel reaches Viewer.settings and redraws the window
     with exactly those settings; controls that do not apply to the mode are greyed out."""
-    from raygs_viewer.viewer.panel import item_rects
+    from raygs_viewer.viewer.panel.widgets import item_rects
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
     drive.settle()
     expected = RenderSettings(sh_degree=3)
@@ -201,7 +203,7 @@ def test_panel_accuracy_controls_change_the_settings_and_the_image(open_viewer):
         """The panel's settings are ``expected`` and the window shows them; ``changed``:
         the image must differ from the previous step's (None: not checked)."""
         nonlocal image
-        assert viewer.settings() == expected
+        assert viewer.settings == expected
         drive.settle()
         now = window_image(viewer).copy()
         assert_matches(now, headless(viewer, expected))
@@ -239,7 +241,7 @@ def test_panel_accuracy_controls_change_the_settings_and_the_image(open_viewer):
     expected = replace(expected, mode="raygs-exact-mip")
     check(changed=None)  # close to the pixel-invariant filter at this scale
     click("MIP filter")               # always on in exact MIP mode: greyed out, the RayGS choice kept
-    assert viewer.panel.mip
+    assert viewer.settings.mip
     # sigma^2 slider: a press at its left end gives 0 px^2
     x0, y0, x1, y1 = item_rects["sigma^2"]
     drive.move_mouse(x0 + 2, (y0 + y1) / 2)
@@ -264,13 +266,13 @@ def test_panel_accuracy_controls_change_the_settings_and_the_image(open_viewer):
 
 
 def test_controls_this_gpu_cannot_render_are_greyed_out(open_viewer, monkeypatch):
-    from raygs_viewer.viewer.panel import item_rects
+    from raygs_viewer.viewer.panel.widgets import item_rects
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
     monkeypatch.setattr(viewer.renderer, "supports",
                         lambda settings: "no framebuffer fetch" if settings.transmittance_cutoff else None)
     drive.frames(2)
     drive.click(item_rects["transmittance cut-off"])
-    assert not viewer.panel.transmittance_cutoff and viewer.panel.error == ""
+    assert not viewer.settings.transmittance_cutoff and viewer.panel.error == ""
 
 
 def test_settings_the_renderer_refuses_show_an_error_and_keep_running(open_viewer, monkeypatch):
@@ -285,10 +287,10 @@ def test_settings_the_renderer_refuses_show_an_error_and_keep_running(open_viewe
 
     monkeypatch.setattr(viewer.renderer, "render_into", refusing)
     drive.settle()
-    viewer.panel.transmittance_cutoff = True
+    viewer.settings = replace(viewer.settings, transmittance_cutoff=True)
     drive.frames(2)
     assert viewer.panel.error.startswith("error: the transmittance cut-off") and "\n" not in viewer.panel.error
-    viewer.panel.transmittance_cutoff = False
+    viewer.settings = replace(viewer.settings, transmittance_cutoff=False)
     drive.settle()
     assert viewer.panel.error == ""
     assert_matches(window_image(viewer), headless(viewer))
@@ -297,9 +299,9 @@ def test_settings_the_renderer_refuses_show_an_error_and_keep_running(open_viewe
 def test_the_start_settings_come_from_the_options(open_viewer):
     options = dict(p_min=0.01, mode="gs", gs_compensation=True, supersample=2, alpha_clamp=True, mip=True,
                    mip_sigma2=0.5, mip_modulation=False)
-    viewer, drive = open_viewer(hide_panel=True, **options)
+    viewer, drive = open_viewer(hide_panel=True, settings=RenderSettings(**options))
     expected = RenderSettings(sh_degree=3, **options)
-    assert viewer.settings() == expected
+    assert viewer.settings == expected
     drive.settle()
     assert_matches(window_image(viewer), headless(viewer, expected))
     assert_differs(window_image(viewer), headless(viewer, RenderSettings(p_min=0.01)))
@@ -312,11 +314,12 @@ def test_start_settings_are_checked_before_the_window_opens(restore_gl_ctx, monk
     from raygs_viewer.render.gl.renderer import GLRenderer
     from raygs_viewer.viewer.app import run_viewer
     with pytest.raises(UserError, match="supersample"):
-        run_viewer(ViewerOptions(supersample=9, frames=1, platform="null"))
+        run_viewer(ViewerOptions(settings=RenderSettings(supersample=9), frames=1, platform="null"))
     monkeypatch.setattr(GLRenderer, "supports", lambda self, settings: "needs framebuffer fetch"
                         if settings.transmittance_cutoff else None)
     with pytest.raises(UserError, match="framebuffer fetch"):
-        Viewer(ViewerOptions(width=64, height=48, platform="null", transmittance_cutoff=True), load_now("demo"))
+        Viewer(ViewerOptions(width=64, height=48, platform="null", settings=RenderSettings(transmittance_cutoff=True)),
+               load_now("demo"))
     assert not glfw.get_current_context()  # the window was closed again
 
 
@@ -325,25 +328,24 @@ def test_the_sort_is_asked_with_the_cull_of_what_is_shown(open_viewer):
     drive.frames(1)
     asked = viewer.sorter.asked
     assert asked[-1] == (1 / 255, 0.0)
-    viewer.panel.mip = True
+    viewer.settings = replace(viewer.settings, mip=True)
     drive.frames(1)
-    mip = viewer.settings().cull_dilation(viewer.camera)
+    mip = viewer.settings.cull_dilation(viewer.camera)
     assert mip > 0 and asked[-1] == (1 / 255, mip)
-    viewer.panel.mode = "raygs-exact-mip"
+    viewer.settings = replace(viewer.settings, mode="raygs-exact-mip")
     drive.frames(1)
     assert asked[-1] == (1 / 255, pytest.approx(2 * mip))
-    viewer.panel.mode = "gs"
+    viewer.settings = replace(viewer.settings, mode="gs")
     drive.frames(1)
     assert asked[-1] == (1 / 255, None)
     drive.settle()
     assert viewer.sorter.latest().dilation is None  # the drawn order was culled that way
     # The split view sorts once for both sides, with the more conservative cull of the two.
-    panel = viewer.panel
-    panel.mode, panel.p_min, panel.split_view = "raygs", 0.01, True
-    panel.split_preset = "RayGS p_min 1e-3"  # no MIP: dilation 0
+    viewer.settings, viewer.split.on = replace(viewer.settings, mode="raygs", p_min=0.01), True
+    viewer.split.preset = "RayGS p_min 1e-3"  # no MIP: dilation 0
     drive.frames(1)
     assert asked[-1] == (1e-3, mip)
-    panel.split_preset = "GS"
+    viewer.split.preset = "GS"
     drive.frames(1)
     assert asked[-1] == (0.01, None)
     drive.settle()
@@ -353,19 +355,19 @@ def test_the_sort_is_asked_with_the_cull_of_what_is_shown(open_viewer):
 # -- the A/B split view ---------------------------------------------------------------------
 @pytest.mark.parametrize("preset", ["GS", "RayGS + MIP", "RayGS 2x2 supersampling"])
 def test_split_view_shows_a_left_and_b_right(open_viewer, preset):
-    from raygs_viewer.viewer.panel import item_rects
+    from raygs_viewer.viewer.panel.widgets import item_rects
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
     drive.frames(2)
     drive.click(item_rects["split view"])
-    assert viewer.panel.split_view
+    assert viewer.split.on
     click_choice(drive, "split preset", preset)
-    assert viewer.panel.split_preset == preset
+    assert viewer.split.preset == preset
     drive.tap(imgui.Key.h)  # hide the panel: the whole window shows the scene
     assert not viewer.panel.show_panel
     drive.settle()
     a = RenderSettings(sh_degree=3)
     b = apply_preset(a, preset)
-    assert viewer.settings() == a and viewer.right_settings() == b
+    assert viewer.settings == a and viewer.right_settings() == b
     image_a, image_b = headless(viewer, a), headless(viewer, b)
     assert_differs(image_a, image_b)
     # Each side renders the whole viewport with its own settings.
@@ -373,7 +375,7 @@ def test_split_view_shows_a_left_and_b_right(open_viewer, preset):
     assert_matches(right_image(viewer), image_b)
     # The present pass shows A left of the divider and B from it on, column for column.
     x, y, w, h = viewer.viewport
-    column = viewer.split_column()
+    column = viewer.split.column(viewer.viewport[2])
     assert column == w // 2
     expected = split_expected(image_a, image_b, column)
     assert np.abs(presented(viewer) - expected).max() <= 1
@@ -394,7 +396,7 @@ def test_split_view_shows_a_left_and_b_right(open_viewer, preset):
     x0, y0, x1, y1 = (int(v) for v in viewer.overlay_rects["right label"])
     assert x0 > column and np.abs(window[y0:y1, x0:x1] - expected[y0:y1, x0:x1]).max() > 50  # so is the label
     # Switched off: the whole viewport is A again.
-    viewer.panel.split_view = False
+    viewer.split.on = False
     drive.frames(2)
     assert np.abs(presented(viewer) - to_rgb8(image_a).astype(int)).max() <= 1
 
@@ -408,12 +410,12 @@ def test_dragging_the_divider_moves_the_boundary_not_the_camera(open_viewer, tmp
         path.write_text(json.dumps([camera_to_json(look_at((0.5, -0.5, -4), (0, 0, 0), width=300, height=300))]))
         options["camera"] = str(path)
     viewer, drive = open_viewer(hide_panel=True, **options)
-    viewer.panel.split_view, viewer.panel.split_preset = True, "GS"
+    viewer.split.on, viewer.split.preset = True, "GS"
     drive.settle()
     x, y, w, h = viewer.viewport
     assert x == (24 if letterboxed else 0)
     pose = viewer.camera
-    a, b = headless(viewer, viewer.settings()), headless(viewer, viewer.right_settings())
+    a, b = headless(viewer, viewer.settings), headless(viewer, viewer.right_settings())
     divider = x + w // 2
     assert viewer.overlay_rects["divider"][0] < divider < viewer.overlay_rects["divider"][2]
 
@@ -421,15 +423,15 @@ def test_dragging_the_divider_moves_the_boundary_not_the_camera(open_viewer, tmp
     drive.frames(1)
     drive.button(0, True)
     drive.frames(1)
-    assert viewer.dragging_divider
+    assert viewer.input.dragging_divider
     drive.move_mouse(x + 100, HEIGHT / 2 + 20)
     drive.frames(1)
     drive.move_mouse(x + 90, HEIGHT / 2 + 30)
     drive.frames(1)
     drive.button(0, False)
     drive.frames(1)
-    assert not viewer.dragging_divider
-    assert viewer.panel.split_fraction == pytest.approx(90 / w) and viewer.split_column() == 90
+    assert not viewer.input.dragging_divider
+    assert viewer.split.fraction == pytest.approx(90 / w) and viewer.split.column(viewer.viewport[2]) == 90
     np.testing.assert_array_equal(viewer.camera.R, pose.R)  # the drag did not turn the camera
     np.testing.assert_array_equal(viewer.camera.center, pose.center)
     drive.settle()
@@ -446,10 +448,10 @@ def test_dragging_the_divider_moves_the_boundary_not_the_camera(open_viewer, tmp
         drive.frames(1)
 
     drag(x + 90, WIDTH + 50)  # past the edge: it stops at 98 % of the width
-    assert viewer.panel.split_fraction == 0.98
+    assert viewer.split.fraction == 0.98
 
     drag(x + 20, x + 50)  # started away from the divider: looks around, leaves the divider
-    assert viewer.panel.split_fraction == 0.98 and not viewer.dragging_divider
+    assert viewer.split.fraction == 0.98 and not viewer.input.dragging_divider
     assert not np.array_equal(viewer.camera.R, pose.R)
 
 
@@ -459,11 +461,11 @@ def test_split_view_screenshot_saves_each_side_with_its_sidecar(open_viewer, tmp
     from raygs_viewer.capture.sidecar import load_sidecar
     from raygs_viewer.cli.main import main
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
-    viewer.panel.split_view, viewer.panel.split_preset = True, "RayGS + MIP"
-    viewer.panel.split_fraction = 0.3
+    viewer.split.on, viewer.split.preset = True, "RayGS + MIP"
+    viewer.split.fraction = 0.3
     drive.move_mouse(PANEL_WIDTH - 5, PANEL_HEIGHT - 5)
     drive.settle()
-    a, b = viewer.settings(), viewer.right_settings()
+    a, b = viewer.settings, viewer.right_settings()
     expected = {"left": to_rgb8(headless(viewer, a)).astype(int), "right": to_rgb8(headless(viewer, b)).astype(int)}
     drive.tap(imgui.Key.f12)
     assert viewer.panel.error == ""
@@ -509,7 +511,7 @@ def test_f12_screenshot_with_sidecar_reproduces_headlessly(open_viewer, tmp_path
     assert shot.shape == (PANEL_HEIGHT, PANEL_WIDTH, 3)
     info = json.loads(sidecar.read_text())
     assert info["camera"]["width"] == PANEL_WIDTH and info["scene"]["path"] == "demo"
-    assert info["settings"]["p_min"] == viewer.panel.p_min
+    assert info["settings"]["p_min"] == viewer.settings.p_min
     # The scene alone: equal to the headless render of the window's camera.
     from raygs_viewer.capture.image_io import to_rgb8
     expected = to_rgb8(headless(viewer))
@@ -529,8 +531,8 @@ def test_f12_screenshot_with_sidecar_reproduces_headlessly(open_viewer, tmp_path
 def test_panel_button_saves_at_the_chosen_scale(open_viewer):
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
     drive.frames(2)
-    viewer.panel.screenshot_scale = 2.0
-    from raygs_viewer.viewer.panel import item_rects
+    viewer.screenshots.scale = 2.0
+    from raygs_viewer.viewer.panel.widgets import item_rects
     drive.click(item_rects["Save screenshot"])
     png, sidecar = viewer.last_screenshot
     assert Image.open(png).size == (2 * PANEL_WIDTH, 2 * PANEL_HEIGHT)
@@ -541,7 +543,7 @@ def test_unwritable_screenshot_folder_reports_and_keeps_running(open_viewer, tmp
     viewer, drive = open_viewer(hide_panel=True)
     blocker = tmp_path / "not-a-folder"
     blocker.write_text("x")
-    viewer.panel.screenshot_dir = str(blocker / "shots")
+    viewer.screenshots.folder = str(blocker / "shots")
     drive.frames(1)
     drive.tap(imgui.Key.f12)
     assert viewer.panel.error.startswith("error: ") and "\n" not in viewer.panel.error
@@ -555,7 +557,7 @@ def test_bad_file_dropped_in_shows_an_error_and_keeps_the_scene(open_viewer, tmp
     loaded, image = viewer.loaded, window_image(viewer).copy()
     bad = tmp_path / "broken.ply"
     bad.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 100\nproperty float x\nend_header\n\x00")
-    viewer.on_drop([str(bad)])
+    viewer.scenes.drop([str(bad)])
     drive.wait_for_load()
     assert viewer.panel.error.startswith("error: ") and "broken.ply" in viewer.panel.error
     assert "\n" not in viewer.panel.error
@@ -572,9 +574,9 @@ def test_good_file_opened_replaces_the_scene(open_viewer, tmp_path, route):
     path = tmp_path / "small.ply"
     write_ply(path, gaussian_columns(n=50, degree=1, seed=3))
     if route == "drop":
-        viewer.on_drop([str(path)])
+        viewer.scenes.drop([str(path)])
     else:  # click into the field, type the path, press Enter
-        from raygs_viewer.viewer.panel import item_rects
+        from raygs_viewer.viewer.panel.widgets import item_rects
         drive.click(item_rects["open path"])
         drive._queued.append(lambda io: io.add_input_characters_utf8(str(path)))
         drive.frames(1)
@@ -635,9 +637,9 @@ def test_training_camera_keys_fly_smoothly_and_use_its_intrinsics(open_viewer):
     drive.frames(1)
     start = viewer.camera.center.copy()
     drive.tap(imgui.Key.n)
-    assert viewer.training_index == 0
+    assert viewer.view.training_index == 0
     drive.tap(imgui.Key.n)
-    assert viewer.training_index == 1
+    assert viewer.view.training_index == 1
     target = demo_cameras()[1]
     assert not np.allclose(viewer.camera.center, target.center)  # on its way, not jumped
     drive.frames(10)
@@ -649,13 +651,13 @@ def test_training_camera_keys_fly_smoothly_and_use_its_intrinsics(open_viewer):
     assert camera.fx == pytest.approx(target.fx * WIDTH / target.width)
     assert camera.cy == pytest.approx(target.cy * HEIGHT / target.height)
     drive.tap(imgui.Key.p)
-    assert viewer.training_index == 0
+    assert viewer.view.training_index == 0
     assert not np.allclose(start, target.center)
     # The close-up view has a 50 degree lens where the window's own is 60.
     for _ in range(4):
         drive.tap(imgui.Key.page_down)
     close_up = demo_cameras()[4]
-    assert viewer.training_index == 4 and close_up.fy != target.fy
+    assert viewer.view.training_index == 4 and close_up.fy != target.fy
     drive.frames(8)
     assert viewer.camera.fy == pytest.approx(close_up.fy * HEIGHT / close_up.height)
 
@@ -704,8 +706,8 @@ def test_reset_view_frames_the_scene(open_viewer):
     drive.key(imgui.Key.w, False)
     drive.tap(imgui.Key.r)
     camera = viewer.camera
-    u, v, z = project(camera, viewer.center)
-    assert z > viewer.radius and abs(u - camera.cx) < 1 and abs(v - camera.cy) < 1
+    u, v, z = project(camera, viewer.view.center)
+    assert z > viewer.view.radius and abs(u - camera.cx) < 1 and abs(v - camera.cy) < 1
 
 
 # -- scripted runs ------------------------------------------------------------------------------------
@@ -740,7 +742,7 @@ def test_scripted_run_saves_the_last_frame(restore_gl_ctx, tmp_path, capsys):
 def test_window_shows_the_image_letterboxed_and_the_panel_on_top(open_viewer, tmp_path, camera_size):
     from raygs_viewer.camera.pinhole import camera_to_json, look_at
     from raygs_viewer.capture.image_io import to_rgb8
-    from raygs_viewer.viewer.app import LETTERBOX_GREY
+    from raygs_viewer.render.gl.mono_frame import LETTERBOX_GREY
     width, height = camera_size
     lens = look_at((0.3, -0.5, -4), (0, 0, 1), width=width, height=height, fov_y_degrees=70)
     path = tmp_path / "lens.json"
@@ -774,7 +776,7 @@ def test_window_shows_the_image_letterboxed_and_the_panel_on_top(open_viewer, tm
     viewer.capture_window_next = True
     drive.frames(1)
     with_panel = viewer.window_capture.astype(int)
-    from raygs_viewer.viewer.panel import item_rects
+    from raygs_viewer.viewer.panel.widgets import item_rects
     x0, y0, x1, y1 = (int(v) for v in item_rects["Reset view"])
     assert np.abs(with_panel[y0:y1, x0:x1] - window[y0:y1, x0:x1]).max() > 50  # the panel is drawn
     right = 400  # the panel is 360 wide, at x = 10
@@ -787,9 +789,9 @@ def test_window_shows_the_image_letterboxed_and_the_panel_on_top(open_viewer, tm
 
 def test_turntable_turns_a_fixed_angle_per_frame(open_viewer):
     from raygs_viewer.camera.navigation import up_vector
-    viewer, drive = open_viewer(hide_panel=True, turntable=5.0)
+    viewer, drive = open_viewer(hide_panel=True, navigation=NavigationChoices(turntable=5.0))
     drive.frames(1)
-    target, first = viewer.navigator.target.copy(), viewer.camera.center.copy()
+    target, first = viewer.view.navigator.target.copy(), viewer.camera.center.copy()
     drive.frames(6)
     up = up_vector("-y")
     def around(point):  # the horizontal direction from the target
@@ -803,7 +805,8 @@ def test_turntable_turns_a_fixed_angle_per_frame(open_viewer):
 
 def test_scripted_run_prints_its_frame_statistics(restore_gl_ctx, capsys):
     from raygs_viewer.viewer.app import run_viewer
-    status = run_viewer(ViewerOptions(width=96, height=72, frames=6, turntable=5.0, platform="null"))
+    status = run_viewer(ViewerOptions(width=96, height=72, frames=6, navigation=NavigationChoices(turntable=5.0),
+                                      platform="null"))
     assert status == 0
     line = capsys.readouterr().out.strip().splitlines()[-1]
     assert line.startswith("6 frames (6 drawn) at 96x72: median frame ") and " fps), GPU " in line
@@ -818,16 +821,14 @@ def test_no_display_refuses_an_endless_invisible_window(monkeypatch):
         run_viewer(ViewerOptions())
 
 
-def test_a_scene_too_large_for_the_gpu_fails_before_the_loop_and_closes_the_window(restore_gl_ctx, monkeypatch):
+def test_a_scene_too_large_for_the_gpu_fails_before_the_loop_and_closes_the_window(restore_gl_ctx):
     import glfw
 
     from raygs_viewer.errors import UserError
-    from raygs_viewer.render.gl import renderer as renderer_module
 
     def refuse(*args, **kwargs):
         raise UserError("scene of 3914 gaussians needs 9 storage blocks")
 
-    monkeypatch.setattr(renderer_module, "GLRenderer", refuse)
     with pytest.raises(UserError, match="storage blocks"):
-        Viewer(ViewerOptions(width=64, height=48, platform="null"), load_now("demo"))
+        Viewer(ViewerOptions(width=64, height=48, platform="null"), load_now("demo"), renderer_factory=refuse)
     assert not glfw.get_current_context()  # the window and GLFW were shut down

@@ -81,7 +81,7 @@ def assert_sane(viewer) -> None:
     assert np.all(np.isfinite(camera.R)) and np.all(np.isfinite(camera.t)), (camera.R, camera.t)
     assert np.abs(camera.R @ camera.R.T - np.eye(3)).max() < 1e-6
     assert np.linalg.det(camera.R) > 0
-    nav = viewer.navigator
+    nav = viewer.view.navigator
     assert math.isfinite(nav.speed) and nav.speed > 0
     assert math.isfinite(nav.distance) and nav.distance > 0
     assert np.all(np.isfinite(nav.target))
@@ -119,7 +119,7 @@ def assert_w_moves_at_default_speed(viewer, drive) -> None:
     drive.frames(1)
     after = viewer.camera
     step = before.R @ (after.center - before.center)
-    expected = viewer.navigator.default_speed * 0.1
+    expected = viewer.view.navigator.default_speed * 0.1
     assert step[2] == pytest.approx(expected, rel=1e-6)
     assert np.abs(step[:2]).max() < 1e-6 * expected
     np.testing.assert_array_equal(after.R, before.R)
@@ -196,9 +196,9 @@ def test_a_corrupt_file_opened_leaves_the_scene_camera_and_image(open_viewer, tm
     for route in ("path field", "drop"):
         viewer.panel.error = ""
         if route == "drop":
-            viewer.on_drop([str(bad)])
+            viewer.scenes.drop([str(bad)])
         else:
-            viewer.open_scene(str(bad))
+            viewer.scenes.open(str(bad))
         drive.wait_for_load()
         assert_one_line_error(viewer, bad.name)
         drive.frames(3)  # the loop keeps running...
@@ -207,7 +207,7 @@ def test_a_corrupt_file_opened_leaves_the_scene_camera_and_image(open_viewer, tm
         assert viewer.window.handle is not None and not viewer.window.should_close
     # A good file opened afterwards still loads.
     good = good_ply(tmp_path / "good.ply")
-    viewer.open_scene(str(good))
+    viewer.scenes.open(str(good))
     drive.wait_for_load()
     assert viewer.panel.error == ""
     assert viewer.loaded.path == str(good) and viewer.loaded.scene.count == 50
@@ -226,7 +226,7 @@ def test_random_bytes_that_happen_to_be_whole_splat_rows_load_without_breaking_t
     drive.frames(1)
     path = tmp_path / "noise-rows.splat"
     path.write_bytes(np.random.default_rng(1).bytes(32 * 1000))
-    viewer.open_scene(str(path))
+    viewer.scenes.open(str(path))
     drive.wait_for_load()
     assert viewer.panel.error == "" and viewer.loaded.path == str(path)
     assert "dropped" in viewer.panel.message and "\n" not in viewer.panel.message
@@ -246,7 +246,7 @@ def _files(root: Path) -> dict[str, bytes]:
 
 
 def _assert_later_screenshots_work(viewer, drive, folder: Path) -> None:
-    viewer.panel.screenshot_dir = str(folder)
+    viewer.screenshots.folder = str(folder)
     drive.tap(imgui.Key.f12)
     assert viewer.panel.error == ""
     png, sidecar = viewer.last_screenshot
@@ -261,7 +261,7 @@ def test_a_screenshot_folder_that_cannot_be_made_reports_and_keeps_running(open_
     blocker = tmp_path / "blocker"
     blocker.write_bytes(b"precious")
     folder = blocker / "shots" if kind == "folder under a regular file" else blocker
-    viewer.panel.screenshot_dir = str(folder)
+    viewer.screenshots.folder = str(folder)
     before = _files(tmp_path)
     drive.tap(imgui.Key.f12)
     assert_one_line_error(viewer, "screenshot not saved", str(folder))
@@ -327,7 +327,7 @@ def test_a_full_disk_during_a_screenshot_leaves_no_partial_files(open_viewer, tm
     # The name this second's capture would take is already someone's file.
     (folder / "raygs-20300102-030405.png").write_bytes(b"an older screenshot")
     (folder / "notes.txt").write_text("keep me")
-    viewer.panel.screenshot_dir = str(folder)
+    viewer.screenshots.folder = str(folder)
     before = _files(folder)
     disk = _FullDisk(fail_on=1 if failing == "png" else 2)
     monkeypatch.setattr(raygs_viewer.capture.image_io, "os", disk)
@@ -358,7 +358,7 @@ def test_extreme_moves_never_break_the_pose_the_image_or_the_controls(open_viewe
     from raygs_viewer.scene.demo import demo_cameras
     reset_R, reset_center = _reference_reset_view(open_viewer)
     viewer, drive = open_viewer(hide_panel=True)
-    nav = viewer.navigator
+    nav = viewer.view.navigator
     drive.move_mouse(WIDTH / 2, HEIGHT / 2)
     run_checked(drive, 2)
     default = nav.default_speed
@@ -397,7 +397,7 @@ def test_extreme_moves_never_break_the_pose_the_image_or_the_controls(open_viewe
     assert nav.speed == default
     viewer.fixed_dt = 1e30
     drive.key(imgui.Key.w, True)
-    travelled, beyond = 0.0, 2 * np.linalg.norm(viewer.center - viewer.camera.center) + viewer.radius
+    travelled, beyond = 0.0, 2 * np.linalg.norm(viewer.view.center - viewer.camera.center) + viewer.view.radius
     while travelled < beyond:
         before = viewer.camera.center
         run_checked(drive)
@@ -429,13 +429,13 @@ def test_extreme_moves_never_break_the_pose_the_image_or_the_controls(open_viewe
     target = nav.target.copy()
     drive.wheel(5000)
     drain_input(drive)
-    assert nav.distance == pytest.approx(MIN_DISTANCE * viewer.radius)
-    np.testing.assert_allclose(nav.target, target, atol=1e-9 * viewer.radius)
+    assert nav.distance == pytest.approx(MIN_DISTANCE * viewer.view.radius)
+    np.testing.assert_allclose(nav.target, target, atol=1e-9 * viewer.view.radius)
     for _ in range(10):
         drive.wheel(-500)
         run_checked(drive)
     drain_input(drive)
-    assert nav.distance == pytest.approx(MAX_DISTANCE * viewer.radius)
+    assert nav.distance == pytest.approx(MAX_DISTANCE * viewer.view.radius)
     for button, modifier in ((1, None), (2, None), (0, imgui.Key.mod_shift), (0, None)):
         if modifier is not None:
             drive.key(modifier, True)
@@ -464,7 +464,7 @@ def test_extreme_moves_never_break_the_pose_the_image_or_the_controls(open_viewe
     drive.key(imgui.Key.d, False)
     drive.tap(imgui.Key.n)
     run_checked(drive, 2)
-    assert viewer.training_index == 3
+    assert viewer.view.training_index == 3
     goal = demo_cameras()[3]
     np.testing.assert_allclose(viewer.camera.center, goal.center, atol=1e-9)
     np.testing.assert_allclose(viewer.camera.R, goal.R, atol=1e-9)
@@ -474,7 +474,7 @@ def test_extreme_moves_never_break_the_pose_the_image_or_the_controls(open_viewe
     drive.settle()
     assert_sane(viewer)
     np.testing.assert_allclose(viewer.camera.R, reset_R, atol=1e-12)
-    np.testing.assert_allclose(viewer.camera.center, reset_center, atol=1e-9 * viewer.radius)
+    np.testing.assert_allclose(viewer.camera.center, reset_center, atol=1e-9 * viewer.view.radius)
     assert nav.speed == default
     assert_matches(window_image(viewer), headless(viewer))
     assert_w_moves_at_default_speed(viewer, drive)
@@ -485,7 +485,7 @@ def test_mouse_garbage_over_the_open_panel_is_harmless(open_viewer):
     is open under the cursor: imgui's hit tests see them too."""
     viewer, drive = open_viewer()
     drive.settle()
-    settings_before = viewer.settings()
+    settings_before = viewer.settings
     for position in [(10, 10), (1e30, -1e30), (INF, INF), (NAN, NAN), (-2e9, 2e9), (10, 10)]:
         drive.move_mouse(*position)
         drive.wheel(1e30)
@@ -494,7 +494,7 @@ def test_mouse_garbage_over_the_open_panel_is_harmless(open_viewer):
         drive.button(0, False)
         run_checked(drive)
     assert viewer.panel.error == ""
-    assert viewer.settings() == settings_before
+    assert viewer.settings == settings_before
 
 
 def test_tab_switches_navigation_with_the_panel_open_and_the_keys_keep_steering(open_viewer):
@@ -504,14 +504,14 @@ def test_tab_switches_navigation_with_the_panel_open_and_the_keys_keep_steering(
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
     drive.move_mouse(PANEL_WIDTH - 5, PANEL_HEIGHT - 5)  # over the scene, not the panel
     drive.frames(2)
-    settings_before, open_path = viewer.settings(), viewer.panel.open_path
+    settings_before, open_path = viewer.settings, viewer.panel.open_path
     for expected in ("orbit", "fly", "orbit", "fly"):
         drive.tap(imgui.Key.tab)
-        assert viewer.navigator.mode == expected
+        assert viewer.view.navigator.mode == expected
         assert not imgui.get_io().want_capture_keyboard
     for chord in ((imgui.Key.mod_shift, imgui.Key.tab), (imgui.Key.mod_ctrl, imgui.Key.tab), (imgui.Key.left_alt,),
                   (imgui.Key.space,), (imgui.Key.enter,), (imgui.Key.down_arrow,)):
-        mode = viewer.navigator.mode
+        mode = viewer.view.navigator.mode
         for key in chord:
             drive.key(key, True)
         drive.frames(1)
@@ -519,14 +519,15 @@ def test_tab_switches_navigation_with_the_panel_open_and_the_keys_keep_steering(
             drive.key(key, False)
         drive.frames(1)
         assert not imgui.get_io().want_capture_keyboard, chord
-        assert viewer.navigator.mode == (mode if imgui.Key.tab not in chord else {"fly": "orbit", "orbit": "fly"}[mode])
+        assert viewer.view.navigator.mode == (mode if imgui.Key.tab not in chord
+                                              else {"fly": "orbit", "orbit": "fly"}[mode])
     assert_w_moves_at_default_speed(viewer, drive)
     drive.tap(imgui.Key.r)
-    expected = framing_pose(viewer.center, viewer.radius, viewer.navigator.up, viewer.lens.fov_y_degrees,
-                            PANEL_WIDTH / PANEL_HEIGHT)
+    expected = framing_pose(viewer.view.center, viewer.view.radius, viewer.view.navigator.up,
+                            viewer.view.lens.fov_y_degrees, PANEL_WIDTH / PANEL_HEIGHT)
     np.testing.assert_allclose(viewer.camera.R, expected.R, atol=1e-12)
-    np.testing.assert_allclose(viewer.camera.center, expected.position, atol=1e-9 * viewer.radius)
-    assert viewer.settings() == settings_before and viewer.panel.open_path == open_path
+    np.testing.assert_allclose(viewer.camera.center, expected.position, atol=1e-9 * viewer.view.radius)
+    assert viewer.settings == settings_before and viewer.panel.open_path == open_path
 
 
 _KEYS = [imgui.Key.w, imgui.Key.a, imgui.Key.s, imgui.Key.d, imgui.Key.q, imgui.Key.e, imgui.Key.n, imgui.Key.p,
@@ -580,10 +581,10 @@ def test_any_sequence_of_extreme_input_keeps_the_viewer_sane_and_usable(open_vie
         assert_matches(window_image(viewer), headless(viewer))
         # ...reset view frames the scene as documented, and W still moves the camera.
         drive.tap(imgui.Key.r)
-        expected = framing_pose(viewer.center, viewer.radius, viewer.navigator.up, viewer.lens.fov_y_degrees,
-                                WIDTH / HEIGHT)
+        expected = framing_pose(viewer.view.center, viewer.view.radius, viewer.view.navigator.up,
+                                viewer.view.lens.fov_y_degrees, WIDTH / HEIGHT)
         np.testing.assert_allclose(viewer.camera.R, expected.R, atol=1e-12)
-        np.testing.assert_allclose(viewer.camera.center, expected.position, atol=1e-9 * viewer.radius)
+        np.testing.assert_allclose(viewer.camera.center, expected.position, atol=1e-9 * viewer.view.radius)
         assert_w_moves_at_default_speed(viewer, drive)
         assert_sane(viewer)
     finally:
@@ -661,12 +662,12 @@ def test_opening_a_file_while_another_loads_replaces_that_load(open_viewer, tmp_
     drive.settle()
     shown = Shown(viewer)
     slow = good_ply(tmp_path / "slow.ply", n=30, seed=1)
-    viewer.open_scene(str(slow))
+    viewer.scenes.open(str(slow))
     assert gate.entered.wait(30)
     run_checked(drive, 5)  # the loop never waits for the load; the scene stays meanwhile
-    assert viewer.loader.busy and viewer.loaded is shown.loaded
+    assert viewer.scenes.loader.busy and viewer.loaded is shown.loaded
     path = good_ply(tmp_path / "good.ply") if second == "good" else _noise("noise.ply", 999)(tmp_path)
-    viewer.open_scene(str(path))
+    viewer.scenes.open(str(path))
     drive.wait_for_load()
     if second == "good":
         assert viewer.panel.error == "" and viewer.loaded.path == str(path)
@@ -675,9 +676,9 @@ def test_opening_a_file_while_another_loads_replaces_that_load(open_viewer, tmp_
         assert viewer.loaded is shown.loaded
     current = viewer.loaded
     gate.release.set()  # the first load now finishes (cancelled): it must never show up
-    assert viewer.loader.join(timeout=60)
+    assert viewer.scenes.loader.join(timeout=60)
     run_checked(drive, 3)
-    assert viewer.loaded is current and viewer.loader.discarded >= 1
+    assert viewer.loaded is current and viewer.scenes.loader.discarded >= 1
     drive.settle()
     if second == "good":
         assert viewer.panel.error == ""
@@ -692,21 +693,21 @@ def test_dropping_several_files_opens_the_first(open_viewer, tmp_path):
     drive.settle()
     good = good_ply(tmp_path / "good.ply")
     bad = _noise("noise.ply", 999)(tmp_path)
-    viewer.on_drop([str(good), str(bad), str(tmp_path / "missing.ply")])
+    viewer.scenes.drop([str(good), str(bad), str(tmp_path / "missing.ply")])
     assert "3 files" in viewer.panel.message
     drive.wait_for_load()
     assert viewer.panel.error == "" and viewer.loaded.path == str(good)
     drive.settle()
     shown = Shown(viewer)
-    viewer.on_drop([str(bad), str(good)])
+    viewer.scenes.drop([str(bad), str(good)])
     drive.wait_for_load()
     assert_one_line_error(viewer, bad.name)
     drive.settle()
     shown.assert_still_shown(viewer)
-    started = viewer.loader.started
-    viewer.on_drop([])  # e.g. a drop of something that is no file
+    started = viewer.scenes.loader.started
+    viewer.scenes.drop([])  # e.g. a drop of something that is no file
     run_checked(drive, 2)
-    assert viewer.loader.started == started and viewer.loaded is shown.loaded
+    assert viewer.scenes.loader.started == started and viewer.loaded is shown.loaded
 
 
 def test_a_load_that_finishes_while_minimised_is_shown_when_restored(open_viewer, tmp_path):
@@ -716,7 +717,7 @@ def test_a_load_that_finishes_while_minimised_is_shown_when_restored(open_viewer
     glfw.set_window_size(viewer.window.handle, 0, 0)
     drive.frames(1)
     good = good_ply(tmp_path / "good.ply")
-    viewer.open_scene(str(good))
+    viewer.scenes.open(str(good))
     drive.wait_for_load()
     assert viewer.panel.error == "" and viewer.loaded.path == str(good)
     glfw.set_window_size(viewer.window.handle, WIDTH, HEIGHT)

@@ -32,27 +32,34 @@ from raygs_viewer.camera.stereo import (
 )
 from raygs_viewer.capture.image_io import to_rgb8
 from raygs_viewer.render.gl.stereo_frame import render_stereo, stereo_order
+from raygs_viewer.viewer.state import StereoPreview
 
 EYE = custom_preset(96, 72, 90.0, 72.0)
 
 
-def stereo_viewer(open_viewer, layout="sbs", width=None, height=None, **options):
+def stereo_viewer(open_viewer, layout="sbs", width=None, height=None, rig=StereoRig(), lens_preview=False,
+                  save_eyes=False, **options):
     """A viewer in the stereo preview with the small EYE headset, the window sized so
     that the composed image is shown 1:1 (unless width/height say otherwise)."""
     shown_width = EYE.width * (2 if layout in ("sbs", "cross") else 1)
     options.setdefault("hide_panel", True)
-    return open_viewer(width=width or shown_width, height=height or EYE.height, stereo=True, headset=EYE,
-                       stereo_layout=layout, **options)
+    stereo = StereoPreview.of(EYE, on=True, layout=layout, rig=rig, lens_preview=lens_preview, save_eyes=save_eyes)
+    return open_viewer(width=width or shown_width, height=height or EYE.height, stereo=stereo, **options)
 
 
 def headless_eyes(viewer) -> tuple[np.ndarray, np.ndarray]:
     """Both eyes rendered headlessly with the shared order and colour, for the viewer's
     midpoint camera and rig."""
-    return render_stereo(viewer.renderer, viewer.camera, viewer.settings(), viewer.stereo_view().rig)
+    return render_stereo(viewer.renderer, viewer.camera, viewer.settings, viewer.stereo.view().rig)
 
 
 def composed(viewer) -> np.ndarray:
-    return viewer._stereo_frame.image.read()
+    return viewer.drawer.stereo.image.read()
+
+
+def eye_sizes(viewer) -> list[tuple[int, int]]:
+    """(width, height) of each eye's image as the stereo frame drew it."""
+    return [(eye.shape[1], eye.shape[0]) for eye in viewer.drawer.stereo.read_eyes()]
 
 
 @pytest.mark.parametrize("layout", LAYOUTS)
@@ -64,7 +71,7 @@ def test_each_layout_shows_the_headless_eyes_where_they_belong(open_viewer, layo
     assert (camera.width, camera.height) == (EYE.width, EYE.height)
     assert camera.fx == pytest.approx(EYE.width / 2 / np.tan(np.radians(EYE.fov_x / 2)))
     assert camera.fy == pytest.approx(EYE.height / 2 / np.tan(np.radians(EYE.fov_y / 2)))
-    assert [t.size for t in viewer._stereo_frame._eye_targets] == [(EYE.width, EYE.height)] * 2
+    assert eye_sizes(viewer) == [(EYE.width, EYE.height)] * 2
     left, right = headless_eyes(viewer)
     assert_differs(left, right)
     expected = compose(left, right, layout)
@@ -104,7 +111,7 @@ def test_one_eye_is_letterboxed_in_a_wide_window(open_viewer):
 def test_the_sort_is_culled_for_both_eyes_from_the_midpoint(open_viewer):
     viewer, drive = stereo_viewer(open_viewer, sorter_factory=RecordingSorter)
     drive.settle()
-    rig = viewer.stereo_view().rig
+    rig = viewer.stereo.view().rig
     eyes = viewer.sorter.culled_for[-1]
     expected = eye_cameras(viewer.camera, rig)
     assert len(eyes) == 2
@@ -112,9 +119,9 @@ def test_the_sort_is_culled_for_both_eyes_from_the_midpoint(open_viewer):
         assert (got.cx, got.width) == (want.cx, want.width)
         np.testing.assert_array_equal(got.t, want.t)
     np.testing.assert_array_equal(viewer.sorter.latest().order,
-                                  stereo_order(viewer.renderer, viewer.camera, viewer.settings(), rig))
+                                  stereo_order(viewer.renderer, viewer.camera, viewer.settings, rig))
     # A new IPD is another cull: the drawn order catches up with it.
-    viewer.panel.ipd = 0.2
+    viewer.stereo.rig = replace(viewer.stereo.rig, ipd=0.2)
     drive.settle()
     assert viewer.sorter.culled_for[-1][0].t[0] != eyes[0].t[0]
 
@@ -123,13 +130,13 @@ def test_rig_changes_from_the_panel_redraw_the_eyes(open_viewer):
     viewer, drive = stereo_viewer(open_viewer, "sbs")
     drive.settle()
     before = composed(viewer).copy()
-    viewer.panel.ipd, viewer.panel.convergence, viewer.panel.scene_scale = 0.0, 5.0, 0.5
+    viewer.stereo.rig = StereoRig(0.0, 5.0, 0.5)
     drive.settle()
-    assert viewer.stereo_view().rig == StereoRig(0.0, 5.0, 0.5)
+    assert viewer.stereo.view().rig == StereoRig(0.0, 5.0, 0.5)
     after = composed(viewer)
     assert_differs(after, before)
     # IPD 0: both halves are the mono view of the midpoint camera.
-    mono = viewer.renderer.render(viewer.camera, viewer.settings())
+    mono = viewer.renderer.render(viewer.camera, viewer.settings)
     assert_matches(after[:, :EYE.width], mono)
     assert_matches(after[:, EYE.width:], mono)
 
@@ -137,9 +144,9 @@ def test_rig_changes_from_the_panel_redraw_the_eyes(open_viewer):
 def test_lens_preview_in_the_window_is_the_lens_pass_of_each_eye(open_viewer):
     viewer, drive = stereo_viewer(open_viewer, "sbs", lens_preview=True)
     drive.settle()
-    assert viewer.stereo_view().lens == DEFAULT_LENS
+    assert viewer.stereo.view().lens == DEFAULT_LENS
     left, right = headless_eyes(viewer)
-    left_eye, right_eye = eye_cameras(viewer.camera, viewer.stereo_view().rig)
+    left_eye, right_eye = eye_cameras(viewer.camera, viewer.stereo.view().rig)
     expected = compose(lens_warp_reference(left, left_eye, DEFAULT_LENS),
                        lens_warp_reference(right, right_eye, DEFAULT_LENS), "sbs")
     image = composed(viewer)
@@ -151,60 +158,60 @@ def test_lens_preview_in_the_window_is_the_lens_pass_of_each_eye(open_viewer):
 @pytest.mark.parametrize("name", sorted(PRESETS))
 def test_each_preset_renders_each_eye_at_its_resolution(open_viewer, name):
     preset = PRESETS[name]
-    viewer, drive = open_viewer(width=320, height=180, hide_panel=True, stereo=True, headset=preset)
+    viewer, drive = open_viewer(width=320, height=180, hide_panel=True, stereo=StereoPreview.of(preset, on=True))
     drive.frames(2)
-    assert viewer.headset() == preset and viewer.stereo_view().headset == preset
+    assert viewer.stereo.headset_preset() == preset and viewer.stereo.view().headset == preset
     assert (viewer.camera.width, viewer.camera.height) == (preset.width, preset.height)
-    assert [t.size for t in viewer._stereo_frame._eye_targets] == [(preset.width, preset.height)] * 2
-    assert viewer._stereo_frame.image.size == (2 * preset.width, preset.height)
+    assert eye_sizes(viewer) == [(preset.width, preset.height)] * 2
+    assert viewer.drawer.stereo.image.size == (2 * preset.width, preset.height)
     # Shown scaled to fit the window, keeping the pair's aspect ratio.
     x, y, w, h = viewer.viewport
     assert w == 320 and abs(h - round(320 * preset.height / (2 * preset.width))) <= 1
 
 
 def test_panel_toggles_stereo_picks_a_layout_and_a_headset(open_viewer):
-    from raygs_viewer.viewer.panel import item_rects
+    from raygs_viewer.viewer.panel.widgets import item_rects
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
     item_rects.clear()  # (module-wide: rects of an earlier test's panel must not count)
     drive.frames(2)
-    viewer.panel.headset = "custom"
-    viewer.panel.custom_size, viewer.panel.custom_fov = [EYE.width, EYE.height], [EYE.fov_x, EYE.fov_y]
+    viewer.stereo.headset = "custom"
+    viewer.stereo.custom_size, viewer.stereo.custom_fov = [EYE.width, EYE.height], [EYE.fov_x, EYE.fov_y]
     drive.click(item_rects["stereo preview"])
     drive.frames(1)  # panel edits apply from the next frame
-    assert viewer.panel.stereo and viewer.shown_stereo is not None
+    assert viewer.stereo.on and viewer.shown_stereo is not None
     click_choice(drive, "stereo layout", "anaglyph")
-    assert viewer.panel.stereo_layout == "anaglyph"
+    assert viewer.stereo.layout == "anaglyph"
     drive.settle()
     left, right = headless_eyes(viewer)
     assert_matches(composed(viewer), compose(left, right, "anaglyph"))
     assert viewer.right_settings() is None  # no split view in stereo
     click_choice(drive, "headset", "index")
     drive.frames(1)
-    assert viewer.headset() == PRESETS["index"] and viewer.camera.width == PRESETS["index"].width
+    assert viewer.stereo.headset_preset() == PRESETS["index"] and viewer.camera.width == PRESETS["index"].width
     # Off again: the mono view of the window.
     drive.click(item_rects["stereo preview"])
     drive.settle()
-    assert not viewer.panel.stereo and viewer.shown_stereo is None
+    assert not viewer.stereo.on and viewer.shown_stereo is None
     assert viewer.camera.width == PANEL_WIDTH
-    assert_matches(window_image(viewer), viewer.renderer.render(viewer.camera, viewer.settings()))
+    assert_matches(window_image(viewer), viewer.renderer.render(viewer.camera, viewer.settings))
 
 
 def test_a_custom_headset_out_of_range_is_a_panel_error_and_the_preview_stays(open_viewer):
     viewer, drive = stereo_viewer(open_viewer)
     drive.settle()
-    viewer.panel.headset, viewer.panel.custom_size, viewer.panel.custom_fov = "custom", [96, 72], [500.0, 72.0]
+    viewer.stereo.headset, viewer.stereo.custom_size, viewer.stereo.custom_fov = "custom", [96, 72], [500.0, 72.0]
     drive.frames(2)
     assert viewer.panel.error.startswith("error: ") and "field of view" in viewer.panel.error
     assert viewer.shown_stereo is not None and viewer.camera.width == EYE.width
     # Mended: the error goes and the new headset is drawn.
-    viewer.panel.custom_fov = [100.0, 80.0]
+    viewer.stereo.custom_fov = [100.0, 80.0]
     drive.frames(1)
     assert viewer.panel.error == "" and viewer.shown_stereo.headset.fov_x == 100.0
 
 
 def test_frame_budget_meter_reports_both_eyes_against_each_rate(open_viewer):
-    from raygs_viewer.viewer.panel import item_rects
-    viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT, stereo=True, headset=EYE)
+    from raygs_viewer.viewer.panel.widgets import item_rects
+    viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT, stereo=StereoPreview.of(EYE, on=True))
     drive.settle()
     drive.frames(3)
     seconds = viewer.stats.gpu_seconds
@@ -213,12 +220,12 @@ def test_frame_budget_meter_reports_both_eyes_against_each_rate(open_viewer):
         assert f"budget {rate}" in item_rects
     # Each redraw is one reading of the eyes' timer and one of the post passes'.
     draws = viewer.stats.draws
-    viewer.panel.ipd = 0.05
+    viewer.stereo.rig = replace(viewer.stereo.rig, ipd=0.05)
     drive.settle()
-    viewer._timer.flush()
-    viewer._post_timer.flush()
+    viewer.drawer.timer.flush()
+    viewer.drawer.post_timer.flush()
     assert viewer.stats.draws > draws
-    assert len(viewer._timer.history) == len(viewer._post_timer.history) == viewer.stats.draws
+    assert len(viewer.drawer.timer.history) == len(viewer.drawer.post_timer.history) == viewer.stats.draws
 
 
 def test_stereo_screenshot_saves_the_pair_and_each_eye_reproducibly(open_viewer, tmp_path):
@@ -227,7 +234,7 @@ def test_stereo_screenshot_saves_the_pair_and_each_eye_reproducibly(open_viewer,
     from raygs_viewer.capture.sidecar import load_sidecar
     from raygs_viewer.cli.main import main
     viewer, drive = stereo_viewer(open_viewer, "anaglyph", save_eyes=True, lens_preview=False,
-                                  ipd=0.07, convergence=3.0, scene_scale=0.5)
+                                  rig=StereoRig(0.07, 3.0, 0.5))
     drive.settle()
     left, right = headless_eyes(viewer)
     drive.tap(imgui.Key.f12)
@@ -250,7 +257,7 @@ def test_stereo_screenshot_saves_the_pair_and_each_eye_reproducibly(open_viewer,
         np.testing.assert_array_equal(np.asarray(Image.open(out)), np.asarray(Image.open(png)))
     glfw.make_context_current(viewer.window.handle)
     # Without "each eye": the pair alone; a second capture never overwrites the first.
-    viewer.panel.save_eyes = False
+    viewer.stereo.save_eyes = False
     first = saved[0][0].read_bytes()
     drive.tap(imgui.Key.f12)
     (png, _), = viewer.last_screenshots
@@ -263,14 +270,14 @@ def test_stereo_screenshot_at_scale_and_with_the_lens(open_viewer, tmp_path):
 
     from raygs_viewer.cli.main import main
     viewer, drive = stereo_viewer(open_viewer, "sbs", lens_preview=True)
-    viewer.panel.screenshot_scale = 2.0
+    viewer.screenshots.scale = 2.0
     drive.settle()
     png, sidecar = viewer.save_screenshot()
     assert Image.open(png).size == (4 * EYE.width, 2 * EYE.height)
     scaled = replace(viewer.camera, width=2 * EYE.width, height=2 * EYE.height, fx=2 * viewer.camera.fx,
                      fy=2 * viewer.camera.fy, cx=2 * viewer.camera.cx, cy=2 * viewer.camera.cy)
-    rig = viewer.stereo_view().rig
-    left, right = render_stereo(viewer.renderer, scaled, viewer.settings(), rig)
+    rig = viewer.stereo.view().rig
+    left, right = render_stereo(viewer.renderer, scaled, viewer.settings, rig)
     eyes = eye_cameras(scaled, rig)
     expected = compose(lens_warp_reference(left, eyes[0]), lens_warp_reference(right, eyes[1]), "sbs")
     assert np.abs(np.asarray(Image.open(png)).astype(int) - to_rgb8(expected).astype(int)).max() <= 2
@@ -281,14 +288,10 @@ def test_stereo_screenshot_at_scale_and_with_the_lens(open_viewer, tmp_path):
 
 
 def test_stereo_sliders_set_the_rig_in_its_units(open_viewer):
-    from raygs_viewer.viewer.panel import (
-        CONVERGENCE_RANGE,
-        IPD_MM_RANGE,
-        SCENE_SCALE_RANGE,
-        item_rects,
-    )
+    from raygs_viewer.viewer.panel.stereo import CONVERGENCE_RANGE, IPD_MM_RANGE, SCENE_SCALE_RANGE
+    from raygs_viewer.viewer.panel.widgets import item_rects
     # Tall enough for the whole panel with its Stereo section.
-    viewer, drive = open_viewer(width=PANEL_WIDTH, height=1100, stereo=True, headset=EYE)
+    viewer, drive = open_viewer(width=PANEL_WIDTH, height=1100, stereo=StereoPreview.of(EYE, on=True))
     item_rects.clear()
     drive.frames(2)
     assert item_rects["scene scale"][3] < 1100
@@ -307,7 +310,7 @@ def test_stereo_sliders_set_the_rig_in_its_units(open_viewer):
     click_end("IPD", right=True)       # the slider shows millimetres; the rig takes metres
     click_end("convergence", right=False)
     click_end("scene scale", right=True)
-    rig = viewer.stereo_view().rig
+    rig = viewer.stereo.view().rig
     assert rig.ipd == pytest.approx(IPD_MM_RANGE[1] / 1000)
     assert rig.convergence == pytest.approx(CONVERGENCE_RANGE[0])
     assert rig.scene_scale == pytest.approx(SCENE_SCALE_RANGE[1])
@@ -316,15 +319,15 @@ def test_stereo_sliders_set_the_rig_in_its_units(open_viewer):
 
 def test_the_split_view_is_off_in_stereo_and_its_divider_cannot_be_grabbed(open_viewer):
     viewer, drive = stereo_viewer(open_viewer)
-    viewer.panel.split_view = True  # left on from the mono view
+    viewer.split.on = True  # left on from the mono view
     drive.settle()
     assert viewer.right_settings() is None and viewer.overlay_rects == {}
     x, y, w, h = viewer.viewport
-    drive.move_mouse(x + viewer.split_column(w), y + h / 2)  # where the divider would be
+    drive.move_mouse(x + viewer.split.column(w), y + h / 2)  # where the divider would be
     drive.frames(1)
     drive.button(0, True)
     drive.frames(1)
-    assert not viewer.dragging_divider
+    assert not viewer.input.dragging_divider
     drive.button(0, False)
     drive.frames(1)
 
@@ -334,5 +337,6 @@ def test_reset_view_frames_the_scene_for_the_eyes(open_viewer):
     viewer, drive = stereo_viewer(open_viewer, width=400, height=100)  # a window of another shape
     drive.frames(1)
     drive.tap(imgui.Key.r)
-    expected = framing_pose(viewer.center, viewer.radius, viewer.navigator.up, EYE.fov_y, EYE.width / EYE.height)
-    np.testing.assert_allclose(viewer.navigator.pose.position, expected.position, atol=1e-9)
+    expected = framing_pose(viewer.view.center, viewer.view.radius, viewer.view.navigator.up, EYE.fov_y,
+                            EYE.width / EYE.height)
+    np.testing.assert_allclose(viewer.view.navigator.pose.position, expected.position, atol=1e-9)

@@ -1,0 +1,73 @@
+"""Opening scenes while the window runs: a path from the panel or files dropped on the
+window load in the background; the current scene stays until the new one is on the
+GPU, and the panel's lines say how it went."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Callable
+
+import moderngl
+
+from raygs_viewer.errors import UserError, one_line
+from raygs_viewer.scene.loader import LoadedScene, SceneLoader
+from raygs_viewer.viewer.state import PanelState
+
+
+def scene_title(path: str) -> str:
+    return "demo scene" if path == "demo" else Path(path).name
+
+
+class SceneOpener:
+    """``loader`` does the loading; ``panel`` gets the message and error lines."""
+
+    def __init__(self, panel: PanelState):
+        self.panel = panel
+        self.loader = SceneLoader()
+
+    def open(self, path: str) -> None:
+        """Starts loading ``path`` in the background."""
+        path = path.strip()
+        if not path:
+            self.panel.error = "error: no file given"
+            return
+        self.panel.error = ""
+        self.panel.message = f"loading {path} ..."
+        self.loader.start(path)
+
+    def drop(self, paths: list[str]) -> None:
+        """Files dropped on the window: the first is opened."""
+        if paths:
+            self.open(paths[0])
+            if len(paths) > 1:
+                self.panel.message = f"{len(paths)} files dropped; opening the first"
+
+    def poll(self, install: Callable[[LoadedScene], None]) -> None:
+        """Hands a finished load to ``install`` (which puts it on the GPU or raises,
+        leaving the current scene)."""
+        result = self.loader.poll()
+        if result is None:
+            return
+        if isinstance(result, UserError):
+            self._failed(f"error: {str(result).splitlines()[0]}")
+            return
+        if result.scene.count == 0:
+            # scene_io accepts an empty file, and one whose every gaussian is invalid, as an
+            # empty scene; swapping the shown scene for a black window is never what was meant.
+            why = "; ".join(result.warnings)
+            self._failed(f"error: {result.path}: no gaussians to show" + (f" ({why})" if why else ""))
+            return
+        try:
+            install(result)
+        except (UserError, MemoryError, moderngl.Error) as exc:  # e.g. too large for this GPU
+            self._failed(f"error: {result.path}: {one_line(exc)}")
+            return
+        self.panel.error = ""
+        self.panel.message = "; ".join(["loaded " + scene_title(result.path)] + list(result.warnings))
+
+    def close(self) -> None:
+        self.loader.close()
+
+    def _failed(self, error: str) -> None:
+        self.panel.error = error
+        self.panel.message = ""

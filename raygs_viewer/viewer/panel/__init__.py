@@ -1,0 +1,47 @@
+"""The imgui panel: one module per section (statistics, scene, render, stereo, view,
+training cameras, screenshot), each drawing from and editing only the state it is
+given, and the panel's two message lines under them.
+
+Edits apply from the next frame on: the frame reads the state each time.
+``widgets.item_rects`` keeps where each labelled widget was drawn, for tests.
+"""
+
+from __future__ import annotations
+
+from typing import Callable, Sequence
+
+from imgui_bundle import imgui
+
+from raygs_viewer.viewer.state import PanelState
+
+
+def draw_panel(panel: PanelState, sections: Sequence[Callable[[], None]]) -> None:
+    """The panel's window with ``sections`` drawn in order, then ``panel``'s message
+    and error lines."""
+    # Tab is the fly/orbit key. imgui would also tab into the panel (focused from its
+    # first frame): a slider tabbed into turns into a text field that then takes every
+    # key, so WASD, R and Tab itself stop reaching the camera.
+    imgui.push_item_flag(imgui.ItemFlags_.no_tab_stop.value, True)
+    _window(panel, sections)
+    imgui.pop_item_flag()
+
+
+def _window(panel: PanelState, sections: Sequence[Callable[[], None]]) -> None:
+    imgui.set_next_window_pos((10, 10), imgui.Cond_.first_use_ever.value)
+    imgui.set_next_window_size((360, 0), imgui.Cond_.first_use_ever.value)
+    # Never taller than the window: a short window scrolls the panel instead of cutting it off.
+    display = imgui.get_io().display_size
+    imgui.set_next_window_size_constraints((0, 0), (1e9, max(display.y - 20, 100)))
+    visible, _ = imgui.begin("raygs-viewer", None)
+    if not visible:
+        imgui.end()
+        return
+    for section in sections:
+        section()
+    if panel.message:
+        imgui.text_wrapped(panel.message)
+    if panel.error:
+        imgui.push_style_color(imgui.Col_.text.value, (1.0, 0.45, 0.4, 1.0))
+        imgui.text_wrapped(panel.error)
+        imgui.pop_style_color()
+    imgui.end()

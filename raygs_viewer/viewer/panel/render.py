@@ -1,0 +1,135 @@
+"""The panel's Render section: the render settings (mode, p_min, the accuracy options,
+SH degree, background), then vsync, the stereo preview's switch and the A/B split view.
+
+The settings are one frozen RenderSettings: each widget's value replaces its field,
+and an edited whole goes back through ``set_settings``.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+from typing import Callable
+
+from imgui_bundle import imgui
+
+from raygs_viewer.render.settings import (
+    ACCURACY_PRESETS,
+    MAX_MIP_SIGMA2,
+    MAX_SUPERSAMPLE,
+    MODE_LABELS,
+    RENDER_MODES,
+    RenderSettings,
+)
+from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, remember, slider, tooltip
+from raygs_viewer.viewer.state import SplitView, StereoPreview
+from raygs_viewer.viewer.window import Window
+
+P_MIN_RANGE = (1e-4, 0.5)
+SIGMA2_RANGE = (0.0, 1.0)  # the slider's; ctrl-click types any value up to MAX_MIP_SIGMA2
+
+#: renderer.supports: why the GPU cannot render these settings, or None.
+Supports = Callable[[RenderSettings], "str | None"]
+
+
+def draw_render_section(settings: RenderSettings, set_settings: Callable[[RenderSettings], None],
+                        scene_sh_degree: int, supports: Supports, window: Window, stereo: StereoPreview,
+                        split: SplitView) -> None:
+    """``set_settings`` receives the edited settings (when an edit changed them);
+    ``window``: its vsync; ``stereo``: its on/off; ``split``: on/off and the preset."""
+    if not header("Render"):
+        return
+    edited = replace(settings, mode=choice("mode", settings.mode, {m: MODE_LABELS[m] for m in RENDER_MODES}, "mode"))
+    tooltip("RayGS: the ray-based opacity, with the pixel-invariant MIP filter when MIP is on.\n"
+            "RayGS exact MIP: the per-pixel MIP filter (Appendix A.5), always on.\n"
+            "GS (EWA): INRIA's linearised splats with a 0.3 px^2 dilation.")
+    # The slider also shows the kappa = -2 ln(p_min / o) it implies at opacity 1.
+    kappa = f"  kappa {-2 * math.log(edited.p_min):.2f}"
+    p_min = slider("p_min", edited.p_min, *P_MIN_RANGE, "%.5f" + kappa, logarithmic=True)
+    remember("p_min")
+    tooltip("opacity cut-off: a gaussian's support is kappa = -2 ln(p_min / o);\n"
+            "the slider shows kappa at opacity o = 1")
+    if p_min is not None:
+        edited = replace(edited, p_min=min(max(p_min, P_MIN_RANGE[0]), P_MIN_RANGE[1]))
+    edited = _accuracy_controls(edited, supports)
+    changed, degree = imgui.slider_int("SH degree", edited.sh_degree, 0, scene_sh_degree)
+    remember("SH degree")
+    if changed:
+        edited = replace(edited, sh_degree=min(max(degree, 0), scene_sh_degree))
+    changed, color = imgui.color_edit3("background", list(edited.background))
+    if changed:
+        edited = replace(edited, background=tuple(min(max(float(c), 0.0), 1.0) for c in color))
+    for name, value in (("black", 0.0), ("grey", 0.5), ("white", 1.0)):
+        if imgui.small_button(name):
+            edited = replace(edited, background=(value,) * 3)
+        remember(f"background {name}")
+        imgui.same_line()
+    if edited != settings:
+        set_settings(edited)
+    imgui.same_line(0, 24)
+    changed, vsync = imgui.checkbox("vsync", window.vsync)
+    if changed:
+        window.vsync = vsync
+    imgui.same_line()
+    stereo.on = checkbox("stereo", stereo.on, "stereo preview",
+                         help_text="the stereo preview: both eyes as a headset shows them, one sort from their "
+                                   "midpoint, each eye rendered offscreen at the headset's resolution and scaled "
+                                   "into the window (its controls: the Stereo section)")
+    _split_controls(split, stereo.on)
+
+
+def _accuracy_controls(settings: RenderSettings, supports: Supports) -> RenderSettings:
+    """MIP, GS compensation, supersampling and the INRIA/GOF parity switches; what does
+    not apply to the current mode, or what this GPU cannot render, is greyed out."""
+    mode = settings.mode
+    exact = mode == "raygs-exact-mip"
+    mip_help = ("RayGS mode: the pixel-invariant MIP filter of Eq. 17 (a pixel-sized gaussian convolved into "
+                "every splat). Always on in exact MIP mode; not used by GS.")
+    if exact:  # on by definition: shown checked, the RayGS mode's choice kept
+        checkbox("MIP filter", True, "MIP filter", enabled=False, help_text=mip_help)
+    else:
+        settings = replace(settings, mip=checkbox("MIP filter", settings.mip, "MIP filter", enabled=mode == "raygs",
+                                                  help_text=mip_help))
+    filtered = exact or (mode == "raygs" and settings.mip)
+    imgui.same_line()
+    modulation = checkbox("opacity modulation", settings.mip_modulation, "opacity modulation", enabled=filtered,
+                          help_text="scale the filtered opacity so a gaussian keeps its total opacity "
+                                    "(the root of Eq. 17; per pixel in exact MIP mode)")
+    imgui.begin_disabled(not filtered)
+    sigma2 = slider("sigma^2 (px^2)", settings.mip_sigma2, *SIGMA2_RANGE, "%.3f")
+    imgui.end_disabled()
+    remember("sigma^2")
+    tooltip("the MIP filter's variance in px^2 of the rendered image (default 0.1).\n"
+            "Ctrl-click to type a value (up to 100).")
+    if sigma2 is not None:
+        settings = replace(settings, mip_sigma2=min(max(float(sigma2), 0.0), MAX_MIP_SIGMA2))
+    settings = replace(settings, mip_modulation=modulation, gs_compensation=checkbox(
+        "GS compensation", settings.gs_compensation, "GS compensation", enabled=mode == "gs",
+        help_text="GS mode: scale opacity by sqrt(det(S) / det(S + 0.3 px^2)), as Mip-Splatting does"))
+    factors = {str(k): f"{k}\u00d7{k}" for k in range(1, MAX_SUPERSAMPLE + 1)}
+    settings = replace(settings, supersample=int(choice("supersampling", str(settings.supersample), factors,
+                                                        "supersampling")))
+    tooltip("render k x k samples per pixel and average them (a box filter)")
+    parity = "matches the images of INRIA 3DGS and GOF (section 10)"
+    settings = replace(settings, alpha_clamp=checkbox("alpha clamp 0.99", settings.alpha_clamp, "alpha clamp",
+                                                      help_text=f"clamp each splat's alpha to 0.99: {parity}"))
+    unsupported = supports(RenderSettings(transmittance_cutoff=True))
+    return replace(settings, transmittance_cutoff=checkbox(
+        "transmittance cut-off 1e-4", settings.transmittance_cutoff, "transmittance cut-off",
+        enabled=not unsupported or settings.transmittance_cutoff,
+        help_text=unsupported or f"stop compositing a pixel before its transmittance falls below 1e-4: {parity}.\n"
+                                 f"INRIA's rule skips the splat that would cross it, so without the alpha clamp "
+                                 f"a nearly opaque splat leaves a hole"))
+
+
+def _split_controls(split: SplitView, stereo_on: bool) -> None:
+    split.on = checkbox("split view", split.on, "split view", enabled=not stereo_on,
+                        help_text="A/B: left of the divider the settings above, right of it the chosen "
+                                  "preset applied to them. Drag the divider with the left mouse button."
+                                  + ("\n(Off in the stereo preview.)" if stereo_on else ""))
+    imgui.same_line()
+    imgui.begin_disabled(not split.on)
+    imgui.set_next_item_width(-1)
+    split.preset = choice("##right side", split.preset, {name: name for name in ACCURACY_PRESETS}, "split preset")
+    imgui.end_disabled()
+    tooltip("the right side's accuracy preset: the settings above with these options")

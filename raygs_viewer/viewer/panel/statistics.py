@@ -1,0 +1,33 @@
+"""The panel's top lines: frame rate, GPU and sort times, what is visible, how old the
+drawn order is; the tooltips break the work down."""
+
+from __future__ import annotations
+
+from imgui_bundle import imgui
+
+from raygs_viewer.render.gl.renderer import WorkCounters
+from raygs_viewer.sort.worker import BackgroundSorter
+from raygs_viewer.viewer.panel.widgets import ms, tooltip
+from raygs_viewer.viewer.stats import FrameStats
+
+
+def draw_statistics(stats: FrameStats, scene_count: int, sorter: BackgroundSorter, work: WorkCounters,
+                    general: bool) -> None:
+    """``sorter``: its request counts; ``work``: the renderer's pass counters;
+    ``general``: whether it draws with the all-features shader variant."""
+    imgui.text(f"{stats.fps:6.1f} fps  frame {ms(stats.frame_ms / 1000)}")
+    tooltip("frames per second and the median frame time of the last 60 frames")
+    imgui.text(f"GPU   {ms(stats.gpu_seconds)}  sort {ms(stats.sort_seconds)}")
+    tooltip("GPU: preprocessing + draw of the last redraw (timer queries; both sides in the split view,\n"
+            "both eyes in the stereo preview).\n"
+            "sort: the last depth sort, on a background thread")
+    age = "up to date" if stats.order_age == 0 else f"{stats.order_age} frames old"
+    imgui.text(f"visible {stats.visible:,} of {scene_count:,}, order {age}")
+    tooltip(f"sorts: {sorter.requested} asked, {sorter.finished} done, {sorter.superseded} skipped "
+            f"(superseded by a newer view before they started)\n"
+            f"{'general' if general else 'specialised'} shaders: "
+            + ("one variant switches every feature at run time (--general)" if general else
+               "each variant carries only the features the scene and the settings use") + "\n"
+            f"preprocessing: {work.preprocessed} passes, {work.preprocess_skipped} skipped (same view)\n"
+            f"order uploads: {work.uploads}, {work.upload_skipped} skipped (same order)")
+    imgui.separator()

@@ -1,0 +1,86 @@
+"""The panel's Stereo section, shown while the preview is on: lens preview, layout, the
+rig (IPD, convergence, scene scale), the headset, and the GPU time of both eyes against
+a headset's frame budget."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import replace
+
+from imgui_bundle import imgui
+
+from raygs_viewer.camera.stereo import MAX_EYE_SIZE, MAX_FOV, MIN_FOV, PRESETS, frame_budget
+from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, ms, remember, slider, tooltip
+from raygs_viewer.viewer.state import StereoPreview
+from raygs_viewer.viewer.stats import FrameStats
+
+STEREO_LAYOUT_LABELS = {"sbs": "side by side (parallel)", "cross": "side by side (cross-eyed)",
+                        "anaglyph": "anaglyph (red/cyan)", "left": "left eye only", "right": "right eye only"}
+IPD_MM_RANGE = (0.0, 80.0)          # the slider's; ctrl-click types up to 1000 mm
+CONVERGENCE_RANGE = (0.1, 100.0)    # metres, logarithmic
+SCENE_SCALE_RANGE = (0.001, 1000.0)  # metres per unit, logarithmic
+
+
+def draw_stereo_section(stereo: StereoPreview, stats: FrameStats) -> None:
+    """Edits ``stereo``; ``stats``: the GPU times of the last redraw."""
+    # Only while the preview is on (the Render section's checkbox): the panel stays short.
+    if not stereo.on or not header("Stereo"):
+        return
+    imgui.push_item_width(-imgui.calc_text_size("scene scale (m/unit)").x - 12)  # room for the longest label
+    stereo.lens_preview = checkbox("lens preview", stereo.lens_preview, "lens preview",
+                                   help_text="the barrel distortion and chromatic aberration correction a headset's "
+                                             "compositor applies: what the headset's panel receives")
+    stereo.layout = choice("layout", stereo.layout, STEREO_LAYOUT_LABELS, "stereo layout")
+    _rig_controls(stereo)
+    headsets = {name: f"{p.label}: {p.width}x{p.height}, {p.fov_x:g}x{p.fov_y:g} deg" for name, p in PRESETS.items()}
+    headsets["custom"] = "custom"
+    stereo.headset = choice("headset", stereo.headset, headsets, "headset")
+    tooltip("per-eye resolution and field of view; each eye renders offscreen at this size")
+    if stereo.headset == "custom":
+        changed, size = imgui.input_int2("per-eye size", stereo.custom_size)
+        if changed:
+            stereo.custom_size = [min(max(int(v), 1), MAX_EYE_SIZE) for v in size]
+        changed, fov = imgui.input_float2("field of view (deg)", stereo.custom_fov, "%.1f")
+        if changed and all(math.isfinite(v) for v in fov):
+            stereo.custom_fov = [min(max(float(v), MIN_FOV), MAX_FOV) for v in fov]
+    stereo.save_eyes = checkbox("screenshots also save each eye", stereo.save_eyes, "save eyes",
+                                help_text="F12 saves the side-by-side pair; this adds -left and -right files")
+    imgui.pop_item_width()
+    _budget(stats)
+
+
+def _rig_controls(stereo: StereoPreview) -> None:
+    rig = stereo.rig
+    ipd_mm = slider("IPD (mm)", rig.ipd * 1000.0, *IPD_MM_RANGE, "%.1f")
+    remember("IPD")
+    tooltip("distance between the eyes (default 63 mm). Ctrl-click to type a value.")
+    if ipd_mm is not None:
+        rig = replace(rig, ipd=min(max(ipd_mm / 1000.0, 0.0), 1.0))
+    convergence = slider("convergence (m)", rig.convergence, *CONVERGENCE_RANGE, "%.2f", logarithmic=True)
+    remember("convergence")
+    tooltip("distance of the plane both eyes see at the same pixel (zero disparity)")
+    if convergence is not None:
+        rig = replace(rig, convergence=min(max(convergence, 1e-3), 1e6))
+    scale = slider("scene scale (m/unit)", rig.scene_scale, *SCENE_SCALE_RANGE, "%.4g", logarithmic=True)
+    remember("scene scale")
+    tooltip("metres per scene unit: how big the scene feels (larger: the scene looks smaller)")
+    if scale is not None and scale > 0:
+        rig = replace(rig, scene_scale=min(max(scale, 1e-9), 1e9))
+    stereo.rig = rig
+    imgui.text_disabled(f"eyes {2 * rig.half_baseline:.4g} units apart, convergence at "
+                        f"{rig.convergence_units:.4g} units")
+
+
+def _budget(stats: FrameStats) -> None:
+    imgui.text(f"both eyes {ms(stats.gpu_seconds)}  lens+layout {ms(stats.post_seconds)}")
+    tooltip("GPU time of drawing both eyes (timer queries), against a headset's frame budget")
+    for rate, budget, fraction in frame_budget(stats.gpu_seconds):
+        over = math.isfinite(fraction) and fraction > 1.0
+        if over:
+            imgui.push_style_color(imgui.Col_.plot_histogram.value, (0.85, 0.25, 0.2, 1.0))
+        text = (f"{rate} Hz ({budget * 1000:.1f} ms): "
+                + (f"{fraction:.1f}x over" if over else f"{fraction * 100:.0f} %" if math.isfinite(fraction) else "-"))
+        imgui.progress_bar(min(fraction, 1.0) if math.isfinite(fraction) else 0.0, (-1, 0), text)
+        remember(f"budget {rate}")
+        if over:
+            imgui.pop_style_color()

@@ -1,0 +1,71 @@
+"""The widgets every panel section shares, and where each labelled one was drawn.
+
+``item_rects`` keeps the last frame's rectangle of each labelled widget, for tests
+that click on them.
+"""
+
+from __future__ import annotations
+
+import math
+
+from imgui_bundle import imgui
+
+#: label -> (x0, y0, x1, y1) in screen coordinates of the last frame's widget.
+item_rects: dict[str, tuple[float, float, float, float]] = {}
+
+
+def remember(label: str) -> None:
+    """Keeps the last widget's rectangle as ``label``."""
+    low, high = imgui.get_item_rect_min(), imgui.get_item_rect_max()
+    item_rects[label] = (low.x, low.y, high.x, high.y)
+
+
+def tooltip(text: str) -> None:
+    """``text`` while the mouse is over the last widget (greyed out or not)."""
+    if imgui.is_item_hovered(imgui.HoveredFlags_.allow_when_disabled.value):
+        imgui.set_tooltip(text)
+
+
+def header(label: str, open_first: bool = True) -> bool:
+    """A collapsing section header; whether the section is open."""
+    return imgui.collapsing_header(label, imgui.TreeNodeFlags_.default_open.value if open_first else 0)
+
+
+def choice(label: str, current: str, choices: dict[str, str], tag: str) -> str:
+    """A combo of ``choices`` (value -> shown text), every entry visible when it opens;
+    the combo's rect is remembered as ``tag`` and each open entry's as
+    ``f"{tag} {value}"``. Returns the chosen value."""
+    chosen = current
+    if imgui.begin_combo(label, choices.get(current, current), imgui.ComboFlags_.height_largest.value):
+        for value, text in choices.items():
+            if imgui.selectable(text, value == current)[0]:
+                chosen = value
+            remember(f"{tag} {value}")
+            if value == current:
+                imgui.set_item_default_focus()
+        imgui.end_combo()
+    remember(tag)
+    return chosen
+
+
+def checkbox(label: str, value: bool, tag: str, enabled: bool = True, help_text: str = "") -> bool:
+    """A checkbox remembered as ``tag``, greyed out unless ``enabled``; the new value."""
+    imgui.begin_disabled(not enabled)
+    _, value = imgui.checkbox(label, value)
+    imgui.end_disabled()
+    remember(tag)
+    if help_text:
+        tooltip(help_text)
+    return value
+
+
+def slider(label: str, value: float, low: float, high: float, fmt: str, logarithmic: bool = False) -> float | None:
+    """A float slider over [low, high] (ctrl-click types any value); the new value when
+    it was moved to a finite one, else None."""
+    flags = imgui.SliderFlags_.logarithmic.value if logarithmic else 0
+    changed, new = imgui.slider_float(label, value, low, high, fmt, flags)
+    return new if changed and math.isfinite(new) else None
+
+
+def ms(seconds: float) -> str:
+    return f"{seconds * 1000:6.2f} ms" if math.isfinite(seconds) else "     - ms"

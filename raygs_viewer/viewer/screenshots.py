@@ -1,0 +1,104 @@
+"""The window's screenshots: its last view re-rendered offscreen at the chosen scale with
+an exact sort (no panel), saved as PNG with a JSON sidecar each, so every image
+reproduces headlessly (``raygs-viewer render --sidecar``).
+
+In the split view each side is saved whole with its own settings and sidecar
+(``<name>-left.png``, ``<name>-right.png``). In the stereo preview: the side-by-side
+pair of eyes at the headset's size times the scale, and on request each eye
+(``<name>-pair.png``, ``<name>-left.png``, ``<name>-right.png``).
+"""
+
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass, replace
+from pathlib import Path
+
+import numpy as np
+
+from raygs_viewer.camera.navigation import Navigator
+from raygs_viewer.camera.pinhole import Camera
+from raygs_viewer.camera.stereo import StereoView
+from raygs_viewer.capture.screenshot import render_tiled, save_screenshot, save_screenshots, scaled_camera
+from raygs_viewer.capture.sidecar import build_sidecar
+from raygs_viewer.render.gl.stereo_frame import render_stereo_view
+from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.scene.loader import LoadedScene
+from raygs_viewer.viewer.state import ScreenshotOptions, SplitView
+
+#: (png, sidecar) paths of one saved image.
+Saved = tuple[Path, Path]
+
+
+@dataclass(frozen=True)
+class ShownView:
+    """What the window showed in its last frame: the camera (viewport-sized; in stereo
+    the midpoint between the eyes at the headset's size), the render settings (the
+    left side's in the split view), the split view when it was shown, the stereo view
+    when the preview was on."""
+
+    camera: Camera
+    settings: RenderSettings
+    split: SplitView | None = None
+    stereo: StereoView | None = None
+
+
+def sidecar_extra(navigator: Navigator, loaded: LoadedScene, training_index: int | None, gl: str) -> dict:
+    """The window's details every sidecar records besides the view: navigation, the
+    training camera flown to, the GL renderer."""
+    return {"navigation": navigator.mode, "up_axis": navigator.up, "training_camera": training_index,
+            "training_camera_name": loaded.camera_names[training_index] if training_index is not None else None,
+            "gl": gl}
+
+
+def take_screenshots(renderer, loaded: LoadedScene, shown: ShownView, options: ScreenshotOptions, save_eyes: bool,
+                     extra: dict, path: str | Path | None = None) -> list[Saved]:
+    """Renders and saves ``shown`` at ``options.scale`` into ``options.folder`` (or at
+    ``path``, tagged names beside it for several images); never overwrites anything.
+    Returns every (png, json) pair written, the left side's or the pair's first."""
+    scale = options.scale
+    camera = scaled_camera(shown.camera, scale)
+    scene_path = loaded.path if loaded.path == "demo" else os.path.abspath(loaded.path)
+
+    def sidecar(settings: RenderSettings, details: dict, stereo: StereoView | None = None) -> dict:
+        return build_sidecar(scene_path=scene_path, scene_sha256=loaded.sha256, scene=loaded.scene, camera=camera,
+                             settings=settings, scale=scale, window_camera=shown.camera, extra=details, stereo=stereo)
+
+    if shown.stereo is not None:
+        shots = [(image, sidecar(shown.settings, {**extra, "stereo_window_layout": shown.stereo.layout}, view), tag)
+                 for image, view, tag in _stereo_images(renderer, camera, shown.settings, shown.stereo, save_eyes)]
+    elif shown.split is None:
+        shots = [(render_tiled(renderer, camera, shown.settings), sidecar(shown.settings, extra), "left")]
+    else:
+        split = shown.split
+        shots = [(render_tiled(renderer, camera, settings), sidecar(settings, {**extra, "split_view": {
+                     "side": side, "preset": split.preset if side == "right" else None, "divider": split.fraction}}),
+                  side)
+                 for side, settings in (("left", shown.settings), ("right", split.right(shown.settings)))]
+    if len(shots) == 1:
+        image, data, _ = shots[0]
+        if path is not None:
+            return [save_screenshot(image, data, path=Path(path))]
+        return [save_screenshot(image, data, folder=Path(options.folder))]
+    if path is not None:
+        return save_screenshots(shots, path=Path(path))
+    return save_screenshots(shots, folder=Path(options.folder))
+
+
+def _stereo_images(renderer, camera: Camera, settings: RenderSettings, stereo: StereoView, save_eyes: bool
+                   ) -> list[tuple[np.ndarray, StereoView, str]]:
+    """The side-by-side pair whatever the window's layout (the sidecar notes that
+    layout), and each eye when asked, each with the view that reproduces it."""
+    pair = replace(stereo, layout="sbs")
+    image, left, right = render_stereo_view(renderer, camera, settings, pair)
+    shots = [(image, pair, "pair")]
+    if save_eyes:
+        shots += [(left, replace(stereo, layout="left"), "left"), (right, replace(stereo, layout="right"), "right")]
+    return shots
+
+
+def saved_message(saved: list[Saved]) -> str:
+    """The panel's line about what a capture wrote."""
+    if len(saved) == 1:
+        return f"saved {saved[0][0]}"
+    return "saved " + " and ".join(str(png) for png, _ in saved) + " (each with its .json sidecar)"

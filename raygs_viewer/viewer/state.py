@@ -1,0 +1,183 @@
+"""The viewer's state besides its render settings, one small dataclass per concern.
+
+The render settings are one :class:`~raygs_viewer.render.settings.RenderSettings`, held
+by the viewer and replaced whole on every edit. What is not a render setting lives
+here: the A/B split view, the stereo preview, the screenshot options, the navigation
+choices and the panel's own state. :class:`ViewerOptions` holds the start value of each.
+The panel, the keys and the mouse edit the viewer's copies; the frame reads them each
+time, so an edit shows from the next frame on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from raygs_viewer.camera.lens_model import DEFAULT_LENS
+from raygs_viewer.camera.stereo import (
+    DEFAULT_HEADSET,
+    PRESETS,
+    HeadsetPreset,
+    StereoRig,
+    StereoView,
+    check_layout,
+    custom_preset,
+)
+from raygs_viewer.errors import UserError, one_line
+from raygs_viewer.render.settings import RenderSettings, apply_preset
+
+#: The right side's preset when the split view is first switched on.
+DEFAULT_SPLIT_PRESET = "GS"
+#: What a custom headset starts from in the panel.
+CUSTOM_START = PRESETS["generic90"]
+
+
+@dataclass
+class SplitView:
+    """The A/B split view: left of the divider the render settings, right of them the
+    ACCURACY_PRESETS entry ``preset`` applied to them. fraction: where the divider is,
+    as a fraction of the viewport's width."""
+
+    on: bool = False
+    preset: str = DEFAULT_SPLIT_PRESET
+    fraction: float = 0.5
+
+    def right(self, settings: RenderSettings) -> RenderSettings | None:
+        """The right side's settings; None when the split view is off."""
+        return apply_preset(settings, self.preset) if self.on else None
+
+    def column(self, width: int) -> int:
+        """The first column of the right side in a viewport ``width`` pixels wide."""
+        return int(round(self.fraction * width))
+
+
+@dataclass
+class StereoPreview:
+    """The stereo preview (see :mod:`raygs_viewer.camera.stereo`): on or off, the rig,
+    the layout, whether the lens preview is applied, and the headset: a PRESETS key, or
+    "custom", then custom_size ([width, height] per eye) and custom_fov ([horizontal,
+    vertical] degrees) describe it. save_eyes: stereo screenshots also save each eye.
+
+    ViewerOptions holds the start value; the panel edits the viewer's copy."""
+
+    on: bool = False
+    rig: StereoRig = StereoRig()
+    layout: str = "sbs"
+    lens_preview: bool = False
+    headset: str = DEFAULT_HEADSET
+    custom_size: list[int] = field(default_factory=lambda: [CUSTOM_START.width, CUSTOM_START.height])
+    custom_fov: list[float] = field(default_factory=lambda: [CUSTOM_START.fov_x, CUSTOM_START.fov_y])
+    save_eyes: bool = False
+
+    def __post_init__(self) -> None:
+        check_layout(self.layout)
+
+    @classmethod
+    def of(cls, headset: HeadsetPreset, **values) -> StereoPreview:
+        """A preview of ``headset``: its PRESETS key, or "custom" with its numbers."""
+        if headset.name == "custom" or headset.name not in PRESETS:
+            return cls(headset="custom", custom_size=[headset.width, headset.height],
+                       custom_fov=[headset.fov_x, headset.fov_y], **values)
+        return cls(headset=headset.name, **values)
+
+    def headset_preset(self) -> HeadsetPreset:
+        """The headset (UserError for custom values out of range)."""
+        if self.headset == "custom":
+            return custom_preset(*self.custom_size, *self.custom_fov)
+        return PRESETS[self.headset]
+
+    def view(self) -> StereoView | None:
+        """The stereo view to draw; None when the preview is off."""
+        if not self.on:
+            return None
+        return StereoView(self.rig, self.layout, DEFAULT_LENS if self.lens_preview else None, self.headset_preset())
+
+    def frame_view(self, shown: StereoView | None, panel: PanelState) -> StereoView | None:
+        """The stereo view to draw this frame. A custom headset out of range is a
+        standing error in ``panel``, and the preview keeps ``shown`` (the last frame's)."""
+        try:
+            view = self.view()
+        except UserError as exc:
+            panel.stand("stereo", f"error: {one_line(exc)}")
+            return shown if self.on else None
+        panel.mend("stereo")
+        return view
+
+
+@dataclass
+class ScreenshotOptions:
+    """Where F12 and the panel's button save (folder), and the offscreen render scale."""
+
+    folder: str = "screenshots"
+    scale: float = 1.0
+
+
+@dataclass(frozen=True)
+class NavigationChoices:
+    """How the camera starts to move: mode "fly" or "orbit", the world's up axis (one of
+    camera.navigation.UP_AXES), and turntable: degrees per frame about the up axis in
+    orbit mode (a reproducible fly-around; 0: off). A new scene keeps the navigator's."""
+
+    mode: str = "fly"
+    up_axis: str = "-y"
+    turntable: float = 0.0
+
+
+@dataclass
+class PanelState:
+    """The panel's own state: whether it is shown, the path typed into it, and its two
+    lines: message and error.
+
+    An error of a condition that may mend (settings the GPU cannot draw, a custom
+    headset out of range) is *standing*: it goes when its source mends, unless another
+    error has replaced it meanwhile."""
+
+    show_panel: bool = True
+    open_path: str = ""
+    message: str = ""
+    error: str = ""
+    standing: dict[str, str] = field(default_factory=dict)
+
+    def toggle(self) -> None:
+        self.show_panel = not self.show_panel
+
+    def stand(self, source: str, error: str) -> None:
+        self.error = self.standing[source] = error
+
+    def mend(self, source: str) -> None:
+        error = self.standing.pop(source, None)
+        if error is not None and self.error == error:
+            self.error = ""
+
+
+@dataclass(frozen=True)
+class ViewerOptions:
+    """Everything ``raygs-viewer view`` takes from the command line.
+
+    scene: a .ply/.splat path or "demo". cameras: training cameras.json (None: look
+    next to the scene). camera/camera_index: the start view (a cameras.json and an
+    index into it). width, height: window size in screen coordinates. settings: the
+    start render settings (sh_degree None: each scene's own). frames: quit after that
+    many frames (None: run until closed). screenshot: save the last frame there (PNG,
+    with a .json sidecar beside it). window_screenshot: a PNG of the whole window, panel
+    included, at the end. screenshots: where F12 and the panel's button save, and at
+    what scale. platform: GLFW platform ("auto", "x11", "wayland", "null"; auto picks
+    null without a display). general: the all-features shader variant
+    (GLRenderer(general=)), to compare. stereo: the stereo preview's start value.
+    """
+
+    scene: str = "demo"
+    cameras: str | None = None
+    camera: str | None = None
+    camera_index: int = 0
+    width: int = 1280
+    height: int = 720
+    settings: RenderSettings = RenderSettings()
+    frames: int | None = None
+    screenshot: str | None = None
+    window_screenshot: str | None = None
+    screenshots: ScreenshotOptions = field(default_factory=ScreenshotOptions)
+    vsync: bool = True
+    navigation: NavigationChoices = NavigationChoices()
+    platform: str = "auto"
+    general: bool = False
+    stereo: StereoPreview = field(default_factory=StereoPreview)

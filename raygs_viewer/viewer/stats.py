@@ -1,0 +1,112 @@
+"""The window's frame statistics: what the panel shows (the last 60 frames), how old the
+drawn order is, and the one-line summary of a scripted run (the whole history)."""
+
+from __future__ import annotations
+
+import itertools
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from raygs_viewer.camera.pinhole import Camera, camera_key
+from raygs_viewer.camera.stereo import StereoView
+
+
+@dataclass
+class FrameStats:
+    """Times in seconds."""
+
+    all_frame_times: deque = field(default_factory=lambda: deque(maxlen=10000))
+    all_sort_times: deque = field(default_factory=lambda: deque(maxlen=10000))
+    sort_seconds: float = float("nan")
+    gpu_seconds: float = float("nan")     # the scene's draw: both sides in the split view, both eyes in stereo
+    post_seconds: float = float("nan")    # stereo: lens preview and layout
+    visible: int = 0
+    order_age: int = 0          # frames since the drawn order's view was current; 0: up to date
+    drawn_serial: int = 0       # sort request whose order the last draw used
+    draws: int = 0              # frames that re-rendered the scene (others reused the image)
+    frames_with_sort_running: int = 0  # frames completed while a sort was in progress
+    #: sort request serial -> the frame that first asked for it, while unanswered.
+    request_frames: dict[int, int] = field(default_factory=dict)
+    last_time: float | None = None   # time.perf_counter() at the start of the last frame
+
+    @property
+    def recent_frame_times(self) -> list[float]:
+        return list(itertools.islice(reversed(self.all_frame_times), 60))
+
+    @property
+    def fps(self) -> float:
+        recent = self.recent_frame_times
+        return len(recent) / sum(recent) if recent and sum(recent) > 0 else 0.0
+
+    @property
+    def frame_ms(self) -> float:
+        recent = self.recent_frame_times
+        return 1000 * float(np.median(recent)) if recent else float("nan")
+
+    def tick(self, fixed_dt: float | None = None) -> float:
+        """Starts a frame: records the time since the last one and returns the frame
+        time to move by (``fixed_dt`` when given; at most 0.1 s; 0 for the first)."""
+        now = time.perf_counter()
+        last, self.last_time = self.last_time, now
+        if last is not None:
+            self.all_frame_times.append(now - last)
+        if fixed_dt is not None:
+            return fixed_dt
+        return min(now - last, 0.1) if last is not None else 0.0
+
+    def asked(self, serial: int, frame_index: int) -> None:
+        """Frame ``frame_index`` asked for sort request ``serial``."""
+        self.request_frames.setdefault(serial, frame_index)
+
+    def order_to_draw(self, result, asked: tuple, frame_index: int) -> tuple[np.ndarray, int]:
+        """(order, sort request serial) frame ``frame_index`` draws: the newest finished
+        sort ``result`` (a sort.worker result; None: an empty order, serial 0), noting
+        its age, its time and what it keeps visible. ``asked``: this frame's
+        :func:`sort_key`, which an up-to-date result matches."""
+        if result is None:
+            self.order_age = frame_index - min(self.request_frames.values(), default=frame_index)
+            return np.zeros(0, np.uint32), 0
+        for older in [n for n in self.request_frames if n < result.serial]:  # answered or skipped
+            del self.request_frames[older]
+        current = sort_key(result.camera, result.p_min, result.dilation, result.cull_cameras) == asked
+        self.order_age = 0 if current else frame_index - self.request_frames.get(result.serial, frame_index)
+        if result.serial != self.drawn_serial:
+            self.all_sort_times.append(result.seconds)
+        self.sort_seconds = result.seconds
+        self.visible = int(result.order.size)
+        return result.order, result.serial
+
+
+def sort_key(camera: Camera, p_min: float, dilation: float | None, cull_cameras) -> tuple:
+    """What tells sort requests apart: the view, the cull, and the cameras culled for."""
+    return (camera_key(camera), p_min, dilation,
+            None if cull_cameras is None else tuple(camera_key(c) for c in cull_cameras))
+
+
+def camera_size(camera: Camera | None) -> str:
+    return "-" if camera is None else f"{camera.width}x{camera.height}"
+
+
+def median_ms(values: Sequence[float]) -> str:
+    return f"{1000 * float(np.median(values)):.1f} ms" if values else "n/a"
+
+
+def summary(stats: FrameStats, frames: int, camera: Camera | None, stereo: StereoView | None,
+            gpu_times: Sequence[float], post_times: Sequence[float], scene_count: int, general: bool) -> str:
+    """One line of frame statistics after ``frames`` frames; gpu_times and post_times:
+    every draw's GPU seconds (post: the stereo lens preview and layout)."""
+    frame = float(np.median(stats.all_frame_times)) if stats.all_frame_times else float("nan")
+    visible = f"{stats.visible:,} of {scene_count:,} visible"
+    if stereo is not None:
+        return (f"{frames} frames ({stats.draws} drawn), stereo {stereo.headset.name} "
+                f"{camera_size(camera)} per eye: median frame {median_ms(stats.all_frame_times)}, "
+                f"both eyes GPU {median_ms(gpu_times)}, lens+layout {median_ms(post_times)}, "
+                f"sort {median_ms(stats.all_sort_times)}, {visible}")
+    return (f"{frames} frames ({stats.draws} drawn) at {camera_size(camera)}: "
+            f"median frame {median_ms(stats.all_frame_times)} ({1 / frame if frame > 0 else 0:.1f} fps), "
+            f"GPU {median_ms(gpu_times)}, sort {median_ms(stats.all_sort_times)}, {visible}"
+            + (", general shaders" if general else ""))

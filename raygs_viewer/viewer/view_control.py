@@ -1,0 +1,96 @@
+"""Where the window looks from and how: the navigator (pose, fly or orbit), the lens
+(a free field of view or a training camera's intrinsics), the training camera flown
+to, and the camera each frame draws, mono or the midpoint between the stereo eyes."""
+
+from __future__ import annotations
+
+import math
+
+from raygs_viewer.camera.lens import Lens, letterbox
+from raygs_viewer.camera.navigation import LOOK_RADIANS_PER_PIXEL, Navigator, Pose, framing_pose, scene_bounds
+from raygs_viewer.camera.pinhole import Camera
+from raygs_viewer.camera.stereo import StereoView, composed_size, eye_cameras
+from raygs_viewer.scene.loader import LoadedScene
+from raygs_viewer.viewer.state import NavigationChoices, PanelState
+
+
+class ViewControl:
+    """One per scene: the scene's bounds (``center``, ``radius``) frame it and bound
+    navigation. ``training_index``: the training camera flown to last (None: a free
+    view). ``panel`` says when there is no training camera to fly to."""
+
+    def __init__(self, loaded: LoadedScene, start_camera: Camera | None, choices: NavigationChoices,
+                 aspect: float, panel: PanelState):
+        """The first training view, filling the window with its vertical field of view,
+        unless ``start_camera`` is given; without either a view framing the scene for
+        a window of ``aspect`` (width / height)."""
+        self.cameras = loaded.cameras
+        self.panel = panel
+        self.center, self.radius = scene_bounds(loaded.scene.positions)
+        self.training_index: int | None = None
+        if start_camera is not None:
+            pose, self.lens = Pose.from_camera(start_camera), Lens.of_camera(start_camera)
+        elif loaded.cameras:
+            first = loaded.cameras[0]
+            pose, self.lens = Pose.from_camera(first), Lens().with_fov(Lens.of_camera(first).fov_y_degrees)
+        else:
+            self.lens = Lens()
+            pose = framing_pose(self.center, self.radius, choices.up_axis, self.lens.fov_y_degrees, aspect)
+        self.navigator = Navigator(pose, self.center, self.radius, up=choices.up_axis, mode=choices.mode)
+
+    def choices(self) -> NavigationChoices:
+        """The navigator's mode and up axis now: what the next scene keeps."""
+        return NavigationChoices(mode=self.navigator.mode, up_axis=self.navigator.up)
+
+    def switch_mode(self) -> None:
+        """Fly to orbit and back."""
+        self.navigator.set_mode("orbit" if self.navigator.mode == "fly" else "fly")
+
+    def select_training_camera(self, index: int) -> None:
+        """Flies to training camera ``index`` (wrapping) and renders with its intrinsics."""
+        cameras = self.cameras
+        if not cameras:
+            self.panel.message = "this scene has no training cameras"
+            return
+        index %= len(cameras)
+        self.training_index = index
+        self.lens = Lens.of_camera(cameras[index])
+        self.navigator.fly_to(Pose.from_camera(cameras[index]))
+
+    def step_training_camera(self, step: int) -> None:
+        """Flies to the next (+1) or previous (-1) training camera."""
+        start = self.training_index if self.training_index is not None else (-1 if step > 0 else 0)
+        self.select_training_camera(start + step)
+
+    def set_fov(self, fov_y_degrees: float) -> None:
+        """A free lens of this vertical field of view."""
+        self.training_index = None
+        self.lens = self.lens.with_fov(fov_y_degrees)
+
+    def reset(self, aspect: float, stereo: StereoView | None) -> None:
+        """Frames the scene again with a free lens of the same field of view, for a
+        window of ``aspect``, or for the eyes of ``stereo``'s headset."""
+        self.set_fov(self.lens.fov_y_degrees)
+        fov = self.lens.fov_y_degrees
+        if stereo is not None:  # frame the scene for the eyes, not the window
+            fov, aspect = stereo.headset.fov_y, stereo.headset.width / stereo.headset.height
+        self.navigator.reset(framing_pose(self.center, self.radius, self.navigator.up, fov, aspect))
+
+    def turn(self, degrees: float) -> None:
+        """Turntable: orbit the target by a fixed angle per frame (not per second), so a
+        scripted run draws the same views on any machine."""
+        if self.navigator.mode != "orbit":
+            self.navigator.set_mode("orbit")
+        self.navigator.rotate(math.radians(degrees) / LOOK_RADIANS_PER_PIXEL, 0.0)
+
+    def camera(self, width: int, height: int, stereo: StereoView | None
+               ) -> tuple[Camera, tuple[int, int, int, int], tuple[Camera, Camera] | None]:
+        """(camera, viewport, eye cameras) for a width x height framebuffer: the
+        viewport-sized camera, or in stereo the midpoint between the eyes at the
+        headset's per-eye size and field of view, its composed image letterboxed."""
+        camera = self.lens.camera(self.navigator.pose, width, height)
+        if stereo is None:
+            return camera, self.lens.viewport(width, height), None
+        camera = stereo.headset.camera(camera)
+        shown_width, shown_height = composed_size(camera.width, camera.height, stereo.layout)
+        return camera, letterbox(width, height, shown_width / shown_height), eye_cameras(camera, stereo.rig)
