@@ -16,74 +16,57 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "raygs_viewer"
 LAYERS = {"errors": 0, "camera": 1, "scene": 2, "sort": 3, "render": 4, "capture": 5, "viewer": 6, "bench": 6,
           "cli": 7, "__main__": 8}
-#: Function-level imports are allowed where a comment on the line, or the line above,
-#: says why (a heavy optional dependency).
 
 
-def _modules() -> dict[str, Path]:
+def modules_of(package: Path) -> dict[str, Path]:
+    """{dotted module name: file} of every module under ``package``."""
     modules = {}
-    for path in sorted(PACKAGE.rglob("*.py")):
-        parts = path.relative_to(PACKAGE.parent).with_suffix("").parts
+    for path in sorted(package.rglob("*.py")):
+        parts = path.relative_to(package.parent).with_suffix("").parts
         if parts[-1] == "__init__":
             parts = parts[:-1]
         modules[".".join(parts)] = path
     return modules
 
 
-MODULES = _modules()
-
-
-def _layer(module: str) -> tuple[str, int]:
+def layer(module: str) -> tuple[str, int]:
     parts = module.split(".")
     if len(parts) == 1:  # the package root (__version__)
-        return "raygs_viewer", 0
+        return parts[0], 0
     return parts[1], LAYERS[parts[1]]
 
 
-def _imports(path: Path):
-    """(line, imported module, names taken from it, at top level?) of each raygs_viewer import."""
+def imports(path: Path, modules: dict[str, Path]):
+    """(node, imported module, names taken from it) of each import of the package."""
+    root = next(iter(modules)).split(".")[0]
     tree = ast.parse(path.read_text(), str(path))
-    top = {id(node) for node in tree.body}
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             for alias in node.names:
-                if alias.name.split(".")[0] == "raygs_viewer":
-                    yield node, alias.name, [], id(node) in top
-        elif isinstance(node, ast.ImportFrom) and node.module and node.module.split(".")[0] == "raygs_viewer":
+                if alias.name.split(".")[0] == root:
+                    yield node, alias.name, []
+        elif isinstance(node, ast.ImportFrom) and node.module and node.module.split(".")[0] == root:
             names = [a.name for a in node.names]
-            submodules = [n for n in names if f"{node.module}.{n}" in MODULES]
+            submodules = [n for n in names if f"{node.module}.{n}" in modules]
             for name in submodules:
-                yield node, f"{node.module}.{name}", [], id(node) in top
-            yield node, node.module, [n for n in names if n not in submodules], id(node) in top
+                yield node, f"{node.module}.{name}", []
+            yield node, node.module, [n for n in names if n not in submodules]
 
 
-def _graph() -> dict[str, set[str]]:
-    graph = {}
-    for module, path in MODULES.items():
-        graph[module] = {target for _, target, _, _ in _imports(path) if target in MODULES and target != module}
-    return graph
-
-
-def test_every_module_has_a_layer():
-    for module in MODULES:
-        assert _layer(module)[0] in LAYERS or module == "raygs_viewer", module
-
-
-def test_imports_go_down_the_layers():
+def upward_imports(modules: dict[str, Path]) -> list[str]:
     wrong = []
-    for module, path in MODULES.items():
-        name, layer = _layer(module)
-        for node, target, _, _ in _imports(path):
-            target_name, target_layer = _layer(target)
-            if target_name == name:
-                continue
-            if target_layer >= layer:
-                wrong.append(f"{path.relative_to(PACKAGE.parent)}:{node.lineno} {module} -> {target}")
-    assert not wrong, "imports against the layer order:\n" + "\n".join(wrong)
+    for module, path in modules.items():
+        name, level = layer(module)
+        for node, target, _ in imports(path, modules):
+            target_name, target_level = layer(target)
+            if target_name != name and target_level >= level:
+                wrong.append(f"{path.name}:{node.lineno} {module} -> {target}")
+    return wrong
 
 
-def test_no_import_cycles():
-    graph = _graph()
+def import_cycles(modules: dict[str, Path]) -> list[list[str]]:
+    graph = {module: {target for _, target, _ in imports(path, modules) if target in modules and target != module}
+             for module, path in modules.items()}
     index, low, stack, on_stack, cycles = {}, {}, [], set(), []
 
     def visit(node: str) -> None:  # Tarjan's strongly connected components
@@ -110,22 +93,23 @@ def test_no_import_cycles():
     for node in graph:
         if node not in index:
             visit(node)
-    assert not cycles, f"import cycles: {cycles}"
+    return cycles
 
 
-def test_no_private_names_from_other_modules():
+def private_imports(modules: dict[str, Path]) -> list[str]:
     taken = []
-    for module, path in MODULES.items():
-        for node, target, names, _ in _imports(path):
+    for module, path in modules.items():
+        for node, target, names in imports(path, modules):
             private = [n for n in names if n.startswith("_") and not n.startswith("__")]
             if private and target != module:
-                taken.append(f"{path.relative_to(PACKAGE.parent)}:{node.lineno} {private} from {target}")
-    assert not taken, "private names imported from other modules:\n" + "\n".join(taken)
+                taken.append(f"{path.name}:{node.lineno} {private} from {target}")
+    return taken
 
 
-def test_late_imports_say_why():
+def silent_late_imports(modules: dict[str, Path]) -> list[str]:
+    """Imports inside functions with no comment on their line or the line above."""
     silent = []
-    for module, path in MODULES.items():
+    for path in modules.values():
         lines = path.read_text().splitlines()
         tree = ast.parse("\n".join(lines))
         top = {id(node) for node in tree.body}
@@ -133,11 +117,64 @@ def test_late_imports_say_why():
             if isinstance(node, (ast.Import, ast.ImportFrom)) and id(node) not in top:
                 here, above = lines[node.lineno - 1], lines[node.lineno - 2] if node.lineno > 1 else ""
                 if "#" not in here and not above.strip().startswith("#"):
-                    silent.append(f"{path.relative_to(PACKAGE.parent)}:{node.lineno}: {here.strip()}")
+                    silent.append(f"{path.name}:{node.lineno}: {here.strip()}")
+    return silent
+
+
+MODULES = modules_of(PACKAGE)
+
+
+def test_every_module_has_a_layer():
+    for module in MODULES:
+        layer(module)  # KeyError for a subpackage missing from LAYERS
+
+
+def test_imports_go_down_the_layers():
+    wrong = upward_imports(MODULES)
+    assert not wrong, "imports against the layer order:\n" + "\n".join(wrong)
+
+
+def test_no_import_cycles():
+    cycles = import_cycles(MODULES)
+    assert not cycles, f"import cycles: {cycles}"
+
+
+def test_no_private_names_from_other_modules():
+    taken = private_imports(MODULES)
+    assert not taken, "private names imported from other modules:\n" + "\n".join(taken)
+
+
+def test_late_imports_say_why():
+    silent = silent_late_imports(MODULES)
     assert not silent, "imports inside functions without a comment saying why:\n" + "\n".join(silent)
 
 
-@pytest.mark.parametrize("bad", ["raygs_viewer.viewer.app", "raygs_viewer.cli.main"])
-def test_the_layer_check_sees_an_upward_import(bad, tmp_path):
-    """The control: the rule above would catch camera importing a higher layer."""
-    assert _layer(bad)[1] > _layer("raygs_viewer.camera.pinhole")[1]
+def test_the_checks_see_what_they_forbid(tmp_path):
+    """The control: a small package with one of each fault, and each check finds its own."""
+    package = tmp_path / "pkg"
+    files = {
+        "camera/__init__.py": "",
+        "camera/pinhole.py": "from pkg.viewer.app import Viewer\n",  # upward
+        "scene/__init__.py": "",
+        "scene/a.py": "from pkg.scene.b import _helper\n",  # private, and a cycle with b
+        "scene/b.py": "import pkg.scene.a\n\ndef _helper():\n    import json\n",  # silent late import
+        "viewer/__init__.py": "",
+        "viewer/app.py": "from pkg.scene import a\n\nclass Viewer:\n    pass\n",
+    }
+    for name, text in files.items():
+        (package / name).parent.mkdir(parents=True, exist_ok=True)
+        (package / name).write_text(text)
+    modules = modules_of(package)
+    assert upward_imports(modules) == ["pinhole.py:1 pkg.camera.pinhole -> pkg.viewer.app"]
+    assert import_cycles(modules) == [["pkg.scene.a", "pkg.scene.b"]]
+    assert private_imports(modules) == ["a.py:1 ['_helper'] from pkg.scene.b"]
+    assert silent_late_imports(modules) == ["b.py:4: import json"]
+
+
+def test_every_subpackage_is_installed():
+    """pyproject.toml lists the packages by name: a new subpackage missing there would
+    pass the tests in a checkout and be absent from an installed copy."""
+    tomllib = pytest.importorskip("tomllib")
+    listed = set(tomllib.loads((PACKAGE.parent / "pyproject.toml").read_text())["tool"]["setuptools"]["packages"])
+    present = {".".join(init.parent.relative_to(PACKAGE.parent).parts) for init in PACKAGE.rglob("__init__.py")}
+    assert present <= listed, f"subpackages missing from pyproject.toml: {sorted(present - listed)}"

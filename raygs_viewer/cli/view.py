@@ -10,21 +10,26 @@ from raygs_viewer.camera.navigation import UP_AXES as NAVIGATION_UP_AXES
 from raygs_viewer.camera.stereo import (
     DEFAULT_HEADSET,
     PRESETS,
-    StereoView,
     custom_preset,
 )
 from raygs_viewer.capture.screenshot import check_screenshot_path
 from raygs_viewer.cli import argtypes
 from raygs_viewer.cli.options import (
     DEFAULT_BACKGROUND,
-    accuracy_settings,
     add_settings_options,
     add_stereo_options,
+    render_settings,
     stereo_rig,
 )
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.settings import DEFAULT_P_MIN
 from raygs_viewer.scene.loader import DEMO
+from raygs_viewer.viewer.state import (
+    NavigationChoices,
+    ScreenshotOptions,
+    StereoPreview,
+    ViewerOptions,
+)
 
 #: --up-axis's choices, in the navigation's order.
 UP_AXES = tuple(NAVIGATION_UP_AXES)
@@ -83,12 +88,11 @@ def join_up_axis(argv: list[str]) -> list[str]:
     return joined
 
 
-def _viewer_stereo_options(args) -> dict:
-    """ViewerOptions' stereo fields (the panel's start values)."""
-    view = StereoView(stereo_rig(args), args.layout or "sbs")  # checks the values before the window opens
-    return {"stereo": args.stereo, "ipd": view.rig.ipd, "convergence": view.rig.convergence,
-            "scene_scale": view.rig.scene_scale, "stereo_layout": view.layout,
-            "lens_preview": bool(args.lens_preview), "headset": _headset(args), "save_eyes": args.save_eyes}
+def _viewer_stereo_options(args) -> StereoPreview:
+    """The stereo preview's start value (the panel's, for switching it on later too)."""
+    rig = stereo_rig(args)  # checks the values before the window opens
+    return StereoPreview.of(_headset(args), on=args.stereo, rig=rig, layout=args.layout or "sbs",
+                            lens_preview=bool(args.lens_preview), save_eyes=args.save_eyes)
 
 
 def _headset(args):
@@ -105,17 +109,17 @@ def _headset(args):
 
 def command_view(args) -> int:
     # The window's imports (glfw, imgui) only when it opens.
-    from raygs_viewer.viewer import app
+    from raygs_viewer.viewer.app import run_viewer
 
     if args.screenshot is not None:
         check_screenshot_path(args.screenshot)  # before the window opens and the scene loads
-    options = app.ViewerOptions(
+    options = ViewerOptions(
         scene=args.scene, cameras=args.cameras, camera=args.camera, camera_index=args.camera_index,
-        width=args.width, height=args.height, p_min=args.p_min, background=args.background,
-        sh_degree=args.sh_degree, frames=args.frames, screenshot=args.screenshot,
-        screenshot_dir=args.screenshot_dir, screenshot_scale=args.screenshot_scale, vsync=not args.no_vsync,
-        navigation="orbit" if args.orbit else "fly", up_axis=args.up_axis, platform=args.window_platform,
-        turntable=args.turntable, window_screenshot=args.window_screenshot, general=args.general,
-        **accuracy_settings(args),
-        **_viewer_stereo_options(args))
-    return app.run_viewer(options)
+        width=args.width, height=args.height, settings=render_settings(args), frames=args.frames,
+        screenshot=args.screenshot, window_screenshot=args.window_screenshot,
+        screenshots=ScreenshotOptions(folder=args.screenshot_dir, scale=args.screenshot_scale),
+        vsync=not args.no_vsync, platform=args.window_platform, general=args.general,
+        navigation=NavigationChoices(mode="orbit" if args.orbit else "fly", up_axis=args.up_axis,
+                                     turntable=args.turntable),
+        stereo=_viewer_stereo_options(args))
+    return run_viewer(options)
