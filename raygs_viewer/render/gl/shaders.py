@@ -14,6 +14,8 @@ from pathlib import Path
 
 import moderngl
 
+#: Where glsl/ stands in a source checkout: beside the package (raygs_viewer/render/gl/ is three down).
+CHECKOUT_GLSL = Path(__file__).resolve().parents[3] / "glsl"
 _INCLUDE = re.compile(r'^\s*#include\s+"([^"]+)"\s*$', re.MULTILINE)
 
 
@@ -21,7 +23,7 @@ def _glsl_dir():
     try:
         return resources.files("raygs_viewer.glsl")
     except ModuleNotFoundError:  # source checkout: glsl/ sits beside the package
-        return Path(__file__).resolve().parents[2] / "glsl"
+        return CHECKOUT_GLSL
 
 
 @lru_cache(maxsize=None)
