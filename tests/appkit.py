@@ -12,9 +12,9 @@ from raygs_viewer.capture.image_io import to_rgb8
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.loader import load_now
 from raygs_viewer.sort.worker import BackgroundSorter
-from raygs_viewer.viewer.app import Viewer, ViewerOptions, start_camera
+from raygs_viewer.viewer.app import Viewer, start_camera
 from raygs_viewer.viewer.panel.widgets import item_rects
-from raygs_viewer.viewer.state import ScreenshotOptions
+from raygs_viewer.viewer.state import ScreenshotOptions, ViewerOptions
 
 WIDTH, HEIGHT = 192, 144
 PANEL_WIDTH, PANEL_HEIGHT = 640, 720  # room for the whole panel

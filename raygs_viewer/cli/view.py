@@ -36,7 +36,7 @@ UP_AXES = tuple(NAVIGATION_UP_AXES)
 
 
 def add_parser(commands) -> None:
-    """Adds ``view`` to the CLI's subparsers: the fields of app.ViewerOptions."""
+    """Adds ``view`` to the CLI's subparsers: the fields of viewer.state.ViewerOptions."""
     parser = commands.add_parser("view", help="open the interactive window (the default command)")
     parser.add_argument("scene", nargs="?", default=DEMO, help=f"a .ply or .splat file, or '{DEMO}' (default)")
     parser.add_argument("--cameras", metavar="CAMERAS.json",

@@ -47,7 +47,6 @@ from raygs_viewer.viewer.panel.training import draw_training_section
 from raygs_viewer.viewer.panel.view import draw_view_section
 from raygs_viewer.viewer.screenshots import Saved, ShownView, saved_message, sidecar_extra, take_screenshots
 from raygs_viewer.viewer.state import (
-    NavigationChoices,
     PanelState,
     ScreenshotOptions,
     SplitView,
@@ -337,5 +336,4 @@ def run_viewer(options: ViewerOptions) -> int:
     return 0
 
 
-__all__ = ["ViewerOptions", "NavigationChoices", "ScreenshotOptions", "StereoPreview", "Viewer", "run_viewer",
-           "start_camera"]
+__all__ = ["Viewer", "run_viewer", "start_camera"]

@@ -444,7 +444,7 @@ ACCURACY_CASES = [
 
 @pytest.mark.parametrize("argv,fields", ACCURACY_CASES)
 def test_accuracy_options_reach_the_window(capsys, viewer, argv, fields):
-    from raygs_viewer.viewer.app import ViewerOptions
+    from raygs_viewer.viewer.state import ViewerOptions
 
     code, _, err = run_cli(capsys, "view", *argv)
     assert code == 0, err
@@ -564,7 +564,7 @@ def viewer(monkeypatch):
 
 @pytest.mark.parametrize("argv", [[], ["view"], ["demo"], ["view", "demo"]])
 def test_no_arguments_open_the_demo(capsys, viewer, argv):
-    from raygs_viewer.viewer.app import ViewerOptions
+    from raygs_viewer.viewer.state import ViewerOptions
 
     code, out, err = run_cli(capsys, *argv)
     assert (code, out, err) == (0, "", "")
@@ -589,7 +589,11 @@ def test_scene_first_means_view(capsys, viewer, tmp_path):
 
 
 def test_every_view_option(capsys, viewer, tmp_path):
-    from raygs_viewer.viewer.app import NavigationChoices, ScreenshotOptions, ViewerOptions
+    from raygs_viewer.viewer.state import (
+        NavigationChoices,
+        ScreenshotOptions,
+        ViewerOptions,
+    )
 
     code, _, err = run_cli(capsys, "view", "scene.ply", "--cameras", "train.json", "--camera", "start.json",
                            "--camera-index", "4", "--width", "800", "--height", "600", "--p-min", "0.05",
@@ -754,7 +758,7 @@ def test_bad_stereo_options_are_one_line_errors(capsys, tmp_path, argv, fragment
 ])
 def test_stereo_options_reach_the_window(capsys, viewer, argv, fields):
     from raygs_viewer.camera.stereo import PRESETS, StereoRig, custom_preset
-    from raygs_viewer.viewer.app import StereoPreview, ViewerOptions
+    from raygs_viewer.viewer.state import StereoPreview, ViewerOptions
 
     code, _, err = run_cli(capsys, "view", *argv)
     assert code == 0, err

@@ -33,7 +33,8 @@ from raygs_viewer.capture.image_io import to_rgb8
 from raygs_viewer.render.settings import RenderSettings, apply_preset
 from raygs_viewer.scene.loader import load_now
 from raygs_viewer.sort.worker import BackgroundSorter
-from raygs_viewer.viewer.app import NavigationChoices, Viewer, ViewerOptions
+from raygs_viewer.viewer.app import Viewer
+from raygs_viewer.viewer.state import NavigationChoices, ViewerOptions
 
 
 # -- the window shows the right image ---------------------------------------------------
@@ -307,7 +308,7 @@ def test_the_start_settings_come_from_the_options(open_viewer):
     assert_differs(window_image(viewer), headless(viewer, RenderSettings(p_min=0.01)))
 
 
-def test_start_settings_are_checked_before_the_window_opens(restore_gl_ctx, monkeypatch):
+def test_start_settings_are_checked_before_the_window_opens(restore_gl_ctx):
     import glfw
 
     from raygs_viewer.errors import UserError
@@ -315,11 +316,14 @@ def test_start_settings_are_checked_before_the_window_opens(restore_gl_ctx, monk
     from raygs_viewer.viewer.app import run_viewer
     with pytest.raises(UserError, match="supersample"):
         run_viewer(ViewerOptions(settings=RenderSettings(supersample=9), frames=1, platform="null"))
-    monkeypatch.setattr(GLRenderer, "supports", lambda self, settings: "needs framebuffer fetch"
-                        if settings.transmittance_cutoff else None)
+
+    class WithoutFramebufferFetch(GLRenderer):
+        def supports(self, settings):
+            return "needs framebuffer fetch" if settings.transmittance_cutoff else None
+
     with pytest.raises(UserError, match="framebuffer fetch"):
         Viewer(ViewerOptions(width=64, height=48, platform="null", settings=RenderSettings(transmittance_cutoff=True)),
-               load_now("demo"))
+               load_now("demo"), renderer_factory=WithoutFramebufferFetch)
     assert not glfw.get_current_context()  # the window was closed again
 
 

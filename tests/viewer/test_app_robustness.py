@@ -637,14 +637,13 @@ def test_resizing_to_one_pixel_and_minimising_and_back(open_viewer, tmp_path):
 
 
 class _Gate:
-    """Holds back the background loads of files whose name starts with "slow" until
-    ``release`` is set; the rest load as usual."""
+    """Holds back the background reads of files whose name starts with "slow" until
+    ``release`` is set; the rest read as usual. Installed as the loader's reader."""
 
-    def __init__(self, monkeypatch):
-        import raygs_viewer.scene.loader
+    def __init__(self, loader):
         self.entered = threading.Event()
         self.release = threading.Event()
-        real = raygs_viewer.scene.loader.load_now
+        real = loader.read_scene
 
         def gated(path, *args, **kwargs):
             if Path(path).name.startswith("slow"):
@@ -652,13 +651,13 @@ class _Gate:
                 self.release.wait(60)
             return real(path, *args, **kwargs)
 
-        monkeypatch.setattr(raygs_viewer.scene.loader, "load_now", gated)
+        loader.read_scene = gated
 
 
 @pytest.mark.parametrize("second", ["good", "bad"])
-def test_opening_a_file_while_another_loads_replaces_that_load(open_viewer, tmp_path, monkeypatch, second):
-    gate = _Gate(monkeypatch)
+def test_opening_a_file_while_another_loads_replaces_that_load(open_viewer, tmp_path, second):
     viewer, drive = open_viewer(hide_panel=True)
+    gate = _Gate(viewer.scenes.loader)
     drive.settle()
     shown = Shown(viewer)
     slow = good_ply(tmp_path / "slow.ply", n=30, seed=1)
