@@ -66,7 +66,7 @@ DEFAULT_REPEAT, QUICK_REPEAT = 10, 3
 
 def one_metre_scale(scene) -> tuple[float, float]:
     """(scene_scale, extent): the metres per unit that make the scene 1 m across, its
-    extent in units being twice ``controls.scene_bounds``' robust radius (the diagonal of
+    extent in units being twice ``camera.navigation.scene_bounds``' robust radius (the diagonal of
     the 1st..99th percentile box of the centres)."""
     _, radius = scene_bounds(scene.positions)
     extent = 2.0 * radius
@@ -312,7 +312,7 @@ def format_report(results: StereoResults) -> str:
         f"close*: moved forward to {CLOSE_FRACTION:.0%} of its distance to the gaussians at the image centre, "
         f"backing off while that would be inside a gaussian's support (c^2 <= {CLOSE_SUPPORT_MARGIN:g} kappa; "
         "`docs/accuracy-vs-time.md`). Scene scales: 1 m per unit, and the scale that makes the scene 1 m across, "
-        "its extent being twice the robust radius of `controls.scene_bounds` (the diagonal of the 1st..99th "
+        "its extent being twice the robust radius of `camera.navigation.scene_bounds` (the diagonal of the 1st..99th "
         "percentile box of the gaussian centres).",
         "",
         "| scene | view | size | scene scale | PSNR (dB) | p99 | max | sort only: PSNR | sort only: max "

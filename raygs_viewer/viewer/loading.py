@@ -52,7 +52,7 @@ class SceneOpener:
             self._failed(f"error: {str(result).splitlines()[0]}")
             return
         if result.scene.count == 0:
-            # scene_io accepts an empty file, and one whose every gaussian is invalid, as an
+            # scene.io accepts an empty file, and one whose every gaussian is invalid, as an
             # empty scene; swapping the shown scene for a black window is never what was meant.
             why = "; ".join(result.warnings)
             self._failed(f"error: {result.path}: no gaussians to show" + (f" ({why})" if why else ""))
