@@ -107,7 +107,8 @@ def verdict_lines(summaries: list[ViewSummary]) -> list[str]:
              + ", ".join(named(s) for s in sorted((s for s in valid if s.pareto), key=lambda s: s.ratio))]
     useless = [s.config for s in valid if s.config != BASELINE and s.ratio > SLOWER and s.best_gain_db <= 0.0]
     if useless:
-        lines.append(f"over {SLOWER - 1:.0%} slower than RayGS and no more accurate in any scene: " + ", ".join(useless))
+        lines.append(f"over {SLOWER - 1:.0%} slower than RayGS and no more accurate in any scene: "
+                     + ", ".join(useless))
     return lines
 
 
@@ -159,7 +160,8 @@ def format_report(results: AccuracyResults, plot_link: str | None, human_verdict
         f"- Timing: GPU time of one frame (preprocessing pass and draw, `GLRenderer.render_into`) from an "
         f"OpenGL timer query, median of {results.repeat} frames, configurations interleaved round-robin; "
         f"the ratio is to plain RayGS in the same scene and view, in the same run.",
-        f"- Error: RGB over black against `reference.ground_truth` (exact RayGS, p_min {_p_min_text(results.gt_p_min)}, "
+        "- Error: RGB over black against `reference.ground_truth` (exact RayGS, "
+        f"p_min {_p_min_text(results.gt_p_min)}, "
         "integrated over each pixel's area with n x n samples), linear float, unclipped; PSNR = 10 log10(1/MSE); "
         "p99 and max of the absolute error over all RGB values.",
         f"- Views, from each scene's training-like camera at {results.width} px wide: *training-like*; "

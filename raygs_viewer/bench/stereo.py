@@ -192,7 +192,8 @@ def budget_lines(row: BudgetRow) -> list[str]:
     fraction-of-RATEHz for every refresh rate."""
     head = f"stereo-budget {row.scene} {row.preset}"
     lines = [f"{head} ms {row.gpu_ms:.6g}", f"{head} sort-ms {row.sort_ms:.6g}"]
-    lines += [f"{head} fraction-of-{rate}Hz {fraction:.6g}" for rate, _, fraction in stereo.frame_budget(row.gpu_ms / 1e3)]
+    budget = stereo.frame_budget(row.gpu_ms / 1e3)
+    lines += [f"{head} fraction-of-{rate}Hz {fraction:.6g}" for rate, _, fraction in budget]
     return lines
 
 

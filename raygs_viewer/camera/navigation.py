@@ -8,8 +8,8 @@ deltas; it keeps the view pose, the fly speed and the orbit target.
 
 Axes are OpenCV's (+x right, +y down, +z forward), as in
 :mod:`raygs_viewer.camera.pinhole`: a pose's ``R`` maps world to camera, so its rows
-are the camera's right, down and forward axes in world coordinates. "Up" is a property of the scene, not of the camera, and is picked from
-:data:`UP_AXES`.
+are the camera's right, down and forward axes in world coordinates. "Up" is a property
+of the scene, not of the camera, and is picked from :data:`UP_AXES`.
 
 Nothing here imports GL, GLFW or imgui, so all of it is tested headless.
 """
@@ -441,4 +441,5 @@ class Navigator:
         self._animation = (start, end, duration, elapsed)
         w = _smoothstep(elapsed / duration)
         q = slerp(matrix_to_quaternion(start.R), matrix_to_quaternion(end.R), w)
-        self._set(start.position + w * (end.position - start.position), orthonormalize(quaternion_to_matrix(q[None])[0]))
+        rotation = orthonormalize(quaternion_to_matrix(q[None])[0])
+        self._set(start.position + w * (end.position - start.position), rotation)

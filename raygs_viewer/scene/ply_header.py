@@ -91,7 +91,8 @@ def parse_header(path, shown: str) -> tuple[int, list[PlyElement]]:
             if not words[2].isdigit():
                 raise file_error(shown, f"{where}: element {shown_token(name)} has a bad count {shown_token(words[2])}")
             if int(words[2]) > MAX_COUNT:
-                raise file_error(shown, f"{where}: element {shown_token(name)} count {shown_token(words[2], 30)} is too large")
+                raise file_error(shown, f"{where}: element {shown_token(name)} count "
+                                        f"{shown_token(words[2], 30)} is too large")
             if any(e.name == name for e in elements):
                 raise file_error(shown, f"{where}: duplicate element {shown_token(name)}")
             elements.append(PlyElement(name, int(words[2])))
@@ -112,7 +113,8 @@ def parse_header(path, shown: str) -> tuple[int, list[PlyElement]]:
                 if t not in PLY_TYPES:
                     raise file_error(shown, f"{where}: unknown property type {shown_token(t)}")
             if any(p == name for p, _ in element.properties):
-                raise file_error(shown, f"element {shown_token(element.name)} has duplicate property {shown_token(name)}")
+                raise file_error(shown, f"element {shown_token(element.name)} has duplicate property "
+                                        f"{shown_token(name)}")
             if len(types) == 2:
                 element.has_list = True
                 element.min_row_bytes += PLY_TYPES[types[0]][1]
