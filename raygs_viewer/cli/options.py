@@ -5,6 +5,7 @@ the render settings (:class:`RenderSettings`) and the stereo rig and view.
 from __future__ import annotations
 
 import argparse
+from dataclasses import fields
 
 from raygs_viewer.camera.lens_model import DEFAULT_LENS
 from raygs_viewer.camera.stereo import (
@@ -146,8 +147,8 @@ def add_stereo_options(parser: argparse.ArgumentParser, window: bool = False) ->
 
 def stereo_rig(args) -> StereoRig:
     """The rig of --ipd, --convergence and --scene-scale (defaults for those not given)."""
-    return StereoRig(**{dest: getattr(args, dest) for dest in ("ipd", "convergence", "scene_scale")
-                        if getattr(args, dest) is not None})
+    given = {f.name: getattr(args, f.name) for f in fields(StereoRig)}  # --ipd is dest "ipd", and so on
+    return StereoRig(**{name: value for name, value in given.items() if value is not None})
 
 
 def stereo_view(args) -> StereoView | None:

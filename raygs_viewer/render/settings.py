@@ -115,9 +115,9 @@ class RenderSettings:
         k = self.supersample
         if isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= MAX_SUPERSAMPLE:
             raise UserError(f"supersample must be a whole number from 1 to {MAX_SUPERSAMPLE}, got {k!r}")
-        for name in ("mip", "mip_modulation", "gs_compensation", "alpha_clamp", "transmittance_cutoff"):
-            if not isinstance(getattr(self, name), bool):
-                raise UserError(f"{name} must be true or false, got {getattr(self, name)!r}")
+        for switch in (f.name for f in fields(self) if f.type == "bool"):  # annotations are strings here
+            if not isinstance(getattr(self, switch), bool):
+                raise UserError(f"{switch} must be true or false, got {getattr(self, switch)!r}")
 
 
 #: The accuracy options: the RenderSettings fields beyond p_min, background and SH degree
