@@ -80,13 +80,22 @@ class Driver:
         self.frames(1)
 
     def click(self, rect) -> None:
+        """A left click at the centre of ``rect`` (x0, y0, x1, y1)."""
         x0, y0, x1, y1 = rect
-        self.move_mouse((x0 + x1) / 2, (y0 + y1) / 2)
+        self.click_at((x0 + x1) / 2, (y0 + y1) / 2)
+
+    def click_at(self, x: float, y: float) -> None:
+        self.move_mouse(x, y)
         self.frames(1)
         self.button(0, True)
         self.frames(1)
         self.button(0, False)
         self.frames(1)
+
+    def click_left_end(self, rect) -> None:
+        """A left click 2 px inside the left end of ``rect``: a slider's lowest value."""
+        x0, y0, x1, y1 = rect
+        self.click_at(x0 + 2, (y0 + y1) / 2)
 
 
 def window_image(viewer: Viewer) -> np.ndarray:

@@ -75,6 +75,19 @@ def test_count_labels(count, expected):
 
 # --- the floor pass and the fragment count --------------------------------------------------------
 
+def _raygs_and_floor(ctx, scene, camera):
+    """(fragments kept, alpha) of the RayGS draw and (fragments rasterized, alpha) of the
+    floor pass, with one order."""
+    renderer = GLRenderer(ctx, scene)
+    settings = RenderSettings()
+    order = renderer.sort(camera, settings)
+    try:
+        return (*_samples(ctx, renderer, camera, settings, order, floor=False),
+                *_samples(ctx, renderer, camera, settings, order, floor=True))
+    finally:
+        renderer.release()
+
+
 def _samples(ctx, renderer, camera, settings, order, floor):
     target = ctx.framebuffer(color_attachments=[ctx.texture((camera.width, camera.height), 4, dtype="f4")])
     query = ctx.query(samples=True)
@@ -96,12 +109,7 @@ def test_the_kept_fraction_of_a_round_splat_is_a_circle_in_its_square(gl_ctx):
     # support, so the fragments above p_min are pi/4 of those rasterized.
     scene = make_scene([[0.0, 0.0, 5.0]], [[0.3, 0.3, 0.3]], opacities=[0.8])
     camera = look_at((0.0, 0.0, 0.0), (0.0, 0.0, 5.0), width=200, height=200, fov_y_degrees=40)
-    renderer = GLRenderer(gl_ctx, scene)
-    settings = RenderSettings()
-    order = renderer.sort(camera, settings)
-    kept, alpha = _samples(gl_ctx, renderer, camera, settings, order, floor=False)
-    rasterized, floor_alpha = _samples(gl_ctx, renderer, camera, settings, order, floor=True)
-    renderer.release()
+    kept, alpha, rasterized, floor_alpha = _raygs_and_floor(gl_ctx, scene, camera)
     assert rasterized > 2000  # a big splat: the fraction is not decided by a few edge pixels
     assert kept == np.count_nonzero(alpha > 0)
     assert rasterized == np.count_nonzero(floor_alpha > 0)
@@ -113,12 +121,7 @@ def test_the_kept_fraction_of_a_round_splat_is_a_circle_in_its_square(gl_ctx):
 def test_the_floor_pass_covers_what_raygs_draws_for_a_random_scene(gl_ctx):
     scene = bench_perf.generated_scene(300, "large", seed=3)
     camera = bench_perf.generated_camera(160, 90)
-    renderer = GLRenderer(gl_ctx, scene)
-    settings = RenderSettings()
-    order = renderer.sort(camera, settings)
-    kept, alpha = _samples(gl_ctx, renderer, camera, settings, order, floor=False)
-    rasterized, floor_alpha = _samples(gl_ctx, renderer, camera, settings, order, floor=True)
-    renderer.release()
+    kept, alpha, rasterized, floor_alpha = _raygs_and_floor(gl_ctx, scene, camera)
     assert 0 < kept < rasterized
     assert np.all(floor_alpha[alpha > 0] > 0)
 

@@ -111,14 +111,8 @@ def test_scaled_camera_limits_the_size():
 # --------------------------------------------------------------------------- tiled rendering
 
 
-@pytest.mark.parametrize("tile", [16, 20, 7])  # exact grid; edge tiles of 4 and 8 px; many odd tiles
-@pytest.mark.parametrize("settings", [RenderSettings(),
-                                      RenderSettings(p_min=0.02, background=(0.1, 0.2, 0.3), sh_degree=1)],
-                         ids=["default", "custom"])
-def test_render_tiled_equals_one_whole_render(renderer, tile, settings, monkeypatch):
-    camera = off_centre_camera()
-    whole = renderer.render(camera, settings)
-
+def _count_render_sizes(renderer, monkeypatch) -> list[tuple[int, int]]:
+    """The list the (width, height) of every ``renderer.render`` call is appended to."""
     sizes = []
     render = renderer.render
 
@@ -127,6 +121,18 @@ def test_render_tiled_equals_one_whole_render(renderer, tile, settings, monkeypa
         return render(camera, *args, **kwargs)
 
     monkeypatch.setattr(renderer, "render", counting)
+    return sizes
+
+
+@pytest.mark.parametrize("tile", [16, 20, 7])  # exact grid; edge tiles of 4 and 8 px; many odd tiles
+@pytest.mark.parametrize("settings", [RenderSettings(),
+                                      RenderSettings(p_min=0.02, background=(0.1, 0.2, 0.3), sh_degree=1)],
+                         ids=["default", "custom"])
+def test_render_tiled_equals_one_whole_render(renderer, tile, settings, monkeypatch):
+    camera = off_centre_camera()
+    whole = renderer.render(camera, settings)
+
+    sizes = _count_render_sizes(renderer, monkeypatch)
     tiled = render_tiled(renderer, camera, settings, tile=tile)
     monkeypatch.undo()
     assert len(sizes) == -(-64 // tile) * -(-48 // tile) and set(sizes) == {(tile, tile)}  # really tiled
@@ -150,14 +156,7 @@ def test_supersampled_tiles_keep_the_gpu_target_within_the_tile(renderer, settin
     camera = off_centre_camera()
     whole = renderer.render(camera, settings)
     assert_differs(whole, renderer.render(camera, replace(settings, supersample=1)))  # supersampling shows
-    sizes = []
-    render = renderer.render
-
-    def counting(camera, *args, **kwargs):
-        sizes.append((camera.width, camera.height))
-        return render(camera, *args, **kwargs)
-
-    monkeypatch.setattr(renderer, "render", counting)
+    sizes = _count_render_sizes(renderer, monkeypatch)
     tiled = render_tiled(renderer, camera, settings, tile=48)
     monkeypatch.undo()
     side = 48 // settings.supersample
@@ -298,13 +297,10 @@ def test_save_never_overwrites_in_folder_mode(tmp_path, fixed_now):
     assert png.read_bytes() == encode_image(small_image(), ".png")
 
 
-@pytest.mark.parametrize("which", ["png", "json"])
-def test_save_retries_when_another_writer_takes_the_name(tmp_path, fixed_now, monkeypatch, which):
-    """The name is free when chosen but taken by the time it is written (a second
-    viewer saving in the same second): the next suffix is used, nothing is replaced,
-    and our PNG does not stay behind under the lost name."""
+def _another_writer_takes(raced: Path, monkeypatch) -> Path:
+    """Makes ``raced`` appear (another writer's) the first time the screenshot code
+    writes to it, between choosing the name and writing."""
     real = screenshot.write_atomically
-    raced = tmp_path / f"{STEM}.{which}"
 
     def racing(path, data, overwrite=False):
         if Path(path) == raced and not raced.exists():
@@ -312,6 +308,15 @@ def test_save_retries_when_another_writer_takes_the_name(tmp_path, fixed_now, mo
         return real(path, data, overwrite)
 
     monkeypatch.setattr(screenshot, "write_atomically", racing)
+    return raced
+
+
+@pytest.mark.parametrize("which", ["png", "json"])
+def test_save_retries_when_another_writer_takes_the_name(tmp_path, fixed_now, monkeypatch, which):
+    """The name is free when chosen but taken by the time it is written (a second
+    viewer saving in the same second): the next suffix is used, nothing is replaced,
+    and our PNG does not stay behind under the lost name."""
+    raced = _another_writer_takes(tmp_path / f"{STEM}.{which}", monkeypatch)
     png, js = save_screenshot(small_image(), sidecar_dict(), folder=tmp_path)
     assert (png.name, js.name) == (f"{STEM}-2.png", f"{STEM}-2.json")
     assert raced.read_bytes() == b"the other writer's"
@@ -359,15 +364,7 @@ def test_save_screenshots_names_each_side_with_one_number(tmp_path, fixed_now):
 
 
 def test_save_screenshots_retries_when_another_writer_takes_a_name(tmp_path, fixed_now, monkeypatch):
-    real = screenshot.write_atomically
-    raced = tmp_path / f"{STEM}-right.png"
-
-    def racing(path, data, overwrite=False):
-        if Path(path) == raced and not raced.exists():
-            raced.write_bytes(b"the other writer's")
-        return real(path, data, overwrite)
-
-    monkeypatch.setattr(screenshot, "write_atomically", racing)
+    raced = _another_writer_takes(tmp_path / f"{STEM}-right.png", monkeypatch)
     saved = save_screenshots(pair_of_shots(), folder=tmp_path)
     assert [png.name for png, _ in saved] == [f"{STEM}-left.png", f"{STEM}-2-right.png"]
     assert raced.read_bytes() == b"the other writer's"

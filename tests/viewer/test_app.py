@@ -177,13 +177,7 @@ def test_panel_click_changes_the_setting_and_the_image(open_viewer):
     assert_matches(after, headless(viewer, RenderSettings(viewer.settings.p_min, (1.0, 1.0, 1.0), 3)))
 
     # Dragging the SH degree slider to its left end evaluates band 0 only.
-    x0, y0, x1, y1 = item_rects["SH degree"]
-    drive.move_mouse(x0 + 2, (y0 + y1) / 2)
-    drive.frames(1)
-    drive.button(0, True)
-    drive.frames(1)
-    drive.button(0, False)
-    drive.frames(1)
+    drive.click_left_end(item_rects["SH degree"])
     assert viewer.settings.sh_degree == 0
     drive.settle()
     degree0 = window_image(viewer)
@@ -244,13 +238,7 @@ def test_panel_accuracy_controls_change_the_settings_and_the_image(open_viewer):
     click("MIP filter")               # always on in exact MIP mode: greyed out, the RayGS choice kept
     assert viewer.settings.mip
     # sigma^2 slider: a press at its left end gives 0 px^2
-    x0, y0, x1, y1 = item_rects["sigma^2"]
-    drive.move_mouse(x0 + 2, (y0 + y1) / 2)
-    drive.frames(1)
-    drive.button(0, True)
-    drive.frames(1)
-    drive.button(0, False)
-    drive.frames(1)
+    drive.click_left_end(item_rects["sigma^2"])
     expected = replace(expected, mip_sigma2=0.0)
     check()
     click_choice(drive, "mode", "raygs")

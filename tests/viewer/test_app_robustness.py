@@ -97,6 +97,22 @@ def run_checked(drive, count: int = 1) -> None:
         assert_sane(drive.viewer)
 
 
+def _drag_through(drive, button: int, positions, modifier=None) -> None:
+    """Holds ``button`` (and ``modifier``) down while the mouse visits ``positions``,
+    each frame checked."""
+    if modifier is not None:
+        drive.key(modifier, True)
+    drive.button(button, True)
+    run_checked(drive)
+    for position in positions:
+        drive.move_mouse(*position)
+        run_checked(drive)
+    drive.button(button, False)
+    if modifier is not None:
+        drive.key(modifier, False)
+    run_checked(drive)
+
+
 def drain_input(drive) -> None:
     """Checked frames until imgui has applied every queued event. It trickles them: a wheel
     event queued after a mouse move (the driver sends the position every frame) waits for
@@ -415,13 +431,7 @@ def test_extreme_moves_never_break_the_pose_the_image_or_the_controls(open_viewe
     garbage = [(1e6, 0), (-1e6, 1e6), (2e9, -2e9), (1e30, 1e30), (-3.4e38, 3.4e38), (INF, -INF), (NAN, NAN),
                (NAN, 5.0), (WIDTH / 2, HEIGHT / 2)]
     for button in (0, 1):
-        drive.button(button, True)
-        run_checked(drive)
-        for position in garbage:
-            drive.move_mouse(*position)
-            run_checked(drive)
-        drive.button(button, False)
-        run_checked(drive)
+        _drag_through(drive, button, garbage)
 
     # Orbit: thousands of notches in, to the target, and out; pan and rotate wildly.
     drive.tap(imgui.Key.tab)
@@ -437,17 +447,7 @@ def test_extreme_moves_never_break_the_pose_the_image_or_the_controls(open_viewe
     drain_input(drive)
     assert nav.distance == pytest.approx(MAX_DISTANCE * viewer.view.radius)
     for button, modifier in ((1, None), (2, None), (0, imgui.Key.mod_shift), (0, None)):
-        if modifier is not None:
-            drive.key(modifier, True)
-        drive.button(button, True)
-        run_checked(drive)
-        for position in garbage:
-            drive.move_mouse(*position)
-            run_checked(drive)
-        drive.button(button, False)
-        if modifier is not None:
-            drive.key(modifier, False)
-        run_checked(drive)
+        _drag_through(drive, button, garbage, modifier)
     drive.wheel(3000)
     drain_input(drive)
     drive.tap(imgui.Key.tab)

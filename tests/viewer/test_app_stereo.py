@@ -300,12 +300,8 @@ def test_stereo_sliders_set_the_rig_in_its_units(open_viewer):
         x0, y0, x1, y1 = item_rects[tag]  # the slider's frame, then its label
         label = {"IPD": "IPD (mm)", "convergence": "convergence (m)", "scene scale": "scene scale (m/unit)"}[tag]
         x1 -= imgui.calc_text_size(label).x + imgui.get_style().item_inner_spacing.x
-        drive.move_mouse(x1 - 2 if right else x0 + 2, (y0 + y1) / 2)
+        drive.click_at(x1 - 2 if right else x0 + 2, (y0 + y1) / 2)
         drive.frames(1)
-        drive.button(0, True)
-        drive.frames(1)
-        drive.button(0, False)
-        drive.frames(2)
 
     click_end("IPD", right=True)       # the slider shows millimetres; the rig takes metres
     click_end("convergence", right=False)
