@@ -11,6 +11,7 @@ from typing import Sequence
 
 import numpy as np
 
+from raygs_viewer.camera.navigation import MAX_DT
 from raygs_viewer.camera.pinhole import Camera, camera_key
 from raygs_viewer.camera.stereo import StereoView
 
@@ -49,14 +50,14 @@ class FrameStats:
 
     def tick(self, fixed_dt: float | None = None) -> float:
         """Starts a frame: records the time since the last one and returns the frame
-        time to move by (``fixed_dt`` when given; at most 0.1 s; 0 for the first)."""
+        time to move by (``fixed_dt`` when given; at most the navigator's MAX_DT; 0 for the first)."""
         now = time.perf_counter()
         last, self.last_time = self.last_time, now
         if last is not None:
             self.all_frame_times.append(now - last)
         if fixed_dt is not None:
             return fixed_dt
-        return min(now - last, 0.1) if last is not None else 0.0
+        return min(now - last, MAX_DT) if last is not None else 0.0
 
     def asked(self, serial: int, frame_index: int) -> None:
         """Frame ``frame_index`` asked for sort request ``serial``."""
