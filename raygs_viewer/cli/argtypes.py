@@ -13,7 +13,7 @@ from typing import Callable
 
 from raygs_viewer.capture.screenshot import MAX_SCALE
 from raygs_viewer.errors import UserError
-from raygs_viewer.render.settings import MAX_MIP_SIGMA2, MAX_SUPERSAMPLE
+from raygs_viewer.render.settings import MAX_MIP_SIGMA2, MAX_ORDER_K, MAX_SUPERSAMPLE
 
 #: The longest side of an image the benchmarks accept, in pixels.
 MAX_SIDE = 16384
@@ -57,6 +57,7 @@ positive_int = whole_number(1, 65536)
 sh_degree = whole_number(0, 3, "not 0, 1, 2 or 3")
 frames = whole_number(1, math.inf, "not at least 1")
 supersample = whole_number(1, MAX_SUPERSAMPLE)
+order_k = whole_number(0, MAX_ORDER_K, f"outside 0 (exact)..{MAX_ORDER_K}")
 p_min = real_number(lambda v: 0.0 < v < 1.0, "not in (0, 1)")
 turntable = real_number(lambda v: abs(v) <= 180, "not between -180 and 180")
 mip_sigma2 = real_number(lambda v: 0.0 <= v <= MAX_MIP_SIGMA2, f"not in [0, {MAX_MIP_SIGMA2:g}] px^2")

@@ -23,6 +23,7 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.render.settings import (
     ACCURACY_FIELDS,
     DEFAULT_P_MIN,
+    ORDERS,
     RENDER_MODES,
     RenderSettings,
 )
@@ -83,18 +84,28 @@ def add_settings_options(parser: argparse.ArgumentParser, p_min, background) -> 
         parser.add_argument("--transmittance-cutoff", action="store_true", default=None,
                             help="stop compositing a pixel before its transmittance falls below 1e-4, "
                                  "as INRIA and GOF do"),
+        parser.add_argument("--order", choices=ORDERS,
+                            help="how each pixel orders its gaussians: depth (one global sort by the centres' "
+                                 "view depth, the default), distance (by their distance from the camera), "
+                                 "per-pixel (each pixel sorts its own by where its ray meets them; RayGS modes)"),
+        parser.add_argument("--order-k", type=argtypes.order_k, metavar="K",
+                            help="per-pixel order: 0 sorts every fragment exactly (default); K re-orders them "
+                                 "through a window of K per pixel (a k-buffer), for speed; implies "
+                                 "--order per-pixel"),
     ]
 
 
 def accuracy_settings(args) -> dict:
     """The RenderSettings fields beyond p_min, background and sh_degree from the options
     (defaults for those not given). --mip-sigma2 and --[no-]mip-modulation imply --mip
-    unless --no-mip was given."""
+    unless --no-mip was given; --order-k implies --order per-pixel."""
     defaults = RenderSettings()
     values = {name: getattr(defaults, name) if getattr(args, name) is None else getattr(args, name)
               for name in ACCURACY_FIELDS}
     if args.mip is None and (args.mip_sigma2 is not None or args.mip_modulation is not None):
         values["mip"] = True
+    if args.order is None and args.order_k is not None:
+        values["order"] = "per-pixel"
     return values
 
 

@@ -21,6 +21,18 @@ DEFAULT_P_MIN = 1.0 / 255.0
 RENDER_MODES = ("raygs", "raygs-exact-mip", "gs")
 MODE_LABELS = {"raygs": "RayGS", "raygs-exact-mip": "RayGS exact MIP", "gs": "GS (EWA)"}
 
+#: How each pixel orders its gaussians (maths page, section 11).
+#: "depth": one global order by the camera-space depth z of the centres (the paper's).
+#: "distance": one global order by the distance |mu| from the camera centre; it does
+#: not change when the camera turns in place, so a turn needs no new sort.
+#: "per-pixel": each pixel composites its gaussians front to back by t*, the ray
+#: parameter of the gaussian's peak on that pixel's ray; exactly (order_k 0), or
+#: through a re-ordering window of order_k entries fed in the distance order.
+ORDERS = ("depth", "distance", "per-pixel")
+ORDER_LABELS = {"depth": "depth", "distance": "distance", "per-pixel": "per pixel"}
+#: Largest re-ordering window (k-buffer entries per pixel) of the bounded per-pixel order.
+MAX_ORDER_K = 16
+
 #: Variance (px^2) added to every projected 2D covariance in GS mode, as INRIA training does.
 GS_DILATION = 0.3
 #: GS skips gaussians whose centre is nearer than this (camera-space z, scene units):
@@ -61,6 +73,11 @@ class RenderSettings:
     alpha_clamp: clamp each splat's alpha to ALPHA_CLAMP. transmittance_cutoff:
     composite front to back and stop a pixel before its transmittance falls below
     TRANSMITTANCE_CUTOFF, as INRIA and GOF do (section 10).
+
+    order: one of ORDERS, how each pixel orders its gaussians. order_k: with order
+    "per-pixel", 0 sorts every pixel's fragments exactly; K in 1..MAX_ORDER_K
+    re-orders them through a window of K entries (a k-buffer) fed in the global
+    distance order. Per-pixel order needs a RayGS mode (EWA splats have no ray key).
     """
 
     p_min: float = DEFAULT_P_MIN
@@ -74,9 +91,21 @@ class RenderSettings:
     supersample: int = 1
     alpha_clamp: bool = False
     transmittance_cutoff: bool = False
+    order: str = "depth"
+    order_k: int = 0
 
     def effective_sh_degree(self, scene_degree: int) -> int:
         return scene_degree if self.sh_degree is None else min(self.sh_degree, scene_degree)
+
+    @property
+    def sort_key(self) -> str:
+        """The key of the global CPU sort: "depth", or "distance" (which per-pixel order
+        starts from: it is t* of the ray through an isotropic gaussian's centre)."""
+        return "depth" if self.order == "depth" else "distance"
+
+    @property
+    def per_pixel(self) -> bool:
+        return self.order == "per-pixel"
 
     @property
     def mip_active(self) -> bool:
@@ -115,6 +144,13 @@ class RenderSettings:
         k = self.supersample
         if isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= MAX_SUPERSAMPLE:
             raise UserError(f"supersample must be a whole number from 1 to {MAX_SUPERSAMPLE}, got {k!r}")
+        if self.order not in ORDERS:
+            raise UserError(f"order must be one of {', '.join(ORDERS)}, got {self.order!r}")
+        k = self.order_k
+        if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k <= MAX_ORDER_K:
+            raise UserError(f"order K must be a whole number from 0 (exact) to {MAX_ORDER_K}, got {k!r}")
+        if self.per_pixel and self.mode == "gs":
+            raise UserError("per-pixel order needs a RayGS mode: EWA splats have no ray parameter to sort by")
         for switch in (f.name for f in fields(self) if f.type == "bool"):  # annotations are strings here
             if not isinstance(getattr(self, switch), bool):
                 raise UserError(f"{switch} must be true or false, got {getattr(self, switch)!r}")
@@ -137,6 +173,10 @@ ACCURACY_PRESETS: dict[str, dict[str, object]] = {
     "RayGS p_min e^-4": {"p_min": math.exp(-4.0)},
     "RayGS p_min 1e-3": {"p_min": 1e-3},
     "RayGS 2x2 supersampling": {"supersample": 2},
+    "RayGS, distance order": {"order": "distance"},
+    "RayGS, per-pixel order": {"order": "per-pixel"},
+    "RayGS, per-pixel order K=4": {"order": "per-pixel", "order_k": 4},
+    "RayGS + MIP, per-pixel order": {"mip": True, "mip_modulation": True, "order": "per-pixel"},
 }
 
 

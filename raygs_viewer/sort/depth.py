@@ -1,8 +1,9 @@
-"""Per-frame CPU work before drawing: conservative culling and the depth sort (section 9).
+"""Per-frame CPU work before drawing: conservative culling and the global sort (sections 9, 11).
 
-The order is back to front: descending camera-space depth of the centres, ties
-kept in scene order (both sorts are stable), so the GL renderer and the float64
-reference composite the same sequence.
+The order is back to front by one key per gaussian: the camera-space depth z of the
+centre ("depth") or its distance |mu| from the camera centre ("distance"),
+descending, ties kept in scene order (both sorts are stable), so the GL renderer and
+the float64 reference composite the same sequence.
 """
 
 from __future__ import annotations
@@ -17,6 +18,9 @@ from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.scene.model import Scene
 
 SortMethod = Literal["auto", "radix", "float"]
+#: The global sort keys: camera-space depth of the centre, or its distance from the camera.
+SortKey = Literal["depth", "distance"]
+SORT_KEYS = ("depth", "distance")
 
 
 class DepthSorter:
@@ -57,11 +61,13 @@ class DepthSorter:
         return self._support
 
     def order(self, camera: Camera, p_min: float, method: SortMethod = "auto", *,
-              dilation: float | None = 0.0, cull_cameras: Sequence[Camera] | None = None) -> np.ndarray:
-        """(M,) uint32 indices of the gaussians that may be visible, back to front:
-        :meth:`cull`, then :meth:`sort` (see them for the arguments)."""
+              dilation: float | None = 0.0, cull_cameras: Sequence[Camera] | None = None,
+              key: SortKey = "depth") -> np.ndarray:
+        """(M,) uint32 indices of the gaussians that may be visible, back to front by
+        ``key``: :meth:`cull`, then :meth:`sort` (see them for the arguments)."""
         with self._lock:
-            return self.sort(camera, self.cull(camera, p_min, dilation=dilation, cull_cameras=cull_cameras), method)
+            visible = self.cull(camera, p_min, dilation=dilation, cull_cameras=cull_cameras)
+            return self.sort(camera, visible, method, key=key)
 
     def cull(self, camera: Camera, p_min: float, *, dilation: float | None = 0.0,
              cull_cameras: Sequence[Camera] | None = None) -> np.ndarray:
@@ -94,10 +100,19 @@ class DepthSorter:
                     scratch.union |= scratch.keep
             return np.flatnonzero(scratch.union)
 
-    def sort(self, camera: Camera, visible: np.ndarray, method: SortMethod = "auto") -> np.ndarray:
-        """(M,) uint32: ``visible`` (indices) back to front, by ``camera``'s depth."""
+    def sort(self, camera: Camera, visible: np.ndarray, method: SortMethod = "auto",
+             key: SortKey = "depth") -> np.ndarray:
+        """(M,) uint32: ``visible`` (indices) back to front by ``key`` seen from ``camera``:
+        its camera-space depth z, or its distance from the camera centre."""
         R = camera.R.astype(np.float32)
-        depth = self.positions[visible] @ R[2] + np.float32(camera.t[2])
+        if key == "depth":
+            depth = self.positions[visible] @ R[2] + np.float32(camera.t[2])
+        elif key == "distance":
+            # |R p + t| rather than |p - C|: the same float32 form as the cull and the GPU.
+            mu = self.positions[visible] @ R.T + camera.t.astype(np.float32)
+            depth = np.sqrt(np.einsum("ij,ij->i", mu, mu))
+        else:
+            raise ValueError(f"unknown sort key {key!r}; expected one of {', '.join(SORT_KEYS)}")
         return visible[sort_back_to_front(depth, method)].astype(np.uint32)
 
     def _may_be_seen(self, camera: Camera, p_min: float, dilation: float | None, scratch: "_Scratch") -> None:
@@ -146,7 +161,7 @@ class _Scratch:
 
 
 def sort_back_to_front(depth: np.ndarray, method: SortMethod = "auto") -> np.ndarray:
-    """Stable argsort of (M,) depths, farthest first.
+    """Stable argsort of (M,) keys (depths or distances), farthest first.
 
     "radix" quantises depth to 16 bits over its range so numpy picks its radix sort
     (about 2x faster than float argsort at 1M); depths closer than range/65535 keep

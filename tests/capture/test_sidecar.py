@@ -184,7 +184,7 @@ def test_round_trip_through_save_screenshot(tmp_path):
 
 #: A non-default value of every accuracy field (those after p_min, background, sh_degree).
 ACCURACY = dict(mode="raygs-exact-mip", mip=True, mip_sigma2=0.37, mip_modulation=False, gs_compensation=True,
-                supersample=3, alpha_clamp=True, transmittance_cutoff=True)
+                supersample=3, alpha_clamp=True, transmittance_cutoff=True, order="per-pixel", order_k=5)
 
 
 def test_every_accuracy_setting_round_trips(tmp_path):

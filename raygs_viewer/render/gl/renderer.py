@@ -100,7 +100,8 @@ class GLRenderer:
 
     # -- per-frame passes ---------------------------------------------------------
     def sort(self, camera: Camera, settings: RenderSettings) -> np.ndarray:
-        return self.sorter.order(camera, settings.p_min, dilation=settings.cull_dilation(camera))
+        return self.sorter.order(camera, settings.p_min, dilation=settings.cull_dilation(camera),
+                                 key=settings.sort_key)
 
     def preprocess(self, camera: Camera, settings: RenderSettings, frame: Camera | None = None,
                    color_origin: np.ndarray | None = None) -> None:

@@ -18,12 +18,12 @@ from raygs_viewer.render.gl.targets import FloatTarget, release_all, sized
 
 
 def stereo_order(renderer, camera: Camera, settings, rig: StereoRig) -> np.ndarray:
-    """The one back-to-front order both eyes draw: depth from the midpoint, keeping
-    what either eye may see."""
+    """The one back-to-front order both eyes draw: the settings' key seen from the
+    midpoint, keeping what either eye may see."""
     left, right = eye_cameras(camera, rig)
     # Both eyes share fx and fy, hence the filter's dilation.
     return renderer.sorter.order(camera, settings.p_min, dilation=settings.cull_dilation(left),
-                                 cull_cameras=(left, right))
+                                 cull_cameras=(left, right), key=settings.sort_key)
 
 
 def render_stereo(renderer, camera: Camera, settings, rig: StereoRig, *,
