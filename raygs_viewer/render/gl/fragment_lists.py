@@ -186,10 +186,10 @@ class FragmentLists:
             for part in parts:
                 rect = (part.x0, part.y0, part.x1, part.y1)
                 groups = (-(-(rect[2] - rect[0]) // WORKGROUP_2D), -(-(rect[3] - rect[1]) // WORKGROUP_2D))
+                set_uniform(prepare, "u_part", rect)
+                prepare.run(*groups)
+                ctx.memory_barrier()
                 if part.fragments:
-                    set_uniform(prepare, "u_part", rect)
-                    prepare.run(*groups)
-                    ctx.memory_barrier()
                     target.use()
                     target.fbo.scissor = (rect[0], rect[1], rect[2] - rect[0], rect[3] - rect[1])
                     renderer.draw(camera, settings, order, path="lists",

@@ -99,6 +99,7 @@ class ShaderVariants:
         """What the per-pixel order's programs share with the draw: the splat blocks of
         ``layout``, the cut-off, the path (PER_PIXEL) and the k-buffer's ``window``."""
         return {"SPLAT_BLOCKS": layout.splat_blocks, "SPLATS_PER_BLOCK": layout.splats_per_block,
+                "EXACT_MIP": int(settings.mode == "raygs-exact-mip"),  # the record's layout
                 "MIN_TRANSMITTANCE": _glsl_float(TRANSMITTANCE_CUTOFF),
                 "PER_PIXEL": PER_PIXEL_PATHS[path],
                 "CUTOFF": _glsl_bool(settings.transmittance_cutoff),
@@ -115,8 +116,7 @@ class ShaderVariants:
         gs = settings.mode == "gs"
         if floor and gs:
             raise ValueError("the floor pass draws RayGS quads; EWA's records are not quads in space")
-        defines = {"EXACT_MIP": int(settings.mode == "raygs-exact-mip"),
-                   "ALPHA_MAX": _glsl_float(ALPHA_CLAMP),
+        defines = {"ALPHA_MAX": _glsl_float(ALPHA_CLAMP),
                    **self.order_defines(settings, layout, path, settings.order_k if path == "fetch" else 0),
                    **self.feature_defines(settings)}
         key = (gs, floor, *sorted(defines.items()))
