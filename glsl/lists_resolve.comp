@@ -74,7 +74,10 @@ void main() {
     sort_list(start, n);
     vec4 state = vec4(0.0);
     if (u_window == 0) {
-        for (uint j = 0u; j < n; ++j) composite_fragment(state, color_of(pool[start + j]), uintBitsToFloat(pool[start + j].y));
+        for (uint j = 0u; j < n; ++j) {
+            uvec4 entry = pool[start + j];
+            composite_fragment(state, color_of(entry), uintBitsToFloat(entry.y));
+        }
     } else {
         uvec4 window[MAX_ORDER_K];
         int held = 0;

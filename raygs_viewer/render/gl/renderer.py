@@ -73,8 +73,8 @@ class GLRenderer:
     """
 
     def __init__(self, ctx: moderngl.Context, scene: Scene, *, block_limit: int | None = None,
-                 memory_limit: int | None = None, general: bool = False, pool_fragments: int | None = None,
-                 order_path: str = "auto"):
+                 memory_limit: int | None = None, general: bool = False,
+                 pool_fragments: int | None = None, order_path: str = "auto"):
         self.ctx = ctx
         self.general = bool(general)
         self.counters = WorkCounters()
