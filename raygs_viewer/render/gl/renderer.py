@@ -67,8 +67,8 @@ class GLRenderer:
     ``block_limit`` overrides the GPU's per-block storage limit (tests use a tiny one
     to exercise the splitting). ``pool_fragments`` and ``order_path`` ("auto", "lists",
     "fetch") configure the per-pixel order (render/gl/per_pixel.py); after each
-    :meth:`render_into`, ``order_stats`` says what it did (None for a global order). ``general``: draw with the all-features variant (see
-    the module docstring). ``storage`` holds the buffers (render/gl/storage.py),
+    :meth:`render_into`, ``order_stats`` says what it did (None for a global order).
+    ``general``: draw with the all-features variant (see the module docstring). ``storage`` holds the buffers (render/gl/storage.py),
     ``variants`` the compiled programs (render/gl/variants.py).
     """
 
