@@ -68,7 +68,8 @@ class GLRenderer:
     to exercise the splitting). ``pool_fragments`` and ``order_path`` ("auto", "lists",
     "fetch") configure the per-pixel order (render/gl/per_pixel.py); after each
     :meth:`render_into`, ``order_stats`` says what it did (None for a global order).
-    ``general``: draw with the all-features variant (see the module docstring). ``storage`` holds the buffers (render/gl/storage.py),
+    ``general``: draw with the all-features variant (see the module docstring).
+    ``storage`` holds the buffers (render/gl/storage.py),
     ``variants`` the compiled programs (render/gl/variants.py).
     """
 
