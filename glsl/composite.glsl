@@ -1,4 +1,4 @@
-// How a fragment's (rgb, alpha) enters the target (maths page, sections 5 and 10).
+// How a fragment's (rgb, alpha) enters the target (maths page, sections 5, 10 and 11).
 // Default: premultiplied output, blended back to front with (ONE, ONE_MINUS_SRC_ALPHA)
 // over a target cleared to (background, 0).
 // FRONT_TO_BACK (the transmittance cut-off of INRIA and GOF): the shader reads the
@@ -6,24 +6,55 @@
 // colour so far and 1 - T, and a pixel whose cut-off fired is marked by alpha - 2
 // (below -1), after which every later fragment is skipped, as INRIA's loop stops.
 // The resolve pass adds the background and removes the mark.
+// PER_PIXEL 1 (fragment lists, fragment_lists.glsl): no colour output; the fragment
+// is counted, or stored with its t* in its pixel's list. PER_PIXEL 2 (a k-buffer,
+// kbuffer.glsl): the fragment enters its pixel's window of K, through framebuffer fetch.
 // Included first: an #extension directive must precede all other code.
-#if FRONT_TO_BACK
+#if FRONT_TO_BACK || PER_PIXEL == 2
 #extension GL_EXT_shader_framebuffer_fetch : require
 #endif
 #include "features.glsl"
 
 uniform float u_p_min;
 
-#if FRONT_TO_BACK
+#if PER_PIXEL
+flat in uint v_index;
+flat in uint v_rank;
+#endif
+#if PER_PIXEL == 1
+#include "fragment_lists.glsl"
+uniform int u_pass;  // 0: count the kept fragments of each pixel; 1: store those of u_part
+
+void store_fragment(vec3 rgb, float alpha, float t) {
+    ivec2 p = ivec2(gl_FragCoord.xy);
+    uint i = pixel_index(p);
+    if (u_pass == 0) {
+        atomicAdd(counts[i], 1u);
+        return;
+    }
+    if (!in_part(p)) return;  // the scissor already keeps the part; this keeps the pool safe
+    uint slot = atomicAdd(cursors[i], 1u);
+    if (slot >= list_start(p) + counts[i]) {  // never: the count pass kept the same fragments
+        atomicAdd(status[0], 1u);
+        return;
+    }
+    pool[slot] = uvec4(floatBitsToUint(t), floatBitsToUint(alpha), v_index, v_rank);
+}
+#elif PER_PIXEL == 2
+#include "kbuffer.glsl"
+#elif FRONT_TO_BACK
 inout vec4 frag_color;
 #else
 out vec4 frag_color;
 #endif
 
-void emit(vec3 rgb, float alpha) {
+// t: the ray parameter of the gaussian's peak on this pixel's unit ray (per-pixel order only).
+void emit_at(vec3 rgb, float alpha, float t) {
     if (alpha < u_p_min) discard;
     if (ALPHA_CLAMP) alpha = min(alpha, ALPHA_MAX);
-#if FRONT_TO_BACK
+#if PER_PIXEL
+    store_fragment(rgb, alpha, t);
+#elif FRONT_TO_BACK
     vec4 so_far = frag_color;
     if (so_far.a < -0.5) discard;
     float transmittance = 1.0 - so_far.a;
@@ -36,4 +67,8 @@ void emit(vec3 rgb, float alpha) {
 #else
     frag_color = vec4(rgb * alpha, alpha);
 #endif
+}
+
+void emit(vec3 rgb, float alpha) {
+    emit_at(rgb, alpha, 0.0);
 }

@@ -6,6 +6,9 @@
 in vec2 v_plane;
 flat in vec4 v_color_opacity;
 flat in vec2 v_inv_c2_kappa;
+#if PER_PIXEL
+in vec3 v_point;              // the quad point in camera space
+#endif
 #if EXACT_MIP
 in vec3 v_offset;             // the quad point relative to the centre (rotated frame)
 flat in vec3 v_local_center;
@@ -42,8 +45,16 @@ void main() {
         vec3 shrink = s2 / s2_hat;
         opacity *= sqrt(shrink.x * shrink.y * shrink.z * ray_metric / dot(ray * ray, 1.0 / s2_hat));
     }
-    emit(v_color_opacity.rgb, opacity * exp(-0.5 * divergence));
+    // t* (section 11) with this pixel's filtered scales, along the unit ray.
+    float t_star = dot(ray * v_local_center, 1.0 / s2_hat) / dot(ray * ray, 1.0 / s2_hat);
+    emit_at(v_color_opacity.rgb, opacity * exp(-0.5 * divergence), t_star);
 #else
-    emit(v_color_opacity.rgb, v_color_opacity.a * exp(-0.5 * divergence));
+    // t* (section 11) along the unit ray: the whitened quad point y satisfies y.w = c^2
+    // and |y|^2 = c^2 + r^2, so t*(q) = c^2 / (c^2 + r^2) and t* = |q| / (1 + r^2 / c^2).
+    float t_star = 0.0;
+#if PER_PIXEL
+    t_star = length(v_point) / (1.0 + r2 * v_inv_c2_kappa.x);
+#endif
+    emit_at(v_color_opacity.rgb, v_color_opacity.a * exp(-0.5 * divergence), t_star);
 #endif
 }

@@ -3,6 +3,15 @@
 
 uniform mat4 u_projection;  // OpenCV camera space -> clip space
 
+#if PER_PIXEL
+// The per-pixel order draws the same quads in several passes (count, then fill per
+// part); each pass must keep exactly the same fragments.
+invariant gl_Position;
+out vec3 v_point;            // the quad point in camera space, for t* (section 11)
+flat out uint v_index;       // the gaussian's scene index: its record, and the tie-break
+flat out uint v_rank;        // its place in the global front-to-back order
+#endif
+
 out vec2 v_plane;            // position in the quad's plane, whitened units (z of Eq. 16)
 flat out vec4 v_color_opacity;
 flat out vec2 v_inv_c2_kappa;  // 1 / c^2 (one division per quad, not per fragment), kappa
@@ -13,7 +22,14 @@ flat out vec3 v_scale;
 #endif
 
 void main() {
+#if PER_PIXEL
+    v_index = this_instance_index();
+    v_rank = uint(gl_InstanceID);
+    v_point = vec3(0.0);
+    Splat s = fetch_splat(v_index);
+#else
     Splat s = this_instance_splat();
+#endif
     v_color_opacity = vec4(s.color.rgb, s.axis1_opacity.w);
     v_inv_c2_kappa = vec2(1.0 / s.center_c2.w, s.color.a);
 #if EXACT_MIP
@@ -29,6 +45,9 @@ void main() {
     vec2 corner = quad_corner();
     vec3 position = s.center_c2.xyz + corner.x * s.axis0_half.xyz + corner.y * s.axis1_opacity.xyz;
     v_plane = corner * s.axis0_half.w;
+#if PER_PIXEL
+    v_point = position;
+#endif
 #if EXACT_MIP
     v_offset = corner.x * s.local_axis0.xyz + corner.y * s.local_axis1.xyz;
 #endif

@@ -1,4 +1,5 @@
-// The sorted order and the splat records, for the vertex stages. The records span
+// The sorted order and the splat records, for the vertex stages (and, with SPLATS_ONLY
+// defined, for any stage that reads a record by its index). The records span
 // SPLAT_BLOCKS bindings of SPLATS_PER_BLOCK each, so a large scene never exceeds the
 // per-block storage limit.
 #include "splat.glsl"
@@ -56,16 +57,23 @@ Splat fetch_splat(uint index) {
     return splats0[i];
 }
 
-// The order is back to front; the transmittance cut-off composites front to back.
-Splat this_instance_splat() {
-#if FRONT_TO_BACK
-    return fetch_splat(order[u_order_count - 1u - uint(gl_InstanceID)]);
+#ifndef SPLATS_ONLY  // the vertex stages'; fragment and compute stages read records by index only
+// The order is back to front; the transmittance cut-off and the per-pixel order
+// draw it front to back (so gl_InstanceID is the rank in the front-to-back order).
+uint this_instance_index() {
+#if FRONT_TO_BACK || PER_PIXEL
+    return order[u_order_count - 1u - uint(gl_InstanceID)];
 #else
-    return fetch_splat(order[gl_InstanceID]);
+    return order[gl_InstanceID];
 #endif
+}
+
+Splat this_instance_splat() {
+    return fetch_splat(this_instance_index());
 }
 
 // Triangle-strip corners (-,-), (+,-), (-,+), (+,+).
 vec2 quad_corner() {
     return vec2((gl_VertexID & 1) != 0 ? 1.0 : -1.0, (gl_VertexID & 2) != 0 ? 1.0 : -1.0);
 }
+#endif

@@ -16,7 +16,8 @@ class OrderStats:
     kept (alpha >= p_min) over the whole image; max_per_pixel: the most at one
     pixel; covered_pixels: pixels with at least one. pool_fragments, pool_bytes:
     the pool's capacity (0 on the fetch path); parts: how many rectangles the image
-    was drawn in so that each part's fragments fit the pool (1: all at once).
+    was drawn in so that each part's fragments fit the pool (1: all at once; the fetch
+    path draws in one); largest_part: the fragments of the fullest part.
     """
 
     path: str
@@ -28,6 +29,7 @@ class OrderStats:
     pool_fragments: int
     pool_bytes: int
     parts: int
+    largest_part: int = 0
 
     @property
     def mean_per_covered_pixel(self) -> float:
@@ -38,4 +40,4 @@ class OrderStats:
         """The largest part's share of the pool, 0..1 (0 on the fetch path)."""
         if not self.pool_fragments:
             return 0.0
-        return min(1.0, self.fragments / self.parts / self.pool_fragments)
+        return min(1.0, self.largest_part / self.pool_fragments)

@@ -31,6 +31,8 @@ import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera, camera_key
 from raygs_viewer.errors import UserError
+from raygs_viewer.render.gl.order_stats import OrderStats
+from raygs_viewer.render.gl.per_pixel import PerPixelOrder
 from raygs_viewer.render.gl.shaders import set_uniform
 from raygs_viewer.render.gl.storage import (
     EXACT_MIP_SPLAT_BYTES,
@@ -63,13 +65,17 @@ class GLRenderer:
     """Renders one scene; keeps its storage buffers until :meth:`release`.
 
     ``block_limit`` overrides the GPU's per-block storage limit (tests use a tiny one
-    to exercise the splitting). ``general``: draw with the all-features variant (see
-    the module docstring). ``storage`` holds the buffers (render/gl/storage.py),
+    to exercise the splitting). ``pool_fragments`` and ``order_path`` ("auto", "lists",
+    "fetch") configure the per-pixel order (render/gl/per_pixel.py); after each
+    :meth:`render_into`, ``order_stats`` says what it did (None for a global order).
+    ``general``: draw with the all-features variant (see the module docstring).
+    ``storage`` holds the buffers (render/gl/storage.py),
     ``variants`` the compiled programs (render/gl/variants.py).
     """
 
     def __init__(self, ctx: moderngl.Context, scene: Scene, *, block_limit: int | None = None,
-                 memory_limit: int | None = None, general: bool = False):
+                 memory_limit: int | None = None, general: bool = False,
+                 pool_fragments: int | None = None, order_path: str = "auto"):
         self.ctx = ctx
         self.general = bool(general)
         self.counters = WorkCounters()
@@ -83,6 +89,8 @@ class GLRenderer:
         self._preprocessed_key: tuple | None = None  # what the records in storage.splats were made for
         #: Off only to demonstrate the near-plane seam that depth clamp prevents.
         self.depth_clamp = True
+        self.per_pixel = PerPixelOrder(ctx, scene.count, self.storage.block_limit, pool_fragments, order_path)
+        self.order_stats: OrderStats | None = None
         self._target: FloatTarget | None = None          # render()'s image, the latest size
         self._samples: FloatTarget | None = None         # supersampling and front to back
 
@@ -93,6 +101,8 @@ class GLRenderer:
 
     def supports(self, settings: RenderSettings) -> str | None:
         """None when this GPU can render ``settings``, else why not (one line)."""
+        if settings.per_pixel:  # composites in its own passes, the cut-off included
+            return self.per_pixel.problem(settings)
         if settings.transmittance_cutoff and GL_EXT_FRAMEBUFFER_FETCH not in self.ctx.extensions:
             return (f"the transmittance cut-off needs {GL_EXT_FRAMEBUFFER_FETCH}, "
                     f"which this GPU's OpenGL driver does not offer")
@@ -142,11 +152,14 @@ class GLRenderer:
         and diagnostics."""
         return self.storage.read_records(self._last_layout)
 
-    def draw(self, camera: Camera, settings: RenderSettings, order: np.ndarray, *, floor: bool = False) -> None:
+    def draw(self, camera: Camera, settings: RenderSettings, order: np.ndarray, *, floor: bool = False,
+             path: str | None = None, uniforms: dict | None = None) -> None:
         """Draws the quads of ``order`` (back to front) into the bound framebuffer, as
         the last :meth:`preprocess` (same camera and settings) prepared them.
         ``floor``: the same quads with a constant, never discarded fragment instead
-        (glsl/quads.*): the least this rasterizer can spend on them (bench perf)."""
+        (glsl/quads.*): the least this rasterizer can spend on them (bench perf).
+        ``path``, ``uniforms``: a per-pixel order pass (render/gl/per_pixel.py) and its
+        uniforms; blending off, the quads drawn front to back."""
         if order.size == 0:
             return
         if order.size > self.scene.count:
@@ -155,7 +168,9 @@ class GLRenderer:
         problem = self.supports(settings)
         if problem:
             raise UserError(problem)
-        program, vao = self.variants.draw(settings, layout, floor)
+        program, vao = self.variants.draw(settings, layout, floor, path)
+        for name, value in (uniforms or {}).items():
+            set_uniform(program, name, value)
         self.upload_order(order)
         self.storage.bind_for_draw(layout, int(order.size))
         set_uniform(program, "u_projection", camera.gl_projection().astype(np.float32).tobytes(order="F"))
@@ -166,8 +181,8 @@ class GLRenderer:
         self.variants.set_features(program, settings)
         ctx = self.ctx
         ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
-        if settings.transmittance_cutoff:
-            ctx.disable(moderngl.BLEND)  # the fragment stage composites through framebuffer fetch
+        if settings.transmittance_cutoff or path is not None:
+            ctx.disable(moderngl.BLEND)  # the fragment stage composites (framebuffer fetch) or stores
         else:
             ctx.enable(moderngl.BLEND)
             ctx.blend_func = moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA
@@ -208,6 +223,10 @@ class GLRenderer:
         to back into a target cleared to 0; a resolve pass then averages the samples and
         adds the background."""
         k = settings.supersample
+        self.order_stats = None
+        if settings.per_pixel:
+            self._render_per_pixel(target, camera, settings, order, frame, color_origin)
+            return
         if k == 1 and not settings.transmittance_cutoff:
             target.use()
             target.fbo.clear(*settings.background, 0.0)
@@ -223,11 +242,29 @@ class GLRenderer:
             samples.fbo.clear(*settings.background, 0.0)
         self.preprocess(sampled, settings, frame or camera, color_origin)  # the bounds are scale-invariant
         self.draw(sampled, settings, order)
-        self._resolve(samples, target, k, settings)
+        self._resolve(samples, target, k, settings, settings.transmittance_cutoff)
+
+    def _render_per_pixel(self, target: FloatTarget, camera: Camera, settings: RenderSettings,
+                          order: np.ndarray, frame: Camera | None, color_origin: np.ndarray | None) -> None:
+        """render_into for the per-pixel order: its passes write the finished image (over
+        the background) into ``target``, or into the sample target that supersampling
+        then averages down."""
+        k = settings.supersample
+        problem = self.supports(settings)
+        if problem:
+            raise UserError(problem)
+        sampled = camera.resized(camera.width * k, camera.height * k) if k > 1 else camera
+        image = target
+        if k > 1 or target.dtype != "f4":
+            self._samples = image = sized(self._samples, self.ctx, sampled.width, sampled.height)
+        self.preprocess(sampled, settings, frame or camera, color_origin)
+        self.order_stats = self.per_pixel.render(self, image, sampled, settings, order)
+        if image is not target:
+            self._resolve(image, target, k, settings, False)
 
     def _resolve(self, samples: FloatTarget, target: FloatTarget, k: int,
-                 settings: RenderSettings) -> None:
-        program, vao = self.variants.resolve(settings.transmittance_cutoff)
+                 settings: RenderSettings, front_to_back: bool) -> None:
+        program, vao = self.variants.resolve(front_to_back)
         target.use()
         self.ctx.disable(moderngl.BLEND)
         samples.texture.use(0)
@@ -239,6 +276,7 @@ class GLRenderer:
     def release(self) -> None:
         release_all(self._target, self._samples)
         self._target = self._samples = None
+        self.per_pixel.release()
         self.variants.release()
         self.storage.release()
 

@@ -17,12 +17,17 @@ from raygs_viewer.render.settings import (
     ALPHA_CLAMP,
     GS_DILATION,
     GS_NEAR,
+    MAX_ORDER_K,
     TRANSMITTANCE_CUTOFF,
     RenderSettings,
 )
 
 #: A compiled draw or full-screen program with the (attribute-less) vertex array that runs it.
 ProgramAndArray = tuple[moderngl.Program, moderngl.VertexArray]
+
+#: The draw's PER_PIXEL define for each per-pixel path (render/gl/per_pixel.py): none,
+#: fragment lists (glsl/fragment_lists.glsl), a k-buffer (glsl/kbuffer.glsl).
+PER_PIXEL_PATHS = {None: 0, "lists": 1, "fetch": 2}
 
 
 def _glsl_bool(value: bool) -> str:
@@ -45,6 +50,7 @@ class ShaderVariants:
         self._preprocess: dict[tuple, moderngl.ComputeShader] = {}
         self._draw: dict[tuple, ProgramAndArray] = {}
         self._resolve: dict[bool, ProgramAndArray] = {}
+        self._compute: dict[tuple, moderngl.ComputeShader] = {}
 
     def colors_at_load(self, settings: RenderSettings) -> bool:
         """Whether this variant reads colours computed at load instead of evaluating SH."""
@@ -88,17 +94,30 @@ class ShaderVariants:
             self._preprocess[key] = self.ctx.compute_shader(shader_source("preprocess.comp", defines))
         return self._preprocess[key]
 
-    def draw(self, settings: RenderSettings, layout: StorageLayout, floor: bool = False) -> ProgramAndArray:
+    def order_defines(self, settings: RenderSettings, layout: StorageLayout, path: str | None = None,
+                      window: int = 0) -> dict[str, object]:
+        """What the per-pixel order's programs share with the draw: the splat blocks of
+        ``layout``, the cut-off, the path (PER_PIXEL) and the k-buffer's ``window``."""
+        return {"SPLAT_BLOCKS": layout.splat_blocks, "SPLATS_PER_BLOCK": layout.splats_per_block,
+                "EXACT_MIP": int(settings.mode == "raygs-exact-mip"),  # the record's layout
+                "MIN_TRANSMITTANCE": _glsl_float(TRANSMITTANCE_CUTOFF),
+                "PER_PIXEL": PER_PIXEL_PATHS[path],
+                "CUTOFF": _glsl_bool(settings.transmittance_cutoff),
+                "FRONT_TO_BACK": int(settings.transmittance_cutoff and path is None),
+                "MAX_ORDER_K": MAX_ORDER_K,
+                "ORDER_K": max(1, window)}
+
+    def draw(self, settings: RenderSettings, layout: StorageLayout, floor: bool = False,
+             path: str | None = None) -> ProgramAndArray:
         """The quad stages for ``settings`` reading the splat blocks of ``layout``;
-        ``floor``: glsl/quads.*, the same quads with a constant fragment."""
+        ``floor``: glsl/quads.*, the same quads with a constant fragment. ``path``: the
+        per-pixel order's draw ("lists": count and fill; "fetch": the k-buffer of
+        ``settings.order_k`` entries), None for blending."""
         gs = settings.mode == "gs"
         if floor and gs:
             raise ValueError("the floor pass draws RayGS quads; EWA's records are not quads in space")
-        defines = {"SPLAT_BLOCKS": layout.splat_blocks, "SPLATS_PER_BLOCK": layout.splats_per_block,
-                   "EXACT_MIP": int(settings.mode == "raygs-exact-mip"),
-                   "ALPHA_MAX": _glsl_float(ALPHA_CLAMP),
-                   "FRONT_TO_BACK": int(settings.transmittance_cutoff),
-                   "MIN_TRANSMITTANCE": _glsl_float(TRANSMITTANCE_CUTOFF),
+        defines = {"ALPHA_MAX": _glsl_float(ALPHA_CLAMP),
+                   **self.order_defines(settings, layout, path, settings.order_k if path == "fetch" else 0),
                    **self.feature_defines(settings)}
         key = (gs, floor, *sorted(defines.items()))
         if key not in self._draw:
@@ -107,6 +126,13 @@ class ShaderVariants:
                                        fragment_shader=shader_source(f"{stage}.frag", defines))
             self._draw[key] = program, self.ctx.vertex_array(program, [])
         return self._draw[key]
+
+    def compute(self, name: str, defines: dict[str, object]) -> moderngl.ComputeShader:
+        """The compute shader ``glsl/<name>`` with ``defines`` (the per-pixel order's passes)."""
+        key = (name, *sorted(defines.items()))
+        if key not in self._compute:
+            self._compute[key] = self.ctx.compute_shader(shader_source(name, defines))
+        return self._compute[key]
 
     def resolve(self, front_to_back: bool) -> ProgramAndArray:
         """The full-screen pass that averages a sample target down (resolve.frag)."""
@@ -118,9 +144,10 @@ class ShaderVariants:
         return self._resolve[front_to_back]
 
     def release(self) -> None:
-        for program in self._preprocess.values():
-            program.release()
-        self._preprocess.clear()
+        for shaders in (self._preprocess, self._compute):
+            for program in shaders.values():
+                program.release()
+            shaders.clear()
         for programs in (self._draw, self._resolve):
             for program, vao in programs.values():
                 vao.release()
