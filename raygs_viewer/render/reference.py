@@ -35,6 +35,7 @@ import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.camera.rotation import quaternion_to_matrix
+from raygs_viewer.render.ray_order import Fragments, composite_per_pixel
 from raygs_viewer.render.settings import (
     ALPHA_CLAMP,
     GS_DILATION,
@@ -49,35 +50,50 @@ from raygs_viewer.sort.depth import DepthSorter
 #: Samples (pixels of the rendered, supersampled image) per band: bounds peak memory
 #: to a few hundred MB even when one gaussian covers a whole band.
 BAND_SAMPLES = 1 << 20
+#: Per-pixel order keeps a band's fragments (tens per sample in real scenes) at once:
+#: its bands hold this many times fewer samples.
+PER_PIXEL_BAND_DIVISOR = 16
 
 
 def render_reference(scene: Scene, camera: Camera, settings: RenderSettings = RenderSettings(),
-                     order: np.ndarray | None = None) -> np.ndarray:
+                     order: np.ndarray | str | None = None) -> np.ndarray:
     """(H, W, 4) float64 image: RGB composited over the background, and accumulated alpha.
 
-    ``order`` (indices, back to front) defaults to the sorter's order for this camera,
-    culled with the settings' filter dilation. Every field of ``settings`` is honoured;
-    with ``supersample`` k the image is the k x k block mean of the image rendered with
-    ``camera.resized(k W, k H)``.
+    ``order``: the global order (indices, back to front), by default the sorter's for
+    this camera with ``settings.sort_key``, culled with the settings' filter dilation;
+    or the name of an order mode (one of ORDERS), short for ``settings`` with that
+    ``order``. Every field of ``settings`` is honoured; with ``supersample`` k the image
+    is the k x k block mean of the image rendered with ``camera.resized(k W, k H)``.
+    Per-pixel order composites each pixel by t* (:mod:`raygs_viewer.render.ray_order`);
+    its window (``order_k``) is fed in the global order.
     """
+    if isinstance(order, str):
+        settings, order = replace(settings, order=order), None
     if order is None:
-        order = DepthSorter(scene).order(camera, settings.p_min, dilation=settings.cull_dilation(camera))
+        order = global_order(scene, camera, settings)
     return _render(scene, camera, settings, order, settings.supersample, BAND_SAMPLES)
 
 
+def global_order(scene: Scene, camera: Camera, settings: RenderSettings) -> np.ndarray:
+    """(M,) uint32 back to front: the sorter's order for ``camera`` with the settings'
+    key, culled with their filter dilation (what the GL path draws)."""
+    return DepthSorter(scene).order(camera, settings.p_min, dilation=settings.cull_dilation(camera),
+                                    key=settings.sort_key)
+
+
 def ground_truth(scene: Scene, camera: Camera, settings: RenderSettings = RenderSettings(),
-                 samples: int = 8, *, band_samples: int = BAND_SAMPLES) -> np.ndarray:
+                 samples: int = 8, *, order: str | None = None, band_samples: int = BAND_SAMPLES) -> np.ndarray:
     """(H, W, 4) float64: exact RayGS (no MIP filter, no alpha clamp, no cut-off)
     integrated over each pixel's area with ``samples`` x ``samples`` samples (a box
-    filter); p_min, background and SH degree come from ``settings``. ``samples`` may
-    exceed the renderers' MAX_SUPERSAMPLE; memory stays about one band's
-    (``band_samples`` samples, :data:`BAND_SAMPLES` unless given)."""
+    filter); p_min, background and SH degree come from ``settings``, and the order mode
+    from ``order`` (default ``settings.order``; "per-pixel" is always exact here, every
+    ray composited by t*). ``samples`` may exceed the renderers' MAX_SUPERSAMPLE; memory
+    stays about one band's (``band_samples`` samples, :data:`BAND_SAMPLES` unless given)."""
     if isinstance(samples, bool) or not isinstance(samples, int) or samples < 1:
         raise ValueError(f"samples must be a whole number >= 1, got {samples!r}")
     exact = replace(settings, mode="raygs", mip=False, supersample=1, alpha_clamp=False,
-                    transmittance_cutoff=False)
-    order = DepthSorter(scene).order(camera, exact.p_min, dilation=exact.cull_dilation(camera))
-    return _render(scene, camera, exact, order, samples, band_samples)
+                    transmittance_cutoff=False, order=order or settings.order, order_k=0)
+    return _render(scene, camera, exact, global_order(scene, camera, exact), samples, band_samples)
 
 
 # --- the render loop shared by every mode ------------------------------------------------
@@ -101,8 +117,12 @@ def _render(scene: Scene, camera: Camera, settings: RenderSettings, order, sampl
     rendered = camera if samples == 1 else camera.resized(samples * width, samples * height)
     gaussians = _Gaussians.of(scene, order, camera)
     model = _MODELS[settings.mode](gaussians, rendered, settings)
+    model.scene_index = order
 
-    # Bands of whole output rows, so each band's block mean is complete.
+    # Bands of whole output rows, so each band's block mean is complete. Per-pixel order
+    # holds every fragment of a band at once: smaller bands.
+    if settings.per_pixel:
+        band_samples = max(1, band_samples // PER_PIXEL_BAND_DIVISOR)
     rows_per_band = max(1, band_samples // (samples * samples * width))
     for top in range(0, height, rows_per_band):
         bottom = min(height, top + rows_per_band)
@@ -170,6 +190,8 @@ def _composite(model, colors: np.ndarray, camera: Camera, settings: RenderSettin
             yield i, slice(r0 - top, r1 - top), cols, alpha
 
     band = np.zeros((bottom - top, camera.width, 4))
+    if settings.per_pixel:
+        return _composite_per_pixel(model, colors, rays, boxes, meets, settings, top, bottom)
     if not settings.transmittance_cutoff:
         # Back to front, "over" blending of premultiplied fragments, as the GL path does.
         band[..., :3] = settings.background
@@ -196,6 +218,37 @@ def _composite(model, colors: np.ndarray, camera: Camera, settings: RenderSettin
     band[..., :3] = color + transmittance[..., None] * np.asarray(settings.background)
     band[..., 3] = 1 - transmittance
     return band
+
+
+def _composite_per_pixel(model, colors: np.ndarray, rays: np.ndarray, boxes: np.ndarray, meets: np.ndarray,
+                         settings: RenderSettings, top: int, bottom: int) -> np.ndarray:
+    """(bottom - top, W, 4): the band composited per pixel by t* (exactly, or through the
+    settings' window), from every fragment with alpha > 0."""
+    height, width = bottom - top, rays.shape[1]
+    columns = np.arange(width)
+    parts = []
+    for j in meets:
+        r0, r1, c0, c1 = boxes[j]
+        r0, r1 = max(r0, top), min(r1, bottom)
+        i = model.drawn[j]
+        alpha, key = model.alpha(i, rays[r0 - top:r1 - top, c0:c1], slice(r0, r1), slice(c0, c1), key=True)
+        if settings.alpha_clamp:
+            np.minimum(alpha, ALPHA_CLAMP, out=alpha)
+        rows, cols = np.nonzero(alpha > 0)
+        if rows.size == 0:
+            continue
+        count = rows.size
+        parts.append(((rows + (r0 - top)) * width + columns[c0:c1][cols], key[rows, cols],
+                      np.full(count, model.scene_index[i], np.int64), np.full(count, i, np.int64),
+                      alpha[rows, cols], np.broadcast_to(colors[i], (count, 3))))
+    cutoff = TRANSMITTANCE_CUTOFF if settings.transmittance_cutoff else None
+    image = composite_per_pixel(Fragments.concatenate(parts), height * width, settings.background,
+                                window=settings.order_k, cutoff=cutoff)
+    return image.reshape(height, width, 4)
+
+
+def _ray_length(rays: np.ndarray) -> np.ndarray:
+    return np.sqrt(np.einsum("...i,...i->...", rays, rays))
 
 
 def _whitened_divergence(y: np.ndarray, w: np.ndarray) -> np.ndarray:
@@ -241,11 +294,15 @@ class _RayGS:
         self.drawn = np.flatnonzero((self.kappa > 0) & (c2 > self.kappa))
         self.boxes = _support_boxes(camera, g.mu, g.rotation, scales, self.kappa, self.drawn)
 
-    def alpha(self, i: int, rays: np.ndarray, rows: slice, cols: slice) -> np.ndarray:
+    def alpha(self, i: int, rays: np.ndarray, rows: slice, cols: slice, key: bool = False):
+        """The opacity gaussian ``i`` has at each of ``rays``; with ``key``, also t* (its
+        peak's distance along each unit ray: (y.w) / (y.y) for the ray of length |x|)."""
         y = rays @ self.whiten[i].T
         along = y @ self.w[i]
         alpha = self.opacities[i] * np.exp(-0.5 * _whitened_divergence(y, self.w[i]))
         alpha[(alpha < self.p_min) | (along <= 0)] = 0.0
+        if key:
+            return alpha, along / np.einsum("...i,...i->...", y, y) * _ray_length(rays)
         return alpha
 
 
@@ -278,7 +335,8 @@ class _ExactMip:
         self.drawn = np.flatnonzero((self.kappa > 0) & (c2_big > self.kappa))
         self.boxes = _support_boxes(camera, g.mu, g.rotation, self.big, self.kappa, self.drawn)
 
-    def alpha(self, i: int, rays: np.ndarray, rows: slice, cols: slice) -> np.ndarray:
+    def alpha(self, i: int, rays: np.ndarray, rows: slice, cols: slice, key: bool = False):
+        """As :meth:`_RayGS.alpha`; t* is the peak of this pixel's filtered gaussian."""
         s2 = self.g.scales[i] ** 2
         mu = self.local[i]
         x = rays / np.linalg.norm(rays, axis=-1, keepdims=True)
@@ -300,6 +358,8 @@ class _ExactMip:
         outside = ((_whitened_divergence(y_big, self.w_big[i]) > self.kappa[i])
                    | (y_big @ self.w_big[i] <= 0))
         alpha[(alpha < self.p_min) | outside] = 0.0
+        if key:
+            return alpha, (x * mu / filtered2).sum(axis=-1) / (x * x / filtered2).sum(axis=-1)
         return alpha
 
 

@@ -27,7 +27,8 @@ MODE_LABELS = {"raygs": "RayGS", "raygs-exact-mip": "RayGS exact MIP", "gs": "GS
 #: not change when the camera turns in place, so a turn needs no new sort.
 #: "per-pixel": each pixel composites its gaussians front to back by t*, the ray
 #: parameter of the gaussian's peak on that pixel's ray; exactly (order_k 0), or
-#: through a re-ordering window of order_k entries fed in the distance order.
+#: through a re-ordering window of order_k entries fed in the depth order (which feeds
+#: it better than distance on the shared scenes: docs/ordering.md).
 ORDERS = ("depth", "distance", "per-pixel")
 ORDER_LABELS = {"depth": "depth", "distance": "distance", "per-pixel": "per pixel"}
 #: Largest re-ordering window (k-buffer entries per pixel) of the bounded per-pixel order.
@@ -77,7 +78,7 @@ class RenderSettings:
     order: one of ORDERS, how each pixel orders its gaussians. order_k: with order
     "per-pixel", 0 sorts every pixel's fragments exactly; K in 1..MAX_ORDER_K
     re-orders them through a window of K entries (a k-buffer) fed in the global
-    distance order. Per-pixel order needs a RayGS mode (EWA splats have no ray key).
+    depth order. Per-pixel order needs a RayGS mode (EWA splats have no ray key).
     """
 
     p_min: float = DEFAULT_P_MIN
@@ -99,9 +100,9 @@ class RenderSettings:
 
     @property
     def sort_key(self) -> str:
-        """The key of the global CPU sort: "depth", or "distance" (which per-pixel order
-        starts from: it is t* of the ray through an isotropic gaussian's centre)."""
-        return "depth" if self.order == "depth" else "distance"
+        """The key of the global CPU sort: "distance" for the distance order, else
+        "depth" (per-pixel order's window is fed in the depth order)."""
+        return "distance" if self.order == "distance" else "depth"
 
     @property
     def per_pixel(self) -> bool:
