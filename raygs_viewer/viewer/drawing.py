@@ -3,7 +3,7 @@ or the stereo frame, each time the view, the settings or the order changed, unde
 GPU timers the panel and the summary read.
 
 Each side draws the order of its settings' sort key (``RenderSettings.sort_key``:
-depth, or distance, which per-pixel order also starts from). One sort serves every
+depth or distance; per-pixel order is fed in the depth order). One sort serves every
 side shown: the window asks the background sorter for one cull (the more
 conservative of the two sides') and an order per distinct key (:func:`sort_keys`).
 In the split view both sides render the whole viewport, each with its key's order;

@@ -21,7 +21,7 @@ from raygs_viewer.render.gl.order_stats import OrderStats
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import MAX_ORDER_K, RenderSettings, apply_preset
 from raygs_viewer.viewer.drawing import order_for, sort_keys
-from raygs_viewer.viewer.panel.order import GS_FALLBACK_NOTE, with_mode
+from raygs_viewer.viewer.panel.order import gs_fallback_note, with_mode
 from raygs_viewer.viewer.panel.widgets import item_rects
 from raygs_viewer.viewer.state import StereoPreview
 from raygs_viewer.viewer.stats import FrameStats, order_stats_lines, summary
@@ -80,10 +80,11 @@ def test_the_panel_sets_the_order_and_k_and_the_next_draw_uses_them(open_viewer)
     click_choice(drive, "order", "per-pixel")
     assert viewer.settings.order == "per-pixel" and viewer.settings.order_k == 0
     drive.settle()
-    assert viewer.sorter.keys[-1] == ("distance",)  # per pixel starts from the distance order
+    key = viewer.settings.sort_key  # the global order per pixel is fed in
+    assert viewer.sorter.keys[-1] == (key,)
     settings, order = drawn_into(viewer, viewer.drawer.mono.left)
     assert settings.per_pixel and settings.order_k == 0
-    np.testing.assert_array_equal(order, expected)
+    np.testing.assert_array_equal(order, viewer.renderer.sorter.order(viewer.camera, settings.p_min, key=key))
     assert viewer.stats.order_stats == (replace(LISTS, width=0), None)
     drive.frames(1)
     assert "order stats left" in item_rects and "order K" in item_rects
@@ -108,15 +109,16 @@ def test_gs_with_a_per_pixel_order_switches_it_to_distance_and_says_so(open_view
     viewer, drive = open_recording(open_viewer, width=PANEL_WIDTH, height=PANEL_HEIGHT,
                                    settings=RenderSettings(order="per-pixel", order_k=3))
     drive.settle()
+    fallback = RenderSettings(order="per-pixel").sort_key
     click_choice(drive, "mode", "gs")
-    assert viewer.settings == RenderSettings(sh_degree=3, mode="gs", order="distance", order_k=3)
-    assert viewer.panel.message == GS_FALLBACK_NOTE and viewer.panel.error == ""
+    assert viewer.settings == RenderSettings(sh_degree=3, mode="gs", order=fallback, order_k=3)
+    assert viewer.panel.message == gs_fallback_note(fallback) and viewer.panel.error == ""
     drive.settle()
     assert drawn_into(viewer, viewer.drawer.mono.left)[0].mode == "gs"
     assert_matches(window_image(viewer), headless(viewer))
     # In GS mode the per-pixel entry is greyed out: choosing it changes nothing.
     click_choice(drive, "order", "per-pixel")
-    assert viewer.settings.order == "distance" and viewer.panel.error == ""
+    assert viewer.settings.order == fallback and viewer.panel.error == ""
     assert "order GS note" in item_rects
     drive.click(item_rects["order"])  # the greyed-out entry left the combo open: close it
     # Back in a RayGS mode it can be chosen again.
@@ -131,16 +133,18 @@ def test_with_mode_keeps_every_other_combination():
             settings, note = with_mode(RenderSettings(order=order, order_k=2), mode)
             assert settings.mode == mode and settings.order_k == 2
             fell_back = order == "per-pixel" and mode == "gs"
-            assert settings.order == ("distance" if fell_back else order)
-            assert note == (GS_FALLBACK_NOTE if fell_back else "")
+            assert settings.order == ("depth" if fell_back else order)
+            assert note == (gs_fallback_note("depth") if fell_back else "")
+    assert gs_fallback_note("depth") == "GS (EWA) has no per-pixel order: the order is now depth"
 
 
 # -- the split view: one cull, an order per key, each side its own ----------------------------------
 @pytest.mark.parametrize("left, preset, keys", [
     ("depth", "RayGS, distance order", ("depth", "distance")),
-    ("per-pixel", "GS", ("distance", "depth")),
-    ("per-pixel", "RayGS, per-pixel order K=4", ("distance",)),
+    ("distance", "RayGS, per-pixel order", ("distance", "depth")),
+    ("per-pixel", "RayGS, per-pixel order K=4", ("depth",)),
     ("distance", "RayGS", ("distance", "depth")),
+    ("per-pixel", "GS", ("depth",)),
 ])
 def test_the_split_view_sorts_each_key_once_and_each_side_draws_its_own(open_viewer, left, preset, keys):
     viewer, drive = open_recording(open_viewer, hide_panel=True, settings=RenderSettings(order=left))
@@ -172,7 +176,7 @@ def test_the_split_view_panel_shows_each_per_pixel_side(open_viewer):
     drive.settle()
     drive.frames(1)
     assert "order stats left" in item_rects and "order stats right" in item_rects
-    viewer.split.preset = "GS"
+    viewer.split.preset = "RayGS, distance order"
     drive.settle()
     item_rects.clear()
     drive.frames(1)
@@ -193,11 +197,16 @@ def test_stereo_sorts_both_eyes_by_the_settings_key(open_viewer):
     viewer, drive = open_recording(open_viewer, hide_panel=True, width=128, height=48, stereo=stereo,
                                    settings=RenderSettings(order="per-pixel"))
     drive.settle()
-    assert viewer.sorter.keys[-1] == ("distance",)
+    assert viewer.sorter.keys[-1] == ("depth",)
     result = viewer.sorter.latest()
     eye_orders = [order for _, settings, order in viewer.renderer.drawn[-2:]]
-    assert all(order is result.order_for("distance") for order in eye_orders)
+    assert all(order is result.order_for("depth") for order in eye_orders)
     assert viewer.stats.order_stats == (replace(LISTS, width=0), None)
+    viewer.settings = replace(viewer.settings, order="distance")
+    drive.settle()
+    assert viewer.sorter.keys[-1] == ("distance",) and viewer.stats.order_stats == (None, None)
+    assert all(order is viewer.sorter.latest().order_for("distance")
+               for order in [order for _, settings, order in viewer.renderer.drawn[-2:]])
 
 
 # -- the statistics' words -------------------------------------------------------------------------

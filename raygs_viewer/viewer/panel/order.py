@@ -4,9 +4,9 @@ redraw: fragments per covered pixel, the pool's use, the parts drawn, the path.
 
 Per-pixel order needs a RayGS mode (EWA splats have no ray parameter to sort by). In
 GS mode its entry is greyed out; choosing GS in the Render section while the order is
-per pixel keeps GS and switches the order to distance, the global order per-pixel
-order starts from, and the panel says so (:func:`with_mode`): the user asked for GS,
-and gets it with the nearest order it can draw.
+per pixel keeps GS and switches the order to the global one per-pixel order is fed
+in (``RenderSettings.sort_key``: depth), and the panel says so (:func:`with_mode`):
+the user asked for GS, and gets it with the nearest order it can draw.
 """
 
 from __future__ import annotations
@@ -21,7 +21,10 @@ from raygs_viewer.viewer.panel.widgets import choice, header, remember, tooltip
 from raygs_viewer.viewer.stats import FrameStats, order_stats_lines
 
 PER_PIXEL_NEEDS_RAYGS = "per pixel needs a RayGS mode: EWA splats have no ray parameter to sort by"
-GS_FALLBACK_NOTE = "GS (EWA) has no per-pixel order: the order is now distance"
+
+def gs_fallback_note(order: str) -> str:
+    return f"GS (EWA) has no per-pixel order: the order is now {ORDER_LABELS[order]}"
+
 
 ORDER_HELP = ("depth: one global back-to-front sort by the centres' view depth (the paper's).\n"
               "distance: one global sort by the centres' distance from the camera; turning in place\n"
@@ -30,15 +33,17 @@ ORDER_HELP = ("depth: one global back-to-front sort by the centres' view depth (
               "  meets them (t*): no popping where gaussians overlap, at a cost in time and memory.\n"
               "  RayGS modes only.")
 K_HELP = ("0: every fragment of a pixel is kept and sorted (exact).\n"
-          f"1..{MAX_ORDER_K}: fragments arrive in the distance order and a window of K per pixel\n"
+          f"1..{MAX_ORDER_K}: fragments arrive in the global depth order and a window of K per pixel\n"
           "re-orders them (a k-buffer): faster, exact where at most K overlap out of order.")
 
 
 def with_mode(settings: RenderSettings, mode: str) -> tuple[RenderSettings, str]:
     """``settings`` in render ``mode``, and what the panel should say about it ("" for
-    nothing): GS has no per-pixel order, so per pixel becomes distance."""
+    nothing): GS has no per-pixel order, so per pixel becomes the global order it is
+    fed in (``sort_key``)."""
     if mode == "gs" and settings.per_pixel:
-        return replace(settings, mode=mode, order="distance"), GS_FALLBACK_NOTE
+        order = settings.sort_key
+        return replace(settings, mode=mode, order=order), gs_fallback_note(order)
     return replace(settings, mode=mode), ""
 
 
