@@ -464,7 +464,8 @@ ACCURACY_CASES = [
     (["--order", "per-pixel"], {"order": "per-pixel"}),
     (["--order", "per-pixel", "--order-k", "0"], {"order": "per-pixel"}),
     (["--order-k", "4"], {"order": "per-pixel", "order_k": 4}),                 # implies --order per-pixel
-    (["--order-k", "16", "--mode", "raygs-exact-mip"], {"order": "per-pixel", "order_k": 16, "mode": "raygs-exact-mip"}),
+    (["--order-k", "16", "--mode", "raygs-exact-mip"],
+     {"order": "per-pixel", "order_k": 16, "mode": "raygs-exact-mip"}),
     (["--order", "distance", "--order-k", "3"], {"order": "distance", "order_k": 3}),  # K kept, unused
 ]
 
