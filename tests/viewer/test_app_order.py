@@ -14,6 +14,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from appkit import PANEL_HEIGHT, PANEL_WIDTH, RecordingSorter, click_choice, headless, right_image, window_image
+from imgui_bundle import imgui  # before glfw (see raygs_viewer.viewer.window)
 from testkit import assert_matches
 
 from raygs_viewer.camera.stereo import PRESETS
@@ -234,3 +235,26 @@ def test_keys_reach_the_sorter_even_without_the_panel(open_viewer):
     drive.settle()  # a result for the old key is not up to date: settle waits for the new one
     assert viewer.sorter.latest().keys == ("distance",) and viewer.stats.order_age == 0
     assert drawn_into(viewer, viewer.drawer.mono.left)[1] is viewer.sorter.latest().order_for("distance")
+
+
+# -- screenshots ---------------------------------------------------------------------------------
+def test_split_view_screenshots_record_each_sides_order_and_reproduce(open_viewer, tmp_path):
+    import glfw
+    from PIL import Image
+
+    from raygs_viewer.capture.sidecar import load_sidecar
+    from raygs_viewer.cli.main import main
+    viewer, drive = open_viewer(hide_panel=True, settings=RenderSettings(order="per-pixel", order_k=2))
+    viewer.split.on, viewer.split.preset = True, "RayGS, distance order"
+    drive.settle()
+    drive.tap(imgui.Key.f12)
+    assert viewer.panel.error == ""
+    saved = viewer.last_screenshots
+    sides = [load_sidecar(sidecar).settings for _, sidecar in saved]
+    assert sides == [viewer.settings, viewer.right_settings()]
+    assert [(s.order, s.order_k) for s in sides] == [("per-pixel", 2), ("distance", 0)]
+    for png, sidecar in saved:
+        out = tmp_path / f"again-{png.name}"
+        assert main(["render", "--sidecar", str(sidecar), "--out", str(out)]) == 0
+        np.testing.assert_array_equal(np.asarray(Image.open(out)), np.asarray(Image.open(png)))
+    glfw.make_context_current(viewer.window.handle)
