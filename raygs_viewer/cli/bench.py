@@ -1,4 +1,4 @@
-"""``raygs-viewer bench accuracy|stereo|perf``: their options, the command line each run
+"""``raygs-viewer bench accuracy|stereo|perf|order``: their options, the command line each run
 records (so that the report says how to reproduce it), the options handed to the
 benchmark (everything that can be checked is, before any work) and the dispatch.
 """
@@ -11,6 +11,7 @@ import shlex
 from pathlib import Path
 
 from raygs_viewer.bench import accuracy, accuracy_report, perf
+from raygs_viewer.bench import order as order_bench
 from raygs_viewer.bench import stereo as stereo_bench
 from raygs_viewer.bench.common import DEMO, shared_scene_paths, write_report
 from raygs_viewer.camera import stereo as camera_stereo
@@ -22,16 +23,18 @@ from raygs_viewer.errors import UserError
 def add_parser(commands) -> None:
     """Adds ``bench`` and its subcommands to the CLI's subparsers."""
     bench = commands.add_parser("bench", help="benchmarks (accuracy against time; stereo sharing error and "
-                                              "frame budget; per-stage frame times and cost ratios)")
+                                              "frame budget; per-stage frame times and cost ratios; "
+                                              "order modes and popping)")
     kinds = bench.add_subparsers(dest="bench", required=True, parser_class=type(bench))
     _add_accuracy_parser(kinds)
     _add_stereo_parser(kinds)
     _add_perf_parser(kinds)
+    _add_order_parser(kinds)
 
 
 def command(args: argparse.Namespace, ctx=None) -> int:
     """Runs ``bench <kind>``. ``ctx``: a GL context to use instead of a new one (tests)."""
-    runs = {"accuracy": _run_accuracy, "stereo": _run_stereo, "perf": _run_perf}
+    runs = {"accuracy": _run_accuracy, "stereo": _run_stereo, "perf": _run_perf, "order": _run_order}
     if args.bench not in runs:
         raise UserError(f"unknown benchmark '{args.bench}'")
     return runs[args.bench](args, ctx)
@@ -304,4 +307,71 @@ def _run_perf(args: argparse.Namespace, ctx) -> int:
     results = perf.run_perf(options, ctx)
     for path in perf.write_outputs(results):
         print(f"wrote {path}", flush=True)
+    return 0
+
+
+# --- order ---------------------------------------------------------------------------------------
+
+#: The options of a recorded ``bench order`` command, in their order there.
+ORDER_FLAGS = ("--quick", "--scenes", "--width", "--frames", "--repeat", "--gt-samples", "--out", "--gl-backend",
+               "--overwrite")
+
+
+def _add_order_parser(kinds) -> None:
+    parser = kinds.add_parser(
+        "order", help="each order mode's time, error against the order of every ray, and popping in motion",
+        description="For the demo and the shared real scenes, from the training-like and very close views: "
+                    "every order mode (depth, distance, per-pixel with windows K and exact) timed as a ratio to "
+                    "the depth order, its error against the per-ray, pixel-integrated ground truth, and along a "
+                    "turn in place and a flight forward its error against each frame's per-ray truth and its "
+                    "popping (how much that error flickers between frames). Prints a table per view and "
+                    "machine-readable lines; --out writes the markdown report.")
+    parser.add_argument("--quick", action="store_true",
+                        help=f"the demo and one small real scene, {order_bench.QUICK_WIDTH} px wide, sweeps of "
+                             f"{order_bench.QUICK_FRAMES} frames")
+    _add_scenes_option(parser)
+    _add_width_and_repeat(parser,
+                          f"width of the views (default {order_bench.DEFAULT_WIDTH}, --quick {order_bench.QUICK_WIDTH})",
+                          f"timed frames per mode (default {order_bench.DEFAULT_REPEAT}, --quick "
+                          f"{order_bench.QUICK_REPEAT})")
+    parser.add_argument("--frames", type=argtypes.whole_number(2, 10000), metavar="N",
+                        help=f"frames per sweep (default {order_bench.DEFAULT_FRAMES}, --quick "
+                             f"{order_bench.QUICK_FRAMES})")
+    parser.add_argument("--gt-samples", type=argtypes.whole_number(1, 64), metavar="N",
+                        help=f"ground-truth samples per pixel axis (default {order_bench.DEFAULT_GT_SAMPLES}, "
+                             f"--quick {order_bench.QUICK_GT_SAMPLES})")
+    parser.add_argument("--out", metavar="PATH.md", help=f"also write the markdown report there (the docs' is "
+                                                         f"{order_bench.DEFAULT_REPORT})")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
+    argtypes.add_backend_option(parser)
+
+
+def order_options(args: argparse.Namespace) -> order_bench.OrderOptions:
+    notes: list[str] = []
+    if args.scenes:
+        scenes = tuple(args.scenes)
+    else:
+        scenes, notes = accuracy.default_scenes(args.quick)
+    quick = args.quick
+    return order_bench.OrderOptions(
+        scenes=scenes,
+        width=args.width or (order_bench.QUICK_WIDTH if quick else order_bench.DEFAULT_WIDTH),
+        frames=args.frames or (order_bench.QUICK_FRAMES if quick else order_bench.DEFAULT_FRAMES),
+        repeat=args.repeat or (order_bench.QUICK_REPEAT if quick else order_bench.DEFAULT_REPEAT),
+        gt_samples=args.gt_samples or (order_bench.QUICK_GT_SAMPLES if quick else order_bench.DEFAULT_GT_SAMPLES),
+        out=_report_path(args.out, args.overwrite), overwrite=args.overwrite,
+        command_line=recorded_command("order", args, ORDER_FLAGS), gl_backend=args.gl_backend,
+        notes=tuple(notes))
+
+
+def _run_order(args: argparse.Namespace, ctx) -> int:
+    options = order_options(args)
+    _print_notes(options.notes)
+    results = order_bench.run_order(options, ctx)
+    report = order_bench.format_report(results)
+    print("", flush=True)
+    print(report, flush=True)
+    if options.out is not None:
+        write_report(options.out, report, options.overwrite)
+        print(f"wrote {options.out}", flush=True)
     return 0
