@@ -17,7 +17,7 @@ from raygs_viewer.viewer.panel.widgets import item_rects
 from raygs_viewer.viewer.state import ScreenshotOptions, ViewerOptions
 
 WIDTH, HEIGHT = 192, 144
-PANEL_WIDTH, PANEL_HEIGHT = 640, 720  # room for the whole panel
+PANEL_WIDTH, PANEL_HEIGHT = 640, 800  # room for the whole panel
 
 
 class Driver:
@@ -162,14 +162,17 @@ def open_viewer_factory(tmp_path):
 
 
 class RecordingSorter(BackgroundSorter):
-    """Records the (p_min, dilation) of every request, and the cameras it culls for."""
+    """Records the (p_min, dilation) of every request, the cameras it culls for and the
+    sort keys it asks for."""
 
     def __init__(self, sorter):
         super().__init__(sorter)
         self.asked: list[tuple[float, float | None]] = []
         self.culled_for: list[tuple | None] = []
+        self.keys: list[tuple[str, ...]] = []
 
-    def request(self, camera, p_min, dilation=0.0, cull_cameras=None):
+    def request(self, camera, p_min, dilation=0.0, cull_cameras=None, keys=("depth",)):
         self.asked.append((p_min, dilation))
         self.culled_for.append(cull_cameras)
-        return super().request(camera, p_min, dilation, cull_cameras)
+        self.keys.append(tuple(keys))
+        return super().request(camera, p_min, dilation, cull_cameras, keys)

@@ -210,4 +210,8 @@ def describe_accuracy(settings: RenderSettings) -> str:
     parts.append(f"supersample {settings.supersample}x{settings.supersample}")
     parts.append(f"alpha clamp {'on' if settings.alpha_clamp else 'off'}")
     parts.append(f"transmittance cut-off {'on' if settings.transmittance_cutoff else 'off'}")
+    if settings.per_pixel:
+        parts.append(f"order per-pixel ({'exact' if settings.order_k == 0 else f'K={settings.order_k}'})")
+    else:
+        parts.append(f"order {settings.order}")
     return ", ".join(parts)

@@ -65,9 +65,20 @@ class DepthSorter:
               key: SortKey = "depth") -> np.ndarray:
         """(M,) uint32 indices of the gaussians that may be visible, back to front by
         ``key``: :meth:`cull`, then :meth:`sort` (see them for the arguments)."""
+        return self.orders(camera, p_min, method, dilation=dilation, cull_cameras=cull_cameras, keys=(key,))[key]
+
+    def orders(self, camera: Camera, p_min: float, method: SortMethod = "auto", *,
+               dilation: float | None = 0.0, cull_cameras: Sequence[Camera] | None = None,
+               keys: Sequence[SortKey] = ("depth",)) -> dict[str, np.ndarray]:
+        """{key: order} for each of ``keys``: one :meth:`cull`, then one :meth:`sort` per
+        distinct key (the A/B split view may show two keys of one view). Each order is
+        what :meth:`order` returns for that key."""
+        for key in keys:
+            if key not in SORT_KEYS:
+                raise ValueError(f"unknown sort key {key!r}; expected one of {', '.join(SORT_KEYS)}")
         with self._lock:
             visible = self.cull(camera, p_min, dilation=dilation, cull_cameras=cull_cameras)
-            return self.sort(camera, visible, method, key=key)
+            return {key: self.sort(camera, visible, method, key=key) for key in dict.fromkeys(keys)}
 
     def cull(self, camera: Camera, p_min: float, *, dilation: float | None = 0.0,
              cull_cameras: Sequence[Camera] | None = None) -> np.ndarray:

@@ -1,8 +1,10 @@
 """Depth sorting off the frame loop: the window asks for a sort and draws with the
 newest finished order, never waiting for one.
 
-One daemon thread per :class:`BackgroundSorter` runs ``sorter.order`` on the
-newest requested view. A request that arrives while a sort runs waits in a
+One daemon thread per :class:`BackgroundSorter` runs ``sorter.orders`` on the
+newest requested view: one cull, then one sort per key the request names (the A/B
+split view may show a depth-ordered side beside a distance-ordered one), so a
+result holds an order per key. A request that arrives while a sort runs waits in a
 single slot; a newer request replaces it (only the newest view matters, and a
 moving camera would otherwise build a backlog of stale sorts). Locks are held
 only to swap references and bump counters, never across a sort, so
@@ -14,8 +16,8 @@ from __future__ import annotations
 
 import threading
 import time
-from dataclasses import dataclass, replace
-from typing import Protocol
+from dataclasses import dataclass, field, replace
+from typing import Mapping, Protocol, Sequence
 
 import numpy as np
 
@@ -26,17 +28,20 @@ __all__ = ["BackgroundSorter", "SortResult", "Sorter"]
 
 
 class Sorter(Protocol):
-    """What :class:`BackgroundSorter` runs: :class:`raygs_viewer.sort.depth.DepthSorter` or a test double."""
+    """What :class:`BackgroundSorter` runs: :class:`raygs_viewer.sort.depth.DepthSorter` or a test double.
+    ``orders`` returns {key: (M,) back-to-front indices} for each of ``keys``."""
 
-    def order(self, camera: Camera, p_min: float, *, dilation: float | None = 0.0,
-              cull_cameras: tuple[Camera, ...] | None = None) -> np.ndarray: ...
+    def orders(self, camera: Camera, p_min: float, *, dilation: float | None = 0.0,
+               cull_cameras: tuple[Camera, ...] | None = None,
+               keys: Sequence[str] = ("depth",)) -> Mapping[str, np.ndarray]: ...
 
 
 @dataclass(frozen=True)
 class SortResult:
     """One finished sort.
 
-    order:   (M,) uint32 gaussian indices, back to front (what ``DepthSorter.order`` returns).
+    order:   (M,) uint32 gaussian indices, back to front by the request's first key
+             (what ``DepthSorter.order`` returns for it).
     serial:  the serial :meth:`BackgroundSorter.request` returned for the view (1, 2, ...).
     camera:  the view it was sorted for (a private copy of the requested camera).
     p_min:   the opacity cut-off it culled with.
@@ -44,6 +49,8 @@ class SortResult:
              no frustum culling).
     seconds: how long ``sorter.order`` took (``time.perf_counter``), for the statistics panel.
     cull_cameras: the cameras it culled for (None: ``camera``'s own view; stereo: both eyes).
+    orders:  {key: order} for every key asked ("depth", "distance"); all hold the same
+             gaussians (one cull), each sorted by its key. ``orders[keys[0]] is order``.
     """
 
     order: np.ndarray
@@ -53,6 +60,15 @@ class SortResult:
     seconds: float
     dilation: float | None = 0.0
     cull_cameras: tuple[Camera, ...] | None = None
+    orders: Mapping[str, np.ndarray] = field(default_factory=dict)
+
+    @property
+    def keys(self) -> tuple[str, ...]:
+        return tuple(self.orders)
+
+    def order_for(self, key: str) -> np.ndarray | None:
+        """The order sorted by ``key``; None when this sort was not asked for it."""
+        return self.orders.get(key)
 
 
 @dataclass(frozen=True)
@@ -62,18 +78,27 @@ class _Request:
     p_min: float
     dilation: float | None
     cull_cameras: tuple[Camera, ...] | None
+    keys: tuple[str, ...]
 
 
 def _dilation(value: float | None) -> float | None:
     return None if value is None else float(value)
 
 
+def _keys(keys: Sequence[str]) -> tuple[str, ...]:
+    """The distinct sort keys, first-named first (at least one)."""
+    distinct = tuple(dict.fromkeys(keys))
+    if not distinct:
+        raise ValueError("a sort request needs at least one sort key")
+    return distinct
+
+
 def _view_key(camera: Camera, p_min: float, dilation: float | None = 0.0,
-              cull_cameras: tuple[Camera, ...] | None = None) -> tuple:
-    """Everything the order depends on, as exact values: equal keys give equal orders
+              cull_cameras: tuple[Camera, ...] | None = None, keys: Sequence[str] = ("depth",)) -> tuple:
+    """Everything the orders depend on, as exact values: equal keys give equal orders
     (a dilation of None, no frustum culling, differs from every number)."""
     culled_for = None if cull_cameras is None else tuple(camera_key(c) for c in cull_cameras)
-    return camera_key(camera) + (float(p_min), _dilation(dilation), culled_for)
+    return camera_key(camera) + (float(p_min), _dilation(dilation), culled_for, _keys(keys))
 
 
 def _snapshot(camera: Camera) -> Camera:
@@ -92,13 +117,14 @@ class BackgroundSorter:
     - ``requested``: requests queued, i.e. serials handed out (identical repeats not counted);
     - ``repeated``: requests identical to the last one queued, answered with its serial;
     - ``started``: sorts begun; ``finished``: sorts that produced a result;
-    - ``failed``: sorts whose ``order`` raised;
+    - ``failed``: sorts whose ``orders`` raised;
     - ``superseded``: queued requests replaced by a newer one before they started.
 
     ``requested == started + superseded + (1 if a request is waiting else 0)``.
     ``error`` is the one-line message of the last failed sort, cleared by the next
     successful one; a failed view is not retried until a different view (or p_min,
-    or dilation) is requested, so a frame loop re-requesting the same view cannot spin on it.
+    dilation or keys) is requested, so a frame loop re-requesting the same view cannot
+    spin on it.
     """
 
     def __init__(self, sorter: Sorter) -> None:
@@ -122,16 +148,19 @@ class BackgroundSorter:
     # ------------------------------------------------------------------ frame-loop side
 
     def request(self, camera: Camera, p_min: float, dilation: float | None = 0.0,
-                cull_cameras: tuple[Camera, ...] | None = None) -> int:
+                cull_cameras: tuple[Camera, ...] | None = None, keys: Sequence[str] = ("depth",)) -> int:
         """Non-blocking. Queues a sort for this view and returns its serial; a request
         not yet started is replaced by the newer one (only the newest view matters). A
-        request equal to the last one queued (same camera R, t, intrinsics, p_min and
-        dilation) is not queued again: returns the old serial. ``dilation`` goes to
-        ``sorter.order(camera, p_min, dilation=dilation)`` (see
+        request equal to the last one queued (same camera R, t, intrinsics, p_min,
+        dilation and keys) is not queued again: returns the old serial. ``dilation`` goes
+        to ``sorter.orders(camera, p_min, dilation=dilation, ...)`` (see
         :meth:`raygs_viewer.render.settings.RenderSettings.cull_dilation`), and ``cull_cameras``
-        (stereo: both eyes; None: ``camera``) likewise. Raises RuntimeError after
+        (stereo: both eyes; None: ``camera``) likewise. ``keys``: the sort keys whose
+        orders the result must hold ("depth", "distance"; culled once, sorted once per
+        distinct key; another set of keys is another request). Raises RuntimeError after
         :meth:`close`."""
-        key = _view_key(camera, p_min, dilation, cull_cameras)
+        keys = _keys(keys)
+        key = _view_key(camera, p_min, dilation, cull_cameras, keys)
         with self._cond:
             if self._closed:
                 raise RuntimeError("BackgroundSorter.request after close()")
@@ -142,7 +171,8 @@ class BackgroundSorter:
             if self._pending is not None:
                 self.superseded += 1
             cull = None if cull_cameras is None else tuple(_snapshot(c) for c in cull_cameras)
-            self._pending = _Request(self.requested, _snapshot(camera), float(p_min), _dilation(dilation), cull)
+            self._pending = _Request(self.requested, _snapshot(camera), float(p_min), _dilation(dilation), cull,
+                                     keys)
             self._last_key = key
             self._cond.notify_all()
             return self.requested
@@ -195,8 +225,9 @@ class BackgroundSorter:
                 self.started += 1
             begin = time.perf_counter()
             try:
-                order = np.asarray(self._sorter.order(request.camera, request.p_min, dilation=request.dilation,
-                                                      cull_cameras=request.cull_cameras), dtype=np.uint32)
+                sorted_ = self._sorter.orders(request.camera, request.p_min, dilation=request.dilation,
+                                              cull_cameras=request.cull_cameras, keys=request.keys)
+                orders = {key: np.asarray(sorted_[key], dtype=np.uint32) for key in request.keys}
             except Exception as exc:  # reported in .error; the thread must keep serving
                 with self._cond:
                     self.failed += 1
@@ -204,8 +235,8 @@ class BackgroundSorter:
                     self._answered = max(self._answered, request.serial)
                     self._cond.notify_all()
                 continue
-            result = SortResult(order, request.serial, request.camera, request.p_min,
-                                time.perf_counter() - begin, request.dilation, request.cull_cameras)
+            result = SortResult(orders[request.keys[0]], request.serial, request.camera, request.p_min,
+                                time.perf_counter() - begin, request.dilation, request.cull_cameras, orders)
             with self._cond:
                 self._latest = result
                 self.finished += 1

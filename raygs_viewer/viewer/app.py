@@ -33,11 +33,12 @@ from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.loader import LoadedScene, load_now
 from raygs_viewer.sort.worker import BackgroundSorter
-from raygs_viewer.viewer.drawing import SceneDrawer, sort_cull
+from raygs_viewer.viewer.drawing import SceneDrawer, sort_cull, sort_keys
 from raygs_viewer.viewer.input import InputHandler
 from raygs_viewer.viewer.loading import SceneOpener, scene_title
 from raygs_viewer.viewer.overlay import draw_split_overlay
 from raygs_viewer.viewer.panel import draw_panel
+from raygs_viewer.viewer.panel.order import draw_order_section
 from raygs_viewer.viewer.panel.render import draw_render_section
 from raygs_viewer.viewer.panel.scene import draw_scene_section
 from raygs_viewer.viewer.panel.screenshot import draw_screenshot_section
@@ -190,7 +191,8 @@ class Viewer:
         camera, self.viewport, cull_cameras = self.view.camera(width, height, stereo)
         self.camera, self.shown_stereo = camera, stereo
         p_min, dilation = sort_cull(camera, settings, right)  # the eyes share the midpoint's fx, fy
-        serial = self.sorter.request(camera, p_min, dilation, cull_cameras)
+        keys = sort_keys(settings, right)  # one cull, an order per key shown
+        serial = self.sorter.request(camera, p_min, dilation, cull_cameras, keys)
         self.stats.asked(serial, self.frame_index)
         if self.wait_for_sort:
             # Only the last frame of a scripted run: its capture must show the finished view.
@@ -205,9 +207,9 @@ class Viewer:
             self.viewport, self.split, self.settings, self.input.dragging_divider)
         imgui.render()
 
-        order, serial = self.stats.order_to_draw(result, sort_key(camera, p_min, dilation, cull_cameras),
-                                                 self.frame_index)
-        self.drawer.draw(self.renderer, camera, settings, right, stereo, order, serial, self.stats, self.panel)
+        orders, serial = self.stats.order_to_draw(result, sort_key(camera, p_min, dilation, cull_cameras, keys),
+                                                  self.frame_index)
+        self.drawer.draw(self.renderer, camera, settings, right, stereo, orders, serial, self.stats, self.panel)
         self.drawer.mono.present(self.ctx.screen, (width, height), self.viewport, self.split.column(self.viewport[2]))
         if self.capture_window_next:
             self.capture_window_next = False
@@ -229,7 +231,9 @@ class Viewer:
             lambda: draw_statistics(self.stats, loaded.scene.count, self.sorter, renderer.counters, renderer.general),
             lambda: draw_scene_section(loaded, self.panel, self.scenes.open, self.scenes.loader),
             lambda: draw_render_section(self.settings, self.set_settings, loaded.scene.sh_degree, renderer.supports,
-                                        self.window, self.stereo, self.split),
+                                        self.window, self.stereo, self.split, self.panel.note),
+            lambda: draw_order_section(self.settings, self.set_settings, self.stats,
+                                       self.right_settings() is not None),
             lambda: draw_stereo_section(self.stereo, self.stats),
             lambda: draw_view_section(view.navigator, view.lens.fov_y_degrees, view.set_fov, self.reset_view),
             lambda: draw_training_section(loaded, view.training_index, view.select_training_camera,

@@ -2,13 +2,22 @@
 or the stereo frame, each time the view, the settings or the order changed, under the
 GPU timers the panel and the summary read.
 
-In the split view both sides render the whole viewport with the same order (sorted
-with the more conservative cull of the two); the present pass shows each on its side
-of the divider. In the stereo preview both eyes are drawn offscreen with one order
-sorted from their midpoint, then the lens preview and the layout compose one image.
+Each side draws the order of its settings' sort key (``RenderSettings.sort_key``:
+depth or distance; per-pixel order is fed in the depth order). One sort serves every
+side shown: the window asks the background sorter for one cull (the more
+conservative of the two sides') and an order per distinct key (:func:`sort_keys`).
+In the split view both sides render the whole viewport, each with its key's order;
+the present pass shows each on its side of the divider. In the stereo preview both
+eyes are drawn offscreen with one order sorted from their midpoint, then the lens
+preview and the layout compose one image.
+
+After each per-pixel-order render the renderer's ``order_stats`` (what the per-pixel
+pass did: fragments, pool, parts) is kept in the frame statistics, per side.
 """
 
 from __future__ import annotations
+
+from typing import Mapping
 
 import moderngl
 import numpy as np
@@ -35,6 +44,21 @@ def sort_cull(camera: Camera, left: RenderSettings, right: RenderSettings | None
     return min(side.p_min for side in sides), dilation
 
 
+def sort_keys(left: RenderSettings, right: RenderSettings | None = None) -> tuple[str, ...]:
+    """The sort keys of every side shown, the left's first, each once."""
+    return tuple(dict.fromkeys(side.sort_key for side in (left, right) if side is not None))
+
+
+def order_for(orders: Mapping[str, np.ndarray], key: str) -> np.ndarray:
+    """The order sorted by ``key``; while the sort for a newly chosen key is under way,
+    another key's order of the same gaussians (the image is drawn, only its blending
+    order is the old one, and the statistics show the order as not up to date); empty
+    before the first sort."""
+    if key in orders:
+        return orders[key]
+    return next(iter(orders.values()), np.zeros(0, np.uint32))
+
+
 class SceneDrawer:
     """The window's frames (``mono``, and ``stereo`` once the preview has been on) and
     the timers of their passes: ``timer`` the scene's draw (both sides in the split
@@ -48,13 +72,15 @@ class SceneDrawer:
         self.post_timer = GpuTimer(ctx)
 
     def draw(self, renderer, camera: Camera, settings: RenderSettings, right: RenderSettings | None,
-             stereo: StereoView | None, order: np.ndarray, serial: int, stats: FrameStats, panel: PanelState) -> None:
-        """Draws ``order`` (sort request ``serial``) unless the frame already holds this
-        view, these settings and this order, and notes the draw and its GPU times in
-        ``stats``. Settings this GPU cannot render (the panel greys those out) are a
-        standing error in ``panel``; the frame is then drawn again next time."""
+             stereo: StereoView | None, orders: Mapping[str, np.ndarray], serial: int, stats: FrameStats,
+             panel: PanelState) -> None:
+        """Draws each side with its key's order from ``orders`` ({sort key: order} of
+        sort request ``serial``) unless the frame already holds this view, these settings
+        and these orders, and notes the draw, its GPU times and the per-pixel order's
+        statistics in ``stats``. Settings this GPU cannot render (the panel greys those
+        out) are a standing error in ``panel``; the frame is then drawn again next time."""
         try:
-            drew = self._draw(renderer, camera, settings, right, stereo, order, serial)
+            drew = self._draw(renderer, camera, settings, right, stereo, orders, serial, stats)
         except UserError as exc:
             panel.stand("draw", f"error: {one_line(exc)}")
             return
@@ -64,7 +90,7 @@ class SceneDrawer:
         stats.gpu_seconds, stats.post_seconds = self.timer.seconds, self.post_timer.seconds
 
     def _draw(self, renderer, camera: Camera, settings: RenderSettings, right: RenderSettings | None,
-              stereo: StereoView | None, order: np.ndarray, serial: int) -> bool:
+              stereo: StereoView | None, orders: Mapping[str, np.ndarray], serial: int, stats: FrameStats) -> bool:
         key = (camera_key(camera), settings, right, stereo, serial)
         if stereo is None:
             left_target, right_target = self.mono.targets(camera.width, camera.height, split=right is not None)
@@ -78,15 +104,21 @@ class SceneDrawer:
             self.post_timer.flush()
             return False
         self.mono.forget()
+        order = order_for(orders, settings.sort_key)
         if stereo is None:
             with self.timer.measure():  # the whole frame's GPU time, both sides in the split view
                 renderer.render_into(left_target, camera, settings, order)
+                left_stats = _order_stats(renderer, settings)
+                right_stats = None
                 if right is not None:
-                    renderer.render_into(right_target, camera, right, order)
+                    renderer.render_into(right_target, camera, right, order_for(orders, right.sort_key))
+                    right_stats = _order_stats(renderer, right)
+            stats.order_stats = (left_stats, right_stats)
             self.mono.drawn(key)
         else:
             with self.timer.measure():  # both eyes: what the frame-budget meter compares
                 self.stereo.draw_eyes(renderer, camera, settings, stereo.rig, order)
+            stats.order_stats = (_order_stats(renderer, settings), None)  # the last eye's (the right)
             with self.post_timer.measure():
                 self.stereo.finish(stereo)
             self.mono.drawn(key, self.stereo.image)
@@ -97,3 +129,9 @@ class SceneDrawer:
         if self.stereo is not None:
             self.stereo.release()
             self.stereo = None
+
+
+def _order_stats(renderer, settings: RenderSettings):
+    """What the renderer's last per-pixel-order render did (None for a global order, or
+    a renderer that reports nothing)."""
+    return getattr(renderer, "order_stats", None) if settings.per_pixel else None

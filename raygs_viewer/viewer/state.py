@@ -140,6 +140,10 @@ class PanelState:
     def toggle(self) -> None:
         self.show_panel = not self.show_panel
 
+    def note(self, message: str) -> None:
+        """Shows ``message`` on the message line (what an edit did besides the obvious)."""
+        self.message = message
+
     def stand(self, source: str, error: str) -> None:
         self.error = self.standing[source] = error
 

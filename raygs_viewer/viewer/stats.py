@@ -1,5 +1,6 @@
 """The window's frame statistics: what the panel shows (the last 60 frames), how old the
-drawn order is, and the one-line summary of a scripted run (the whole history)."""
+drawn order is, what the per-pixel order did, and the one-line summary of a scripted
+run (the whole history)."""
 
 from __future__ import annotations
 
@@ -7,13 +8,14 @@ import itertools
 import time
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Sequence
+from typing import Mapping, Sequence
 
 import numpy as np
 
 from raygs_viewer.camera.navigation import MAX_DT
 from raygs_viewer.camera.pinhole import Camera, camera_key
 from raygs_viewer.camera.stereo import StereoView
+from raygs_viewer.render.gl.order_stats import OrderStats
 
 
 @dataclass
@@ -32,6 +34,9 @@ class FrameStats:
     frames_with_sort_running: int = 0  # frames completed while a sort was in progress
     #: sort request serial -> the frame that first asked for it, while unanswered.
     request_frames: dict[int, int] = field(default_factory=dict)
+    #: What the per-pixel order did in the last redraw: (left side or the only one, right
+    #: side of the split view); None for a side drawn in a global order (stereo: one eye's).
+    order_stats: tuple[OrderStats | None, OrderStats | None] = (None, None)
     last_time: float | None = None   # time.perf_counter() at the start of the last frame
 
     @property
@@ -63,29 +68,52 @@ class FrameStats:
         """Frame ``frame_index`` asked for sort request ``serial``."""
         self.request_frames.setdefault(serial, frame_index)
 
-    def order_to_draw(self, result, asked: tuple, frame_index: int) -> tuple[np.ndarray, int]:
-        """(order, sort request serial) frame ``frame_index`` draws: the newest finished
-        sort ``result`` (a sort.worker result; None: an empty order, serial 0), noting
-        its age, its time and what it keeps visible. ``asked``: this frame's
-        :func:`sort_key`, which an up-to-date result matches."""
+    def order_to_draw(self, result, asked: tuple, frame_index: int) -> tuple[Mapping[str, np.ndarray], int]:
+        """({sort key: order}, sort request serial) frame ``frame_index`` draws: the
+        newest finished sort ``result`` (a sort.worker result; None: no orders, serial 0),
+        noting its age, its time and what it keeps visible. ``asked``: this frame's
+        :func:`sort_key`, which an up-to-date result matches (a result for other sort
+        keys is not up to date)."""
         if result is None:
             self.order_age = frame_index - min(self.request_frames.values(), default=frame_index)
-            return np.zeros(0, np.uint32), 0
+            return {}, 0
         for older in [n for n in self.request_frames if n < result.serial]:  # answered or skipped
             del self.request_frames[older]
-        current = sort_key(result.camera, result.p_min, result.dilation, result.cull_cameras) == asked
+        current = sort_key(result.camera, result.p_min, result.dilation, result.cull_cameras,
+                           result.keys) == asked
         self.order_age = 0 if current else frame_index - self.request_frames.get(result.serial, frame_index)
         if result.serial != self.drawn_serial:
             self.all_sort_times.append(result.seconds)
         self.sort_seconds = result.seconds
         self.visible = int(result.order.size)
-        return result.order, result.serial
+        return result.orders, result.serial
 
 
-def sort_key(camera: Camera, p_min: float, dilation: float | None, cull_cameras) -> tuple:
-    """What tells sort requests apart: the view, the cull, and the cameras culled for."""
+def sort_key(camera: Camera, p_min: float, dilation: float | None, cull_cameras,
+             keys: Sequence[str] = ("depth",)) -> tuple:
+    """What tells sort requests apart: the view, the cull, the cameras culled for and
+    the sort keys ordered by."""
     return (camera_key(camera), p_min, dilation,
-            None if cull_cameras is None else tuple(camera_key(c) for c in cull_cameras))
+            None if cull_cameras is None else tuple(camera_key(c) for c in cull_cameras), tuple(keys))
+
+
+def order_stats_lines(stats: OrderStats) -> list[str]:
+    """What one per-pixel-order render did, in the panel's words: fragments per covered
+    pixel (mean and most), the pool's use, the parts drawn, and the path."""
+    lines = [f"fragments/px {stats.mean_per_covered_pixel:.1f} mean, {stats.max_per_pixel:,} max "
+             f"({stats.covered_pixels:,} px covered)"]
+    if stats.pool_fragments:
+        lines.append(f"pool {100 * stats.pool_use:.0f} % of {stats.pool_fragments:,} fragments "
+                     f"({stats.pool_bytes / 2**20:.1f} MiB), {stats.parts} part{'s' if stats.parts != 1 else ''}")
+    else:
+        lines.append(f"no pool, {stats.parts} part{'s' if stats.parts != 1 else ''}")
+    lines.append(f"path: {PATH_LABELS.get(stats.path, stats.path)}")
+    return lines
+
+
+#: OrderStats.path -> how the panel names it.
+PATH_LABELS = {"lists": "per-pixel fragment lists + resolve (storage-buffer atomics)",
+               "fetch": "k-buffer through framebuffer fetch"}
 
 
 def camera_size(camera: Camera | None) -> str:
@@ -102,6 +130,10 @@ def summary(stats: FrameStats, frames: int, camera: Camera | None, stereo: Stere
     every draw's GPU seconds (post: the stereo lens preview and layout)."""
     frame = float(np.median(stats.all_frame_times)) if stats.all_frame_times else float("nan")
     visible = f"{stats.visible:,} of {scene_count:,} visible"
+    per_pixel = stats.order_stats[0]
+    if per_pixel is not None:  # the last redraw's per-pixel order (the left side's, one eye's)
+        visible += (f", per-pixel order {per_pixel.mean_per_covered_pixel:.1f} fragments/px "
+                    f"(max {per_pixel.max_per_pixel:,}) in {per_pixel.parts} part{'s' if per_pixel.parts != 1 else ''}")
     if stereo is not None:
         return (f"{frames} frames ({stats.draws} drawn), stereo {stereo.headset.name} "
                 f"{camera_size(camera)} per eye: median frame {median_ms(stats.all_frame_times)}, "

@@ -463,3 +463,29 @@ def test_exactly_one_destination(tmp_path):
         save_screenshot(small_image(), {})
     with pytest.raises(ValueError):
         save_screenshot(small_image(), {}, path=tmp_path / "a.png", folder=tmp_path)
+
+
+@pytest.mark.parametrize("order", ["distance", "per-pixel"])
+def test_render_tiled_draws_every_tile_in_the_settings_key(renderer, monkeypatch, order):
+    """Each tile's order is the whole image's order by the settings' key
+    (``RenderSettings.sort_key``), restricted to what the tile may see."""
+    camera = off_centre_camera()
+    settings = RenderSettings(order=order, order_k=2 if order == "per-pixel" else 0)
+    whole = renderer.sorter.order(camera, settings.p_min, dilation=settings.cull_dilation(camera),
+                                  key=settings.sort_key)
+    drawn = []
+    render = renderer.render
+
+    def recording(part, settings_, tile_order=None, **kwargs):
+        drawn.append((settings_, tile_order))
+        return render(part, settings_, tile_order, **kwargs)
+
+    monkeypatch.setattr(renderer, "render", recording)
+    render_tiled(renderer, camera, settings, tile=32)
+    monkeypatch.undo()
+    assert len(drawn) == 4 and all(s == settings for s, _ in drawn)
+    for _, tile_order in drawn:
+        np.testing.assert_array_equal(tile_order, whole[np.isin(whole, tile_order)])  # a subsequence
+    if order == "distance":  # the premise: the two keys order this view differently
+        depth = renderer.sorter.order(camera, settings.p_min, key="depth")
+        assert not np.array_equal(whole, depth)

@@ -344,6 +344,17 @@ def _bad_cases(tmp_path, write=True):
         "view_mip_sigma2_huge": ["view", "--mip-sigma2", "1e3"],
         "verify_mode_unknown": ["verify", "--mode", "nerf"],
         "sidecar_with_mode": ["render", "--sidecar", good_camera, "--mode", "gs", "--out", out],
+        "sidecar_with_order": ["render", "--sidecar", good_camera, "--order", "distance", "--out", out],
+        "order_unknown": ["render", "--order", "nearest", "--out", out],
+        "order_k_seventeen": ["render", "--order-k", "17", "--out", out],
+        "order_k_negative": ["render", "--order-k=-1", "--out", out],
+        "order_k_word": ["render", "--order-k", "exact", "--out", out],
+        "order_per_pixel_gs": ["render", "--order", "per-pixel", "--mode", "gs", "--out", out],
+        "order_k_gs": ["render", "--order-k", "4", "--mode", "gs", "--out", out],
+        "view_order_k_seventeen": ["view", "--order-k", "17"],
+        "view_order_per_pixel_gs": ["view", "--order", "per-pixel", "--mode", "gs"],
+        "verify_order_per_pixel_gs": ["verify", "--order", "per-pixel", "--mode", "gs"],
+        "verify_order_unknown": ["verify", "--order", "z"],
         "bench_unknown_kind": ["bench", "speed"],
     }
 
@@ -393,6 +404,14 @@ def test_error_messages_name_what_is_wrong(capsys, tmp_path, monkeypatch):
         "supersample_fraction": "--supersample",
         "view_mode_unknown": "--mode",
         "sidecar_with_mode": "--mode",
+        "sidecar_with_order": "--order",
+        "order_unknown": "--order",
+        "order_k_seventeen": "--order-k",
+        "order_per_pixel_gs": "per-pixel order needs a RayGS mode",
+        "order_k_gs": "per-pixel order needs a RayGS mode",
+        "view_order_k_seventeen": "--order-k",
+        "view_order_per_pixel_gs": "per-pixel order needs a RayGS mode",
+        "verify_order_per_pixel_gs": "per-pixel order needs a RayGS mode",
     }
     for case, fragment in expect.items():
         code, _, err = run_cli(capsys, *cases[case])
@@ -439,6 +458,15 @@ ACCURACY_CASES = [
     (["--transmittance-cutoff"], {"transmittance_cutoff": True}),
     (["--mode", "gs", "--gs-compensation", "--supersample", "3", "--alpha-clamp", "--transmittance-cutoff"],
      {"mode": "gs", "gs_compensation": True, "supersample": 3, "alpha_clamp": True, "transmittance_cutoff": True}),
+    (["--order", "depth"], {}),
+    (["--order", "distance"], {"order": "distance"}),
+    (["--order", "distance", "--mode", "gs"], {"order": "distance", "mode": "gs"}),
+    (["--order", "per-pixel"], {"order": "per-pixel"}),
+    (["--order", "per-pixel", "--order-k", "0"], {"order": "per-pixel"}),
+    (["--order-k", "4"], {"order": "per-pixel", "order_k": 4}),                 # implies --order per-pixel
+    (["--order-k", "16", "--mode", "raygs-exact-mip"],
+     {"order": "per-pixel", "order_k": 16, "mode": "raygs-exact-mip"}),
+    (["--order", "distance", "--order-k", "3"], {"order": "distance", "order_k": 3}),  # K kept, unused
 ]
 
 
@@ -492,7 +520,51 @@ def test_render_with_accuracy_options_is_the_gl_render_of_those_settings(capsys,
 def test_verify_reports_the_accuracy_settings(capsys):
     code, out, err = run_cli(capsys, "verify", "--width", "32", "--mode", "gs", "--supersample", "2", "--repeat", "1")
     assert code == 0, err
-    assert "mode gs" in out and "supersample 2x2" in out and "max error" in out
+    assert "mode gs" in out and "supersample 2x2" in out and "max error" in out and "order depth" in out
+
+
+@pytest.mark.parametrize("argv, words", [(["--order", "distance"], "order distance"),
+                                         (["--order", "per-pixel"], "order per-pixel (exact)"),
+                                         (["--order-k", "2"], "order per-pixel (K=2)")])
+def test_verify_reports_the_order(capsys, argv, words):
+    code, out, err = run_cli(capsys, "verify", "--width", "24", "--repeat", "1", *argv)
+    assert code == 0, err
+    assert words in out
+
+
+def test_render_and_its_sidecar_take_the_order(capsys, tmp_path, gl_ctx, demo, monkeypatch):
+    """render --order/--order-k reaches the GL render; a sidecar recording a per-pixel
+    order (K) re-renders with it."""
+    import raygs_viewer.capture.screenshot as screenshot
+    from raygs_viewer.capture.sidecar import build_sidecar, demo_sha256, load_sidecar
+
+    used = []
+    render_tiled = screenshot.render_tiled
+    monkeypatch.setattr(screenshot, "render_tiled", lambda renderer, camera, settings: used.append(settings)
+                        or render_tiled(renderer, camera, settings))
+    camera = demo_camera().resized(64, 48)
+    for argv, settings in ((["--order", "distance"], RenderSettings(order="distance")),
+                           (["--order-k", "3"], RenderSettings(order="per-pixel", order_k=3))):
+        out = tmp_path / f"{settings.order}.npy"
+        code, _, err = run_cli(capsys, "render", *SMALL, *argv, "--out", out)
+        assert code == 0, err
+        assert used[-1] == settings
+        with gl_ctx:
+            np.testing.assert_allclose(np.load(out), gl_render(gl_ctx, demo, camera, settings), atol=1e-5)
+    # The sidecar records order and order_k, and render --sidecar renders with them.
+    settings = RenderSettings(order="per-pixel", order_k=3, mip=True)
+    path = tmp_path / "per-pixel.json"
+    path.write_text(json.dumps(build_sidecar(scene_path="demo", scene_sha256=demo_sha256(), scene=demo,
+                                             camera=camera, settings=settings, scale=1.0)))
+    recorded = json.loads(path.read_text())["settings"]
+    assert (recorded["order"], recorded["order_k"]) == ("per-pixel", 3)
+    assert load_sidecar(path).settings == settings
+    again = tmp_path / "again.npy"
+    code, _, err = run_cli(capsys, "render", "--sidecar", path, "--out", again)
+    assert code == 0, err
+    assert used[-1] == settings
+    with gl_ctx:
+        np.testing.assert_allclose(np.load(again), gl_render(gl_ctx, demo, camera, settings), atol=1e-5)
 
 
 def test_bench_is_a_command(capsys):

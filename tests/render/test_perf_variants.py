@@ -450,10 +450,10 @@ class _GatedSorter:
         self.gate = threading.Event()
         self.inside = threading.Event()
 
-    def order(self, camera, p_min, *, dilation=0.0, cull_cameras=None):
+    def orders(self, camera, p_min, *, dilation=0.0, cull_cameras=None, keys=("depth",)):
         self.inside.set()
         assert self.gate.wait(timeout=60)
-        return self.sorter.order(camera, p_min, dilation=dilation, cull_cameras=cull_cameras)
+        return self.sorter.orders(camera, p_min, dilation=dilation, cull_cameras=cull_cameras, keys=keys)
 
 
 def test_new_order_for_the_drawn_view_uploads_without_preprocessing(open_viewer):

@@ -1,8 +1,8 @@
 """Sorting on a background thread (raygs_viewer.sort.worker).
 
-The fake sorter blocks inside ``order()`` until the test lets it go, one sort at a
+The fake sorter blocks inside ``orders()`` until the test lets it go, one sort at a
 time, so every claim about "while a sort runs" is checked at a point where the
-worker provably is inside ``order()``. No test measures time: the generous
+worker provably is inside ``orders()``. No test measures time: the generous
 timeouts below only turn a deadlock into a failure instead of a hang.
 """
 
@@ -30,9 +30,10 @@ def view(k: int, width: int = 64) -> Camera:
 
 
 class GatedSorter:
-    """order() records the view, announces it has started, then waits for one permit.
+    """orders() records the view, announces it has started, then waits for one permit.
 
-    Returns a 1-element order holding the camera's tag; raises for p_min == FAIL_P_MIN.
+    Returns, for the first key, a 1-element order holding the camera's tag (for the
+    k-th key after it: [tag, k]); raises for p_min == FAIL_P_MIN.
     ``dilations`` records the cull dilation of every call, in order.
     """
 
@@ -40,16 +41,19 @@ class GatedSorter:
         self.calls: list[tuple[int, float]] = []
         self.dilations: list[float | None] = []
         self.culled_for: list = []  # cull_cameras of every call, as tags of their t[0]
+        self.keys: list[tuple[str, ...]] = []  # the sort keys of every call
         self._entered = threading.Semaphore(0)
         self._permits = threading.Semaphore(0)
         self.inside = 0
         self.returned = 0
         self.starved = False
 
-    def order(self, camera: Camera, p_min: float, *, dilation: float | None = 0.0, cull_cameras=None) -> np.ndarray:
+    def orders(self, camera: Camera, p_min: float, *, dilation: float | None = 0.0, cull_cameras=None,
+               keys=("depth",)) -> dict[str, np.ndarray]:
         tag = int(camera.t[0])
         self.calls.append((tag, p_min))
         self.dilations.append(dilation)
+        self.keys.append(tuple(keys))
         self.culled_for.append(None if cull_cameras is None else [int(c.t[0]) for c in cull_cameras])
         self.inside += 1
         self._entered.release()
@@ -59,13 +63,15 @@ class GatedSorter:
                 raise AssertionError("the test never released this sort")
             if p_min == FAIL_P_MIN:
                 raise ValueError("bad view\nsecond line")
-            return np.array([tag], np.uint32)
+            # Each key's order tells the keys apart: the tag, then the key's position.
+            return {key: np.array([tag, index], np.uint32) if index else np.array([tag], np.uint32)
+                    for index, key in enumerate(keys)}
         finally:
             self.inside -= 1
             self.returned += 1
 
     def wait_entered(self) -> None:
-        """Blocks until the worker is inside order() for the next sort."""
+        """Blocks until the worker is inside orders() for the next sort."""
         assert self._entered.acquire(timeout=DEADLOCK), "the worker never started a sort"
 
     def allow(self, sorts: int = 1) -> None:
@@ -298,3 +304,37 @@ def test_real_depth_sorter_gives_the_same_order():
         union = worker.wait(worker.request(camera, P_MIN, 0.0, (left, right)), timeout=DEADLOCK).order
         np.testing.assert_array_equal(union, sorter.order(camera, P_MIN, cull_cameras=(left, right)))
         assert union.size > tight.size
+
+
+def test_keys_are_passed_part_of_the_request_identity_and_each_has_its_order(fake, worker):
+    first = worker.request(view(1), P_MIN)  # the default: depth only
+    fake.wait_entered()
+    assert worker.request(view(1), P_MIN, 0.0, None, ("depth",)) == first
+    distance = worker.request(view(1), P_MIN, 0.0, None, ("distance",))  # another key: another order
+    assert distance == first + 1
+    both = worker.request(view(1), P_MIN, 0.0, None, ("depth", "distance", "depth"))
+    assert both == distance + 1
+    assert worker.request(view(1), P_MIN, 0.0, None, ("depth", "distance")) == both  # repeats do not count
+    fake.allow(2)
+    result = worker.wait(both, timeout=DEADLOCK)
+    assert fake.keys == [("depth",), ("depth", "distance")]  # one call for both keys (one cull)
+    assert result.keys == ("depth", "distance")
+    assert result.order_for("depth").tolist() == [1] and result.order_for("distance").tolist() == [1, 1]
+    assert result.order is result.order_for("depth") and result.order_for("other") is None
+    assert all(order.dtype == np.uint32 for order in result.orders.values())
+    with pytest.raises(ValueError):
+        worker.request(view(2), P_MIN, 0.0, None, ())
+
+
+def test_the_real_sorter_culls_once_and_sorts_each_key_asked():
+    scene = demo_scene()
+    sorter = DepthSorter(scene)
+    camera = demo_cameras(160, 120)[4]
+    with BackgroundSorter(sorter) as worker:
+        for keys in (("distance",), ("distance", "depth"), ("depth", "distance")):
+            result = worker.wait(worker.request(camera, P_MIN, 0.0, None, keys), timeout=DEADLOCK)
+            assert result.keys == keys
+            for key in keys:
+                np.testing.assert_array_equal(result.order_for(key), sorter.order(camera, P_MIN, key=key))
+            np.testing.assert_array_equal(result.order, result.order_for(keys[0]))
+        assert not np.array_equal(result.order_for("depth"), result.order_for("distance"))

@@ -87,3 +87,89 @@ def test_culling_is_conservative(seed, yaw, pitch, distance, p_min, size):
     full = render_reference(scene, camera, settings_, order=everything)
     culled = render_reference(scene, camera, settings_, order=kept)
     np.testing.assert_allclose(culled, full, atol=1e-12)
+
+
+# -- the global keys: depth and distance (section 11) ---------------------------------------
+def _camera_space(scene, camera) -> np.ndarray:
+    return scene.positions.astype(np.float64) @ camera.R.T + camera.t
+
+
+@pytest.mark.parametrize("method", ["float", "radix"])
+def test_distance_order_is_descending_distance_from_the_camera(method):
+    scene = random_scene(n=400, seed=5, degree=0)
+    camera = look_at([0.3, -0.2, -3.0], [0, 0, 0], width=64, height=48, fov_y_degrees=90)
+    order = DepthSorter(scene).order(camera, 1 / 255, method, dilation=None, key="distance")
+    assert order.dtype == np.uint32 and order.size == scene.count  # all in front: nothing culled
+    distance = np.linalg.norm(_camera_space(scene, camera), axis=1)
+    # radix: keys within range/65535 share a bucket, kept in scene order
+    slack = 1e-5 if method == "float" else (distance.max() - distance.min()) / 65535 * 1.01
+    assert np.all(np.diff(distance[order]) <= slack)
+    if method == "float":
+        np.testing.assert_array_equal(order, np.argsort(-distance, kind="stable"))
+
+
+def test_distance_ties_keep_scene_order_where_depth_differs():
+    """Points on one sphere about the camera tie in distance (kept in scene order) but
+    not in depth; scene order is the reverse of the depth order."""
+    directions = np.array([[0.6, 0, 0.8], [0.0, 0.6, 0.8], [0, 0, 1.0], [0.8, 0, 0.6]])
+    scene = make_scene(positions=2.0 * directions, scales=0.05, opacities=0.9)
+    camera = look_at([0, 0, 0], [0, 0, 1], width=64, height=48, fov_y_degrees=120)
+    sorter = DepthSorter(scene)
+    for method in ("float", "radix"):
+        assert sorter.order(camera, 1 / 255, method, dilation=None, key="distance").tolist() == [0, 1, 2, 3]
+        assert sorter.order(camera, 1 / 255, method, dilation=None, key="depth").tolist() == [2, 0, 1, 3]
+
+
+def _turned(camera, degrees: float, axis):
+    """``camera`` turned in place (its centre fixed) by ``degrees`` about ``axis`` (camera space)."""
+    from dataclasses import replace
+    axis = np.asarray(axis, float) / np.linalg.norm(axis)
+    angle = np.radians(degrees)
+    k = np.array([[0, -axis[2], axis[1]], [axis[2], 0, -axis[0]], [-axis[1], axis[0], 0]])
+    q = np.eye(3) + np.sin(angle) * k + (1 - np.cos(angle)) * k @ k
+    return replace(camera, R=q @ camera.R, t=q @ camera.t)
+
+
+@pytest.mark.parametrize("degrees, axis", [(15.0, (0, 1, 0)), (-10.0, (1, 0, 0)), (25.0, (0, 1, 1)),
+                                           (12.0, (1, 1, 0))])
+def test_distance_needs_no_new_sort_when_the_camera_turns_in_place_and_depth_does(degrees, axis):
+    """Gaussians at distinct distances (0.01 apart) inside a cone every turned camera
+    sees: the distance keys and order are the same after the turn, the depth order is not.
+    dilation None: no frustum cull, so only the keys differ."""
+    rng = np.random.default_rng(3)
+    n = 150
+    directions = np.column_stack([rng.uniform(-0.3, 0.3, n), rng.uniform(-0.3, 0.3, n), np.ones(n)])
+    directions /= np.linalg.norm(directions, axis=1, keepdims=True)
+    radii = 2.0 + 0.01 * rng.permutation(n)
+    eye = np.array([0.2, -0.1, -1.0])
+    scene = make_scene(positions=eye + directions * radii[:, None], scales=0.02, opacities=0.9)
+    camera = look_at(eye, eye + [0, 0, 1], width=64, height=48, fov_y_degrees=120)
+    turned = _turned(camera, degrees, axis)
+    np.testing.assert_allclose(turned.center, camera.center, atol=1e-12)
+    assert np.all(_camera_space(scene, turned)[:, 2] > 0)  # everything stays in front
+    np.testing.assert_allclose(np.linalg.norm(_camera_space(scene, turned), axis=1),
+                               np.linalg.norm(_camera_space(scene, camera), axis=1), rtol=1e-12)
+    sorter = DepthSorter(scene)
+    for method in ("float", "radix"):
+        before = sorter.order(camera, 1 / 255, method, dilation=None, key="distance")
+        after = sorter.order(turned, 1 / 255, method, dilation=None, key="distance")
+        assert before.size == n
+        np.testing.assert_array_equal(after, before)
+        np.testing.assert_array_equal(before, np.argsort(-radii, kind="stable"))
+        depth_before = sorter.order(camera, 1 / 255, method, dilation=None, key="depth")
+        depth_after = sorter.order(turned, 1 / 255, method, dilation=None, key="depth")
+        assert depth_before.size == depth_after.size == n
+        assert not np.array_equal(depth_after, depth_before)
+
+
+def test_orders_culls_once_and_sorts_each_key():
+    scene = random_scene(n=300, seed=8, degree=0)
+    camera = look_at([0.5, 0.2, -2.0], [0, 0, 0], width=48, height=32)
+    sorter = DepthSorter(scene)
+    orders = sorter.orders(camera, 1 / 255, keys=("distance", "depth", "distance"))
+    assert list(orders) == ["distance", "depth"]
+    for key, order in orders.items():
+        np.testing.assert_array_equal(order, sorter.order(camera, 1 / 255, key=key))
+    assert sorted(orders["depth"].tolist()) == sorted(orders["distance"].tolist())
+    with pytest.raises(ValueError, match="sort key"):
+        sorter.orders(camera, 1 / 255, keys=("nearest",))

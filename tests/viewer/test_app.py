@@ -590,10 +590,10 @@ class BlockingSorter:
         self.release = threading.Event()
         self.inside = threading.Event()
 
-    def order(self, camera, p_min, *, dilation=0.0, cull_cameras=None):
+    def orders(self, camera, p_min, *, dilation=0.0, cull_cameras=None, keys=("depth",)):
         self.inside.set()
         self.release.wait()
-        return self.sorter.order(camera, p_min, dilation=dilation, cull_cameras=cull_cameras)
+        return self.sorter.orders(camera, p_min, dilation=dilation, cull_cameras=cull_cameras, keys=keys)
 
 
 def test_frames_never_wait_for_the_sort(open_viewer):
@@ -748,8 +748,8 @@ def test_window_shows_the_image_letterboxed_and_the_panel_on_top(open_viewer, tm
     x, y, w, h = viewer.viewport
     if width < height:  # bars left and right
         assert (w, h) == (PANEL_HEIGHT // 2, PANEL_HEIGHT) and (x, y) == ((PANEL_WIDTH - w) // 2, 0)
-    else:  # bars above and below, of unequal heights: 236 above, 237 below
-        assert (w, h) == (PANEL_WIDTH, 247) and (x, y) == (0, 236)
+    else:  # bars above and below, of unequal heights: 276 above, 277 below
+        assert (w, h) == (PANEL_WIDTH, 247) and (x, y) == (0, 276)
     scene = to_rgb8(window_image(viewer)).astype(int)
     # Inside the viewport: the scene, the right way up and in the right place.
     assert np.abs(window[y:y + h, x:x + w] - scene).max() <= 1

@@ -1,5 +1,5 @@
-"""The imgui panel: one module per section (statistics, scene, render, stereo, view,
-training cameras, screenshot), each drawing from and editing only the state it is
+"""The imgui panel: one module per section (statistics, scene, render, order, stereo,
+view, training cameras, screenshot), each drawing from and editing only the state it is
 given, and the panel's two message lines under them.
 
 Edits apply from the next frame on: the frame reads the state each time.

@@ -21,6 +21,7 @@ from raygs_viewer.render.settings import (
     RENDER_MODES,
     RenderSettings,
 )
+from raygs_viewer.viewer.panel.order import with_mode
 from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, remember, slider, tooltip
 from raygs_viewer.viewer.state import SplitView, StereoPreview
 from raygs_viewer.viewer.window import Window
@@ -34,12 +35,16 @@ Supports = Callable[[RenderSettings], "str | None"]
 
 def draw_render_section(settings: RenderSettings, set_settings: Callable[[RenderSettings], None],
                         scene_sh_degree: int, supports: Supports, window: Window, stereo: StereoPreview,
-                        split: SplitView) -> None:
+                        split: SplitView, notify: Callable[[str], None] = lambda note: None) -> None:
     """``set_settings`` receives the edited settings (when an edit changed them);
-    ``window``: its vsync; ``stereo``: its on/off; ``split``: on/off and the preset."""
+    ``window``: its vsync; ``stereo``: its on/off; ``split``: on/off and the preset;
+    ``notify``: a note for the panel (GS switches a per-pixel order to distance)."""
     if not header("Render"):
         return
-    edited = replace(settings, mode=choice("mode", settings.mode, {m: MODE_LABELS[m] for m in RENDER_MODES}, "mode"))
+    edited, note = with_mode(settings, choice("mode", settings.mode, {m: MODE_LABELS[m] for m in RENDER_MODES},
+                                              "mode"))
+    if note:
+        notify(note)
     tooltip("RayGS: the ray-based opacity, with the pixel-invariant MIP filter when MIP is on.\n"
             "RayGS exact MIP: the per-pixel MIP filter (Appendix A.5), always on.\n"
             "GS (EWA): INRIA's linearised splats with a 0.3 px^2 dilation.")

@@ -20,7 +20,7 @@ def draw_statistics(stats: FrameStats, scene_count: int, sorter: BackgroundSorte
     imgui.text(f"GPU   {ms(stats.gpu_seconds)}  sort {ms(stats.sort_seconds)}")
     tooltip("GPU: preprocessing + draw of the last redraw (timer queries; both sides in the split view,\n"
             "both eyes in the stereo preview).\n"
-            "sort: the last depth sort, on a background thread")
+            "sort: the last sort (one cull, then a sort by each order key shown), on a background thread")
     age = "up to date" if stats.order_age == 0 else f"{stats.order_age} frames old"
     imgui.text(f"visible {stats.visible:,} of {scene_count:,}, order {age}")
     tooltip(f"sorts: {sorter.requested} asked, {sorter.finished} done, {sorter.superseded} skipped "

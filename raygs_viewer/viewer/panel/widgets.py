@@ -31,16 +31,23 @@ def header(label: str, open_first: bool = True) -> bool:
     return imgui.collapsing_header(label, imgui.TreeNodeFlags_.default_open.value if open_first else 0)
 
 
-def choice(label: str, current: str, choices: dict[str, str], tag: str) -> str:
+def choice(label: str, current: str, choices: dict[str, str], tag: str,
+           unavailable: dict[str, str] | None = None) -> str:
     """A combo of ``choices`` (value -> shown text), every entry visible when it opens;
     the combo's rect is remembered as ``tag`` and each open entry's as
-    ``f"{tag} {value}"``. Returns the chosen value."""
+    ``f"{tag} {value}"``. ``unavailable``: value -> why it cannot be chosen now (the
+    entry is greyed out, the reason its tooltip). Returns the chosen value."""
     chosen = current
+    unavailable = unavailable or {}
     if imgui.begin_combo(label, choices.get(current, current), imgui.ComboFlags_.height_largest.value):
         for value, text in choices.items():
-            if imgui.selectable(text, value == current)[0]:
+            imgui.begin_disabled(value in unavailable)
+            if imgui.selectable(text, value == current)[0] and value not in unavailable:
                 chosen = value
+            imgui.end_disabled()
             remember(f"{tag} {value}")
+            if value in unavailable:
+                tooltip(unavailable[value])
             if value == current:
                 imgui.set_item_default_focus()
         imgui.end_combo()
