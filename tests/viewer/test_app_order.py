@@ -29,7 +29,7 @@ from raygs_viewer.viewer.stats import FrameStats, order_stats_lines, summary
 
 #: What the fake per-pixel pass reports: 7 fragments per covered pixel on average.
 LISTS = OrderStats(path="lists", width=8, height=4, fragments=140, max_per_pixel=19, covered_pixels=20,
-                   pool_fragments=100, pool_bytes=3 * 2**20, parts=2)
+                   pool_fragments=100, pool_bytes=3 * 2**20, parts=2, largest_part=70)
 
 
 class RecordingRenderer(GLRenderer):
