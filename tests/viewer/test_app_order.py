@@ -258,3 +258,28 @@ def test_split_view_screenshots_record_each_sides_order_and_reproduce(open_viewe
         assert main(["render", "--sidecar", str(sidecar), "--out", str(out)]) == 0
         np.testing.assert_array_equal(np.asarray(Image.open(out)), np.asarray(Image.open(png)))
     glfw.make_context_current(viewer.window.handle)
+
+
+# -- the real per-pixel passes in the window ---------------------------------------------------------
+@pytest.mark.parametrize("order_k, path", [(0, "lists"), (3, "fetch"), (3, "lists")])
+def test_the_window_draws_per_pixel_order_as_an_offscreen_render_does(open_viewer, order_k, path):
+    # Frames after swaps and a moving camera: the count and fill passes index pixels by
+    # gl_FragCoord, so a draw that saw it flipped would fail their check or this image.
+    def renderer(ctx, scene, **options):
+        return GLRenderer(ctx, scene, order_path=path, **options)
+
+    settings = RenderSettings(order="per-pixel", order_k=order_k)
+    viewer, drive = open_viewer(hide_panel=True, renderer_factory=renderer, settings=settings)
+    centres = []
+    for _ in range(3):
+        drive.key(imgui.Key.w, True)
+        drive.frames(2)
+        drive.key(imgui.Key.w, False)
+        drive.settle()
+        stats = viewer.stats.order_stats[0]
+        assert stats is not None and stats.path == path and stats.fragments > 0
+        shown = viewer.drawer.mono.left.read()
+        offscreen = viewer.renderer.render(viewer.camera, viewer.settings, viewer.sorter.latest().order_for("depth"))
+        np.testing.assert_array_equal(shown, offscreen)
+        centres.append(viewer.camera.center)
+    assert np.linalg.norm(centres[2] - centres[0]) > 0  # the camera moved between the draws
