@@ -9,7 +9,8 @@ measures
   configurations interleaved round-robin so that drift hits them all alike), also
   as a ratio to plain RayGS measured in the same run;
 - the error of the GL image against the ground truth
-  (``reference.ground_truth``: exact RayGS integrated over each pixel's area), on
+  (``reference.ground_truth``: exact RayGS, every ray composited in its own order
+  (``order="per-pixel"``), integrated over each pixel's area), on
   RGB over black: PSNR = 10 log10(1 / MSE) and the 99th percentile and maximum of
   the absolute error, in linear float, unclipped.
 
@@ -178,7 +179,9 @@ def run_accuracy(options: AccuracyOptions, ctx=None, out: TextIO | None = None,
     scenes = load_scenes(options.scenes)
     base = RenderSettings(p_min=DEFAULT_P_MIN, background=(0.0, 0.0, 0.0))
     settings = {name: apply_preset(base, name) for name in options.configs}
-    truth_settings = replace(base, p_min=options.gt_p_min)
+    # The truth composites every ray in its own order (maths page, section 11), so the
+    # global orders' error shows beside aliasing's.
+    truth_settings = replace(base, p_min=options.gt_p_min, order="per-pixel")
     samples = {"training": options.gt_samples, "far": FAR_GT_FACTOR * options.gt_samples,
                "close": options.gt_samples}
     cases: list[CaseResult] = []

@@ -161,7 +161,7 @@ def format_report(results: AccuracyResults, plot_link: str | None, human_verdict
         f"OpenGL timer query, median of {results.repeat} frames, configurations interleaved round-robin; "
         f"the ratio is to plain RayGS in the same scene and view, in the same run.",
         "- Error: RGB over black against `reference.ground_truth` (exact RayGS, "
-        f"p_min {_p_min_text(results.gt_p_min)}, "
+        f"p_min {_p_min_text(results.gt_p_min)}, every ray composited in its own order (per-pixel, by t*), "
         "integrated over each pixel's area with n x n samples), linear float, unclipped; PSNR = 10 log10(1/MSE); "
         "p99 and max of the absolute error over all RGB values.",
         f"- Views, from each scene's training-like camera at {results.width} px wide: *training-like*; "

@@ -6,6 +6,7 @@ import argparse
 import math
 import re
 import shlex
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -19,6 +20,7 @@ from raygs_viewer.bench import views as bench_views
 from raygs_viewer.camera.pinhole import look_at
 from raygs_viewer.cli import bench as bench_cli
 from raygs_viewer.errors import UserError
+from raygs_viewer.render import reference
 from raygs_viewer.render.settings import ACCURACY_PRESETS
 
 
@@ -295,3 +297,16 @@ def test_verdict_facts():
     assert lines[-1].endswith("no more accurate in any scene: slow")
     notes = bench_report.case_notes(results.cases[1])
     assert notes["SS"] == "best" and notes["RayGS"] == "baseline, cheapest near best"
+
+
+def test_the_ground_truth_composites_every_ray_in_its_own_order(gl_ctx, tmp_path):
+    seen = []
+
+    def truth(scene, camera, settings, samples):
+        seen.append(settings.order)
+        return reference.ground_truth(scene, camera, settings, samples)
+
+    options = bench_cli.accuracy_options(parse("--scenes", "demo", *TINY, "--report", tmp_path / "a.md",
+                                               "--plot", tmp_path / "a.png"))
+    bench.run_accuracy(replace(options, configs=("RayGS",)), ctx=gl_ctx, out=_Lines([]), ground_truth=truth)
+    assert seen == ["per-pixel"] * 3  # one per view class
