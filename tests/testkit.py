@@ -106,6 +106,19 @@ def assert_matches(image, reference, max_error=8e-3, pixel_fraction=0.002, p999=
     return stats
 
 
+#: The largest error allowed at a pixel where two gaussians' t* agree to float32 precision
+#: (seen: a relative gap of 5e-8 on a shared scene): float32 may composite the pair in
+#: either order, which moves the pixel by up to alpha_1 alpha_2 |c_1 - c_2|.
+PER_RAY_TIE_ERROR = 0.25
+
+
+def assert_matches_per_ray(image, reference):
+    """:func:`assert_matches` for the per-pixel order on scenes that may hold near-ties
+    of t* (real and random scenes): a few pixels may swap such a pair; the share of
+    pixels over 1e-3 and the 99.9th percentile stay as tight as ever."""
+    return assert_matches(image, reference, max_error=PER_RAY_TIE_ERROR)
+
+
 def assert_differs(image, reference, **tolerances):
     """The negative control: ``image`` must fail :func:`assert_matches`."""
     try:

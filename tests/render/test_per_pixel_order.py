@@ -9,9 +9,11 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from testkit import (
+    PER_RAY_TIE_ERROR,
     SHARED_SCENES,
     assert_differs,
     assert_matches,
+    assert_matches_per_ray,
     make_scene,
     random_rotation,
     random_scene,
@@ -99,8 +101,9 @@ def test_lists_match_the_per_pixel_reference_where_global_orders_fail(renderers,
     assert_matches(renderer.render(CAMERA, settings), reference)
     assert renderer.order_stats.path == "lists"
     if k == 0:  # the negative controls: either global order, drawn as today
-        for order in ("depth", "distance"):
-            assert_differs(renderer.render(CAMERA, replace(EXACT, order=order)), reference)
+        for order in ("depth", "distance"):  # even with the allowance for near-ties of t*
+            assert_differs(renderer.render(CAMERA, replace(EXACT, order=order)), reference,
+                           max_error=PER_RAY_TIE_ERROR)
             assert renderer.order_stats is None
 
 
@@ -289,10 +292,10 @@ def test_shared_scenes_match_the_per_pixel_reference(gl_render, name):
         settings = RenderSettings(order="per-pixel", order_k=k)
         reference = render_reference(scene, camera, settings)
         assert reference[..., 3].max() > 0.01, "the view must show the scene"
-        assert_matches(gl_render(scene, camera, settings), reference)
+        assert_matches_per_ray(gl_render(scene, camera, settings), reference)
 
 
 def test_random_scene_every_pixel_order(gl_render):
     scene = random_scene(n=300, seed=1, log_scale=(-4.0, -1.0), anisotropy=2.0)
     for settings in (EXACT, replace(EXACT, order_k=2)):
-        assert_matches(gl_render(scene, CAMERA, settings), render_reference(scene, CAMERA, settings))
+        assert_matches_per_ray(gl_render(scene, CAMERA, settings), render_reference(scene, CAMERA, settings))

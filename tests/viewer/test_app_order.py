@@ -13,7 +13,15 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from appkit import PANEL_HEIGHT, PANEL_WIDTH, RecordingSorter, click_choice, headless, right_image, window_image
+from appkit import (
+    PANEL_HEIGHT,
+    PANEL_WIDTH,
+    RecordingSorter,
+    click_choice,
+    headless,
+    right_image,
+    window_image,
+)
 from imgui_bundle import imgui  # before glfw (see raygs_viewer.viewer.window)
 from testkit import assert_matches
 

@@ -16,7 +16,12 @@ from typing import Callable
 
 from imgui_bundle import imgui
 
-from raygs_viewer.render.settings import MAX_ORDER_K, ORDER_LABELS, ORDERS, RenderSettings
+from raygs_viewer.render.settings import (
+    MAX_ORDER_K,
+    ORDER_LABELS,
+    ORDERS,
+    RenderSettings,
+)
 from raygs_viewer.viewer.panel.widgets import choice, header, remember, tooltip
 from raygs_viewer.viewer.stats import FrameStats, order_stats_lines
 
