@@ -26,6 +26,7 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl import shaders
 from raygs_viewer.render.gl.fragment_lists import plan_parts
 from raygs_viewer.render.gl.kbuffer import max_window
+from raygs_viewer.render.gl.per_pixel import storage_block_problem
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.settings import RenderSettings
@@ -299,3 +300,28 @@ def test_random_scene_every_pixel_order(gl_render):
     scene = random_scene(n=300, seed=1, log_scale=(-4.0, -1.0), anisotropy=2.0)
     for settings in (EXACT, replace(EXACT, order_k=2)):
         assert_matches_per_ray(gl_render(scene, CAMERA, settings), render_reference(scene, CAMERA, settings))
+
+
+class _Limits:
+    """A context whose GL limits are ``info`` (only what the check reads)."""
+
+    def __init__(self, **info):
+        self.info = info
+        self.extensions = set()
+
+
+def test_a_gpu_with_too_few_storage_blocks_is_told_why_in_one_line():
+    roomy = _Limits(GL_MAX_FRAGMENT_SHADER_STORAGE_BLOCKS=16, GL_MAX_COMBINED_SHADER_STORAGE_BLOCKS=80,
+                    GL_MAX_COMPUTE_SHADER_STORAGE_BLOCKS=16)
+    assert storage_block_problem(roomy, "lists", 8) is None and storage_block_problem(roomy, "fetch", 8) is None
+    # OpenGL 4.3's minimum: 8 per stage and 8 in all.
+    minimum = _Limits()
+    assert storage_block_problem(minimum, "lists", 1) is None  # 1 + 1 + 6 blocks in all, 7 in the resolve
+    problem = storage_block_problem(minimum, "lists", 2)
+    assert "needs 9 storage blocks where this GPU offers 8" in problem and "\n" not in problem
+    assert storage_block_problem(minimum, "fetch", 3) is None
+    assert "COMPUTE" in storage_block_problem(replace_info(roomy, GL_MAX_COMPUTE_SHADER_STORAGE_BLOCKS=13), "lists", 8)
+
+
+def replace_info(limits, **info):
+    return _Limits(**{**limits.info, **info})

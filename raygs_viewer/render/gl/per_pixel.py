@@ -18,10 +18,32 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl import kbuffer
 from raygs_viewer.render.gl.fragment_lists import FragmentLists
 from raygs_viewer.render.gl.order_stats import OrderStats
+from raygs_viewer.render.gl.storage import gpu_limit
 from raygs_viewer.render.gl.targets import FloatTarget
 from raygs_viewer.render.settings import RenderSettings
 
 ORDER_PATHS = ("auto", "lists", "fetch")
+
+
+#: Storage blocks the lists path binds besides the records (fragment_lists.glsl: counts,
+#: row offsets, cursors, pool, row bases, status); its resolve pass also reads the records.
+LIST_BLOCKS = 6
+
+
+def storage_block_problem(ctx: moderngl.Context, path: str, splat_blocks: int) -> str | None:
+    """Why ``path`` cannot bind its storage blocks on this GPU with records in
+    ``splat_blocks`` blocks, or None. OpenGL 4.3 guarantees only 8 per stage and 8 in
+    all; desktop drivers offer 16 per stage or more."""
+    fragment = LIST_BLOCKS if path == "lists" else splat_blocks  # the k-buffer reads evicted colours
+    needs = {"GL_MAX_FRAGMENT_SHADER_STORAGE_BLOCKS": fragment,
+             "GL_MAX_COMBINED_SHADER_STORAGE_BLOCKS": 1 + splat_blocks + fragment,  # with the vertex stage's
+             "GL_MAX_COMPUTE_SHADER_STORAGE_BLOCKS": splat_blocks + (LIST_BLOCKS if path == "lists" else 0)}
+    for limit, needed in needs.items():
+        offered = gpu_limit(ctx, limit, 8)
+        if needed > offered:
+            return (f"the per-pixel order needs {needed} storage blocks where this GPU offers {offered} "
+                    f"({limit}) for a scene of this size")
+    return None
 
 
 class PerPixelOrder:
@@ -48,13 +70,14 @@ class PerPixelOrder:
             return "lists"
         return "fetch"
 
-    def problem(self, settings: RenderSettings) -> str | None:
-        """None when ``settings``' per-pixel order can be rendered, else why not."""
+    def problem(self, settings: RenderSettings, splat_blocks: int = 1) -> str | None:
+        """None when ``settings``' per-pixel order can be rendered with records in
+        ``splat_blocks`` storage blocks, else why not (one line)."""
         try:
-            self.path_for(settings)
+            path = self.path_for(settings)
         except UserError as error:
             return str(error)
-        return None
+        return storage_block_problem(self.ctx, path, splat_blocks)
 
     def render(self, renderer, target: FloatTarget, camera: Camera, settings: RenderSettings,
                order: np.ndarray) -> OrderStats:

@@ -102,7 +102,7 @@ class GLRenderer:
     def supports(self, settings: RenderSettings) -> str | None:
         """None when this GPU can render ``settings``, else why not (one line)."""
         if settings.per_pixel:  # composites in its own passes, the cut-off included
-            return self.per_pixel.problem(settings)
+            return self.per_pixel.problem(settings, self.layout_for(settings).splat_blocks)
         if settings.transmittance_cutoff and GL_EXT_FRAMEBUFFER_FETCH not in self.ctx.extensions:
             return (f"the transmittance cut-off needs {GL_EXT_FRAMEBUFFER_FETCH}, "
                     f"which this GPU's OpenGL driver does not offer")
