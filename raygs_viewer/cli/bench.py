@@ -110,7 +110,7 @@ def _add_accuracy_parser(kinds) -> None:
     parser.add_argument("--quick", action="store_true",
                         help=f"the demo and one small real scene, {accuracy.QUICK_WIDTH} px wide, "
                              f"{accuracy.QUICK_REPEAT} timed frames, ground truth "
-                             f"{accuracy.QUICK_GT_SAMPLES}x{accuracy.QUICK_GT_SAMPLES} samples (about two minutes)")
+                             f"{accuracy.QUICK_GT_SAMPLES}x{accuracy.QUICK_GT_SAMPLES} samples (under a minute)")
     _add_scenes_option(parser)
     _add_width_and_repeat(parser,
                           f"width of the training-like view (default {accuracy.DEFAULT_WIDTH}, --quick "
@@ -328,7 +328,7 @@ def _add_order_parser(kinds) -> None:
                     "machine-readable lines; --out writes the markdown report.")
     parser.add_argument("--quick", action="store_true",
                         help=f"the demo and one small real scene, {order_bench.QUICK_WIDTH} px wide, sweeps of "
-                             f"{order_bench.QUICK_FRAMES} frames")
+                             f"{order_bench.QUICK_FRAMES} frames (about 20 s)")
     _add_scenes_option(parser)
     _add_width_and_repeat(parser,
                           f"width of the views (default {order_bench.DEFAULT_WIDTH}, --quick {order_bench.QUICK_WIDTH})",
