@@ -117,14 +117,14 @@ class DepthSorter:
         its camera-space depth z, or its distance from the camera centre."""
         R = camera.R.astype(np.float32)
         if key == "depth":
-            depth = self.positions[visible] @ R[2] + np.float32(camera.t[2])
+            values = self.positions[visible] @ R[2] + np.float32(camera.t[2])
         elif key == "distance":
             # |R p + t| rather than |p - C|: the same float32 form as the cull and the GPU.
             mu = self.positions[visible] @ R.T + camera.t.astype(np.float32)
-            depth = np.sqrt(np.einsum("ij,ij->i", mu, mu))
+            values = np.sqrt(np.einsum("ij,ij->i", mu, mu))
         else:
             raise ValueError(f"unknown sort key {key!r}; expected one of {', '.join(SORT_KEYS)}")
-        return visible[sort_back_to_front(depth, method)].astype(np.uint32)
+        return visible[sort_back_to_front(values, method)].astype(np.uint32)
 
     def _may_be_seen(self, camera: Camera, p_min: float, dilation: float | None, scratch: "_Scratch") -> None:
         """Sets ``scratch.keep`` to whether each support sphere may reach a pixel of ``camera``."""

@@ -18,7 +18,7 @@ import numpy as np
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.render.gl.order_stats import OrderStats
 from raygs_viewer.render.gl.shaders import set_uniform
-from raygs_viewer.render.gl.targets import FloatTarget
+from raygs_viewer.render.gl.targets import FloatTarget, check_size
 from raygs_viewer.render.settings import RenderSettings
 
 FRAMEBUFFER_FETCH = "GL_EXT_shader_framebuffer_fetch"
@@ -59,7 +59,7 @@ class KBuffer:
     def _hold(self, width: int, height: int, k: int) -> moderngl.Framebuffer:
         if self._key != (width, height, k):
             self._release_targets()
-            FloatTarget(self.ctx, width, height, label="k-buffer").release()  # the size check, one line
+            check_size(self.ctx, width, height, label="k-buffer")
             self._textures = [self.ctx.texture((width, height), 4, dtype="f4") for _ in range(k + 1)]
             self._fbo = self.ctx.framebuffer(color_attachments=self._textures)
             self._key = (width, height, k)

@@ -21,6 +21,13 @@ def texture_limit(ctx: moderngl.Context) -> int:
     return int(ctx.info.get("GL_MAX_TEXTURE_SIZE", DEFAULT_TEXTURE_LIMIT))
 
 
+def check_size(ctx: moderngl.Context, width: int, height: int, label: str = "image", advice: str = "") -> None:
+    """UserError when this GPU cannot render a ``width`` x ``height`` target (see FloatTarget)."""
+    limit = texture_limit(ctx)
+    if not (1 <= width <= limit and 1 <= height <= limit):
+        raise UserError(f"{label} size {width}x{height} is outside what this GPU renders (1..{limit}){advice}")
+
+
 class FloatTarget:
     """A ``width`` x ``height`` colour target: float32 RGBA by default (``dtype="f4"``),
     or normalised 8-bit (``"f1"``) for what is shown as it is.
@@ -30,9 +37,7 @@ class FloatTarget:
 
     def __init__(self, ctx: moderngl.Context, width: int, height: int, *, dtype: str = "f4",
                  label: str = "image", advice: str = ""):
-        limit = texture_limit(ctx)
-        if not (1 <= width <= limit and 1 <= height <= limit):
-            raise UserError(f"{label} size {width}x{height} is outside what this GPU renders (1..{limit}){advice}")
+        check_size(ctx, width, height, label, advice)
         self.ctx = ctx
         self.dtype = dtype
         self.texture = ctx.texture((width, height), 4, dtype=dtype)

@@ -27,6 +27,7 @@ from raygs_viewer.viewer.stats import FrameStats, order_stats_lines
 
 PER_PIXEL_NEEDS_RAYGS = "per pixel needs a RayGS mode: EWA splats have no ray parameter to sort by"
 
+
 def gs_fallback_note(order: str) -> str:
     return f"GS (EWA) has no per-pixel order: the order is now {ORDER_LABELS[order]}"
 
@@ -39,7 +40,8 @@ ORDER_HELP = ("depth: one global back-to-front sort by the centres' view depth (
               "  RayGS modes only.")
 K_HELP = ("0: every fragment of a pixel is kept and sorted (exact).\n"
           f"1..{MAX_ORDER_K}: fragments arrive in the global depth order and a window of K per pixel\n"
-          "re-orders them (a k-buffer): faster, exact where at most K overlap out of order.")
+          "re-orders them (a k-buffer): bounded memory, exact where at most K overlap out of order;\n"
+          "whether it is faster depends on the GPU (docs/ordering.md).")
 
 
 def with_mode(settings: RenderSettings, mode: str) -> tuple[RenderSettings, str]:
