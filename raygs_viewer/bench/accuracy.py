@@ -24,7 +24,6 @@ markdown report and a PNG plot of PSNR against time ratio, one panel per view cl
 
 from __future__ import annotations
 
-import datetime
 import math
 import os
 import re
@@ -43,6 +42,7 @@ from raygs_viewer.bench.common import (
     load_scenes,
     median,
     printer,
+    run_date,
     shared_scene_paths,
 )
 from raygs_viewer.bench.views import VIEW_CLASSES, VIEW_TITLES, view_cameras
@@ -215,7 +215,7 @@ def run_accuracy(options: AccuracyOptions, ctx=None, out: TextIO | None = None,
                 renderer.release()
     say(f"bench accuracy: done in {time.perf_counter() - started:.1f} s")
     return AccuracyResults(cases, renderer_name, os.cpu_count() or 1, options.command_line,
-                           datetime.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z"),
+                           run_date(),
                            options.repeat, options.width, [(s.name, s.description) for s in scenes],
                            list(options.notes), options.gt_p_min)
 

@@ -6,6 +6,7 @@ against a ground truth, medians that skip invalid timings, and writing their rep
 from __future__ import annotations
 
 import contextlib
+import datetime
 import io
 import math
 import os
@@ -110,6 +111,16 @@ def printer(out: TextIO | None = None) -> Callable[..., None]:
         print(line, file=out, flush=True)
 
     return say
+
+
+def run_date() -> str:
+    """Now, local time, as the reports print it: "2026-11-24 01:14 UTC"."""
+    return datetime.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z")
+
+
+def software_renderer(machine: str) -> bool:
+    """Whether ``machine`` (a context description) is a software OpenGL renderer."""
+    return "llvmpipe" in machine or "softpipe" in machine
 
 
 def median(values: list[float]) -> float:

@@ -23,7 +23,6 @@ how "the window K that comes within 1 dB of exact" is found.
 
 from __future__ import annotations
 
-import datetime
 import math
 import os
 import time
@@ -254,11 +253,11 @@ def run_order(options: OrderOptions, ctx=None, out: TextIO | None = None) -> Ord
     seconds = time.perf_counter() - started
     say(f"bench order: done in {seconds:.1f} s")
     notes = list(options.notes)
-    if "llvmpipe" in machine or "softpipe" in machine:
+    if common.software_renderer(machine):
         notes.append("This is a software OpenGL renderer (on the CPU): time ratios rank the modes on this "
                      "machine; a GPU's differ (atomics and the resolve pass cost differently there).")
     return OrderResults(views, machine, os.cpu_count() or 1, options,
-                        datetime.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z"),
+                        common.run_date(),
                         [(s.name, s.description) for s in scenes], seconds, notes)
 
 

@@ -23,7 +23,6 @@ report, also written to ``--out`` when given.
 
 from __future__ import annotations
 
-import datetime
 import math
 import os
 import time
@@ -257,11 +256,11 @@ def run_stereo(options: StereoOptions, ctx=None, out: TextIO | None = None) -> S
     seconds = time.perf_counter() - started
     say(f"bench stereo: done in {seconds:.1f} s")
     notes = list(options.notes)
-    if "llvmpipe" in machine or "softpipe" in machine:
+    if common.software_renderer(machine):
         notes.append("This is a software OpenGL renderer (on the CPU): its times rank the presets and scenes "
                      "on this machine; they say nothing about what a headset's GPU would take.")
     return StereoResults(errors, budgets, machine, os.cpu_count() or 1, options,
-                         datetime.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z"),
+                         common.run_date(),
                          [(s.name, _describe(s)) for s in scenes], notes, seconds)
 
 

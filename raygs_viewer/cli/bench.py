@@ -86,6 +86,16 @@ def _add_width_and_repeat(parser: argparse.ArgumentParser, width_help: str, repe
     parser.add_argument("--repeat", type=argtypes.whole_number(1, 100000), metavar="N", help=repeat_help)
 
 
+def _show_report(report: str, out: Path | None, overwrite: bool) -> int:
+    """Prints a benchmark's markdown report and writes it to ``out`` (if given); exit status 0."""
+    print("", flush=True)
+    print(report, flush=True)
+    if out is not None:
+        write_report(out, report, overwrite)
+        print(f"wrote {out}", flush=True)
+    return 0
+
+
 def _print_notes(notes: tuple[str, ...]) -> None:
     for note in notes:
         print(f"note: {note}", flush=True)
@@ -233,13 +243,7 @@ def _run_stereo(args: argparse.Namespace, ctx) -> int:
     options = stereo_options(args)
     _print_notes(options.notes)
     results = stereo_bench.run_stereo(options, ctx)
-    report = stereo_bench.format_report(results)
-    print("", flush=True)
-    print(report, flush=True)
-    if options.out is not None:
-        write_report(options.out, report, options.overwrite)
-        print(f"wrote {options.out}", flush=True)
-    return 0
+    return _show_report(stereo_bench.format_report(results), options.out, options.overwrite)
 
 
 # --- perf ----------------------------------------------------------------------------------------
@@ -368,10 +372,4 @@ def _run_order(args: argparse.Namespace, ctx) -> int:
     options = order_options(args)
     _print_notes(options.notes)
     results = order_bench.run_order(options, ctx)
-    report = order_bench.format_report(results)
-    print("", flush=True)
-    print(report, flush=True)
-    if options.out is not None:
-        write_report(options.out, report, options.overwrite)
-        print(f"wrote {options.out}", flush=True)
-    return 0
+    return _show_report(order_bench.format_report(results), options.out, options.overwrite)
