@@ -16,8 +16,9 @@ from raygs_viewer.scene.model import (
     Scene,
     sh_coefficient_count,
 )
-from raygs_viewer.scene.ply_header import parse_header
+from raygs_viewer.scene.ply_header import PLY_TYPES, parse_header
 from raygs_viewer.scene.reading import (
+    DropTally,
     Reporter,
     build_scene,
     file_error,
@@ -30,7 +31,7 @@ _F_REST = re.compile(r"f_rest_(0|[1-9][0-9]*)")
 
 
 def load_ply(path, shown: str, report: Reporter, chunk_bytes: int) -> Scene:
-    header_bytes, elements = parse_header(path, shown)
+    header_bytes, elements, refusal = parse_header(path, shown)
     vertex = next((e for e in elements if e.name == "vertex"), None)
     if vertex is None:
         raise file_error(shown, "PLY file has no 'vertex' element")
@@ -73,21 +74,69 @@ def load_ply(path, shown: str, report: Reporter, chunk_bytes: int) -> Scene:
                                 f"but the file has {size} bytes")
 
     n = vertex.count
-    if n == 0:
-        return _scene_from_columns(shown, np.zeros((0, len(used)), np.float32), degree, has_filter, report)
+    if n and refusal is not None:
+        raise file_error(shown, f"cannot read PLY data ({refusal})")
+    target = _Target(n, degree, has_filter)
+    if n and not any(e.has_list for e in elements):
+        # Every row has a fixed size: the vertex data sits at a known offset and is read
+        # straight from the file, a chunk at a time, into the final arrays.
+        offset = header_bytes
+        for element in elements[: elements.index(vertex)]:
+            offset += element.count * element.min_row_bytes
+        offsets = _property_offsets(vertex, used)
+        for start, raw in _file_chunks(path, shown, offset, n, vertex.min_row_bytes, chunk_bytes):
+            target.add(start, _gather_float32(raw, offsets))
+            report.reading(start + raw.shape[0], n)
+    elif n:
+        with open(path, "rb") as f:
+            try:
+                ply = PlyData.read(_BoundedReads(f, size), mmap="c")
+            except (PlyParseError, ValueError) as exc:
+                detail = " ".join(str(exc).split()) or type(exc).__name__
+                raise file_error(shown, f"cannot read PLY data ({shown_token(detail, 120)[1:-1]})") from None
+            data = ply["vertex"].data
+            if data.shape != (n,) or list(data.dtype.names) != [p for p, _ in vertex.properties]:
+                raise file_error(shown, "PLY header could not be read consistently")
+            offsets = [data.dtype.fields[name][1] for name in used]
+            step = max(1, chunk_bytes // max(1, data.dtype.itemsize))
+            for start in range(0, n, step):
+                rows = np.ascontiguousarray(data[start: start + step])
+                target.add(start, _gather_float32(rows.view(np.uint8).reshape(rows.shape[0], -1), offsets))
+                report.reading(start + rows.shape[0], n)
+            del data, ply
+    report.activating()
+    report.validating()
+    return target.build(shown, report)
 
-    with open(path, "rb") as f:
-        try:
-            ply = PlyData.read(_BoundedReads(f, size), mmap="c")
-        except (PlyParseError, ValueError) as exc:
-            detail = " ".join(str(exc).split()) or type(exc).__name__
-            raise file_error(shown, f"cannot read PLY data ({shown_token(detail, 120)[1:-1]})") from None
-        data = ply["vertex"].data
-        if data.shape != (n,) or list(data.dtype.names) != [p for p, _ in vertex.properties]:
-            raise file_error(shown, "PLY header could not be read consistently")
-        columns = _gather_chunked(data, [data.dtype.fields[name][1] for name in used], report, chunk_bytes)
-        del data, ply
-    return _scene_from_columns(shown, columns, degree, has_filter, report)
+
+def _property_offsets(vertex, used: list[str]) -> list[int]:
+    """Byte offsets within a vertex row of the ``used`` properties (the row packs every
+    property of the header, in order, each of its type's size)."""
+    offsets, at = {}, 0
+    for name, kind in vertex.properties:
+        offsets[name] = at
+        at += PLY_TYPES[kind][1]
+    return [offsets[name] for name in used]
+
+
+def _file_chunks(path, shown: str, offset: int, n: int, row_bytes: int, chunk_bytes: int):
+    """Yields (first row, (rows, row_bytes) uint8) for the ``n`` rows at ``offset``, about
+    ``chunk_bytes`` at a time, read into one reused buffer (each chunk is only valid
+    until the next one is read)."""
+    step = max(1, chunk_bytes // row_bytes)
+    buffer = np.empty((min(step, n), row_bytes), np.uint8)
+    with open(path, "rb", buffering=0) as f:
+        f.seek(offset)
+        for start in range(0, n, step):
+            rows = min(step, n - start)
+            view = memoryview(buffer[:rows]).cast("B")
+            done = 0
+            while done < len(view):
+                got = f.readinto(view[done:])
+                if not got:
+                    raise file_error(shown, "truncated PLY file (the file shrank while reading)")
+                done += got
+            yield start, buffer[:rows]
 
 
 class _BoundedReads:
@@ -112,32 +161,13 @@ class _BoundedReads:
         return getattr(self._f, name)
 
 
-def _gather_chunked(data: np.ndarray, offsets: list[int], report: Reporter, chunk_bytes: int) -> np.ndarray:
-    """:func:`_gather_float32` over ``chunk_bytes`` of rows at a time, into one
-    preallocated (N, len(offsets)) float32 array.
-
-    ``data`` is usually plyfile's memory map, so gathering a chunk is what pages it
-    in from disk: reporting per chunk tracks the actual reading. Chunking also
-    bounds the gather's temporaries to a chunk instead of a copy of every column.
-    """
-    n = data.shape[0]
-    out = np.empty((n, len(offsets)), np.float32)
-    step = max(1, chunk_bytes // max(1, data.dtype.itemsize))
-    for start in range(0, n, step):
-        stop = min(n, start + step)
-        out[start:stop] = _gather_float32(data[start:stop], offsets)
-        report.reading(stop, n)
-    return out
-
-
-def _gather_float32(data: np.ndarray, offsets: list[int]) -> np.ndarray:
-    """(N,) structured rows -> (N, len(offsets)) float32 columns at those byte offsets.
+def _gather_float32(raw: np.ndarray, offsets: list[int]) -> np.ndarray:
+    """(N, row bytes) uint8 rows -> (N, len(offsets)) float32 columns at those byte offsets.
 
     Rows are viewed as float32 words (shifted by the offset's residue mod 4 when a
     non-4-byte property misaligns them) and gathered with one ``np.take`` per residue.
     """
-    n, row = data.shape[0], data.dtype.itemsize
-    raw = np.ascontiguousarray(data).view(np.uint8).reshape(n, row)
+    row = raw.shape[1]
     offs = np.asarray(offsets, dtype=np.intp)
     parts, picks = [], []
     for r in np.unique(offs % 4):
@@ -160,53 +190,73 @@ def _sigmoid(x: np.ndarray) -> np.ndarray:
     return np.where(x >= 0, 1.0 / (1.0 + e), e / (1.0 + e))
 
 
-def _scene_from_columns(shown: str, m: np.ndarray, degree: int, has_filter: bool,
-                        report: Reporter) -> Scene:
-    """Columns in the order x y z f_dc_0..2 opacity scale_0..2 rot_0..3 f_rest_* [filter_3D]."""
-    report.activating()
-    n = m.shape[0]
-    k = sh_coefficient_count(degree) - 1
-    positions = m[:, 0:3]
-    dc = m[:, 3:6]
-    rest = m[:, 14:14 + 3 * k]
-    # The casts too: a signalling NaN (a flipped bit of +-inf) raises "invalid" when widened
-    # to float64, and its gaussian is dropped as "nan" without a RuntimeWarning.
-    with np.errstate(all="ignore"):
-        logit = m[:, 6].astype(np.float64)
-        log_scale = m[:, 7:10].astype(np.float64)
-        rot = m[:, 10:14].astype(np.float64)
-        opacity = _sigmoid(logit)
-        scale = np.exp(log_scale)
-        if has_filter:
-            f2 = np.square(m[:, 14 + 3 * k].astype(np.float64))[:, None]
-            fused = np.sqrt(scale * scale + f2)
-            opacity = opacity * np.prod(scale / fused, axis=1)
-            scale = fused
-        norm = np.sqrt(np.sum(rot * rot, axis=1))
-        quat = rot / norm[:, None]
-        scales32 = scale.astype(np.float32)
-        opacity32 = opacity.astype(np.float32)
-        quat32 = quat.astype(np.float32)
-        sh = np.empty((n, k + 1, 3), dtype=np.float32)
-        sh[:, 0, :] = dc
-        sh[:, 1:, :] = rest.reshape(n, 3, k).transpose(0, 2, 1)
+class _Target:
+    """The Scene's final float32 arrays, filled a chunk of rows at a time with activated
+    values, and the invalid gaussians found on the way.
 
-        report.validating()
-        # Cheap prefilter: a row sum is finite unless the row holds a NaN or an inf
-        # (or overflows, which only makes the row a candidate for the exact tests).
-        suspect = np.flatnonzero(~np.isfinite(m @ np.ones(m.shape[1], dtype=np.float32)))
-        nan = np.zeros(n, dtype=bool)
-        nan[suspect] = np.isnan(m[suspect]).any(axis=1)
-        inf_colour = np.zeros(n, dtype=bool)
-        inf_colour[suspect] = np.isinf(m[suspect, 3:6]).any(axis=1) | np.isinf(rest[suspect]).any(axis=1)
-        tests = {
-            "nan": nan,
-            "infinite position": np.isinf(positions).any(axis=1),
-            "infinite scale": np.isinf(scales32).any(axis=1),
-            "zero scale": (scales32 == 0).any(axis=1),
-            "infinite rotation": np.isinf(rot).any(axis=1),
-            "zero quaternion": norm == 0,
-            "infinite colour": inf_colour,
-        }
-    positions = np.ascontiguousarray(positions, dtype=np.float32)
-    return build_scene(shown, positions, quat32, scales32, opacity32, sh, degree, has_filter, tests, report)
+    Activations are computed in float64 per chunk and rounded once to float32, so the
+    result does not depend on how the rows are chunked; nothing is held for the whole
+    scene but the final arrays and the drop tally (one byte a gaussian).
+    """
+
+    def __init__(self, n: int, degree: int, has_filter: bool) -> None:
+        self.k = sh_coefficient_count(degree) - 1
+        self.degree = degree
+        self.has_filter = has_filter
+        self.positions = np.empty((n, 3), np.float32)
+        self.rotations = np.empty((n, 4), np.float32)
+        self.scales = np.empty((n, 3), np.float32)
+        self.opacities = np.empty(n, np.float32)
+        self.sh = np.empty((n, self.k + 1, 3), np.float32)
+        self.drops = DropTally(n)
+
+    def add(self, start: int, m: np.ndarray) -> None:
+        """Rows ``start..`` from ``m``: (rows, columns) float32 in the order x y z
+        f_dc_0..2 opacity scale_0..2 rot_0..3 f_rest_* [filter_3D]."""
+        k = self.k
+        rows = m.shape[0]
+        stop = start + rows
+        positions, scales = self.positions[start:stop], self.scales[start:stop]
+        rest = m[:, 14:14 + 3 * k]
+        positions[:] = m[:, 0:3]
+        sh = self.sh[start:stop]
+        sh[:, 0, :] = m[:, 3:6]
+        sh[:, 1:, :] = rest.reshape(rows, 3, k).transpose(0, 2, 1)
+        # The casts too: a signalling NaN (a flipped bit of +-inf) raises "invalid" when widened
+        # to float64, and its gaussian is dropped as "nan" without a RuntimeWarning.
+        with np.errstate(all="ignore"):
+            logit = m[:, 6].astype(np.float64)
+            log_scale = m[:, 7:10].astype(np.float64)
+            rot = m[:, 10:14].astype(np.float64)
+            opacity = _sigmoid(logit)
+            scale = np.exp(log_scale)
+            if self.has_filter:
+                f2 = np.square(m[:, 14 + 3 * k].astype(np.float64))[:, None]
+                fused = np.sqrt(scale * scale + f2)
+                opacity = opacity * np.prod(scale / fused, axis=1)
+                scale = fused
+            norm = np.sqrt(np.sum(rot * rot, axis=1))
+            scales[:] = scale
+            self.opacities[start:stop] = opacity
+            self.rotations[start:stop] = rot / norm[:, None]
+
+            # Cheap prefilter: a row sum is finite unless the row holds a NaN or an inf
+            # (or overflows, which only makes the row a candidate for the exact tests).
+            suspect = np.flatnonzero(~np.isfinite(m @ np.ones(m.shape[1], dtype=np.float32)))
+            nan = np.zeros(rows, dtype=bool)
+            nan[suspect] = np.isnan(m[suspect]).any(axis=1)
+            inf_colour = np.zeros(rows, dtype=bool)
+            inf_colour[suspect] = np.isinf(m[suspect, 3:6]).any(axis=1) | np.isinf(rest[suspect]).any(axis=1)
+            self.drops.add(start, {
+                "nan": nan,
+                "infinite position": np.isinf(positions).any(axis=1),
+                "infinite scale": np.isinf(scales).any(axis=1),
+                "zero scale": (scales == 0).any(axis=1),
+                "infinite rotation": np.isinf(rot).any(axis=1),
+                "zero quaternion": norm == 0,
+                "infinite colour": inf_colour,
+            })
+
+    def build(self, shown: str, report: Reporter) -> Scene:
+        return build_scene(shown, self.positions, self.rotations, self.scales, self.opacities, self.sh,
+                           self.degree, self.has_filter, self.drops, report)

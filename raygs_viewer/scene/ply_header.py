@@ -39,8 +39,15 @@ class PlyElement:
         self.min_row_bytes = 0
 
 
-def parse_header(path, shown: str) -> tuple[int, list[PlyElement]]:
-    """Validate the PLY header (read from at most 1 MiB): returns (header bytes, elements)."""
+def parse_header(path, shown: str) -> tuple[int, list[PlyElement], str | None]:
+    """Validate the PLY header (read from at most 1 MiB): returns (header bytes, elements,
+    refusal).
+
+    ``refusal`` is None, or why plyfile, which read the data of every PLY file before
+    issue 16, refused this header (an empty line, ``obj_info`` after an element) though
+    the rules here accept it. Such a file failed to load unless it held no gaussians
+    (their data was never read then); the reader keeps it that way.
+    """
     with open(path, "rb") as f:
         head = f.read(HEADER_LIMIT)
     nl = b"\r\n" if head.startswith(b"ply\r\n") else head[3:4]
@@ -58,13 +65,18 @@ def parse_header(path, shown: str) -> tuple[int, list[PlyElement]]:
 
     fmt = None
     elements: list[PlyElement] = []
+    refusal = None
     for number, raw in enumerate(lines, start=2):
+        where = f"PLY header line {number}"
+        if not raw and refusal is None:
+            refusal = f"{where}: empty line (a PLY header has none)"
         line = raw.strip()
         if not line:
             continue
         words = line.split()
         keyword = words[0]
-        where = f"PLY header line {number}"
+        if keyword == "obj_info" and elements and refusal is None:
+            refusal = f"{where}: 'obj_info' after an element (it belongs before them)"
         if keyword in ("comment", "obj_info"):
             continue
         if keyword == "format":
@@ -126,4 +138,4 @@ def parse_header(path, shown: str) -> tuple[int, list[PlyElement]]:
         raise file_error(shown, f"{where}: unexpected {shown_token(keyword)} (garbage header)")
     if fmt is None:
         raise file_error(shown, "PLY header has no 'format' line")
-    return header_bytes, elements
+    return header_bytes, elements, refusal

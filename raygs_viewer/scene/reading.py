@@ -84,27 +84,58 @@ class Reporter:
         self(_VALIDATE_AT, "validating")
 
 
+class DropTally:
+    """Which of N gaussians are invalid, and why: filled chunk by chunk (``add``), each
+    gaussian counted under the first failing reason of :data:`DROP_REASONS`."""
+
+    def __init__(self, n: int) -> None:
+        self.bad = np.zeros(n, dtype=bool)
+        self.counts = dict.fromkeys(DROP_REASONS, 0)
+
+    def add(self, start: int, tests: dict[str, np.ndarray]) -> None:
+        """``tests``: reason -> (rows,) bool mask of gaussians ``start..start + rows``."""
+        bad = None
+        for reason in DROP_REASONS:
+            mask = tests.get(reason)
+            if mask is None:
+                continue
+            if bad is None:
+                bad = self.bad[start: start + mask.shape[0]]
+            new = mask & ~bad
+            count = int(np.count_nonzero(new))
+            if count:
+                self.counts[reason] += count
+                bad |= new
+
+    @property
+    def dropped(self) -> dict[str, int]:
+        """reason -> count, for the reasons that dropped any, in :data:`DROP_REASONS` order."""
+        return {reason: count for reason, count in self.counts.items() if count}
+
+
+def _compact(arrays: list[np.ndarray], keep: np.ndarray) -> list[np.ndarray]:
+    """The rows ``keep`` (increasing indices) of each array, moved to its front in place,
+    a few MiB of rows at a time: no second copy of a multi-GB scene. Safe because
+    ``keep[j] >= j``: a chunk reads only rows that no earlier chunk has written."""
+    kept = keep.shape[0]
+    for array in arrays:
+        step = max(1, READ_CHUNK_BYTES // max(1, array[:1].nbytes))
+        for start in range(0, kept, step):
+            rows = keep[start: start + step]
+            array[start: start + rows.shape[0]] = array[rows]
+    return [array[:kept] for array in arrays]
+
+
 def build_scene(shown: str, positions, rotations, scales, opacities, sh, degree: int, fused: bool,
-                tests: dict[str, np.ndarray], report: Reporter) -> Scene:
-    """Drop invalid gaussians (``tests``: reason -> (N,) bool mask; the first failing
-    reason of :data:`DROP_REASONS` wins) and build the Scene."""
+                drops: DropTally, report: Reporter) -> Scene:
+    """Drop the invalid gaussians ``drops`` found (moving the valid ones to the front of
+    the arrays, which this takes over) and build the Scene."""
     report(_BUILD_AT, "validating")
-    n = positions.shape[0]
-    bad = np.zeros(n, dtype=bool)
-    dropped: dict[str, int] = {}
-    for reason in DROP_REASONS:
-        mask = tests.get(reason)
-        if mask is None:
-            continue
-        new = mask & ~bad
-        count = int(np.count_nonzero(new))
-        if count:
-            dropped[reason] = count
-            bad |= new
+    dropped = drops.dropped
+    arrays = [positions, rotations, scales, opacities, sh]
     if dropped:
-        keep = ~bad
-        positions, rotations, scales, opacities, sh = (
-            a[keep] for a in (positions, rotations, scales, opacities, sh))
+        arrays = _compact(arrays, np.flatnonzero(~drops.bad))
+    positions, rotations, scales, opacities, sh = arrays
     return Scene(
         positions=np.ascontiguousarray(positions, dtype=np.float32),
         rotations=np.ascontiguousarray(rotations, dtype=np.float32),

@@ -8,6 +8,7 @@ import numpy as np
 
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.reading import (
+    DropTally,
     Reporter,
     build_scene,
     file_error,
@@ -61,4 +62,6 @@ def load_splat(path, shown: str, report: Reporter, chunk_bytes: int) -> Scene:
         "negative scale": (scale < 0).any(axis=1),
         "zero quaternion": norm == 0,
     }
-    return build_scene(shown, positions, quat, scale, opacity, sh, 0, False, tests, report)
+    drops = DropTally(n)
+    drops.add(0, tests)
+    return build_scene(shown, positions, quat, scale, opacity, sh, 0, False, drops, report)
