@@ -27,6 +27,7 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.context import context_description, create_headless_context
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.gl.stereo_frame import render_stereo_view
+from raygs_viewer.render.gl.storage import gpu_bytes
 from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.demo import demo_camera, demo_scene
@@ -116,6 +117,7 @@ def command_info(args) -> int:
     scene = load_scene_argument(args.scene)
     warn_dropped(scene)
     description = describe(scene)
+    description["gpu_bytes"] = gpu_bytes(scene.count, scene.sh_degree)
     print(json.dumps(description, indent=2) if args.json else format_description(description))
     return 0
 

@@ -57,7 +57,9 @@ def describe(scene: Scene) -> dict:
 
 
 def format_description(info: dict) -> str:
-    """Human-readable multi-line text of :func:`describe`'s dict."""
+    """Human-readable multi-line text of :func:`describe`'s dict, with a ``GPU memory`` line
+    when the caller added ``gpu_bytes`` (the renderer's figure: the scene layer cannot
+    know it)."""
 
     def g(v: float) -> str:
         return f"{v:.4g}"
@@ -84,6 +86,9 @@ def format_description(info: dict) -> str:
     if s:
         lines.append(f"scale:        min {g(s['min'])}  median {g(s['median'])}  max {g(s['max'])}  "
                      f"median max/min ratio {g(s['median_anisotropy'])}")
+    if info.get("gpu_bytes") is not None:
+        lines.append(f"GPU memory:   {info['gpu_bytes'] / (1 << 20):,.1f} MiB of storage buffers "
+                     f"(gaussians, SH, splat records, order)")
     d = info.get("dropped") or {"total": 0, "by_reason": {}}
     if d["total"]:
         reasons = ", ".join(f"{r}: {c}" for r, c in d["by_reason"].items())

@@ -12,8 +12,10 @@ import pytest
 from PIL import Image
 from testkit import assert_one_line_error, listing, run_cli, write_inria_ply
 
+from raygs_viewer.bench.loading import write_generated_ply
 from raygs_viewer.camera.pinhole import Camera, camera_to_json, look_at
 from raygs_viewer.cli.main import main
+from raygs_viewer.render.gl.storage import SceneBuffers
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.demo import demo_camera, demo_scene
 from raygs_viewer.scene.io import load_scene
@@ -93,6 +95,20 @@ def test_info_ply(capsys, tmp_path):
     assert info["filter_fused"] is False
     positions = load_scene(path).positions
     np.testing.assert_allclose(info["bbox"]["min"], positions.min(axis=0), rtol=1e-6)
+
+
+def test_info_gives_the_gpu_memory_the_renderer_will_allocate(capsys, tmp_path, gl_ctx):
+    """The figure is the one SceneBuffers computes for that scene (SH degree 3 here)."""
+    path = write_generated_ply(tmp_path / "sh3.ply", 700, sh_degree=3)
+    code, out, err = run_cli(capsys, "info", path, "--json")
+    assert code == 0 and err == ""
+    expected = SceneBuffers(gl_ctx, load_scene(path))
+    try:
+        assert json.loads(out)["gpu_bytes"] == expected.gpu_bytes == 700 * (48 + 16 * 12 + 16 + 112 + 4)
+    finally:
+        expected.release()
+    code, out, err = run_cli(capsys, "info", path)
+    assert f"GPU memory:   {expected.gpu_bytes / (1 << 20):,.1f} MiB of storage buffers" in out
 
 
 # --------------------------------------------------------------------------- render
