@@ -13,10 +13,13 @@ import fnmatch
 import hashlib
 import json
 import os
+import sys
 import threading
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TextIO
 
 import numpy as np
 
@@ -36,6 +39,7 @@ __all__ = [
     "LoadedScene",
     "SceneLoader",
     "SceneReader",
+    "TerminalProgress",
     "arrays_sha256",
     "file_sha256",
     "find_training_cameras",
@@ -50,9 +54,13 @@ DEMO = "demo"
 HASH_CHUNK_BYTES = 1 << 20
 
 # Shares of the whole job in load_now's progress: reading and activating the scene
-# dominates; the hash re-reads a file that is now in the page cache.
+# dominates; the hash runs beside it, and what is left of it once the scene is read
+# takes the next share.
 _SCENE_END = 0.85
 _HASH_END = 0.98
+
+# How often a load that has read its scene reports the hash it still waits for.
+_HASH_POLL_SECONDS = 0.05
 
 _DEMO_ARRAYS = ("positions", "rotations", "scales", "opacities", "sh")
 
@@ -145,6 +153,46 @@ def file_sha256(path: str | os.PathLike, progress: ProgressCallback | None = Non
     return digest.hexdigest()
 
 
+class _FileHash:
+    """:func:`file_sha256` of a file on a thread of its own, started beside the scene's
+    read: the two overlap (hashlib and numpy release the GIL), so a multi-GB scene costs
+    about the longer of the two instead of their sum, and the file, read twice, comes
+    from the disk once. ``stop`` ends it at its next chunk."""
+
+    def __init__(self, path: str | os.PathLike, cancel: threading.Event | None) -> None:
+        self.stop = threading.Event()
+        self.fraction = 0.0
+        self.digest: str | None = None
+        self.error: BaseException | None = None
+        self._cancel = cancel
+        self._thread = threading.Thread(target=self._run, args=(path,), name="raygs-hash", daemon=True)
+        self._thread.start()
+
+    def _run(self, path) -> None:
+        try:
+            self.digest = file_sha256(path, self._progress, self.stop)
+        except BaseException as exc:  # handed to the loading thread, which raises it
+            self.error = exc
+
+    def _progress(self, fraction: float, stage: str) -> None:
+        self.fraction = fraction
+        if self._cancel is not None and self._cancel.is_set():
+            self.stop.set()
+
+    def result(self, report: Callable[[float], None]) -> str:
+        """Waits for the digest, calling ``report(fraction)`` a few times a second (a
+        cancel point: it may raise); raises what the hash raised."""
+        while True:
+            self._thread.join(_HASH_POLL_SECONDS)
+            done = not self._thread.is_alive()
+            report(1.0 if done and self.error is None else self.fraction)
+            if done:
+                break
+        if self.error is not None:
+            raise self.error
+        return self.digest
+
+
 def _camera_names(path: Path, count: int) -> list[str]:
     """img_name of each camera in an already validated cameras.json, else "camera i"."""
     try:
@@ -204,8 +252,12 @@ def load_now(path: str | os.PathLike, cameras: str | os.PathLike | None = None,
             names = list(DEMO_VIEW_NAMES)
             cameras_path = None
         else:
-            scene = read_scene(path, progress=_scaled(progress, 0.0, _SCENE_END, "hashing"), cancel=cancel)
-            digest = file_sha256(path, _scaled(progress, _SCENE_END, _HASH_END, "cameras"), cancel)
+            hashing = _FileHash(path, cancel)
+            try:
+                scene = read_scene(path, progress=_scaled(progress, 0.0, _SCENE_END, "hashing"), cancel=cancel)
+                digest = hashing.result(lambda f: report(_SCENE_END + (_HASH_END - _SCENE_END) * f, "hashing"))
+            finally:
+                hashing.stop.set()  # a failed or cancelled load leaves no hash running
             found, names, cameras_path = [], [], None
         warnings = dropped_summary(scene)
         report(_HASH_END, "cameras")
@@ -229,6 +281,62 @@ def load_now(path: str | os.PathLike, cameras: str | os.PathLike | None = None,
     except OSError as exc:
         raise UserError(f"{shown}: cannot read: {exc.strerror or exc}") from None
     return LoadedScene(scene, shown, digest, found, cameras_path, names, warnings)
+
+
+class TerminalProgress:
+    """A :data:`ProgressCallback` that shows a synchronous load on a terminal (the scene
+    named on the command line loads before the window opens): ``loading NAME: reading
+    42%`` redrawn in place at most every ``interval`` seconds, starting once the load has
+    taken ``delay`` seconds (small scenes print nothing), erased at "done" and on leaving
+    a ``with`` block (so a failed load's error starts on a clean line).
+
+    Writes only when ``stream`` (default: stderr) is a terminal, so piped and scripted
+    output stays as it was. ``clock`` is for tests.
+    """
+
+    def __init__(self, name: str, stream: TextIO | None = None, *, delay: float = 0.5, interval: float = 0.2,
+                 clock: Callable[[], float] = time.monotonic, force: bool = False) -> None:
+        self.name = name
+        self.stream = sys.stderr if stream is None else stream
+        self.delay, self.interval, self.clock = delay, interval, clock
+        self.enabled = force or _is_terminal(self.stream)
+        self.started = clock()
+        self.shown_at: float | None = None
+        self.width = 0
+
+    def __call__(self, fraction: float, stage: str) -> None:
+        if not self.enabled:
+            return
+        now = self.clock()
+        if stage == "done":
+            self.close()
+            return
+        if now - self.started < self.delay or (self.shown_at is not None and now - self.shown_at < self.interval):
+            return
+        line = f"loading {self.name}: {stage} {fraction * 100:3.0f}%"
+        self.stream.write("\r" + line.ljust(self.width))
+        self.stream.flush()
+        self.shown_at, self.width = now, max(self.width, len(line))
+
+    def close(self) -> None:
+        """Erases the line, if one is shown (a failed load's error then prints on a clean line)."""
+        if self.shown_at is not None:
+            self.stream.write("\r" + " " * self.width + "\r")
+            self.stream.flush()
+            self.shown_at = None
+
+    def __enter__(self) -> "TerminalProgress":
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+
+def _is_terminal(stream) -> bool:
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):  # no isatty, or a closed stream
+        return False
 
 
 class _Job:

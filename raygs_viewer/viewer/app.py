@@ -31,7 +31,7 @@ from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.gl.context import context_description
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import RenderSettings
-from raygs_viewer.scene.loader import LoadedScene, load_now
+from raygs_viewer.scene.loader import LoadedScene, TerminalProgress, load_now
 from raygs_viewer.sort.worker import BackgroundSorter
 from raygs_viewer.viewer.drawing import SceneDrawer, sort_cull, sort_keys
 from raygs_viewer.viewer.input import InputHandler
@@ -324,7 +324,8 @@ def run_viewer(options: ViewerOptions) -> int:
         if not options.window_screenshot.lower().endswith(".png"):
             raise UserError(f"{options.window_screenshot}: the window screenshot must be a .png")
         check_output_path(options.window_screenshot)
-    loaded = load_now(options.scene, options.cameras)
+    with TerminalProgress(options.scene) as progress:  # a multi-GB scene takes seconds before the window
+        loaded = load_now(options.scene, options.cameras, progress)
     for warning in loaded.warnings:
         print(f"warning: {warning}", flush=True)
     viewer = Viewer(options, loaded, start_camera(options))

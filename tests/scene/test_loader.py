@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import functools
 import hashlib
+import io
 import json
 import threading
 from pathlib import Path
@@ -30,6 +31,7 @@ from raygs_viewer.scene.io import load_scene
 from raygs_viewer.scene.loader import (
     LoadedScene,
     SceneLoader,
+    TerminalProgress,
     arrays_sha256,
     file_sha256,
     find_training_cameras,
@@ -204,7 +206,90 @@ def test_progress_is_monotone_and_ends_at_done(tmp_path, monkeypatch):
     assert fractions == sorted(fractions) and 0.0 <= fractions[0] and fractions[-1] == 1.0
     assert calls[-1] == (1.0, "done") and [s for _, s in calls].count("done") == 1
     stages = [s for _, s in calls]
-    assert stages.count("reading") > 5 and stages.count("hashing") > 3
+    assert stages.count("reading") > 5 and stages.count("hashing") >= 1
+
+
+class SteeredHash:
+    """Stands in for file_sha256 in load_now's hashing thread: reports half way, then
+    waits for ``gate`` (or its stop event) before hashing for real."""
+
+    def __init__(self) -> None:
+        self.started = threading.Event()
+        self.gate = threading.Event()
+        self.stopped = threading.Event()
+
+    def __call__(self, path, progress=None, cancel=None, **kwargs):
+        self.started.set()
+        progress(0.5, "hashing")
+        while not self.gate.wait(0.01):
+            if cancel.is_set():
+                self.stopped.set()
+                raise UserError("loading cancelled")
+        return file_sha256(path, progress, cancel, **kwargs)
+
+
+def test_the_hash_runs_beside_the_read(tmp_path, monkeypatch):
+    """The read waits here until the hash has started: a hash run after the read never starts."""
+    scene = small_ply(tmp_path / "scene.ply")
+    hashing = SteeredHash()
+    hashing.gate.set()
+    monkeypatch.setattr(loader, "file_sha256", hashing)
+
+    def read_scene(path, **kwargs):
+        assert hashing.started.wait(DEADLOCK), "the hash did not start before the scene was read"
+        return load_scene(path, **kwargs)
+
+    loaded = load_now(scene, read_scene=read_scene)
+    assert loaded.sha256 == hashlib.sha256(scene.read_bytes()).hexdigest()
+
+
+def test_a_hash_still_running_after_the_read_reports_its_progress(tmp_path, monkeypatch):
+    scene = small_ply(tmp_path / "scene.ply")
+    hashing = SteeredHash()
+    monkeypatch.setattr(loader, "file_sha256", hashing)
+    calls = []
+
+    def progress(fraction, stage):
+        calls.append((fraction, stage))
+        if [s for _, s in calls].count("hashing") == 4:  # the read is done; the hash still waits
+            hashing.gate.set()
+
+    loaded = load_now(scene, progress=progress)
+    assert loaded.sha256 == hashlib.sha256(scene.read_bytes()).hexdigest()
+    hashed = [f for f, s in calls if s == "hashing"]
+    assert len(hashed) >= 4 and 0.85 < hashed[1] < hashed[-1] <= 0.98, calls  # 0.85 + 0.13 * 0.5, then 1
+    assert [f for f, _ in calls] == sorted(f for f, _ in calls) and calls[-1] == (1.0, "done")
+
+
+@pytest.mark.parametrize("how", ["read fails", "cancelled while hashing"])
+def test_a_failed_or_cancelled_load_stops_its_hash(tmp_path, monkeypatch, how):
+    scene = small_ply(tmp_path / "scene.ply")
+    hashing = SteeredHash()
+    monkeypatch.setattr(loader, "file_sha256", hashing)
+    cancel = threading.Event()
+
+    def read_scene(path, **kwargs):
+        if how == "read fails":
+            raise UserError(f"{path}: broken")
+        return load_scene(path, **kwargs)
+
+    def progress(fraction, stage):
+        if stage == "hashing" and fraction > 0.85:
+            cancel.set()
+
+    with pytest.raises(UserError, match="broken" if how == "read fails" else "^loading cancelled$"):
+        load_now(scene, progress=progress, cancel=cancel, read_scene=read_scene)
+    assert hashing.stopped.wait(DEADLOCK), "the hash kept running"
+
+
+def test_a_hash_that_fails_after_a_good_read_is_the_error(tmp_path, monkeypatch):
+    scene = small_ply(tmp_path / "scene.ply")
+
+    def failing_hash(path, *args, **kwargs):
+        raise UserError(f"{path}: cannot read: Input/output error")
+
+    monkeypatch.setattr(loader, "file_sha256", failing_hash)
+    testkit.assert_user_error(lambda: load_now(scene), scene, "Input/output error")
 
 
 def test_cancel_stops_load_now(tmp_path):
@@ -398,3 +483,50 @@ def test_a_finished_result_not_yet_polled_is_dropped_by_a_new_start(tmp_path, st
     assert scene_loader.poll() is None  # the good scene is not shown over the newer request
     assert scene_loader.discarded == 1
     scene_loader.cancel()
+
+
+# --------------------------------------------------------------------------- terminal progress
+
+
+class FakeTerminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def test_terminal_progress_redraws_one_line_and_erases_it():
+    now = [0.0]
+    stream = FakeTerminal()
+    with TerminalProgress("big.ply", stream, delay=0.5, interval=0.2, clock=lambda: now[0]) as progress:
+        for t, fraction in ((0.1, 0.05), (0.6, 0.3), (0.65, 0.35), (0.9, 0.6)):
+            now[0] = t
+            progress(fraction, "reading")
+        now[0] = 1.2
+        progress(0.9, "hashing")
+        progress(1.0, "done")
+    text = stream.getvalue()
+    assert "\n" not in text
+    frames = text.split("\r")
+    assert frames[1:4] == ["loading big.ply: reading  30%", "loading big.ply: reading  60%",
+                           "loading big.ply: hashing  90%"]  # before 0.5 s and within 0.2 s: nothing
+    assert frames[-2:] == [" " * len(frames[3]), ""]  # erased once, at "done"
+
+
+def test_terminal_progress_is_silent_off_a_terminal_and_for_quick_loads(tmp_path):
+    scene = small_ply(tmp_path / "scene.ply")
+    piped = io.StringIO()
+    with TerminalProgress("scene.ply", piped, delay=0.0, interval=0.0) as progress:
+        load_now(scene, progress=progress)
+    assert piped.getvalue() == ""
+    quick = FakeTerminal()
+    with TerminalProgress("scene.ply", quick) as progress:  # the default half second delay
+        load_now(scene, progress=progress)
+    assert quick.getvalue() == ""
+
+
+def test_a_failed_load_leaves_a_clean_line_for_its_error(tmp_path):
+    stream = FakeTerminal()
+    with pytest.raises(UserError):
+        with TerminalProgress("gone.ply", stream, delay=0.0, interval=0.0) as progress:
+            progress(0.2, "reading")
+            load_now(tmp_path / "gone.ply", progress=progress)
+    assert stream.getvalue().endswith("\r" + " " * len("loading gone.ply: reading  20%") + "\r")
