@@ -25,7 +25,7 @@ DROP_REASONS = (
     "infinite colour",
 )
 
-#: Gaussian data is read (PLY: gathered from the memory map) this many bytes at a time,
+#: Gaussian data is read (and PLY rows activated) this many bytes at a time,
 #: with a progress report and a cancel check after each chunk. A few MiB keeps a
 #: progress bar moving on multi-GB files at a negligible per-chunk overhead; tests
 #: pass a small ``chunk_bytes`` to get many chunks from a tiny file.
