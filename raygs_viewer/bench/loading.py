@@ -2,11 +2,13 @@
 (written in chunks, never whole in memory) loaded by :func:`load_scene` in a fresh
 process, so the peak memory measured is the load's own.
 
-Peak memory is ``resource.getrusage(RUSAGE_SELF).ru_maxrss`` of that process after
-the load minus the same figure taken just before it (the interpreter with numpy and
-the scene package imported): the resident-set high-water mark the load added. It
-counts numpy buffers and any memory-mapped file pages the reader touches (those are
-resident too), but not the kernel's page cache of a file read with ``read``.
+Peak memory is the resident-set high-water mark of that process during the load minus
+its resident set just before it (the interpreter with numpy and the scene package
+imported). On Linux the mark is reset before the load (``/proc/self/clear_refs``) and
+read from ``VmHWM``; elsewhere it is ``resource.getrusage(RUSAGE_SELF).ru_maxrss``
+before and after. It counts numpy buffers and any memory-mapped file pages the reader
+touches (those are resident too), but not the kernel's page cache of a file read with
+``read``; no tracemalloc, which would slow the load it measures.
 """
 
 from __future__ import annotations
@@ -28,18 +30,29 @@ from raygs_viewer.scene.model import sh_coefficient_count
 #: Rows generated and written at a time: about 16 MiB of SH-3 rows.
 GENERATE_CHUNK_ROWS = 1 << 16
 
-# Runs in the child: the baseline high-water mark, the load, the new high-water mark.
-# ru_maxrss is in KiB on Linux (bytes on macOS).
+# Runs in the child: the resident set before the load, the load, its high-water mark.
+# On Linux the mark is reset first (clear_refs 5) and read from VmHWM, so an earlier
+# transient peak (the imports) cannot hide part of the load's; elsewhere ru_maxrss.
 _MEASURE = """
 import json, resource, sys, time
 from raygs_viewer.scene.io import load_scene
-unit = 1 if sys.platform == "darwin" else 1024
-before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * unit
+
+def status(key):
+    with open("/proc/self/status") as f:
+        return next(int(line.split()[1]) * 1024 for line in f if line.startswith(key + ":"))
+
+try:
+    with open("/proc/self/clear_refs", "w") as f:
+        f.write("5")
+    before, peak = status("VmRSS"), lambda: status("VmHWM")
+except OSError:
+    unit = 1 if sys.platform == "darwin" else 1024
+    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * unit
+    peak = lambda: resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * unit
 start = time.perf_counter()
 scene = load_scene(sys.argv[1])
 seconds = time.perf_counter() - start
-after = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss * unit
-print(json.dumps({"seconds": seconds, "peak": after - before, "count": scene.count}))
+print(json.dumps({"seconds": seconds, "peak": peak() - before, "count": scene.count}))
 """
 
 
