@@ -31,6 +31,7 @@ How :meth:`DepthSorter.orders` works (one pass over the scene, in chunks):
 
 from __future__ import annotations
 
+import itertools
 import math
 import os
 import threading
@@ -58,6 +59,7 @@ _MATMUL_ROWS = 1 << 14
 #: Packed keys per bucket of the parallel sort (1 MiB of uint64: one core's cache).
 BUCKET_KEYS = 1 << 17
 #: Coarse bins of the 16-bit key that bucket bounds are chosen from.
+_SORTER_SERIALS = itertools.count(1)
 _COARSE_SHIFT = 6
 _COARSE_EDGES = (np.arange(0, 65536 + 1, 1 << _COARSE_SHIFT, dtype=np.uint64) << np.uint64(32))
 
@@ -123,6 +125,8 @@ class DepthSorter:
         if int(workers) < 1 or int(chunk_rows) < 1:
             raise ValueError(f"DepthSorter needs workers >= 1 and chunk_rows >= 1, got {workers}, {chunk_rows}")
         self.workers, self.chunk_rows = int(workers), int(chunk_rows)
+        #: The pool's threads are named ``thread_prefix`` + "_0", "_1", ...
+        self.thread_prefix = f"raygs-cull-{next(_SORTER_SERIALS)}."
         self.sorted = 0
         self.reused = 0
         self.last_seconds: dict[str, float] = {}
@@ -163,7 +167,7 @@ class DepthSorter:
         if threads <= 1 or self._closed:
             return [task(index) for index in range(count)]
         if self._pool is None:
-            self._pool = ThreadPoolExecutor(self.workers - 1, thread_name_prefix="raygs-cull")
+            self._pool = ThreadPoolExecutor(self.workers - 1, thread_name_prefix=self.thread_prefix)
         results: list = [None] * count
         indices = iter(range(count))  # next() on it is atomic under the GIL
 
