@@ -56,6 +56,9 @@ SORT_KEYS = ("depth", "distance")
 CHUNK_ROWS = 1 << 16
 #: Rows per matrix product (see ``DepthSorter._camera_space``).
 _MATMUL_ROWS = 1 << 14
+#: Keys below which even several workers sort with one argsort: the bucket sort's extra
+#: pass and hand-offs cost more than they save.
+PARALLEL_SORT_MIN = 1 << 19
 #: Packed keys per bucket of the parallel sort (1 MiB of uint64: one core's cache).
 BUCKET_KEYS = 1 << 17
 #: Coarse bins of the 16-bit key that bucket bounds are chosen from.
@@ -230,7 +233,7 @@ class DepthSorter:
             return {key: np.zeros(0, np.uint32) for key in keys}
         with self._lock:
             begin = time.perf_counter()
-            centre = np.asarray(camera.center, np.float64).astype(np.float32)
+            centre = self._centre(camera)
             turn = (centre.tobytes(), float(p_min), method)
             reuse = "distance" in keys and self._cached is not None and self._cached[0] == turn
             cache = "distance" in keys and not reuse and self._last_distance == turn
@@ -331,6 +334,14 @@ class DepthSorter:
                 piece.values["distance"], piece.rows["distance"] = distance[local], piece.visible
         return piece
 
+    def _centre(self, camera: Camera) -> np.ndarray:
+        """(3,) float32: the camera centre C of the distance key, snapped to a grid 2^-32
+        of the scene's extent. A turn in place recomputes t from R and C, and C = -R^T t
+        comes back off by rounding (1e-17 where it was 0, which float32 keeps): the
+        snapped centre is the same, so the keys of the turn are bit for bit the same."""
+        step = 2.0 ** (math.frexp(max(self.coordinate_scale, 1e-30))[1] - 32)
+        return (np.round(np.asarray(camera.center, np.float64) / step) * step).astype(np.float32)
+
     def _camera_space(self, camera: Camera, rows: slice, out: np.ndarray) -> None:
         """out[:] = (3, n) mu = R p + t of the rows, in float32 (the form the GPU uses),
         one row per axis so that every later pass reads contiguous memory."""
@@ -387,7 +398,8 @@ class DepthSorter:
         near = min(piece.ranges[key][0] for piece in pieces)
         far = max(piece.ranges[key][1] for piece in pieces)
         quantisable = method != "float" and math.isfinite(far - near) and far > near
-        if self.workers == 1 or len(pieces) == 1 or not quantisable:
+        total = sum(piece.values[key].size for piece in pieces)
+        if self.workers == 1 or total < PARALLEL_SORT_MIN or not quantisable:
             rows = np.concatenate([piece.rows[key] for piece in pieces])
             values = np.concatenate([piece.values[key] for piece in pieces])
             return rows[_stable_order(values, near, far, method)]
@@ -449,7 +461,7 @@ class DepthSorter:
             values += np.float32(camera.t[2])
         elif key == "distance":
             values = np.empty(visible.size, np.float32)
-            centre = np.asarray(camera.center, np.float64).astype(np.float32)
+            centre = self._centre(camera)
             _distance(self.positions[visible], centre, np.empty((3, visible.size), np.float32), values)
         else:
             raise ValueError(f"unknown sort key {key!r}; expected one of {', '.join(SORT_KEYS)}")

@@ -2,8 +2,9 @@
 turn in place is reused from the last sort and equals a fresh one, and the thread pool
 goes away on close (also when the viewer changes scene or exits).
 
-Scenes are small; ``chunk_rows`` and ``BUCKET_KEYS`` are made small so that a few
-hundred gaussians make many chunks and many buckets (what millions make by default).
+Scenes are small; ``chunk_rows``, ``BUCKET_KEYS`` and ``PARALLEL_SORT_MIN`` are made
+small so that a few hundred gaussians make many chunks and many buckets, and take the
+parallel sort (what millions do by default).
 """
 
 from __future__ import annotations
@@ -63,6 +64,7 @@ def test_every_worker_count_gives_the_one_worker_order(seed, workers, chunk_rows
     reference = DepthSorter(scene, workers=1).orders(camera, P_MIN, method, **kwargs)
     with pytest.MonkeyPatch.context() as patch, DepthSorter(scene, workers, chunk_rows=chunk_rows) as sorter:
         patch.setattr(depth, "BUCKET_KEYS", bucket_keys)
+        patch.setattr(depth, "PARALLEL_SORT_MIN", 0)
         parallel = sorter.orders(camera, P_MIN, method, **kwargs)
         one_worker = DepthSorter(scene, workers=1, chunk_rows=chunk_rows).orders(camera, P_MIN, method, **kwargs)
     for key in ("depth", "distance"):
@@ -80,6 +82,7 @@ def test_ties_across_chunks_and_buckets_keep_scene_order(monkeypatch):
     """Many gaussians at a few distinct places: each key value is shared by gaussians in
     every chunk, and the buckets are single keys; the order is by key, then index."""
     monkeypatch.setattr(depth, "BUCKET_KEYS", 4)
+    monkeypatch.setattr(depth, "PARALLEL_SORT_MIN", 0)
     rng = np.random.default_rng(4)
     places = np.array([[0, 0, 1.0], [0.2, 0.1, 2.0], [-0.3, 0.2, 3.0], [0.1, -0.2, 1.5]])
     label = rng.integers(0, len(places), 500)
@@ -195,7 +198,8 @@ def test_close_leaves_no_thread_and_orders_still_work():
     sorter = DepthSorter(scene, workers=3, chunk_rows=16)
     assert threads_of(sorter) == []  # made lazily
     np.testing.assert_array_equal(sorter.order(camera, P_MIN), expected)
-    assert len(threads_of(sorter)) == 2  # the calling thread is the third worker
+    # The calling thread is the third worker (the pool starts a thread only when none is idle).
+    assert 1 <= len(threads_of(sorter)) <= 2
     sorter.close()
     assert threads_of(sorter) == [] and sorter.closed
     sorter.close()  # idempotent
