@@ -53,7 +53,7 @@ FLY_RADII_PER_S = 0.5
 #: Seconds into each motion whose frames are rendered (the scene still fills most of the view).
 SAMPLE_TIMES = (0.2, 0.35, 0.5)
 QUICK_SAMPLE_TIMES = (0.25, 0.5)
-#: Latencies in frames (at FPS) also simulated for the global orders, to find where the loss crosses WITHIN_DB.
+#: Latencies in frames (at FPS) also simulated, to find where the loss crosses WITHIN_DB.
 LADDER_FRAMES = (2, 4, 8, 16)
 QUICK_LADDER_FRAMES = (2, 8)
 PROJECTED_CORES = 16
@@ -375,14 +375,12 @@ class SortResults:
 def latencies(result: SceneResult, mode: str, sweep: str, ladder_frames: tuple[int, ...]) -> list[tuple[str, float]]:
     """(cores label, latency ms) for this order and motion: the window's sort measured
     on each worker count (a turn in place reuses the distance order: cull only), projected
-    to PROJECTED_CORES, and for the global orders the ladder of latencies in frames."""
+    to PROJECTED_CORES, and the ladder of latencies in frames."""
     field_name = "total" if MODES[mode].sort_key == "depth" else \
         ("distance_turn" if sweep == "turn" else "distance")
     measured = [(str(w), getattr(t, field_name)) for w, t in result.timings.items()]
     measured.append((f"{PROJECTED_CORES} (projected)", result.projected[field_name]))
-    if mode != "per-pixel":
-        measured += [("ladder", 1e3 * frames / FPS) for frames in ladder_frames]
-    return measured
+    return measured + [("ladder", 1e3 * frames / FPS) for frames in ladder_frames]
 
 
 def run_sort(options: SortOptions, ctx=None, out: TextIO | None = None) -> SortResults:
