@@ -15,16 +15,17 @@ How :meth:`DepthSorter.orders` works (one pass over the scene, in chunks):
    threads take them in turn (numpy releases the GIL in its loops).
 2. Sort: keys are quantised to 16 bits over a range known after step 1 (depth: the
    visible depths; distance: the distances of every candidate, opacity > p_min, which
-   does not depend on the rotation). With one worker: one stable argsort of all keys,
-   the reference. With more: each chunk sorts its keys packed with their scene index,
-   ``key << 32 | index`` (distinct values, so any sort is the stable one), the packed
-   range is cut into buckets of about equal counts, and each bucket merges its runs
+   does not depend on the rotation). With one worker (or fewer than PARALLEL_SORT_MIN
+   keys): one stable argsort of all keys, the reference. With more: each chunk sorts
+   its keys packed with their scene index, ``key << 32 | index`` (distinct values, so
+   any sort is the stable one), the packed range is cut into buckets of about equal
+   counts (coarse bins of the key), and each bucket merges its runs
    from every chunk and writes its slice of the output. Bucket b holds exactly the
    keys between its bounds, in (key, index) order, and buckets follow each other in
    key order, so the output is the stable order by key: the one-worker result, bit
    for bit (the chunks, hence the keys, are the same for every worker count).
-3. A turn in place with the distance key (same centre C in float32, same p_min and
-   method) reuses the sorted candidates of the last sort at that centre: the stable
+3. A turn in place with the distance key (same centre C, snapped, in float32; same
+   p_min and method) reuses the sorted candidates of the last sort at that centre: the stable
    order restricted to this frame's visible set is that order filtered by the cull,
    equal to a fresh sort because the keys and their range do not change.
 """
@@ -101,12 +102,13 @@ class _Pass:
 class DepthSorter:
     """Caches what culling needs per scene, then culls and sorts for any camera and p_min.
 
-    ``workers``: threads for the cull and the sort (None: ``os.cpu_count()``); 1 runs
-    everything on the calling thread with one global argsort, the reference every other
-    worker count equals exactly. The pool is made on the first order that has more than
-    one chunk and shut down by :meth:`close` (after which orders run on the calling
-    thread, with the same results). ``chunk_rows``: gaussians per chunk (tests make it
-    small to get many chunks from a small scene).
+    ``workers``: threads for the cull and the sort (None: ``os.cpu_count()``), the
+    calling thread one of them; 1 runs everything on the calling thread with one global
+    argsort, the reference every other worker count equals exactly (see the module's
+    steps). The pool is made on the first order that has more than one chunk and shut
+    down by :meth:`close` (after which orders run on the calling thread, with the same
+    results). ``chunk_rows``: gaussians per chunk (tests make it small to get many
+    chunks from a small scene).
 
     Counters: ``sorted`` orders made by a sort, ``reused`` distance orders filtered from
     the cached candidate order of a turn in place. ``last_seconds``: {"cull", "sort"}

@@ -74,12 +74,12 @@ def test_amdahl_fits_serial_and_parallel_parts():
     assert bench_sort.amdahl({1: 10.0}, 16) == 10.0
 
 
-def test_the_crossing_latency_is_interpolated_or_bounded():
-    assert bench_sort.crossing_latency([(10.0, 0.5), (30.0, 1.5)]) == "20"
-    assert bench_sort.crossing_latency([(10.0, 0.2), (30.0, 0.9)]) == ">30"
-    assert bench_sort.crossing_latency([(10.0, 2.0), (30.0, 3.0)]) == "<10"
-    assert bench_sort.crossing_latency([(10.0, 0.5), (20.0, math.nan)]) == ">10"
-    assert bench_sort.crossing_latency([(20.0, math.nan)]) == "n/a"
+def test_the_one_db_crossing_is_interpolated_or_bounded():
+    assert bench_sort.crossing([(10.0, 0.5), (30.0, 1.5)]) == "20"
+    assert bench_sort.crossing([(10.0, 0.2), (30.0, 0.9)]) == ">30"
+    assert bench_sort.crossing([(10.0, 2.0), (30.0, 3.0)]) == "<10"
+    assert bench_sort.crossing([(10.0, 0.5), (20.0, math.nan)]) == ">10"
+    assert bench_sort.crossing([(20.0, math.nan)]) == "n/a"
 
 
 def test_summary_lines_read_like_the_issue():
@@ -109,7 +109,7 @@ def test_a_tiny_run_times_every_worker_count_and_measures_every_order(gl_ctx, mo
     assert ladder.psnr_vs_fresh < 60  # four frames of a 90 deg/s turn change the image
     assert all(math.isnan(r.loss_db) for r in scene.freshness if r.mode == "per-pixel")
     report = bench_sort.format_report(results)
-    assert "\ncull+sort@3k " in report and "speed-up@3k " in report and "1db-latency@3k/turn/depth" in report
+    assert "\ncull+sort@3k " in report and "speed-up@3k " in report and "1db-age@3k/turn/depth" in report
 
 
 def test_options_and_recorded_command():
