@@ -155,11 +155,18 @@ def worker_counts() -> tuple[int, ...]:
     return tuple(sorted({1, 2, os.cpu_count() or 1}))
 
 
+#: The key of the parallel path run on the calling thread alone (a closed DepthSorter of
+#: 2 workers): the parallel algorithm's own one-thread time, which the projection scales.
+ONE_THREAD = 0
+
+
 def measure_sorting(scene: Scene, camera: Camera, repeat: int,
                     workers: tuple[int, ...]) -> tuple[dict[int, Timing], np.ndarray]:
-    """Times every worker count, runs interleaved (one untimed first); returns the timings
-    and the depth order (for the upload)."""
-    sorters = {w: DepthSorter(scene, w) for w in workers}
+    """Times every worker count and ONE_THREAD, runs interleaved (one untimed first);
+    returns the timings and the depth order (for the upload)."""
+    workers = (ONE_THREAD, *workers)
+    sorters = {w: DepthSorter(scene, w or 2) for w in workers}
+    sorters[ONE_THREAD].close()  # same algorithm as 2 workers, on the calling thread
     samples: dict[int, dict[str, list[float]]] = {w: {k: [] for k in ("cull", "cull_keys", "sort", "total",
                                                                      "distance", "distance_turn")}
                                                   for w in workers}
@@ -359,6 +366,7 @@ class SceneResult:
     timings: dict[int, Timing]
     upload_ms: float
     projected: dict[str, float]          # latency key -> ms on PROJECTED_CORES cores
+    one_thread: Timing                   # the parallel path (2 workers) on one thread
     freshness: list[Freshness] = field(default_factory=list)
 
 
@@ -404,9 +412,11 @@ def run_sort(options: SortOptions, ctx=None, out: TextIO | None = None) -> SortR
             scene = generated_scene(count)
             timings, order = measure_sorting(scene, timing_camera, options.repeat, workers)
             upload = upload_ms(ctx, order, options.repeat)
-            projected = {key: amdahl({w: getattr(t, key) for w, t in timings.items()}, PROJECTED_CORES)
+            one_thread = timings.pop(ONE_THREAD)
+            parallel = {1: one_thread, **{w: t for w, t in timings.items() if w > 1}}
+            projected = {key: amdahl({w: getattr(t, key) for w, t in parallel.items()}, PROJECTED_CORES)
                          for key in ("total", "distance", "distance_turn")}
-            result = SceneResult(count, timings, upload, projected)
+            result = SceneResult(count, timings, upload, projected, one_thread)
             for line in timing_lines(result):
                 say(line)
             if options.freshness:
@@ -462,8 +472,12 @@ def timing_lines(result: SceneResult) -> list[str]:
                      f"cull+sort {t.total:.1f} ms (x{single / t.total:.2f} of 1 worker), distance "
                      f"{t.distance:.1f} ms, distance turning in place {t.distance_turn:.1f} ms; "
                      f"{t.visible:,} visible")
-    lines.append(f"  {label} upload of the order: {result.upload_ms:.2f} ms; projected to {PROJECTED_CORES} cores: "
-                 f"cull+sort {result.projected['total']:.1f} ms")
+    t = result.one_thread
+    lines.append(f"  {label} workers=2 on one thread (the parallel path's own scaling base): cull+sort "
+                 f"{t.total:.1f} ms (sort {t.sort:.1f} ms)")
+    lines.append(f"  {label} upload of the order: {result.upload_ms:.2f} ms; projected to {PROJECTED_CORES} cores "
+                 f"(Amdahl's law on the parallel path's 1-thread and multi-worker times): cull+sort "
+                 f"{result.projected['total']:.1f} ms")
     return lines
 
 
@@ -484,7 +498,10 @@ def format_report(results: SortResults) -> str:
         "- Scenes: generated in memory, uniform in a cube of side 2, scales about half the mean spacing, "
         "opacity 0.1..0.9, SH degree 0; p_min 1/255, depth key unless said.",
         f"- Medians of {results.options.repeat} runs, worker counts interleaved. keys: what computing the keys "
-        "adds to the cull pass. distance turning: a turn in place reuses the last distance order (no sort).",
+        "adds to the cull pass. distance turning: a turn in place reuses the last distance order (no sort). "
+        "1 worker is the single-threaded path (one global argsort); from 2 workers on, large sorts take the "
+        "parallel bucket sort, whose time on one thread is the '2 on one thread' row; the projection fits "
+        "serial + parallel / cores to that row and the multi-worker ones.",
         "", "## Times (ms)", "",
         "| N | workers | cull | keys | sort | cull+sort | speed-up | distance | distance turning | upload |",
         "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|",
@@ -495,6 +512,10 @@ def format_report(results: SortResults) -> str:
             lines.append(f"| {count_label(scene.count)} | {w} | {t.cull:.1f} | {t.keys:.1f} | {t.sort:.1f} | "
                          f"{t.total:.1f} | {single / t.total:.2f} | {t.distance:.1f} | {t.distance_turn:.1f} | "
                          f"{scene.upload_ms:.2f} |")
+        t = scene.one_thread
+        lines.append(f"| {count_label(scene.count)} | 2 on one thread | {t.cull:.1f} | {t.keys:.1f} | "
+                     f"{t.sort:.1f} | {t.total:.1f} | {single / t.total:.2f} | {t.distance:.1f} | "
+                     f"{t.distance_turn:.1f} | |")
         lines.append(f"| {count_label(scene.count)} | {PROJECTED_CORES} (projected) | | | | "
                      f"{scene.projected['total']:.1f} | {single / scene.projected['total']:.2f} | "
                      f"{scene.projected['distance']:.1f} | {scene.projected['distance_turn']:.1f} | |")

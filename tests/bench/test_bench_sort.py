@@ -96,7 +96,7 @@ def test_a_tiny_run_times_every_worker_count_and_measures_every_order(gl_ctx, mo
         results = bench_sort.run_sort(options, gl_ctx, out=out)
     [scene] = results.scenes
     assert set(scene.timings) == {1, 2} and scene.timings[1].visible == 3000
-    for timing in scene.timings.values():
+    for timing in (*scene.timings.values(), scene.one_thread):
         assert timing.total > 0 and timing.sort > 0 and timing.distance_turn > 0 and timing.keys >= 0
     assert scene.upload_ms > 0
     rows = {(r.sweep, r.mode, r.cores) for r in scene.freshness}
@@ -109,7 +109,7 @@ def test_a_tiny_run_times_every_worker_count_and_measures_every_order(gl_ctx, mo
     assert ladder.psnr_vs_fresh < 60  # four frames of a 90 deg/s turn change the image
     assert all(math.isnan(r.loss_db) for r in scene.freshness if r.mode == "per-pixel")
     report = bench_sort.format_report(results)
-    assert "\ncull+sort@3k " in report and "speed-up@3k " in report and "1db-age@3k/turn/depth" in report
+    assert "| 3k | 2 on one thread |" in report and "\ncull+sort@3k " in report and "speed-up@3k " in report and "1db-age@3k/turn/depth" in report
 
 
 def test_options_and_recorded_command():
