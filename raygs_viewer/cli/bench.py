@@ -1,4 +1,4 @@
-"""``raygs-viewer bench accuracy|stereo|perf|order``: their options, the command line each run
+"""``raygs-viewer bench accuracy|stereo|perf|order|sort``: their options, the command line each run
 records (so that the report says how to reproduce it), the options handed to the
 benchmark (everything that can be checked is, before any work) and the dispatch.
 """
@@ -12,6 +12,7 @@ from pathlib import Path
 
 from raygs_viewer.bench import accuracy, accuracy_report, perf
 from raygs_viewer.bench import order as order_bench
+from raygs_viewer.bench import sort as sort_bench
 from raygs_viewer.bench import stereo as stereo_bench
 from raygs_viewer.bench.common import DEMO, shared_scene_paths, write_report
 from raygs_viewer.camera import stereo as camera_stereo
@@ -24,17 +25,20 @@ def add_parser(commands) -> None:
     """Adds ``bench`` and its subcommands to the CLI's subparsers."""
     bench = commands.add_parser("bench", help="benchmarks (accuracy against time; stereo sharing error and "
                                               "frame budget; per-stage frame times and cost ratios; "
-                                              "order modes and popping)")
+                                              "order modes and popping; CPU cull and sort at millions, "
+                                              "and the order's freshness in motion)")
     kinds = bench.add_subparsers(dest="bench", required=True, parser_class=type(bench))
     _add_accuracy_parser(kinds)
     _add_stereo_parser(kinds)
     _add_perf_parser(kinds)
     _add_order_parser(kinds)
+    _add_sort_parser(kinds)
 
 
 def command(args: argparse.Namespace, ctx=None) -> int:
     """Runs ``bench <kind>``. ``ctx``: a GL context to use instead of a new one (tests)."""
-    runs = {"accuracy": _run_accuracy, "stereo": _run_stereo, "perf": _run_perf, "order": _run_order}
+    runs = {"accuracy": _run_accuracy, "stereo": _run_stereo, "perf": _run_perf, "order": _run_order,
+            "sort": _run_sort}
     if args.bench not in runs:
         raise UserError(f"unknown benchmark '{args.bench}'")
     return runs[args.bench](args, ctx)
@@ -373,3 +377,54 @@ def _run_order(args: argparse.Namespace, ctx) -> int:
     _print_notes(options.notes)
     results = order_bench.run_order(options, ctx)
     return _show_report(order_bench.format_report(results), options.out, options.overwrite)
+
+
+# --- sort ----------------------------------------------------------------------------------------
+
+#: The options of a recorded ``bench sort`` command, in their order there.
+SORT_FLAGS = ("--quick", "--counts", "--repeat", "--no-freshness", "--out", "--gl-backend", "--overwrite")
+
+
+def _add_sort_parser(kinds) -> None:
+    full = ", ".join(sort_bench.count_label(n) for n in sort_bench.COUNTS)
+    parser = kinds.add_parser(
+        "sort", help="CPU cull and sort of generated scenes of 100k to 6M gaussians, and the drawn order's "
+                     "freshness while turning and flying",
+        description=f"For generated scenes of {full} gaussians (made in memory), seen whole: the cull, keys, "
+                    f"sort and upload times with 1 worker, 2 and every core (medians, interleaved), the "
+                    f"speed-up over one worker and 'cull+sort@N' lines; then, with those latencies and the "
+                    f"projection to {sort_bench.PROJECTED_CORES} cores, a turn of "
+                    f"{sort_bench.TURN_DEGREES_PER_S:g} deg/s and a flight of {sort_bench.FLY_RADII_PER_S:g} "
+                    f"scene radii/s at {sort_bench.FPS:g} fps drawn with the order the window would hold: the "
+                    f"error against the up-to-date order for the depth, distance and per-pixel orders.")
+    parser.add_argument("--quick", action="store_true",
+                        help=f"stop at {sort_bench.count_label(sort_bench.QUICK_COUNTS[-1])}, "
+                             f"{sort_bench.QUICK_REPEAT} runs, {len(sort_bench.QUICK_SAMPLE_TIMES)} rendered "
+                             f"frames per motion")
+    parser.add_argument("--counts", nargs="+", type=argtypes.whole_number(1, 100_000_000), metavar="N",
+                        help=f"scene sizes (default {full}; --quick stops at "
+                             f"{sort_bench.count_label(sort_bench.QUICK_COUNTS[-1])})")
+    parser.add_argument("--repeat", type=argtypes.whole_number(1, 1000), metavar="N",
+                        help=f"timed runs per worker count (default {sort_bench.DEFAULT_REPEAT}, --quick "
+                             f"{sort_bench.QUICK_REPEAT})")
+    parser.add_argument("--no-freshness", action="store_true", help="times only: no rendered motion")
+    parser.add_argument("--out", metavar="PATH.md", help="also write the markdown report there")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
+    argtypes.add_backend_option(parser)
+
+
+def sort_options(args: argparse.Namespace) -> sort_bench.SortOptions:
+    return sort_bench.SortOptions(
+        counts=tuple(dict.fromkeys(args.counts or (sort_bench.QUICK_COUNTS if args.quick else sort_bench.COUNTS))),
+        repeat=args.repeat or (sort_bench.QUICK_REPEAT if args.quick else sort_bench.DEFAULT_REPEAT),
+        sample_times=sort_bench.QUICK_SAMPLE_TIMES if args.quick else sort_bench.SAMPLE_TIMES,
+        ladder_frames=sort_bench.QUICK_LADDER_FRAMES if args.quick else sort_bench.LADDER_FRAMES,
+        freshness=not args.no_freshness,
+        command_line=recorded_command("sort", args, SORT_FLAGS), gl_backend=args.gl_backend)
+
+
+def _run_sort(args: argparse.Namespace, ctx) -> int:
+    options = sort_options(args)
+    out = _report_path(args.out, args.overwrite)
+    results = sort_bench.run_sort(options, ctx)
+    return _show_report(sort_bench.format_report(results), out, args.overwrite)

@@ -29,7 +29,8 @@ __all__ = ["BackgroundSorter", "SortResult", "Sorter"]
 
 class Sorter(Protocol):
     """What :class:`BackgroundSorter` runs: :class:`raygs_viewer.sort.depth.DepthSorter` or a test double.
-    ``orders`` returns {key: (M,) back-to-front indices} for each of ``keys``."""
+    ``orders`` returns {key: (M,) back-to-front indices} for each of ``keys``. A ``close()``
+    method, where the sorter has one, is called when the worker exits."""
 
     def orders(self, camera: Camera, p_min: float, *, dilation: float | None = 0.0,
                cull_cameras: tuple[Camera, ...] | None = None,
@@ -51,6 +52,9 @@ class SortResult:
     cull_cameras: the cameras it culled for (None: ``camera``'s own view; stereo: both eyes).
     orders:  {key: order} for every key asked ("depth", "distance"); all hold the same
              gaussians (one cull), each sorted by its key. ``orders[keys[0]] is order``.
+    requested_at, finished_at: ``time.perf_counter()`` when the request was queued and
+             when its sort finished: the drawn order's age is ``perf_counter() - requested_at``
+             (it shows the view as it was then), its latency ``finished_at - requested_at``.
     """
 
     order: np.ndarray
@@ -61,6 +65,8 @@ class SortResult:
     dilation: float | None = 0.0
     cull_cameras: tuple[Camera, ...] | None = None
     orders: Mapping[str, np.ndarray] = field(default_factory=dict)
+    requested_at: float = 0.0
+    finished_at: float = 0.0
 
     @property
     def keys(self) -> tuple[str, ...]:
@@ -79,6 +85,7 @@ class _Request:
     dilation: float | None
     cull_cameras: tuple[Camera, ...] | None
     keys: tuple[str, ...]
+    requested_at: float
 
 
 def _dilation(value: float | None) -> float | None:
@@ -172,7 +179,7 @@ class BackgroundSorter:
                 self.superseded += 1
             cull = None if cull_cameras is None else tuple(_snapshot(c) for c in cull_cameras)
             self._pending = _Request(self.requested, _snapshot(camera), float(p_min), _dilation(dilation), cull,
-                                     keys)
+                                     keys, time.perf_counter())
             self._last_key = key
             self._cond.notify_all()
             return self.requested
@@ -197,11 +204,19 @@ class BackgroundSorter:
 
     def close(self) -> None:
         """Stops the worker and drops a queued request. Returns at once even while a
-        sort runs: the daemon thread finishes that sort, publishes it, and exits."""
+        sort runs: the daemon thread finishes that sort, publishes it, closes the sorter
+        (its ``close()``, if it has one: a :class:`DepthSorter`'s thread pool) and exits;
+        :meth:`join` waits for that."""
         with self._cond:
             self._closed = True
             self._pending = None
             self._cond.notify_all()
+
+    def join(self, timeout: float | None = None) -> bool:
+        """Waits until the worker has exited after :meth:`close` (and closed the sorter);
+        True when it has."""
+        self._thread.join(timeout)
+        return not self._thread.is_alive()
 
     @property
     def closed(self) -> bool:
@@ -216,6 +231,14 @@ class BackgroundSorter:
     # ------------------------------------------------------------------ worker
 
     def _run(self) -> None:
+        try:
+            self._serve()
+        finally:
+            close = getattr(self._sorter, "close", None)
+            if close is not None:
+                close()
+
+    def _serve(self) -> None:
         while True:
             with self._cond:
                 self._cond.wait_for(lambda: self._pending is not None or self._closed)
@@ -235,8 +258,10 @@ class BackgroundSorter:
                     self._answered = max(self._answered, request.serial)
                     self._cond.notify_all()
                 continue
+            finished = time.perf_counter()
             result = SortResult(orders[request.keys[0]], request.serial, request.camera, request.p_min,
-                                time.perf_counter() - begin, request.dilation, request.cull_cameras, orders)
+                                finished - begin, request.dilation, request.cull_cameras, orders,
+                                request.requested_at, finished)
             with self._cond:
                 self._latest = result
                 self.finished += 1

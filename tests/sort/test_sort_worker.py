@@ -338,3 +338,17 @@ def test_the_real_sorter_culls_once_and_sorts_each_key_asked():
                 np.testing.assert_array_equal(result.order_for(key), sorter.order(camera, P_MIN, key=key))
             np.testing.assert_array_equal(result.order, result.order_for(keys[0]))
         assert not np.array_equal(result.order_for("depth"), result.order_for("distance"))
+
+
+def test_a_result_says_when_it_was_requested_and_when_it_finished(fake, worker):
+    """The panel shows the drawn order's age from these (perf_counter times)."""
+    import time
+    before = time.perf_counter()
+    serial = worker.request(view(1), P_MIN)
+    fake.wait_entered()
+    assert worker.request(view(1), P_MIN) == serial  # a repeat is the same request, of the same time
+    sorting = time.perf_counter()
+    fake.allow()
+    result = worker.wait(serial, timeout=DEADLOCK)
+    assert before <= result.requested_at <= sorting <= result.finished_at <= time.perf_counter()
+    assert result.seconds <= result.finished_at - result.requested_at
