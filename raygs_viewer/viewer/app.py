@@ -208,7 +208,7 @@ class Viewer:
         imgui.render()
 
         orders, serial = self.stats.order_to_draw(result, sort_key(camera, p_min, dilation, cull_cameras, keys),
-                                                  self.frame_index)
+                                                  self.frame_index, camera)
         self.drawer.draw(self.renderer, camera, settings, right, stereo, orders, serial, self.stats, self.panel)
         self.drawer.mono.present(self.ctx.screen, (width, height), self.viewport, self.split.column(self.viewport[2]))
         if self.capture_window_next:

@@ -29,6 +29,12 @@ class FrameStats:
     post_seconds: float = float("nan")    # stereo: lens preview and layout
     visible: int = 0
     order_age: int = 0          # frames since the drawn order's view was current; 0: up to date
+    #: How stale the drawn order is (all 0 while it is up to date): milliseconds since its
+    #: view was asked for, and how far the camera has turned (degrees) and moved (scene
+    #: units) since that view.
+    order_age_ms: float = 0.0
+    order_turned_degrees: float = 0.0
+    order_moved: float = 0.0
     drawn_serial: int = 0       # sort request whose order the last draw used
     draws: int = 0              # frames that re-rendered the scene (others reused the image)
     frames_with_sort_running: int = 0  # frames completed while a sort was in progress
@@ -68,12 +74,15 @@ class FrameStats:
         """Frame ``frame_index`` asked for sort request ``serial``."""
         self.request_frames.setdefault(serial, frame_index)
 
-    def order_to_draw(self, result, asked: tuple, frame_index: int) -> tuple[Mapping[str, np.ndarray], int]:
+    def order_to_draw(self, result, asked: tuple, frame_index: int, camera: Camera | None = None,
+                      now: float | None = None) -> tuple[Mapping[str, np.ndarray], int]:
         """({sort key: order}, sort request serial) frame ``frame_index`` draws: the
         newest finished sort ``result`` (a sort.worker result; None: no orders, serial 0),
-        noting its age, its time and what it keeps visible. ``asked``: this frame's
-        :func:`sort_key`, which an up-to-date result matches (a result for other sort
-        keys is not up to date)."""
+        noting its age (frames; and, against this frame's ``camera`` at ``now``, a
+        perf_counter time, milliseconds, degrees turned and distance moved), its time
+        and what it keeps visible. ``asked``: this frame's :func:`sort_key`, which an
+        up-to-date result matches (a result for other sort keys is not up to date)."""
+        self.order_age_ms = self.order_turned_degrees = self.order_moved = 0.0
         if result is None:
             self.order_age = frame_index - min(self.request_frames.values(), default=frame_index)
             return {}, 0
@@ -82,11 +91,32 @@ class FrameStats:
         current = sort_key(result.camera, result.p_min, result.dilation, result.cull_cameras,
                            result.keys) == asked
         self.order_age = 0 if current else frame_index - self.request_frames.get(result.serial, frame_index)
+        if not current:
+            now = time.perf_counter() if now is None else now
+            self.order_age_ms = max(0.0, 1000.0 * (now - result.requested_at))
+            if camera is not None:
+                self.order_turned_degrees = turned_degrees(result.camera.R, camera.R)
+                self.order_moved = float(np.linalg.norm(camera.center - result.camera.center))
         if result.serial != self.drawn_serial:
             self.all_sort_times.append(result.seconds)
         self.sort_seconds = result.seconds
         self.visible = int(result.order.size)
         return result.orders, result.serial
+
+
+def turned_degrees(before: np.ndarray, after: np.ndarray) -> float:
+    """The angle (degrees) of the rotation taking the (3, 3) orientation ``before`` to ``after``."""
+    cosine = (np.trace(after @ before.T) - 1.0) / 2.0
+    return float(np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0))))
+
+
+def order_freshness(stats: FrameStats) -> str:
+    """How old the drawn order is, in words: "up to date", or frames, milliseconds and
+    how far the camera has turned and moved since its view."""
+    if stats.order_age == 0:
+        return "up to date"
+    return (f"{stats.order_age} frames old ({stats.order_age_ms:.0f} ms, turned {stats.order_turned_degrees:.1f}°, "
+            f"moved {stats.order_moved:.3g})")
 
 
 def sort_key(camera: Camera, p_min: float, dilation: float | None, cull_cameras,

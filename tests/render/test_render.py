@@ -12,6 +12,7 @@ from testkit import (
 )
 
 from raygs_viewer.camera.pinhole import Camera, frame_points, look_at
+from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.sort.depth import DepthSorter
@@ -219,3 +220,11 @@ def test_osmesa_renders_the_same_image_as_egl(tmp_path):
         images[backend] = np.load(out)
     assert images["egl"][..., 3].max() > 0.5
     np.testing.assert_array_equal(images["osmesa"], images["egl"])
+
+
+def test_release_closes_the_sorters_thread_pool(gl_ctx):
+    scene = random_scene(50, seed=2)
+    renderer = GLRenderer(gl_ctx, scene)
+    renderer.sort(frame_points(scene.positions, 64, 48), RenderSettings())
+    renderer.release()
+    assert renderer.sorter.closed

@@ -279,6 +279,7 @@ class GLRenderer:
         self.per_pixel.release()
         self.variants.release()
         self.storage.release()
+        self.sorter.close()  # its thread pool; a later sort runs on the calling thread
 
 
 def gs_ray_bounds(camera: Camera) -> tuple[float, float, float, float]:

@@ -8,7 +8,7 @@ from imgui_bundle import imgui
 from raygs_viewer.render.gl.renderer import WorkCounters
 from raygs_viewer.sort.worker import BackgroundSorter
 from raygs_viewer.viewer.panel.widgets import ms, tooltip
-from raygs_viewer.viewer.stats import FrameStats
+from raygs_viewer.viewer.stats import FrameStats, order_freshness
 
 
 def draw_statistics(stats: FrameStats, scene_count: int, sorter: BackgroundSorter, work: WorkCounters,
@@ -21,9 +21,12 @@ def draw_statistics(stats: FrameStats, scene_count: int, sorter: BackgroundSorte
     tooltip("GPU: preprocessing + draw of the last redraw (timer queries; both sides in the split view,\n"
             "both eyes in the stereo preview).\n"
             "sort: the last sort (one cull, then a sort by each order key shown), on a background thread")
-    age = "up to date" if stats.order_age == 0 else f"{stats.order_age} frames old"
-    imgui.text(f"visible {stats.visible:,} of {scene_count:,}, order {age}")
-    tooltip(f"sorts: {sorter.requested} asked, {sorter.finished} done, {sorter.superseded} skipped "
+    imgui.text(f"visible {stats.visible:,} of {scene_count:,}")
+    tooltip(f"the gaussians the last cull kept, of the scene's {scene_count:,}")
+    imgui.text(f"order {order_freshness(stats)}")
+    tooltip("the drawn order's age: frames and milliseconds since the view it was sorted for, and how far\n"
+            "the camera has turned and moved (scene units) since; a fresher order blends more rightly\n"
+            f"sorts: {sorter.requested} asked, {sorter.finished} done, {sorter.superseded} skipped "
             f"(superseded by a newer view before they started)\n"
             f"{'general' if general else 'specialised'} shaders: "
             + ("one variant switches every feature at run time (--general)" if general else

@@ -1,0 +1,97 @@
+"""The drawn order's freshness in the panel: its age in frames and milliseconds, and how
+far the camera has turned and moved since the view it was sorted for."""
+
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import replace
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+from appkit import headless, window_image
+from imgui_bundle import imgui  # before glfw (see raygs_viewer.viewer.window)
+from testkit import assert_matches
+
+from raygs_viewer.camera.pinhole import look_at
+from raygs_viewer.sort.worker import BackgroundSorter
+from raygs_viewer.viewer.stats import (
+    FrameStats,
+    order_freshness,
+    sort_key,
+    turned_degrees,
+)
+
+
+def _turned(camera, degrees):
+    angle = math.radians(degrees)
+    c, s = math.cos(angle), math.sin(angle)
+    R = np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]]) @ camera.R
+    return replace(camera, R=R, t=-R @ camera.center)
+
+
+def _result(camera, requested_at):
+    return SimpleNamespace(camera=camera, p_min=0.01, dilation=0.0, cull_cameras=None, keys=("depth",), serial=1,
+                           seconds=0.01, order=np.arange(5, dtype=np.uint32), orders={"depth": np.arange(5)},
+                           requested_at=requested_at)
+
+
+def test_turned_degrees_is_the_rotation_angle():
+    camera = look_at((0.0, 0.0, -3.0), (0.0, 0.0, 0.0))
+    for degrees in (0.0, 0.5, 30.0, 179.0):
+        assert turned_degrees(camera.R, _turned(camera, degrees).R) == pytest.approx(degrees, abs=1e-6)
+
+
+def test_a_stale_order_reports_its_age_turn_and_move():
+    sorted_for = look_at((0.0, 0.0, -3.0), (0.0, 0.0, 0.0))
+    now = replace(_turned(sorted_for, 12.0))
+    now = replace(now, t=now.t - now.R @ np.array([0.0, 0.3, 0.4]))  # and moved 0.5 units
+    stats = FrameStats()
+    stats.asked(1, 3)
+    result = _result(sorted_for, requested_at=100.0)
+    stats.order_to_draw(result, sort_key(now, 0.01, 0.0, None), 7, now, now=100.25)
+    assert stats.order_age == 4 and stats.order_age_ms == pytest.approx(250.0)
+    assert stats.order_turned_degrees == pytest.approx(12.0) and stats.order_moved == pytest.approx(0.5)
+    assert order_freshness(stats) == "4 frames old (250 ms, turned 12.0°, moved 0.5)"
+    # Up to date: the same view asked again.
+    stats.order_to_draw(result, sort_key(sorted_for, 0.01, 0.0, None), 8, sorted_for, now=101.0)
+    assert (stats.order_age, stats.order_age_ms, stats.order_turned_degrees, stats.order_moved) == (0, 0, 0, 0)
+    assert order_freshness(stats) == "up to date"
+
+
+class HeldSorter:
+    """Sorts the first view at once, then holds every later sort until released."""
+
+    def __init__(self, sorter):
+        self.sorter, self.calls, self.release = sorter, 0, threading.Event()
+
+    def orders(self, *args, **kwargs):
+        self.calls += 1
+        if self.calls > 1:
+            self.release.wait()
+        return self.sorter.orders(*args, **kwargs)
+
+
+def test_the_window_measures_how_far_the_camera_went_while_a_sort_ran(open_viewer):
+    held = []
+
+    def factory(sorter):
+        held.append(HeldSorter(sorter))
+        return BackgroundSorter(held[-1])
+
+    viewer, drive = open_viewer(hide_panel=True, sorter_factory=factory)
+    drive.settle()
+    sorted_for = viewer.sorter.latest().camera
+    drive.key(imgui.Key.w, True)
+    drive.frames(6)
+    drive.key(imgui.Key.w, False)
+    drive.frames(1)
+    stats = viewer.stats
+    assert stats.order_age >= 6 and stats.order_age_ms > 0
+    assert stats.order_moved == pytest.approx(np.linalg.norm(viewer.camera.center - sorted_for.center), rel=1e-9)
+    assert stats.order_moved > 0 and stats.order_turned_degrees == pytest.approx(0.0, abs=1e-6)  # flew straight
+    held[-1].release.set()
+    drive.settle()
+    assert viewer.stats.order_age == 0 and viewer.stats.order_moved == 0.0
+    assert_matches(window_image(viewer), headless(viewer))
