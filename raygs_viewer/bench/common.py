@@ -113,6 +113,14 @@ def printer(out: TextIO | None = None) -> Callable[..., None]:
     return say
 
 
+def count_label(count: int) -> str:
+    """3_000_000 -> "3M", 100_000 -> "100k", 1_500_000 -> "1.5M", 512 -> "512"."""
+    for unit, suffix in ((1_000_000, "M"), (1_000, "k")):
+        if count >= unit:
+            return f"{count / unit:g}{suffix}"
+    return str(count)
+
+
 def run_date() -> str:
     """Now, local time, as the reports print it: "2026-11-24 01:14 UTC"."""
     return datetime.datetime.now().astimezone().strftime("%Y-%m-%d %H:%M %Z")

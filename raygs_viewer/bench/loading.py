@@ -24,6 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
+from raygs_viewer.bench.common import count_label
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.model import sh_coefficient_count
 
@@ -167,14 +168,6 @@ def measure_generated_loads(counts: Iterable[int], sh_degree: int = 3, folder: s
             finally:
                 path.unlink()
     return rows
-
-
-def count_label(count: int) -> str:
-    """3_000_000 -> "3M", 100_000 -> "100k", 1_500_000 -> "1.5M", 512 -> "512"."""
-    for unit, suffix in ((1_000_000, "M"), (1_000, "k")):
-        if count >= unit:
-            return f"{count / unit:g}{suffix}"
-    return str(count)
 
 
 def format_load_lines(rows: Iterable[tuple[int, LoadFigures]]) -> list[str]:

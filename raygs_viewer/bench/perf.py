@@ -41,6 +41,7 @@ from typing import TextIO
 import numpy as np
 
 from raygs_viewer.bench.common import (
+    count_label,
     gl_context,
     load_scenes,
     median,
@@ -83,14 +84,6 @@ DEFAULT_PLOT = "docs/images/performance.png"
 
 
 # --- cases ----------------------------------------------------------------------------------------
-
-def count_label(count: int) -> str:
-    if count >= 1_000_000 and count % 1_000_000 == 0:
-        return f"{count // 1_000_000}M"
-    if count >= 1000 and count % 1000 == 0:
-        return f"{count // 1000}k"
-    return str(count)
-
 
 def generated_scene(count: int, size: str, seed: int = 0) -> Scene:
     """``count`` gaussians filling a cube of side 2 at the origin, every one in view of

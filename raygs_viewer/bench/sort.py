@@ -33,7 +33,8 @@ from typing import Callable, TextIO
 import numpy as np
 
 from raygs_viewer.bench import common
-from raygs_viewer.bench.perf import count_label
+from raygs_viewer.bench.common import count_label
+from raygs_viewer.bench.loading import LoadFigures, format_load_lines, measure_generated_loads
 from raygs_viewer.camera.pinhole import Camera, look_at
 from raygs_viewer.render.gl.context import context_description
 from raygs_viewer.render.gl.renderer import GLRenderer
@@ -59,6 +60,8 @@ LADDER_FRAMES = (1, 2, 4, 8, 16)
 QUICK_LADDER_FRAMES = (1, 2, 8)
 PROJECTED_CORES = 16
 WITHIN_DB = 1.0
+#: Loads are measured for the scene sizes from this one up (1M, 3M, 6M by default).
+LOAD_MIN = 1_000_000
 P_MIN = RenderSettings().p_min
 SWEEPS = ("turn", "fly")
 #: The orders whose freshness is measured: settings, and the sort key whose latency applies.
@@ -83,6 +86,7 @@ class SortOptions:
     sample_times: tuple[float, ...] = QUICK_SAMPLE_TIMES
     ladder_frames: tuple[int, ...] = QUICK_LADDER_FRAMES
     freshness: bool = True
+    loads: bool = True                   # load time and peak memory of SH-3 PLYs of the counts >= LOAD_MIN
     command_line: str = "raygs-viewer bench sort"
     gl_backend: str | None = None
 
@@ -379,6 +383,7 @@ class SortResults:
     date: str
     seconds: float
     view: str
+    loads: list[tuple[int, LoadFigures]] = field(default_factory=list)  # (count, figures)
 
 
 def latencies(result: SceneResult, mode: str, sweep: str, ladder_frames: tuple[int, ...]) -> list[tuple[str, float]]:
@@ -423,9 +428,14 @@ def run_sort(options: SortOptions, ctx=None, out: TextIO | None = None) -> SortR
                 _freshness(ctx, scene, result, options, say)
             results.append(result)
             del scene, order
+    loads = []
+    if options.loads:
+        loads = measure_generated_loads([n for n in options.counts if n >= LOAD_MIN], log=say)
+        for line in format_load_lines(loads):
+            say(line)
     seconds = time.perf_counter() - started
     say(f"bench sort: done in {seconds:.0f} s")
-    return SortResults(results, machine, os.cpu_count() or 1, options, common.run_date(), seconds, view)
+    return SortResults(results, machine, os.cpu_count() or 1, options, common.run_date(), seconds, view, loads)
 
 
 def _freshness(ctx, scene: Scene, result: SceneResult, options: SortOptions, say) -> None:
@@ -535,6 +545,13 @@ def format_report(results: SortResults) -> str:
                   f"from the rows above; the age is at least the latency plus up to a frame, and up to twice the "
                   f"latency):", ""]
         lines += [f"- {line}" for line in crossing_lines(results)]
+    if results.loads:
+        lines += ["", "## Loading", "",
+                  "A generated INRIA PLY (SH degree 3, 62 float32 properties per gaussian) loaded by `load_scene` "
+                  "in a fresh process; peak: the resident memory the load added at its high-water mark.", "",
+                  "| N | file MiB | load s | peak MiB | peak / file |", "|---:|---:|---:|---:|---:|"]
+        lines += [f"| {count_label(n)} | {f.file_bytes / (1 << 20):.0f} | {f.seconds:.2f} | "
+                  f"{f.peak_bytes / (1 << 20):.0f} | {f.peak_ratio:.2f} |" for n, f in results.loads]
     lines += ["", "## Summary", "", *summary_lines(results)]
     return "\n".join(lines) + "\n"
 
@@ -552,7 +569,8 @@ def crossing_lines(results: SortResults) -> list[str]:
 
 
 def summary_lines(results: SortResults) -> list[str]:
-    """``cull+sort@N`` on every core, then the same per worker count and the speed-up."""
+    """``cull+sort@N`` on every core, then the same per worker count and the speed-up,
+    then ``load@N`` per measured load."""
     lines = [summary_line(s.count, s.timings[max(s.timings)].total) for s in results.scenes]
     for scene in results.scenes:
         label = count_label(scene.count)
@@ -560,4 +578,4 @@ def summary_lines(results: SortResults) -> list[str]:
             lines.append(f"cull+sort-{w}-workers@{label} {t.total:.1f} ms")
         lines.append(f"cull+sort-{PROJECTED_CORES}-cores-projected@{label} {scene.projected['total']:.1f} ms")
         lines.append(f"speed-up@{label} {scene.timings[1].total / scene.timings[max(scene.timings)].total:.2f}")
-    return lines
+    return lines + format_load_lines(results.loads)

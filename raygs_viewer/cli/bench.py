@@ -382,7 +382,8 @@ def _run_order(args: argparse.Namespace, ctx) -> int:
 # --- sort ----------------------------------------------------------------------------------------
 
 #: The options of a recorded ``bench sort`` command, in their order there.
-SORT_FLAGS = ("--quick", "--counts", "--repeat", "--no-freshness", "--out", "--gl-backend", "--overwrite")
+SORT_FLAGS = ("--quick", "--counts", "--repeat", "--no-freshness", "--no-load", "--out", "--gl-backend",
+              "--overwrite")
 
 
 def _add_sort_parser(kinds) -> None:
@@ -408,6 +409,10 @@ def _add_sort_parser(kinds) -> None:
                         help=f"timed runs per worker count (default {sort_bench.DEFAULT_REPEAT}, --quick "
                              f"{sort_bench.QUICK_REPEAT})")
     parser.add_argument("--no-freshness", action="store_true", help="times only: no rendered motion")
+    parser.add_argument("--no-load", action="store_true",
+                        help=f"no load measurements (by default each size from "
+                             f"{sort_bench.count_label(sort_bench.LOAD_MIN)} up is written as an SH-3 PLY to a "
+                             f"temporary folder, loaded in a fresh process and deleted)")
     parser.add_argument("--out", metavar="PATH.md", help="also write the markdown report there")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
     argtypes.add_backend_option(parser)
@@ -419,7 +424,7 @@ def sort_options(args: argparse.Namespace) -> sort_bench.SortOptions:
         repeat=args.repeat or (sort_bench.QUICK_REPEAT if args.quick else sort_bench.DEFAULT_REPEAT),
         sample_times=sort_bench.QUICK_SAMPLE_TIMES if args.quick else sort_bench.SAMPLE_TIMES,
         ladder_frames=sort_bench.QUICK_LADDER_FRAMES if args.quick else sort_bench.LADDER_FRAMES,
-        freshness=not args.no_freshness,
+        freshness=not args.no_freshness, loads=not args.no_load,
         command_line=recorded_command("sort", args, SORT_FLAGS), gl_backend=args.gl_backend)
 
 

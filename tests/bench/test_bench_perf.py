@@ -68,7 +68,7 @@ def test_at_resolution_keeps_the_vertical_field_of_view():
     assert np.array_equal(wide.R, camera.R) and np.array_equal(wide.t, camera.t)
 
 
-@pytest.mark.parametrize("count, expected", [(10_000, "10k"), (1_000_000, "1M"), (2_500, "2500"), (7, "7")])
+@pytest.mark.parametrize("count, expected", [(10_000, "10k"), (1_000_000, "1M"), (2_500, "2.5k"), (7, "7")])
 def test_count_labels(count, expected):
     assert bench_perf.count_label(count) == expected
 

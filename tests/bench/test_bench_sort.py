@@ -91,10 +91,15 @@ def test_summary_lines_read_like_the_issue():
 def test_a_tiny_run_times_every_worker_count_and_measures_every_order(gl_ctx, monkeypatch):
     monkeypatch.setattr(bench_sort, "RENDER_SIZE", (40, 30))
     monkeypatch.setattr(bench_sort, "worker_counts", lambda: (1, 2))
-    options = bench_sort.SortOptions(counts=(3000,), repeat=2, sample_times=(0.1,), ladder_frames=(4,))
+    monkeypatch.setattr(bench_sort, "LOAD_MIN", 2000)  # loads measured from 2k up: this run's 3k
+    options = bench_sort.SortOptions(counts=(1000, 3000), repeat=2, sample_times=(0.1,), ladder_frames=(4,))
     with open("/dev/null", "w") as out:
         results = bench_sort.run_sort(options, gl_ctx, out=out)
-    [scene] = results.scenes
+    small, scene = results.scenes
+    assert small.count == 1000
+    [(count, load)] = results.loads
+    assert count == 3000 and load.seconds > 0 and load.peak_bytes > 0
+    assert 3000 * 62 * 4 < load.file_bytes < 3000 * 62 * 4 + 4096  # the rows and a header
     assert set(scene.timings) == {1, 2} and scene.timings[1].visible == 3000
     for timing in (*scene.timings.values(), scene.one_thread):
         assert timing.total > 0 and timing.sort > 0 and timing.distance_turn > 0 and timing.keys >= 0
@@ -109,6 +114,7 @@ def test_a_tiny_run_times_every_worker_count_and_measures_every_order(gl_ctx, mo
     assert ladder.psnr_vs_fresh < 60  # four frames of a 90 deg/s turn change the image
     assert all(math.isnan(r.loss_db) for r in scene.freshness if r.mode == "per-pixel")
     report = bench_sort.format_report(results)
+    assert "## Loading" in report and "\nload@3k " in report
     assert "| 3k | 2 on one thread |" in report and "\ncull+sort@3k " in report and "speed-up@3k " in report and "1db-age@3k/turn/depth" in report
 
 
