@@ -46,7 +46,10 @@ void main() {
         opacity *= sqrt(shrink.x * shrink.y * shrink.z * ray_metric / dot(ray * ray, 1.0 / s2_hat));
     }
     // t* (section 11) with this pixel's filtered scales, along the unit ray.
-    float t_star = dot(ray * v_local_center, 1.0 / s2_hat) / dot(ray * ray, 1.0 / s2_hat);
+    float t_star = 0.0;
+#if PER_PIXEL
+    t_star = dot(ray * v_local_center, 1.0 / s2_hat) / dot(ray * ray, 1.0 / s2_hat);
+#endif
     emit_at(v_color_opacity.rgb, opacity * exp(-0.5 * divergence), t_star);
 #else
     // t* (section 11) along the unit ray: the whitened quad point y satisfies y.w = c^2

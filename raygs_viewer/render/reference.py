@@ -117,7 +117,6 @@ def _render(scene: Scene, camera: Camera, settings: RenderSettings, order, sampl
     rendered = camera if samples == 1 else camera.resized(samples * width, samples * height)
     gaussians = _Gaussians.of(scene, order, camera)
     model = _MODELS[settings.mode](gaussians, rendered, settings)
-    model.scene_index = order
 
     # Bands of whole output rows, so each band's block mean is complete. Per-pixel order
     # holds every fragment of a band at once: smaller bands.
@@ -126,7 +125,7 @@ def _render(scene: Scene, camera: Camera, settings: RenderSettings, order, sampl
     rows_per_band = max(1, band_samples // (samples * samples * width))
     for top in range(0, height, rows_per_band):
         bottom = min(height, top + rows_per_band)
-        band = _composite(model, gaussians.colors, rendered, settings, top * samples, bottom * samples)
+        band = _composite(model, gaussians.colors, rendered, settings, top * samples, bottom * samples, order)
         if samples > 1:
             band = band.reshape(bottom - top, samples, width, samples, 4).mean(axis=(1, 3))
         image[top:bottom] = band
@@ -169,8 +168,9 @@ def _band_rays(camera: Camera, top: int, bottom: int) -> np.ndarray:
 
 
 def _composite(model, colors: np.ndarray, camera: Camera, settings: RenderSettings,
-               top: int, bottom: int) -> np.ndarray:
-    """(bottom - top, W, 4) RGBA of rows top..bottom-1 of ``camera``'s image."""
+               top: int, bottom: int, scene_index: np.ndarray) -> np.ndarray:
+    """(bottom - top, W, 4) RGBA of rows top..bottom-1 of ``camera``'s image;
+    ``scene_index``: each ordered gaussian's index in the scene (per-pixel ties)."""
     rays = _band_rays(camera, top, bottom)
     # Only gaussians whose pixel box meets the band.
     boxes = model.boxes
@@ -191,7 +191,7 @@ def _composite(model, colors: np.ndarray, camera: Camera, settings: RenderSettin
 
     band = np.zeros((bottom - top, camera.width, 4))
     if settings.per_pixel:
-        return _composite_per_pixel(model, colors, rays, boxes, meets, settings, top, bottom)
+        return _composite_per_pixel(model, colors, rays, boxes, meets, settings, top, bottom, scene_index)
     if not settings.transmittance_cutoff:
         # Back to front, "over" blending of premultiplied fragments, as the GL path does.
         band[..., :3] = settings.background
@@ -221,7 +221,7 @@ def _composite(model, colors: np.ndarray, camera: Camera, settings: RenderSettin
 
 
 def _composite_per_pixel(model, colors: np.ndarray, rays: np.ndarray, boxes: np.ndarray, meets: np.ndarray,
-                         settings: RenderSettings, top: int, bottom: int) -> np.ndarray:
+                         settings: RenderSettings, top: int, bottom: int, scene_index: np.ndarray) -> np.ndarray:
     """(bottom - top, W, 4): the band composited per pixel by t* (exactly, or through the
     settings' window), from every fragment with alpha > 0."""
     height, width = bottom - top, rays.shape[1]
@@ -239,7 +239,7 @@ def _composite_per_pixel(model, colors: np.ndarray, rays: np.ndarray, boxes: np.
             continue
         count = rows.size
         parts.append(((rows + (r0 - top)) * width + columns[c0:c1][cols], key[rows, cols],
-                      np.full(count, model.scene_index[i], np.int64), np.full(count, i, np.int64),
+                      np.full(count, scene_index[i], np.int64), np.full(count, i, np.int64),
                       alpha[rows, cols], np.broadcast_to(colors[i], (count, 3))))
     cutoff = TRANSMITTANCE_CUTOFF if settings.transmittance_cutoff else None
     image = composite_per_pixel(Fragments.concatenate(parts), height * width, settings.background,
