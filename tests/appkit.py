@@ -3,6 +3,7 @@ window holds and shows. The ``open_viewer`` fixture (conftest.py) opens viewers 
 
 from __future__ import annotations
 
+import threading
 import time
 
 import numpy as np
@@ -159,6 +160,36 @@ def open_viewer_factory(tmp_path):
             viewer.close()
 
     return open_, close_all
+
+
+class GatedSorter:
+    """Wraps a DepthSorter: the first ``free`` sorts run at once, every later one waits
+    until ``release`` is set; ``inside`` is set once a sort has reached the gate."""
+
+    def __init__(self, sorter, free: int = 0):
+        self.sorter, self.free = sorter, free
+        self.release = threading.Event()
+        self.inside = threading.Event()
+
+    def orders(self, *args, **kwargs):
+        if self.free > 0:
+            self.free -= 1
+        else:
+            self.inside.set()
+            assert self.release.wait(timeout=60)
+        return self.sorter.orders(*args, **kwargs)
+
+
+def gated_viewer(open_viewer, free: int = 0, **options):
+    """(viewer, driver, gate): a viewer whose background sorter runs a GatedSorter."""
+    gates = []
+
+    def factory(sorter):
+        gates.append(GatedSorter(sorter, free))
+        return BackgroundSorter(gates[-1])
+
+    viewer, drive = open_viewer(sorter_factory=factory, **options)
+    return viewer, drive, gates[-1]
 
 
 class RecordingSorter(BackgroundSorter):

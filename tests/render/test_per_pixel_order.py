@@ -190,16 +190,21 @@ def _patched_glsl(monkeypatch, name, old, new):
     monkeypatch.setattr(shaders, "_read", patched)
 
 
+def _lists_image(ctx, scene):
+    """The exact per-pixel image of ``scene`` through the lists, with the shaders as patched."""
+    renderer = GLRenderer(ctx, scene, order_path="lists")
+    try:
+        return renderer.render(CAMERA, EXACT)
+    finally:
+        renderer.release()
+
+
 def test_a_reversed_t_star_fails(gl_session_ctx, monkeypatch):
     scene = needles()
     reference = render_reference(scene, CAMERA, EXACT)
     _patched_glsl(monkeypatch, "raygs.frag", "v_color_opacity.a * exp(-0.5 * divergence), t_star)",
                   "v_color_opacity.a * exp(-0.5 * divergence), -t_star)")
-    renderer = GLRenderer(gl_session_ctx, scene, order_path="lists")
-    try:
-        assert_differs(renderer.render(CAMERA, EXACT), reference)
-    finally:
-        renderer.release()
+    assert_differs(_lists_image(gl_session_ctx, scene), reference)
 
 
 def test_a_dropped_fragment_is_reported_and_would_fail(gl_session_ctx, monkeypatch):
@@ -208,20 +213,12 @@ def test_a_dropped_fragment_is_reported_and_would_fail(gl_session_ctx, monkeypat
     # The fill pass loses each list's first fragment: the resolve's check reports it.
     _patched_glsl(monkeypatch, "composite.glsl", "if (!in_part(p)) return;",
                   "if (!in_part(p) || v_rank == 3u) return;")
-    renderer = GLRenderer(gl_session_ctx, scene, order_path="lists")
-    try:
-        with pytest.raises(RuntimeError, match="left short"):
-            renderer.render(CAMERA, EXACT)
-    finally:
-        renderer.release()
+    with pytest.raises(RuntimeError, match="left short"):
+        _lists_image(gl_session_ctx, scene)
     # Without the check, the image would be wrong.
     _patched_glsl(monkeypatch, "lists_resolve.comp", "if (cursors[i] != start + n) atomicAdd(status[1], 1u);",
                   "n = cursors[i] - start;")
-    renderer = GLRenderer(gl_session_ctx, scene, order_path="lists")
-    try:
-        assert_differs(renderer.render(CAMERA, EXACT), reference)
-    finally:
-        renderer.release()
+    assert_differs(_lists_image(gl_session_ctx, scene), reference)
 
 
 @pytest.mark.parametrize("k", [0, 2])

@@ -442,39 +442,17 @@ def test_still_window_runs_no_passes(open_viewer):
     assert _work(viewer) == work
 
 
-class _GatedSorter:
-    """Wraps a DepthSorter; every sort waits until ``gate`` is set."""
-
-    def __init__(self, sorter):
-        self.sorter = sorter
-        self.gate = threading.Event()
-        self.inside = threading.Event()
-
-    def orders(self, camera, p_min, *, dilation=0.0, cull_cameras=None, keys=("depth",)):
-        self.inside.set()
-        assert self.gate.wait(timeout=60)
-        return self.sorter.orders(camera, p_min, dilation=dilation, cull_cameras=cull_cameras, keys=keys)
-
-
 def test_new_order_for_the_drawn_view_uploads_without_preprocessing(open_viewer):
-    from appkit import window_image
+    from appkit import gated_viewer, window_image
 
-    from raygs_viewer.sort.worker import BackgroundSorter
-
-    gates = []
-
-    def factory(sorter):
-        gates.append(_GatedSorter(sorter))
-        return BackgroundSorter(gates[-1])
-
-    viewer, drive = open_viewer(hide_panel=True, sorter_factory=factory)
+    viewer, drive, gate = gated_viewer(open_viewer, hide_panel=True)
     drive.frames(1)
-    assert gates[-1].inside.wait(timeout=30)  # the first sort runs, held at the gate
+    assert gate.inside.wait(timeout=30)  # the first sort runs, held at the gate
     drive.frames(2)
     work = _work(viewer)
     assert viewer.sorter.finished == 0 and viewer.stats.visible == 0
     assert work["preprocessed"] == 1 and work["uploads"] == 0  # the view drawn, with no order yet
-    gates[-1].gate.set()
+    gate.release.set()
     result = viewer.sorter.wait(viewer.sorter.requested, timeout=30)
     assert result is not None
     drive.frames(1)

@@ -6,7 +6,6 @@ from __future__ import annotations
 
 import json
 import math
-import threading
 from dataclasses import replace
 
 import numpy as np
@@ -18,6 +17,7 @@ from appkit import (
     WIDTH,
     RecordingSorter,
     click_choice,
+    gated_viewer,
     headless,
     presented,
     project,
@@ -32,7 +32,6 @@ from testkit import assert_differs, assert_matches
 from raygs_viewer.capture.image_io import to_rgb8
 from raygs_viewer.render.settings import RenderSettings, apply_preset
 from raygs_viewer.scene.loader import load_now
-from raygs_viewer.sort.worker import BackgroundSorter
 from raygs_viewer.viewer.app import Viewer
 from raygs_viewer.viewer.state import NavigationChoices, ViewerOptions
 
@@ -582,29 +581,8 @@ def test_good_file_opened_replaces_the_scene(open_viewer, tmp_path, route):
 
 
 # -- the sort never makes a frame wait ----------------------------------------------------------
-class BlockingSorter:
-    """Wraps a DepthSorter; every sort waits for ``release`` (set by the test)."""
-
-    def __init__(self, sorter):
-        self.sorter = sorter
-        self.release = threading.Event()
-        self.inside = threading.Event()
-
-    def orders(self, camera, p_min, *, dilation=0.0, cull_cameras=None, keys=("depth",)):
-        self.inside.set()
-        self.release.wait()
-        return self.sorter.orders(camera, p_min, dilation=dilation, cull_cameras=cull_cameras, keys=keys)
-
-
 def test_frames_never_wait_for_the_sort(open_viewer):
-    blocking = []
-
-    def factory(sorter):
-        blocking.append(BlockingSorter(sorter))
-        return BackgroundSorter(blocking[-1])
-
-    viewer, drive = open_viewer(hide_panel=True, sorter_factory=factory)
-    gate = blocking[-1]
+    viewer, drive, gate = gated_viewer(open_viewer, hide_panel=True)
     drive.frames(1)
     assert gate.inside.wait(timeout=30)  # the first sort is running, and stays blocked
     drive.key(imgui.Key.w, True)

@@ -4,18 +4,16 @@ far the camera has turned and moved since the view it was sorted for."""
 from __future__ import annotations
 
 import math
-import threading
 from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
 import pytest
-from appkit import headless, window_image
+from appkit import gated_viewer, headless, window_image
 from imgui_bundle import imgui  # before glfw (see raygs_viewer.viewer.window)
 from testkit import assert_matches
 
 from raygs_viewer.camera.pinhole import look_at
-from raygs_viewer.sort.worker import BackgroundSorter
 from raygs_viewer.viewer.stats import (
     FrameStats,
     order_freshness,
@@ -60,27 +58,8 @@ def test_a_stale_order_reports_its_age_turn_and_move():
     assert order_freshness(stats) == "up to date"
 
 
-class HeldSorter:
-    """Sorts the first view at once, then holds every later sort until released."""
-
-    def __init__(self, sorter):
-        self.sorter, self.calls, self.release = sorter, 0, threading.Event()
-
-    def orders(self, *args, **kwargs):
-        self.calls += 1
-        if self.calls > 1:
-            self.release.wait()
-        return self.sorter.orders(*args, **kwargs)
-
-
 def test_the_window_measures_how_far_the_camera_went_while_a_sort_ran(open_viewer):
-    held = []
-
-    def factory(sorter):
-        held.append(HeldSorter(sorter))
-        return BackgroundSorter(held[-1])
-
-    viewer, drive = open_viewer(hide_panel=True, sorter_factory=factory)
+    viewer, drive, gate = gated_viewer(open_viewer, free=1, hide_panel=True)  # the first view sorts at once
     drive.settle()
     sorted_for = viewer.sorter.latest().camera
     drive.key(imgui.Key.w, True)
@@ -91,7 +70,7 @@ def test_the_window_measures_how_far_the_camera_went_while_a_sort_ran(open_viewe
     assert stats.order_age >= 6 and stats.order_age_ms > 0
     assert stats.order_moved == pytest.approx(np.linalg.norm(viewer.camera.center - sorted_for.center), rel=1e-9)
     assert stats.order_moved > 0 and stats.order_turned_degrees == pytest.approx(0.0, abs=1e-6)  # flew straight
-    held[-1].release.set()
+    gate.release.set()
     drive.settle()
     assert viewer.stats.order_age == 0 and viewer.stats.order_moved == 0.0
     assert_matches(window_image(viewer), headless(viewer))
