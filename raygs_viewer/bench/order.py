@@ -33,7 +33,7 @@ from typing import TextIO
 import numpy as np
 
 from raygs_viewer.bench import common
-from raygs_viewer.bench.views import close_view, training_view
+from raygs_viewer.bench.views import close_view, flown, training_view, turned
 from raygs_viewer.camera.navigation import scene_bounds
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.render import reference
@@ -123,20 +123,11 @@ def sweep_cameras(start: Camera, sweep: str, frames: int, radius: float) -> list
     """``frames`` cameras from ``start``: "turn" rotates about the camera's own vertical
     axis by TURN_DEGREES a frame, its centre fixed; "fly" moves the centre forward along
     the optical axis by FLY_FRACTION * ``radius`` a frame."""
-    cameras = []
-    for frame in range(frames):
-        if sweep == "turn":
-            angle = math.radians(TURN_DEGREES * frame)
-            c, s = math.cos(angle), math.sin(angle)
-            turn = np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]])
-            R = turn @ start.R
-            cameras.append(replace(start, R=R, t=-R @ start.center))
-        elif sweep == "fly":
-            centre = start.center + start.R[2] * (FLY_FRACTION * radius * frame)
-            cameras.append(replace(start, t=-start.R @ centre))
-        else:
-            raise ValueError(f"unknown sweep {sweep!r}")
-    return cameras
+    if sweep == "turn":
+        return [turned(start, TURN_DEGREES * frame) for frame in range(frames)]
+    if sweep == "fly":
+        return [flown(start, FLY_FRACTION * radius * frame) for frame in range(frames)]
+    raise ValueError(f"unknown sweep {sweep!r}")
 
 
 def popping(errors: list[np.ndarray]) -> float:

@@ -34,7 +34,12 @@ import numpy as np
 
 from raygs_viewer.bench import common
 from raygs_viewer.bench.common import count_label
-from raygs_viewer.bench.loading import LoadFigures, format_load_lines, measure_generated_loads
+from raygs_viewer.bench.loading import (
+    LoadFigures,
+    format_load_lines,
+    measure_generated_loads,
+)
+from raygs_viewer.bench.views import flown, turned
 from raygs_viewer.camera.pinhole import Camera, look_at
 from raygs_viewer.render.gl.context import context_description
 from raygs_viewer.render.gl.renderer import GLRenderer
@@ -125,13 +130,9 @@ def moved(start: Camera, sweep: str, seconds: float) -> Camera:
     """``start`` after ``seconds`` of the motion: "turn" about its own vertical axis at
     TURN_DEGREES_PER_S (its centre fixed), "fly" forward at FLY_RADII_PER_S scene radii a second."""
     if sweep == "turn":
-        angle = math.radians(TURN_DEGREES_PER_S * seconds)
-        c, s = math.cos(angle), math.sin(angle)
-        R = np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]]) @ start.R
-        return replace(start, R=R, t=-R @ start.center)
+        return turned(start, TURN_DEGREES_PER_S * seconds)
     if sweep == "fly":
-        centre = start.center + start.R[2] * (FLY_RADII_PER_S * SCENE_RADIUS * seconds)
-        return replace(start, t=-start.R @ centre)
+        return flown(start, FLY_RADII_PER_S * SCENE_RADIUS * seconds)
     raise ValueError(f"unknown sweep {sweep!r}")
 
 

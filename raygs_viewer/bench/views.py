@@ -58,6 +58,19 @@ def moved_to(camera: Camera, eye: np.ndarray) -> Camera:
     return replace(camera, t=-camera.R @ np.asarray(eye, dtype=np.float64))
 
 
+def turned(camera: Camera, degrees: float) -> Camera:
+    """``camera`` turned in place about its own vertical axis (its centre and intrinsics kept)."""
+    angle = math.radians(degrees)
+    c, s = math.cos(angle), math.sin(angle)
+    R = np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]]) @ camera.R
+    return replace(camera, R=R, t=-R @ camera.center)
+
+
+def flown(camera: Camera, distance: float) -> Camera:
+    """``camera`` moved ``distance`` forward along its optical axis."""
+    return moved_to(camera, camera.center + camera.R[2] * distance)
+
+
 def training_view(camera: Camera, width: int) -> Camera:
     """The training-like view: a training camera at the benchmark width (aspect kept)."""
     return with_width(camera, width)

@@ -3,7 +3,6 @@ far the camera has turned and moved since the view it was sorted for."""
 
 from __future__ import annotations
 
-import math
 from dataclasses import replace
 from types import SimpleNamespace
 
@@ -13,6 +12,7 @@ from appkit import gated_viewer, headless, window_image
 from imgui_bundle import imgui  # before glfw (see raygs_viewer.viewer.window)
 from testkit import assert_matches
 
+from raygs_viewer.bench.views import turned
 from raygs_viewer.camera.pinhole import look_at
 from raygs_viewer.viewer.stats import (
     FrameStats,
@@ -20,13 +20,6 @@ from raygs_viewer.viewer.stats import (
     sort_key,
     turned_degrees,
 )
-
-
-def _turned(camera, degrees):
-    angle = math.radians(degrees)
-    c, s = math.cos(angle), math.sin(angle)
-    R = np.array([[c, 0.0, -s], [0.0, 1.0, 0.0], [s, 0.0, c]]) @ camera.R
-    return replace(camera, R=R, t=-R @ camera.center)
 
 
 def _result(camera, requested_at):
@@ -38,12 +31,12 @@ def _result(camera, requested_at):
 def test_turned_degrees_is_the_rotation_angle():
     camera = look_at((0.0, 0.0, -3.0), (0.0, 0.0, 0.0))
     for degrees in (0.0, 0.5, 30.0, 179.0):
-        assert turned_degrees(camera.R, _turned(camera, degrees).R) == pytest.approx(degrees, abs=1e-6)
+        assert turned_degrees(camera.R, turned(camera, degrees).R) == pytest.approx(degrees, abs=1e-6)
 
 
 def test_a_stale_order_reports_its_age_turn_and_move():
     sorted_for = look_at((0.0, 0.0, -3.0), (0.0, 0.0, 0.0))
-    now = replace(_turned(sorted_for, 12.0))
+    now = replace(turned(sorted_for, 12.0))
     now = replace(now, t=now.t - now.R @ np.array([0.0, 0.3, 0.4]))  # and moved 0.5 units
     stats = FrameStats()
     stats.asked(1, 3)
