@@ -5,7 +5,7 @@ the render settings (:class:`RenderSettings`) and the stereo rig and view.
 from __future__ import annotations
 
 import argparse
-from dataclasses import fields
+from dataclasses import fields, replace
 
 from raygs_viewer.camera.lens_model import DEFAULT_LENS
 from raygs_viewer.camera.stereo import (
@@ -114,6 +114,18 @@ def render_settings(args) -> RenderSettings:
     return RenderSettings(p_min=DEFAULT_P_MIN if args.p_min is None else args.p_min,
                           background=DEFAULT_BACKGROUND if args.background is None else args.background,
                           sh_degree=args.sh_degree, **accuracy_settings(args))
+
+
+def settings_with_options(base: RenderSettings, args) -> RenderSettings:
+    """``base`` (e.g. what a path file recorded) with the settings options that were
+    given put over it, with the same implications as :func:`accuracy_settings`."""
+    given = {name: getattr(args, name) for name in ("p_min", "background", "sh_degree", *ACCURACY_FIELDS)
+             if getattr(args, name) is not None}
+    if args.mip is None and (args.mip_sigma2 is not None or args.mip_modulation is not None):
+        given["mip"] = True
+    if args.order is None and args.order_k is not None:
+        given["order"] = "per-pixel"
+    return replace(base, **given)
 
 
 # --- stereo -------------------------------------------------------------------------------------------
