@@ -176,8 +176,11 @@ class Mp4Sink(FrameSink):
             stream.options = {"crf": str(CRF), "preset": PRESET,
                               "x264-params": "colorprim=bt709:transfer=bt709:colormatrix=bt709:range=tv"}
             self._stream = stream
-        except BaseException:
+        except BaseException as exc:
+            self._closed = True
             self._discard()
+            if isinstance(exc, av.error.FFmpegError):  # e.g. an FFmpeg build without libx264
+                raise UserError(f"{path}: cannot start the H.264 encoder: {exc}") from None
             raise
 
     def _write(self, frame: np.ndarray) -> None:
