@@ -27,9 +27,17 @@ def encode_image(image: np.ndarray, suffix: str) -> bytes:
     if suffix == ".npy":
         np.save(buffer, np.ascontiguousarray(image, dtype=np.float32))
     elif suffix == ".png":
-        Image.fromarray(to_rgb8(image), "RGB").save(buffer, format="PNG")
+        return encode_png(to_rgb8(image))
     else:
         raise UserError(f"unsupported image type '{suffix}' (use {' or '.join(IMAGE_SUFFIXES)})")
+    return buffer.getvalue()
+
+
+def encode_png(rgb8: np.ndarray) -> bytes:
+    """(H, W, 3) uint8 -> PNG bytes: what every saved PNG (screenshots, ``render``,
+    video frame folders) goes through, so equal pixels give equal files."""
+    buffer = io.BytesIO()
+    Image.fromarray(rgb8, "RGB").save(buffer, format="PNG")
     return buffer.getvalue()
 
 
@@ -54,17 +62,13 @@ def write_atomically(path: str | Path, data: bytes, overwrite: bool = False) -> 
     replaced, even one that appears while writing."""
     path = Path(path)
     try:
-        handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
+        handle, temporary = temporary_beside(path)
         try:
-            os.fchmod(handle, 0o666 & ~_umask())  # mkstemp makes 0600; a saved image is an ordinary file
             with os.fdopen(handle, "wb") as stream:
                 stream.write(data)
                 stream.flush()
                 os.fsync(stream.fileno())
-            if overwrite:
-                os.replace(temporary, path)
-            else:
-                _move_without_replacing(temporary, path)
+            move_into_place(temporary, path, overwrite)
         except BaseException:
             if os.path.exists(temporary):
                 os.unlink(temporary)
@@ -73,6 +77,29 @@ def write_atomically(path: str | Path, data: bytes, overwrite: bool = False) -> 
         raise UserError(f"{path}: already exists (pass --overwrite to replace it)") from None
     except OSError as exc:
         raise UserError(f"{path}: cannot write: {exc.strerror or exc}") from None
+
+
+def temporary_beside(path: Path) -> tuple[int, str]:
+    """(open descriptor, name) of a new hidden ``.NAME.*.partial`` file in ``path``'s
+    folder, with an ordinary file's permissions; OSError if the folder refuses it."""
+    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
+    try:
+        os.fchmod(handle, 0o666 & ~_umask())  # mkstemp makes 0600; a saved file is an ordinary file
+    except BaseException:
+        os.close(handle)
+        os.unlink(temporary)
+        raise
+    return handle, temporary
+
+
+def move_into_place(temporary: str, path: Path, overwrite: bool) -> None:
+    """Renames a finished ``temporary`` (from :func:`temporary_beside`) to ``path``:
+    replacing it only with ``overwrite``; without, FileExistsError if ``path`` exists,
+    even one that appeared while writing."""
+    if overwrite:
+        os.replace(temporary, path)
+    else:
+        _move_without_replacing(temporary, path)
 
 
 def _umask() -> int:

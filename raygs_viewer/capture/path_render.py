@@ -1,0 +1,96 @@
+"""Rendering a camera path's frames, each with its own exact sort, into a
+:class:`~raygs_viewer.capture.video.FrameSink`; and the frames' cameras as an INRIA
+``cameras.json``, from which ``render --camera`` reproduces any frame bit for bit.
+
+A frame's camera is *canonical*: the camera its ``cameras.json`` entry loads to
+(:func:`frame_camera_entries`). The path's own camera would differ from it in the
+last bits (the entry stores the centre and camera-to-world rotation, and loading
+re-orthonormalises), so rendering the path's camera would not equal ``render
+--camera`` of the written file. Re-canonicalising a canonical camera does not give it
+back either (measured: most frames move in the last bit again), so the file is written
+from the entries, never from cameras.
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from raygs_viewer.camera.path import CameraPath
+from raygs_viewer.camera.pinhole import Camera, camera_from_json, camera_to_json
+from raygs_viewer.camera.stereo import StereoView, composed_size
+from raygs_viewer.capture.image_io import check_output_path, to_rgb8, write_atomically
+from raygs_viewer.capture.progress import Progress
+from raygs_viewer.capture.screenshot import render_tiled
+from raygs_viewer.capture.video import FRAME_PREFIX, FrameSink
+from raygs_viewer.render.gl.stereo_frame import render_stereo_view
+from raygs_viewer.render.settings import RenderSettings
+
+if TYPE_CHECKING:
+    # Only for the annotations: importing the renderer pulls in moderngl.
+    from raygs_viewer.render.gl.renderer import GLRenderer
+
+
+def frame_camera_entries(path: CameraPath, width: int, height: int) -> list[dict]:
+    """One INRIA cameras.json entry per frame of ``path`` at ``width`` x ``height``:
+    ``id`` k, ``img_name`` ``frame_0000k`` (as the PNG folder names the frame)."""
+    digits = max(5, len(str(max(path.frame_count, 1) - 1)))
+    return [camera_to_json(camera, k, f"{FRAME_PREFIX}{k:0{digits}d}")
+            for k, camera in enumerate(path.cameras(width, height))]
+
+
+def cameras_of_entries(entries: list[dict]) -> list[Camera]:
+    """The cameras ``entries`` load to, exactly as ``render --camera`` loads them."""
+    # Through JSON text, as the file goes: a float's repr round-trips, and this keeps
+    # any value JSON would change (a tuple, a numpy scalar) from passing unnoticed.
+    return [camera_from_json(entry, f"frame {k}") for k, entry in enumerate(json.loads(json.dumps(entries)))]
+
+
+def frame_cameras(path: CameraPath, width: int, height: int) -> list[Camera]:
+    """Each frame's camera, canonicalised through its cameras.json entry (module docstring)."""
+    return cameras_of_entries(frame_camera_entries(path, width, height))
+
+
+def write_cameras_json(entries: list[dict], file: str | Path, overwrite: bool = False) -> Path:
+    """Writes :func:`frame_camera_entries`' ``entries`` as an INRIA cameras.json,
+    atomically, never replacing a file without ``overwrite``. Entries, not cameras:
+    only they load back to the frames' cameras bit for bit (module docstring)."""
+    if any(isinstance(entry, Camera) for entry in entries):
+        raise TypeError("write_cameras_json takes frame_camera_entries(...), not cameras: "
+                        "a camera written again would not load back to itself bit for bit")
+    file = check_output_path(file, overwrite, suffixes=(".json",))
+    write_atomically(file, (json.dumps(entries, indent=1, allow_nan=False) + "\n").encode("utf-8"), overwrite)
+    return file
+
+
+def frame_size(width: int, height: int, stereo: StereoView | None) -> tuple[int, int]:
+    """The size of a frame of a ``width`` x ``height`` camera: twice as wide for a
+    side-by-side stereo layout. What the sink is opened with."""
+    return (width, height) if stereo is None else composed_size(width, height, stereo.layout)
+
+
+def render_frame(renderer: "GLRenderer", camera: Camera, settings: RenderSettings,
+                 stereo: StereoView | None) -> np.ndarray:
+    """(H, W, 4) float32, top row first: the image ``render`` makes of ``camera``, with
+    an exact sort of its own (a stereo frame composed per ``stereo.layout``)."""
+    if stereo is not None:
+        return render_stereo_view(renderer, camera, settings, stereo)[0]
+    return render_tiled(renderer, camera, settings)
+
+
+def render_frames(renderer: "GLRenderer", cameras: list[Camera], settings: RenderSettings,
+                  stereo: StereoView | None, sink: FrameSink, progress: Progress | None = None) -> int:
+    """Renders each camera (:func:`render_frame`), converts it to 8 bits as a PNG
+    screenshot is, and writes it to ``sink``; returns the frames written. A
+    KeyboardInterrupt propagates between or inside frames: the caller aborts the sink,
+    whose ``frames_written`` then says what it holds."""
+    written = 0
+    for camera in cameras:
+        sink.write(to_rgb8(render_frame(renderer, camera, settings, stereo)))
+        written += 1
+        if progress is not None:
+            progress.update(sink.frames_written)
+    return written
