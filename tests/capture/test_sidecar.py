@@ -144,8 +144,8 @@ def test_settings_fields_flow_in_automatically():
 
     data = demo_sidecar(settings=Extended(exposure=2.5))
     assert data["settings"]["exposure"] == 2.5
-    loaded = sidecar_module._load_settings(sidecar_module._Fields(Path("x.json"), json.loads(json.dumps(data))),
-                                           settings_type=Extended)
+    fields = sidecar_module.JsonFields(Path("x.json"), json.loads(json.dumps(data)))
+    loaded = sidecar_module.load_settings_entry(fields, settings_type=Extended)
     assert loaded == Extended(exposure=2.5) and loaded != Extended()
 
 
