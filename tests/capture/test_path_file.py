@@ -5,6 +5,7 @@ hash warning."""
 from __future__ import annotations
 
 import dataclasses
+import functools
 import hashlib
 import json
 import os
@@ -24,12 +25,12 @@ from raygs_viewer.camera.path import MAX_FRAMES, CameraPath, Interpolation, Keyf
 from raygs_viewer.camera.pinhole import camera_to_json
 from raygs_viewer.camera.rotation import quaternion_to_matrix
 from raygs_viewer.camera.stereo import PRESETS, StereoRig, StereoView
+from raygs_viewer.capture.nerfstudio import nerfstudio_json
 from raygs_viewer.capture.path_document import PathDocument
 from raygs_viewer.capture.path_file import (
     PATH_FORMAT,
     load_path_document,
     path_document_json,
-    read_path_json,
     save_path_document,
     scene_mismatch,
 )
@@ -415,17 +416,32 @@ def apply_edits(data, edits):
     return data
 
 
-@settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(_edits())
-def test_random_edits_only_ever_raise_user_error(edits):
-    data = apply_edits(valid_data(), edits)
+@functools.cache
+def _nerfstudio_text() -> str:
+    path = make_path(count=3)
+    path = dataclasses.replace(path, keyframes=tuple(dataclasses.replace(k, time=None) for k in path.keyframes),
+                               duration=0.5, fps=20.0)
+    return json.dumps(nerfstudio_json(PathDocument(path, 64, 48)))
+
+
+def valid_nerfstudio_data() -> dict:
+    return json.loads(_nerfstudio_text())
+
+
+@pytest.mark.parametrize("valid", [valid_data, valid_nerfstudio_data], ids=["raygs", "nerfstudio"])
+@settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(edits=_edits())
+def test_random_edits_only_ever_raise_user_error(tmp_path_factory, valid, edits):
+    """Of either format: a file read back is valid, anything else one line naming the file."""
+    file = tmp_path_factory.mktemp("fuzz") / "fuzz.json"
+    file.write_text(json.dumps(apply_edits(valid(), edits)))
     try:
-        doc = read_path_json(data, Path("fuzz.json"))
+        doc = load_path_document(file)
     except UserError as exc:
         message = str(exc)
         assert "\n" not in message and "fuzz.json" in message, message
     else:
-        assert len(doc.path.keyframes) >= 1 and 1 <= doc.width <= 16384
+        assert len(doc.path.keyframes) >= 1 and 1 <= doc.width <= 16384 and doc.path.frame_count >= 1
 
 
 # --------------------------------------------------------------------------- the scene
