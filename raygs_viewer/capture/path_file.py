@@ -82,6 +82,7 @@ from raygs_viewer.capture.sidecar import (
     json_key,
     load_settings_entry,
     load_stereo_entry,
+    read_version,
     scene_sha256,
     show_json,
     stereo_entry,
@@ -183,12 +184,7 @@ def read_path_json(data, file: Path) -> PathDocument:
         raise UserError(f"{file}: {what}; 'format' is {show_json(data['format'])}, "
                         f"expected {show_json(PATH_FORMAT)})")
     fields = JsonFields(file, data)
-    version = fields.get("version", int)
-    if version > PATH_VERSION:
-        raise UserError(f"{file}: camera path version {version} was written by a newer raygs-viewer "
-                        f"(this one reads version {PATH_VERSION}); update raygs-viewer")
-    if version < 1:
-        raise UserError(f"{file}: 'version' {version} is not a camera path version (expected {PATH_VERSION})")
+    read_version(fields, PATH_VERSION, "camera path")
     _check_keys(file, "", data, _TOP_REQUIRED, _TOP_OPTIONAL)
     _check_program(fields)
 

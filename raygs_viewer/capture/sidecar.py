@@ -205,12 +205,7 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
     if data["format"] != SIDECAR_FORMAT:
         raise UserError(f"{path}: not a raygs-viewer screenshot sidecar ('format' is "
                         f"{show_json(data.get('format'))}, expected {show_json(SIDECAR_FORMAT)})")
-    version = fields.get("version", int)
-    if version > SIDECAR_VERSION:
-        raise UserError(f"{path}: sidecar version {version} was written by a newer raygs-viewer "
-                        f"(this one reads version {SIDECAR_VERSION}); update raygs-viewer")
-    if version < 1:
-        raise UserError(f"{path}: 'version' {version} is not a sidecar version (expected {SIDECAR_VERSION})")
+    version = read_version(fields, SIDECAR_VERSION, "sidecar")
 
     scene = fields.get("scene", dict)
     scene_path = fields.get("scene.path", str)
@@ -246,6 +241,18 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
     if "extra" in data:
         fields.get("extra", dict)
     return Sidecar(path, scene_path, sha, camera, settings, scale, render_mode, data, stereo)
+
+
+def read_version(fields: JsonFields, newest: int, what: str) -> int:
+    """The file's "version": a whole number from 1 to ``newest``; ``what`` names the kind
+    of file in messages ("sidecar")."""
+    version = fields.get("version", int)
+    if version > newest:
+        raise UserError(f"{fields.path}: {what} version {version} was written by a newer raygs-viewer "
+                        f"(this one reads version {newest}); update raygs-viewer")
+    if version < 1:
+        raise UserError(f"{fields.path}: 'version' {version} is not a {what} version (expected {newest})")
+    return version
 
 
 class JsonFields:

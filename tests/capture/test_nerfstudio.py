@@ -10,12 +10,11 @@ import math
 
 import numpy as np
 import pytest
-from testkit import assert_user_error, listing
+from testkit import assert_user_error, listing, random_rotation
 
 import raygs_viewer.capture.nerfstudio as nerfstudio_module
 from raygs_viewer.camera.navigation import Pose
 from raygs_viewer.camera.path import CameraPath, Interpolation, Keyframe
-from raygs_viewer.camera.rotation import quaternion_to_matrix
 from raygs_viewer.capture.nerfstudio import (
     is_nerfstudio,
     nerfstudio_json,
@@ -60,9 +59,8 @@ def our_rays(camera):
 
 
 def random_c2w(rng, scale=2.0) -> list[float]:
-    q = rng.normal(size=4)
     matrix = np.eye(4)
-    matrix[:3, :3] = quaternion_to_matrix((q / np.linalg.norm(q))[None])[0]
+    matrix[:3, :3] = random_rotation(rng)
     matrix[:3, 3] = rng.normal(size=3) * scale
     return matrix.reshape(-1).tolist()
 
@@ -116,9 +114,7 @@ def make_path(loop=False, count=4, seed=11) -> CameraPath:
     rng = np.random.default_rng(seed)
     keys = []
     for _ in range(count):
-        q = rng.normal(size=4)
-        keys.append(Keyframe(Pose(rng.normal(size=3) * 2, quaternion_to_matrix((q / np.linalg.norm(q))[None])[0]),
-                             float(rng.uniform(30, 90))))
+        keys.append(Keyframe(Pose(rng.normal(size=3) * 2, random_rotation(rng)), float(rng.uniform(30, 90))))
     return CameraPath(tuple(keys), duration=1.3, fps=10.0, interpolation=Interpolation(tension=0.3, loop=loop))
 
 

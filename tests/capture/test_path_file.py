@@ -16,14 +16,22 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
-from testkit import SETTINGS, assert_user_error, demo_sidecar, listing
+from testkit import (
+    SETTINGS,
+    assert_user_error,
+    delete_field,
+    demo_sidecar,
+    listing,
+    random_rotation,
+    set_field,
+    write_case,
+)
 
 import raygs_viewer
 from raygs_viewer.camera.lens_model import LensModel
 from raygs_viewer.camera.navigation import Pose
 from raygs_viewer.camera.path import MAX_FRAMES, CameraPath, Interpolation, Keyframe
 from raygs_viewer.camera.pinhole import camera_to_json
-from raygs_viewer.camera.rotation import quaternion_to_matrix
 from raygs_viewer.camera.stereo import PRESETS, StereoRig, StereoView
 from raygs_viewer.capture.nerfstudio import nerfstudio_json
 from raygs_viewer.capture.path_document import PathDocument
@@ -44,8 +52,7 @@ SHA = hashlib.sha256(b"a scene").hexdigest()
 
 def random_pose(rng) -> Pose:
     """A pose with yaw, pitch and roll, at awkward float positions."""
-    q = rng.normal(size=4)
-    return Pose(rng.normal(size=3) * 3.7, quaternion_to_matrix((q / np.linalg.norm(q))[None])[0])
+    return Pose(rng.normal(size=3) * 3.7, random_rotation(rng))
 
 
 def make_path(loop=False, count=4, seed=7) -> CameraPath:
@@ -202,29 +209,6 @@ def test_save_refuses_what_load_would_refuse(tmp_path, changes, fragment):
 # --------------------------------------------------------------------------- malformed files
 
 
-def _set(dotted, value):
-    def mutate(data):
-        *parents, last = dotted.split(".")
-        target = data
-        for key in parents:
-            target = target[int(key)] if isinstance(target, list) else target[key]
-        if isinstance(target, list):
-            target[int(last)] = value
-        else:
-            target[last] = value
-    return mutate
-
-
-def _delete(dotted):
-    def mutate(data):
-        *parents, last = dotted.split(".")
-        target = data
-        for key in parents:
-            target = target[int(key)] if isinstance(target, list) else target[key]
-        del target[int(last) if isinstance(target, list) else last]
-    return mutate
-
-
 ROTATION = [[1.0, 0.0, 0.0], [0.0, 1.0, 0.0], [0.0, 0.0, 1.0]]
 MALFORMED = {
     # case: (mutation of a valid file's dict, or raw file text, or None for no file; fragment of the message)
@@ -234,95 +218,95 @@ MALFORMED = {
     "json_list": ("[]", "not a camera path file"),
     "cameras_json": (json.dumps([{"width": 4}]), "not a camera path file"),
     "sidecar": (json.dumps(demo_sidecar()), "'format' is \"raygs-viewer screenshot\""),
-    "no_format": (_delete("format"), "neither 'format' nor 'camera_path'"),
-    "format_number": (_set("format", 1), "'format' is 1"),
-    "newer_version": (_set("version", 2), "newer raygs-viewer"),
-    "version_zero": (_set("version", 0), "'version'"),
-    "version_string": (_set("version", "1"), "'version'"),
-    "version_missing": (_delete("version"), "missing 'version'"),
-    "unknown_top": (_set("camera", {}), "unknown field 'camera'"),
-    "unknown_top_newline": (_set("a\nb", 1), "unknown field 'a\\nb'"),
-    "program_list": (_set("program", []), "'program'"),
-    "program_unknown": (_set("program.build", "x"), "'program.build'"),
-    "program_version_number": (_set("program.version", 1), "'program.version'"),
-    "created_number": (_set("created", 5), "'created'"),
-    "scene_string": (_set("scene", "demo"), "'scene'"),
-    "scene_unknown": (_set("scene.filter_fused", False), "unknown field 'scene.filter_fused'"),
-    "scene_path_missing": (_delete("scene.path"), "missing 'scene.path'"),
-    "scene_path_relative": (_set("scene.path", "scene.ply"), "'scene.path'"),
-    "scene_path_number": (_set("scene.path", 3), "'scene.path'"),
-    "scene_sha_short": (_set("scene.sha256", "abc"), "'scene.sha256'"),
-    "scene_sha_missing": (_delete("scene.sha256"), "missing 'scene.sha256'"),
-    "scene_count_negative": (_set("scene.count", -1), "'scene.count'"),
-    "scene_count_float": (_set("scene.count", 1.5), "'scene.count'"),
-    "scene_sh_degree_four": (_set("scene.sh_degree", 4), "'scene.sh_degree'"),
-    "scene_relative_number": (_set("scene.relative_path", 2), "'scene.relative_path'"),
-    "image_missing": (_delete("image"), "missing 'image'"),
-    "image_list": (_set("image", [64, 48]), "'image'"),
-    "image_width_missing": (_delete("image.width"), "missing 'image.width'"),
-    "image_width_zero": (_set("image.width", 0), "'image.width'"),
-    "image_width_huge": (_set("image.width", 16385), "'image.width'"),
-    "image_width_float": (_set("image.width", 64.0), "'image.width'"),
-    "image_height_bool": (_set("image.height", True), "'image.height'"),
-    "image_unknown": (_set("image.scale", 2), "unknown field 'image.scale'"),
-    "settings_list": (_set("settings", [1]), "'settings'"),
-    "settings_unknown": (_set("settings.exposure", 2.0), "'settings.exposure'"),
-    "settings_p_min_string": (_set("settings.p_min", "0.1"), "'settings.p_min'"),
-    "settings_mode_unknown": (_set("settings.mode", "ewa"), "'settings'"),
-    "stereo_list": (_set("stereo", []), "'stereo'"),
-    "stereo_ipd_missing": (_delete("stereo.ipd"), "'stereo.ipd'"),
-    "stereo_layout_unknown": (_set("stereo.layout", "top-bottom"), "'stereo.layout'"),
-    "stereo_unknown": (_set("stereo.eye_relief", 1), "'stereo.eye_relief'"),
-    "path_missing": (_delete("path"), "missing 'path'"),
-    "path_list": (_set("path", []), "'path'"),
-    "path_unknown": (_set("path.speed", 1), "unknown field 'path.speed'"),
-    "duration_missing": (_delete("path.duration"), "missing 'path.duration'"),
-    "duration_zero": (_set("path.duration", 0), "'path.duration'"),
-    "duration_negative": (_set("path.duration", -1.0), "'path.duration'"),
-    "duration_nan": (_set("path.duration", float("nan")), "'path.duration'"),
-    "duration_huge": (_set("path.duration", 1e9), "'path.duration'"),
-    "duration_string": (_set("path.duration", "10"), "'path.duration'"),
-    "fps_missing": (_delete("path.fps"), "missing 'path.fps'"),
-    "fps_zero": (_set("path.fps", 0), "'path.fps'"),
-    "fps_huge": (_set("path.fps", 1000.0), "'path.fps'"),
-    "fps_inf": (_set("path.fps", float("inf")), "'path.fps'"),
+    "no_format": (delete_field("format"), "neither 'format' nor 'camera_path'"),
+    "format_number": (set_field("format", 1), "'format' is 1"),
+    "newer_version": (set_field("version", 2), "newer raygs-viewer"),
+    "version_zero": (set_field("version", 0), "'version'"),
+    "version_string": (set_field("version", "1"), "'version'"),
+    "version_missing": (delete_field("version"), "missing 'version'"),
+    "unknown_top": (set_field("camera", {}), "unknown field 'camera'"),
+    "unknown_top_newline": (set_field("a\nb", 1), "unknown field 'a\\nb'"),
+    "program_list": (set_field("program", []), "'program'"),
+    "program_unknown": (set_field("program.build", "x"), "'program.build'"),
+    "program_version_number": (set_field("program.version", 1), "'program.version'"),
+    "created_number": (set_field("created", 5), "'created'"),
+    "scene_string": (set_field("scene", "demo"), "'scene'"),
+    "scene_unknown": (set_field("scene.filter_fused", False), "unknown field 'scene.filter_fused'"),
+    "scene_path_missing": (delete_field("scene.path"), "missing 'scene.path'"),
+    "scene_path_relative": (set_field("scene.path", "scene.ply"), "'scene.path'"),
+    "scene_path_number": (set_field("scene.path", 3), "'scene.path'"),
+    "scene_sha_short": (set_field("scene.sha256", "abc"), "'scene.sha256'"),
+    "scene_sha_missing": (delete_field("scene.sha256"), "missing 'scene.sha256'"),
+    "scene_count_negative": (set_field("scene.count", -1), "'scene.count'"),
+    "scene_count_float": (set_field("scene.count", 1.5), "'scene.count'"),
+    "scene_sh_degree_four": (set_field("scene.sh_degree", 4), "'scene.sh_degree'"),
+    "scene_relative_number": (set_field("scene.relative_path", 2), "'scene.relative_path'"),
+    "image_missing": (delete_field("image"), "missing 'image'"),
+    "image_list": (set_field("image", [64, 48]), "'image'"),
+    "image_width_missing": (delete_field("image.width"), "missing 'image.width'"),
+    "image_width_zero": (set_field("image.width", 0), "'image.width'"),
+    "image_width_huge": (set_field("image.width", 16385), "'image.width'"),
+    "image_width_float": (set_field("image.width", 64.0), "'image.width'"),
+    "image_height_bool": (set_field("image.height", True), "'image.height'"),
+    "image_unknown": (set_field("image.scale", 2), "unknown field 'image.scale'"),
+    "settings_list": (set_field("settings", [1]), "'settings'"),
+    "settings_unknown": (set_field("settings.exposure", 2.0), "'settings.exposure'"),
+    "settings_p_min_string": (set_field("settings.p_min", "0.1"), "'settings.p_min'"),
+    "settings_mode_unknown": (set_field("settings.mode", "ewa"), "'settings'"),
+    "stereo_list": (set_field("stereo", []), "'stereo'"),
+    "stereo_ipd_missing": (delete_field("stereo.ipd"), "'stereo.ipd'"),
+    "stereo_layout_unknown": (set_field("stereo.layout", "top-bottom"), "'stereo.layout'"),
+    "stereo_unknown": (set_field("stereo.eye_relief", 1), "'stereo.eye_relief'"),
+    "path_missing": (delete_field("path"), "missing 'path'"),
+    "path_list": (set_field("path", []), "'path'"),
+    "path_unknown": (set_field("path.speed", 1), "unknown field 'path.speed'"),
+    "duration_missing": (delete_field("path.duration"), "missing 'path.duration'"),
+    "duration_zero": (set_field("path.duration", 0), "'path.duration'"),
+    "duration_negative": (set_field("path.duration", -1.0), "'path.duration'"),
+    "duration_nan": (set_field("path.duration", float("nan")), "'path.duration'"),
+    "duration_huge": (set_field("path.duration", 1e9), "'path.duration'"),
+    "duration_string": (set_field("path.duration", "10"), "'path.duration'"),
+    "fps_missing": (delete_field("path.fps"), "missing 'path.fps'"),
+    "fps_zero": (set_field("path.fps", 0), "'path.fps'"),
+    "fps_huge": (set_field("path.fps", 1000.0), "'path.fps'"),
+    "fps_inf": (set_field("path.fps", float("inf")), "'path.fps'"),
     "too_many_frames": (lambda d: d["path"].update(duration=80000.0, fps=240.0), f"at most {MAX_FRAMES}"),
-    "loop_number": (_set("path.loop", 1), "'path.loop'"),
-    "alpha_big": (_set("path.alpha", 1.5), "'path.alpha'"),
-    "tension_negative": (_set("path.tension", -0.1), "'path.tension'"),
-    "up_two": (_set("path.up", [0.0, 1.0]), "'path.up'"),
-    "up_long": (_set("path.up", [0.0, 2.0, 0.0]), "'path.up' must be a unit vector"),
-    "up_zero": (_set("path.up", [0.0, 0.0, 0.0]), "'path.up' must be a unit vector"),
-    "up_string": (_set("path.up", "-y"), "'path.up'"),
-    "keyframes_missing": (_delete("keyframes"), "missing 'keyframes'"),
-    "keyframes_object": (_set("keyframes", {}), "'keyframes'"),
-    "keyframes_empty": (_set("keyframes", []), "'keyframes' is empty"),
-    "keyframe_number": (_set("keyframes.1", 5), "'keyframes[1]' must be a JSON object"),
-    "keyframe_unknown": (_set("keyframes.2.roll", 0.0), "unknown field 'keyframes[2].roll'"),
-    "keyframe_position_missing": (_delete("keyframes.0.position"), "missing 'keyframes[0].position'"),
-    "keyframe_position_two": (_set("keyframes.0.position", [1.0, 2.0]), "'keyframes[0].position'"),
-    "keyframe_position_nan": (_set("keyframes.3.position", [1.0, float("nan"), 2.0]), "'keyframes[3].position'"),
-    "keyframe_position_bool": (_set("keyframes.3.position", [1.0, True, 2.0]), "'keyframes[3].position'"),
+    "loop_number": (set_field("path.loop", 1), "'path.loop'"),
+    "alpha_big": (set_field("path.alpha", 1.5), "'path.alpha'"),
+    "tension_negative": (set_field("path.tension", -0.1), "'path.tension'"),
+    "up_two": (set_field("path.up", [0.0, 1.0]), "'path.up'"),
+    "up_long": (set_field("path.up", [0.0, 2.0, 0.0]), "'path.up' must be a unit vector"),
+    "up_zero": (set_field("path.up", [0.0, 0.0, 0.0]), "'path.up' must be a unit vector"),
+    "up_string": (set_field("path.up", "-y"), "'path.up'"),
+    "keyframes_missing": (delete_field("keyframes"), "missing 'keyframes'"),
+    "keyframes_object": (set_field("keyframes", {}), "'keyframes'"),
+    "keyframes_empty": (set_field("keyframes", []), "'keyframes' is empty"),
+    "keyframe_number": (set_field("keyframes.1", 5), "'keyframes[1]' must be a JSON object"),
+    "keyframe_unknown": (set_field("keyframes.2.roll", 0.0), "unknown field 'keyframes[2].roll'"),
+    "keyframe_position_missing": (delete_field("keyframes.0.position"), "missing 'keyframes[0].position'"),
+    "keyframe_position_two": (set_field("keyframes.0.position", [1.0, 2.0]), "'keyframes[0].position'"),
+    "keyframe_position_nan": (set_field("keyframes.3.position", [1.0, float("nan"), 2.0]), "'keyframes[3].position'"),
+    "keyframe_position_bool": (set_field("keyframes.3.position", [1.0, True, 2.0]), "'keyframes[3].position'"),
     "keyframe_position_huge": ("__1e400__", "'keyframes[0].position'"),
-    "keyframe_rotation_missing": (_delete("keyframes.1.rotation"), "missing 'keyframes[1].rotation'"),
-    "keyframe_rotation_2x3": (_set("keyframes.1.rotation", ROTATION[:2]), "'keyframes[1].rotation'"),
-    "keyframe_rotation_scaled": (_set("keyframes.1.rotation", (2 * np.eye(3)).tolist()), "not a rotation"),
-    "keyframe_rotation_mirror": (_set("keyframes.1.rotation", np.diag([1.0, 1.0, -1.0]).tolist()), "not a rotation"),
-    "keyframe_rotation_sheared": (_set("keyframes.1.rotation", [[1, 0.01, 0], [0, 1, 0], [0, 0, 1]]),
+    "keyframe_rotation_missing": (delete_field("keyframes.1.rotation"), "missing 'keyframes[1].rotation'"),
+    "keyframe_rotation_2x3": (set_field("keyframes.1.rotation", ROTATION[:2]), "'keyframes[1].rotation'"),
+    "keyframe_rotation_scaled": (set_field("keyframes.1.rotation", (2 * np.eye(3)).tolist()), "not a rotation"),
+    "keyframe_rotation_mirror": (set_field("keyframes.1.rotation", np.diag([1.0, 1.0, -1.0]).tolist()), "not a rotation"),
+    "keyframe_rotation_sheared": (set_field("keyframes.1.rotation", [[1, 0.01, 0], [0, 1, 0], [0, 0, 1]]),
                                   "'keyframes[1].rotation' is not a rotation"),
-    "keyframe_rotation_huge": (_set("keyframes.1.rotation", (1e300 * np.eye(3)).tolist()), "not a rotation"),
-    "keyframe_fov_missing": (_delete("keyframes.2.fov"), "missing 'keyframes[2].fov'"),
-    "keyframe_fov_small": (_set("keyframes.2.fov", 0.5), "'keyframes[2].fov'"),
-    "keyframe_fov_180": (_set("keyframes.2.fov", 180), "'keyframes[2].fov'"),
-    "keyframe_fov_string": (_set("keyframes.2.fov", "60"), "'keyframes[2].fov'"),
-    "keyframe_time_negative": (_set("keyframes.0.time", -0.1), "'keyframes[0].time'"),
-    "keyframe_time_past_end": (_set("keyframes.2.time", 3.2), "'keyframes[2].time'"),
-    "keyframe_time_string": (_set("keyframes.2.time", "1"), "'keyframes[2].time'"),
-    "keyframe_times_backwards": (_set("keyframes.3.time", 1.0), "'keyframes[3].time' 1 is not after"),
-    "keyframe_times_equal": (_set("keyframes.3.time", 1.7), "'keyframes[3].time'"),
+    "keyframe_rotation_huge": (set_field("keyframes.1.rotation", (1e300 * np.eye(3)).tolist()), "not a rotation"),
+    "keyframe_fov_missing": (delete_field("keyframes.2.fov"), "missing 'keyframes[2].fov'"),
+    "keyframe_fov_small": (set_field("keyframes.2.fov", 0.5), "'keyframes[2].fov'"),
+    "keyframe_fov_180": (set_field("keyframes.2.fov", 180), "'keyframes[2].fov'"),
+    "keyframe_fov_string": (set_field("keyframes.2.fov", "60"), "'keyframes[2].fov'"),
+    "keyframe_time_negative": (set_field("keyframes.0.time", -0.1), "'keyframes[0].time'"),
+    "keyframe_time_past_end": (set_field("keyframes.2.time", 3.2), "'keyframes[2].time'"),
+    "keyframe_time_string": (set_field("keyframes.2.time", "1"), "'keyframes[2].time'"),
+    "keyframe_times_backwards": (set_field("keyframes.3.time", 1.0), "'keyframes[3].time' 1 is not after"),
+    "keyframe_times_equal": (set_field("keyframes.3.time", 1.7), "'keyframes[3].time'"),
     "loop_time_at_end": (lambda d: d["path"].update(loop=True) or d["keyframes"][3].update(time=3.1),
                          "'keyframes[3].time'"),
-    "extra_list": (_set("extra", []), "'extra'"),
+    "extra_list": (set_field("extra", []), "'extra'"),
 }
 
 
@@ -332,20 +316,9 @@ def valid_data() -> dict:
 
 def write_malformed(tmp_path, case):
     change, _ = MALFORMED[case]
-    path = tmp_path / "fly.json"
-    if change is None:
-        return path
-    if isinstance(change, bytes):
-        path.write_bytes(change)
-    elif change == "__1e400__":
-        path.write_text(json.dumps(valid_data()).replace('"position": [', '"position": [1e400, ', 1))
-    elif isinstance(change, str):
-        path.write_text(change)
-    else:
-        data = valid_data()
-        change(data)
-        path.write_text(json.dumps(data))  # NaN/Infinity written as JSON's common extension
-    return path
+    if change == "__1e400__":
+        change = json.dumps(valid_data()).replace('"position": [', '"position": [1e400, ', 1)
+    return write_case(tmp_path / "fly.json", change, valid_data)
 
 
 @pytest.mark.parametrize("case", sorted(MALFORMED))
