@@ -73,6 +73,7 @@ from raygs_viewer.capture.path_document import (
     is_rotation,
     json_text,
 )
+from raygs_viewer.capture.screenshot import with_relative_scene_path
 from raygs_viewer.capture.sidecar import (
     DEMO,
     SHA256_HEX,
@@ -144,12 +145,7 @@ def save_path_document(doc: PathDocument, file: str | os.PathLike, overwrite: bo
     ``overwrite``. The document is checked like a loaded file first, so nothing is
     written that :func:`load_path_document` would refuse. Returns the path written."""
     file = check_output_path(file, overwrite, PATH_SUFFIXES)
-    data = path_document_json(doc, extra)
-    if data["scene"] is not None and data["scene"]["path"] != DEMO:
-        try:
-            data["scene"]["relative_path"] = os.path.relpath(data["scene"]["path"], file.resolve().parent)
-        except ValueError:  # another drive on Windows: no relative path exists
-            pass
+    data = with_relative_scene_path(path_document_json(doc, extra), file.parent)
     try:
         text = json_text(data)
     except ValueError:
