@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import numpy as np
@@ -138,6 +139,45 @@ def assert_user_error(call, path, *fragments):
     for fragment in fragments:
         assert fragment in message, message
     return message
+
+
+def _field_parent(data, dotted: str):
+    """The container holding the field at ``dotted`` and its key (list entries by index)."""
+    *parents, last = dotted.split(".")
+    for key in parents:
+        data = data[int(key)] if isinstance(data, list) else data[key]
+    return data, int(last) if isinstance(data, list) else last
+
+
+def set_field(dotted: str, value):
+    """A mutation of parsed JSON: the field at ``dotted`` ("a.b", "keyframes.2.fov") set to ``value``."""
+    def mutate(data):
+        parent, key = _field_parent(data, dotted)
+        parent[key] = value
+    return mutate
+
+
+def delete_field(dotted: str):
+    """A mutation of parsed JSON: the field at ``dotted`` removed."""
+    def mutate(data):
+        parent, key = _field_parent(data, dotted)
+        del parent[key]
+    return mutate
+
+
+def write_case(path, change, valid):
+    """The file of a malformed-file case at ``path``: ``change`` None (no file), bytes or
+    str (the file's content), or a mutation of a fresh ``valid()`` dict. Returns ``path``."""
+    path = Path(path)
+    if isinstance(change, bytes):
+        path.write_bytes(change)
+    elif isinstance(change, str):
+        path.write_text(change)
+    elif change is not None:
+        data = valid()
+        change(data)
+        path.write_text(json.dumps(data))  # NaN/Infinity written as JSON's common extension
+    return path
 
 
 # ------------------------------------------------ files, CLI runs and sidecars the tests share

@@ -267,7 +267,7 @@ def _write_pair(png: Path, png_bytes: bytes, sidecar: dict) -> Path:
     """Writes the PNG, then the sidecar; removes the PNG if the sidecar fails. Raises
     _NameTaken when either name turns out to exist, else UserError."""
     json_path = sidecar_path(png)
-    text = _sidecar_text(_with_relative_scene_path(sidecar, png.parent), json_path)
+    text = _sidecar_text(with_relative_scene_path(sidecar, png.parent), json_path)
     _write_new(png, png_bytes)
     try:
         _write_new(json_path, text.encode("utf-8"))
@@ -301,7 +301,7 @@ def _sidecar_text(sidecar: dict, where: Path) -> str:
         raise UserError(f"{where}: screenshot sidecar is not valid JSON: {exc}") from None
 
 
-def _with_relative_scene_path(sidecar: dict, folder: Path) -> dict:
+def with_relative_scene_path(sidecar: dict, folder: Path) -> dict:
     """Adds scene.relative_path (from the sidecar's folder) when the scene path is
     absolute, so a folder tree moved as a whole still finds its scene."""
     scene = sidecar.get("scene")

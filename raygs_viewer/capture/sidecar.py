@@ -85,10 +85,10 @@ SIDECAR_VERSION = 2          # the newest this program reads and writes
 STEREO_SIDECAR_VERSION = 2   # the first with "stereo"
 DEMO = "demo"
 
-_SHA256 = re.compile(r"[0-9a-f]{64}")
+SHA256_HEX = re.compile(r"[0-9a-f]{64}")
 # A pose written by this program is orthonormal to ~1e-15; anything far off is an
 # edited or corrupted file, not rounding.
-_ROTATION_TOLERANCE = 1e-5
+ROTATION_TOLERANCE = 1e-5
 # "camera" repeats the pose of "world_to_camera" (for INRIA tools); they must agree,
 # or an edit to one of them would silently be ignored.
 _POSE_AGREEMENT = 1e-6
@@ -154,13 +154,13 @@ def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, 
         "extra": dict(extra or {}),
     }
     if stereo is not None:
-        sidecar["stereo"] = _stereo_entry(stereo)
+        sidecar["stereo"] = stereo_entry(stereo)
     if window_camera is not None:
         sidecar["window"] = {"camera": _camera_entry(window_camera), "world_to_camera": _pose(window_camera)}
     return sidecar
 
 
-def _stereo_entry(view: StereoView) -> dict:
+def stereo_entry(view: StereoView) -> dict:
     return {"ipd": view.rig.ipd, "convergence": view.rig.convergence, "scene_scale": view.rig.scene_scale,
             "layout": view.layout,
             "lens": None if view.lens is None else dataclasses.asdict(view.lens),
@@ -198,32 +198,27 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
     data = read_json_file(path, "a screenshot's .json sidecar")
     if not isinstance(data, dict):
         raise UserError(f"{path}: not a raygs-viewer screenshot sidecar (expected a JSON object)")
-    fields = _Fields(path, data)
+    fields = JsonFields(path, data)
 
     if "format" not in data:
         raise UserError(f"{path}: not a raygs-viewer screenshot sidecar (no 'format' field)")
     if data["format"] != SIDECAR_FORMAT:
         raise UserError(f"{path}: not a raygs-viewer screenshot sidecar ('format' is "
-                        f"{_show(data.get('format'))}, expected {_show(SIDECAR_FORMAT)})")
-    version = fields.get("version", int)
-    if version > SIDECAR_VERSION:
-        raise UserError(f"{path}: sidecar version {version} was written by a newer raygs-viewer "
-                        f"(this one reads version {SIDECAR_VERSION}); update raygs-viewer")
-    if version < 1:
-        raise UserError(f"{path}: 'version' {version} is not a sidecar version (expected {SIDECAR_VERSION})")
+                        f"{show_json(data.get('format'))}, expected {show_json(SIDECAR_FORMAT)})")
+    version = read_version(fields, SIDECAR_VERSION, "sidecar")
 
     scene = fields.get("scene", dict)
     scene_path = fields.get("scene.path", str)
     if not scene_path:
         raise UserError(f"{path}: 'scene.path' is empty")
     sha = fields.get("scene.sha256", str)
-    if not _SHA256.fullmatch(sha):
-        raise UserError(f"{path}: 'scene.sha256' must be 64 lowercase hex digits, got {_show(sha)}")
+    if not SHA256_HEX.fullmatch(sha):
+        raise UserError(f"{path}: 'scene.sha256' must be 64 lowercase hex digits, got {show_json(sha)}")
     if "relative_path" in scene:
         fields.get("scene.relative_path", str)
 
     camera = _load_camera(fields)
-    stereo = _load_stereo(fields) if "stereo" in data else None
+    stereo = load_stereo_entry(fields) if "stereo" in data else None
     if stereo is not None and version < STEREO_SIDECAR_VERSION:
         raise UserError(f"{path}: 'stereo' needs sidecar version {STEREO_SIDECAR_VERSION}, the file says {version}")
     image = fields.get("image", dict)
@@ -236,19 +231,31 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
                              f"image of two {camera.width}x{camera.height} eyes")
     scale = fields.get("image.scale", float)
     if not 0.0 < scale <= MAX_SCALE:
-        raise UserError(f"{path}: 'image.scale' must be in (0, {MAX_SCALE:g}], got {_show(scale)}")
+        raise UserError(f"{path}: 'image.scale' must be in (0, {MAX_SCALE:g}], got {show_json(scale)}")
 
     render_mode = fields.get("render_mode", str)
     if render_mode not in RENDER_MODES:
-        raise UserError(f"{path}: unknown 'render_mode' {_show(render_mode)} (this raygs-viewer renders "
+        raise UserError(f"{path}: unknown 'render_mode' {show_json(render_mode)} (this raygs-viewer renders "
                         f"{', '.join(map(repr, RENDER_MODES))}; the sidecar may come from a newer one)")
-    settings = _load_settings(fields, render_mode)
+    settings = load_settings_entry(fields, render_mode)
     if "extra" in data:
         fields.get("extra", dict)
     return Sidecar(path, scene_path, sha, camera, settings, scale, render_mode, data, stereo)
 
 
-class _Fields:
+def read_version(fields: JsonFields, newest: int, what: str) -> int:
+    """The file's "version": a whole number from 1 to ``newest``; ``what`` names the kind
+    of file in messages ("sidecar")."""
+    version = fields.get("version", int)
+    if version > newest:
+        raise UserError(f"{fields.path}: {what} version {version} was written by a newer raygs-viewer "
+                        f"(this one reads version {newest}); update raygs-viewer")
+    if version < 1:
+        raise UserError(f"{fields.path}: 'version' {version} is not a {what} version (expected {newest})")
+    return version
+
+
+class JsonFields:
     """Typed access to dotted fields of the parsed JSON, with errors naming file and field."""
 
     def __init__(self, path: Path, data: dict):
@@ -271,23 +278,23 @@ def _typed(value, kind: type, where: str):
     str, bool, dict or list."""
     if kind is float:
         if not is_number(value):
-            raise UserError(f"{where} must be a number, got {_show(value)}")
+            raise UserError(f"{where} must be a number, got {show_json(value)}")
         number = finite_number(value)
         if number is None:
-            raise UserError(f"{where} must be finite, got {_show(value)}")
+            raise UserError(f"{where} must be finite, got {show_json(value)}")
         return number
     if kind is int:
         if isinstance(value, bool) or not isinstance(value, int):
-            raise UserError(f"{where} must be a whole number, got {_show(value)}")
+            raise UserError(f"{where} must be a whole number, got {show_json(value)}")
         return value
     names = {str: "a string", bool: "true or false", dict: "a JSON object", list: "a JSON array",
              (dict, type(None)): "a JSON object or null"}
     if not isinstance(value, kind):
-        raise UserError(f"{where} must be {names.get(kind, getattr(kind, '__name__', kind))}, got {_show(value)}")
+        raise UserError(f"{where} must be {names.get(kind, getattr(kind, '__name__', kind))}, got {show_json(value)}")
     return value
 
 
-def _show(value) -> str:
+def show_json(value) -> str:
     """A short one-line rendering of a JSON value for messages."""
     try:
         text = json.dumps(value)
@@ -296,12 +303,12 @@ def _show(value) -> str:
     return text if len(text) <= 60 else text[:57] + "..."
 
 
-def _key(name: str) -> str:
+def json_key(name: str) -> str:
     """A JSON key from the file as a message shows it: a newline in it would split the one line."""
     return ascii(name)[1:-1]
 
 
-def _array(fields: _Fields, dotted: str, shape: tuple[int, ...]) -> np.ndarray:
+def json_array(fields: JsonFields, dotted: str, shape: tuple[int, ...]) -> np.ndarray:
     value = fields.get(dotted, list)
     where = f"{fields.path}: '{dotted}'"
     what = "3x3 numbers" if shape == (3, 3) else f"{shape[0]} numbers"
@@ -312,17 +319,17 @@ def _array(fields: _Fields, dotted: str, shape: tuple[int, ...]) -> np.ndarray:
         return isinstance(v, list) and len(v) == shape[depth] and all(numbers(x, depth + 1) for x in v)
 
     if not numbers(value, 0):
-        raise UserError(f"{where} must be {what}, got {_show(value)}")
+        raise UserError(f"{where} must be {what}, got {show_json(value)}")
     try:
         array = np.array(value, dtype=np.float64)
     except OverflowError:  # an integer beyond float range
-        raise UserError(f"{where} must be finite, got {_show(value)}") from None
+        raise UserError(f"{where} must be finite, got {show_json(value)}") from None
     if not np.all(np.isfinite(array)):
-        raise UserError(f"{where} must be finite, got {_show(value)}")
+        raise UserError(f"{where} must be finite, got {show_json(value)}")
     return array
 
 
-def _load_camera(fields: _Fields) -> Camera:
+def _load_camera(fields: JsonFields) -> Camera:
     """The screenshot's camera: intrinsics from "camera", the exact pose from
     "world_to_camera" (older or hand-made files without it: the INRIA pose)."""
     path = fields.path
@@ -331,10 +338,10 @@ def _load_camera(fields: _Fields) -> Camera:
     if "world_to_camera" not in fields.data:
         return camera
     fields.get("world_to_camera", dict)
-    R = _array(fields, "world_to_camera.R", (3, 3))
-    t = _array(fields, "world_to_camera.t", (3,))
+    R = json_array(fields, "world_to_camera.R", (3, 3))
+    t = json_array(fields, "world_to_camera.t", (3,))
     # Entries of a rotation lie in [-1, 1]: bounded first, the product cannot overflow.
-    if np.abs(R).max() > 2 or np.abs(R @ R.T - np.eye(3)).max() > _ROTATION_TOLERANCE or np.linalg.det(R) <= 0:
+    if np.abs(R).max() > 2 or np.abs(R @ R.T - np.eye(3)).max() > ROTATION_TOLERANCE or np.linalg.det(R) <= 0:
         raise UserError(f"{path}: 'world_to_camera.R' is not a rotation matrix")
     center = -R.T @ t
     rotation = np.array(entry["rotation"], dtype=np.float64)  # shape and finiteness checked by camera_from_json
@@ -350,7 +357,7 @@ _LENS_FIELDS = ("k1", "k2", "chroma_red", "chroma_blue")
 _HEADSET_FIELDS = {"name": str, "label": str, "width": int, "height": int, "fov_x": float, "fov_y": float}
 
 
-def _load_stereo(fields: _Fields) -> StereoView:
+def load_stereo_entry(fields: JsonFields) -> StereoView:
     """The "stereo" section; every key is required and none may be unknown (a newer
     program's stereo option cannot be honoured)."""
     path = fields.path
@@ -359,7 +366,7 @@ def _load_stereo(fields: _Fields) -> StereoView:
     _only_keys(path, "stereo", entry, known)
     layout = fields.get("stereo.layout", str)
     if layout not in LAYOUTS:
-        raise UserError(f"{path}: 'stereo.layout' must be one of {', '.join(LAYOUTS)}, got {_show(layout)}")
+        raise UserError(f"{path}: 'stereo.layout' must be one of {', '.join(LAYOUTS)}, got {show_json(layout)}")
     try:
         rig = StereoRig(**{name: fields.get(f"stereo.{name}", float) for name in known[:3]})
         lens = None
@@ -384,10 +391,11 @@ def _only_keys(path: Path, where: str, entry: dict, known: tuple[str, ...]) -> N
         raise UserError(f"{path}: missing '{where}.{missing[0]}'")
     unknown = [key for key in entry if key not in known]
     if unknown:
-        raise UserError(f"{path}: unknown field '{where}.{_key(unknown[0])}' (it may come from a newer raygs-viewer)")
+        raise UserError(f"{path}: unknown field '{where}.{json_key(unknown[0])}' "
+                        f"(it may come from a newer raygs-viewer)")
 
 
-def _load_settings(fields: _Fields, render_mode: str | None = None,
+def load_settings_entry(fields: JsonFields, render_mode: str | None = None,
                    settings_type: type[RenderSettings] = RenderSettings) -> RenderSettings:
     """``settings_type`` from "settings": every key must be a field (a newer program's
     setting cannot be honoured, so it is an error); missing fields take their defaults
@@ -399,14 +407,15 @@ def _load_settings(fields: _Fields, render_mode: str | None = None,
         if "mode" not in raw:
             raw = {**raw, "mode": render_mode}
         elif raw["mode"] != render_mode:
-            raise UserError(f"{path}: 'settings.mode' {_show(raw['mode'])} differs from 'render_mode' "
-                            f"{_show(render_mode)} (they must agree; edit both)")
+            raise UserError(f"{path}: 'settings.mode' {show_json(raw['mode'])} differs from 'render_mode' "
+                            f"{show_json(render_mode)} (they must agree; edit both)")
     hints = typing.get_type_hints(settings_type)
     known = {f.name for f in dataclasses.fields(settings_type)}
     values = {}
     for name, value in raw.items():
         if name not in known:
-            raise UserError(f"{path}: unknown setting 'settings.{_key(name)}' (it may come from a newer raygs-viewer)")
+            raise UserError(f"{path}: unknown setting 'settings.{json_key(name)}' "
+                            f"(it may come from a newer raygs-viewer)")
         values[name] = _setting(value, hints[name], f"{path}: 'settings.{name}'")
     try:
         return settings_type(**values)
@@ -433,18 +442,18 @@ def _setting(value, hint, where: str):
                 errors.append(exc)
         if len(options) == 1:
             raise errors[0]
-        raise UserError(f"{where} has the wrong type, got {_show(value)}")
+        raise UserError(f"{where} has the wrong type, got {show_json(value)}")
     if origin is tuple:
         if not isinstance(value, list):
-            raise UserError(f"{where} must be a JSON array, got {_show(value)}")
+            raise UserError(f"{where} must be a JSON array, got {show_json(value)}")
         if len(args) == 2 and args[1] is Ellipsis:
             return tuple(_setting(v, args[0], where) for v in value)
         if len(value) != len(args):
-            raise UserError(f"{where} must have {len(args)} entries, got {_show(value)}")
+            raise UserError(f"{where} must have {len(args)} entries, got {show_json(value)}")
         return tuple(_setting(v, a, where) for v, a in zip(value, args))
     if hint in (float, int, bool, str):
         if hint is int and isinstance(value, bool):
-            raise UserError(f"{where} must be a whole number, got {_show(value)}")
+            raise UserError(f"{where} must be a whole number, got {show_json(value)}")
         return _typed(value, hint, where)
     return value
 

@@ -19,10 +19,13 @@ from testkit import (
     SETTINGS,
     assert_one_line_error,
     assert_user_error,
+    delete_field,
     demo_sidecar,
     listing,
     run_cli,
+    set_field,
     window_camera,
+    write_case,
     write_inria_ply,
 )
 
@@ -144,8 +147,8 @@ def test_settings_fields_flow_in_automatically():
 
     data = demo_sidecar(settings=Extended(exposure=2.5))
     assert data["settings"]["exposure"] == 2.5
-    loaded = sidecar_module._load_settings(sidecar_module._Fields(Path("x.json"), json.loads(json.dumps(data))),
-                                           settings_type=Extended)
+    fields = sidecar_module.JsonFields(Path("x.json"), json.loads(json.dumps(data)))
+    loaded = sidecar_module.load_settings_entry(fields, settings_type=Extended)
     assert loaded == Extended(exposure=2.5) and loaded != Extended()
 
 
@@ -234,26 +237,6 @@ def test_settings_mode_and_render_mode_must_agree(tmp_path):
 # --------------------------------------------------------------------------- malformed sidecars
 
 
-def _set(dotted, value):
-    def mutate(data):
-        *parents, last = dotted.split(".")
-        target = data
-        for key in parents:
-            target = target[key]
-        target[last] = value
-    return mutate
-
-
-def _delete(dotted):
-    def mutate(data):
-        *parents, last = dotted.split(".")
-        target = data
-        for key in parents:
-            target = target[key]
-        del target[last]
-    return mutate
-
-
 MALFORMED = {
     # case: (mutation of a valid sidecar dict, or raw file text, or None for no file; fragment of the message)
     "missing_file": (None, "no such file"),
@@ -261,101 +244,90 @@ MALFORMED = {
     "not_utf8": (b"\xff\xfe{}", "cannot read"),
     "json_list": ("[]", "not a raygs-viewer screenshot sidecar"),
     "cameras_json": (json.dumps([{"width": 4}]), "not a raygs-viewer screenshot sidecar"),
-    "no_format": (_delete("format"), "'format'"),
-    "wrong_format": (_set("format", "something else"), "not a raygs-viewer screenshot sidecar"),
-    "newer_version": (_set("version", 3), "newer raygs-viewer"),
-    "version_zero": (_set("version", 0), "'version'"),
-    "version_string": (_set("version", "1"), "'version'"),
-    "version_bool": (_set("version", True), "'version'"),
-    "no_version": (_delete("version"), "missing 'version'"),
-    "no_scene": (_delete("scene"), "missing 'scene'"),
-    "scene_not_object": (_set("scene", "demo"), "'scene'"),
-    "scene_path_missing": (_delete("scene.path"), "'scene.path'"),
-    "scene_path_number": (_set("scene.path", 5), "'scene.path'"),
-    "scene_path_empty": (_set("scene.path", ""), "'scene.path'"),
-    "sha256_short": (_set("scene.sha256", "abc"), "'scene.sha256'"),
-    "sha256_missing": (_delete("scene.sha256"), "'scene.sha256'"),
-    "relative_path_number": (_set("scene.relative_path", 3), "'scene.relative_path'"),
-    "no_camera": (_delete("camera"), "missing 'camera'"),
-    "camera_list": (_set("camera", []), "'camera'"),
-    "camera_no_fx": (_delete("camera.fx"), "'fx'"),
-    "camera_fx_negative": (_set("camera.fx", -3.0), "fx"),
-    "camera_width_zero": (_set("camera.width", 0), "width"),
-    "camera_width_fraction": (_set("camera.width", 64.5), "width"),
-    "camera_cx_string": (_set("camera.cx", "32"), "'cx'"),
-    "camera_cx_nan": (_set("camera.cx", float("nan")), "'cx'"),
+    "no_format": (delete_field("format"), "'format'"),
+    "wrong_format": (set_field("format", "something else"), "not a raygs-viewer screenshot sidecar"),
+    "newer_version": (set_field("version", 3), "newer raygs-viewer"),
+    "version_zero": (set_field("version", 0), "'version'"),
+    "version_string": (set_field("version", "1"), "'version'"),
+    "version_bool": (set_field("version", True), "'version'"),
+    "no_version": (delete_field("version"), "missing 'version'"),
+    "no_scene": (delete_field("scene"), "missing 'scene'"),
+    "scene_not_object": (set_field("scene", "demo"), "'scene'"),
+    "scene_path_missing": (delete_field("scene.path"), "'scene.path'"),
+    "scene_path_number": (set_field("scene.path", 5), "'scene.path'"),
+    "scene_path_empty": (set_field("scene.path", ""), "'scene.path'"),
+    "sha256_short": (set_field("scene.sha256", "abc"), "'scene.sha256'"),
+    "sha256_missing": (delete_field("scene.sha256"), "'scene.sha256'"),
+    "relative_path_number": (set_field("scene.relative_path", 3), "'scene.relative_path'"),
+    "no_camera": (delete_field("camera"), "missing 'camera'"),
+    "camera_list": (set_field("camera", []), "'camera'"),
+    "camera_no_fx": (delete_field("camera.fx"), "'fx'"),
+    "camera_fx_negative": (set_field("camera.fx", -3.0), "fx"),
+    "camera_width_zero": (set_field("camera.width", 0), "width"),
+    "camera_width_fraction": (set_field("camera.width", 64.5), "width"),
+    "camera_cx_string": (set_field("camera.cx", "32"), "'cx'"),
+    "camera_cx_nan": (set_field("camera.cx", float("nan")), "'cx'"),
     "camera_fx_huge": ('__fx_1e400__', "'fx'"),
-    "camera_rotation_bad": (_set("camera.rotation", [[2, 0, 0], [0, 2, 0], [0, 0, 2]]), "rotation"),
-    "w2c_not_object": (_set("world_to_camera", [1, 2]), "'world_to_camera'"),
-    "w2c_R_missing": (_delete("world_to_camera.R"), "'world_to_camera.R'"),
-    "w2c_R_2x3": (_set("world_to_camera.R", [[1, 0, 0], [0, 1, 0]]), "'world_to_camera.R'"),
-    "w2c_R_strings": (_set("world_to_camera.R", [["1", 0, 0], [0, 1, 0], [0, 0, 1]]), "'world_to_camera.R'"),
-    "w2c_R_scaled": (_set("world_to_camera.R", [[2, 0, 0], [0, 2, 0], [0, 0, 2]]), "not a rotation"),
-    "w2c_R_mirror": (_set("world_to_camera.R", [[-1, 0, 0], [0, 1, 0], [0, 0, 1]]), "not a rotation"),
-    "w2c_t_nan": (_set("world_to_camera.t", [0.0, float("nan"), 0.0]), "'world_to_camera.t'"),
-    "w2c_t_inf": (_set("world_to_camera.t", [0.0, float("inf"), 0.0]), "'world_to_camera.t'"),
-    "w2c_t_two": (_set("world_to_camera.t", [0.0, 1.0]), "'world_to_camera.t'"),
-    "w2c_t_bool": (_set("world_to_camera.t", [True, 0.0, 0.0]), "'world_to_camera.t'"),
-    "pose_disagrees": (_set("camera.position", [9.0, 9.0, 9.0]), "different poses"),
-    "no_image": (_delete("image"), "missing 'image'"),
-    "image_scale_zero": (_set("image.scale", 0), "'image.scale'"),
-    "image_scale_huge": (_set("image.scale", 9.0), "'image.scale'"),
-    "image_scale_nan": (_set("image.scale", float("nan")), "'image.scale'"),
-    "image_scale_string": (_set("image.scale", "2"), "'image.scale'"),
-    "image_width_differs": (_set("image.width", 65), "'image.width'"),
-    "no_settings": (_delete("settings"), "missing 'settings'"),
-    "settings_list": (_set("settings", [0.1]), "'settings'"),
-    "unknown_setting": (_set("settings.exposure", 2.0), "newer raygs-viewer"),
-    "p_min_zero": (_set("settings.p_min", 0.0), "p_min"),
-    "p_min_string": (_set("settings.p_min", "0.1"), "'settings.p_min'"),
-    "p_min_nan": (_set("settings.p_min", float("nan")), "'settings.p_min'"),
-    "p_min_null": (_set("settings.p_min", None), "'settings.p_min'"),
-    "background_two": (_set("settings.background", [0.1, 0.2]), "'settings.background'"),
-    "background_string": (_set("settings.background", "abc"), "'settings.background'"),
-    "background_inf": (_set("settings.background", [0.1, float("inf"), 0.3]), "'settings.background'"),
-    "sh_degree_four": (_set("settings.sh_degree", 4), "sh_degree"),
-    "sh_degree_fraction": (_set("settings.sh_degree", 1.5), "'settings.sh_degree'"),
-    "sh_degree_bool": (_set("settings.sh_degree", True), "'settings.sh_degree'"),
-    "render_mode_unknown": (_set("render_mode", "ewa"), "'render_mode'"),
-    "render_mode_differs": (_set("render_mode", "gs"), "differs from 'render_mode'"),
-    "render_mode_number": (_set("render_mode", 1), "'render_mode'"),
-    "mode_unknown": (_set("settings.mode", "ewa"), "'settings.mode'"),
-    "mode_number": (_set("settings.mode", 2), "'settings.mode'"),
-    "mip_string": (_set("settings.mip", "yes"), "'settings.mip'"),
-    "mip_number": (_set("settings.mip", 1), "'settings.mip'"),
-    "mip_modulation_null": (_set("settings.mip_modulation", None), "'settings.mip_modulation'"),
-    "mip_sigma2_negative": (_set("settings.mip_sigma2", -0.1), "sigma^2"),
-    "mip_sigma2_huge": (_set("settings.mip_sigma2", 1000.0), "sigma^2"),
-    "mip_sigma2_string": (_set("settings.mip_sigma2", "0.1"), "'settings.mip_sigma2'"),
-    "gs_compensation_string": (_set("settings.gs_compensation", "true"), "'settings.gs_compensation'"),
-    "supersample_zero": (_set("settings.supersample", 0), "supersample"),
-    "supersample_five": (_set("settings.supersample", 5), "supersample"),
-    "supersample_fraction": (_set("settings.supersample", 1.5), "'settings.supersample'"),
-    "supersample_bool": (_set("settings.supersample", True), "'settings.supersample'"),
-    "alpha_clamp_number": (_set("settings.alpha_clamp", 0), "'settings.alpha_clamp'"),
-    "transmittance_cutoff_list": (_set("settings.transmittance_cutoff", []), "'settings.transmittance_cutoff'"),
-    "render_mode_missing": (_delete("render_mode"), "missing 'render_mode'"),
-    "extra_list": (_set("extra", []), "'extra'"),
+    "camera_rotation_bad": (set_field("camera.rotation", [[2, 0, 0], [0, 2, 0], [0, 0, 2]]), "rotation"),
+    "w2c_not_object": (set_field("world_to_camera", [1, 2]), "'world_to_camera'"),
+    "w2c_R_missing": (delete_field("world_to_camera.R"), "'world_to_camera.R'"),
+    "w2c_R_2x3": (set_field("world_to_camera.R", [[1, 0, 0], [0, 1, 0]]), "'world_to_camera.R'"),
+    "w2c_R_strings": (set_field("world_to_camera.R", [["1", 0, 0], [0, 1, 0], [0, 0, 1]]), "'world_to_camera.R'"),
+    "w2c_R_scaled": (set_field("world_to_camera.R", [[2, 0, 0], [0, 2, 0], [0, 0, 2]]), "not a rotation"),
+    "w2c_R_mirror": (set_field("world_to_camera.R", [[-1, 0, 0], [0, 1, 0], [0, 0, 1]]), "not a rotation"),
+    "w2c_t_nan": (set_field("world_to_camera.t", [0.0, float("nan"), 0.0]), "'world_to_camera.t'"),
+    "w2c_t_inf": (set_field("world_to_camera.t", [0.0, float("inf"), 0.0]), "'world_to_camera.t'"),
+    "w2c_t_two": (set_field("world_to_camera.t", [0.0, 1.0]), "'world_to_camera.t'"),
+    "w2c_t_bool": (set_field("world_to_camera.t", [True, 0.0, 0.0]), "'world_to_camera.t'"),
+    "pose_disagrees": (set_field("camera.position", [9.0, 9.0, 9.0]), "different poses"),
+    "no_image": (delete_field("image"), "missing 'image'"),
+    "image_scale_zero": (set_field("image.scale", 0), "'image.scale'"),
+    "image_scale_huge": (set_field("image.scale", 9.0), "'image.scale'"),
+    "image_scale_nan": (set_field("image.scale", float("nan")), "'image.scale'"),
+    "image_scale_string": (set_field("image.scale", "2"), "'image.scale'"),
+    "image_width_differs": (set_field("image.width", 65), "'image.width'"),
+    "no_settings": (delete_field("settings"), "missing 'settings'"),
+    "settings_list": (set_field("settings", [0.1]), "'settings'"),
+    "unknown_setting": (set_field("settings.exposure", 2.0), "newer raygs-viewer"),
+    "p_min_zero": (set_field("settings.p_min", 0.0), "p_min"),
+    "p_min_string": (set_field("settings.p_min", "0.1"), "'settings.p_min'"),
+    "p_min_nan": (set_field("settings.p_min", float("nan")), "'settings.p_min'"),
+    "p_min_null": (set_field("settings.p_min", None), "'settings.p_min'"),
+    "background_two": (set_field("settings.background", [0.1, 0.2]), "'settings.background'"),
+    "background_string": (set_field("settings.background", "abc"), "'settings.background'"),
+    "background_inf": (set_field("settings.background", [0.1, float("inf"), 0.3]), "'settings.background'"),
+    "sh_degree_four": (set_field("settings.sh_degree", 4), "sh_degree"),
+    "sh_degree_fraction": (set_field("settings.sh_degree", 1.5), "'settings.sh_degree'"),
+    "sh_degree_bool": (set_field("settings.sh_degree", True), "'settings.sh_degree'"),
+    "render_mode_unknown": (set_field("render_mode", "ewa"), "'render_mode'"),
+    "render_mode_differs": (set_field("render_mode", "gs"), "differs from 'render_mode'"),
+    "render_mode_number": (set_field("render_mode", 1), "'render_mode'"),
+    "mode_unknown": (set_field("settings.mode", "ewa"), "'settings.mode'"),
+    "mode_number": (set_field("settings.mode", 2), "'settings.mode'"),
+    "mip_string": (set_field("settings.mip", "yes"), "'settings.mip'"),
+    "mip_number": (set_field("settings.mip", 1), "'settings.mip'"),
+    "mip_modulation_null": (set_field("settings.mip_modulation", None), "'settings.mip_modulation'"),
+    "mip_sigma2_negative": (set_field("settings.mip_sigma2", -0.1), "sigma^2"),
+    "mip_sigma2_huge": (set_field("settings.mip_sigma2", 1000.0), "sigma^2"),
+    "mip_sigma2_string": (set_field("settings.mip_sigma2", "0.1"), "'settings.mip_sigma2'"),
+    "gs_compensation_string": (set_field("settings.gs_compensation", "true"), "'settings.gs_compensation'"),
+    "supersample_zero": (set_field("settings.supersample", 0), "supersample"),
+    "supersample_five": (set_field("settings.supersample", 5), "supersample"),
+    "supersample_fraction": (set_field("settings.supersample", 1.5), "'settings.supersample'"),
+    "supersample_bool": (set_field("settings.supersample", True), "'settings.supersample'"),
+    "alpha_clamp_number": (set_field("settings.alpha_clamp", 0), "'settings.alpha_clamp'"),
+    "transmittance_cutoff_list": (set_field("settings.transmittance_cutoff", []), "'settings.transmittance_cutoff'"),
+    "render_mode_missing": (delete_field("render_mode"), "missing 'render_mode'"),
+    "extra_list": (set_field("extra", []), "'extra'"),
 }
 
 
 def write_malformed(tmp_path, case):
     """The sidecar file of a MALFORMED case, next to a valid one's content."""
     change, _ = MALFORMED[case]
-    path = tmp_path / "shot.json"
-    if change is None:
-        return path
-    if isinstance(change, bytes):
-        path.write_bytes(change)
-    elif change == "__fx_1e400__":
-        path.write_text(json.dumps(demo_sidecar(), indent=2).replace('"fx": ', '"fx": 1e400, "_fx": '))
-    elif isinstance(change, str):
-        path.write_text(change)
-    else:
-        data = copy.deepcopy(demo_sidecar())
-        change(data)
-        path.write_text(json.dumps(data))  # NaN/Infinity written as JSON's common extension
-    return path
+    if change == "__fx_1e400__":
+        change = json.dumps(demo_sidecar(), indent=2).replace('"fx": ', '"fx": 1e400, "_fx": ')
+    return write_case(tmp_path / "shot.json", change, demo_sidecar)
 
 
 @pytest.mark.parametrize("case", sorted(MALFORMED))
@@ -602,25 +574,25 @@ def test_stereo_sidecar_round_trip(tmp_path, layout, width):
 
 
 MALFORMED_STEREO = {
-    "old_version": (_set("version", 1), "needs sidecar version 2"),
-    "stereo_list": (_set("stereo", []), "'stereo'"),
-    "ipd_missing": (_delete("stereo.ipd"), "'stereo.ipd'"),
-    "ipd_string": (_set("stereo.ipd", "63"), "'stereo.ipd'"),
-    "ipd_negative": (_set("stereo.ipd", -0.01), "ipd"),
-    "convergence_zero": (_set("stereo.convergence", 0.0), "convergence"),
-    "scale_nan": (_set("stereo.scene_scale", float("nan")), "'stereo.scene_scale'"),
-    "layout_unknown": (_set("stereo.layout", "top-bottom"), "'stereo.layout'"),
-    "layout_number": (_set("stereo.layout", 1), "'stereo.layout'"),
-    "unknown_field": (_set("stereo.eye_relief", 0.01), "'stereo.eye_relief'"),
-    "lens_list": (_set("stereo.lens", [0.2]), "'stereo.lens'"),
-    "lens_k1_missing": (_delete("stereo.lens.k1"), "'stereo.lens.k1'"),
-    "lens_k1_huge": (_set("stereo.lens.k1", 1e6), "k1"),
-    "lens_extra": (_set("stereo.lens.k3", 0.1), "'stereo.lens.k3'"),
-    "headset_width_zero": (_set("stereo.headset.width", 0), "headset resolution"),
-    "headset_width_fraction": (_set("stereo.headset.width", 1440.5), "'stereo.headset.width'"),
-    "headset_fov_huge": (_set("stereo.headset.fov_x", 400.0), "field of view"),
-    "headset_name_missing": (_delete("stereo.headset.name"), "'stereo.headset.name'"),
-    "image_mono_width": (_set("image.width", 64), "'image.width' 64 differs"),
+    "old_version": (set_field("version", 1), "needs sidecar version 2"),
+    "stereo_list": (set_field("stereo", []), "'stereo'"),
+    "ipd_missing": (delete_field("stereo.ipd"), "'stereo.ipd'"),
+    "ipd_string": (set_field("stereo.ipd", "63"), "'stereo.ipd'"),
+    "ipd_negative": (set_field("stereo.ipd", -0.01), "ipd"),
+    "convergence_zero": (set_field("stereo.convergence", 0.0), "convergence"),
+    "scale_nan": (set_field("stereo.scene_scale", float("nan")), "'stereo.scene_scale'"),
+    "layout_unknown": (set_field("stereo.layout", "top-bottom"), "'stereo.layout'"),
+    "layout_number": (set_field("stereo.layout", 1), "'stereo.layout'"),
+    "unknown_field": (set_field("stereo.eye_relief", 0.01), "'stereo.eye_relief'"),
+    "lens_list": (set_field("stereo.lens", [0.2]), "'stereo.lens'"),
+    "lens_k1_missing": (delete_field("stereo.lens.k1"), "'stereo.lens.k1'"),
+    "lens_k1_huge": (set_field("stereo.lens.k1", 1e6), "k1"),
+    "lens_extra": (set_field("stereo.lens.k3", 0.1), "'stereo.lens.k3'"),
+    "headset_width_zero": (set_field("stereo.headset.width", 0), "headset resolution"),
+    "headset_width_fraction": (set_field("stereo.headset.width", 1440.5), "'stereo.headset.width'"),
+    "headset_fov_huge": (set_field("stereo.headset.fov_x", 400.0), "field of view"),
+    "headset_name_missing": (delete_field("stereo.headset.name"), "'stereo.headset.name'"),
+    "image_mono_width": (set_field("image.width", 64), "'image.width' 64 differs"),
 }
 
 

@@ -1,0 +1,76 @@
+"""A camera path with everything needed to render it: the render size, settings, stereo
+view and the scene it was recorded on. :mod:`raygs_viewer.capture.path_file` reads and
+writes it (raygs-viewer's own path JSON, or nerfstudio's ``camera_path`` through
+:mod:`raygs_viewer.capture.nerfstudio`)."""
+
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from raygs_viewer.camera.path import CameraPath
+from raygs_viewer.camera.stereo import StereoView, composed_size
+from raygs_viewer.capture.sidecar import ROTATION_TOLERANCE
+from raygs_viewer.render.settings import RenderSettings
+
+#: The formats a document is read from.
+RAYGS, NERFSTUDIO = "raygs", "nerfstudio"
+KINDS = (RAYGS, NERFSTUDIO)
+#: Largest render width or height a path file may ask for (pixels).
+MAX_IMAGE_SIZE = 16384
+
+
+@dataclass(frozen=True)
+class PathDocument:
+    """path: the keyframes and their timing. width, height: the size of each frame's
+    camera in pixels (with stereo, of each eye; the frames are :attr:`frame_size`).
+    settings: None for the reader's defaults (a nerfstudio file has none). stereo: None
+    for mono. scene_path: "demo" or an absolute path, None when unknown (nerfstudio);
+    scene_sha256: its hex digest (None: unknown, never checked); scene_count,
+    scene_sh_degree: the scene's gaussian count and SH degree, when known. source: the
+    file it was read from. kind: the format it was read from (one of KINDS). extra:
+    free-form details of the window (the file's "extra"). notes: one-line remarks about
+    what the reader could not honour (e.g. a nerfstudio crop box), for the caller to show."""
+
+    path: CameraPath
+    width: int
+    height: int
+    settings: RenderSettings | None = None
+    stereo: StereoView | None = None
+    scene_path: str | None = None
+    scene_sha256: str | None = None
+    source: Path | None = None
+    kind: str = RAYGS
+    scene_count: int | None = None
+    scene_sh_degree: int | None = None
+    extra: dict = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
+
+    @property
+    def frame_size(self) -> tuple[int, int]:
+        """(width, height) of each rendered frame: the camera's size, or the composed
+        stereo image of two eyes that size."""
+        if self.stereo is None:
+            return int(self.width), int(self.height)
+        return composed_size(int(self.width), int(self.height), self.stereo.layout)
+
+
+def is_rotation(matrix: np.ndarray, tolerance: float = ROTATION_TOLERANCE) -> bool:
+    """Whether the (3, 3) float64 ``matrix`` is a proper rotation to ``tolerance``
+    (a scaled, sheared or mirrored matrix is not)."""
+    # Entries of a rotation lie in [-1, 1]: bounded first, the product cannot overflow.
+    return bool(matrix.shape == (3, 3) and np.abs(matrix).max() <= 2
+                and np.abs(matrix @ matrix.T - np.eye(3)).max() <= tolerance and np.linalg.det(matrix) > 0)
+
+
+def json_text(data: dict) -> str:
+    """``data`` as indented JSON with each list of numbers on one line (a keyframe stays
+    a few lines). Non-finite numbers are a ValueError (they are not JSON)."""
+    text = json.dumps(data, indent=2, allow_nan=False)
+    # Only a list of numbers broken over lines matches: a JSON string cannot hold a raw
+    # newline, so nothing inside a string is touched.
+    return re.sub(r"\[\n[-+0-9.eE,\s]*?\]", lambda m: "[" + " ".join(m.group(0)[1:-1].split()) + "]", text) + "\n"

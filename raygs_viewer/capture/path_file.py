@@ -1,0 +1,348 @@
+"""The camera path JSON: keyframes, their timing and interpolation, the render size and
+settings, and the scene's hash, like a screenshot's sidecar
+(:mod:`raygs_viewer.capture.sidecar`) is for one frame. The window saves and loads it;
+``raygs-viewer render-path`` renders it. :func:`load_path_document` also reads
+nerfstudio's ``camera_path`` files (:mod:`raygs_viewer.capture.nerfstudio`), told apart
+by their content.
+
+Layout (version 1)::
+
+    {"format": "raygs-viewer camera path", "version": 1,
+     "program": {"name": "raygs-viewer", "version": "0.1.0"},
+     "created": "2025-01-31T12:00:00Z",                           # UTC
+     "scene": {"path": "/abs/scene.ply" or "demo",                # or null: unknown
+               "sha256": "<64 hex digits>" or null,
+               "count": N or null, "sh_degree": d or null,
+               "relative_path": "../scene.ply"},                  # added when saved, from the file's folder
+     "image": {"width": W, "height": H},                          # each frame's camera (each eye's in stereo)
+     "settings": {every RenderSettings field} or null,            # null: the reader's defaults
+     "stereo": null or the sidecar's "stereo" entry,
+     "path": {"duration": 10.0, "fps": 30.0,                      # seconds (a loop: one lap), frames/s
+              "loop": false, "alpha": 0.5, "tension": 0.0,        # camera.path.Interpolation
+              "up": [0.0, -1.0, 0.0]},                            # world up, a unit vector
+     "keyframes": [{"position": [x, y, z],                        # camera centre, world space
+                    "rotation": 3x3,                              # camera-to-world (= R.T), like INRIA cameras.json
+                    "fov": 60.0,                                  # vertical, degrees
+                    "time": null or 2.5}, ...],                   # seconds from the start; null: paced
+     "extra": {...}}                                              # free-form, from the window
+
+Required: "format", "version", "image", "path" (with "duration" and "fps") and at least
+one keyframe (each with "position", "rotation" and "fov"); the rest may be left out
+(null, the defaults). Loading is strict: an unknown field anywhere outside "extra" (and
+"settings", which follows the sidecar: missing settings take their defaults) is an
+error, as are wrong types, non-finite numbers, a rotation that is not one, and numbers
+beyond camera.path's limits (FOV_RANGE, FPS_RANGE, MAX_DURATION, MAX_KEYFRAMES,
+MAX_FRAMES) or an image side beyond MAX_IMAGE_SIZE. Explicit keyframe times must
+increase along the flight and lie within the path (a loop's before its end). Every
+problem is one line naming the file and the field.
+
+Python writes a float as the shortest repr that reads back to the same bits, so
+positions, rotations, fields of view and times survive the round trip exactly.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import os
+from datetime import datetime, timezone
+from pathlib import Path
+
+import numpy as np
+
+import raygs_viewer
+from raygs_viewer.camera.navigation import Pose
+from raygs_viewer.camera.path import (
+    FOV_RANGE,
+    FPS_RANGE,
+    MAX_DURATION,
+    MAX_FRAMES,
+    MAX_KEYFRAMES,
+    CameraPath,
+    Interpolation,
+    Keyframe,
+)
+from raygs_viewer.camera.pinhole import read_json_file
+from raygs_viewer.capture.image_io import check_output_path, write_atomically
+from raygs_viewer.capture.nerfstudio import is_nerfstudio, read_nerfstudio
+from raygs_viewer.capture.path_document import (
+    MAX_IMAGE_SIZE,
+    RAYGS,
+    PathDocument,
+    is_rotation,
+    json_text,
+)
+from raygs_viewer.capture.screenshot import with_relative_scene_path
+from raygs_viewer.capture.sidecar import (
+    DEMO,
+    SHA256_HEX,
+    JsonFields,
+    demo_sha256,
+    json_array,
+    json_key,
+    load_settings_entry,
+    load_stereo_entry,
+    read_version,
+    scene_sha256,
+    show_json,
+    stereo_entry,
+)
+from raygs_viewer.errors import UserError
+
+PATH_FORMAT = "raygs-viewer camera path"
+PATH_VERSION = 1
+PATH_SUFFIXES = (".json",)
+
+_TOP_REQUIRED = ("format", "version", "image", "path", "keyframes")
+_TOP_OPTIONAL = ("program", "created", "scene", "settings", "stereo", "extra")
+# How far "path.up" may be from unit length (a hand-edited file writes 0.7071).
+_UNIT_TOLERANCE = 1e-6
+
+
+# --------------------------------------------------------------------------- writing
+
+
+def path_document_json(doc: PathDocument, extra: dict | None = None) -> dict:
+    """The path file's JSON object for ``doc`` (without "scene.relative_path", which
+    depends on where it is saved). ``extra`` is merged over ``doc.extra``."""
+    path = doc.path
+    interpolation = path.interpolation
+    scene = None
+    if doc.scene_path is not None:
+        scene = {"path": DEMO if doc.scene_path == DEMO else os.path.abspath(doc.scene_path),
+                 "sha256": doc.scene_sha256,
+                 "count": None if doc.scene_count is None else int(doc.scene_count),
+                 "sh_degree": None if doc.scene_sh_degree is None else int(doc.scene_sh_degree)}
+    return {
+        "format": PATH_FORMAT,
+        "version": PATH_VERSION,
+        "program": {"name": "raygs-viewer", "version": raygs_viewer.__version__},
+        "created": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        "scene": scene,
+        "image": {"width": int(doc.width), "height": int(doc.height)},
+        "settings": None if doc.settings is None else dataclasses.asdict(doc.settings),
+        "stereo": None if doc.stereo is None else stereo_entry(doc.stereo),
+        "path": {"duration": float(path.duration), "fps": float(path.fps), "loop": bool(interpolation.loop),
+                 "alpha": float(interpolation.alpha), "tension": float(interpolation.tension),
+                 "up": [float(x) for x in interpolation.up]},
+        "keyframes": [_keyframe_entry(k) for k in path.keyframes],
+        "extra": {**doc.extra, **(extra or {})},
+    }
+
+
+def _keyframe_entry(keyframe: Keyframe) -> dict:
+    pose = keyframe.pose
+    return {"position": np.asarray(pose.position, np.float64).tolist(),
+            "rotation": np.asarray(pose.R, np.float64).T.tolist(),
+            "fov": float(keyframe.fov_y_degrees),
+            "time": None if keyframe.time is None else float(keyframe.time)}
+
+
+def save_path_document(doc: PathDocument, file: str | os.PathLike, overwrite: bool = False,
+                       extra: dict | None = None) -> Path:
+    """Writes ``doc`` as a path file, atomically; an existing file is replaced only with
+    ``overwrite``. The document is checked like a loaded file first, so nothing is
+    written that :func:`load_path_document` would refuse. Returns the path written."""
+    file = check_output_path(file, overwrite, PATH_SUFFIXES)
+    data = with_relative_scene_path(path_document_json(doc, extra), file.parent)
+    try:
+        text = json_text(data)
+    except ValueError:
+        raise UserError(f"{file}: the camera path holds a non-finite number; not saved") from None
+    read_path_json(json.loads(text), file)
+    write_atomically(file, text.encode("utf-8"), overwrite)
+    return file
+
+
+# --------------------------------------------------------------------------- reading
+
+
+def load_path_document(file: str | os.PathLike) -> PathDocument:
+    """A camera path file of either format (raygs-viewer's or nerfstudio's
+    ``camera_path``, told apart by the content), validated; any problem is a one-line
+    UserError naming the file and the field."""
+    file = Path(file)
+    data = read_json_file(file, "a camera path .json file")
+    if is_nerfstudio(data):
+        return dataclasses.replace(read_nerfstudio(data, str(file)), source=file)
+    return read_path_json(data, file)
+
+
+def read_path_json(data, file: Path) -> PathDocument:
+    """The document of a parsed raygs-viewer path file (``file`` names it in messages)."""
+    what = "not a camera path file (expected a raygs-viewer camera path or a nerfstudio camera_path JSON"
+    if not isinstance(data, dict):
+        raise UserError(f"{file}: {what} object)")
+    if "format" not in data:
+        raise UserError(f"{file}: {what}; it has neither 'format' nor 'camera_path')")
+    if data["format"] != PATH_FORMAT:
+        raise UserError(f"{file}: {what}; 'format' is {show_json(data['format'])}, "
+                        f"expected {show_json(PATH_FORMAT)})")
+    fields = JsonFields(file, data)
+    read_version(fields, PATH_VERSION, "camera path")
+    _check_keys(file, "", data, _TOP_REQUIRED, _TOP_OPTIONAL)
+    _check_program(fields)
+
+    scene = _load_scene(fields)
+    _check_keys(file, "image", fields.get("image", dict), ("width", "height"))
+    width, height = (_image_side(fields, f"image.{key}") for key in ("width", "height"))
+    settings = None if data.get("settings") is None else load_settings_entry(fields)
+    stereo = None if data.get("stereo") is None else load_stereo_entry(fields)
+    path = _load_path(fields)
+    extra = {} if data.get("extra") is None else fields.get("extra", dict)
+    return PathDocument(path, width, height, settings, stereo, scene.get("path"), scene.get("sha256"),
+                        source=file, kind=RAYGS, scene_count=scene.get("count"),
+                        scene_sh_degree=scene.get("sh_degree"), extra=dict(extra))
+
+
+def _check_keys(file: Path, where: str, entry: dict, required: tuple[str, ...], optional: tuple[str, ...] = ()) -> None:
+    prefix = f"{where}." if where else ""
+    for key in required:
+        if key not in entry:
+            raise UserError(f"{file}: missing '{prefix}{key}'")
+    for key in entry:
+        if key not in required and key not in optional:
+            raise UserError(f"{file}: unknown field '{prefix}{json_key(key)}' (it may come from a newer raygs-viewer)")
+
+
+def _check_program(fields: JsonFields) -> None:
+    if fields.data.get("program") is not None:
+        _check_keys(fields.path, "program", fields.get("program", dict), ("name", "version"))
+        fields.get("program.name", str)
+        fields.get("program.version", str)
+    if fields.data.get("created") is not None:
+        fields.get("created", str)
+
+
+def _load_scene(fields: JsonFields) -> dict:
+    """The "scene" record as {path, sha256, count, sh_degree} ({} when null or absent)."""
+    file = fields.path
+    if fields.data.get("scene") is None:
+        return {}
+    scene = fields.get("scene", dict)
+    _check_keys(file, "scene", scene, ("path", "sha256"), ("count", "sh_degree", "relative_path"))
+    path = fields.get("scene.path", str)
+    if path != DEMO and not os.path.isabs(path):
+        raise UserError(f"{file}: 'scene.path' must be \"demo\" or an absolute path, got {show_json(path)}")
+    sha = None
+    if scene["sha256"] is not None:
+        sha = fields.get("scene.sha256", str)
+        if not SHA256_HEX.fullmatch(sha):
+            raise UserError(f"{file}: 'scene.sha256' must be 64 lowercase hex digits or null, got {show_json(sha)}")
+    record = {"path": path, "sha256": sha, "count": None, "sh_degree": None}
+    if scene.get("count") is not None:
+        record["count"] = fields.get("scene.count", int)
+        if record["count"] < 0:
+            raise UserError(f"{file}: 'scene.count' must not be negative, got {record['count']}")
+    if scene.get("sh_degree") is not None:
+        record["sh_degree"] = fields.get("scene.sh_degree", int)
+        if record["sh_degree"] not in (0, 1, 2, 3):
+            raise UserError(f"{file}: 'scene.sh_degree' must be 0, 1, 2 or 3, got {record['sh_degree']}")
+    if "relative_path" in scene:
+        fields.get("scene.relative_path", str)
+    return record
+
+
+def _image_side(fields: JsonFields, dotted: str) -> int:
+    value = fields.get(dotted, int)
+    if not 1 <= value <= MAX_IMAGE_SIZE:
+        raise UserError(f"{fields.path}: '{dotted}' must be from 1 to {MAX_IMAGE_SIZE}, got {show_json(value)}")
+    return value
+
+
+def _number_in(fields: JsonFields, dotted: str, low: float, high: float, low_open: bool = False) -> float:
+    value = fields.get(dotted, float)
+    if not (low < value if low_open else low <= value) or value > high:
+        interval = f"{'(' if low_open else '['}{low:g}, {high:g}]"
+        raise UserError(f"{fields.path}: '{dotted}' must be in {interval}, got {show_json(value)}")
+    return value
+
+
+def _load_path(fields: JsonFields) -> CameraPath:
+    file = fields.path
+    section = fields.get("path", dict)
+    defaults = Interpolation()
+    _check_keys(file, "path", section, ("duration", "fps"), ("loop", "alpha", "tension", "up"))
+    duration = _number_in(fields, "path.duration", 0.0, MAX_DURATION, low_open=True)
+    fps = _number_in(fields, "path.fps", *FPS_RANGE)
+    frames = max(1, round(duration * fps))
+    if frames > MAX_FRAMES:
+        raise UserError(f"{file}: 'path.duration' {duration:g} s at 'path.fps' {fps:g} is {frames} frames "
+                        f"(at most {MAX_FRAMES})")
+    loop = fields.get("path.loop", bool) if "loop" in section else defaults.loop
+    alpha = _number_in(fields, "path.alpha", 0.0, 1.0) if "alpha" in section else defaults.alpha
+    tension = _number_in(fields, "path.tension", 0.0, 1.0) if "tension" in section else defaults.tension
+    up = defaults.up
+    if "up" in section:
+        vector = json_array(fields, "path.up", (3,))
+        if abs(math.sqrt(float(vector @ vector)) - 1.0) > _UNIT_TOLERANCE:
+            raise UserError(f"{file}: 'path.up' must be a unit vector, got {show_json(section['up'])}")
+        up = tuple(float(x) for x in vector)
+
+    entries = fields.get("keyframes", list)
+    if not entries:
+        raise UserError(f"{file}: 'keyframes' is empty (a camera path needs at least one keyframe)")
+    if len(entries) > MAX_KEYFRAMES:
+        raise UserError(f"{file}: 'keyframes' has {len(entries)} entries (at most {MAX_KEYFRAMES})")
+    keyframes = [_load_keyframe(file, i, entry, duration, loop) for i, entry in enumerate(entries)]
+    _check_times(file, keyframes)
+    try:
+        return CameraPath(tuple(keyframes), duration, fps, Interpolation(alpha, tension, loop, up))
+    except (ValueError, UserError) as exc:  # a check of CameraPath's own that the file breaks
+        raise UserError(f"{file}: 'path': {' '.join(str(exc).split())}") from None
+
+
+def _load_keyframe(file: Path, index: int, entry, duration: float, loop: bool) -> Keyframe:
+    name = f"keyframes[{index}]"
+    # The entry as the one field of an object: JsonFields' messages then name it "keyframes[i].key".
+    fields = JsonFields(file, {name: entry})
+    fields.get(name, dict)
+    _check_keys(file, name, entry, ("position", "rotation", "fov"), ("time",))
+    position = json_array(fields, f"{name}.position", (3,))
+    rotation = json_array(fields, f"{name}.rotation", (3, 3))
+    if not is_rotation(rotation):
+        raise UserError(f"{file}: '{name}.rotation' is not a rotation matrix")
+    fov = _number_in(fields, f"{name}.fov", *FOV_RANGE)
+    time = None
+    if entry.get("time") is not None:
+        time = fields.get(f"{name}.time", float)
+        if not 0.0 <= time <= duration or (loop and time == duration):
+            raise UserError(f"{file}: '{name}.time' must be in [0, {duration:g}{')' if loop else ']'} "
+                            f"('path.duration'{', a loop' if loop else ''}), got {show_json(time)}")
+    return Keyframe(Pose(position, rotation.T), fov, time)
+
+
+def _check_times(file: Path, keyframes: list[Keyframe]) -> None:
+    last = None
+    for index, keyframe in enumerate(keyframes):
+        if keyframe.time is None:
+            continue
+        if last is not None and keyframe.time <= last[1]:
+            raise UserError(f"{file}: 'keyframes[{index}].time' {keyframe.time:g} is not after "
+                            f"'keyframes[{last[0]}].time' {last[1]:g} (times increase along the path)")
+        last = index, keyframe.time
+
+
+# --------------------------------------------------------------------------- the scene
+
+
+def scene_mismatch(doc: PathDocument, scene_name: str, actual_sha256: str | None = None) -> str | None:
+    """A one-line warning when ``scene_name`` ("demo" or a file) is not the scene the
+    path was recorded on (by SHA-256; ``actual_sha256``: its digest when the caller
+    already has it); None when it is, or when the document records no hash. A warning,
+    not an error: a path recorded on one training run is often rendered on another run
+    of the same scene."""
+    if doc.scene_sha256 is None:
+        return None
+    if actual_sha256 is None:
+        actual_sha256 = demo_sha256() if scene_name == DEMO else scene_sha256(scene_name)
+    if actual_sha256 == doc.scene_sha256:
+        return None
+    where = doc.source.name if doc.source is not None else "the camera path"
+    hashes = f"sha256 {doc.scene_sha256[:12]}… recorded, {actual_sha256[:12]}… now"
+    if scene_name == DEMO and doc.scene_path == DEMO:
+        return f"{where} was recorded on another version of the demo scene ({hashes}); the views may not match"
+    recorded = "the demo scene" if doc.scene_path == DEMO else (doc.scene_path or "another scene")
+    scene = "the demo scene" if scene_name == DEMO else scene_name
+    return f"{where} was recorded on {recorded}, not on {scene} ({hashes}); the views may not match"
