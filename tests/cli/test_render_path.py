@@ -5,6 +5,9 @@ and bad input."""
 from __future__ import annotations
 
 import json
+import signal
+import subprocess
+import sys
 from dataclasses import replace
 from pathlib import Path
 
@@ -191,3 +194,29 @@ def test_bad_input_is_one_line_before_any_rendering_and_loses_nothing(tmp_path, 
     assert err.startswith("error: ") and err.count("\n") == 1
     assert existing.read_bytes() == b"the user's video"
     assert sorted(p.name for p in tmp_path.iterdir()) == before
+
+
+def test_a_real_sigint_mid_render_leaves_a_playable_video(tmp_path):
+    """What the window's Cancel button and a terminal's Ctrl-C send, to a real process."""
+    long = demo_document(path=path_through_cameras(demo_cameras()[:3], duration=20, fps=10))  # 200 frames
+    path_file = save_path_document(long, tmp_path / "long.json")
+    video = tmp_path / "fly.mp4"
+    process = subprocess.Popen([sys.executable, "-m", "raygs_viewer", "render-path", "demo", str(path_file),
+                                "--out", str(video), "--progress", "json"],
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        first = json.loads(process.stdout.readline())   # a frame is done: the encoder holds some
+        for _ in range(2):
+            process.stdout.readline()
+        process.send_signal(signal.SIGINT)
+        out, err = process.communicate(timeout=60)
+    finally:
+        process.kill()
+    assert first["frame"] == 1 and first["frames"] == 200
+    assert process.returncode == 130
+    interrupted = json.loads(out.splitlines()[-1])
+    assert interrupted["interrupted"] is True and interrupted["out"] == str(video)
+    assert 3 <= interrupted["frames"] < 200
+    assert len(decoded(video)[0]) == interrupted["frames"]
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["fly.mp4", "long.json"]
+    assert err.strip().splitlines()[-1].startswith("interrupted: ")
