@@ -10,7 +10,6 @@ camera is drawn wrapped through infinity.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -60,16 +59,23 @@ def screen_segments(camera: Camera, starts: np.ndarray, ends: np.ndarray, rect: 
     """(M, 2, 2) screen segments of the world segments ``starts`` -> ``ends`` ((N, 3)
     each): cut at the plane ``near`` in front of the camera, projected, and cut to
     ``rect``; those with nothing left are dropped."""
+    return _visible_segments(camera, starts, ends, rect, near)[0]
+
+
+def _visible_segments(camera: Camera, starts: np.ndarray, ends: np.ndarray, rect: Rect, near: float
+                      ) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`screen_segments` and the index of the world segment each one comes from."""
     starts, ends = np.asarray(starts, np.float64).reshape(-1, 3), np.asarray(ends, np.float64).reshape(-1, 3)
     a, b = starts @ camera.R.T + camera.t, ends @ camera.R.T + camera.t
-    keep = (a[:, 2] >= near) | (b[:, 2] >= near)
-    a, b = a[keep], b[keep]
+    index = np.flatnonzero((a[:, 2] >= near) | (b[:, 2] >= near))
+    a, b = a[index], b[index]
     with np.errstate(divide="ignore", invalid="ignore"):
         crossing = a + ((near - a[:, 2]) / (b[:, 2] - a[:, 2]))[:, None] * (b - a)
     # The end behind the near plane moves along the segment onto it.
     a = np.where((a[:, 2] < near)[:, None], crossing, a)
     b = np.where((b[:, 2] < near)[:, None], crossing, b)
-    return _clip_to_rect(_project(camera, a, rect), _project(camera, b, rect), rect)
+    segments, inside = _clip_to_rect(_project(camera, a, rect), _project(camera, b, rect), rect)
+    return segments, index[inside]
 
 
 def _project(camera: Camera, p: np.ndarray, rect: Rect) -> np.ndarray:
@@ -81,8 +87,9 @@ def _project(camera: Camera, p: np.ndarray, rect: Rect) -> np.ndarray:
     return np.stack([x0 + u * (x1 - x0) / camera.width, y0 + v * (y1 - y0) / camera.height], axis=1)
 
 
-def _clip_to_rect(p: np.ndarray, q: np.ndarray, rect: Rect) -> np.ndarray:
-    """Liang-Barsky: the part of each segment p -> q ((N, 2) each) inside ``rect``."""
+def _clip_to_rect(p: np.ndarray, q: np.ndarray, rect: Rect) -> tuple[np.ndarray, np.ndarray]:
+    """Liang-Barsky: the part of each segment p -> q ((N, 2) each) inside ``rect``, and
+    the (N,) mask of the segments with a part inside."""
     x0, y0, x1, y1 = rect
     d = q - p
     low, high = np.zeros(len(p)), np.ones(len(p))
@@ -97,22 +104,25 @@ def _clip_to_rect(p: np.ndarray, q: np.ndarray, rect: Rect) -> np.ndarray:
         high = np.where(~parallel & (delta > 0), np.minimum(high, r), high)
     inside &= (low <= high) & np.all(np.isfinite(p), axis=1) & np.all(np.isfinite(q), axis=1)
     p, d, low, high = p[inside], d[inside], low[inside], high[inside]
-    return np.stack([p + low[:, None] * d, p + high[:, None] * d], axis=1)
+    return np.stack([p + low[:, None] * d, p + high[:, None] * d], axis=1).reshape(-1, 2, 2), inside
 
 
 def frustum_lines(path: CameraPath, size: float, aspect: float) -> tuple[np.ndarray, np.ndarray]:
-    """(K, 8, 3) starts and ends of each keyframe's pyramid: four edges from its camera
-    centre to the corners of its image at ``size`` in front, and the image's rim."""
-    starts, ends = [], []
-    for keyframe in path.keyframes:
-        R, apex = keyframe.pose.R, keyframe.pose.position
-        half_h = size * math.tan(math.radians(keyframe.fov_y_degrees) / 2)
-        half_w = half_h * aspect
-        centre = apex + size * R[2]
-        corners = [centre + sx * half_w * R[0] + sy * half_h * R[1] for sx, sy in ((-1, -1), (1, -1), (1, 1), (-1, 1))]
-        starts.append([apex] * 4 + corners)
-        ends.append(corners + corners[1:] + corners[:1])
-    return np.array(starts).reshape(-1, 8, 3), np.array(ends).reshape(-1, 8, 3)
+    """(K * 8, 3) starts and ends of each keyframe's pyramid, eight lines a keyframe:
+    four edges from its camera centre to the corners of its image ``size`` in front of
+    it, then the image's rim."""
+    if not path.keyframes:
+        return np.zeros((0, 3)), np.zeros((0, 3))
+    R = np.array([k.pose.R for k in path.keyframes])                       # (K, 3, 3)
+    apex = np.array([k.pose.position for k in path.keyframes])              # (K, 3)
+    half_h = size * np.tan(np.radians([k.fov_y_degrees for k in path.keyframes]) / 2)
+    half_w = half_h * aspect
+    signs = np.array([(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)])  # the corners, round the rim
+    corners = ((apex + size * R[:, 2])[:, None] + (signs[None, :, 0] * half_w[:, None])[..., None] * R[:, None, 0]
+               + (signs[None, :, 1] * half_h[:, None])[..., None] * R[:, None, 1])   # (K, 4, 3)
+    starts = np.concatenate([np.repeat(apex[:, None], 4, axis=1), corners], axis=1)
+    ends = np.concatenate([corners, np.roll(corners, -1, axis=1)], axis=1)
+    return starts.reshape(-1, 3), ends.reshape(-1, 3)
 
 
 def draw_path_overlay(path: CameraPath, camera: Camera, viewport: tuple[int, int, int, int],
@@ -130,13 +140,11 @@ def draw_path_overlay(path: CameraPath, camera: Camera, viewport: tuple[int, int
     for p, q in polyline:
         draw.add_line(tuple(p), tuple(q), imgui.IM_COL32(*PATH_COLOUR), 2.0)
     starts, ends = frustum_lines(path, size, camera.width / camera.height)
-    frustums = 0
-    for index in range(len(path.keyframes)):
-        chosen = index == selected
-        colour = imgui.IM_COL32(*(SELECTED_COLOUR if chosen else FRUSTUM_COLOUR))
-        for p, q in screen_segments(camera, starts[index], ends[index], rect, near):
-            draw.add_line(tuple(p), tuple(q), colour, 2.0 if chosen else 1.0)
-            frustums += 1
+    frustums, lines = _visible_segments(camera, starts, ends, rect, near)
+    plain, chosen = imgui.IM_COL32(*FRUSTUM_COLOUR), imgui.IM_COL32(*SELECTED_COLOUR)
+    for (p, q), line in zip(frustums, lines):
+        highlight = line // 8 == selected
+        draw.add_line(tuple(p), tuple(q), chosen if highlight else plain, 2.0 if highlight else 1.0)
     centres = np.array([k.pose.position for k in path.keyframes])
     depth = (centres @ camera.R.T + camera.t)[:, 2]
     points = project_points(camera, centres, rect)
@@ -146,4 +154,4 @@ def draw_path_overlay(path: CameraPath, camera: Camera, viewport: tuple[int, int
     for index, (x, y) in shown.items():
         draw.add_circle_filled((x, y), 4.0 if index == selected else 2.5,
                                imgui.IM_COL32(*(SELECTED_COLOUR if index == selected else FRUSTUM_COLOUR)))
-    return DrawnPath(len(polyline), frustums, shown)
+    return DrawnPath(len(polyline), len(frustums), shown)

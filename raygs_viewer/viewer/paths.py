@@ -158,10 +158,12 @@ def orbit_around_scene(view: ViewControl, aspect: float, path: CameraPath) -> Ca
 
 def dolly_from_view(view: ViewControl, distance: float, path: CameraPath) -> CameraPath:
     """A straight move of ``distance`` scene units from the current view along its view
-    direction; the path's duration and rate are kept."""
+    direction; the path's duration and rate are kept, the up axis is the navigator's."""
     keyframe = current_keyframe(view)
-    return dolly_path(keyframe.pose, distance, duration=path.duration, fps=path.fps,
-                      fov_y_degrees=keyframe.fov_y_degrees)
+    dolly = dolly_path(keyframe.pose, distance, duration=path.duration, fps=path.fps,
+                       fov_y_degrees=keyframe.fov_y_degrees)
+    up = tuple(float(u) for u in view.navigator.up_vector)  # keyframes added later keep the scene's up
+    return replace(dolly, interpolation=replace(dolly.interpolation, up=up))
 
 
 def frame_step(path: CameraPath) -> float:

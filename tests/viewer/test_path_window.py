@@ -16,10 +16,10 @@ from appkit import PANEL_HEIGHT, PANEL_WIDTH, WIDTH, project
 from imgui_bundle import imgui  # before glfw (see raygs_viewer.viewer.window)
 
 from raygs_viewer.camera.navigation import Pose
-from raygs_viewer.camera.path import Keyframe
+from raygs_viewer.camera.path import CameraPath, Keyframe
 from raygs_viewer.capture.path_file import load_path_document, save_path_document
 from raygs_viewer.viewer.panel.widgets import item_rects
-from raygs_viewer.viewer.path_overlay import screen_segments
+from raygs_viewer.viewer.path_overlay import frustum_lines, screen_segments
 from raygs_viewer.viewer.video_job import VideoJob, render_path_command, write_video_document
 
 PATH_PANEL = {"width": PANEL_WIDTH, "height": PANEL_HEIGHT}
@@ -154,8 +154,10 @@ def test_go_to_shows_the_keyframe_and_generators_replace_the_path(open_viewer):
         pytest.skip("camera.path.dolly_path is not implemented yet")
     assert viewer.panel.error == ""
     assert len(viewer.paths.path.keyframes) >= 2
-    start = viewer.paths.path.keyframes[0].pose
+    start, end = viewer.paths.path.keyframes[0].pose, viewer.paths.path.keyframes[-1].pose
     np.testing.assert_allclose(start.position, viewer.camera.center, atol=1e-9)
+    np.testing.assert_allclose(end.position - start.position, 0.5 * viewer.camera.R[2], atol=1e-9)
+    assert viewer.paths.path.interpolation.up == tuple(viewer.view.navigator.up_vector)
     viewer.orbit_path()
     assert viewer.paths.path.interpolation.loop
     centre = viewer.view.center
@@ -304,6 +306,13 @@ def test_screen_segments_cut_at_the_near_plane_and_the_viewport(open_viewer):
     far_right = ahead + 10.0 * camera.R[0]
     assert len(screen_segments(camera, far_right[None], (far_right + camera.R[1])[None], rect, near=0.5)) == 0
     assert WIDTH == camera.width
+
+    # A keyframe at the view itself: its frustum's rim is the image's border.
+    keyframe = Keyframe(viewer.view.navigator.pose, viewer.view.lens.fov_y_degrees)
+    _, ends = frustum_lines(CameraPath((keyframe,)), 0.7, camera.width / camera.height)
+    corners = [project(camera, corner)[:2] for corner in ends[:4]]
+    w, h = camera.width, camera.height
+    np.testing.assert_allclose(corners, [(0, 0), (w, 0), (w, h), (0, h)], atol=1e-9)
 
 
 # -- files -------------------------------------------------------------------------------
