@@ -209,7 +209,8 @@ class Viewer:
         self.view.navigator.advance(dt)
         if self.options.navigation.turntable:
             self.view.turn(self.options.navigation.turntable)
-        # Playback moves in real time: a slow frame advances the path by its whole length.
+        # Playback runs in real time: a slow frame moves the path on by all of its time (up to
+        # MAX_PLAY_DT), not by the navigator's dt, which is clamped to keep key moves small.
         frame_time = self.stats.all_frame_times[-1] if self.stats.all_frame_times else 0.0
         self.playback.follow(self.paths.path, self.view,
                              self.fixed_dt if self.fixed_dt is not None else min(frame_time, MAX_PLAY_DT))

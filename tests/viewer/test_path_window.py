@@ -336,6 +336,11 @@ def test_save_and_load_through_the_panel_round_trip(open_viewer, tmp_path):
 
     click(drive, "Save path")  # never replaces it unless asked to
     assert "already exists" in viewer.panel.error
+    viewer.paths.set_fps(12.0)
+    click(drive, "overwrite path")
+    click(drive, "Save path")
+    assert viewer.panel.error == "" and load_path_document(file).path.fps == 12.0
+    saved = viewer.paths.path
     click(drive, "Clear path")
     click(drive, "Load path")
     loaded = viewer.paths.path
