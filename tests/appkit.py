@@ -18,7 +18,8 @@ from raygs_viewer.viewer.panel.widgets import item_rects
 from raygs_viewer.viewer.state import ScreenshotOptions, ViewerOptions
 
 WIDTH, HEIGHT = 192, 144
-PANEL_WIDTH, PANEL_HEIGHT = 640, 800  # room for the whole panel
+PANEL_WIDTH, PANEL_HEIGHT = 640, 800  # room for the whole panel down to the Path section
+PANEL_NAME = "raygs-viewer"  # the panel's imgui window
 
 
 class Driver:
@@ -92,6 +93,20 @@ class Driver:
         self.frames(1)
         self.button(0, False)
         self.frames(1)
+
+    def reveal(self, label: str) -> None:
+        """Scrolls the panel with the mouse wheel (over its left margin, where no widget
+        takes the wheel) until the widget ``label`` lies inside its visible part."""
+        for _ in range(60):
+            panel = imgui.internal.find_window_by_name(PANEL_NAME).inner_clip_rect
+            x0, y0, x1, y1 = item_rects[label]
+            if y0 >= panel.min.y and y1 <= panel.max.y:
+                return
+            self.move_mouse(panel.min.x + 2, (panel.min.y + panel.max.y) / 2)
+            self.frames(1)  # imgui takes the wheel where the mouse was in the frame before
+            self.wheel(-1.0 if y1 > panel.max.y else 1.0)
+            self.frames(2)  # the scroll shows from the frame after the wheel's
+        raise AssertionError(f"{label} never came into the panel's view")
 
     def click_left_end(self, rect) -> None:
         """A left click 2 px inside the left end of ``rect``: a slider's lowest value."""

@@ -27,6 +27,7 @@ Key = imgui.Key
 SHORTCUTS: dict[str, tuple] = {
     "quit": (Key.escape,),
     "screenshot": (Key.f12,),
+    "add_keyframe": (Key.k,),
     "switch_navigation": (Key.tab,),
     "next_camera": (Key.n, Key.page_down),
     "previous_camera": (Key.p, Key.page_up),

@@ -1,0 +1,217 @@
+"""Render video in the background: the window writes its path document to a fresh pair
+of names in the videos folder (``raygs-YYYYmmdd-HHMMSS.json`` and ``.mp4``), then runs
+``raygs-viewer render-path`` on it as a subprocess and reads its progress.
+
+The command prints one JSON object a line on stdout (``--progress json``):
+``{"frame": k, "frames": n, "fps": r, "eta_s": s}`` while it renders, then
+``{"done": true, "out": "...", "frames": n}``, or ``{"interrupted": true, ...}`` after a
+SIGINT (it then leaves a playable truncated file, or none); a failure ends with an
+``error: ...`` line on stderr and exit status 2. The window polls the job once a frame
+and never waits on it, except briefly when it closes.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import threading
+from dataclasses import dataclass
+from datetime import datetime
+from pathlib import Path
+
+from raygs_viewer.capture.path_document import PathDocument
+from raygs_viewer.capture.path_file import save_path_document
+from raygs_viewer.errors import UserError
+
+VIDEO_PREFIX = "raygs-"
+_MAX_NAME_ATTEMPTS = 1000
+#: How long closing the window waits for a cancelled job to leave its truncated file.
+CLOSE_WAIT_S = 5.0
+
+
+def render_path_command(scene: str, document: Path, out: Path) -> list[str]:
+    """The command line that renders ``document`` (a path JSON) of ``scene`` ("demo" or
+    a path) to ``out``, reporting progress as JSON lines."""
+    return [sys.executable, "-m", "raygs_viewer", "render-path", scene, str(document), "--out", str(out),
+            "--progress", "json"]
+
+
+def _video_folder(folder: str | Path) -> Path:
+    folder = Path(folder)
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        raise UserError(f"{folder}: cannot create the video folder: {exc.strerror or exc}") from None
+    if not folder.is_dir():
+        raise UserError(f"{folder}: cannot save videos there: not a folder")
+    return folder
+
+
+def write_video_document(document: PathDocument, folder: str | Path, now: datetime | None = None
+                         ) -> tuple[Path, Path]:
+    """Saves ``document`` as ``folder/raygs-<time>.json`` (``-2``, ``-3``, ... when that
+    JSON or its ``.mp4`` exists; the folder is created if missing) and returns (json,
+    mp4): the video's name is free, the JSON written. Nothing is ever replaced."""
+    folder = _video_folder(folder)
+    stem = VIDEO_PREFIX + (now or datetime.now()).strftime("%Y%m%d-%H%M%S")
+    for n in range(1, _MAX_NAME_ATTEMPTS + 1):
+        name = stem if n == 1 else f"{stem}-{n}"
+        json_path, video = folder / f"{name}.json", folder / f"{name}.mp4"
+        if os.path.lexists(json_path) or os.path.lexists(video):
+            continue
+        try:
+            return save_path_document(document, json_path), video
+        except UserError:
+            if os.path.lexists(json_path):  # another writer took the name meanwhile
+                continue
+            raise
+    raise UserError(f"{folder}: no free video name from {stem} on")
+
+
+@dataclass(frozen=True)
+class JobProgress:
+    """The last progress line: frames done of ``frames``, rate (frames per second) and
+    time left (seconds); None where the command has not said yet."""
+
+    frame: int = 0
+    frames: int | None = None
+    fps: float | None = None
+    eta_s: float | None = None
+
+    @property
+    def fraction(self) -> float:
+        return min(max(self.frame / self.frames, 0.0), 1.0) if self.frames else 0.0
+
+    def describe(self) -> str:
+        """E.g. "frame 12 / 300, 4.1 fps, 70 s left"."""
+        text = f"frame {self.frame} / {self.frames if self.frames is not None else '?'}"
+        if self.fps is not None:
+            text += f", {self.fps:.3g} fps"
+        if self.eta_s is not None:
+            text += f", {self.eta_s:.0f} s left"
+        return text
+
+
+@dataclass(frozen=True)
+class JobResult:
+    """How a job ended: ``kind`` "done", "interrupted" or "error", and the panel's line."""
+
+    kind: str
+    message: str
+
+
+class VideoJob:
+    """One running ``command`` (see :func:`render_path_command`) writing ``out``: its
+    stdout's progress lines and its stderr's ``error:`` line are read on threads;
+    :meth:`poll` returns the result once, when it has ended."""
+
+    def __init__(self, command: list[str], out: Path, document: Path):
+        self.command, self.out, self.document = list(command), Path(out), Path(document)
+        self._lock = threading.Lock()
+        self._progress = JobProgress()
+        self._final: dict | None = None      # the done or interrupted line
+        self._errors: list[str] = []         # stderr's lines (the last few)
+        self.cancelled = False
+        self._reported = False
+        try:
+            self.process = subprocess.Popen(self.command, stdin=subprocess.DEVNULL, stdout=subprocess.PIPE,
+                                            stderr=subprocess.PIPE, text=True, encoding="utf-8", errors="replace",
+                                            bufsize=1)
+        except OSError as exc:
+            raise UserError(f"cannot start the video render: {exc.strerror or exc}") from None
+        self._readers = [threading.Thread(target=self._read_stdout, daemon=True, name="video-progress"),
+                         threading.Thread(target=self._read_stderr, daemon=True, name="video-errors")]
+        for reader in self._readers:
+            reader.start()
+
+    # -- reader threads -----------------------------------------------------------------
+    def _read_stdout(self) -> None:
+        for line in self.process.stdout:
+            try:
+                data = json.loads(line)
+            except ValueError:
+                continue  # not a progress line: nothing the window shows
+            if not isinstance(data, dict):
+                continue
+            with self._lock:
+                if data.get("done") or data.get("interrupted"):
+                    self._final = data
+                elif isinstance(data.get("frame"), int):
+                    self._progress = JobProgress(data["frame"], _number(data.get("frames"), int),
+                                                 _number(data.get("fps"), float), _number(data.get("eta_s"), float))
+
+    def _read_stderr(self) -> None:
+        for line in self.process.stderr:
+            line = line.strip()
+            if line:
+                with self._lock:
+                    self._errors = (self._errors + [line])[-20:]
+
+    # -- what the window calls ----------------------------------------------------------
+    @property
+    def running(self) -> bool:
+        return self.process.poll() is None or any(reader.is_alive() for reader in self._readers)
+
+    @property
+    def progress(self) -> JobProgress:
+        with self._lock:
+            return self._progress
+
+    def cancel(self) -> None:
+        """Asks the command to stop (SIGINT, as Ctrl-C would): it leaves a playable
+        truncated video, or none."""
+        if self.process.poll() is None:
+            self.cancelled = True
+            try:
+                self.process.send_signal(signal.SIGINT)
+            except OSError:
+                pass  # it has just ended
+
+    def poll(self) -> JobResult | None:
+        """The result once the command has ended and its output is read; None before, and
+        after the result has been returned once."""
+        if self._reported or self.running:
+            return None
+        self._reported = True
+        return self.result()
+
+    def result(self) -> JobResult:
+        status = self.process.returncode
+        with self._lock:
+            final, errors, progress = self._final, list(self._errors), self._progress
+        if final is not None and final.get("done") and status == 0:
+            frames = final.get("frames", progress.frames)
+            return JobResult("done", f"saved {final.get('out', self.out)} ({frames} frames; path {self.document})")
+        if (final is not None and final.get("interrupted")) or (self.cancelled and status in (130, -signal.SIGINT)):
+            done = final.get("frames", final.get("frame")) if final else None
+            done = progress.frame if done is None else done
+            kept = final.get("out") if final else None
+            if kept is None and self.out.exists():
+                kept = str(self.out)
+            where = f"{kept} holds the first {done} frames" if kept else "no video was written"
+            return JobResult("interrupted", f"video cancelled: {where}")
+        error = next((line for line in reversed(errors) if line.startswith("error:")), None)
+        if error is None:
+            error = f"error: the video render failed (exit status {status})" + (f": {errors[-1]}" if errors else "")
+        return JobResult("error", error)
+
+    def close(self, timeout: float = CLOSE_WAIT_S) -> None:
+        """Cancels the job if it runs, waits up to ``timeout`` seconds for it to leave
+        its truncated file, then kills it."""
+        self.cancel()
+        try:
+            self.process.wait(timeout)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            self.process.wait()
+        for reader in self._readers:
+            reader.join(timeout=1.0)
+
+
+def _number(value, kind):
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        return None
+    return kind(value)
