@@ -188,16 +188,21 @@ def framing_pose(center, radius: float, up: str, fov_y_degrees: float, aspect: f
     """
     up_vec = up_vector(up)
     center = np.asarray(center, dtype=np.float64).reshape(3)
-    radius = float(radius) if finite(radius) else 1.0
-    radius = max(radius, 1e-6)
+    forward = _default_forward(up_vec)
+    return Pose(center - framing_distance(radius, fov_y_degrees, aspect) * forward, level_rotation(forward, up_vec))
+
+
+def framing_distance(radius: float, fov_y_degrees: float, aspect: float) -> float:
+    """How far from a sphere of ``radius`` a camera of that vertical field of view and
+    aspect (width / height) must be for the sphere to fit its view; the same fallbacks
+    as :func:`framing_pose` for bad numbers."""
+    radius = max(float(radius) if finite(radius) else 1.0, 1e-6)
     aspect = float(aspect) if finite(aspect) and float(aspect) > 0 else 1.0
     fov = float(fov_y_degrees) if finite(fov_y_degrees) else 60.0
     half_y = math.radians(min(179.0, max(1e-3, fov))) / 2
     # The narrower of the two half-angles decides: the sphere's cone must fit both ways.
     half = min(half_y, math.atan(math.tan(half_y) * aspect))
-    distance = radius / math.sin(half)
-    forward = _default_forward(up_vec)
-    return Pose(center - distance * forward, level_rotation(forward, up_vec))
+    return radius / math.sin(half)
 
 
 # --------------------------------------------------------------------------- navigator

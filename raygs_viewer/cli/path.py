@@ -1,6 +1,7 @@
 """``render-path``: a camera path rendered to an MP4 video or a folder of PNG frames.
 
-The path is the window's path JSON or a nerfstudio ``camera_path`` file. Every frame
+The path is the window's path JSON, a nerfstudio ``camera_path`` file, or ``orbit``: a
+turntable around the scene's centre, framed as the window's Reset view frames it. Every frame
 is rendered offscreen with its own exact sort, as a screenshot is, so the video does
 not depend on how fast the machine is. Options on the command line replace what the
 path file recorded (its size, frame rate, render settings, stereo view).
@@ -17,7 +18,9 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
-from raygs_viewer.camera.path import FPS_RANGE, MAX_FRAMES
+from raygs_viewer.camera.navigation import UP_AXES, framing_distance, framing_pose, scene_bounds, up_vector
+from raygs_viewer.camera.path import FPS_RANGE, MAX_DURATION, orbit_path
+from raygs_viewer.capture.path_document import PathDocument
 from raygs_viewer.capture.image_io import check_output_path
 from raygs_viewer.capture.path_file import load_path_document, scene_mismatch
 from raygs_viewer.capture.path_render import (
@@ -44,6 +47,10 @@ from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.loader import DEMO, TerminalProgress
 
 PROGRESS_MODES = ("auto", "bar", "json", "none")
+#: The PATH argument that asks for a turntable instead of a path file, and its defaults.
+ORBIT = "orbit"
+ORBIT_SIZE = (1280, 720)
+ORBIT_FOV = 50.0
 
 
 def add_parser(commands) -> None:
@@ -53,13 +60,22 @@ def add_parser(commands) -> None:
                     "camera_path file) offscreen with its own exact sort. Options given here replace what the "
                     "path file recorded.")
     parser.add_argument("scene", help=f"a .ply or .splat file, or '{DEMO}'")
-    parser.add_argument("path", metavar="PATH.json", help="the window's path JSON, or a nerfstudio camera_path")
+    parser.add_argument("path", metavar="PATH.json|orbit",
+                        help="the window's path JSON, a nerfstudio camera_path, or 'orbit': one lap around the "
+                             f"scene's centre (10 s at 30 fps, {ORBIT_SIZE[0]}x{ORBIT_SIZE[1]} unless --duration, "
+                             "--fps or --size say otherwise)")
     parser.add_argument("--out", required=True, metavar="fly.mp4|frames/",
                         help=".mp4: H.264 video (yuv420p; an odd size is padded to even); anything else: a "
                              "folder of numbered PNG frames")
     parser.add_argument("--fps", type=argtypes.real_number(lambda v: FPS_RANGE[0] <= v <= FPS_RANGE[1],
                                                            f"not in [{FPS_RANGE[0]:g}, {FPS_RANGE[1]:g}]"),
                         metavar="F", help="frames per second (default: the path's); the duration stays")
+    parser.add_argument("--duration", type=argtypes.real_number(lambda v: 0 < v <= MAX_DURATION,
+                                                                f"not in (0, {MAX_DURATION:g}] seconds"),
+                        metavar="SECONDS", help="the path's length in time (default: the path's); keyframes with "
+                                                "times of their own keep them, so it must not cut them off")
+    parser.add_argument("--up-axis", choices=UP_AXES,
+                        help="orbit: the scene's up axis, the turntable's axis (default -y, as in the window)")
     parser.add_argument("--size", type=argtypes.resolution, metavar="WxH",
                         help="each frame's camera size (default: the path's); side by side stereo doubles the width")
     add_settings_options(parser, None, None)
@@ -82,24 +98,21 @@ def command_render_path(args: argparse.Namespace) -> int:
         check_output_path(args.cameras_out, args.overwrite, suffixes=(".json",))
     if cameras_out is not None and cameras_out.resolve() == out.resolve():
         raise UserError("--cameras-out and --out name the same file")
-    document = load_path_document(args.path)
-    for note in document.notes:  # e.g. a nerfstudio crop box this viewer does not apply
-        print(f"note: {note}", file=sys.stderr)
-    mismatch = scene_mismatch(document, args.scene)
-    if mismatch:
-        print(f"warning: {mismatch}", file=sys.stderr)
-    settings = settings_with_options(document.settings or RenderSettings(), args)
-    stereo = stereo_view(args) if args.stereo else document.stereo
-    path = document.path if args.fps is None else replace(document.path, fps=args.fps)
-    width, height = args.size or (document.width, document.height)
-    if path.frame_count > MAX_FRAMES:
-        raise UserError(f"{path.frame_count} frames is more than {MAX_FRAMES}; lower --fps")
-    entries = frame_camera_entries(path, width, height)
-    cameras = cameras_of_entries(entries)  # what render --camera loads from the entries
+    document = None if args.path == ORBIT else read_document(args)
+    settings = settings_with_options(document.settings if document and document.settings else RenderSettings(),
+                                     args)
+    stereo = stereo_view(args) if args.stereo else document.stereo if document else None
 
     with TerminalProgress(args.scene) as loading:
         scene = load_scene_argument(args.scene, loading)
     warn_dropped(scene)
+    if document is None:
+        document = orbit_document(scene, args.up_axis or "-y", *(args.size or ORBIT_SIZE))
+    path = replace(document.path, fps=args.fps or document.path.fps,
+                   duration=args.duration or document.path.duration)  # UserError past a keyframe's time
+    width, height = args.size or (document.width, document.height)
+    entries = frame_camera_entries(path, width, height)
+    cameras = cameras_of_entries(entries)  # what render --camera loads from the entries
     ctx = create_headless_context(args.gl_backend)
     try:
         renderer = GLRenderer(ctx, scene, general=args.general)
@@ -115,6 +128,31 @@ def command_render_path(args: argparse.Namespace) -> int:
             renderer.release()
     finally:
         ctx.release()
+
+
+def read_document(args: argparse.Namespace) -> PathDocument:
+    """The path file, with its notes and a warning when it was recorded on another scene."""
+    if args.up_axis is not None:
+        raise UserError("--up-axis is for 'orbit'; a path file has its own up axis")
+    document = load_path_document(args.path)
+    for note in document.notes:  # e.g. a nerfstudio crop box this viewer does not apply
+        print(f"note: {note}", file=sys.stderr)
+    mismatch = scene_mismatch(document, args.scene)
+    if mismatch:
+        print(f"warning: {mismatch}", file=sys.stderr)
+    return document
+
+
+def orbit_document(scene, up: str, width: int, height: int) -> PathDocument:
+    """One lap around the scene's centre (its bounds', as the window's Reset view finds
+    them), from the side the window's Reset view looks from, at the distance that fits
+    the scene's bounding sphere in the view, 20 degrees above the horizon of ``up``."""
+    center, radius = scene_bounds(scene.positions)
+    aspect = width / height
+    start = framing_pose(center, radius, up, ORBIT_FOV, aspect)
+    path = orbit_path(center, framing_distance(radius, ORBIT_FOV, aspect), up_vector(up), start=start,
+                      fov_y_degrees=ORBIT_FOV)
+    return PathDocument(path, width, height)
 
 
 def _render(renderer, cameras, settings, stereo, out: Path, image_size, fps: float, args) -> int:

@@ -10,13 +10,11 @@ from their sidecar (``raygs-viewer render --sidecar``).
 input (``input``), the camera (``view_control``), loading (``loading``), drawing
 (``drawing``, with ``render.gl.mono_frame`` and ``render.gl.stereo_frame``), the
 panel (``panel``), the split view's overlay (``overlay``), screenshots
-(``screenshots``), and the camera path: its editing and playback (``paths``), its
-drawing (``path_overlay``) and its video (``video_job``).
+(``screenshots``) and the camera path with its playback and video (``path_control``).
 """
 
 from __future__ import annotations
 
-import os
 from dataclasses import replace
 from pathlib import Path
 from typing import Callable
@@ -25,12 +23,10 @@ import moderngl
 import numpy as np
 from imgui_bundle import imgui
 
-from raygs_viewer.camera.path import path_through_cameras
 from raygs_viewer.camera.pinhole import Camera, load_camera
 from raygs_viewer.camera.stereo import StereoView
 from raygs_viewer.capture.image_io import check_output_path, save_image
 from raygs_viewer.capture.path_document import PathDocument
-from raygs_viewer.capture.path_file import load_path_document, save_path_document, scene_mismatch
 from raygs_viewer.capture.screenshot import check_screenshot_path
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.gl.context import context_description
@@ -44,7 +40,7 @@ from raygs_viewer.viewer.loading import SceneOpener, scene_title
 from raygs_viewer.viewer.overlay import draw_split_overlay
 from raygs_viewer.viewer.panel import draw_panel
 from raygs_viewer.viewer.panel.order import draw_order_section
-from raygs_viewer.viewer.panel.path import PathActions, draw_path_section
+from raygs_viewer.viewer.panel.path import draw_path_section
 from raygs_viewer.viewer.panel.render import draw_render_section
 from raygs_viewer.viewer.panel.scene import draw_scene_section
 from raygs_viewer.viewer.panel.screenshot import draw_screenshot_section
@@ -52,15 +48,7 @@ from raygs_viewer.viewer.panel.statistics import draw_statistics
 from raygs_viewer.viewer.panel.stereo import draw_stereo_section
 from raygs_viewer.viewer.panel.training import draw_training_section
 from raygs_viewer.viewer.panel.view import draw_view_section
-from raygs_viewer.viewer.path_overlay import DrawnPath, draw_path_overlay
-from raygs_viewer.viewer.paths import (
-    MAX_PLAY_DT,
-    PathEditor,
-    Playback,
-    current_keyframe,
-    dolly_from_view,
-    orbit_around_scene,
-)
+from raygs_viewer.viewer.path_control import PathControl, scene_argument
 from raygs_viewer.viewer.screenshots import Saved, ShownView, saved_message, sidecar_extra, take_screenshots
 from raygs_viewer.viewer.state import (
     PanelState,
@@ -70,7 +58,6 @@ from raygs_viewer.viewer.state import (
     ViewerOptions,
 )
 from raygs_viewer.viewer.stats import FrameStats, sort_key, summary
-from raygs_viewer.viewer.video_job import VideoJob, render_path_command, write_video_document
 from raygs_viewer.viewer.view_control import ViewControl
 from raygs_viewer.viewer.window import Window, choose_platform
 
@@ -112,12 +99,8 @@ class Viewer:
             "switch_navigation": lambda: self.view.switch_mode(),
             "next_camera": lambda: self.view.step_training_camera(+1),
             "previous_camera": lambda: self.view.step_training_camera(-1),
-            "reset_view": self.reset_view, "toggle_panel": self.panel.toggle, "add_keyframe": self.add_keyframe})
-        self.paths = PathEditor(self.panel)
-        self.playback = Playback()
-        self.video: VideoJob | None = None       # the video being rendered
-        #: (scene, path JSON, out) -> the command that renders it (tests run stand-ins).
-        self.video_command: Callable[[str, Path, Path], list[str]] = render_path_command
+            "reset_view": self.reset_view, "toggle_panel": self.panel.toggle, "add_keyframe": lambda: self.paths.add_view(self.view)})
+        self.paths = PathControl(self.panel)
         self.frame_index = 0
         self.input_script: Callable[[Viewer], None] | None = None
         self.fixed_dt: float | None = None  # tests: a deterministic frame time
@@ -136,8 +119,6 @@ class Viewer:
         #: The split view's divider and side labels as drawn last frame, (x0, y0, x1, y1)
         #: in screen coordinates (imgui's), for tests; empty without the split view.
         self.overlay_rects: dict[str, tuple[float, float, float, float]] = {}
-        #: The camera path as drawn last frame (what was drawn, for tests).
-        self.drawn_path = DrawnPath()
         try:
             self._install(loaded, start_camera)
             problem = self.renderer.supports(self.settings)
@@ -169,7 +150,7 @@ class Viewer:
         # A new scene keeps the user's navigation choices.
         choices = self.options.navigation if self.view is None else self.view.choices()
         self.view = ViewControl(loaded, start_camera, choices, self.options.width / self.options.height, self.panel)
-        self.paths.dolly_distance = float(self.view.radius)
+        self.paths.editor.dolly_distance = float(self.view.radius)
         self.window.set_title(f"raygs-viewer — {scene_title(loaded.path)}")
 
     def right_settings(self) -> RenderSettings | None:
@@ -209,12 +190,7 @@ class Viewer:
         self.view.navigator.advance(dt)
         if self.options.navigation.turntable:
             self.view.turn(self.options.navigation.turntable)
-        # Playback runs in real time: a slow frame moves the path on by all of its time (up to
-        # MAX_PLAY_DT), not by the navigator's dt, which is clamped to keep key moves small.
-        frame_time = self.stats.all_frame_times[-1] if self.stats.all_frame_times else 0.0
-        self.playback.follow(self.paths.path, self.view,
-                             self.fixed_dt if self.fixed_dt is not None else min(frame_time, MAX_PLAY_DT))
-        self._poll_video()
+        self.paths.frame(self.view, self.fixed_dt, self.stats.all_frame_times[-1] if self.stats.all_frame_times else 0.0)
 
         settings, right = self.settings, self.right_settings()
         stereo = self.stereo.frame_view(self.shown_stereo, self.panel)
@@ -235,10 +211,7 @@ class Viewer:
             draw_panel(self.panel, self._panel_sections())
         self.overlay_rects = {} if right is None else draw_split_overlay(
             self.viewport, self.split, self.settings, self.input.dragging_divider)
-        # Not in the stereo preview: its image shows two eyes, not the midpoint camera's view.
-        self.drawn_path = DrawnPath() if not self.paths.show or stereo is not None else draw_path_overlay(
-            self.paths.path, camera, self.viewport, self.paths.selected, 0.05 * self.view.radius,
-            1e-3 * self.view.radius)
+        self.paths.draw(camera, self.viewport, self.view.radius, stereo is not None)
         imgui.render()
 
         orders, serial = self.stats.order_to_draw(result, sort_key(camera, p_min, dilation, cull_cameras, keys),
@@ -275,9 +248,8 @@ class Viewer:
             lambda: draw_screenshot_section(self.screenshots, self.camera, self.shown_stereo is not None,
                                             self.stereo.save_eyes, self.split.on and self.shown_stereo is None,
                                             self.request_screenshot),
-            lambda: draw_path_section(self.paths, self.playback, self.video, PathActions(
-                self.add_keyframe, self.add_training_keyframes if loaded.cameras else None, self.orbit_path,
-                self.dolly_path, self.save_path, self.load_path, self.render_video, self.cancel_video)),
+            lambda: draw_path_section(self.paths.editor, self.paths.playback, self.paths.video,
+                                      self.paths.actions(view, loaded, self._aspect(), self.path_document)),
         ]
 
     def capture_window(self, overlay: bool = True) -> np.ndarray:
@@ -307,21 +279,6 @@ class Viewer:
         return self.last_screenshot
 
     # -- camera path -------------------------------------------------------------------
-    def add_keyframe(self) -> None:
-        """The current view as a keyframe, after the selected one (or at the end)."""
-        self.paths.add([current_keyframe(self.view)], self.view.navigator.up_vector)
-
-    def add_training_keyframes(self) -> None:
-        """Every training camera, in order, after the selected keyframe (or at the end)."""
-        through = path_through_cameras(self.loaded.cameras)
-        self.paths.add(list(through.keyframes), self.view.navigator.up_vector)
-
-    def orbit_path(self) -> None:
-        self.paths.edit(lambda path: orbit_around_scene(self.view, self._aspect(), path), select=None)
-
-    def dolly_path(self, distance: float) -> None:
-        self.paths.edit(lambda path: dolly_from_view(self.view, distance, path), select=None)
-
     def _aspect(self) -> float:
         _, _, width, height = self.viewport
         return width / height if width > 0 and height > 0 else self.options.width / self.options.height
@@ -331,67 +288,8 @@ class Viewer:
         stereo, the headset's per eye), the render settings (the left side's), the
         stereo view when the preview is on, the scene."""
         width, height = (self.camera.width, self.camera.height) if self.camera is not None else self.viewport[2:]
-        return PathDocument(self.paths.path, width, height, self.settings, self.shown_stereo, self._scene_path(),
-                            self.loaded.sha256)
-
-    def _scene_path(self) -> str:
-        return self.loaded.path if self.loaded.path == "demo" else os.path.abspath(self.loaded.path)
-
-    def save_path(self, file: str, overwrite: bool = False) -> None:
-        try:
-            saved = save_path_document(self.path_document(), file, overwrite=overwrite)
-        except UserError as exc:
-            self.panel.error = f"error: path not saved: {one_line(exc)}"
-            return
-        self.panel.message, self.panel.error = f"saved {saved}", ""
-
-    def load_path(self, file: str) -> None:
-        """Loads a path JSON (or a nerfstudio camera_path file) as the path; the view and
-        the render settings stay."""
-        try:
-            document = load_path_document(file)
-        except UserError as exc:
-            self.panel.error = f"error: path not loaded: {one_line(exc)}"
-            return
-        self.playback.pause()
-        self.playback.time = 0.0
-        self.paths.replace_path(document.path)
-        notes = [*document.notes, scene_mismatch(document, self._scene_path(), self.loaded.sha256)]
-        self.panel.message = "; ".join([f"loaded {file}: {len(document.path.keyframes)} keyframes, "
-                                        f"{document.path.duration:g} s", *filter(None, notes)])
-        self.panel.error = ""
-
-    def render_video(self) -> None:
-        """Writes the path document into the videos folder and renders it beside it with
-        render-path, in the background."""
-        if self.video is not None and self.video.running:
-            return
-        if not self.paths.path.keyframes:
-            self.panel.error = "error: the path has no keyframes (add the view with K)"
-            return
-        try:
-            document, out = write_video_document(self.path_document(), self.paths.video_folder)
-            self.video = VideoJob(self.video_command(self._scene_path(), document, out), out, document)
-        except UserError as exc:
-            self.panel.error = f"error: video not started: {one_line(exc)}"
-            return
-        self.panel.message, self.panel.error = f"rendering {out} ...", ""
-
-    def cancel_video(self) -> None:
-        if self.video is not None:
-            self.video.cancel()
-
-    def _poll_video(self) -> None:
-        if self.video is None:
-            return
-        result = self.video.poll()
-        if result is None:
-            return
-        self.video = None
-        if result.kind == "error":
-            self.panel.error = result.message
-        else:
-            self.panel.message, self.panel.error = result.message, ""
+        return PathDocument(self.paths.editor.path, width, height, self.settings, self.shown_stereo,
+                            scene_argument(self.loaded), self.loaded.sha256)
 
     # -- loop ------------------------------------------------------------------------
     def run(self) -> None:
@@ -419,8 +317,7 @@ class Viewer:
     def close(self) -> None:
         if self.window is None:
             return
-        if self.video is not None:  # a video left rendering would outlive the window
-            self.video.close()
+        self.paths.close()
         self.scenes.close()
         if self.sorter is not None:
             self.sorter.close()

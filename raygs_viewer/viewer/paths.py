@@ -16,7 +16,7 @@ from typing import Callable, Sequence
 
 import numpy as np
 
-from raygs_viewer.camera.navigation import Pose
+from raygs_viewer.camera.navigation import Pose, framing_distance
 from raygs_viewer.camera.path import (
     FOV_RANGE,
     FPS_RANGE,
@@ -36,8 +36,6 @@ MIN_DURATION = 0.01
 #: Longest frame time playback advances by at once: a stall (a scene loading) skips
 #: ahead at most this far instead of jumping to the end.
 MAX_PLAY_DT = 1.0
-#: An orbit's keyframes (one lap).
-ORBIT_KEYFRAMES = 12
 
 
 class PathEditor:
@@ -149,11 +147,8 @@ def orbit_around_scene(view: ViewControl, aspect: float, path: CameraPath) -> Ca
     starting at the current heading, far enough out that the scene's bounding sphere
     fills the view as Reset view frames it; the path's duration and rate are kept."""
     fov = current_keyframe(view).fov_y_degrees
-    half_y = math.radians(fov) / 2
-    half = min(half_y, math.atan(math.tan(half_y) * aspect))
-    distance = view.radius / math.sin(half)
-    return orbit_path(view.center, distance, view.navigator.up_vector, start=view.navigator.pose,
-                      keyframes=ORBIT_KEYFRAMES, duration=path.duration, fps=path.fps, fov_y_degrees=fov)
+    return orbit_path(view.center, framing_distance(view.radius, fov, aspect), view.navigator.up_vector,
+                      start=view.navigator.pose, duration=path.duration, fps=path.fps, fov_y_degrees=fov)
 
 
 def dolly_from_view(view: ViewControl, distance: float, path: CameraPath) -> CameraPath:

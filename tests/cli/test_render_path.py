@@ -16,7 +16,9 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from raygs_viewer.camera.navigation import scene_bounds
 from raygs_viewer.camera.path import path_through_cameras
+from raygs_viewer.camera.pinhole import load_cameras
 from raygs_viewer.camera.stereo import StereoRig, StereoView
 from raygs_viewer.capture import path_render
 from raygs_viewer.capture.nerfstudio import save_nerfstudio
@@ -26,7 +28,7 @@ from raygs_viewer.capture.sidecar import demo_sha256
 from raygs_viewer.cli import path as path_command
 from raygs_viewer.cli.main import main
 from raygs_viewer.render.settings import RenderSettings
-from raygs_viewer.scene.demo import demo_cameras
+from raygs_viewer.scene.demo import demo_cameras, demo_scene
 
 BACKGROUND = (0.2, 0.3, 0.4)
 
@@ -101,6 +103,32 @@ def test_options_replace_what_the_path_recorded(tmp_path, path_file):
     out = tmp_path / "render.png"
     assert main(["render", "demo", "--camera", str(cameras), "--camera-index", "7", "--out", str(out)]) == 0
     np.testing.assert_array_equal(images[7], png(out))            # the default black background, not the recorded
+
+
+def test_orbit_is_a_turntable_around_the_scene_centre(tmp_path):
+    cameras = tmp_path / "cams.json"
+    assert run("demo", "orbit", "--out", str(tmp_path / "f"), "--size", "40x30", "--duration", "1", "--fps", "4",
+               "--cameras-out", str(cameras)) == 0
+    assert len(frames_of(tmp_path / "f")) == 4
+    views = load_cameras(cameras)
+    centre, _ = scene_bounds(demo_scene().positions)
+    offsets = np.array([c.center - centre for c in views])
+    np.testing.assert_allclose(np.linalg.norm(offsets, axis=1), np.linalg.norm(offsets[0]), rtol=1e-3)
+    for camera, offset in zip(views, offsets):   # each looks at the centre, level (no roll about -y)
+        np.testing.assert_allclose(camera.R[2], -offset / np.linalg.norm(offset), atol=1e-9)
+        assert abs(camera.R[0] @ [0.0, -1.0, 0.0]) < 1e-9
+    up = np.array([0.0, -1.0, 0.0])
+    flat = offsets - np.outer(offsets @ up, up)
+    turns = [np.degrees(np.arccos(a @ b / np.linalg.norm(a) / np.linalg.norm(b))) for a, b in zip(flat, flat[1:])]
+    np.testing.assert_allclose(turns, 90.0, atol=0.5)   # a lap of 4 frames: a quarter turn each
+
+
+def test_duration_retimes_a_path_and_up_axis_is_only_for_orbit(tmp_path, path_file, capsys):
+    assert run("demo", str(path_file), "--out", str(tmp_path / "f"), "--duration", "1") == 0
+    assert len(frames_of(tmp_path / "f")) == 8   # 1 s at the path's 8 fps
+    assert run("demo", str(path_file), "--out", str(tmp_path / "g"), "--up-axis", "+z") == 2
+    assert "--up-axis is for 'orbit'" in capsys.readouterr().err
+    assert not (tmp_path / "g").exists()
 
 
 def test_stereo_from_the_file_or_the_options_is_side_by_side(tmp_path):
