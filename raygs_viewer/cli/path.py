@@ -185,6 +185,7 @@ def _render(renderer, cameras, settings, stereo, out: Path, image_size, fps: flo
 
 
 def _size_of(path: Path) -> str:
-    """The output's size on disk, in MB."""
+    """The output's size on disk, in MB (kB below 1 MB)."""
     files = [path] if path.is_file() else list(path.glob("*.png"))
-    return f"{sum(f.stat().st_size for f in files) / 1e6:.1f} MB"
+    size = sum(f.stat().st_size for f in files)
+    return f"{size / 1e6:.1f} MB" if size >= 1e6 else f"{size / 1e3:.0f} kB"

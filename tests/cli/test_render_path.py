@@ -131,6 +131,12 @@ def test_duration_retimes_a_path_and_up_axis_is_only_for_orbit(tmp_path, path_fi
     assert not (tmp_path / "g").exists()
 
 
+def test_the_demo_flight_in_assets_renders_without_a_warning(tmp_path, capsys):
+    asset = Path(__file__).parents[2] / "assets" / "demo-flight.json"   # the README's example
+    assert run("demo", str(asset), "--out", str(tmp_path / "f"), "--size", "32x18", "--fps", "1") == 0
+    assert len(frames_of(tmp_path / "f")) == 12 and capsys.readouterr().err == ""
+
+
 def test_stereo_from_the_file_or_the_options_is_side_by_side(tmp_path):
     document = demo_document(stereo=StereoView(StereoRig(), "sbs", None))
     stereo_path = save_path_document(document, tmp_path / "stereo.json")
