@@ -160,10 +160,11 @@ def _render(renderer, cameras, settings, stereo, out: Path, image_size, fps: flo
     if sink.note:
         print(f"note: {sink.note}", file=sys.stderr)
     progress = Progress(len(cameras), args.progress, label=out.name)
+    timed = TimedSink(sink)
     start = time.perf_counter()
     try:
-        render_frames(renderer, cameras, settings, stereo, sink, progress)
-        written = sink.finish()
+        render_frames(renderer, cameras, settings, stereo, timed, progress)
+        written = timed.finish()
     except KeyboardInterrupt:
         kept = sink.abort()
         progress.interrupted(sink.frames_written, kept)
@@ -177,11 +178,37 @@ def _render(renderer, cameras, settings, stereo, out: Path, image_size, fps: flo
         sink.abort()
         raise
     elapsed = time.perf_counter() - start
+    count = len(cameras)
     progress.finish(written)
     if args.progress != "json":
-        print(f"{written}: {len(cameras)} frames, {image_size[0]}x{image_size[1]} at {fps:g} fps "
-              f"({len(cameras) / fps:.1f} s), {_size_of(written)}; rendered {len(cameras) / elapsed:.2f} frames/s")
+        print(f"{written}: {count} frames, {image_size[0]}x{image_size[1]} at {fps:g} fps ({count / fps:.1f} s), "
+              f"{_size_of(written)}; {count / elapsed:.2f} frames/s (a frame: render "
+              f"{(elapsed - timed.seconds) / count * 1000:.1f} ms, {'encode' if written.is_file() else 'write'} "
+              f"{timed.seconds / count * 1000:.1f} ms)")
     return 0
+
+
+class TimedSink:
+    """A sink's writes and finish, timed: the encoder's (or PNG writer's) share of the
+    time, for the summary line."""
+
+    def __init__(self, sink):
+        self.sink, self.seconds = sink, 0.0
+
+    @property
+    def frames_written(self) -> int:
+        return self.sink.frames_written
+
+    def write(self, frame) -> None:
+        start = time.perf_counter()
+        self.sink.write(frame)
+        self.seconds += time.perf_counter() - start
+
+    def finish(self) -> Path:
+        start = time.perf_counter()
+        written = self.sink.finish()
+        self.seconds += time.perf_counter() - start
+        return written
 
 
 def _size_of(path: Path) -> str:
