@@ -19,9 +19,9 @@ from dataclasses import replace
 from pathlib import Path
 
 from raygs_viewer.camera.navigation import UP_AXES, framing_distance, framing_pose, scene_bounds, up_vector
-from raygs_viewer.camera.path import FPS_RANGE, MAX_DURATION, orbit_path
-from raygs_viewer.capture.path_document import PathDocument
+from raygs_viewer.camera.path import FPS_RANGE, MAX_DURATION, CameraPath, orbit_path
 from raygs_viewer.capture.image_io import check_output_path
+from raygs_viewer.capture.path_document import PathDocument
 from raygs_viewer.capture.path_file import load_path_document, scene_mismatch
 from raygs_viewer.capture.path_render import (
     cameras_of_entries,
@@ -33,7 +33,7 @@ from raygs_viewer.capture.path_render import (
 from raygs_viewer.capture.progress import Progress
 from raygs_viewer.capture.video import check_video_output, open_sink
 from raygs_viewer.cli import argtypes
-from raygs_viewer.cli.commands import load_scene_argument, warn_dropped
+from raygs_viewer.cli.commands import warn_dropped
 from raygs_viewer.cli.options import (
     add_settings_options,
     add_stereo_options,
@@ -44,7 +44,7 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.context import create_headless_context
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import RenderSettings
-from raygs_viewer.scene.loader import DEMO, TerminalProgress
+from raygs_viewer.scene.loader import DEMO, TerminalProgress, load_now
 
 PROGRESS_MODES = ("auto", "bar", "json", "none")
 #: The PATH argument that asks for a turntable instead of a path file, and its defaults.
@@ -102,14 +102,19 @@ def command_render_path(args: argparse.Namespace) -> int:
     settings = settings_with_options(document.settings if document and document.settings else RenderSettings(),
                                      args)
     stereo = stereo_view(args) if args.stereo else document.stereo if document else None
+    path = None if document is None else retimed(document.path, args)
 
-    with TerminalProgress(args.scene) as loading:
-        scene = load_scene_argument(args.scene, loading)
+    with TerminalProgress(args.scene) as loading:  # the scene's hash is taken while it is read
+        loaded = load_now(args.scene, progress=loading)
+    scene = loaded.scene
     warn_dropped(scene)
     if document is None:
         document = orbit_document(scene, args.up_axis or "-y", *(args.size or ORBIT_SIZE))
-    path = replace(document.path, fps=args.fps or document.path.fps,
-                   duration=args.duration or document.path.duration)  # UserError past a keyframe's time
+        path = retimed(document.path, args)
+    else:
+        mismatch = scene_mismatch(document, args.scene, loaded.sha256)
+        if mismatch:
+            print(f"warning: {mismatch}", file=sys.stderr)
     width, height = args.size or (document.width, document.height)
     entries = frame_camera_entries(path, width, height)
     cameras = cameras_of_entries(entries)  # what render --camera loads from the entries
@@ -131,16 +136,19 @@ def command_render_path(args: argparse.Namespace) -> int:
 
 
 def read_document(args: argparse.Namespace) -> PathDocument:
-    """The path file, with its notes and a warning when it was recorded on another scene."""
+    """The path file (printing its notes)."""
     if args.up_axis is not None:
         raise UserError("--up-axis is for 'orbit'; a path file has its own up axis")
     document = load_path_document(args.path)
     for note in document.notes:  # e.g. a nerfstudio crop box this viewer does not apply
         print(f"note: {note}", file=sys.stderr)
-    mismatch = scene_mismatch(document, args.scene)
-    if mismatch:
-        print(f"warning: {mismatch}", file=sys.stderr)
     return document
+
+
+def retimed(path: CameraPath, args: argparse.Namespace) -> CameraPath:
+    """``path`` at --fps and --duration where given (UserError for a duration that
+    would cut off a keyframe's own time)."""
+    return replace(path, fps=args.fps or path.fps, duration=args.duration or path.duration)
 
 
 def orbit_document(scene, up: str, width: int, height: int) -> PathDocument:

@@ -200,16 +200,17 @@ def refuse_to_render(monkeypatch):
     def no_scene(*args, **kwargs):
         raise AssertionError("the scene was loaded before the arguments were checked")
 
-    monkeypatch.setattr(path_command, "load_scene_argument", no_scene)
+    monkeypatch.setattr(path_command, "load_now", no_scene)
 
 
 @pytest.mark.parametrize("case", ["missing path", "not json", "existing mp4", "gif", "cameras clash", "gs per-pixel",
-                                  "no folder"])
+                                  "no folder", "duration cuts a keyframe"])
 def test_bad_input_is_one_line_before_any_rendering_and_loses_nothing(tmp_path, path_file, monkeypatch, capsys,
                                                                      case):
     existing = tmp_path / "fly.mp4"
     existing.write_bytes(b"the user's video")
     (tmp_path / "bad.json").write_text("{not json")
+    timed = save_nerfstudio(demo_document(), tmp_path / "timed.json")   # every keyframe has its time
     argv = {
         "missing path": ["demo", str(tmp_path / "nope.json"), "--out", str(tmp_path / "a.mp4")],
         "not json": ["demo", str(tmp_path / "bad.json"), "--out", str(tmp_path / "a.mp4")],
@@ -220,6 +221,7 @@ def test_bad_input_is_one_line_before_any_rendering_and_loses_nothing(tmp_path, 
         "gs per-pixel": ["demo", str(path_file), "--out", str(tmp_path / "a.mp4"), "--mode", "gs",
                          "--order", "per-pixel"],
         "no folder": ["demo", str(path_file), "--out", str(tmp_path / "missing" / "a.mp4")],
+        "duration cuts a keyframe": ["demo", str(timed), "--out", str(tmp_path / "a.mp4"), "--duration", "0.2"],
     }[case]
     refuse_to_render(monkeypatch)
     before = sorted(p.name for p in tmp_path.iterdir())
