@@ -11,6 +11,7 @@ the path's :class:`PathDocument`.
 
 from __future__ import annotations
 
+from dataclasses import replace
 from pathlib import Path
 from typing import Callable
 
@@ -24,6 +25,7 @@ from raygs_viewer.viewer.panel.path import PathActions
 from raygs_viewer.viewer.path_overlay import DrawnPath, draw_path_overlay
 from raygs_viewer.viewer.paths import (
     MAX_PLAY_DT,
+    VIDEO_SIZES,
     PathEditor,
     Playback,
     current_keyframe,
@@ -124,6 +126,9 @@ class PathControl:
         if not document.path.keyframes:
             self.panel.error = "error: the path has no keyframes (add the view with K)"
             return
+        if self.editor.video_size in VIDEO_SIZES:
+            width, height = VIDEO_SIZES[self.editor.video_size]
+            document = replace(document, width=width, height=height)
         try:
             saved, out = write_video_document(document, self.editor.video_folder)
             self.video = VideoJob(self.video_command(scene_argument(loaded), saved, out), out, saved)

@@ -33,6 +33,9 @@ from raygs_viewer.viewer.view_control import ViewControl
 
 #: The shortest path the panel takes, seconds (a path of 0 s has no speed).
 MIN_DURATION = 0.01
+#: Render video's sizes besides the view's own ("view"), "WxH" -> (width, height) per
+#: frame (per eye in the stereo preview).
+VIDEO_SIZES = {"1280x720": (1280, 720), "1920x1080": (1920, 1080), "3840x2160": (3840, 2160)}
 #: Longest frame time playback advances by at once: a stall (a scene loading) skips
 #: ahead at most this far instead of jumping to the end.
 MAX_PLAY_DT = 1.0
@@ -41,8 +44,8 @@ MAX_PLAY_DT = 1.0
 class PathEditor:
     """The path being edited, the keyframe selected (None: none), whether the path is
     drawn in the view, and the panel's fields for it: the path's file (and whether Save
-    may replace it), the videos folder, the dolly's distance (scene units). ``panel``
-    shows what an edit refused."""
+    may replace it), the videos folder and the videos' size ("view" or a VIDEO_SIZES
+    key), the dolly's distance (scene units). ``panel`` shows what an edit refused."""
 
     def __init__(self, panel: PanelState):
         self.panel = panel
@@ -52,6 +55,7 @@ class PathEditor:
         self.file = "path.json"
         self.overwrite = False
         self.video_folder = "videos"
+        self.video_size = "view"
         self.dolly_distance = 1.0
 
     # -- the one way an edit happens ----------------------------------------------------

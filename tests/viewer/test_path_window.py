@@ -23,6 +23,7 @@ from raygs_viewer.capture.path_file import load_path_document, save_path_documen
 from raygs_viewer.cli.main import main
 from raygs_viewer.viewer.panel.widgets import item_rects
 from raygs_viewer.viewer.path_overlay import frustum_lines, screen_segments
+from raygs_viewer.viewer.paths import VIDEO_SIZES
 from raygs_viewer.viewer.video_job import VideoJob, render_path_command, write_video_document
 
 PATH_PANEL = {"width": PANEL_WIDTH, "height": PANEL_HEIGHT}
@@ -581,7 +582,7 @@ def test_a_path_recorded_and_played_in_the_window_renders_as_it_was_shown(open_v
     assert np.abs(neighbour - shown).max() > 8   # the frames differ: the comparison can tell them apart
 
 
-def test_render_video_button_runs_the_real_render_path(open_viewer, tmp_path):
+def test_render_video_button_runs_the_real_render_path(open_viewer, tmp_path, monkeypatch):
     viewer, drive = open_viewer(**PATH_PANEL)
     drive.frames(1)
     camera = viewer.camera
@@ -589,6 +590,10 @@ def test_render_video_button_runs_the_real_render_path(open_viewer, tmp_path):
     viewer.paths.editor.set_duration(0.3)
     viewer.paths.editor.set_fps(10)
     viewer.paths.editor.video_folder = str(tmp_path / "videos")
+    click(drive, "video size")
+    click(drive, "video size 1280x720")
+    assert viewer.paths.editor.video_size == "1280x720"
+    monkeypatch.setitem(VIDEO_SIZES, "1280x720", (64, 36))   # the choice, at a test's size
     click(drive, "Render video")
     deadline = time.monotonic() + 120
     while viewer.paths.video is not None and time.monotonic() < deadline:
@@ -600,4 +605,4 @@ def test_render_video_button_runs_the_real_render_path(open_viewer, tmp_path):
         stream = container.streams.video[0]
         frames = list(container.decode(stream))
         assert (stream.average_rate, len(frames)) == (10, 3)
-        assert (frames[0].width, frames[0].height) == (camera.width, camera.height)
+        assert (frames[0].width, frames[0].height) == (64, 36)

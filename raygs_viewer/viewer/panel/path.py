@@ -16,8 +16,8 @@ from typing import Callable
 from imgui_bundle import imgui
 
 from raygs_viewer.camera.path import FOV_RANGE
-from raygs_viewer.viewer.panel.widgets import checkbox, header, remember, slider, tooltip
-from raygs_viewer.viewer.paths import PathEditor, Playback
+from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, remember, slider, tooltip
+from raygs_viewer.viewer.paths import VIDEO_SIZES, PathEditor, Playback
 from raygs_viewer.viewer.video_job import VideoJob
 
 LIST_ROWS = 6
@@ -195,7 +195,7 @@ def _files(editor: PathEditor, actions: PathActions) -> None:
     if imgui.button("Load##path"):
         actions.load(editor.file)
     remember("Load path")
-    tooltip("a path JSON saved here or by render-path's tools, or a nerfstudio camera_path file")
+    tooltip("a path JSON saved here, or a nerfstudio camera_path file")
     imgui.same_line()
     editor.overwrite = checkbox("overwrite", editor.overwrite, "overwrite path",
                                 help_text="let Save replace an existing file")
@@ -216,8 +216,13 @@ def _video(editor: PathEditor, job: VideoJob | None, actions: PathActions) -> No
         actions.render_video()
     imgui.end_disabled()
     remember("Render video")
-    tooltip("render-path in the background: the path and the current render settings, at the view's size, "
-            "saved as <folder>/raygs-<time>.json and .mp4")
+    tooltip("render-path in the background: the path and the current render settings, saved as "
+            "<folder>/raygs-<time>.json and .mp4")
+    imgui.same_line()
+    imgui.set_next_item_width(110)
+    editor.video_size = choice("##video size", editor.video_size,
+                               {"view": "view's size", **{size: size for size in VIDEO_SIZES}}, "video size")
+    tooltip("each frame's size (each eye's in the stereo preview)")
     imgui.same_line()
     imgui.set_next_item_width(-1)
     _, editor.video_folder = imgui.input_text("##video folder", editor.video_folder)
