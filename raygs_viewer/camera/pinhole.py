@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from raygs_viewer.camera.rotation import is_rotation
 from raygs_viewer.errors import UserError, finite_number, is_number
 
 
@@ -148,10 +149,7 @@ def camera_from_json(entry, where: str) -> Camera:
         raise UserError(f"{where}: 'position' must have 3 numbers and 'rotation' be 3x3")
     if not (np.all(np.isfinite(position)) and np.all(np.isfinite(rotation))):
         raise UserError(f"{where}: 'position' and 'rotation' must be finite")
-    # Entries of a rotation lie in [-1, 1]; bounding them first keeps the product from
-    # overflowing (a RuntimeWarning on the user's terminal) for absurd ones.
-    if (np.abs(rotation).max() > 2 or np.abs(rotation.T @ rotation - np.eye(3)).max() > 1e-3
-            or np.linalg.det(rotation) < 0):
+    if not is_rotation(rotation, 1e-3):
         raise UserError(f"{where}: 'rotation' is not a rotation matrix")
     # Re-orthonormalise: JSON round-trips leave ~1e-7 drift.
     u, _, vt = np.linalg.svd(rotation)

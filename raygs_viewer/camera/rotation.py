@@ -28,6 +28,14 @@ def quaternion_to_matrix(q: np.ndarray) -> np.ndarray:
     return m
 
 
+def is_rotation(matrix: np.ndarray, tolerance: float) -> bool:
+    """Whether the (3, 3) float64 ``matrix`` is a proper rotation to ``tolerance`` (the
+    largest entry of M Mᵀ - I): a scaled, sheared or mirrored matrix is not."""
+    # Entries of a rotation lie in [-1, 1]: bounded first, the product cannot overflow.
+    return bool(matrix.shape == (3, 3) and np.abs(matrix).max() <= 2
+                and np.abs(matrix @ matrix.T - np.eye(3)).max() <= tolerance and np.linalg.det(matrix) > 0)
+
+
 def axis_rotation(axis: np.ndarray, angle: float) -> np.ndarray:
     """(3, 3) rotation by ``angle`` (right-handed) about the unit vector ``axis``."""
     x, y, z = axis

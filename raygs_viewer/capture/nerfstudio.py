@@ -59,15 +59,20 @@ from raygs_viewer.camera.path import (
     Interpolation,
     Keyframe,
 )
+from raygs_viewer.camera.rotation import is_rotation
 from raygs_viewer.capture.image_io import check_output_path, write_atomically
 from raygs_viewer.capture.path_document import (
     MAX_IMAGE_SIZE,
     NERFSTUDIO,
     PathDocument,
-    is_rotation,
     json_text,
 )
-from raygs_viewer.capture.sidecar import JsonFields, json_array, show_json
+from raygs_viewer.capture.sidecar import (
+    ROTATION_TOLERANCE,
+    JsonFields,
+    json_array,
+    show_json,
+)
 from raygs_viewer.errors import UserError
 
 #: Camera axes: OpenCV from OpenGL and back (a diagonal of signs, its own inverse).
@@ -171,7 +176,7 @@ def _camera(where: str, index: int, entry) -> tuple[Pose, float, np.ndarray]:
         raise UserError(f"{where}: '{name}.camera_to_world' must end in the row 0 0 0 1 (a row-major camera-to-world "
                         f"matrix), got {show_json(matrix[3].tolist())}")
     rotation = matrix[:3, :3]
-    if not is_rotation(rotation):
+    if not is_rotation(rotation, ROTATION_TOLERANCE):
         raise UserError(f"{where}: '{name}.camera_to_world' is not a rotation and a translation "
                         f"(scaled, sheared or mirrored)")
     fov = fields.get(f"{name}.fov", float)

@@ -10,11 +10,8 @@ import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
-import numpy as np
-
 from raygs_viewer.camera.path import CameraPath
-from raygs_viewer.camera.stereo import StereoView, composed_size
-from raygs_viewer.capture.sidecar import ROTATION_TOLERANCE
+from raygs_viewer.camera.stereo import StereoView
 from raygs_viewer.render.settings import RenderSettings
 
 #: The formats a document is read from.
@@ -27,7 +24,7 @@ MAX_IMAGE_SIZE = 16384
 @dataclass(frozen=True)
 class PathDocument:
     """path: the keyframes and their timing. width, height: the size of each frame's
-    camera in pixels (with stereo, of each eye; the frames are :attr:`frame_size`).
+    camera in pixels (with stereo, of each eye; capture.path_render.frame_size gives the frames').
     settings: None for the reader's defaults (a nerfstudio file has none). stereo: None
     for mono. scene_path: "demo" or an absolute path, None when unknown (nerfstudio);
     scene_sha256: its hex digest (None: unknown, never checked); scene_count,
@@ -49,22 +46,6 @@ class PathDocument:
     scene_sh_degree: int | None = None
     extra: dict = field(default_factory=dict)
     notes: tuple[str, ...] = ()
-
-    @property
-    def frame_size(self) -> tuple[int, int]:
-        """(width, height) of each rendered frame: the camera's size, or the composed
-        stereo image of two eyes that size."""
-        if self.stereo is None:
-            return int(self.width), int(self.height)
-        return composed_size(int(self.width), int(self.height), self.stereo.layout)
-
-
-def is_rotation(matrix: np.ndarray, tolerance: float = ROTATION_TOLERANCE) -> bool:
-    """Whether the (3, 3) float64 ``matrix`` is a proper rotation to ``tolerance``
-    (a scaled, sheared or mirrored matrix is not)."""
-    # Entries of a rotation lie in [-1, 1]: bounded first, the product cannot overflow.
-    return bool(matrix.shape == (3, 3) and np.abs(matrix).max() <= 2
-                and np.abs(matrix @ matrix.T - np.eye(3)).max() <= tolerance and np.linalg.det(matrix) > 0)
 
 
 def json_text(data: dict) -> str:

@@ -64,18 +64,19 @@ from raygs_viewer.camera.path import (
     Keyframe,
 )
 from raygs_viewer.camera.pinhole import read_json_file
+from raygs_viewer.camera.rotation import is_rotation
 from raygs_viewer.capture.image_io import check_output_path, write_atomically
 from raygs_viewer.capture.nerfstudio import is_nerfstudio, read_nerfstudio
 from raygs_viewer.capture.path_document import (
     MAX_IMAGE_SIZE,
     RAYGS,
     PathDocument,
-    is_rotation,
     json_text,
 )
 from raygs_viewer.capture.screenshot import with_relative_scene_path
 from raygs_viewer.capture.sidecar import (
     DEMO,
+    ROTATION_TOLERANCE,
     SHA256_HEX,
     JsonFields,
     demo_sha256,
@@ -301,7 +302,7 @@ def _load_keyframe(file: Path, index: int, entry, duration: float, loop: bool) -
     _check_keys(file, name, entry, ("position", "rotation", "fov"), ("time",))
     position = json_array(fields, f"{name}.position", (3,))
     rotation = json_array(fields, f"{name}.rotation", (3, 3))
-    if not is_rotation(rotation):
+    if not is_rotation(rotation, ROTATION_TOLERANCE):
         raise UserError(f"{file}: '{name}.rotation' is not a rotation matrix")
     fov = _number_in(fields, f"{name}.fov", *FOV_RANGE)
     time = None

@@ -66,6 +66,7 @@ from raygs_viewer.camera.pinhole import (
     camera_to_json,
     read_json_file,
 )
+from raygs_viewer.camera.rotation import is_rotation
 from raygs_viewer.camera.stereo import (
     LAYOUTS,
     HeadsetPreset,
@@ -341,7 +342,7 @@ def _load_camera(fields: JsonFields) -> Camera:
     R = json_array(fields, "world_to_camera.R", (3, 3))
     t = json_array(fields, "world_to_camera.t", (3,))
     # Entries of a rotation lie in [-1, 1]: bounded first, the product cannot overflow.
-    if np.abs(R).max() > 2 or np.abs(R @ R.T - np.eye(3)).max() > ROTATION_TOLERANCE or np.linalg.det(R) <= 0:
+    if not is_rotation(R, ROTATION_TOLERANCE):
         raise UserError(f"{path}: 'world_to_camera.R' is not a rotation matrix")
     center = -R.T @ t
     rotation = np.array(entry["rotation"], dtype=np.float64)  # shape and finiteness checked by camera_from_json

@@ -136,7 +136,6 @@ def test_the_files_fields(tmp_path):
     assert abs((datetime.now(timezone.utc) - created).total_seconds()) < 3600  # UTC, not local time
     assert data["scene"] == {"path": "demo", "sha256": SHA, "count": 1234, "sh_degree": 3}  # no relative path
     assert data["image"] == {"width": 64, "height": 48}  # each eye's: the frames are composed
-    assert doc.frame_size == (128, 48)
     assert data["settings"] == json.loads(json.dumps(dataclasses.asdict(SETTINGS)))
     assert data["stereo"] == stereo_entry(STEREO)
     assert data["path"] == {"duration": 3.1, "fps": 24.0, "loop": False, "alpha": 0.25, "tension": 0.4,
