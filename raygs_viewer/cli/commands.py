@@ -77,9 +77,8 @@ def add_parsers(commands) -> None:
 
 # --- scenes and cameras ---------------------------------------------------------------------------
 
-def load_scene_argument(name: str, progress=None) -> Scene:
-    """The scene named on the command line; ``progress``: a scene.loader progress callback."""
-    return demo_scene() if name == DEMO else load_scene(name, progress=progress)
+def load_scene_argument(name: str) -> Scene:
+    return demo_scene() if name == DEMO else load_scene(name)
 
 
 def warn_dropped(scene: Scene) -> None:
