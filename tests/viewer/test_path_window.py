@@ -352,6 +352,16 @@ def test_save_and_load_through_the_panel_round_trip(open_viewer, tmp_path):
         np.testing.assert_allclose(got.pose.R, want.pose.R, atol=1e-12)
         assert got.fov_y_degrees == pytest.approx(want.fov_y_degrees) and got.time == want.time
 
+    # Exported for nerfstudio, the path's frames load back (the frames its camera_path holds).
+    exported = tmp_path / "camera_path.json"
+    viewer.paths.editor.file = str(exported)
+    click(drive, "Export nerfstudio")
+    assert viewer.panel.message == f"saved {exported}"
+    theirs = load_path_document(exported)
+    assert theirs.kind == "nerfstudio" and len(theirs.path.keyframes) == loaded.frame_count
+    second_frame = loaded.pose_at(loaded.frame_times()[1]).pose
+    np.testing.assert_allclose(theirs.path.keyframes[1].pose.position, second_frame.position, atol=1e-12)
+
     # A path recorded on another scene loads, with a note.
     other = tmp_path / "other.json"
     save_path_document(replace(document, scene_path="/elsewhere/scene.ply", scene_sha256="0" * 64), other)

@@ -33,6 +33,7 @@ class PathActions:
     orbit: Callable[[], None]
     dolly: Callable[[float], None]
     save: Callable[[str, bool], None]     # file, overwrite
+    export_nerfstudio: Callable[[str, bool], None]   # file, overwrite
     load: Callable[[str], None]
     render_video: Callable[[], None]
     cancel_video: Callable[[], None]
@@ -196,6 +197,12 @@ def _files(editor: PathEditor, actions: PathActions) -> None:
         actions.load(editor.file)
     remember("Load path")
     tooltip("a path JSON saved here, or a nerfstudio camera_path file")
+    imgui.begin_disabled(not editor.path.keyframes)
+    if imgui.button("Export nerfstudio"):
+        actions.export_nerfstudio(editor.file, editor.overwrite)
+    imgui.end_disabled()
+    remember("Export nerfstudio")
+    tooltip("save the path as a nerfstudio camera_path file (every frame, and the keyframes for its viewer)")
     imgui.same_line()
     editor.overwrite = checkbox("overwrite", editor.overwrite, "overwrite path",
                                 help_text="let Save replace an existing file")
