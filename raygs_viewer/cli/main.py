@@ -30,7 +30,7 @@ from raygs_viewer.scene.loader import DEMO
 COMMANDS = ("view", "info", "render", "render-path", "verify", "bench")
 # Arguments that keep their meaning at the top level instead of starting the window.
 TOP_LEVEL_OPTIONS = ("-h", "--help", "--version")
-SCENE_SUFFIXES = (".ply", ".splat")
+SCENE_SUFFIXES = (".ply", ".splat", ".spz", ".sog")
 RUN = {"view": view.command_view, "info": commands.command_info, "render": commands.command_render,
        "render-path": path.command_render_path,
        "verify": commands.command_verify, "bench": bench.command}

@@ -28,7 +28,7 @@ def _stats(values: np.ndarray, *names: str) -> dict[str, float] | None:
 def describe(scene: Scene) -> dict:
     """JSON-serialisable statistics of a scene (for ``raygs-viewer info``).
 
-    Keys: source, count, sh_degree, filter_fused, bbox ({min, max} of positions,
+    Keys: source, format (Scene.format), count, sh_degree, filter_fused, bbox ({min, max} of positions,
     or None when empty), opacity ({min, median, mean, max} or None), scale
     ({min, median, max} over all axes, plus median_anisotropy = median of each
     gaussian's max/min scale ratio; None when empty), dropped ({total, by_reason}).
@@ -45,6 +45,7 @@ def describe(scene: Scene) -> dict:
         scale = None
     return {
         "source": scene.source,
+        "format": scene.format,
         "count": n,
         "sh_degree": scene.sh_degree,
         "filter_fused": bool(scene.filter_fused),
@@ -66,6 +67,7 @@ def format_description(info: dict) -> str:
 
     lines = [
         f"source:       {info['source']}",
+        f"format:       {info.get('format') or 'in memory'}",
         f"gaussians:    {info['count']}",
         f"SH degree:    {info['sh_degree']}",
         f"3D filter:    {'fused at load' if info['filter_fused'] else 'none'}",

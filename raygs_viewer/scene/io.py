@@ -52,7 +52,15 @@ from raygs_viewer.scene.reading import (
     Reporter,
     file_error,
 )
+from raygs_viewer.scene.sog_file import load_sog
 from raygs_viewer.scene.splat_file import SPLAT_ROW_BYTES, load_splat
+from raygs_viewer.scene.spz_file import load_spz
+
+#: The first bytes that name a format whatever the file's name: gzip (.spz versions 2
+#: and 3), an uncompressed .spz (version 4's header), a zip (a bundled .sog).
+GZIP_MAGIC = b"\x1f\x8b"
+SPZ_MAGIC = b"NGSP"
+ZIP_MAGIC = b"PK\x03\x04"
 
 __all__ = [
     "DROP_REASONS",
@@ -98,10 +106,18 @@ def _load(path: str | os.PathLike, report: Reporter, chunk_bytes: int) -> Scene:
     if not os.path.isfile(path):
         raise file_error(shown, "not a regular file")
     try:
-        if Path(path).suffix.lower() == ".splat":
+        suffix = Path(path).suffix.lower()
+        if suffix == ".splat":
             return load_splat(path, shown, report, chunk_bytes)
         with open(path, "rb") as f:
             magic = f.read(4)
+        # The name decides first (a .ply that is a zip is a broken PLY, not a SOG); the
+        # magic, for names that say nothing.
+        named = suffix in (".ply", ".spz", ".sog", ".json")
+        if suffix == ".spz" or not named and magic[:2] == GZIP_MAGIC or not named and magic == SPZ_MAGIC:
+            return load_spz(path, shown, report, chunk_bytes)
+        if suffix in (".sog", ".json") or not named and magic == ZIP_MAGIC:
+            return load_sog(path, shown, report, chunk_bytes)
         if magic[:3] == b"ply" and magic[3:4] in (b"\n", b"\r"):
             return load_ply(path, shown, report, chunk_bytes)
         if Path(path).suffix.lower() == ".ply" or magic[:3] == b"ply":

@@ -34,6 +34,9 @@ class Scene:
     filter_fused: True when the file carried a ``filter_3D`` column that was fused.
     source:     where it came from (a path, or "demo").
     dropped:    invalid gaussians skipped at load, by reason -> count.
+    format:     the file format it was read from, with its version where it has one
+                ("INRIA PLY", ".splat", "spz v3", "PlayCanvas compressed PLY",
+                "SOG v2"); "" for a scene made in memory.
     """
 
     positions: np.ndarray
@@ -45,6 +48,7 @@ class Scene:
     filter_fused: bool = False
     source: str = ""
     dropped: dict[str, int] = field(default_factory=dict)
+    format: str = ""
 
     def __post_init__(self) -> None:
         n = self.positions.shape[0]
@@ -72,5 +76,5 @@ class Scene:
         return Scene(
             self.positions, self.rotations, self.scales, self.opacities,
             np.ascontiguousarray(self.sh[:, : sh_coefficient_count(degree)]),
-            degree, self.filter_fused, self.source, dict(self.dropped),
+            degree, self.filter_fused, self.source, dict(self.dropped), self.format,
         )

@@ -23,6 +23,7 @@ from raygs_viewer.scene.model import (
     Scene,
     sh_coefficient_count,
 )
+from raygs_viewer.scene.compressed_ply import load_compressed_ply
 from raygs_viewer.scene.ply_header import PLY_TYPES, parse_header
 from raygs_viewer.scene.reading import (
     DropTally,
@@ -36,11 +37,15 @@ _REQUIRED = ("x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
              "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3")
 _F_REST = re.compile(r"f_rest_(0|[1-9][0-9]*)")
 
+PLY_FORMAT = "INRIA PLY"
+
 
 def load_ply(path, shown: str, report: Reporter, chunk_bytes: int) -> Scene:
     """The Scene of a PLY file, validated from its header before anything the size of
     its count is allocated; ``chunk_bytes`` of rows are read between progress reports."""
     header_bytes, elements, refusal = parse_header(path, shown)
+    if any(e.name == "chunk" for e in elements):  # PlayCanvas's packed layout, not INRIA's
+        return load_compressed_ply(path, shown, report, chunk_bytes, header_bytes, elements, refusal)
     vertex = next((e for e in elements if e.name == "vertex"), None)
     if vertex is None:
         raise file_error(shown, "PLY file has no 'vertex' element")
@@ -270,4 +275,4 @@ class _Target:
 
     def build(self, shown: str, report: Reporter) -> Scene:
         return build_scene(shown, self.positions, self.rotations, self.scales, self.opacities, self.sh,
-                           self.degree, self.has_filter, self.drops, report)
+                           self.degree, self.has_filter, self.drops, report, PLY_FORMAT)

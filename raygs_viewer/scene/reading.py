@@ -127,9 +127,9 @@ def _compact(arrays: list[np.ndarray], keep: np.ndarray) -> list[np.ndarray]:
 
 
 def build_scene(shown: str, positions, rotations, scales, opacities, sh, degree: int, fused: bool,
-                drops: DropTally, report: Reporter) -> Scene:
+                drops: DropTally, report: Reporter, format: str) -> Scene:
     """Drop the invalid gaussians ``drops`` found (moving the valid ones to the front of
-    the arrays, which this takes over) and build the Scene."""
+    the arrays, which this takes over) and build the Scene; ``format``: Scene.format."""
     report(_BUILD_AT, "validating")
     dropped = drops.dropped
     arrays = [positions, rotations, scales, opacities, sh]
@@ -146,4 +146,5 @@ def build_scene(shown: str, positions, rotations, scales, opacities, sh, degree:
         filter_fused=fused,
         source=shown,
         dropped=dropped,
+        format=format,
     )

@@ -17,6 +17,7 @@ from raygs_viewer.scene.sh import C0
 
 #: The 32-byte ``.splat`` row.
 SPLAT_ROW_BYTES = 32
+SPLAT_FORMAT = ".splat"
 _SPLAT_DTYPE = np.dtype([("position", "<f4", (3,)), ("scale", "<f4", (3,)),
                          ("rgba", "u1", (4,)), ("rotation", "u1", (4,))])
 
@@ -64,4 +65,4 @@ def load_splat(path, shown: str, report: Reporter, chunk_bytes: int) -> Scene:
     }
     drops = DropTally(n)
     drops.add(0, tests)
-    return build_scene(shown, positions, quat, scale, opacity, sh, 0, False, drops, report)
+    return build_scene(shown, positions, quat, scale, opacity, sh, 0, False, drops, report, SPLAT_FORMAT)
