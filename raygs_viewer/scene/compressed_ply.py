@@ -45,9 +45,19 @@ import re
 
 import numpy as np
 
-from raygs_viewer.scene.model import SH_DEGREE_OF_REST_COUNT, Scene, sh_coefficient_count
+from raygs_viewer.scene.model import (
+    SH_DEGREE_OF_REST_COUNT,
+    Scene,
+    sh_coefficient_count,
+)
 from raygs_viewer.scene.ply_header import PLY_TYPES, PlyElement
-from raygs_viewer.scene.reading import DropTally, Reporter, build_scene, file_error, shown_token
+from raygs_viewer.scene.reading import (
+    DropTally,
+    Reporter,
+    build_scene,
+    file_error,
+    shown_token,
+)
 from raygs_viewer.scene.sh import C0
 
 COMPRESSED_PLY_FORMAT = "PlayCanvas compressed PLY"
@@ -84,10 +94,10 @@ def load_compressed_ply(path, shown: str, report: Reporter, chunk_bytes: int, he
 
     chunks = -(-n // CHUNK_GAUSSIANS)
     if chunk.count != chunks:
-        raise file_error(shown, f"'chunk' element has {chunk.count} rows; {n} gaussians need "
-                                f"ceil({n} / {CHUNK_GAUSSIANS}) = {chunks}")
+        raise file_error(shown, f"compressed PLY: {n} gaussians need ceil({n} / {CHUNK_GAUSSIANS}) = {chunks} "
+                                f"'chunk' rows, the header declares {chunk.count}")
     if sh is not None and sh.count != n:
-        raise file_error(shown, f"'sh' element has {sh.count} rows but 'vertex' has {n}")
+        raise file_error(shown, f"compressed PLY: 'sh' element has {sh.count} rows but 'vertex' has {n}")
 
     # Size check from the header alone, before anything proportional to a count.
     size = os.path.getsize(path)
@@ -196,6 +206,8 @@ def _read_rows(f, shown: str, offset: int, element: PlyElement, start: int, stop
     """Rows ``start..stop`` of ``element`` (data at ``offset``) as (rows, row bytes) uint8."""
     row = element.min_row_bytes
     raw = np.empty((stop - start, row), np.uint8)
+    if not raw.size:  # memoryview refuses to cast an empty array
+        return raw
     view = memoryview(raw).cast("B")
     f.seek(offset + start * row)
     done = 0
