@@ -28,7 +28,9 @@ its ``Transform.PLY`` space, and its writer converts to that space before packin
 nothing is flipped here. The decoding mirrors splat-transform's (src/lib/readers/
 decompress-ply.ts and read-ply.ts ``readCompressedChunked``; its writer is
 src/lib/writers/compressed-chunk.ts and write-compressed-ply.ts) in float64, rounded
-once to float32. PlayCanvas's engine (src/scene/gsplat/gsplat-compressed-data.js)
+once to float32: positions and SH come out bit-identical to its decode; scales,
+opacities and rotations within a float32 rounding (it stores the log-scale, logit and
+raw quaternion as float32 before they are activated). PlayCanvas's engine (src/scene/gsplat/gsplat-compressed-data.js)
 decodes the same words alike except the SH bytes, which it maps as b * 8 / 255 - 4
 (at most half a step, 1/64, from the bin centres used here). The opacity is the
 alpha unorm itself: sigmoid of the logit -log(1 / a - 1) those readers produce.
@@ -70,11 +72,14 @@ _COLOUR_BOUNDS = ("min_r", "min_g", "min_b", "max_r", "max_g", "max_b")
 _PACKED = ("packed_position", "packed_rotation", "packed_scale", "packed_color")
 _F_REST = re.compile(r"f_rest_(0|[1-9][0-9]*)")
 
-# The SH bytes' values, the bin centres of splat-transform's writer (see the docstring).
-_SH_OF_BYTE = np.where(np.arange(256) == 0, 0.0,
-                       np.where(np.arange(256) == 255, 1.0, (np.arange(256) + 0.5) / 256.0))
-_SH_OF_BYTE = ((_SH_OF_BYTE - 0.5) * 8.0).astype(np.float32)
+def _sh_of_byte() -> np.ndarray:
+    """The 256 SH byte values: the centres of splat-transform's writer's bins."""
+    n = (np.arange(256) + 0.5) / 256.0
+    n[0], n[255] = 0.0, 1.0  # the writer clamps to 0..255, so the end bytes stand for -4 and 4 and beyond
+    return ((n - 0.5) * 8.0).astype(np.float32)
 
+
+_SH_OF_BYTE = _sh_of_byte()
 
 def load_compressed_ply(path, shown: str, report: Reporter, chunk_bytes: int, header_bytes: int,
                         elements: list[PlyElement], refusal: str | None) -> Scene:
@@ -126,37 +131,45 @@ def load_compressed_ply(path, shown: str, report: Reporter, chunk_bytes: int, he
         for start in range(0, n, step):
             stop = min(n, start + step)
             words = _read_rows(f, shown, offsets["vertex"], vertex, start, stop)
-            block = bounds[np.arange(start, stop) // CHUNK_GAUSSIANS]
-            with np.errstate(all="ignore"):  # non-finite bounds: their gaussians are dropped below
-                positions[start:stop] = _unpack_111011(_field(words, vertex, "packed_position", "<u4"), block[:, 0:6])
-                log_scales = _unpack_111011(_field(words, vertex, "packed_scale", "<u4"), block[:, 6:12])
-                scales[start:stop] = np.exp(log_scales)
-                rotations[start:stop] = _unpack_rotation(_field(words, vertex, "packed_rotation", "<u4"))
-                colour, alpha = _unpack_colour(_field(words, vertex, "packed_color", "<u4"),
-                                               block[:, 12:18] if has_colour else None)
-                opacities[start:stop] = alpha
-                sh_out[start:stop, 0, :] = (colour - 0.5) / C0
-            del words
-            if sh is not None:
-                coefficients = _read_rows(f, shown, offsets["sh"], sh, start, stop)
-                k = len(rest_names) // 3
-                rest = np.stack([_field(coefficients, sh, name, "u1") for name in rest_names], axis=1)
-                # f_rest_{c * k + j} is coefficient j + 1 of channel c
-                sh_out[start:stop, 1:, :] = _SH_OF_BYTE[rest].reshape(stop - start, 3, k).transpose(0, 2, 1)
-                del coefficients, rest
-            p, s, dc = positions[start:stop], scales[start:stop], sh_out[start:stop, 0, :]
-            drops.add(start, {
-                "nan": np.isnan(p).any(axis=1) | np.isnan(log_scales).any(axis=1) | np.isnan(dc).any(axis=1),
-                "infinite position": np.isinf(p).any(axis=1),
-                "infinite scale": np.isinf(s).any(axis=1),
-                "zero scale": (s == 0).any(axis=1),
-                "infinite colour": np.isinf(dc).any(axis=1),
-            })
+            coefficients = _read_rows(f, shown, offsets["sh"], sh, start, stop) if sh is not None else None
+            _decode(start, stop, words, vertex, bounds[np.arange(start, stop) // CHUNK_GAUSSIANS], has_colour,
+                    coefficients, sh, rest_names, (positions, rotations, scales, opacities, sh_out), drops)
+            del words, coefficients
             report.reading(stop, n)
     report.activating()
     report.validating()
     return build_scene(shown, positions, rotations, scales, opacities, sh_out, degree, False, drops, report,
                        COMPRESSED_PLY_FORMAT)
+
+
+def _decode(start: int, stop: int, words: np.ndarray, vertex: PlyElement, block: np.ndarray, has_colour: bool,
+            coefficients: np.ndarray | None, sh: PlyElement | None, rest_names: list[str], out: tuple,
+            drops: DropTally) -> None:
+    """Gaussians ``start..stop`` from their raw vertex rows, their chunks' bounds ``block``
+    (rows, 12 or 18) and raw sh rows, into the scene's arrays ``out``."""
+    positions, rotations, scales, opacities, sh_out = (a[start:stop] for a in out)
+    with np.errstate(all="ignore"):  # non-finite bounds: their gaussians are dropped below
+        positions[:] = _unpack_111011(_field(words, vertex, "packed_position", "<u4"), block[:, 0:6])
+        log_scales = _unpack_111011(_field(words, vertex, "packed_scale", "<u4"), block[:, 6:12])
+        scales[:] = np.exp(log_scales)
+        rotations[:] = _unpack_rotation(_field(words, vertex, "packed_rotation", "<u4"))
+        colour, alpha = _unpack_colour(_field(words, vertex, "packed_color", "<u4"),
+                                       block[:, 12:18] if has_colour else None)
+        opacities[:] = alpha
+        sh_out[:, 0, :] = (colour - 0.5) / C0
+    if coefficients is not None:
+        k = len(rest_names) // 3
+        rest = np.stack([_field(coefficients, sh, name, "u1") for name in rest_names], axis=1)
+        # f_rest_{c * k + j} is coefficient j + 1 of channel c
+        sh_out[:, 1:, :] = _SH_OF_BYTE[rest].reshape(stop - start, 3, k).transpose(0, 2, 1)
+    dc = sh_out[:, 0, :]  # judged in float32: a finite colour past 3.4e38 is infinite there
+    drops.add(start, {
+        "nan": np.isnan(positions).any(axis=1) | np.isnan(log_scales).any(axis=1) | np.isnan(dc).any(axis=1),
+        "infinite position": np.isinf(positions).any(axis=1),
+        "infinite scale": np.isinf(scales).any(axis=1),
+        "zero scale": (scales == 0).any(axis=1),
+        "infinite colour": np.isinf(dc).any(axis=1),
+    })
 
 
 def _check_elements(shown: str, elements: list[PlyElement]):
