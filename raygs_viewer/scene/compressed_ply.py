@@ -122,7 +122,7 @@ def load_compressed_ply(path, shown: str, report: Reporter, chunk_bytes: int, he
     opacities = np.empty(n, np.float32)
     sh_out = np.empty((n, sh_coefficient_count(degree), 3), np.float32)
     drops = DropTally(n)
-    with open(path, "rb", buffering=0) as f:
+    with open(path, "rb") as f:
         bounds_rows = _read_rows(f, shown, offsets["chunk"], chunk, 0, chunks)
         bounds = np.stack([_field(bounds_rows, chunk, name, "<f4") for name in bound_names], axis=1)
         del bounds_rows
@@ -216,20 +216,14 @@ def _rest_names(shown: str, sh: PlyElement) -> list[str]:
 
 
 def _read_rows(f, shown: str, offset: int, element: PlyElement, start: int, stop: int) -> np.ndarray:
-    """Rows ``start..stop`` of ``element`` (data at ``offset``) as (rows, row bytes) uint8."""
+    """Rows ``start..stop`` of ``element`` (data at ``offset``) as (rows, row bytes) uint8;
+    ``f`` is buffered, so a short read means the end of the file."""
     row = element.min_row_bytes
-    raw = np.empty((stop - start, row), np.uint8)
-    if not raw.size:  # memoryview refuses to cast an empty array
-        return raw
-    view = memoryview(raw).cast("B")
     f.seek(offset + start * row)
-    done = 0
-    while done < len(view):
-        got = f.readinto(view[done:])
-        if not got:
-            raise file_error(shown, "truncated PLY file (the file shrank while reading)")
-        done += got
-    return raw
+    data = f.read((stop - start) * row)  # no more than the size check found in the file
+    if len(data) != (stop - start) * row:
+        raise file_error(shown, "truncated PLY file (the file shrank while reading)")
+    return np.frombuffer(data, np.uint8).reshape(stop - start, row)
 
 
 def _field(rows: np.ndarray, element: PlyElement, name: str, dtype: str) -> np.ndarray:

@@ -11,29 +11,20 @@ splat-transform's decompress-ply.ts, independent of the reader's vectorised one.
 from __future__ import annotations
 
 import math
-import os
-from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, event, given, settings
+from hypothesis import given
 from hypothesis import strategies as st
 from test_compressed_ply import assemble, encode, known_scene
+from test_fuzz import assert_valid_scene, fuzz, outcome
 
-from raygs_viewer.errors import UserError
-from raygs_viewer.scene.io import DROP_REASONS, load_scene
+from raygs_viewer.scene.io import load_scene
 
 pytestmark = pytest.mark.filterwarnings("error")
 
 C0 = 0.28209479177387814
-_EXAMPLES = int(os.environ.get("RAYGS_FUZZ_EXAMPLES", "0"))
 _N = 300  # two chunks, the second partial
-
-
-def fuzz(max_examples: int):
-    return settings(max_examples=_EXAMPLES or max_examples, deadline=2000,
-                    suppress_health_check=[HealthCheck.function_scoped_fixture, HealthCheck.too_slow,
-                                           HealthCheck.data_too_large])
 
 
 def _base(degree: int, colour_bounds: bool) -> bytes:
@@ -42,31 +33,6 @@ def _base(degree: int, colour_bounds: bool) -> bytes:
 
 
 BASES = {(d, c): _base(d, c) for d in (0, 1, 3) for c in (True, False)}
-
-
-def outcome(path):
-    """The loaded scene, or None after checking that the UserError is one line naming the file."""
-    try:
-        scene = load_scene(path)
-    except UserError as exc:
-        event("UserError")
-        message = str(exc)
-        assert message and "\n" not in message and "\r" not in message, repr(message)
-        assert Path(path).name in message, message
-        return None
-    event("loaded")
-    return scene
-
-
-def assert_valid(scene) -> None:
-    for name in ("positions", "rotations", "scales", "opacities", "sh"):
-        array = getattr(scene, name)
-        assert array.dtype == np.float32 and np.all(np.isfinite(array)), name
-    assert np.all(scene.scales > 0)
-    assert np.all((scene.opacities >= 0) & (scene.opacities <= 1))
-    if scene.count:
-        np.testing.assert_allclose(np.linalg.norm(scene.rotations.astype(np.float64), axis=1), 1, atol=1e-6)
-    assert set(scene.dropped) <= set(DROP_REASONS)
 
 
 # --------------------------------------------------------------------------- the plain decode
@@ -155,7 +121,7 @@ def test_flipped_data_bytes_decode_plainly(tmp_path, base, flips):
     path = tmp_path / "flipped.compressed.ply"
     path.write_bytes(bytes(data))
     scene = load_scene(path)  # the header is intact: every word decodes to something
-    assert_valid(scene)
+    assert_valid_scene(scene)
     assert_decodes_plainly(scene, bytes(data), *base)
 
 
@@ -173,7 +139,7 @@ def test_extreme_chunk_bounds_drop_or_decode_plainly(tmp_path, base, values):
     path = tmp_path / "bounds.compressed.ply"
     path.write_bytes(bytes(data))
     scene = load_scene(path)
-    assert_valid(scene)
+    assert_valid_scene(scene)
     assert_decodes_plainly(scene, bytes(data), *base)
 
 
@@ -183,7 +149,7 @@ def test_truncated_anywhere(tmp_path, base, cut):
     data = BASES[base]
     path = tmp_path / "cut.compressed.ply"
     path.write_bytes(data[: int(cut * len(data))])
-    assert outcome(path) is None
+    assert outcome(load_scene, path) is None
 
 
 _WORDS = ["element", "chunk", "vertex", "sh", "property", "float", "uint", "uchar", "double", "int", "list",
@@ -212,6 +178,6 @@ def test_mutated_headers(tmp_path, base, edits):
             del lines[at]
     path = tmp_path / "header.compressed.ply"
     path.write_bytes("\n".join(lines).encode("ascii", "replace") + data[end:])
-    scene = outcome(path)
+    scene = outcome(load_scene, path)
     if scene is not None:
-        assert_valid(scene)
+        assert_valid_scene(scene)
