@@ -220,8 +220,10 @@ def writing_notes(scene: Scene, suffix: str) -> list[str]:
         notes.append(f"SH degree {scene.sh_degree} -> 0: .splat holds only the base colour "
                      f"(view-dependent colour is lost)")
     if suffix == ".splat":
-        rgb = 0.5 + C0 * scene.sh[:, 0, :].astype(np.float64)
-        outside = int(np.count_nonzero(((rgb < 0.0) | (rgb > 1.0)).any(axis=1)))
+        # Only a colour whose byte would fall outside 0..255 is changed by the clipping
+        # (a decoded byte b/255 is often 1e-8 outside 0..1 after float32 rounding).
+        levels = np.rint((0.5 + C0 * scene.sh[:, 0, :].astype(np.float64)) * 255.0)
+        outside = int(np.count_nonzero(((levels < 0) | (levels > 255)).any(axis=1)))
         if outside:
             notes.append(f"{outside:,} gaussians have a base colour outside 0..1, clipped in .splat's RGB bytes")
     if suffix == ".ply":

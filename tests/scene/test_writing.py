@@ -185,6 +185,12 @@ def test_splat_notes_say_what_is_lost():
     notes = " ".join(writing_notes(scene, ".splat"))
     assert "SH degree 3 -> 0" in notes and "outside 0..1" in notes
     assert writing_notes(random_scene(n=30, seed=5, degree=3), ".ply") == []
+    # Colours a byte holds exactly (b/255 decoded, 1e-8 outside 0..1 after rounding) are not clipped.
+    sh = np.zeros((2, 1, 3), np.float32)
+    sh[:, 0] = (np.float32([[0.0, 1.0, 0.5], [-0.4 / 255, 1 + 0.4 / 255, 0.5]]) - 0.5) / np.float32(C0)
+    exact = Scene(np.zeros((2, 3), np.float32), np.tile(np.float32([1, 0, 0, 0]), (2, 1)),
+                  np.ones((2, 3), np.float32), np.ones(2, np.float32), sh, 0)
+    assert writing_notes(exact, ".splat") == []
 
 
 @pytest.mark.parametrize("suffix", [".ply", ".splat"])
