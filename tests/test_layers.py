@@ -1,9 +1,10 @@
 """The package's shape, enforced: imports only down the data flow, no import cycle, no
 private name taken from another module, imports at the top of files.
 
-Layers, lowest first: errors (and the package root) -> camera -> scene -> sort ->
+Layers, lowest first: errors (and the package root) -> camera | files -> scene -> sort ->
 render -> capture -> viewer | bench -> cli. A module may import its own subpackage
-and any lower layer; viewer and bench stand side by side and import neither each other.
+and any lower layer; camera and files, and viewer and bench, stand side by side and
+import neither each other.
 """
 
 from __future__ import annotations
@@ -14,7 +15,7 @@ from pathlib import Path
 import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "raygs_viewer"
-LAYERS = {"errors": 0, "camera": 1, "scene": 2, "sort": 3, "render": 4, "capture": 5, "viewer": 6, "bench": 6,
+LAYERS = {"errors": 0, "camera": 1, "files": 1, "scene": 2, "sort": 3, "render": 4, "capture": 5, "viewer": 6, "bench": 6,
           "cli": 7, "__main__": 8}
 
 

@@ -18,8 +18,8 @@ from typing import Callable, Iterator, TextIO
 import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera, frame_points
-from raygs_viewer.capture.image_io import write_atomically
 from raygs_viewer.errors import UserError
+from raygs_viewer.files import write_atomically
 from raygs_viewer.render.gl.context import create_headless_context
 from raygs_viewer.scene.loader import DEMO, load_now
 from raygs_viewer.scene.model import Scene

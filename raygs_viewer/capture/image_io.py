@@ -1,16 +1,16 @@
-"""Writing rendered images: atomically, and never over a file the user already has."""
+"""Writing rendered images: atomically, and never over a file the user already has
+(:mod:`raygs_viewer.files`, which every written file goes through)."""
 
 from __future__ import annotations
 
 import io
-import os
-import tempfile
 from pathlib import Path
 
 import numpy as np
 from PIL import Image
 
 from raygs_viewer.errors import UserError
+from raygs_viewer.files import write_atomically
 
 IMAGE_SUFFIXES = (".png", ".npy")
 
@@ -54,70 +54,6 @@ def check_output_path(path: str | Path, overwrite: bool = False, suffixes: tuple
     if path.exists() and not overwrite:
         raise UserError(f"{path}: already exists (pass --overwrite to replace it)")
     return path
-
-
-def write_atomically(path: str | Path, data: bytes, overwrite: bool = False) -> None:
-    """Writes ``data`` to a temporary file beside ``path`` and moves it into place, so a
-    reader never sees half a file. Without ``overwrite`` an existing file is never
-    replaced, even one that appears while writing."""
-    path = Path(path)
-    try:
-        handle, temporary = temporary_beside(path)
-        try:
-            with os.fdopen(handle, "wb") as stream:
-                stream.write(data)
-                stream.flush()
-                os.fsync(stream.fileno())
-            move_into_place(temporary, path, overwrite)
-        except BaseException:
-            if os.path.exists(temporary):
-                os.unlink(temporary)
-            raise
-    except FileExistsError:
-        raise UserError(f"{path}: already exists (pass --overwrite to replace it)") from None
-    except OSError as exc:
-        raise UserError(f"{path}: cannot write: {exc.strerror or exc}") from None
-
-
-def temporary_beside(path: Path) -> tuple[int, str]:
-    """(open descriptor, name) of a new hidden ``.NAME.*.partial`` file in ``path``'s
-    folder, with an ordinary file's permissions; OSError if the folder refuses it."""
-    handle, temporary = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".partial", dir=path.parent)
-    try:
-        os.fchmod(handle, 0o666 & ~_umask())  # mkstemp makes 0600; a saved file is an ordinary file
-    except BaseException:
-        os.close(handle)
-        os.unlink(temporary)
-        raise
-    return handle, temporary
-
-
-def move_into_place(temporary: str, path: Path, overwrite: bool) -> None:
-    """Renames a finished ``temporary`` (from :func:`temporary_beside`) to ``path``:
-    replacing it only with ``overwrite``; without, FileExistsError if ``path`` exists,
-    even one that appeared while writing."""
-    if overwrite:
-        os.replace(temporary, path)
-    else:
-        _move_without_replacing(temporary, path)
-
-
-def _umask() -> int:
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
-
-
-def _move_without_replacing(source: str, target: Path) -> None:
-    try:
-        os.link(source, target)  # atomic, and fails if target exists: no clobbering race
-    except FileExistsError:
-        raise
-    except OSError:  # a filesystem without hard links: claim the name, then replace it
-        os.close(os.open(target, os.O_CREAT | os.O_EXCL | os.O_WRONLY))
-        os.replace(source, target)
-    else:
-        os.unlink(source)
 
 
 def save_image(path: str | Path, image: np.ndarray, overwrite: bool = False) -> Path:

@@ -60,7 +60,7 @@ from raygs_viewer.camera.path import (
     Keyframe,
 )
 from raygs_viewer.camera.rotation import is_rotation
-from raygs_viewer.capture.image_io import check_output_path, write_atomically
+from raygs_viewer.capture.image_io import check_output_path
 from raygs_viewer.capture.path_document import (
     MAX_IMAGE_SIZE,
     NERFSTUDIO,
@@ -74,6 +74,7 @@ from raygs_viewer.capture.sidecar import (
     show_json,
 )
 from raygs_viewer.errors import UserError
+from raygs_viewer.files import write_atomically
 
 #: Camera axes: OpenCV from OpenGL and back (a diagonal of signs, its own inverse).
 CV_FROM_GL = np.diag([1.0, -1.0, -1.0])

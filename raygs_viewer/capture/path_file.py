@@ -65,7 +65,7 @@ from raygs_viewer.camera.path import (
 )
 from raygs_viewer.camera.pinhole import read_json_file
 from raygs_viewer.camera.rotation import is_rotation
-from raygs_viewer.capture.image_io import check_output_path, write_atomically
+from raygs_viewer.capture.image_io import check_output_path
 from raygs_viewer.capture.nerfstudio import is_nerfstudio, read_nerfstudio
 from raygs_viewer.capture.path_document import (
     MAX_IMAGE_SIZE,
@@ -90,6 +90,7 @@ from raygs_viewer.capture.sidecar import (
     stereo_entry,
 )
 from raygs_viewer.errors import UserError
+from raygs_viewer.files import write_atomically
 
 PATH_FORMAT = "raygs-viewer camera path"
 PATH_VERSION = 1

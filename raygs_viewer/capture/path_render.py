@@ -22,10 +22,11 @@ import numpy as np
 from raygs_viewer.camera.path import CameraPath
 from raygs_viewer.camera.pinhole import Camera, camera_from_json, camera_to_json
 from raygs_viewer.camera.stereo import StereoView, composed_size
-from raygs_viewer.capture.image_io import check_output_path, to_rgb8, write_atomically
+from raygs_viewer.capture.image_io import check_output_path, to_rgb8
 from raygs_viewer.capture.progress import Progress
 from raygs_viewer.capture.screenshot import render_tiled
 from raygs_viewer.capture.video import FRAME_PREFIX, FrameSink
+from raygs_viewer.files import write_atomically
 from raygs_viewer.render.gl.stereo_frame import render_stereo_view
 from raygs_viewer.render.settings import RenderSettings
 

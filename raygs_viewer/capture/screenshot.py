@@ -18,8 +18,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera
-from raygs_viewer.capture.image_io import encode_image, write_atomically
+from raygs_viewer.capture.image_io import encode_image
 from raygs_viewer.errors import UserError, finite_number
+from raygs_viewer.files import write_atomically
 from raygs_viewer.render.settings import RenderSettings
 
 if TYPE_CHECKING:

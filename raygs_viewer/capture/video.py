@@ -18,13 +18,9 @@ from pathlib import Path
 
 import numpy as np
 
-from raygs_viewer.capture.image_io import (
-    encode_png,
-    move_into_place,
-    temporary_beside,
-    write_atomically,
-)
+from raygs_viewer.capture.image_io import encode_png
 from raygs_viewer.errors import UserError
+from raygs_viewer.files import move_into_place, temporary_beside, write_atomically
 
 VIDEO_SUFFIX = ".mp4"
 #: Suffixes that name a file format we do not write: refused rather than taken for a

@@ -32,6 +32,7 @@ from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.demo import demo_camera, demo_scene
 from raygs_viewer.scene.io import (
+    SCENE_FILES,
     describe,
     dropped_summary,
     format_description,
@@ -49,7 +50,7 @@ SIDECAR_CONFLICTS = tuple(("/".join(action.option_strings), action.dest)
 def add_parsers(commands) -> None:
     """Adds ``info``, ``render`` and ``verify`` to the CLI's subparsers."""
     info = commands.add_parser("info", help="describe a scene file")
-    info.add_argument("scene", help=f"a .ply or .splat file, or '{DEMO}'")
+    info.add_argument("scene", help=f"a scene file ({SCENE_FILES}), or '{DEMO}'")
     info.add_argument("--json", action="store_true", help="print JSON instead of text")
 
     render = commands.add_parser("render", help="render one image headlessly")

@@ -1,5 +1,6 @@
 """The ``raygs-viewer`` command line: ``view`` (the window), ``info``, ``render``,
-``render-path`` (a camera path to a video), ``verify`` and ``bench``.
+``render-path`` (a camera path to a video), ``verify``, ``convert`` (a scene to
+another format) and ``bench``.
 
 Without a command the window opens: ``raygs-viewer`` shows the demo, and
 ``raygs-viewer SCENE.ply [view options]`` or ``raygs-viewer --frames 3`` mean
@@ -9,8 +10,8 @@ window again from the JSON sidecar saved beside it.
 Bad input ends in one line, ``error: <what and where>``, and exit status 2.
 
 The commands live beside this module: :mod:`cli.view`, :mod:`cli.commands` (info,
-render, verify), :mod:`cli.path` (render-path) and :mod:`cli.bench`; :mod:`cli.argtypes` and :mod:`cli.options` hold
-what their parsers share.
+render, verify), :mod:`cli.path` (render-path), :mod:`cli.convert` and :mod:`cli.bench`;
+:mod:`cli.argtypes` and :mod:`cli.options` hold what their parsers share.
 """
 
 from __future__ import annotations
@@ -21,19 +22,19 @@ import sys
 from pathlib import Path
 
 from raygs_viewer import __version__
-from raygs_viewer.cli import bench, commands, path, view
+from raygs_viewer.cli import bench, commands, convert, path, view
 from raygs_viewer.cli.argtypes import Parser
 from raygs_viewer.cli.view import join_up_axis
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.loader import DEMO
 
-COMMANDS = ("view", "info", "render", "render-path", "verify", "bench")
+COMMANDS = ("view", "info", "render", "render-path", "verify", "convert", "bench")
 # Arguments that keep their meaning at the top level instead of starting the window.
 TOP_LEVEL_OPTIONS = ("-h", "--help", "--version")
 SCENE_SUFFIXES = (".ply", ".splat", ".spz", ".sog")
 RUN = {"view": view.command_view, "info": commands.command_info, "render": commands.command_render,
        "render-path": path.command_render_path,
-       "verify": commands.command_verify, "bench": bench.command}
+       "verify": commands.command_verify, "convert": convert.command_convert, "bench": bench.command}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -47,6 +48,7 @@ def build_parser() -> argparse.ArgumentParser:
     view.add_parser(subparsers)
     commands.add_parsers(subparsers)
     path.add_parser(subparsers)
+    convert.add_parser(subparsers)
     bench.add_parser(subparsers)
     return parser
 

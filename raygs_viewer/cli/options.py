@@ -27,6 +27,7 @@ from raygs_viewer.render.settings import (
     RENDER_MODES,
     RenderSettings,
 )
+from raygs_viewer.scene.io import SCENE_FILES
 from raygs_viewer.scene.loader import DEMO
 
 DEFAULT_BACKGROUND = (0.0, 0.0, 0.0)
@@ -41,7 +42,7 @@ def add_view_options(parser: argparse.ArgumentParser) -> list[argparse.Action]:
     """render's and verify's view; the options it adds besides SCENE. Defaults are None
     so that render can tell which were given (--sidecar rejects them);
     :func:`render_settings` and ``commands.choose_camera`` apply the documented defaults."""
-    parser.add_argument("scene", nargs="?", help=f"a .ply or .splat file, or '{DEMO}' (default)")
+    parser.add_argument("scene", nargs="?", help=f"a scene file ({SCENE_FILES}), or '{DEMO}' (default)")
     return [parser.add_argument("--camera", metavar="CAMERAS.json", help="INRIA cameras.json (a list or one camera)"),
             parser.add_argument("--camera-index", type=int, metavar="I", help="which camera of the file (default 0)"),
             parser.add_argument("--width", type=argtypes.positive_int, help="image width; fx and cx scale to match"),

@@ -44,6 +44,7 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.context import create_headless_context
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.scene.io import SCENE_FILES
 from raygs_viewer.scene.loader import DEMO, TerminalProgress, load_now
 
 PROGRESS_MODES = ("auto", "bar", "json", "none")
@@ -59,7 +60,7 @@ def add_parser(commands) -> None:
         description="Renders every frame of a camera path (a path JSON saved by the window, or a nerfstudio "
                     "camera_path file) offscreen with its own exact sort. Options given here replace what the "
                     "path file recorded.")
-    parser.add_argument("scene", help=f"a .ply or .splat file, or '{DEMO}'")
+    parser.add_argument("scene", help=f"a scene file ({SCENE_FILES}), or '{DEMO}'")
     parser.add_argument("path", metavar="PATH.json|orbit",
                         help="the window's path JSON, a nerfstudio camera_path, or 'orbit': one lap around the "
                              f"scene's centre (10 s at 30 fps, {ORBIT_SIZE[0]}x{ORBIT_SIZE[1]} unless --duration, "

@@ -23,6 +23,7 @@ from raygs_viewer.cli.options import (
 )
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.settings import DEFAULT_P_MIN
+from raygs_viewer.scene.io import SCENE_FILES
 from raygs_viewer.scene.loader import DEMO
 from raygs_viewer.viewer.state import (
     NavigationChoices,
@@ -38,7 +39,7 @@ UP_AXES = tuple(NAVIGATION_UP_AXES)
 def add_parser(commands) -> None:
     """Adds ``view`` to the CLI's subparsers: the fields of viewer.state.ViewerOptions."""
     parser = commands.add_parser("view", help="open the interactive window (the default command)")
-    parser.add_argument("scene", nargs="?", default=DEMO, help=f"a .ply or .splat file, or '{DEMO}' (default)")
+    parser.add_argument("scene", nargs="?", default=DEMO, help=f"a scene file ({SCENE_FILES}), or '{DEMO}' (default)")
     parser.add_argument("--cameras", metavar="CAMERAS.json",
                         help="the scene's training cameras (default: a cameras.json found next to the scene)")
     parser.add_argument("--camera", metavar="CAMERAS.json", help="start at a camera of this INRIA cameras.json")

@@ -1,4 +1,5 @@
-"""Loading Gaussian scenes from disk: INRIA PLY and the 32-byte ``.splat`` format.
+"""Loading Gaussian scenes from disk: INRIA PLY, the 32-byte ``.splat`` format, Niantic's
+``.spz``, PlayCanvas's compressed PLY and SOG (a ``.sog`` zip or a ``meta.json``).
 
 Everything here follows section 2 of the maths page (``raygs-math.md``). The
 public entry points:
@@ -62,9 +63,14 @@ GZIP_MAGIC = b"\x1f\x8b"
 SPZ_MAGIC = b"NGSP"
 ZIP_MAGIC = b"PK\x03\x04"
 
+#: The files :func:`load_scene` reads, in words (help texts and errors); a .ply is INRIA's
+#: layout or PlayCanvas's compressed one.
+SCENE_FILES = ".ply, .splat, .spz, .sog or a SOG meta.json"
+
 __all__ = [
     "DROP_REASONS",
     "READ_CHUNK_BYTES",
+    "SCENE_FILES",
     "SPLAT_ROW_BYTES",
     "ProgressCallback",
     "describe",
@@ -76,10 +82,11 @@ __all__ = [
 
 def load_scene(path: str | os.PathLike, *, progress: ProgressCallback | None = None,
                cancel: threading.Event | None = None, chunk_bytes: int | None = None) -> Scene:
-    """Read an INRIA PLY or a ``.splat`` file into an activated :class:`Scene`.
+    """Read a scene file (:data:`SCENE_FILES`) into an activated :class:`Scene`.
 
-    The format is chosen by the extension ``.splat`` (32-byte rows), otherwise by
-    the PLY magic ``ply`` at the start of the file. Raises :class:`UserError`
+    The format is chosen by the extension (``.splat``, ``.spz``, ``.sog``, ``.json``;
+    a ``.ply`` is INRIA's or PlayCanvas's compressed layout by its header), and for
+    other names by the first bytes (``ply``, gzip or ``NGSP`` for .spz, a zip for SOG). Raises :class:`UserError`
     for anything that is not a readable scene file. Invalid gaussians are
     dropped and counted in ``scene.dropped`` (see the module docstring).
 
@@ -102,7 +109,7 @@ def _load(path: str | os.PathLike, report: Reporter, chunk_bytes: int) -> Scene:
     if not os.path.exists(path):
         raise file_error(shown, "no such file")
     if os.path.isdir(path):
-        raise file_error(shown, "is a directory, expected a .ply or .splat file")
+        raise file_error(shown, f"is a directory, expected a scene file ({SCENE_FILES})")
     if not os.path.isfile(path):
         raise file_error(shown, "not a regular file")
     try:
@@ -123,8 +130,7 @@ def _load(path: str | os.PathLike, report: Reporter, chunk_bytes: int) -> Scene:
         if Path(path).suffix.lower() == ".ply" or magic[:3] == b"ply":
             what = "empty file" if not magic else "does not start with the 'ply' magic line"
             raise file_error(shown, f"not a PLY file ({what})")
-        raise file_error(shown, "unrecognised file format: expected a PLY file (starting with 'ply') "
-                                "or a .splat file")
+        raise file_error(shown, f"unrecognised file format: expected a scene file ({SCENE_FILES})")
     except OSError as exc:
         raise _os_error(shown, exc) from None
     except MemoryError:
@@ -135,7 +141,7 @@ def _os_error(path, exc: OSError) -> UserError:
     if isinstance(exc, FileNotFoundError):
         return file_error(path, "no such file")
     if isinstance(exc, IsADirectoryError):
-        return file_error(path, "is a directory, expected a .ply or .splat file")
+        return file_error(path, f"is a directory, expected a scene file ({SCENE_FILES})")
     if isinstance(exc, PermissionError):
         return file_error(path, "permission denied")
     return file_error(path, f"cannot read: {exc.strerror or exc}")

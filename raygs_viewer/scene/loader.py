@@ -222,7 +222,7 @@ def _scaled(progress: ProgressCallback | None, start: float, end: float,
 def load_now(path: str | os.PathLike, cameras: str | os.PathLike | None = None,
              progress: ProgressCallback | None = None, *,
              cancel: threading.Event | None = None, read_scene: SceneReader = load_scene) -> LoadedScene:
-    """Loads a scene (a .ply/.splat path, or "demo") with its training cameras, synchronously.
+    """Loads a scene (a scene file path, or "demo") with its training cameras, synchronously.
 
     ``cameras``: an explicit cameras.json; a bad one is a UserError. Without it the
     file found by :func:`find_training_cameras` is used, and a bad one only adds a

@@ -157,7 +157,7 @@ class PanelState:
 class ViewerOptions:
     """Everything ``raygs-viewer view`` takes from the command line.
 
-    scene: a .ply/.splat path or "demo". cameras: training cameras.json (None: look
+    scene: a scene file path or "demo". cameras: training cameras.json (None: look
     next to the scene). camera/camera_index: the start view (a cameras.json and an
     index into it). width, height: window size in screen coordinates. settings: the
     start render settings (sh_degree None: each scene's own). frames: quit after that

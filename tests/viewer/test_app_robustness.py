@@ -333,8 +333,8 @@ class _Frozen(datetime):
 
 @pytest.mark.parametrize("failing", ["png", "sidecar"])
 def test_a_full_disk_during_a_screenshot_leaves_no_partial_files(open_viewer, tmp_path, monkeypatch, failing):
-    import raygs_viewer.capture.image_io
     import raygs_viewer.capture.screenshot
+    import raygs_viewer.files
     monkeypatch.setattr(raygs_viewer.capture.screenshot, "datetime", _Frozen)
     viewer, drive = open_viewer(hide_panel=True)
     drive.frames(2)
@@ -346,10 +346,10 @@ def test_a_full_disk_during_a_screenshot_leaves_no_partial_files(open_viewer, tm
     viewer.screenshots.folder = str(folder)
     before = _files(folder)
     disk = _FullDisk(fail_on=1 if failing == "png" else 2)
-    monkeypatch.setattr(raygs_viewer.capture.image_io, "os", disk)
+    monkeypatch.setattr(raygs_viewer.files, "os", disk)
     drive.tap(imgui.Key.f12)
     assert disk.opened == (1 if failing == "png" else 2)  # the failure did happen where meant
-    monkeypatch.setattr(raygs_viewer.capture.image_io, "os", os)
+    monkeypatch.setattr(raygs_viewer.files, "os", os)
     assert_one_line_error(viewer, "screenshot not saved", os.strerror(errno.ENOSPC), "raygs-20300102-030405-2.")
     assert viewer.last_screenshot is None
     assert _files(folder) == before  # no half PNG, no PNG without sidecar, no temp file, nothing replaced

@@ -20,10 +20,13 @@ def draw_scene_section(loaded: LoadedScene, panel: PanelState, open_scene: Calla
         return
     scene = loaded.scene
     imgui.text_wrapped("built-in demo scene" if loaded.path == "demo" else loaded.path)
+    if scene.format:
+        imgui.text(scene.format)
     imgui.text(f"{scene.count:,} gaussians, SH degree {scene.sh_degree}, "
                f"3D filter {'fused' if scene.filter_fused else 'none'}")
     entered, panel.open_path = imgui.input_text_with_hint(
-        "##open", "scene.ply (or drop a file)", panel.open_path, imgui.InputTextFlags_.enter_returns_true.value)
+        "##open", ".ply .splat .spz .sog (or drop a file)", panel.open_path,
+        imgui.InputTextFlags_.enter_returns_true.value)
     remember("open path")
     imgui.same_line()
     if imgui.button("Open") or entered:
