@@ -400,7 +400,7 @@ def _codebook(shown: str, section: dict, where: str) -> np.ndarray:
                                                                          f"a {_json_type(value)}")
         raise file_error(shown, f"'{where}.codebook' is {got}, expected a list of {_CODEBOOK_SIZE} numbers")
     if not all(v is None or _is_finite(v) for v in value):
-        raise file_error(shown, f"'{where}.codebook' holds something other than numbers")
+        raise file_error(shown, f"'{where}.codebook' holds something other than finite numbers and null")
     book = np.array([math.nan if v is None else float(v) for v in value], dtype=np.float64)
     if value[0] is None:
         # Old writers stored -Infinity, which JSON writes as null; the engine extrapolates it.

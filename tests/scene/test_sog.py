@@ -346,6 +346,13 @@ def test_a_tiny_scene_with_one_gaussian(tmp_path):
     assert_exact_dequantisation(scene, codes, meta)
 
 
+def test_a_count_of_zero_is_an_empty_scene(tmp_path):
+    meta, images, _ = encode_sog(*gaussians(n=4, degree=2))
+    meta["count"] = 0
+    scene = load_scene(write_bundle(tmp_path / "empty.sog", meta, images))
+    assert scene.count == 0 and scene.sh_degree == 2 and scene.sh.shape == (0, 9, 3)
+
+
 def test_progress_rises_to_done_and_cancel_stops_the_load(tmp_path):
     meta, images, _ = encode_sog(*gaussians(n=400, degree=2))
     path = write_bundle(tmp_path / "p.sog", meta, images, zipfile.ZIP_DEFLATED)
@@ -396,7 +403,7 @@ META_CASES = [
     ("one means file", lambda m: m["means"].update(files=["means_l.webp"]), "'means.files'"),
     ("file name a number", lambda m: m["quats"].update(files=[7]), "'quats.files'"),
     ("short codebook", lambda m: m["scales"].update(codebook=[0.0] * 255), "255 entries"),
-    ("codebook of text", lambda m: m["sh0"]["codebook"].__setitem__(9, "x"), "'sh0.codebook' holds"),
+    ("codebook of text", lambda m: m["sh0"]["codebook"].__setitem__(9, "x"), "'sh0.codebook' holds something other than finite numbers"),
     ("codebook missing", lambda m: m["sh0"].pop("codebook"), "'sh0.codebook' is missing"),
     ("bands 4", lambda m: m["shN"].update(bands=4), "'shN.bands' is 4"),
     ("palette too big", lambda m: m["shN"].update(count=70000), "'shN.count' is 70000"),
