@@ -182,6 +182,8 @@ class _Bundle:
                                     f"({cap}): refused")
         if info.compress_type == zipfile.ZIP_STORED and info.compress_size != declared:
             raise file_error(shown, f"stored zip member of {info.compress_size} bytes declares {declared}")
+        if info.header_offset < 0:  # zipfile shifts offsets by what precedes the archive
+            raise file_error(shown, "zip member starts before the file (corrupt archive)")
         self.file.seek(info.header_offset)
         local = self.file.read(30)
         if len(local) < 30 or local[:4] != _ZIP_MAGIC:

@@ -564,6 +564,20 @@ def test_corrupt_members_and_odd_zip_features(tmp_path, small):
     assert_user_error(lambda: load_scene(path), path, "compression method 12")
 
 
+def test_a_central_directory_pointing_before_the_file(tmp_path, small):
+    meta, images = small
+    out = io.BytesIO()
+    with zipfile.ZipFile(out, "w") as archive:  # meta.json first: its offset becomes negative
+        archive.writestr("meta.json", json.dumps(meta))
+    data = bytearray(out.getvalue())
+    end = data.rindex(b"PK\x05\x06")
+    offset = struct.unpack("<I", data[end + 16: end + 20])[0]
+    data[end + 16: end + 20] = struct.pack("<I", offset + 1000)
+    path = tmp_path / "shifted.sog"
+    path.write_bytes(bytes(data))
+    assert_user_error(lambda: load_scene(path), path, "meta.json", "starts before the file")
+
+
 def test_cli_reports_a_hostile_file_in_one_line(tmp_path, capsys, small):
     meta, images = small
     path = write_bundle(tmp_path / "bad.sog", _mutated(meta, lambda m: m.update(count=10 ** 9)), images)
