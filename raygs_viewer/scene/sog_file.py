@@ -493,7 +493,7 @@ def _load(source, meta: _Meta, shown: str, report: Reporter, chunk_bytes: int) -
         reads.append(("centroids", meta.shn_files[0],
                       _MAX_FILE_BYTES_PER_PIXEL * _PALETTE_ROW * coeffs * centroid_rows + _FILE_OVERHEAD))
     sizes = [source.stored_size(name) for _, name, _ in reads]
-    total = sum(sizes) + n
+    total = max(1, sum(sizes) + n)
     done = 0
 
     def per_gaussian(w: int, h: int) -> bool:
