@@ -53,7 +53,7 @@ from raygs_viewer.scene.reading import (
     Reporter,
     file_error,
 )
-from raygs_viewer.scene.sog_file import load_sog
+from raygs_viewer.scene.sog_file import META_NAME, load_sog
 from raygs_viewer.scene.splat_file import SPLAT_ROW_BYTES, load_splat
 from raygs_viewer.scene.spz_file import load_spz
 
@@ -108,11 +108,14 @@ def _load(path: str | os.PathLike, report: Reporter, chunk_bytes: int) -> Scene:
     report(0.0, "reading")
     if not os.path.exists(path):
         raise file_error(shown, "no such file")
-    if os.path.isdir(path):
+    unbundled_sog = os.path.isdir(path) and os.path.isfile(os.path.join(path, META_NAME))
+    if os.path.isdir(path) and not unbundled_sog:
         raise file_error(shown, f"is a directory, expected a scene file ({SCENE_FILES})")
-    if not os.path.isfile(path):
+    if not os.path.isfile(path) and not unbundled_sog:
         raise file_error(shown, "not a regular file")
     try:
+        if unbundled_sog:
+            return load_sog(path, shown, report, chunk_bytes)
         suffix = Path(path).suffix.lower()
         if suffix == ".splat":
             return load_splat(path, shown, report, chunk_bytes)

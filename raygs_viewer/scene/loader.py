@@ -28,6 +28,7 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.scene.demo import DEMO_VIEW_NAMES, demo_cameras, demo_scene
 from raygs_viewer.scene.io import ProgressCallback, dropped_summary, load_scene
 from raygs_viewer.scene.model import Scene
+from raygs_viewer.scene.sog_file import scene_files as sog_scene_files
 
 #: ``read_scene(path, *, progress, cancel) -> Scene``: what reads the scene file
 #: (:func:`~raygs_viewer.scene.io.load_scene`; tests hand in a steered one).
@@ -121,7 +122,12 @@ def arrays_sha256(scene: Scene) -> str:
 
 def file_sha256(path: str | os.PathLike, progress: ProgressCallback | None = None,
                 cancel: threading.Event | None = None, *, chunk_bytes: int | None = None) -> str:
-    """Hex SHA-256 of a file, read HASH_CHUNK_BYTES (or ``chunk_bytes``) at a time into one buffer.
+    """Hex SHA-256 of a scene file, read HASH_CHUNK_BYTES (or ``chunk_bytes``) at a time into one buffer.
+
+    A scene of several files (an unbundled SOG: its meta.json, or the folder holding it)
+    hashes each of them in turn (sog_file.scene_files), every file's bytes preceded by its
+    name and size, so that no file of the scene can change unseen; a one-file scene's
+    digest is its file's plain SHA-256.
 
     ``progress(fraction, "hashing")`` follows each read; a set ``cancel`` stops it with
     ``UserError("loading cancelled")``. Read failures are a one-line UserError naming the file.
@@ -131,19 +137,24 @@ def file_sha256(path: str | os.PathLike, progress: ProgressCallback | None = Non
     buffer = bytearray(max(1, HASH_CHUNK_BYTES if chunk_bytes is None else chunk_bytes))
     view = memoryview(buffer)
     try:
-        with open(path, "rb") as f:
-            size = os.fstat(f.fileno()).st_size
-            done = 0
-            while True:
-                if cancel is not None and cancel.is_set():
-                    raise UserError("loading cancelled")
-                got = f.readinto(buffer)
-                if not got:
-                    break
-                digest.update(view[:got])
-                done += got
-                if progress is not None:
-                    progress(min(1.0, done / size) if size else 1.0, "hashing")
+        several = os.path.isdir(path) or Path(path).suffix.lower() == ".json"
+        files = sog_scene_files(path) if several else [path]
+        total = sum(os.path.getsize(file) for file in files)
+        done = 0
+        for file in files:
+            with open(file, "rb") as f:
+                if several:
+                    digest.update(f"{os.path.basename(file)}\0{os.fstat(f.fileno()).st_size}\0".encode())
+                while True:
+                    if cancel is not None and cancel.is_set():
+                        raise UserError("loading cancelled")
+                    got = f.readinto(buffer)
+                    if not got:
+                        break
+                    digest.update(view[:got])
+                    done += got
+                    if progress is not None:
+                        progress(min(1.0, done / total) if total else 1.0, "hashing")
     except FileNotFoundError:
         raise UserError(f"{shown}: no such file") from None
     except IsADirectoryError:

@@ -120,6 +120,23 @@ def load_sog(path, shown: str, report: Reporter, chunk_bytes: int) -> Scene:
         return _load(source, meta, shown, report, max(1, chunk_bytes))
 
 
+def scene_files(path) -> list[str]:
+    """The files a SOG scene's content is: a bundled .sog is itself; an unbundled scene is
+    its meta.json (``path``, or the folder holding it) and the images that names, in the
+    order it names them (what the scene's SHA-256 covers, so that an image edited beside
+    an unchanged meta.json is a changed scene). UserError as :func:`load_sog`'s."""
+    shown = os.fspath(path)
+    if os.path.isdir(path):
+        path = os.path.join(path, META_NAME)
+    with open(path, "rb") as f:
+        if f.read(4) == _ZIP_MAGIC:
+            return [os.fspath(path)]
+    folder = _Folder(path, shown)
+    meta = _parse_meta(shown, folder.read_meta())
+    names = [*meta.means_files, meta.scales_file, meta.quats_file, meta.sh0_file, *meta.shn_files]
+    return [os.fspath(path), *(folder.resolve(name) for name in names)]
+
+
 # --- where the bytes come from ---------------------------------------------------------
 
 
@@ -245,7 +262,7 @@ class _Folder:
         with open(self.meta_path, "rb") as f:
             return f.read(MAX_META_BYTES + 1)
 
-    def _resolve(self, name: str) -> str:
+    def resolve(self, name: str) -> str:
         parts = name.replace("\\", "/").split("/")
         outside = os.path.isabs(name) or ".." in parts or "\x00" in name
         if not outside:
@@ -256,7 +273,7 @@ class _Folder:
         return target
 
     def stored_size(self, name: str) -> int:
-        target = self._resolve(name)
+        target = self.resolve(name)
         try:
             return os.path.getsize(target)
         except OSError:
@@ -265,7 +282,7 @@ class _Folder:
 
     def read(self, name: str, cap: int, chunk_bytes: int, progress) -> bytes:
         shown = f"{self.shown}: {name}"
-        target = self._resolve(name)
+        target = self.resolve(name)
         try:
             with open(target, "rb") as f:
                 size = os.fstat(f.fileno()).st_size
