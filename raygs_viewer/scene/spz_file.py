@@ -423,13 +423,14 @@ def _decode(data: np.ndarray, layout: _Layout, system: int, shown: str, report: 
         rows = slice(start, min(n, start + step))
         count = rows.stop - start
         if layout.version == 1:
+            # float16 may hold NaN or inf (dropped below); numpy would warn on a second line.
             with np.errstate(all="ignore"):
-                p = positions_b[6 * start: 6 * rows.stop].view("<f2").reshape(count, 3).astype(np.float64)
+                p = positions_b[6 * start: 6 * rows.stop].view("<f2").reshape(count, 3) * flips
         else:
             raw = positions_b[9 * start: 9 * rows.stop].reshape(count, 3, 3).astype(np.int32)
             fixed = raw[..., 0] | raw[..., 1] << 8 | raw[..., 2] << 16
-            p = ((fixed ^ 0x800000) - 0x800000) * 2.0 ** -layout.fractional_bits
-        positions[rows] = p * flips
+            p = ((fixed ^ 0x800000) - 0x800000) * 2.0 ** -layout.fractional_bits * flips
+        positions[rows] = p
         scales[rows] = np.exp(scales_b[3 * start: 3 * rows.stop].reshape(count, 3) / 16.0 - 10.0)
         opacities[rows] = alphas_b[rows] / 255.0
         sh[rows, 0] = (colours_b[3 * start: 3 * rows.stop].reshape(count, 3) / 255.0 - 0.5) / COLOR_SCALE

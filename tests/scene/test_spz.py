@@ -422,3 +422,13 @@ def test_valid_builders_behind_the_bad_files_load(tmp_path):
     assert load_scene(write(tmp_path, ngsp(n=3, degree=2), "v4d2.spz")).sh_degree == 2
     assert math.isclose(load_scene(write(tmp_path, legacy(n=1), "one.spz")).scales[0, 0], math.exp(-10),
                         rel_tol=1e-6)
+
+
+def test_rotation_words_a_writer_cannot_make_still_give_unit_quaternions(tmp_path):
+    """Three stored components of -sqrt(1/2) square-sum to 1.5: the largest (w) becomes 0,
+    and y, z flip sign into RDF."""
+    header = struct.pack("<IIIBBBB", ref.MAGIC, 3, 2, 0, 12, 0, 0)
+    body = bytes(2 * 16) + b"\xff" * 4 + bytes(4)
+    scene = load_scene(write(tmp_path, gzip.compress(header + body)))
+    np.testing.assert_allclose(scene.rotations[0], np.float32([0, -1, 1, 1]) / np.sqrt(3), atol=1e-6)
+    np.testing.assert_allclose(scene.rotations[1], [0, 1, 0, 0])  # word 0: index 0 (x) is largest
