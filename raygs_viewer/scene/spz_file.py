@@ -282,7 +282,7 @@ def _read_ngsp(f, size: int, shown: str, report: Reporter, chunk: int):
     if len(head) < _NGSP_HEADER.size:
         raise file_error(shown, f"truncated .spz: {size} bytes, less than the 32-byte version 4 header")
     magic, version, n, degree, fractional_bits, flags, streams, toc = _NGSP_HEADER.unpack(head)
-    if version < 4:
+    if 1 <= version < 4:
         raise file_error(shown, f"corrupt .spz: version {version} files are gzip-compressed, this one is not")
     _check_header(shown, version, n, degree, fractional_bits)
     layout = _Layout(version, n, degree, fractional_bits, flags)
@@ -508,9 +508,11 @@ def spz_bytes(scene: Scene, version: int = 3) -> bytes:
     q[:, :3] *= flip_quaternion_xyz(flips)
     rotation_bytes = _pack_smallest_three(q) if version >= 3 else _pack_first_three(q)
     k = sh_coefficient_count(degree) - 1
-    rest = scene.sh[:, 1:].astype(np.float64) * flip_sh(flips, k)[None, :, None]
-    buckets = np.where(np.arange(k) < 3, 1 << (8 - SH1_BITS), 1 << (8 - SH_REST_BITS))[None, :, None]
-    level = _round_half_away(rest * 128.0) + 128.0
+    # float32 is exact here (x * 128 is a power-of-two scaling) and halves the work on
+    # the largest array; levels are clipped before the integer bucket arithmetic.
+    rest = scene.sh[:, 1:] * (flip_sh(flips, k) * 128.0).astype(np.float32)[None, :, None]
+    level = np.clip(_round_half_away(rest), -1024, 1024).astype(np.int16) + 128
+    buckets = np.where(np.arange(k) < 3, 1 << (8 - SH1_BITS), 1 << (8 - SH_REST_BITS)).astype(np.int16)[None, :, None]
     sh_bytes = np.clip((level + buckets // 2) // buckets * buckets, 0, 255).astype(np.uint8)
     arrays = [position_bytes, alpha_bytes, colour_bytes, scale_bytes, rotation_bytes, sh_bytes]
     arrays = [np.ascontiguousarray(a).tobytes() for a in arrays]

@@ -362,6 +362,7 @@ BAD_FILES = {
     "version 0": (legacy(version=0), "unsupported .spz version 0"),
     "unsupported version NGSP": (ngsp(version=9), "unsupported .spz version 9"),
     "NGSP with a gzip version": (ngsp(version=3), "version 3 files are gzip-compressed"),
+    "NGSP version 0": (ngsp(version=0), "unsupported .spz version 0"),
     "truncated gzip": (legacy(n=200, body=np.random.default_rng(0).bytes(200 * 20))[:-30],
                        "cut off inside the gaussians"),
     "gzip cut in its header": (legacy(n=200)[:12], "truncated .spz"),
