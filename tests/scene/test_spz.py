@@ -8,6 +8,7 @@ SH colours seen from F d, with F = diag(1, -1, -1) (RUB <-> RDF).
 
 from __future__ import annotations
 
+import base64
 import gzip
 import math
 import struct
@@ -433,3 +434,56 @@ def test_rotation_words_a_writer_cannot_make_still_give_unit_quaternions(tmp_pat
     scene = load_scene(write(tmp_path, gzip.compress(header + body)))
     np.testing.assert_allclose(scene.rotations[0], np.float32([0, -1, 1, 1]) / np.sqrt(3), atol=1e-6)
     np.testing.assert_allclose(scene.rotations[1], [0, 1, 0, 0])  # word 0: index 0 (x) is largest
+
+
+# --------------------------------------------------------------------------- files the owners wrote
+
+# Written by the owners' own writer (nianticlabs/spz 21715c3, ``loadSplatFromPly`` then
+# ``saveSpz`` with PackOptions{from = RDF, version}) from the PLY of ``owners_columns()``:
+# a check of the reader on their files, version 4's layout included, with no build here.
+OWNERS_V2 = base64.b64decode(
+    "H4sIAAAAAAAAAwFgAZ/+TkdTUAIAAAAMAAAAAQwAAOEQAOIlAIkbAJPk/7H5/6wVALXt/44vAIPi/8AcAFkDAD0WAJkvAFfS"
+    "/0QWAKfd/0Hj/zIpAI/X/7T2/yYDAFzh/8QQAKMWAIfy/zEcAKna/0ng/4AFAIMUAIUIAE8VALjl/zcLAAHc/zkBAN4M7xII"
+    "zIgSBibyRH1rhqNbeZ6PeF9zoWxzXWducp9sgYSFh3ZzXJl6bHRpXY2AWoqTTJ9ae46ViJ9GnG9VgJuOd1N2flKQZoNldJ1D"
+    "a354dXd+fhnIk6u7Qp88K6x/KkGbNfWWetUie9krn4QVkpBqdHYpcZKZVai4GLhgOPAYsJiAKJBggJAYmDDY0Ng4ECBIiPCY"
+    "QFDYMKBguFBA8ODAYECQ0IjAWLAgKGjgEGgwqMBw4EBA4NBooNjIwFAwmDhgwHiQIJgw2KAgcMiYyIAggJiAIEjY4BAwWHDQ"
+    "OLBomOBAMEX348tgAQAA"
+)
+
+OWNERS_V4 = base64.b64decode(
+    "TkdTUAQAAAAMAAAAAQwABiAAAAAAAAAAAAAAAAAAAAB1AAAAAAAAAGwAAAAAAAAAFQAAAAAAAAAMAAAAAAAAAC0AAAAAAAAA"
+    "JAAAAAAAAAAtAAAAAAAAACQAAAAAAAAAOQAAAAAAAAAwAAAAAAAAAGcAAAAAAAAAbAAAAAAAAAAotS/9IGxhAwDhEADiJQCJ"
+    "GwCT5P+x+f+sFQC17f+OLwCD4v/AHABZAwA9FgCZLwBX0v9EFgCn3f9B4/8yKQCP1/+09v8mAwBc4f/EEACjFgCH8v8xHACp"
+    "2v9J4P+ABQCDFACFCABPFQC45f83CwAB3P85AQAotS/9IAxhAADeDO8SCMyIEgYm8kQotS/9ICQhAQB9a4ajW3mej3hfc6Fs"
+    "c11nbnKfbIGEhYd2c1yZemx0aV2NgFootS/9ICQhAQCKk0yfWnuOlYifRpxvVYCbjndTdn5SkGaDZXSdQ2t+eHV3fn4otS/9"
+    "IDCBAQBHssk5Wk9lz07/RavbC6CvqWsi9vN4GAgtbmB+C9ACPnybuWFA5gnGUbaP4+9KcsYotS/9IGz1AgDChhYZ0LUBFJ5n"
+    "y6oqJ+Mxl7m4wp/M5THv8ji4BLrfhxWIBB3vQaZOmV4/lMu1Uw2OS6txz9eBv/vIFXrGHyCZ4Aiolt3HNY2XutmORJCjOHRt"
+    "ohIrIDUjsXAjrQgA"
+)
+
+
+def owners_columns():
+    rng = np.random.default_rng(2024)
+    n, k = 12, 3
+    cols = {a: rng.uniform(-3, 3, n) for a in "xyz"}
+    cols.update({f"f_dc_{c}": rng.uniform(-1, 1, n) for c in range(3)})
+    cols.update({f"f_rest_{j}": rng.uniform(-0.9, 0.9, n) for j in range(3 * k)})
+    cols["opacity"] = rng.uniform(-4, 4, n)
+    cols.update({f"scale_{a}": rng.uniform(-6, 0, n) for a in range(3)})
+    cols.update({f"rot_{a}": rng.normal(size=n) for a in range(4)})
+    return cols
+
+
+@pytest.mark.parametrize("version,data", [(2, OWNERS_V2), (4, OWNERS_V4)])
+def test_files_the_owners_wrote_match_their_ply(tmp_path, version, data):
+    ply = load_scene(testkit.write_ply(tmp_path / "source.ply", owners_columns()))
+    spz = load_scene(write(tmp_path, data))
+    assert (spz.format, spz.count, spz.sh_degree) == (f"spz v{version}", 12, 1)
+    assert np.abs(spz.positions - ply.positions).max() <= POSITION_BOUND + 2.0 ** -22
+    assert np.abs(np.log(spz.scales / ply.scales)).max() <= LOG_SCALE_BOUND + 1e-5
+    assert np.abs(spz.opacities - ply.opacities).max() <= OPACITY_BOUND + 1e-6
+    assert np.abs(spz.sh[:, 0] - ply.sh[:, 0]).max() <= DC_BOUND + 1e-6
+    assert np.abs(spz.sh[:, 1:] - ply.sh[:, 1:]).max() <= SH1_BOUND + 1e-6
+    angles = rotation_angles_deg(spz.rotations, ply.rotations)
+    w = np.abs(ply.rotations[:, 0])
+    assert angles[w >= 0.3].max() <= (ROTATION_BOUND_V2_DEG if version == 2 else ROTATION_BOUND_DEG)
