@@ -19,6 +19,7 @@ itself. Quantisation bounds of a decoded scene against the scene encoded:
 
 from __future__ import annotations
 
+import hashlib
 import io
 import json
 import math
@@ -26,6 +27,7 @@ import os
 import struct
 import threading
 import zipfile
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -34,6 +36,7 @@ from testkit import SHARED_SCENES, assert_user_error, run_cli, unit_quaternions
 
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.io import load_scene
+from raygs_viewer.scene.loader import file_sha256
 
 pytestmark = pytest.mark.filterwarnings("error")
 
@@ -291,6 +294,19 @@ def test_a_folder_loads_as_its_meta_json(tmp_path):
     assert np.array_equal(by_file.sh, by_folder.sh)
     with pytest.raises(UserError, match="folder has no meta.json"):
         load_sog(tmp_path, "empty", Reporter(None, None), 1 << 20)
+
+
+def test_an_unbundled_scene_opens_from_its_folder_and_hashes_every_image(tmp_path):
+    meta, images, _ = encode_sog(*gaussians(n=20))
+    path = write_folder(tmp_path / "scene", meta, images)
+    np.testing.assert_array_equal(load_scene(tmp_path / "scene").positions, load_scene(path).positions)
+    digest = file_sha256(path)
+    assert file_sha256(tmp_path / "scene") == digest
+    assert digest != hashlib.sha256(Path(path).read_bytes()).hexdigest()   # more than meta.json
+    # An image changed beside an unchanged meta.json: another scene, another digest.
+    name = sorted(images)[0]
+    (tmp_path / "scene" / name).write_bytes(webp_bytes(255 - np.asarray(images[name])))
+    assert file_sha256(path) != digest
 
 
 def test_a_json_named_bundle_and_images_in_a_subfolder(tmp_path):
