@@ -31,6 +31,7 @@ class BenchScene:
     scene: Scene
     camera: Camera        # the training camera, at its own resolution
     description: str
+    path: str | None = None   # the file it was loaded from (None: the demo)
 
 
 # --- scenes ---------------------------------------------------------------------------------------
@@ -84,7 +85,7 @@ def load_scenes(specs: tuple[str, ...]) -> list[BenchScene]:
             name, n = f"{base}-{n}", n + 1
         names.add(name)
         description = f"{scene.count:,} gaussians, SH degree {scene.sh_degree}; training-like view: {origin}"
-        loaded.append(BenchScene(name, scene, camera, description))
+        loaded.append(BenchScene(name, scene, camera, description, None if spec == DEMO else spec))
     return loaded
 
 

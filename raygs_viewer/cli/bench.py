@@ -11,6 +11,7 @@ import shlex
 from pathlib import Path
 
 from raygs_viewer.bench import accuracy, accuracy_report, perf
+from raygs_viewer.bench import formats as formats_bench
 from raygs_viewer.bench import order as order_bench
 from raygs_viewer.bench import sort as sort_bench
 from raygs_viewer.bench import stereo as stereo_bench
@@ -33,12 +34,13 @@ def add_parser(commands) -> None:
     _add_perf_parser(kinds)
     _add_order_parser(kinds)
     _add_sort_parser(kinds)
+    _add_formats_parser(kinds)
 
 
 def command(args: argparse.Namespace, ctx=None) -> int:
     """Runs ``bench <kind>``. ``ctx``: a GL context to use instead of a new one (tests)."""
     runs = {"accuracy": _run_accuracy, "stereo": _run_stereo, "perf": _run_perf, "order": _run_order,
-            "sort": _run_sort}
+            "sort": _run_sort, "formats": _run_formats}
     if args.bench not in runs:
         raise UserError(f"unknown benchmark '{args.bench}'")
     return runs[args.bench](args, ctx)
@@ -433,3 +435,54 @@ def _run_sort(args: argparse.Namespace, ctx) -> int:
     out = _report_path(args.out, args.overwrite)
     results = sort_bench.run_sort(options, ctx)
     return _show_report(sort_bench.format_report(results), out, args.overwrite)
+
+
+# --- formats ---------------------------------------------------------------------------------------
+
+FORMATS_FLAGS = ("--quick", "--scenes", "--no-samples", "--width", "--repeat", "--out", "--gl-backend", "--overwrite")
+
+
+def _add_formats_parser(kinds) -> None:
+    parser = kinds.add_parser(
+        "formats", help="what .ply, .splat and .spz keep of a scene (per attribute and in renders), and load times",
+        description="Each reference scene (the demo, the shared INRIA PLYs, and the shared compressed-PLY and SOG "
+                    "samples) is loaded from its own file, then written as .ply, .splat, .spz v3 and v4 and read "
+                    "back: size, load time, the per-attribute error and the render PSNR against the scene; then "
+                    "the shared .spz sample against its INRIA PLY twin.")
+    parser.add_argument("--quick", action="store_true",
+                        help=f"the demo and one real scene, {formats_bench.QUICK_WIDTH} px, "
+                             f"{formats_bench.QUICK_REPEAT} loads each")
+    _add_scenes_option(parser)
+    parser.add_argument("--no-samples", action="store_true",
+                        help="not the shared .spz sample against its INRIA PLY twin")
+    _add_width_and_repeat(parser, f"render width (default {formats_bench.DEFAULT_WIDTH}, --quick "
+                                  f"{formats_bench.QUICK_WIDTH})",
+                          f"loads timed per file (default {formats_bench.DEFAULT_REPEAT}, --quick "
+                          f"{formats_bench.QUICK_REPEAT})")
+    parser.add_argument("--out", metavar="PATH.md", help="also write the markdown report there")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
+    argtypes.add_backend_option(parser)
+
+
+def formats_options(args: argparse.Namespace) -> tuple[formats_bench.FormatsOptions, list[str]]:
+    notes: list[str] = []
+    if args.scenes:
+        scenes = tuple(args.scenes)
+    else:
+        wanted = formats_bench.DEFAULT_SCENES[:1] if args.quick else formats_bench.DEFAULT_SCENES
+        found, notes = shared_scene_paths(wanted)
+        scenes = ("demo", *found)
+    options = formats_bench.FormatsOptions(
+        scenes=scenes, samples=not args.no_samples,
+        width=args.width or (formats_bench.QUICK_WIDTH if args.quick else formats_bench.DEFAULT_WIDTH),
+        repeat=args.repeat or (formats_bench.QUICK_REPEAT if args.quick else formats_bench.DEFAULT_REPEAT),
+        command_line=recorded_command("formats", args, FORMATS_FLAGS), gl_backend=args.gl_backend)
+    return options, notes
+
+
+def _run_formats(args: argparse.Namespace, ctx) -> int:
+    options, notes = formats_options(args)
+    out = _report_path(args.out, args.overwrite)
+    _print_notes(tuple(notes))
+    results = formats_bench.run_formats(options, ctx)
+    return _show_report(formats_bench.format_report(results), out, args.overwrite)
