@@ -87,6 +87,10 @@ LATEST_VERSION = 4
 DEFAULT_FRACTIONAL_BITS = 12
 #: The owners' colour scale: colour byte = DC * 0.15 * 255 + 127.5.
 COLOR_SCALE = 0.15
+#: What a byte can hold (a writer clamps beyond): log-scales (s / 16 - 10) and the DC
+#: colour coefficient ((c / 255 - 0.5) / COLOR_SCALE).
+LOG_SCALE_RANGE = (-10.0, 255.0 / 16.0 - 10.0)
+DC_LIMIT = 0.5 / COLOR_SCALE
 #: Bits the owners' writer keeps of band-1 and of band-2+ SH bytes (PackOptions defaults).
 SH1_BITS = 5
 SH_REST_BITS = 4

@@ -33,7 +33,7 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.files import atomic_writer
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
 from raygs_viewer.scene.sh import C0
-from raygs_viewer.scene.spz_file import spz_bytes
+from raygs_viewer.scene.spz_file import DC_LIMIT, LOG_SCALE_RANGE, spz_bytes
 
 #: The suffixes :func:`write_scene` writes.
 WRITE_SUFFIXES = (".ply", ".splat", ".spz")
@@ -232,6 +232,18 @@ def writing_notes(scene: Scene, suffix: str) -> list[str]:
         if ones or zeros:
             notes.append(f"opacity exactly 1 ({ones:,} gaussians) or 0 ({zeros:,}) has an infinite logit: "
                          f"written as +/-{OPACITY_LOGIT_LIMIT:g}, which reads back as 1 or 0")
+    if suffix == ".spz":
+        with np.errstate(divide="ignore"):
+            log_scales = np.log(scene.scales.astype(np.float64))
+        low, high = LOG_SCALE_RANGE
+        clamped = int(np.count_nonzero((log_scales < low) | (log_scales > high)))
+        if clamped:
+            notes.append(f"{clamped:,} scale axes lie outside .spz's range e^{low:g}..e^{high:g} "
+                         f"({np.exp(low):.3g}..{np.exp(high):.3g}) and are clamped to it")
+        bright = int(np.count_nonzero((np.abs(scene.sh[:, 0, :]) > DC_LIMIT).any(axis=1)))
+        if bright:
+            notes.append(f"{bright:,} gaussian{'s have' if bright != 1 else ' has'} a base colour coefficient "
+                         f"beyond .spz's +/-{DC_LIMIT:.3g}, clamped to it")
     if suffix in (".ply", ".splat"):
         zero = int(np.count_nonzero((scene.scales == 0.0).any(axis=1)))
         if zero:

@@ -18,4 +18,4 @@ def test_the_demo_through_every_format(gl_ctx, capsys):
     assert 0 < spz3.errors.opacity_max <= 0.5 / 255 + 1e-6 and spz3.errors == spz4.errors
     assert spz4.size < spz3.size < ply.size
     report = formats.format_report(results)
-    assert report.count("| spz v") == 2 and "| .splat (.splat) |" in report and "lost" in report
+    assert report.count("| spz v") == 2 and "| .splat |" in report and "lost" in report

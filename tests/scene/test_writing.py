@@ -4,6 +4,8 @@ write_scene's atomic, never-clobbering dispatch by suffix."""
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 from plyfile import PlyData
@@ -191,6 +193,20 @@ def test_splat_notes_say_what_is_lost():
     exact = Scene(np.zeros((2, 3), np.float32), np.tile(np.float32([1, 0, 0, 0]), (2, 1)),
                   np.ones((2, 3), np.float32), np.ones(2, np.float32), sh, 0)
     assert writing_notes(exact, ".splat") == []
+
+
+def test_spz_notes_count_what_its_bytes_clamp(tmp_path):
+    scene = random_scene(n=40, seed=2, degree=1, log_scale=(-4.0, -1.5))
+    assert writing_notes(scene, ".spz") == []
+    scales, sh = scene.scales.copy(), scene.sh.copy()
+    scales[:3, 1] = np.exp(np.float32(-12.0))   # below e^-10: three axes clamped
+    scales[5, 2] = np.exp(np.float32(7.0))      # above e^5.94: one more
+    sh[7, 0, 0] = 4.0                            # beyond the colour byte's +/-3.33
+    notes = writing_notes(dataclasses.replace(scene, scales=scales, sh=sh), ".spz")
+    assert len(notes) == 2 and notes[0].startswith("4 scale axes") and notes[1].startswith("1 gaussian has")
+    # What the note says is what happens: the clamped scale reads back at the range's end.
+    clamped = load_scene(writing.write_scene(dataclasses.replace(scene, scales=scales), tmp_path / "c.spz"))
+    assert abs(np.log(clamped.scales[0, 1]) - (-10.0)) < 1e-6
 
 
 @pytest.mark.parametrize("suffix", [".ply", ".splat"])
