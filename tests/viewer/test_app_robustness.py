@@ -39,6 +39,8 @@ from raygs_viewer.camera.navigation import (
     SPEED_RANGE,
     framing_pose,
 )
+from raygs_viewer.scene.io import load_scene
+from raygs_viewer.scene.spz_file import spz_bytes
 
 NAN, INF = float("nan"), float("inf")
 
@@ -200,7 +202,15 @@ BAD_FILES = {
     "directory": _folder,
     "missing path": lambda tmp: tmp / "missing.ply",
     "every gaussian invalid": _all_nan,           # scene_io: 0 gaussians left, a warning
+    "random bytes .spz": _noise("noise.spz", 4096),
+    "random bytes .sog": _noise("noise.sog", 4096),
+    "truncated .spz": lambda tmp: _cut(tmp / "cut.spz", spz_bytes(load_scene(good_ply(tmp / "whole.ply")))),
 }
+
+
+def _cut(path: Path, data: bytes) -> Path:
+    path.write_bytes(data[: len(data) // 2])
+    return path
 
 
 @pytest.mark.parametrize("kind", list(BAD_FILES))
@@ -227,6 +237,19 @@ def test_a_corrupt_file_opened_leaves_the_scene_camera_and_image(open_viewer, tm
     drive.wait_for_load()
     assert viewer.panel.error == ""
     assert viewer.loaded.path == str(good) and viewer.loaded.scene.count == 50
+    drive.settle()
+    assert_matches(window_image(viewer), headless(viewer))
+
+
+def test_a_dropped_spz_opens_like_a_ply(open_viewer, tmp_path):
+    viewer, drive = open_viewer(hide_panel=True)
+    drive.frames(1)
+    spz = tmp_path / "scene.spz"
+    spz.write_bytes(spz_bytes(load_scene(good_ply(tmp_path / "scene.ply"))))
+    viewer.scenes.drop([str(spz)])
+    drive.wait_for_load()
+    assert viewer.panel.error == "" and viewer.loaded.path == str(spz)
+    assert (viewer.loaded.scene.format, viewer.loaded.scene.count) == ("spz v3", 50)
     drive.settle()
     assert_matches(window_image(viewer), headless(viewer))
 
