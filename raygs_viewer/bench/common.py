@@ -67,8 +67,8 @@ def load_scenes(specs: tuple[str, ...]) -> list[BenchScene]:
     loads), named after its file (made unique), with its first camera or one framing it."""
     loaded, names = [], set()
     for spec in specs:
-        if spec != DEMO and not os.path.isfile(spec):
-            raise UserError(f"{spec}: no such file" if not os.path.exists(spec) else f"{spec}: not a scene file")
+        if spec != DEMO and not os.path.exists(spec):  # a folder may be an unbundled SOG scene: the load decides
+            raise UserError(f"{spec}: no such file")
     for spec in specs:
         result = load_now(spec)
         for warning in result.warnings:

@@ -478,7 +478,7 @@ def resolve_scene(sidecar: Sidecar, override: str | None = None) -> str:
         candidates.append(sidecar.path.parent / relative)
     candidates.append(sidecar.path.parent / Path(recorded).name)
     for candidate in candidates:
-        if candidate.is_file():
+        if candidate.exists():  # a file, or the folder of an unbundled SOG scene
             return str(candidate)
     tried = ", ".join(dict.fromkeys(str(c) for c in candidates[1:]))
     raise UserError(f"{sidecar.path}: scene {recorded} not found (nor {tried}); "

@@ -373,6 +373,21 @@ def ply_sidecar(tmp_path, scene_file, shots="shots", **kwargs):
     return js
 
 
+def test_resolve_scene_finds_a_scene_that_is_a_folder(tmp_path):
+    """An unbundled SOG scene is a folder (its meta.json and images): a sidecar recorded
+    on it finds it as it finds a file, and after the tree moved."""
+    folder = tmp_path / "root" / "sog-scene"
+    folder.mkdir(parents=True)
+    scene = load_scene(write_inria_ply(tmp_path / "stand-in.ply"))
+    data = build_sidecar(scene_path=str(folder), scene_sha256="0" * 64, scene=scene, camera=window_camera(40, 30),
+                         settings=RenderSettings(), scale=1.0)
+    _, js = save_screenshot(np.zeros((30, 40, 4), np.float32), data, folder=tmp_path / "root" / "shots")
+    assert resolve_scene(load_sidecar(js)) == str(folder)
+    shutil.move(tmp_path / "root", tmp_path / "moved")
+    moved = resolve_scene(load_sidecar(tmp_path / "moved" / "shots" / js.name))
+    assert Path(moved).resolve() == (tmp_path / "moved" / "sog-scene").resolve()
+
+
 def test_resolve_scene(tmp_path):
     (tmp_path / "root").mkdir()
     scene_file = write_inria_ply(tmp_path / "root" / "scene.ply")
