@@ -19,6 +19,11 @@ from raygs_viewer.camera.rotation import is_rotation
 from raygs_viewer.errors import UserError, finite_number, is_number
 
 
+#: The largest camera coordinate taken from a file: far beyond any scene, and far enough
+#: below float64's range that the translation -R p cannot overflow.
+MAX_COORDINATE = 1e300
+
+
 @dataclass(frozen=True)
 class Camera:
     """width, height: pixels; fx, fy, cx, cy: pixels; R: (3, 3) float64 world-to-camera
@@ -151,6 +156,8 @@ def camera_from_json(entry, where: str) -> Camera:
         raise UserError(f"{where}: 'position' and 'rotation' must be finite")
     if not is_rotation(rotation, 1e-3):
         raise UserError(f"{where}: 'rotation' is not a rotation matrix")
+    if np.abs(position).max() > MAX_COORDINATE:  # t = -R p would overflow
+        raise UserError(f"{where}: 'position' is beyond {MAX_COORDINATE:g} in magnitude")
     # Re-orthonormalise: JSON round-trips leave ~1e-7 drift.
     u, _, vt = np.linalg.svd(rotation)
     R = (u @ vt).T

@@ -50,7 +50,6 @@ import numpy as np
 from raygs_viewer.scene.model import (
     SH_DEGREE_OF_REST_COUNT,
     Scene,
-    sh_coefficient_count,
 )
 from raygs_viewer.scene.ply_header import PLY_TYPES, PlyElement
 from raygs_viewer.scene.reading import (
@@ -58,6 +57,7 @@ from raygs_viewer.scene.reading import (
     Reporter,
     build_scene,
     file_error,
+    scene_arrays,
     shown_token,
 )
 from raygs_viewer.scene.sh import C0
@@ -116,11 +116,7 @@ def load_compressed_ply(path, shown: str, report: Reporter, chunk_bytes: int, he
     if n and refusal is not None:
         raise file_error(shown, f"cannot read PLY data ({refusal})")
 
-    positions = np.empty((n, 3), np.float32)
-    rotations = np.empty((n, 4), np.float32)
-    scales = np.empty((n, 3), np.float32)
-    opacities = np.empty(n, np.float32)
-    sh_out = np.empty((n, sh_coefficient_count(degree), 3), np.float32)
+    positions, rotations, scales, opacities, sh_out = scene_arrays(n, degree)
     drops = DropTally(n)
     with open(path, "rb") as f:
         bounds_rows = _read_rows(f, shown, offsets["chunk"], chunk, 0, chunks)

@@ -30,6 +30,7 @@ from raygs_viewer.scene.reading import (
     Reporter,
     build_scene,
     file_error,
+    scene_arrays,
     shown_token,
 )
 
@@ -217,11 +218,7 @@ class _Target:
         self.k = sh_coefficient_count(degree) - 1
         self.degree = degree
         self.has_filter = has_filter
-        self.positions = np.empty((n, 3), np.float32)
-        self.rotations = np.empty((n, 4), np.float32)
-        self.scales = np.empty((n, 3), np.float32)
-        self.opacities = np.empty(n, np.float32)
-        self.sh = np.empty((n, self.k + 1, 3), np.float32)
+        self.positions, self.rotations, self.scales, self.opacities, self.sh = scene_arrays(n, degree)
         self.drops = DropTally(n)
 
     def add(self, start: int, m: np.ndarray) -> None:

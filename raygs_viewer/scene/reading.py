@@ -11,7 +11,7 @@ from collections.abc import Callable
 import numpy as np
 
 from raygs_viewer.errors import UserError
-from raygs_viewer.scene.model import Scene
+from raygs_viewer.scene.model import Scene, sh_coefficient_count
 
 #: Every reason a gaussian can be dropped for, in the order they are tested.
 DROP_REASONS = (
@@ -124,6 +124,14 @@ def _compact(arrays: list[np.ndarray], keep: np.ndarray) -> list[np.ndarray]:
             rows = keep[start: start + step]
             array[start: start + rows.shape[0]] = array[rows]
     return [array[:kept] for array in arrays]
+
+
+def scene_arrays(n: int, degree: int) -> tuple[np.ndarray, ...]:
+    """A reader's output for ``n`` gaussians of SH ``degree``, to fill a chunk at a time
+    and hand to :func:`build_scene`: positions (n, 3), rotations (n, 4), scales (n, 3),
+    opacities (n,), sh (n, (degree+1)^2, 3), all float32 and uninitialised."""
+    return (np.empty((n, 3), np.float32), np.empty((n, 4), np.float32), np.empty((n, 3), np.float32),
+            np.empty(n, np.float32), np.empty((n, sh_coefficient_count(degree), 3), np.float32))
 
 
 def build_scene(shown: str, positions, rotations, scales, opacities, sh, degree: int, fused: bool,

@@ -76,6 +76,7 @@ from raygs_viewer.scene.reading import (
     Reporter,
     build_scene,
     file_error,
+    scene_arrays,
     shown_token,
 )
 
@@ -547,11 +548,7 @@ def _load(source, meta: _Meta, shown: str, report: Reporter, chunk_bytes: int) -
             labels_px = images["labels"]
             palette, palette_bad = _palette(images.pop("centroids"), meta, coeffs)
 
-    positions = np.empty((n, 3), np.float32)
-    rotations = np.empty((n, 4), np.float32)
-    scales = np.empty((n, 3), np.float32)
-    opacities = np.empty(n, np.float32)
-    sh = np.empty((n, coeffs + 1, 3), np.float32)
+    positions, rotations, scales, opacities, sh = scene_arrays(n, degree)
     drops = DropTally(n)
     scale_nan, scale_inf, scale_zero = np.isnan(scale_lut), np.isinf(scale_lut), scale_lut == 0
     colour_nan, colour_inf = np.isnan(sh0_lut), np.isinf(sh0_lut)

@@ -78,7 +78,7 @@ import zstandard
 
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
-from raygs_viewer.scene.reading import DropTally, Reporter, build_scene, file_error
+from raygs_viewer.scene.reading import DropTally, Reporter, build_scene, file_error, scene_arrays
 
 SPZ_MAGIC = 0x5053474E
 GZIP_MAGIC = b"\x1f\x8b"
@@ -416,11 +416,7 @@ def _decode(data: np.ndarray, layout: _Layout, system: int, shown: str, report: 
     sh_flips = flip_sh(flips, k)
 
     report.activating()
-    positions = np.empty((n, 3), np.float32)
-    rotations = np.empty((n, 4), np.float32)
-    scales = np.empty((n, 3), np.float32)
-    opacities = np.empty(n, np.float32)
-    sh = np.empty((n, k + 1, 3), np.float32)
+    positions, rotations, scales, opacities, sh = scene_arrays(n, degree)
     drops = DropTally(n)
     step = max(1, chunk // max(1, layout.row_bytes))
     for start in range(0, n, step):
