@@ -696,14 +696,15 @@ json_values = st.recursive(
 )
 
 
-def _paths(value, prefix=()):
+def json_paths(value, prefix=()):
+    """Every path (keys and indices) into a parsed JSON value, the root first."""
     yield prefix
     if isinstance(value, dict):
         for key, child in value.items():
-            yield from _paths(child, prefix + (key,))
+            yield from json_paths(child, prefix + (key,))
     elif isinstance(value, list):
         for i, child in enumerate(value):
-            yield from _paths(child, prefix + (i,))
+            yield from json_paths(child, prefix + (i,))
 
 
 def _at(value, path):
@@ -731,7 +732,7 @@ def mutated_json(draw, base) -> bytes:
     data = copy.deepcopy(base)
     for _ in range(draw(st.integers(1, 3))):
         kind = draw(st.sampled_from(["delete", "replace", "special", "scale", "add_key", "wrap"]))
-        paths = list(_paths(data))
+        paths = list(json_paths(data))
         if kind == "add_key":
             paths = [path for path in paths if isinstance(_at(data, path), dict)] or paths
         path = draw(st.sampled_from(paths))

@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
+from test_fuzz import json_paths
 from test_sog import bundle_bytes, encode_sog, gaussians, webp_bytes
 
 from raygs_viewer.errors import UserError
@@ -73,21 +74,11 @@ json_values = st.recursive(
 )
 
 
-def _paths(value, prefix=()):
-    yield prefix
-    if isinstance(value, dict):
-        for key, child in value.items():
-            yield from _paths(child, prefix + (key,))
-    elif isinstance(value, list):
-        for index, child in enumerate(value[:4]):
-            yield from _paths(child, prefix + (index,))
-
-
 @st.composite
 def mutated_meta(draw):
     meta = json.loads(json.dumps(base()[0]))
     for _ in range(draw(st.integers(1, 3))):
-        paths = [p for p in _paths(meta) if p]
+        paths = [p for p in json_paths(meta) if p]
         if not paths:
             break
         path = draw(st.sampled_from(paths))
