@@ -1,7 +1,7 @@
 """The package's shape, enforced: imports only down the data flow, no import cycle, no
 private name taken from another module, imports at the top of files.
 
-Layers, lowest first: errors (and the package root) -> camera | files -> scene -> sort ->
+Layers, lowest first: errors (and the package root) -> jsonfile -> camera | files -> scene -> sort ->
 render -> capture -> viewer | bench -> cli. A module may import its own subpackage
 and any lower layer; camera and files, and viewer and bench, stand side by side and
 import neither each other.
@@ -15,8 +15,8 @@ from pathlib import Path
 import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "raygs_viewer"
-LAYERS = {"errors": 0, "camera": 1, "files": 1, "scene": 2, "sort": 3, "render": 4, "capture": 5, "viewer": 6, "bench": 6,
-          "cli": 7, "__main__": 8}
+LAYERS = {"errors": 0, "jsonfile": 1, "camera": 2, "files": 2, "scene": 3, "sort": 4, "render": 5, "capture": 6, "viewer": 7,
+          "bench": 7, "cli": 8, "__main__": 9}
 
 
 def modules_of(package: Path) -> dict[str, Path]:

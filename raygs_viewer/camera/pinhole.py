@@ -8,7 +8,6 @@ from the same numbers so the two renderers sample the same rays.
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -16,7 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from raygs_viewer.camera.rotation import is_rotation
-from raygs_viewer.errors import UserError, finite_number, is_number
+from raygs_viewer.errors import UserError
+from raygs_viewer.jsonfile import nested_numbers, read_json_file, typed
 
 
 #: The largest camera coordinate taken from a file: far beyond any scene, and far enough
@@ -112,21 +112,6 @@ def look_at(eye, target, up=(0.0, -1.0, 0.0), *, width: int = 640, height: int =
                   cx, cy, R, -R @ eye)
 
 
-def _number(value, what: str) -> float:
-    number = finite_number(value)
-    if number is None:
-        raise UserError(f"{what} must be a finite number")
-    return number
-
-
-def _numbers(values, depth: int) -> bool:
-    """A JSON list of numbers only, nested at most ``depth`` deep: numpy would quietly take
-    "1" and true (and the depth bound keeps a deeply nested file from exhausting the stack)."""
-    return isinstance(values, list) and depth > 0 and all(
-        _numbers(v, depth - 1) if isinstance(v, list) else is_number(v)
-        for v in values)
-
-
 def camera_from_json(entry, where: str) -> Camera:
     """One INRIA cameras.json object -> Camera. ``position`` is the centre, ``rotation``
     camera-to-world; optional ``cx``/``cy`` override the image centre."""
@@ -135,13 +120,13 @@ def camera_from_json(entry, where: str) -> Camera:
     for key in ("width", "height", "position", "rotation", "fx", "fy"):
         if key not in entry:
             raise UserError(f"{where}: missing '{key}'")
-    width, height = (_number(entry[k], f"{where}: '{k}'") for k in ("width", "height"))
+    width, height = (typed(entry[k], float, f"{where}: '{k}'") for k in ("width", "height"))
     if width != int(width) or height != int(height) or not (1 <= width <= 65536 and 1 <= height <= 65536):
         raise UserError(f"{where}: width and height must be whole numbers from 1 to 65536")
-    fx, fy = (_number(entry[k], f"{where}: '{k}'") for k in ("fx", "fy"))
+    fx, fy = (typed(entry[k], float, f"{where}: '{k}'") for k in ("fx", "fy"))
     if fx <= 0 or fy <= 0:
         raise UserError(f"{where}: fx and fy must be positive")
-    if not (_numbers(entry["position"], 1) and _numbers(entry["rotation"], 2)):
+    if not (nested_numbers(entry["position"], 1) and nested_numbers(entry["rotation"], 2)):
         raise UserError(f"{where}: 'position' and 'rotation' must be arrays of numbers")
     try:
         position = np.array(entry["position"], dtype=np.float64)
@@ -161,28 +146,9 @@ def camera_from_json(entry, where: str) -> Camera:
     # Re-orthonormalise: JSON round-trips leave ~1e-7 drift.
     u, _, vt = np.linalg.svd(rotation)
     R = (u @ vt).T
-    cx = _number(entry["cx"], f"{where}: 'cx'") if "cx" in entry else width / 2
-    cy = _number(entry["cy"], f"{where}: 'cy'") if "cy" in entry else height / 2
+    cx = typed(entry["cx"], float, f"{where}: 'cx'") if "cx" in entry else width / 2
+    cy = typed(entry["cy"], float, f"{where}: 'cy'") if "cy" in entry else height / 2
     return Camera(int(width), int(height), fx, fy, cx, cy, R, -R @ position)
-
-
-def read_json_file(path: Path, expected: str):
-    """The parsed JSON of ``path``; a one-line UserError for a missing, unreadable or
-    invalid file (``expected`` names what a folder should have been)."""
-    try:
-        text = path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise UserError(f"{path}: no such file") from None
-    except IsADirectoryError:
-        raise UserError(f"{path}: is a folder, expected {expected}") from None
-    except (OSError, UnicodeDecodeError) as exc:
-        raise UserError(f"{path}: cannot read: {getattr(exc, 'strerror', None) or exc}") from None
-    try:
-        return json.loads(text)
-    except (json.JSONDecodeError, RecursionError) as exc:
-        raise UserError(f"{path}: not valid JSON ({exc})") from None
-    except ValueError:  # an integer of over 4300 digits, which Python refuses to parse
-        raise UserError(f"{path}: not valid JSON (a number with too many digits)") from None
 
 
 def load_cameras(path: str | Path) -> list[Camera]:

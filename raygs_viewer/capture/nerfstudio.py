@@ -61,19 +61,10 @@ from raygs_viewer.camera.path import (
 )
 from raygs_viewer.camera.rotation import is_rotation
 from raygs_viewer.capture.image_io import check_output_path
-from raygs_viewer.capture.path_document import (
-    MAX_IMAGE_SIZE,
-    NERFSTUDIO,
-    PathDocument,
-    json_text,
-)
-from raygs_viewer.capture.sidecar import (
-    ROTATION_TOLERANCE,
-    JsonFields,
-    json_array,
-    show_json,
-)
+from raygs_viewer.capture.path_document import MAX_IMAGE_SIZE, NERFSTUDIO, PathDocument
+from raygs_viewer.capture.sidecar import ROTATION_TOLERANCE
 from raygs_viewer.errors import UserError
+from raygs_viewer.jsonfile import JsonFields, json_text, show_json
 from raygs_viewer.files import write_atomically
 
 #: Camera axes: OpenCV from OpenGL and back (a diagonal of signs, its own inverse).
@@ -169,10 +160,8 @@ def _size(fields: JsonFields, key: str) -> int:
 def _camera(where: str, index: int, entry) -> tuple[Pose, float, np.ndarray]:
     """One camera_path entry: its pose (OpenCV axes), vertical fov and image-up direction."""
     name = f"camera_path[{index}]"
-    # The entry as the one field of an object: JsonFields' messages then name it "camera_path[i].key".
-    fields = JsonFields(where, {name: entry})
-    fields.get(name, dict)
-    matrix = json_array(fields, f"{name}.camera_to_world", (16,)).reshape(4, 4)
+    fields = JsonFields.entry(where, name, entry)
+    matrix = fields.array(f"{name}.camera_to_world", (16,)).reshape(4, 4)
     if np.abs(matrix[3] - [0.0, 0.0, 0.0, 1.0]).max() > _LAST_ROW_TOLERANCE:
         raise UserError(f"{where}: '{name}.camera_to_world' must end in the row 0 0 0 1 (a row-major camera-to-world "
                         f"matrix), got {show_json(matrix[3].tolist())}")

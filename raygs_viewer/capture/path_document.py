@@ -5,8 +5,6 @@ writes it (raygs-viewer's own path JSON, or nerfstudio's ``camera_path`` through
 
 from __future__ import annotations
 
-import json
-import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -47,11 +45,3 @@ class PathDocument:
     extra: dict = field(default_factory=dict)
     notes: tuple[str, ...] = ()
 
-
-def json_text(data: dict) -> str:
-    """``data`` as indented JSON with each list of numbers on one line (a keyframe stays
-    a few lines). Non-finite numbers are a ValueError (they are not JSON)."""
-    text = json.dumps(data, indent=2, allow_nan=False)
-    # Only a list of numbers broken over lines matches: a JSON string cannot hold a raw
-    # newline, so nothing inside a string is touched.
-    return re.sub(r"\[\n[-+0-9.eE,\s]*?\]", lambda m: "[" + " ".join(m.group(0)[1:-1].split()) + "]", text) + "\n"

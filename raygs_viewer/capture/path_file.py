@@ -43,7 +43,6 @@ positions, rotations, fields of view and times survive the round trip exactly.
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 import os
 from datetime import datetime, timezone
@@ -63,33 +62,23 @@ from raygs_viewer.camera.path import (
     Interpolation,
     Keyframe,
 )
-from raygs_viewer.camera.pinhole import read_json_file
 from raygs_viewer.camera.rotation import is_rotation
 from raygs_viewer.capture.image_io import check_output_path
 from raygs_viewer.capture.nerfstudio import is_nerfstudio, read_nerfstudio
-from raygs_viewer.capture.path_document import (
-    MAX_IMAGE_SIZE,
-    RAYGS,
-    PathDocument,
-    json_text,
-)
+from raygs_viewer.capture.path_document import MAX_IMAGE_SIZE, RAYGS, PathDocument
 from raygs_viewer.capture.screenshot import with_relative_scene_path
 from raygs_viewer.capture.sidecar import (
     DEMO,
     ROTATION_TOLERANCE,
     SHA256_HEX,
-    JsonFields,
     demo_sha256,
-    json_array,
-    json_key,
     load_settings_entry,
     load_stereo_entry,
-    read_version,
     scene_sha256,
-    show_json,
     stereo_entry,
 )
 from raygs_viewer.errors import UserError
+from raygs_viewer.jsonfile import JsonFields, json_text, parse_json, read_json_file, show_json
 from raygs_viewer.files import write_atomically
 
 PATH_FORMAT = "raygs-viewer camera path"
@@ -152,7 +141,7 @@ def save_path_document(doc: PathDocument, file: str | os.PathLike, overwrite: bo
         text = json_text(data)
     except ValueError:
         raise UserError(f"{file}: the camera path holds a non-finite number; not saved") from None
-    read_path_json(json.loads(text), file)
+    read_path_json(parse_json(text, file), file)
     write_atomically(file, text.encode("utf-8"), overwrite)
     return file
 
@@ -182,12 +171,12 @@ def read_path_json(data, file: Path) -> PathDocument:
         raise UserError(f"{file}: {what}; 'format' is {show_json(data['format'])}, "
                         f"expected {show_json(PATH_FORMAT)})")
     fields = JsonFields(file, data)
-    read_version(fields, PATH_VERSION, "camera path")
-    _check_keys(file, "", data, _TOP_REQUIRED, _TOP_OPTIONAL)
+    fields.version(PATH_VERSION, "camera path")
+    fields.keys("", data, _TOP_REQUIRED, _TOP_OPTIONAL)
     _check_program(fields)
 
     scene = _load_scene(fields)
-    _check_keys(file, "image", fields.get("image", dict), ("width", "height"))
+    fields.keys("image", fields.get("image", dict), ("width", "height"))
     width, height = (_image_side(fields, f"image.{key}") for key in ("width", "height"))
     settings = None if data.get("settings") is None else load_settings_entry(fields)
     stereo = None if data.get("stereo") is None else load_stereo_entry(fields)
@@ -198,19 +187,9 @@ def read_path_json(data, file: Path) -> PathDocument:
                         scene_sh_degree=scene.get("sh_degree"), extra=dict(extra))
 
 
-def _check_keys(file: Path, where: str, entry: dict, required: tuple[str, ...], optional: tuple[str, ...] = ()) -> None:
-    prefix = f"{where}." if where else ""
-    for key in required:
-        if key not in entry:
-            raise UserError(f"{file}: missing '{prefix}{key}'")
-    for key in entry:
-        if key not in required and key not in optional:
-            raise UserError(f"{file}: unknown field '{prefix}{json_key(key)}' (it may come from a newer raygs-viewer)")
-
-
 def _check_program(fields: JsonFields) -> None:
     if fields.data.get("program") is not None:
-        _check_keys(fields.path, "program", fields.get("program", dict), ("name", "version"))
+        fields.keys("program", fields.get("program", dict), ("name", "version"))
         fields.get("program.name", str)
         fields.get("program.version", str)
     if fields.data.get("created") is not None:
@@ -223,7 +202,7 @@ def _load_scene(fields: JsonFields) -> dict:
     if fields.data.get("scene") is None:
         return {}
     scene = fields.get("scene", dict)
-    _check_keys(file, "scene", scene, ("path", "sha256"), ("count", "sh_degree", "relative_path"))
+    fields.keys("scene", scene, ("path", "sha256"), ("count", "sh_degree", "relative_path"))
     path = fields.get("scene.path", str)
     if path != DEMO and not os.path.isabs(path):
         raise UserError(f"{file}: 'scene.path' must be \"demo\" or an absolute path, got {show_json(path)}")
@@ -265,7 +244,7 @@ def _load_path(fields: JsonFields) -> CameraPath:
     file = fields.path
     section = fields.get("path", dict)
     defaults = Interpolation()
-    _check_keys(file, "path", section, ("duration", "fps"), ("loop", "alpha", "tension", "up"))
+    fields.keys("path", section, ("duration", "fps"), ("loop", "alpha", "tension", "up"))
     duration = _number_in(fields, "path.duration", 0.0, MAX_DURATION, low_open=True)
     fps = _number_in(fields, "path.fps", *FPS_RANGE)
     frames = max(1, round(duration * fps))
@@ -277,7 +256,7 @@ def _load_path(fields: JsonFields) -> CameraPath:
     tension = _number_in(fields, "path.tension", 0.0, 1.0) if "tension" in section else defaults.tension
     up = defaults.up
     if "up" in section:
-        vector = json_array(fields, "path.up", (3,))
+        vector = fields.array("path.up", (3,))
         if abs(math.sqrt(float(vector @ vector)) - 1.0) > _UNIT_TOLERANCE:
             raise UserError(f"{file}: 'path.up' must be a unit vector, got {show_json(section['up'])}")
         up = tuple(float(x) for x in vector)
@@ -297,12 +276,10 @@ def _load_path(fields: JsonFields) -> CameraPath:
 
 def _load_keyframe(file: Path, index: int, entry, duration: float, loop: bool) -> Keyframe:
     name = f"keyframes[{index}]"
-    # The entry as the one field of an object: JsonFields' messages then name it "keyframes[i].key".
-    fields = JsonFields(file, {name: entry})
-    fields.get(name, dict)
-    _check_keys(file, name, entry, ("position", "rotation", "fov"), ("time",))
-    position = json_array(fields, f"{name}.position", (3,))
-    rotation = json_array(fields, f"{name}.rotation", (3, 3))
+    fields = JsonFields.entry(file, name, entry)
+    fields.keys(name, entry, ("position", "rotation", "fov"), ("time",))
+    position = fields.array(f"{name}.position", (3,))
+    rotation = fields.array(f"{name}.rotation", (3, 3))
     if not is_rotation(rotation, ROTATION_TOLERANCE):
         raise UserError(f"{file}: '{name}.rotation' is not a rotation matrix")
     fov = _number_in(fields, f"{name}.fov", *FOV_RANGE)

@@ -13,7 +13,6 @@ from the entries, never from cameras.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import TYPE_CHECKING
 
@@ -27,6 +26,7 @@ from raygs_viewer.capture.progress import Progress
 from raygs_viewer.capture.screenshot import render_tiled
 from raygs_viewer.capture.video import FRAME_PREFIX, FrameSink
 from raygs_viewer.files import write_atomically
+from raygs_viewer.jsonfile import json_text, parse_json
 from raygs_viewer.render.gl.stereo_frame import render_stereo_view
 from raygs_viewer.render.settings import RenderSettings
 
@@ -47,7 +47,7 @@ def cameras_of_entries(entries: list[dict]) -> list[Camera]:
     """The cameras ``entries`` load to, exactly as ``render --camera`` loads them."""
     # Through JSON text, as the file goes: a float's repr round-trips, and this keeps
     # any value JSON would change (a tuple, a numpy scalar) from passing unnoticed.
-    return [camera_from_json(entry, f"frame {k}") for k, entry in enumerate(json.loads(json.dumps(entries)))]
+    return [camera_from_json(entry, f"frame {k}") for k, entry in enumerate(parse_json(json_text(entries), "frame cameras"))]
 
 
 def frame_cameras(path: CameraPath, width: int, height: int) -> list[Camera]:
@@ -63,7 +63,7 @@ def write_cameras_json(entries: list[dict], file: str | Path, overwrite: bool = 
         raise TypeError("write_cameras_json takes frame_camera_entries(...), not cameras: "
                         "a camera written again would not load back to itself bit for bit")
     file = check_output_path(file, overwrite, suffixes=(".json",))
-    write_atomically(file, (json.dumps(entries, indent=1, allow_nan=False) + "\n").encode("utf-8"), overwrite)
+    write_atomically(file, json_text(entries).encode("utf-8"), overwrite)
     return file
 
 

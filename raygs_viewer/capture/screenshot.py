@@ -8,7 +8,6 @@ GPU gives the same PNG, byte for byte.
 
 from __future__ import annotations
 
-import json
 import os
 from dataclasses import replace
 from datetime import datetime
@@ -21,6 +20,7 @@ from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.capture.image_io import encode_image
 from raygs_viewer.errors import UserError, finite_number
 from raygs_viewer.files import write_atomically
+from raygs_viewer.jsonfile import json_text
 from raygs_viewer.render.settings import RenderSettings
 
 if TYPE_CHECKING:
@@ -296,8 +296,7 @@ def _write_new(path: Path, data: bytes) -> None:
 
 def _sidecar_text(sidecar: dict, where: Path) -> str:
     try:
-        # allow_nan=False: NaN and Infinity are not JSON; float repr round-trips exactly.
-        return json.dumps(sidecar, indent=2, allow_nan=False) + "\n"
+        return json_text(sidecar)
     except (TypeError, ValueError) as exc:
         raise UserError(f"{where}: screenshot sidecar is not valid JSON: {exc}") from None
 

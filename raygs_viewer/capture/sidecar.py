@@ -46,7 +46,6 @@ from __future__ import annotations
 
 import dataclasses
 import functools
-import json
 import os
 import re
 import types
@@ -60,12 +59,7 @@ import numpy as np
 
 import raygs_viewer
 from raygs_viewer.camera.lens_model import LensModel
-from raygs_viewer.camera.pinhole import (
-    Camera,
-    camera_from_json,
-    camera_to_json,
-    read_json_file,
-)
+from raygs_viewer.camera.pinhole import Camera, camera_from_json, camera_to_json
 from raygs_viewer.camera.rotation import is_rotation
 from raygs_viewer.camera.stereo import (
     LAYOUTS,
@@ -75,7 +69,8 @@ from raygs_viewer.camera.stereo import (
     composed_size,
 )
 from raygs_viewer.capture.screenshot import MAX_SCALE
-from raygs_viewer.errors import UserError, finite_number, is_number
+from raygs_viewer.errors import UserError
+from raygs_viewer.jsonfile import JsonFields, json_key, read_json_file, show_json, typed
 from raygs_viewer.render.settings import RENDER_MODES, RenderSettings
 from raygs_viewer.scene.demo import demo_scene
 from raygs_viewer.scene.loader import arrays_sha256, file_sha256
@@ -206,7 +201,7 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
     if data["format"] != SIDECAR_FORMAT:
         raise UserError(f"{path}: not a raygs-viewer screenshot sidecar ('format' is "
                         f"{show_json(data.get('format'))}, expected {show_json(SIDECAR_FORMAT)})")
-    version = read_version(fields, SIDECAR_VERSION, "sidecar")
+    version = fields.version(SIDECAR_VERSION, "sidecar")
 
     scene = fields.get("scene", dict)
     scene_path = fields.get("scene.path", str)
@@ -244,92 +239,6 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
     return Sidecar(path, scene_path, sha, camera, settings, scale, render_mode, data, stereo)
 
 
-def read_version(fields: JsonFields, newest: int, what: str) -> int:
-    """The file's "version": a whole number from 1 to ``newest``; ``what`` names the kind
-    of file in messages ("sidecar")."""
-    version = fields.get("version", int)
-    if version > newest:
-        raise UserError(f"{fields.path}: {what} version {version} was written by a newer raygs-viewer "
-                        f"(this one reads version {newest}); update raygs-viewer")
-    if version < 1:
-        raise UserError(f"{fields.path}: 'version' {version} is not a {what} version (expected {newest})")
-    return version
-
-
-class JsonFields:
-    """Typed access to dotted fields of the parsed JSON, with errors naming file and field."""
-
-    def __init__(self, path: Path, data: dict):
-        self.path, self.data = path, data
-
-    def get(self, dotted: str, kind: type):
-        value = self.data
-        for depth, key in enumerate(dotted.split(".")):
-            if not isinstance(value, dict):
-                parent = ".".join(dotted.split(".")[:depth])
-                raise UserError(f"{self.path}: '{parent}' must be a JSON object")
-            if key not in value:
-                raise UserError(f"{self.path}: missing '{dotted}'")
-            value = value[key]
-        return _typed(value, kind, f"{self.path}: '{dotted}'")
-
-
-def _typed(value, kind: type, where: str):
-    """``value`` checked against a JSON type: int (not bool), float (any finite number),
-    str, bool, dict or list."""
-    if kind is float:
-        if not is_number(value):
-            raise UserError(f"{where} must be a number, got {show_json(value)}")
-        number = finite_number(value)
-        if number is None:
-            raise UserError(f"{where} must be finite, got {show_json(value)}")
-        return number
-    if kind is int:
-        if isinstance(value, bool) or not isinstance(value, int):
-            raise UserError(f"{where} must be a whole number, got {show_json(value)}")
-        return value
-    names = {str: "a string", bool: "true or false", dict: "a JSON object", list: "a JSON array",
-             (dict, type(None)): "a JSON object or null"}
-    if not isinstance(value, kind):
-        raise UserError(f"{where} must be {names.get(kind, getattr(kind, '__name__', kind))}, got {show_json(value)}")
-    return value
-
-
-def show_json(value) -> str:
-    """A short one-line rendering of a JSON value for messages."""
-    try:
-        text = json.dumps(value)
-    except (TypeError, ValueError):
-        text = repr(value)
-    return text if len(text) <= 60 else text[:57] + "..."
-
-
-def json_key(name: str) -> str:
-    """A JSON key from the file as a message shows it: a newline in it would split the one line."""
-    return ascii(name)[1:-1]
-
-
-def json_array(fields: JsonFields, dotted: str, shape: tuple[int, ...]) -> np.ndarray:
-    value = fields.get(dotted, list)
-    where = f"{fields.path}: '{dotted}'"
-    what = "3x3 numbers" if shape == (3, 3) else f"{shape[0]} numbers"
-
-    def numbers(v, depth):
-        if depth == len(shape):
-            return is_number(v)
-        return isinstance(v, list) and len(v) == shape[depth] and all(numbers(x, depth + 1) for x in v)
-
-    if not numbers(value, 0):
-        raise UserError(f"{where} must be {what}, got {show_json(value)}")
-    try:
-        array = np.array(value, dtype=np.float64)
-    except OverflowError:  # an integer beyond float range
-        raise UserError(f"{where} must be finite, got {show_json(value)}") from None
-    if not np.all(np.isfinite(array)):
-        raise UserError(f"{where} must be finite, got {show_json(value)}")
-    return array
-
-
 def _load_camera(fields: JsonFields) -> Camera:
     """The screenshot's camera: intrinsics from "camera", the exact pose from
     "world_to_camera" (older or hand-made files without it: the INRIA pose)."""
@@ -339,8 +248,8 @@ def _load_camera(fields: JsonFields) -> Camera:
     if "world_to_camera" not in fields.data:
         return camera
     fields.get("world_to_camera", dict)
-    R = json_array(fields, "world_to_camera.R", (3, 3))
-    t = json_array(fields, "world_to_camera.t", (3,))
+    R = fields.array("world_to_camera.R", (3, 3))
+    t = fields.array("world_to_camera.t", (3,))
     # Entries of a rotation lie in [-1, 1]: bounded first, the product cannot overflow.
     if not is_rotation(R, ROTATION_TOLERANCE):
         raise UserError(f"{path}: 'world_to_camera.R' is not a rotation matrix")
@@ -364,7 +273,7 @@ def load_stereo_entry(fields: JsonFields) -> StereoView:
     path = fields.path
     entry = fields.get("stereo", dict)
     known = ("ipd", "convergence", "scene_scale", "layout", "lens", "headset")
-    _only_keys(path, "stereo", entry, known)
+    fields.keys("stereo", entry, known)
     layout = fields.get("stereo.layout", str)
     if layout not in LAYOUTS:
         raise UserError(f"{path}: 'stereo.layout' must be one of {', '.join(LAYOUTS)}, got {show_json(layout)}")
@@ -372,11 +281,11 @@ def load_stereo_entry(fields: JsonFields) -> StereoView:
         rig = StereoRig(**{name: fields.get(f"stereo.{name}", float) for name in known[:3]})
         lens = None
         if fields.get("stereo.lens", (dict, type(None))) is not None:
-            _only_keys(path, "stereo.lens", entry["lens"], _LENS_FIELDS)
+            fields.keys("stereo.lens", entry["lens"], _LENS_FIELDS)
             lens = LensModel(**{name: fields.get(f"stereo.lens.{name}", float) for name in _LENS_FIELDS})
         headset = None
         if fields.get("stereo.headset", (dict, type(None))) is not None:
-            _only_keys(path, "stereo.headset", entry["headset"], tuple(_HEADSET_FIELDS))
+            fields.keys("stereo.headset", entry["headset"], tuple(_HEADSET_FIELDS))
             headset = HeadsetPreset(**{name: fields.get(f"stereo.headset.{name}", kind)
                                        for name, kind in _HEADSET_FIELDS.items()})
     except UserError as exc:
@@ -384,16 +293,6 @@ def load_stereo_entry(fields: JsonFields) -> StereoView:
             raise
         raise UserError(f"{path}: 'stereo': {exc}") from None
     return StereoView(rig, layout, lens, headset)
-
-
-def _only_keys(path: Path, where: str, entry: dict, known: tuple[str, ...]) -> None:
-    missing = [key for key in known if key not in entry]
-    if missing:
-        raise UserError(f"{path}: missing '{where}.{missing[0]}'")
-    unknown = [key for key in entry if key not in known]
-    if unknown:
-        raise UserError(f"{path}: unknown field '{where}.{json_key(unknown[0])}' "
-                        f"(it may come from a newer raygs-viewer)")
 
 
 def load_settings_entry(fields: JsonFields, render_mode: str | None = None,
@@ -455,7 +354,7 @@ def _setting(value, hint, where: str):
     if hint in (float, int, bool, str):
         if hint is int and isinstance(value, bool):
             raise UserError(f"{where} must be a whole number, got {show_json(value)}")
-        return _typed(value, hint, where)
+        return typed(value, hint, where)
     return value
 
 

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 import fnmatch
 import hashlib
-import json
 import os
 import sys
 import threading
@@ -25,6 +24,7 @@ import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera, load_cameras
 from raygs_viewer.errors import UserError
+from raygs_viewer.jsonfile import read_json_file
 from raygs_viewer.scene.demo import DEMO_VIEW_NAMES, demo_cameras, demo_scene
 from raygs_viewer.scene.io import ProgressCallback, dropped_summary, load_scene
 from raygs_viewer.scene.model import Scene
@@ -208,8 +208,8 @@ class _FileHash:
 def _camera_names(path: Path, count: int) -> list[str]:
     """img_name of each camera in an already validated cameras.json, else "camera i"."""
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (OSError, ValueError, RecursionError):
+        data = read_json_file(path, "a cameras.json file")
+    except UserError:
         data = None  # it parsed a moment ago; if it changed since, fall back to numbers
     entries = data if isinstance(data, list) else [data]
     names = []

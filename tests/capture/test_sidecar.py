@@ -48,6 +48,7 @@ from raygs_viewer.capture.sidecar import (
     verify_scene_hash,
 )
 from raygs_viewer.errors import UserError
+from raygs_viewer.jsonfile import JsonFields
 from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.demo import demo_scene
@@ -147,7 +148,7 @@ def test_settings_fields_flow_in_automatically():
 
     data = demo_sidecar(settings=Extended(exposure=2.5))
     assert data["settings"]["exposure"] == 2.5
-    fields = sidecar_module.JsonFields(Path("x.json"), json.loads(json.dumps(data)))
+    fields = JsonFields(Path("x.json"), json.loads(json.dumps(data)))
     loaded = sidecar_module.load_settings_entry(fields, settings_type=Extended)
     assert loaded == Extended(exposure=2.5) and loaded != Extended()
 

@@ -968,9 +968,9 @@ def _camera_text(**changes):
 
 BAD_CAMERA_FILES = {
     # an integer beyond float range: OverflowError from math.isfinite / numpy
-    "huge_int_width": (_camera_text(width=10**400), "'width' must be a finite number"),
-    "huge_int_fx": (_camera_text(fx=-10**400), "'fx' must be a finite number"),
-    "huge_int_cx": (_camera_text(cx=10**400), "'cx' must be a finite number"),
+    "huge_int_width": (_camera_text(width=10**400), "'width' must be finite"),
+    "huge_int_fx": (_camera_text(fx=-10**400), "'fx' must be finite"),
+    "huge_int_cx": (_camera_text(cx=10**400), "'cx' must be finite"),
     "huge_int_position": (_camera_text(position=[10**400, 0, 0]), "must be finite"),
     "huge_int_rotation": (_camera_text(rotation=[[1, 0, 0], [0, 1, 0], [0, 0, 2**1024]]), "must be finite"),
     # over 4300 digits: json.loads raised a ValueError that is no JSONDecodeError
