@@ -16,7 +16,7 @@ from typing import Callable
 from imgui_bundle import imgui
 
 from raygs_viewer.camera.path import FOV_RANGE
-from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, remember, slider, tooltip
+from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, slider, tooltip
 from raygs_viewer.viewer.paths import VIDEO_SIZES, PathEditor, Playback
 from raygs_viewer.viewer.video_job import VideoJob
 
@@ -55,33 +55,27 @@ def draw_path_section(editor: PathEditor, playback: Playback, job: VideoJob | No
 def _generators(editor: PathEditor, actions: PathActions) -> None:
     if imgui.button("Add view (K)"):
         actions.add_view()
-    remember("Add view")
     tooltip("the current view as a keyframe, after the selected one (or at the end)")
     imgui.same_line()
     imgui.begin_disabled(actions.add_training is None)
     if imgui.button("Add training cameras") and actions.add_training is not None:
         actions.add_training()
     imgui.end_disabled()
-    remember("Add training cameras")
     tooltip("every training camera, in order" if actions.add_training else "this scene has no training cameras")
     imgui.same_line()
     if imgui.button("Clear##path"):
         editor.clear()
-    remember("Clear path")
     if imgui.button("Orbit"):
         actions.orbit()
-    remember("Orbit")
     tooltip("replace the path by a turntable lap around the scene's centre, from the current heading")
     imgui.same_line()
     if imgui.button("Dolly"):
         actions.dolly(editor.dolly_distance)
-    remember("Dolly")
     tooltip("replace the path by a straight move from the current view along its direction "
             "(negative: backwards)")
     imgui.same_line()
     imgui.set_next_item_width(120)
     _, editor.dolly_distance = imgui.input_float("units##dolly", editor.dolly_distance, 0.0, 0.0, "%.3g")
-    remember("dolly distance")
 
 
 def _keyframes(editor: PathEditor, playback: Playback) -> None:
@@ -94,7 +88,6 @@ def _keyframes(editor: PathEditor, playback: Playback) -> None:
             label = f"{i}: {times[i]:.2f} s ({timing}), {keyframe.fov_y_degrees:.1f} deg##keyframe{i}"
             if imgui.selectable(label, editor.selected == i)[0]:
                 editor.selected = i
-            remember(f"keyframe {i}")
         if not path.keyframes:
             imgui.text_disabled("no keyframes: Add view (K), or a generator above")
         imgui.end_list_box()
@@ -108,7 +101,6 @@ def _keyframes(editor: PathEditor, playback: Playback) -> None:
                                ("Down", "Keyframe down", lambda: editor.move(index, +1))):
         if imgui.button(f"{label}##keyframe"):
             action()
-        remember(tag)
         imgui.same_line()
     imgui.new_line()
     auto = checkbox("auto time", keyframe.time is None, "auto time",
@@ -121,11 +113,9 @@ def _keyframes(editor: PathEditor, playback: Playback) -> None:
     changed, seconds = imgui.input_float("s##keyframe time", float(times[index]), 0.0, 0.0, "%.3f",
                                          imgui.InputTextFlags_.enter_returns_true.value)
     imgui.end_disabled()
-    remember("keyframe time")
     if changed and not auto:
         editor.set_time(index, seconds)
     fov = slider("fov##keyframe", keyframe.fov_y_degrees, *FOV_RANGE, "%.1f deg")
-    remember("keyframe fov")
     if fov is not None:
         editor.set_fov(index, min(max(fov, FOV_RANGE[0]), FOV_RANGE[1]))
 
@@ -142,13 +132,11 @@ def _timing(editor: PathEditor) -> None:
     enter = imgui.InputTextFlags_.enter_returns_true.value
     imgui.set_next_item_width(120)
     changed, seconds = imgui.input_float("duration (s)", path.duration, 0.0, 0.0, "%.2f", enter)
-    remember("duration")
     if changed:
         editor.set_duration(seconds)
     imgui.same_line()
     imgui.set_next_item_width(80)
     changed, fps = imgui.input_float("fps", path.fps, 0.0, 0.0, "%.3g", enter)
-    remember("fps")
     if changed:
         editor.set_fps(fps)
     imgui.text_disabled(f"{len(path.keyframes)} keyframes, {path.frame_count} frames")
@@ -159,21 +147,17 @@ def _playback(editor: PathEditor, playback: Playback) -> None:
     imgui.begin_disabled(not path.keyframes)
     if imgui.button("Pause###play" if playback.playing else "Play###play"):
         playback.toggle(path)
-    remember("Play")
     imgui.same_line()
     if imgui.arrow_button("##step back", imgui.Dir.left):
         playback.step(path, -1)
-    remember("Step back")
     tooltip("one frame back")
     imgui.same_line()
     if imgui.arrow_button("##step forward", imgui.Dir.right):
         playback.step(path, +1)
-    remember("Step forward")
     tooltip("one frame on")
     imgui.same_line()
     imgui.set_next_item_width(-1)
     scrub = slider("##scrub", min(playback.time, path.duration), 0.0, path.duration, "%.2f s")
-    remember("Scrub")
     imgui.end_disabled()
     if scrub is not None:
         playback.seek(path, scrub)
@@ -185,23 +169,19 @@ def _playback(editor: PathEditor, playback: Playback) -> None:
 def _files(editor: PathEditor, actions: PathActions) -> None:
     imgui.set_next_item_width(-190)
     _, editor.file = imgui.input_text_with_hint("##path file", "path.json", editor.file)
-    remember("path file")
     imgui.same_line()
     imgui.begin_disabled(not editor.path.keyframes)
     if imgui.button("Save##path"):
         actions.save(editor.file, editor.overwrite)
     imgui.end_disabled()
-    remember("Save path")
     imgui.same_line()
     if imgui.button("Load##path"):
         actions.load(editor.file)
-    remember("Load path")
     tooltip("a path JSON saved here, or a nerfstudio camera_path file")
     imgui.begin_disabled(not editor.path.keyframes)
     if imgui.button("Export nerfstudio"):
         actions.export_nerfstudio(editor.file, editor.overwrite)
     imgui.end_disabled()
-    remember("Export nerfstudio")
     tooltip("save the path as a nerfstudio camera_path file (every frame, and the keyframes for its viewer)")
     imgui.same_line()
     editor.overwrite = checkbox("overwrite", editor.overwrite, "overwrite path",
@@ -212,17 +192,14 @@ def _video(editor: PathEditor, job: VideoJob | None, actions: PathActions) -> No
     if job is not None and job.running:
         progress = job.progress
         imgui.progress_bar(progress.fraction, (-80, 0), progress.describe())
-        remember("video progress")
         imgui.same_line()
         if imgui.button("Cancel##video"):
             actions.cancel_video()
-        remember("Cancel video")
         return
     imgui.begin_disabled(not editor.path.keyframes)
     if imgui.button("Render video"):
         actions.render_video()
     imgui.end_disabled()
-    remember("Render video")
     tooltip("render-path in the background: the path and the current render settings, saved as "
             "<folder>/raygs-<time>.json and .mp4")
     imgui.same_line()
@@ -233,4 +210,3 @@ def _video(editor: PathEditor, job: VideoJob | None, actions: PathActions) -> No
     imgui.same_line()
     imgui.set_next_item_width(-1)
     _, editor.video_folder = imgui.input_text("##video folder", editor.video_folder)
-    remember("video folder")
