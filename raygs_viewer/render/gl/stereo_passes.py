@@ -1,6 +1,6 @@
 """The stereo preview's post passes on the GPU: the lens warp of each eye and the layout.
 
-Both draw the full-screen triangle of ``present.vert`` into float RGBA targets and read
+Both draw the full-screen triangle of ``fullscreen.vert`` into float RGBA targets and read
 their sources with texelFetch, so they reproduce :func:`raygs_viewer.camera.lens_model.
 lens_warp_reference` (to float32 rounding) and :func:`raygs_viewer.camera.stereo.compose`
 (bit for bit).
@@ -37,7 +37,7 @@ class StereoPasses:
 
     def _program(self, fragment: str) -> tuple[moderngl.Program, moderngl.VertexArray]:
         if fragment not in self._programs:
-            program = self.ctx.program(vertex_shader=shader_source("present.vert"),
+            program = self.ctx.program(vertex_shader=shader_source("fullscreen.vert"),
                                        fragment_shader=shader_source(fragment))
             self._programs[fragment] = program, self.ctx.vertex_array(program, [])
         return self._programs[fragment]

@@ -137,7 +137,7 @@ class ShaderVariants:
     def resolve(self, front_to_back: bool) -> ProgramAndArray:
         """The full-screen pass that averages a sample target down (resolve.frag)."""
         if front_to_back not in self._resolve:
-            program = self.ctx.program(vertex_shader=shader_source("present.vert"),
+            program = self.ctx.program(vertex_shader=shader_source("fullscreen.vert"),
                                        fragment_shader=shader_source("resolve.frag",
                                                                      {"FRONT_TO_BACK": int(front_to_back)}))
             self._resolve[front_to_back] = program, self.ctx.vertex_array(program, [])
