@@ -16,7 +16,7 @@ from typing import Callable, Hashable
 import moderngl
 import numpy as np
 
-from raygs_viewer.render.gl.shaders import shader_source
+from raygs_viewer.render.gl.shaders import Programs
 from raygs_viewer.render.gl.targets import FloatTarget, release_all, sized
 
 #: The letterbox bars' grey (linear 0..1), around an image of another aspect ratio.
@@ -40,8 +40,8 @@ class MonoFrame:
         #: in the last frame.
         self.split = False
         self._key: Hashable | None = None
-        self._program = ctx.program(shader_source("fullscreen.vert"), shader_source("present.frag"))
-        self._vao = ctx.vertex_array(self._program, [])
+        self._programs = Programs(ctx)
+        self._program, self._vao = self._programs.fullscreen("present.frag")
 
     def targets(self, width: int, height: int, split: bool) -> tuple[FloatTarget, FloatTarget | None]:
         """(left, right) at width x height; right only in the split view. A target
@@ -116,5 +116,4 @@ class MonoFrame:
         release_all(self.left, self.right)
         self.left = self.right = self.stereo_image = None
         self._key = None
-        self._vao.release()
-        self._program.release()
+        self._programs.release()
