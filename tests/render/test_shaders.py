@@ -145,6 +145,18 @@ def test_a_compile_error_names_the_program_and_its_defines(gl_ctx, monkeypatch):
         programs.release()
 
 
+def test_more_splat_blocks_than_declared_bindings_stop_the_compile(gl_ctx):
+    defines = ShaderVariants(gl_ctx, 0).order_defines(RenderSettings(), StorageLayout.plan(1000, 48, 1 << 27))
+    programs = Programs(gl_ctx)
+    try:
+        for blocks in (1, 8):
+            programs.draw("quads.vert", "quads.frag", {**defines, "SPLAT_BLOCKS": blocks})
+        with pytest.raises(moderngl.Error, match=r"splat_blocks.glsl:\d+.*SPLAT_BLOCKS must be 1 to 8"):
+            programs.draw("quads.vert", "quads.frag", {**defines, "SPLAT_BLOCKS": 9})
+    finally:
+        programs.release()
+
+
 def test_programs_are_built_once_per_files_and_defines(gl_ctx):
     programs = Programs(gl_ctx)
     try:
