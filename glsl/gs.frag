@@ -1,4 +1,4 @@
-#include "composite.glsl"
+#include "fragment_output.glsl"
 // The projected 2D gaussian at the pixel centre (the offset is exact there: the quad
 // is drawn in image space with w = 1, so interpolation is linear).
 in vec2 v_offset;

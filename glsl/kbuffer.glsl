@@ -1,14 +1,14 @@
 // The bounded per-pixel order as a k-buffer in colour attachments, read and written
 // through framebuffer fetch (maths page, section 11; render/gl/kbuffer.py). The
 // fragments arrive front to back in the global order; attachment 0 holds the composite
-// state (order_window.glsl), attachments 1..ORDER_K the window, each entry
+// state (per_pixel_composite.glsl), attachments 1..ORDER_K the window, each entry
 // vec4(t*, alpha, scene index, 0), empty while alpha is 0 (a kept fragment has
 // alpha >= p_min > 0). The first entry's w counts the pixel's fragments (statistics).
 // When a fragment arrives and the window is full, the first by (t*, index) of the
 // K + 1 is composited and leaves; kbuffer_resolve.comp composites what remains.
 #define SPLATS_ONLY 1
 #include "splat_blocks.glsl"
-#include "order_window.glsl"
+#include "per_pixel_composite.glsl"
 
 layout(location = 0) inout vec4 kb_state;
 // Arrays of at least two: Mesa 22 (llvmpipe) miscompiles arrays of one here; with K = 1

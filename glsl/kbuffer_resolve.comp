@@ -3,7 +3,7 @@
 // accumulated alpha) in u_output; sums the statistics of the fragments seen.
 #define SPLATS_ONLY 1
 #include "splat_blocks.glsl"
-#include "order_window.glsl"
+#include "per_pixel_composite.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(rgba32f, binding = 0) uniform writeonly image2D u_output;

@@ -1,5 +1,5 @@
 // Fragment lists, after a part's fill pass: each pixel sorts its list in place in the
-// pool and composites it front to back (order_window.glsl), then stores (RGB over the
+// pool and composites it front to back (per_pixel_composite.glsl), then stores (RGB over the
 // background, accumulated alpha) in u_output. u_window 0: the exact order, ascending
 // (t*, scene index). u_window K: the k-buffer's result, the list sorted by arrival
 // (rank in the global front-to-back order) and streamed through a window of K.
@@ -8,7 +8,7 @@
 #define SPLATS_ONLY 1
 #include "splat_blocks.glsl"
 #include "fragment_lists.glsl"
-#include "order_window.glsl"
+#include "per_pixel_composite.glsl"
 
 layout(local_size_x = 8, local_size_y = 8) in;
 layout(rgba32f, binding = 0) uniform writeonly image2D u_output;

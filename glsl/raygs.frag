@@ -1,4 +1,4 @@
-#include "composite.glsl"
+#include "fragment_output.glsl"
 // The ray's divergence from the quad coordinate (maths page, section 5, Eq. 16).
 // EXACT_MIP: the pixel-dependent MIP filter (section 6, Appendix A.5), evaluated in
 // the gaussian's rotated frame, where the covariance is diag(s^2) and the filter

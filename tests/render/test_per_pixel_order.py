@@ -211,7 +211,7 @@ def test_a_dropped_fragment_is_reported_and_would_fail(gl_session_ctx, monkeypat
     scene = needles()
     reference = render_reference(scene, CAMERA, EXACT)
     # The fill pass loses each list's first fragment: the resolve's check reports it.
-    _patched_glsl(monkeypatch, "composite.glsl", "if (!in_part(p)) return;",
+    _patched_glsl(monkeypatch, "fragment_output.glsl", "if (!in_part(p)) return;",
                   "if (!in_part(p) || v_rank == 3u) return;")
     with pytest.raises(RuntimeError, match="left short"):
         _lists_image(gl_session_ctx, scene)

@@ -152,8 +152,8 @@ class FragmentLists:
         counts.clear(size=width * height * 4)
         self._status.clear()
         self._bind(width, height)
-        variants = renderer.variants
-        defines = variants.order_defines(settings, renderer.layout_for(settings), "lists")
+        defines = renderer.variants.order_defines(settings, renderer.layout_for(settings), "lists")
+        programs = renderer.variants.programs
 
         # 1. count
         target.use()
@@ -163,7 +163,7 @@ class FragmentLists:
                           uniforms={"u_pass": 0, "u_width": width, "u_part": (0, 0, width, height)})
             ctx.memory_barrier()
             # 2. scan and plan
-            scan = variants.compute("lists_scan.comp", defines)
+            scan = programs.compute("lists_scan.comp", defines)
             set_uniform(scan, "u_width", width)
             set_uniform(scan, "u_height", height)
             scan.run(group_x=-(-height // SCAN_WORKGROUP))
@@ -176,8 +176,8 @@ class FragmentLists:
             parts, row_bases = plan_parts(row_stats[:, 0], width, self.pool_fragments, row_counts)
             self._rows[0].write(row_bases.tobytes())
             # 3. per part: prepare, fill, resolve
-            prepare = variants.compute("lists_prepare.comp", defines)
-            resolve = variants.compute("lists_resolve.comp", defines)
+            prepare = programs.compute("lists_prepare.comp", defines)
+            resolve = programs.compute("lists_resolve.comp", defines)
             set_uniform(prepare, "u_width", width)
             set_uniform(resolve, "u_width", width)
             set_uniform(resolve, "u_background", settings.background)

@@ -75,7 +75,7 @@ class KBuffer:
         fbo.clear(0.0, 0.0, 0.0, 0.0)
         renderer.draw(camera, settings, order, path="fetch")
         ctx.memory_barrier()
-        program = renderer.variants.compute(
+        program = renderer.variants.programs.compute(
             "kbuffer_resolve.comp", renderer.variants.order_defines(settings, renderer.layout_for(settings),
                                                                     "fetch", k))
         for unit, texture in enumerate(self._textures):

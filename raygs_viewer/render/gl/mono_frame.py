@@ -3,7 +3,7 @@ the float targets the scene is drawn into (the A/B split view's right side in a 
 one), the key of what they hold (a still view is not drawn again), the present pass
 that shows the drawn image letterboxed in the window, and the capture of the window.
 
-The present pass (``present.vert``/``present.frag``) shows the left target, or the
+The present pass (``present.frag`` over ``fullscreen.vert``) shows the left target, or the
 stereo frame's composed image while the last draw was stereo; in the split view the
 viewport's columns from the divider's on show the right target. Nothing here knows
 imgui: a capture takes what draws over the image (the panel) as a callable.
@@ -16,7 +16,7 @@ from typing import Callable, Hashable
 import moderngl
 import numpy as np
 
-from raygs_viewer.render.gl.shaders import shader_source
+from raygs_viewer.render.gl.shaders import Programs
 from raygs_viewer.render.gl.targets import FloatTarget, release_all, sized
 
 #: The letterbox bars' grey (linear 0..1), around an image of another aspect ratio.
@@ -40,8 +40,8 @@ class MonoFrame:
         #: in the last frame.
         self.split = False
         self._key: Hashable | None = None
-        self._program = ctx.program(shader_source("present.vert"), shader_source("present.frag"))
-        self._vao = ctx.vertex_array(self._program, [])
+        self._programs = Programs(ctx)
+        self._program, self._vao = self._programs.fullscreen("present.frag")
 
     def targets(self, width: int, height: int, split: bool) -> tuple[FloatTarget, FloatTarget | None]:
         """(left, right) at width x height; right only in the split view. A target
@@ -116,5 +116,4 @@ class MonoFrame:
         release_all(self.left, self.right)
         self.left = self.right = self.stereo_image = None
         self._key = None
-        self._vao.release()
-        self._program.release()
+        self._programs.release()

@@ -1,6 +1,6 @@
 """The stereo preview's post passes on the GPU: the lens warp of each eye and the layout.
 
-Both draw the full-screen triangle of ``present.vert`` into float RGBA targets and read
+Both draw the full-screen triangle of ``fullscreen.vert`` into float RGBA targets and read
 their sources with texelFetch, so they reproduce :func:`raygs_viewer.camera.lens_model.
 lens_warp_reference` (to float32 rounding) and :func:`raygs_viewer.camera.stereo.compose`
 (bit for bit).
@@ -15,7 +15,7 @@ from raygs_viewer.camera.lens_model import LensModel, lens_radius
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.camera.stereo import composed_size
 from raygs_viewer.errors import UserError
-from raygs_viewer.render.gl.shaders import set_uniform, shader_source
+from raygs_viewer.render.gl.shaders import Programs, set_uniform
 
 _LEFT, _RIGHT = (0, 0, 0, 0), (1, 1, 1, 1)
 # Per layout, for each eye-wide half of the target: which channels come from the right eye.
@@ -33,14 +33,7 @@ class StereoPasses:
 
     def __init__(self, ctx: moderngl.Context):
         self.ctx = ctx
-        self._programs: dict[str, tuple[moderngl.Program, moderngl.VertexArray]] = {}
-
-    def _program(self, fragment: str) -> tuple[moderngl.Program, moderngl.VertexArray]:
-        if fragment not in self._programs:
-            program = self.ctx.program(vertex_shader=shader_source("present.vert"),
-                                       fragment_shader=shader_source(fragment))
-            self._programs[fragment] = program, self.ctx.vertex_array(program, [])
-        return self._programs[fragment]
+        self._programs = Programs(ctx)
 
     def _draw(self, vao: moderngl.VertexArray, target: moderngl.Framebuffer) -> None:
         target.viewport = (0, 0, *target.size)
@@ -54,7 +47,7 @@ class StereoPasses:
         size = (eye.width, eye.height)
         if tuple(source.size) != size or tuple(target.size) != size:
             raise ValueError(f"lens pass: source {source.size} and target {target.size} must be the eye's {size}")
-        program, vao = self._program("lens.frag")
+        program, vao = self._programs.fullscreen("lens.frag")
         source.use(0)
         set_uniform(program, "u_image", 0)
         set_uniform(program, "u_center", (float(eye.cx), float(eye.cy)))
@@ -74,7 +67,7 @@ class StereoPasses:
         if tuple(right.size) != tuple(left.size) or tuple(target.size) != expected:
             raise ValueError(f"compose {layout}: eyes {left.size} and {right.size} need a {expected} target, "
                              f"got {target.size}")
-        program, vao = self._program("stereo_compose.frag")
+        program, vao = self._programs.fullscreen("stereo_compose.frag")
         left.use(0)
         right.use(1)
         set_uniform(program, "u_left", 0)
@@ -84,7 +77,4 @@ class StereoPasses:
         self._draw(vao, target)
 
     def release(self) -> None:
-        for program, vao in self._programs.values():
-            vao.release()
-            program.release()
-        self._programs.clear()
+        self._programs.release()

@@ -11,7 +11,7 @@ from __future__ import annotations
 
 import moderngl
 
-from raygs_viewer.render.gl.shaders import set_uniform, shader_source
+from raygs_viewer.render.gl.shaders import ProgramAndArray, Programs, set_uniform
 from raygs_viewer.render.gl.storage import StorageLayout
 from raygs_viewer.render.settings import (
     ALPHA_CLAMP,
@@ -21,9 +21,6 @@ from raygs_viewer.render.settings import (
     TRANSMITTANCE_CUTOFF,
     RenderSettings,
 )
-
-#: A compiled draw or full-screen program with the (attribute-less) vertex array that runs it.
-ProgramAndArray = tuple[moderngl.Program, moderngl.VertexArray]
 
 #: The draw's PER_PIXEL define for each per-pixel path (render/gl/per_pixel.py): none,
 #: fragment lists (glsl/fragment_lists.glsl), a k-buffer (glsl/kbuffer.glsl).
@@ -40,17 +37,13 @@ def _glsl_float(value: float) -> str:
 
 class ShaderVariants:
     """The programs of one renderer: ``sh_degree`` is its scene's stored degree,
-    ``general`` selects the all-features variant. Release with :meth:`release`."""
+    ``general`` selects the all-features variant. ``programs`` builds and keeps them
+    (the per-pixel order's passes ask it too). Release with :meth:`release`."""
 
     def __init__(self, ctx: moderngl.Context, sh_degree: int, general: bool = False):
-        self.ctx = ctx
         self.sh_degree = sh_degree
         self.general = bool(general)
-        # Keyed by their #defines.
-        self._preprocess: dict[tuple, moderngl.ComputeShader] = {}
-        self._draw: dict[tuple, ProgramAndArray] = {}
-        self._resolve: dict[bool, ProgramAndArray] = {}
-        self._compute: dict[tuple, moderngl.ComputeShader] = {}
+        self.programs = Programs(ctx)
 
     def colors_at_load(self, settings: RenderSettings) -> bool:
         """Whether this variant reads colours computed at load instead of evaluating SH."""
@@ -89,10 +82,7 @@ class ShaderVariants:
                    **self.feature_defines(settings)}
         if not self.general:
             defines["COLOR_AT_LOAD"] = _glsl_bool(self.colors_at_load(settings))
-        key = tuple(sorted(defines.items()))
-        if key not in self._preprocess:
-            self._preprocess[key] = self.ctx.compute_shader(shader_source("preprocess.comp", defines))
-        return self._preprocess[key]
+        return self.programs.compute("preprocess.comp", defines)
 
     def order_defines(self, settings: RenderSettings, layout: StorageLayout, path: str | None = None,
                       window: int = 0) -> dict[str, object]:
@@ -119,37 +109,12 @@ class ShaderVariants:
         defines = {"ALPHA_MAX": _glsl_float(ALPHA_CLAMP),
                    **self.order_defines(settings, layout, path, settings.order_k if path == "fetch" else 0),
                    **self.feature_defines(settings)}
-        key = (gs, floor, *sorted(defines.items()))
-        if key not in self._draw:
-            stage = "quads" if floor else "gs" if gs else "raygs"
-            program = self.ctx.program(vertex_shader=shader_source(f"{stage}.vert", defines),
-                                       fragment_shader=shader_source(f"{stage}.frag", defines))
-            self._draw[key] = program, self.ctx.vertex_array(program, [])
-        return self._draw[key]
-
-    def compute(self, name: str, defines: dict[str, object]) -> moderngl.ComputeShader:
-        """The compute shader ``glsl/<name>`` with ``defines`` (the per-pixel order's passes)."""
-        key = (name, *sorted(defines.items()))
-        if key not in self._compute:
-            self._compute[key] = self.ctx.compute_shader(shader_source(name, defines))
-        return self._compute[key]
+        stage = "quads" if floor else "gs" if gs else "raygs"
+        return self.programs.draw(f"{stage}.vert", f"{stage}.frag", defines)
 
     def resolve(self, front_to_back: bool) -> ProgramAndArray:
         """The full-screen pass that averages a sample target down (resolve.frag)."""
-        if front_to_back not in self._resolve:
-            program = self.ctx.program(vertex_shader=shader_source("present.vert"),
-                                       fragment_shader=shader_source("resolve.frag",
-                                                                     {"FRONT_TO_BACK": int(front_to_back)}))
-            self._resolve[front_to_back] = program, self.ctx.vertex_array(program, [])
-        return self._resolve[front_to_back]
+        return self.programs.fullscreen("resolve.frag", {"FRONT_TO_BACK": int(front_to_back)})
 
     def release(self) -> None:
-        for shaders in (self._preprocess, self._compute):
-            for program in shaders.values():
-                program.release()
-            shaders.clear()
-        for programs in (self._draw, self._resolve):
-            for program, vao in programs.values():
-                vao.release()
-                program.release()
-            programs.clear()
+        self.programs.release()

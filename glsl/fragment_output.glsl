@@ -1,4 +1,5 @@
-// How a fragment's (rgb, alpha) enters the target (maths page, sections 5, 10 and 11).
+// The splat fragment stages' output, included first by raygs.frag and gs.frag: how a
+// fragment's (rgb, alpha) enters the target (maths page, sections 5, 10 and 11).
 // Default: premultiplied output, blended back to front with (ONE, ONE_MINUS_SRC_ALPHA)
 // over a target cleared to (background, 0).
 // FRONT_TO_BACK (the transmittance cut-off of INRIA and GOF): the shader reads the

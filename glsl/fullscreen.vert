@@ -1,4 +1,5 @@
-// A full-viewport triangle; the viewport itself places the image (letterboxing).
+// The vertex stage of every full-screen pass (resolve, present, lens, stereo compose):
+// a full-viewport triangle; the viewport itself places the image (letterboxing).
 out vec2 v_uv;  // 0..1 across the viewport, origin at its lower-left corner
 
 void main() {
