@@ -5,37 +5,60 @@
 #include "splat.glsl"
 
 layout(std430, binding = 0) readonly buffer Order { uint order[]; };
-// Block k, at binding k + 1, holds the records from k * SPLATS_PER_BLOCK on. The blocks
-// beyond the first are declared and read through one list: SPLAT_BLOCKS_n(X) applies
-// X(k, binding, block name, array) to blocks 1 .. n - 1, k as the uint literal
-// fetch_splat compares. Each binding is spelt out, not computed: a layout binding must
-// be a literal in GLSL 4.30.
+// Each binding is spelt out: a layout binding must be a literal in GLSL 4.30, and token
+// pasting (##), which could generate them, is not portable GLSL.
 #if SPLAT_BLOCKS < 1 || SPLAT_BLOCKS > 8
 #error SPLAT_BLOCKS must be 1 to 8 (render/gl/storage.py, MAX_SPLAT_BLOCKS)
 #endif
-#define SPLAT_BLOCKS_1(X)
-#define SPLAT_BLOCKS_2(X) SPLAT_BLOCKS_1(X) X(1u, 2, Splats1, splats1)
-#define SPLAT_BLOCKS_3(X) SPLAT_BLOCKS_2(X) X(2u, 3, Splats2, splats2)
-#define SPLAT_BLOCKS_4(X) SPLAT_BLOCKS_3(X) X(3u, 4, Splats3, splats3)
-#define SPLAT_BLOCKS_5(X) SPLAT_BLOCKS_4(X) X(4u, 5, Splats4, splats4)
-#define SPLAT_BLOCKS_6(X) SPLAT_BLOCKS_5(X) X(5u, 6, Splats5, splats5)
-#define SPLAT_BLOCKS_7(X) SPLAT_BLOCKS_6(X) X(6u, 7, Splats6, splats6)
-#define SPLAT_BLOCKS_8(X) SPLAT_BLOCKS_7(X) X(7u, 8, Splats7, splats7)
-#define PASTE(a, b) a##b
-#define PASTE_EXPANDED(a, b) PASTE(a, b)  // SPLAT_BLOCKS is expanded before it is pasted
-#define FOR_EACH_EXTRA_SPLAT_BLOCK(X) PASTE_EXPANDED(SPLAT_BLOCKS_, SPLAT_BLOCKS)(X)
-
-#define DECLARE_SPLAT_BLOCK(k, at, Block, records) layout(std430, binding = at) readonly buffer Block { Splat records[]; };
-DECLARE_SPLAT_BLOCK(0u, 1, Splats0, splats0)
-FOR_EACH_EXTRA_SPLAT_BLOCK(DECLARE_SPLAT_BLOCK)
+layout(std430, binding = 1) readonly buffer Splats0 { Splat splats0[]; };
+#if SPLAT_BLOCKS > 1
+layout(std430, binding = 2) readonly buffer Splats1 { Splat splats1[]; };
+#endif
+#if SPLAT_BLOCKS > 2
+layout(std430, binding = 3) readonly buffer Splats2 { Splat splats2[]; };
+#endif
+#if SPLAT_BLOCKS > 3
+layout(std430, binding = 4) readonly buffer Splats3 { Splat splats3[]; };
+#endif
+#if SPLAT_BLOCKS > 4
+layout(std430, binding = 5) readonly buffer Splats4 { Splat splats4[]; };
+#endif
+#if SPLAT_BLOCKS > 5
+layout(std430, binding = 6) readonly buffer Splats5 { Splat splats5[]; };
+#endif
+#if SPLAT_BLOCKS > 6
+layout(std430, binding = 7) readonly buffer Splats6 { Splat splats6[]; };
+#endif
+#if SPLAT_BLOCKS > 7
+layout(std430, binding = 8) readonly buffer Splats7 { Splat splats7[]; };
+#endif
 
 uniform uint u_order_count;
 
 Splat fetch_splat(uint index) {
     uint block = index / uint(SPLATS_PER_BLOCK);
     uint i = index - block * uint(SPLATS_PER_BLOCK);
-#define FETCH_FROM_SPLAT_BLOCK(k, at, Block, records) if (block == k) return records[i];
-    FOR_EACH_EXTRA_SPLAT_BLOCK(FETCH_FROM_SPLAT_BLOCK)
+#if SPLAT_BLOCKS > 1
+    if (block == 1u) return splats1[i];
+#endif
+#if SPLAT_BLOCKS > 2
+    if (block == 2u) return splats2[i];
+#endif
+#if SPLAT_BLOCKS > 3
+    if (block == 3u) return splats3[i];
+#endif
+#if SPLAT_BLOCKS > 4
+    if (block == 4u) return splats4[i];
+#endif
+#if SPLAT_BLOCKS > 5
+    if (block == 5u) return splats5[i];
+#endif
+#if SPLAT_BLOCKS > 6
+    if (block == 6u) return splats6[i];
+#endif
+#if SPLAT_BLOCKS > 7
+    if (block == 7u) return splats7[i];
+#endif
     return splats0[i];
 }
 
