@@ -21,8 +21,7 @@ from pathlib import Path
 from raygs_viewer.camera.navigation import UP_AXES, framing_distance, framing_pose, scene_bounds, up_vector
 from raygs_viewer.camera.path import FPS_RANGE, MAX_DURATION, CameraPath, orbit_path
 from raygs_viewer.capture.image_io import check_output_path
-from raygs_viewer.capture.path_document import PathDocument
-from raygs_viewer.capture.path_file import load_path_document, scene_mismatch
+from raygs_viewer.capture.path_file import PathDocument, load_path_document, scene_mismatch
 from raygs_viewer.capture.path_render import (
     cameras_of_entries,
     frame_camera_entries,

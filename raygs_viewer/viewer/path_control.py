@@ -17,9 +17,13 @@ from typing import Callable
 
 from raygs_viewer.camera.path import path_through_cameras
 from raygs_viewer.camera.pinhole import Camera
-from raygs_viewer.capture.nerfstudio import save_nerfstudio
-from raygs_viewer.capture.path_document import PathDocument
-from raygs_viewer.capture.path_file import load_path_document, save_path_document, scene_mismatch
+from raygs_viewer.capture.path_file import (
+    PathDocument,
+    export_nerfstudio,
+    load_path_document,
+    save_path_document,
+    scene_mismatch,
+)
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.scene.loader import LoadedScene
 from raygs_viewer.viewer.panel.path import PathActions
@@ -80,7 +84,7 @@ class PathControl:
             orbit=lambda: self.editor.edit(lambda path: orbit_around_scene(view, aspect, path), select=None),
             dolly=lambda distance: self.editor.edit(lambda path: dolly_from_view(view, distance, path), select=None),
             save=lambda file, overwrite: self.save(document(), file, overwrite),
-            export_nerfstudio=lambda file, overwrite: self.save(document(), file, overwrite, save_nerfstudio),
+            export_nerfstudio=lambda file, overwrite: self.save(document(), file, overwrite, export_nerfstudio),
             load=lambda file: self.load(file, loaded),
             render_video=lambda: self.render_video(document(), loaded),
             cancel_video=self.cancel_video)
@@ -97,7 +101,7 @@ class PathControl:
     # -- files -------------------------------------------------------------------------
     def save(self, document: PathDocument, file: str, overwrite: bool = False,
              writer: Callable[..., Path] = save_path_document) -> None:
-        """``document`` written to ``file`` by ``writer``: the path JSON, or save_nerfstudio."""
+        """``document`` written to ``file`` by ``writer``: the path JSON, or export_nerfstudio."""
         try:
             saved = writer(document, file, overwrite=overwrite)
         except UserError as exc:

@@ -22,8 +22,7 @@ from dataclasses import dataclass
 from datetime import datetime
 from pathlib import Path
 
-from raygs_viewer.capture.path_document import PathDocument
-from raygs_viewer.capture.path_file import save_path_document
+from raygs_viewer.capture.path_file import PathDocument, save_path_document
 from raygs_viewer.errors import UserError
 
 VIDEO_PREFIX = "raygs-"

@@ -21,9 +21,7 @@ from raygs_viewer.camera.path import path_through_cameras
 from raygs_viewer.camera.pinhole import load_cameras
 from raygs_viewer.camera.stereo import StereoRig, StereoView
 from raygs_viewer.capture import path_render
-from raygs_viewer.capture.nerfstudio import save_nerfstudio
-from raygs_viewer.capture.path_document import PathDocument
-from raygs_viewer.capture.path_file import save_path_document
+from raygs_viewer.capture.path_file import PathDocument, export_nerfstudio, save_path_document
 from raygs_viewer.capture.sidecar import demo_sha256
 from raygs_viewer.cli import path as path_command
 from raygs_viewer.cli.main import main
@@ -148,7 +146,7 @@ def test_stereo_from_the_file_or_the_options_is_side_by_side(tmp_path):
 
 
 def test_a_nerfstudio_camera_path_renders_the_same_frames(tmp_path, path_file):
-    nerfstudio = save_nerfstudio(demo_document(), tmp_path / "camera_path.json")
+    nerfstudio = export_nerfstudio(demo_document(), tmp_path / "camera_path.json")
     ours, theirs = tmp_path / "ours", tmp_path / "theirs"
     assert run("demo", str(path_file), "--out", str(ours)) == 0
     # nerfstudio files carry no render settings: give the background the path file recorded.
@@ -210,7 +208,7 @@ def test_bad_input_is_one_line_before_any_rendering_and_loses_nothing(tmp_path, 
     existing = tmp_path / "fly.mp4"
     existing.write_bytes(b"the user's video")
     (tmp_path / "bad.json").write_text("{not json")
-    timed = save_nerfstudio(demo_document(), tmp_path / "timed.json")   # every keyframe has its time
+    timed = export_nerfstudio(demo_document(), tmp_path / "timed.json")   # every keyframe has its time
     argv = {
         "missing path": ["demo", str(tmp_path / "nope.json"), "--out", str(tmp_path / "a.mp4")],
         "not json": ["demo", str(tmp_path / "bad.json"), "--out", str(tmp_path / "a.mp4")],
