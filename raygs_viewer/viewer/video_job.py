@@ -1,18 +1,17 @@
 """Render video in the background: the window writes its path document to a fresh pair
 of names in the videos folder (``raygs-YYYYmmdd-HHMMSS.json`` and ``.mp4``), then runs
-``raygs-viewer render-path`` on it as a subprocess and reads its progress.
+``raygs-viewer render-path`` on it as a subprocess (:class:`VideoJob`) and reads its
+progress.
 
-The command prints one JSON object a line on stdout (``--progress json``):
-``{"frame": k, "frames": n, "fps": r, "eta_s": s}`` while it renders, then
-``{"done": true, "out": "...", "frames": n}``, or ``{"interrupted": true, ...}`` after a
-SIGINT (it then leaves a playable truncated file, or none); a failure ends with an
-``error: ...`` line on stderr and exit status 2. The window polls the job once a frame
-and never waits on it, except briefly when it closes.
+The command prints the JSON lines of :mod:`raygs_viewer.capture.progress` on stdout
+(``--progress json``): a frame's progress while it renders, then the render's end,
+done or interrupted after a SIGINT (it then leaves a playable truncated file, or none);
+a failure ends with an ``error: ...`` line on stderr and exit status 2. The window
+polls the job once a frame and never waits on it, except briefly when it closes.
 """
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import subprocess
@@ -23,6 +22,7 @@ from datetime import datetime
 from pathlib import Path
 
 from raygs_viewer.capture.path_file import PathDocument, save_path_document
+from raygs_viewer.capture.progress import FrameProgress, RenderDone, RenderInterrupted, read_progress_line
 from raygs_viewer.errors import UserError
 
 VIDEO_PREFIX = "raygs-"
@@ -70,28 +70,17 @@ def write_video_document(document: PathDocument, folder: str | Path, now: dateti
     raise UserError(f"{folder}: no free video name from {stem} on")
 
 
-@dataclass(frozen=True)
-class JobProgress:
-    """The last progress line: frames done of ``frames``, rate (frames per second) and
-    time left (seconds); None where the command has not said yet."""
-
-    frame: int = 0
-    frames: int | None = None
-    fps: float | None = None
-    eta_s: float | None = None
-
-    @property
-    def fraction(self) -> float:
-        return min(max(self.frame / self.frames, 0.0), 1.0) if self.frames else 0.0
-
-    def describe(self) -> str:
-        """E.g. "frame 12 / 300, 4.1 fps, 70 s left"."""
-        text = f"frame {self.frame} / {self.frames if self.frames is not None else '?'}"
-        if self.fps is not None:
-            text += f", {self.fps:.3g} fps"
-        if self.eta_s is not None:
-            text += f", {self.eta_s:.0f} s left"
-        return text
+def progress_text(progress: FrameProgress | None) -> str:
+    """The progress bar's text, e.g. "frame 12 / 300, 4.1 fps, 70 s left" (None: the
+    command has said nothing yet)."""
+    if progress is None:
+        return "frame 0 / ?"
+    text = f"frame {progress.frame} / {progress.frames}"
+    if progress.fps is not None:
+        text += f", {progress.fps:.3g} fps"
+    if progress.eta_s is not None:
+        text += f", {progress.eta_s:.0f} s left"
+    return text
 
 
 @dataclass(frozen=True)
@@ -110,8 +99,8 @@ class VideoJob:
     def __init__(self, command: list[str], out: Path, document: Path):
         self.command, self.out, self.document = list(command), Path(out), Path(document)
         self._lock = threading.Lock()
-        self._progress = JobProgress()
-        self._final: dict | None = None      # the done or interrupted line
+        self._progress: FrameProgress | None = None
+        self._final: RenderDone | RenderInterrupted | None = None
         self._errors: list[str] = []         # stderr's lines (the last few)
         self.cancelled = False
         self._reported = False
@@ -129,18 +118,14 @@ class VideoJob:
     # -- reader threads -----------------------------------------------------------------
     def _read_stdout(self) -> None:
         for line in self.process.stdout:
-            try:
-                data = json.loads(line)
-            except ValueError:
-                continue  # not a progress line: nothing the window shows
-            if not isinstance(data, dict):
-                continue
+            record = read_progress_line(line)
+            if record is None:
+                continue  # not a progress line of ours: nothing the window shows
             with self._lock:
-                if data.get("done") or data.get("interrupted"):
-                    self._final = data
-                elif isinstance(data.get("frame"), int):
-                    self._progress = JobProgress(data["frame"], _number(data.get("frames"), int),
-                                                 _number(data.get("fps"), float), _number(data.get("eta_s"), float))
+                if isinstance(record, FrameProgress):
+                    self._progress = record
+                else:
+                    self._final = record
 
     def _read_stderr(self) -> None:
         for line in self.process.stderr:
@@ -155,7 +140,8 @@ class VideoJob:
         return self.process.poll() is None or any(reader.is_alive() for reader in self._readers)
 
     @property
-    def progress(self) -> JobProgress:
+    def progress(self) -> FrameProgress | None:
+        """The last progress line; None before the first."""
         with self._lock:
             return self._progress
 
@@ -181,13 +167,11 @@ class VideoJob:
         status = self.process.returncode
         with self._lock:
             final, errors, progress = self._final, list(self._errors), self._progress
-        if final is not None and final.get("done") and status == 0:
-            frames = final.get("frames", progress.frames)
-            return JobResult("done", f"saved {final.get('out', self.out)} ({frames} frames; path {self.document})")
-        if (final is not None and final.get("interrupted")) or (self.cancelled and status in (130, -signal.SIGINT)):
-            done = final.get("frames", final.get("frame")) if final else None
-            done = progress.frame if done is None else done
-            kept = final.get("out") if final else None
+        if isinstance(final, RenderDone) and status == 0:
+            return JobResult("done", f"saved {final.out} ({final.frames} frames; path {self.document})")
+        if isinstance(final, RenderInterrupted) or (self.cancelled and status in (130, -signal.SIGINT)):
+            done = final.frames if final else progress.frame if progress else 0
+            kept = final.out if final else None
             if kept is None and self.out.exists():
                 kept = str(self.out)
             where = f"{kept} holds the first {done} frames" if kept else "no video was written"
@@ -209,8 +193,3 @@ class VideoJob:
         for reader in self._readers:
             reader.join(timeout=1.0)
 
-
-def _number(value, kind):
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        return None
-    return kind(value)

@@ -4,7 +4,6 @@ commands for render-path)."""
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from dataclasses import replace
@@ -20,11 +19,12 @@ from PIL import Image
 from raygs_viewer.camera.navigation import Pose
 from raygs_viewer.camera.path import CameraPath, Keyframe
 from raygs_viewer.capture.path_file import load_path_document, save_path_document
+from raygs_viewer.capture.progress import FrameProgress, RenderDone, RenderInterrupted, progress_line
 from raygs_viewer.cli.main import main
 from raygs_viewer.viewer.panel.widgets import item_rects
 from raygs_viewer.viewer.path_overlay import frustum_lines, screen_segments
 from raygs_viewer.viewer.paths import VIDEO_SIZES
-from raygs_viewer.viewer.video_job import VideoJob, render_path_command, write_video_document
+from raygs_viewer.viewer.video_job import VideoJob, progress_text, render_path_command, write_video_document
 
 PATH_PANEL = {"width": PANEL_WIDTH, "height": PANEL_HEIGHT}
 
@@ -396,8 +396,13 @@ def stand_in(lines: list[str], tail: str = "") -> list[str]:
     return [sys.executable, "-c", script]
 
 
-PROGRESS = [json.dumps({"frame": k, "frames": 3, "fps": 5.0, "eta_s": (3 - k) / 5.0}) for k in (1, 2, 3)]
-DONE = json.dumps({"done": True, "out": "OUT", "frames": 3})
+def line(record) -> str:
+    """``record`` as render-path prints it, without the newline (the stand-ins print it)."""
+    return progress_line(record).rstrip("\n")
+
+
+PROGRESS = [line(FrameProgress(k, 3, 5.0, (3 - k) / 5.0)) for k in (1, 2, 3)]
+DONE = line(RenderDone("OUT", 3))
 #: Prints one progress line, then renders "forever" until SIGINT, as render-path does on Ctrl-C.
 INTERRUPTIBLE = [sys.executable, "-c", (
     "import json, sys, time\n"
@@ -406,14 +411,14 @@ INTERRUPTIBLE = [sys.executable, "-c", (
     "    while True:\n"
     "        time.sleep(0.02)\n"
     "except KeyboardInterrupt:\n"
-    "    print(json.dumps({'interrupted': True, 'frames': 1, 'out': None}), flush=True)\n"
+    f"    print({line(RenderInterrupted(1, None))!r}, flush=True)\n"
     "    sys.exit(130)\n")]
 
 
 def wait_for_progress(job: VideoJob, drive=None) -> None:
     """Until the job has reported a frame (drawing frames meanwhile when ``drive`` is given)."""
     deadline = time.monotonic() + 20
-    while job.progress.frame < 1:
+    while job.progress is None or job.progress.frame < 1:
         assert time.monotonic() < deadline, "no progress from the job"
         if drive is not None:
             drive.frames(1)
@@ -443,8 +448,18 @@ def test_video_job_progress_done_error_and_cancel(tmp_path):
     result = finish(job)
     assert result.kind == "done" and result.message.startswith("saved OUT (3 frames")
     assert job.progress.frame == 3 and job.progress.fraction == 1.0
-    assert job.progress.describe() == "frame 3 / 3, 5 fps, 0 s left"
+    assert progress_text(job.progress) == "frame 3 / 3, 5 fps, 0 s left"
     assert job.poll() is None  # reported once
+
+    # Lines of another version, or not progress lines at all, are passed over: the last
+    # frame and the end shown are those of version 1.
+    other = ['{"progress": 2, "frame": 9, "frames": 9, "fps": 1.0, "eta_s": 0.0}', "rendering...", "[1, 2]",
+             '{"frame": 8, "frames": 9, "fps": 1.0, "eta_s": 1.0}', '{"progress": 1, "frame": "7", "frames": 9}']
+    job = VideoJob(stand_in(PROGRESS + other + [DONE, '{"progress": 2, "done": true, "out": "NEW", "frames": 9}']),
+                   out, doc)
+    result = finish(job)
+    assert result.kind == "done" and result.message.startswith("saved OUT (3 frames")
+    assert job.progress == FrameProgress(3, 3, 5.0, 0.0)
 
     job = VideoJob(stand_in(PROGRESS[:1], "print('error: out.mp4: cannot write', file=sys.stderr)\nsys.exit(2)\n"),
                    out, doc)
@@ -491,8 +506,8 @@ def test_render_video_runs_in_the_background_while_the_window_keeps_drawing(open
         calls.append((scene, document, out))
         return stand_in(PROGRESS[:2], f"while not __import__('os').path.exists({str(release)!r}):\n"
                                       "    time.sleep(0.01)\n"
-                                      f"print({json.dumps(PROGRESS[2])!r}, flush=True)\n"
-                                      f"print(json.dumps({{'done': True, 'out': {str(out)!r}, 'frames': 3}}))\n")
+                                      f"print({PROGRESS[2]!r}, flush=True)\n"
+                                      f"print({line(RenderDone(str(out), 3))!r})\n")
     viewer.paths.video_command = command
     drive.frames(1)
     click(drive, "Render video")
@@ -505,7 +520,7 @@ def test_render_video_runs_in_the_background_while_the_window_keeps_drawing(open
     assert job is not None and job.running
     deadline = time.monotonic() + 20
     frames = viewer.frame_index
-    while job.progress.frame < 2 and time.monotonic() < deadline:
+    while (job.progress is None or job.progress.frame < 2) and time.monotonic() < deadline:
         drive.frames(1)
     drive.frames(2)
     assert job.running and viewer.frame_index >= frames + 3   # frames keep coming while it renders

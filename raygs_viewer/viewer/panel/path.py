@@ -18,7 +18,7 @@ from imgui_bundle import imgui
 from raygs_viewer.camera.path import FOV_RANGE
 from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, remember, slider, tooltip
 from raygs_viewer.viewer.paths import VIDEO_SIZES, PathEditor, Playback
-from raygs_viewer.viewer.video_job import VideoJob
+from raygs_viewer.viewer.video_job import VideoJob, progress_text
 
 LIST_ROWS = 6
 
@@ -211,7 +211,7 @@ def _files(editor: PathEditor, actions: PathActions) -> None:
 def _video(editor: PathEditor, job: VideoJob | None, actions: PathActions) -> None:
     if job is not None and job.running:
         progress = job.progress
-        imgui.progress_bar(progress.fraction, (-80, 0), progress.describe())
+        imgui.progress_bar(0.0 if progress is None else progress.fraction, (-80, 0), progress_text(progress))
         remember("video progress")
         imgui.same_line()
         if imgui.button("Cancel##video"):
