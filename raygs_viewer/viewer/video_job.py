@@ -1,7 +1,8 @@
 """Render video in the background: the window writes its path document to a fresh pair
 of names in the videos folder (``raygs-YYYYmmdd-HHMMSS.json`` and ``.mp4``), then runs
 ``raygs-viewer render-path`` on it as a subprocess (:class:`VideoJob`) and reads its
-progress.
+progress. :class:`VideoRender` is the path widget's part that does this: the folder,
+the size, and the job under way.
 
 The command prints the JSON lines of :mod:`raygs_viewer.capture.progress` on stdout
 (``--progress json``): a frame's progress while it renders, then the render's end,
@@ -17,9 +18,10 @@ import signal
 import subprocess
 import sys
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import datetime
 from pathlib import Path
+from typing import Callable
 
 from raygs_viewer.capture.path_file import PathDocument, save_path_document
 from raygs_viewer.capture.progress import FrameProgress, RenderDone, RenderInterrupted, read_progress_line
@@ -29,6 +31,9 @@ VIDEO_PREFIX = "raygs-"
 _MAX_NAME_ATTEMPTS = 1000
 #: How long closing the window waits for a cancelled job to leave its truncated file.
 CLOSE_WAIT_S = 5.0
+#: Render video's sizes besides the view's own ("view"), "WxH" -> (width, height) per
+#: frame (per eye in the stereo preview).
+VIDEO_SIZES = {"1280x720": (1280, 720), "1920x1080": (1920, 1080), "3840x2160": (3840, 2160)}
 
 
 def render_path_command(scene: str, document: Path, out: Path) -> list[str]:
@@ -193,3 +198,46 @@ class VideoJob:
         for reader in self._readers:
             reader.join(timeout=1.0)
 
+
+class VideoRender:
+    """Render video's part of the path widget: ``folder`` the videos go to, ``size``
+    ("view": the document's own, or a VIDEO_SIZES key), ``command(scene, document,
+    out)`` that renders one (tests run stand-ins), and ``job``, the render under way
+    (None: none)."""
+
+    def __init__(self) -> None:
+        self.folder = "videos"
+        self.size = "view"
+        self.command: Callable[[str, Path, Path], list[str]] = render_path_command
+        self.job: VideoJob | None = None
+
+    @property
+    def running(self) -> bool:
+        return self.job is not None and self.job.running
+
+    def start(self, document: PathDocument, scene: str) -> Path:
+        """Saves ``document`` (at the chosen size) into the folder and starts rendering
+        ``scene`` ("demo" or an absolute path) along it; returns the video's path.
+        UserError when the document cannot be saved or the command not started."""
+        if self.size in VIDEO_SIZES:
+            width, height = VIDEO_SIZES[self.size]
+            document = replace(document, width=width, height=height)
+        saved, out = write_video_document(document, self.folder)
+        self.job = VideoJob(self.command(scene, saved, out), out, saved)
+        return out
+
+    def cancel(self) -> None:
+        if self.job is not None:
+            self.job.cancel()
+
+    def poll(self) -> JobResult | None:
+        """The job's result once it has ended (the job is then forgotten); else None."""
+        result = None if self.job is None else self.job.poll()
+        if result is not None:
+            self.job = None
+        return result
+
+    def close(self) -> None:
+        """Stops a render still under way: it would outlive the window."""
+        if self.job is not None:
+            self.job.close()
