@@ -1,12 +1,15 @@
-"""Driving the real viewer loop in tests: synthetic imgui input, and the images the
-window holds and shows. The ``open_viewer`` fixture (conftest.py) opens viewers with it."""
+"""Driving the real viewer loop in tests: synthetic imgui input, what the panel drew
+and where, and the images the window holds and shows. The ``open_viewer`` fixture
+(conftest.py) opens viewers with it."""
 
 from __future__ import annotations
 
 import threading
 import time
+from dataclasses import dataclass
 
 import numpy as np
+import pytest
 from imgui_bundle import imgui  # before glfw (see raygs_viewer.viewer.window)
 
 from raygs_viewer.capture.image_io import to_rgb8
@@ -14,7 +17,6 @@ from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.loader import load_now
 from raygs_viewer.sort.worker import BackgroundSorter
 from raygs_viewer.viewer.app import Viewer, start_camera
-from raygs_viewer.viewer.panel.widgets import item_rects
 from raygs_viewer.viewer.state import ScreenshotOptions, ViewerOptions
 
 WIDTH, HEIGHT = 192, 144
@@ -22,17 +24,165 @@ PANEL_WIDTH, PANEL_HEIGHT = 640, 800  # room for the whole panel down to the Pat
 PANEL_NAME = "raygs-viewer"  # the panel's imgui window
 
 
-class Driver:
-    """Queues imgui input for the next frames and runs them."""
+# -- what the panel drew, recorded from the test side ----------------------------------------
+#: The imgui functions whose widget a test can name, with the argument that names it: the
+#: label (an id for arrow_button). PanelRecorder wraps them on the imgui module, so the
+#: panel's code carries no hook of its own. A widget kind the panel starts using is added
+#: here when a test needs it; until then naming it fails with the list of what was drawn.
+LABELLED = {name: "label" for name in (
+    "button", "small_button", "checkbox", "radio_button", "slider_float", "slider_int", "input_text",
+    "input_text_with_hint", "input_float", "input_int2", "input_float2", "color_edit3", "combo",
+    "selectable", "collapsing_header")} | {"arrow_button": "str_id"}
+#: Plain text: named by the text itself (imgui gives it no id, so "##" means nothing there).
+TEXTS = ("text", "text_disabled", "text_wrapped")
 
-    def __init__(self, viewer: Viewer):
+
+@dataclass(frozen=True)
+class Widget:
+    """One widget a frame drew: the imgui function that drew it (``kind``), its ``label``
+    as the panel passed it (a text's text, a progress bar's overlay), its screen
+    rectangle (x0, y0, x1, y1), and ``within``: the label of the combo whose open popup
+    holds it (None: the panel's window)."""
+
+    kind: str
+    label: str
+    rect: tuple[float, float, float, float]
+    within: str | None = None
+
+    @property
+    def names(self) -> set[str]:
+        return label_names(self.kind, self.label)
+
+
+def label_names(kind: str, label: str) -> set[str]:
+    """What a test may call a widget: its whole label and, for a widget with an imgui id,
+    its visible text (before "##") and its id suffix ("##..." / "###..."). So
+    "Save##path" answers to "Save##path", "Save" and "##path"; "Play###play" to "Play"
+    and "###play"; "##scrub" to "##scrub". Never the empty string."""
+    if kind in TEXTS or kind == "progress_bar":
+        return {label} - {""}
+    visible, hashes, rest = label.partition("##")
+    return {label, visible, hashes + rest} - {""}
+
+
+class Panel:
+    """The widgets one frame drew, in drawing order. A name must fit exactly one of them:
+    a name never drawn is a KeyError, and so is one that fits several widgets (two with
+    the same visible text), so that a test never clicks the wrong one unawares."""
+
+    def __init__(self) -> None:
+        self.widgets: list[Widget] = []
+
+    def matching(self, name: str, within: str | None = None) -> list[Widget]:
+        """The widgets ``name`` fits: in the window, or with ``within`` (a combo's name)
+        among the entries of that combo's open popup."""
+        scope = self._scope(within)
+        return [w for w in self.widgets if w.within == scope and name in w.names]
+
+    def rect(self, name: str, within: str | None = None) -> tuple[float, float, float, float]:
+        """The screen rectangle of the one widget ``name`` fits (see :meth:`matching`)."""
+        found = self.matching(name, within)
+        if len(found) != 1:
+            where = f" in the popup of {within!r}" if within else ""
+            drawn = [w.label for w in self.widgets if w.within == self._scope(within)]
+            raise KeyError(f"{name!r} fits {len(found)} widgets drawn{where} in the last frame "
+                           f"{[w.label for w in found]}; drawn there: {drawn}")
+        return found[0].rect
+
+    def __contains__(self, name: str) -> bool:
+        """Whether the last frame drew a widget ``name`` fits, in the window."""
+        return bool(self.matching(name))
+
+    def labels(self, kind: str | None = None) -> list[str]:
+        """The labels the last frame drew (of ``kind`` only: "progress_bar", ...), in order."""
+        return [w.label for w in self.widgets if kind is None or w.kind == kind]
+
+    def _scope(self, within: str | None) -> str | None:
+        if within is None:
+            return None
+        opened = {w.within for w in self.widgets if w.within is not None}
+        combos = [label for label in opened if within in label_names("begin_combo", label)]
+        if len(combos) != 1:
+            raise KeyError(f"{within!r} fits {len(combos)} combos open in the last frame; open: {sorted(opened)}")
+        return combos[0]
+
+
+class PanelRecorder:
+    """Wraps imgui's widget functions (``install``): after each, the widget's rectangle
+    (imgui's last item) goes into ``target``, the Panel of the frame being drawn. The
+    Driver of the viewer whose frame starts sets ``target``, so each viewer's widgets
+    land in its own driver's Panel."""
+
+    def __init__(self) -> None:
+        self.target: Panel | None = None
+        self._combos: list[str] = []  # the labels of the combos whose popup is open, innermost last
+
+    def start_frame(self) -> Panel:
+        self.target, self._combos = Panel(), []
+        return self.target
+
+    def install(self, monkeypatch) -> None:
+        """Wraps the functions on the ``imgui`` module object, undone with ``monkeypatch``:
+        the panel looks them up as ``imgui.name`` each time it draws, so it calls the wrappers."""
+        for kind, argument in LABELLED.items():
+            monkeypatch.setattr(imgui, kind, self._labelled(kind, getattr(imgui, kind), argument))
+        for kind in TEXTS:
+            monkeypatch.setattr(imgui, kind, self._labelled(kind, getattr(imgui, kind), "fmt"))
+        progress_bar, begin_combo, end_combo = imgui.progress_bar, imgui.begin_combo, imgui.end_combo
+
+        def progress(fraction, size_arg=None, overlay=None):
+            progress_bar(fraction, size_arg, overlay)
+            self._record("progress_bar", overlay or "")
+
+        def begin(label, *args, **kwargs):
+            opened = begin_combo(label, *args, **kwargs)
+            if opened:  # recorded at end_combo, after the entries of its popup
+                self._combos.append(label)
+            else:
+                self._record("begin_combo", label)
+            return opened
+
+        def end():
+            end_combo()
+            # Ending the popup's window gives imgui's last item back to the combo.
+            self._record("begin_combo", self._combos.pop())
+
+        monkeypatch.setattr(imgui, "progress_bar", progress)
+        monkeypatch.setattr(imgui, "begin_combo", begin)
+        monkeypatch.setattr(imgui, "end_combo", end)
+
+    def _labelled(self, kind: str, draw, argument: str):
+        def wrapper(*args, **kwargs):
+            result = draw(*args, **kwargs)
+            self._record(kind, args[0] if args else kwargs[argument])
+            return result
+        return wrapper
+
+    def _record(self, kind: str, label: str) -> None:
+        if self.target is None:  # drawn before any driven frame
+            return
+        low, high = imgui.get_item_rect_min(), imgui.get_item_rect_max()
+        within = self._combos[-1] if self._combos else None
+        self.target.widgets.append(Widget(kind, label, (low.x, low.y, high.x, high.y), within))
+
+
+class Driver:
+    """Queues imgui input for the next frames and runs them; ``panel``: the widgets the
+    last frame drew (recorded by ``recorder``)."""
+
+    def __init__(self, viewer: Viewer, recorder: PanelRecorder):
         self.viewer = viewer
+        self.recorder = recorder
+        self.panel = Panel()
         self.mouse: tuple[float, float] | None = None
         self._queued: list = []
         viewer.input_script = self._inject
         viewer.fixed_dt = 0.1
 
     def _inject(self, viewer) -> None:
+        # The viewer calls this just before imgui.new_frame(), whoever runs the frame
+        # (frames(), viewer.run()): this frame's widgets replace the last frame's.
+        self.panel = self.recorder.start_frame()
         io = imgui.get_io()
         if self.mouse is not None:  # the GLFW backend overwrites the position every frame
             io.add_mouse_pos_event(*self.mouse)
@@ -82,8 +232,9 @@ class Driver:
         self.frames(1)
 
     def click(self, rect) -> None:
-        """A left click at the centre of ``rect`` (x0, y0, x1, y1)."""
-        x0, y0, x1, y1 = rect
+        """A left click at the centre of ``rect`` (x0, y0, x1, y1), or of the widget it
+        names in the last frame (Panel.rect)."""
+        x0, y0, x1, y1 = self.panel.rect(rect) if isinstance(rect, str) else rect
         self.click_at((x0 + x1) / 2, (y0 + y1) / 2)
 
     def click_at(self, x: float, y: float) -> None:
@@ -99,7 +250,7 @@ class Driver:
         takes the wheel) until the widget ``label`` lies inside its visible part."""
         for _ in range(60):
             panel = imgui.internal.find_window_by_name(PANEL_NAME).inner_clip_rect
-            x0, y0, x1, y1 = item_rects[label]
+            x0, y0, x1, y1 = self.panel.rect(label)
             if y0 >= panel.min.y and y1 <= panel.max.y:
                 return
             self.move_mouse(panel.min.x + 2, (panel.min.y + panel.max.y) / 2)
@@ -109,8 +260,9 @@ class Driver:
         raise AssertionError(f"{label} never came into the panel's view")
 
     def click_left_end(self, rect) -> None:
-        """A left click 2 px inside the left end of ``rect``: a slider's lowest value."""
-        x0, y0, x1, y1 = rect
+        """A left click 2 px inside the left end of ``rect`` (or of the widget it names):
+        a slider's lowest value."""
+        x0, y0, x1, y1 = self.panel.rect(rect) if isinstance(rect, str) else rect
         self.click_at(x0 + 2, (y0 + y1) / 2)
 
 
@@ -136,11 +288,11 @@ def split_expected(a: np.ndarray, b: np.ndarray, column: int) -> np.ndarray:
     return np.concatenate([to_rgb8(a)[:, :column], to_rgb8(b)[:, column:]], axis=1).astype(int)
 
 
-def click_choice(drive: "Driver", tag: str, value: str) -> None:
-    """Opens the panel's combo ``tag`` and picks ``value`` from it."""
-    drive.click(item_rects[tag])
+def click_choice(drive: "Driver", combo: str, entry: str) -> None:
+    """Opens the panel's combo ``combo`` and picks the entry shown as ``entry`` from it."""
+    drive.click(combo)
     drive.frames(1)  # a popup's first frame places it; it is where it stays from the second on
-    drive.click(item_rects[f"{tag} {value}"])
+    drive.click(drive.panel.rect(entry, within=combo))
 
 
 def headless(viewer: Viewer, settings: RenderSettings | None = None) -> np.ndarray:
@@ -156,8 +308,11 @@ def project(camera, point) -> np.ndarray:
 
 def open_viewer_factory(tmp_path):
     """(open_, close_all): open_(scene, hide_panel, **ViewerOptions fields and the Viewer's
-    renderer_factory / sorter_factory) -> (viewer, driver)."""
+    renderer_factory / sorter_factory) -> (viewer, driver). Each driver records its
+    viewer's panel; close_all also takes the recording wrappers off imgui."""
     viewers = []
+    recorder, patches = PanelRecorder(), pytest.MonkeyPatch()
+    recorder.install(patches)
 
     def open_(scene="demo", hide_panel=False, **options):
         options.setdefault("width", WIDTH)
@@ -168,11 +323,14 @@ def open_viewer_factory(tmp_path):
         viewer = Viewer(viewer_options, load_now(scene), start_camera(viewer_options), **factories)
         viewers.append(viewer)
         viewer.panel.show_panel = not hide_panel
-        return viewer, Driver(viewer)
+        return viewer, Driver(viewer, recorder)
 
     def close_all():
-        for viewer in viewers:
-            viewer.close()
+        try:
+            for viewer in viewers:
+                viewer.close()
+        finally:
+            patches.undo()
 
     return open_, close_all
 

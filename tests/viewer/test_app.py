@@ -148,8 +148,7 @@ def test_orbit_mode_drag_keeps_the_target_centred(open_viewer):
 def test_mouse_over_the_panel_does_not_move_the_camera(open_viewer):
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
     drive.frames(2)
-    from raygs_viewer.viewer.panel.widgets import item_rects
-    x0, y0, x1, y1 = item_rects["Reset view"]
+    x0, y0, x1, y1 = drive.panel.rect("Reset view (R)")
     drive.move_mouse(x0 - 2, y0)  # on the panel, beside the button
     drive.frames(1)
     pose = viewer.camera
@@ -167,8 +166,7 @@ def test_panel_click_changes_the_setting_and_the_image(open_viewer):
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
     drive.settle()
     before = window_image(viewer).copy()
-    from raygs_viewer.viewer.panel.widgets import item_rects
-    drive.click(item_rects["background white"])
+    drive.click("white")
     assert list(viewer.settings.background) == [1.0, 1.0, 1.0]
     drive.settle()
     after = window_image(viewer)
@@ -176,7 +174,7 @@ def test_panel_click_changes_the_setting_and_the_image(open_viewer):
     assert_matches(after, headless(viewer, RenderSettings(viewer.settings.p_min, (1.0, 1.0, 1.0), 3)))
 
     # Dragging the SH degree slider to its left end evaluates band 0 only.
-    drive.click_left_end(item_rects["SH degree"])
+    drive.click_left_end("SH degree")
     assert viewer.settings.sh_degree == 0
     drive.settle()
     degree0 = window_image(viewer)
@@ -187,7 +185,6 @@ def test_panel_click_changes_the_setting_and_the_image(open_viewer):
 def test_panel_accuracy_controls_change_the_settings_and_the_image(open_viewer):
     """Every accuracy control of the panel reaches Viewer.settings and redraws the window
     with exactly those settings; controls that do not apply to the mode are greyed out."""
-    from raygs_viewer.viewer.panel.widgets import item_rects
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
     drive.settle()
     expected = RenderSettings(sh_degree=3)
@@ -207,59 +204,55 @@ def test_panel_accuracy_controls_change_the_settings_and_the_image(open_viewer):
             np.testing.assert_array_equal(now, image)
         image = now
 
-    def click(label: str) -> None:
-        drive.click(item_rects[label])
-
-    click_choice(drive, "mode", "gs")
+    click_choice(drive, "mode", "GS (EWA)")
     expected = replace(expected, mode="gs")
     check()
-    click("MIP filter")               # greyed out in GS mode
-    click("opacity modulation")
+    drive.click("MIP filter")          # greyed out in GS mode
+    drive.click("opacity modulation")
     check(changed=False)
-    click("GS compensation")
+    drive.click("GS compensation")
     expected = replace(expected, gs_compensation=True)
     check()
-    click_choice(drive, "mode", "raygs")
+    click_choice(drive, "mode", "RayGS")
     expected = replace(expected, mode="raygs")
     check()
-    click("GS compensation")          # greyed out in RayGS mode
-    click("opacity modulation")       # ... and so is the modulation while MIP is off
+    drive.click("GS compensation")     # greyed out in RayGS mode
+    drive.click("opacity modulation")  # ... and so is the modulation while MIP is off
     check(changed=False)
-    click("MIP filter")
+    drive.click("MIP filter")
     expected = replace(expected, mip=True)
     check()
-    click("opacity modulation")
+    drive.click("opacity modulation")
     expected = replace(expected, mip_modulation=False)
     check()
-    click_choice(drive, "mode", "raygs-exact-mip")
+    click_choice(drive, "mode", "RayGS exact MIP")
     expected = replace(expected, mode="raygs-exact-mip")
     check(changed=None)  # close to the pixel-invariant filter at this scale
-    click("MIP filter")               # always on in exact MIP mode: greyed out, the RayGS choice kept
+    drive.click("MIP filter")          # always on in exact MIP mode: greyed out, the RayGS choice kept
     assert viewer.settings.mip
     # sigma^2 slider: a press at its left end gives 0 px^2
-    drive.click_left_end(item_rects["sigma^2"])
+    drive.click_left_end("sigma^2 (px^2)")
     expected = replace(expected, mip_sigma2=0.0)
     check()
-    click_choice(drive, "mode", "raygs")
-    click_choice(drive, "supersampling", "2")
+    click_choice(drive, "mode", "RayGS")
+    click_choice(drive, "supersampling", "2\u00d72")
     expected = replace(expected, mode="raygs", supersample=2)
     check()
-    click("alpha clamp")
+    drive.click("alpha clamp 0.99")
     expected = replace(expected, alpha_clamp=True)
     check()
     if viewer.renderer.supports(RenderSettings(transmittance_cutoff=True)) is None:
-        click("transmittance cut-off")
+        drive.click("transmittance cut-off 1e-4")
         expected = replace(expected, transmittance_cutoff=True)
         check()
 
 
 def test_controls_this_gpu_cannot_render_are_greyed_out(open_viewer, monkeypatch):
-    from raygs_viewer.viewer.panel.widgets import item_rects
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
     monkeypatch.setattr(viewer.renderer, "supports",
                         lambda settings: "no framebuffer fetch" if settings.transmittance_cutoff else None)
     drive.frames(2)
-    drive.click(item_rects["transmittance cut-off"])
+    drive.click("transmittance cut-off 1e-4")
     assert not viewer.settings.transmittance_cutoff and viewer.panel.error == ""
 
 
@@ -346,12 +339,11 @@ def test_the_sort_is_asked_with_the_cull_of_what_is_shown(open_viewer):
 # -- the A/B split view ---------------------------------------------------------------------
 @pytest.mark.parametrize("preset", ["GS", "RayGS + MIP", "RayGS 2x2 supersampling"])
 def test_split_view_shows_a_left_and_b_right(open_viewer, preset):
-    from raygs_viewer.viewer.panel.widgets import item_rects
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
     drive.frames(2)
-    drive.click(item_rects["split view"])
+    drive.click("split view")
     assert viewer.split.on
-    click_choice(drive, "split preset", preset)
+    click_choice(drive, "##right side", preset)
     assert viewer.split.preset == preset
     drive.tap(imgui.Key.h)  # hide the panel: the whole window shows the scene
     assert not viewer.panel.show_panel
@@ -523,8 +515,7 @@ def test_panel_button_saves_at_the_chosen_scale(open_viewer):
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
     drive.frames(2)
     viewer.screenshots.scale = 2.0
-    from raygs_viewer.viewer.panel.widgets import item_rects
-    drive.click(item_rects["Save screenshot"])
+    drive.click("Save screenshot (F12)")
     png, sidecar = viewer.last_screenshot
     assert Image.open(png).size == (2 * PANEL_WIDTH, 2 * PANEL_HEIGHT)
     assert json.loads(sidecar.read_text())["image"]["scale"] == 2.0
@@ -567,8 +558,7 @@ def test_good_file_opened_replaces_the_scene(open_viewer, tmp_path, route):
     if route == "drop":
         viewer.scenes.drop([str(path)])
     else:  # click into the field, type the path, press Enter
-        from raygs_viewer.viewer.panel.widgets import item_rects
-        drive.click(item_rects["open path"])
+        drive.click("##open")
         drive._queued.append(lambda io: io.add_input_characters_utf8(str(path)))
         drive.frames(1)
         drive.tap(imgui.Key.enter)
@@ -746,8 +736,7 @@ def test_window_shows_the_image_letterboxed_and_the_panel_on_top(open_viewer, tm
     viewer.capture_window_next = True
     drive.frames(1)
     with_panel = viewer.window_capture.astype(int)
-    from raygs_viewer.viewer.panel.widgets import item_rects
-    x0, y0, x1, y1 = (int(v) for v in item_rects["Reset view"])
+    x0, y0, x1, y1 = (int(v) for v in drive.panel.rect("Reset view (R)"))
     assert np.abs(with_panel[y0:y1, x0:x1] - window[y0:y1, x0:x1]).max() > 50  # the panel is drawn
     right = 400  # the panel is 360 wide, at x = 10
     assert np.abs(with_panel[:, right:] - window[:, right:]).max() <= 1  # and not over the rest

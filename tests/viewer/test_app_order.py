@@ -31,7 +31,6 @@ from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import MAX_ORDER_K, RenderSettings, apply_preset
 from raygs_viewer.viewer.drawing import order_for, sort_keys
 from raygs_viewer.viewer.panel.order import gs_fallback_note, with_mode
-from raygs_viewer.viewer.panel.widgets import item_rects
 from raygs_viewer.viewer.state import StereoPreview
 from raygs_viewer.viewer.stats import FrameStats, order_stats_lines, summary
 
@@ -72,7 +71,7 @@ def test_the_panel_sets_the_order_and_k_and_the_next_draw_uses_them(open_viewer)
     viewer, drive = open_recording(open_viewer, width=PANEL_WIDTH, height=PANEL_HEIGHT)
     drive.settle()
     assert viewer.settings.order == "depth" and viewer.sorter.keys[-1] == ("depth",)
-    assert "order K" not in item_rects  # K is shown for per pixel only
+    assert "K (window)" not in drive.panel  # K is shown for per pixel only
 
     click_choice(drive, "order", "distance")
     assert viewer.settings == RenderSettings(sh_degree=3, order="distance")
@@ -86,7 +85,7 @@ def test_the_panel_sets_the_order_and_k_and_the_next_draw_uses_them(open_viewer)
     assert_matches(window_image(viewer), headless(viewer))
     assert viewer.stats.order_stats == (None, None)
 
-    click_choice(drive, "order", "per-pixel")
+    click_choice(drive, "order", "per pixel")
     assert viewer.settings.order == "per-pixel" and viewer.settings.order_k == 0
     drive.settle()
     key = viewer.settings.sort_key  # the global order per pixel is fed in
@@ -96,15 +95,16 @@ def test_the_panel_sets_the_order_and_k_and_the_next_draw_uses_them(open_viewer)
     np.testing.assert_array_equal(order, viewer.renderer.sorter.order(viewer.camera, settings.p_min, key=key))
     assert viewer.stats.order_stats == (replace(LISTS, width=0), None)
     drive.frames(1)
-    assert "order stats left" in item_rects and "order K" in item_rects
+    assert "K (window)" in drive.panel
+    assert all(line in drive.panel for line in order_stats_lines(replace(LISTS, width=0)))
 
-    drive.click(item_rects["order K"])  # the middle of the slider: a window of about half the most
+    drive.click("K (window)")  # the middle of the slider: a window of about half the most
     k = viewer.settings.order_k
     assert 0 < k <= MAX_ORDER_K and viewer.settings.order == "per-pixel"
     drive.settle()
     settings, _ = drawn_into(viewer, viewer.drawer.mono.left)
     assert settings.order_k == k and viewer.stats.order_stats[0].width == k
-    drive.click_left_end(item_rects["order K"])
+    drive.click_left_end("K (window)")
     assert viewer.settings.order_k == 0
     assert_matches(window_image(viewer), headless(viewer))
 
@@ -119,20 +119,20 @@ def test_gs_with_a_per_pixel_order_switches_it_to_distance_and_says_so(open_view
                                    settings=RenderSettings(order="per-pixel", order_k=3))
     drive.settle()
     fallback = RenderSettings(order="per-pixel").sort_key
-    click_choice(drive, "mode", "gs")
+    click_choice(drive, "mode", "GS (EWA)")
     assert viewer.settings == RenderSettings(sh_degree=3, mode="gs", order=fallback, order_k=3)
     assert viewer.panel.message == gs_fallback_note(fallback) and viewer.panel.error == ""
     drive.settle()
     assert drawn_into(viewer, viewer.drawer.mono.left)[0].mode == "gs"
     assert_matches(window_image(viewer), headless(viewer))
     # In GS mode the per-pixel entry is greyed out: choosing it changes nothing.
-    click_choice(drive, "order", "per-pixel")
+    click_choice(drive, "order", "per pixel")
     assert viewer.settings.order == fallback and viewer.panel.error == ""
-    assert "order GS note" in item_rects
-    drive.click(item_rects["order"])  # the greyed-out entry left the combo open: close it
+    assert "(per pixel needs a RayGS mode)" in drive.panel
+    drive.click("order")  # the greyed-out entry left the combo open: close it
     # Back in a RayGS mode it can be chosen again.
-    click_choice(drive, "mode", "raygs")
-    click_choice(drive, "order", "per-pixel")
+    click_choice(drive, "mode", "RayGS")
+    click_choice(drive, "order", "per pixel")
     assert viewer.settings.order == "per-pixel" and viewer.settings.mode == "raygs"
 
 
@@ -184,12 +184,12 @@ def test_the_split_view_panel_shows_each_per_pixel_side(open_viewer):
     viewer.split.on, viewer.split.preset = True, "RayGS, per-pixel order K=4"
     drive.settle()
     drive.frames(1)
-    assert "order stats left" in item_rects and "order stats right" in item_rects
+    assert "left side:" in drive.panel and "right side:" in drive.panel
+    assert all(line in drive.panel for side in viewer.stats.order_stats for line in order_stats_lines(side))
     viewer.split.preset = "RayGS, distance order"
     drive.settle()
-    item_rects.clear()
     drive.frames(1)
-    assert "order stats left" in item_rects and "order stats right" not in item_rects
+    assert "left side:" in drive.panel and "right side:" not in drive.panel
 
 
 def test_a_newly_chosen_key_draws_the_old_order_until_its_sort_is_done():

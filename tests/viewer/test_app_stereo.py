@@ -170,26 +170,25 @@ def test_each_preset_renders_each_eye_at_its_resolution(open_viewer, name):
 
 
 def test_panel_toggles_stereo_picks_a_layout_and_a_headset(open_viewer):
-    from raygs_viewer.viewer.panel.widgets import item_rects
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
-    item_rects.clear()  # (module-wide: rects of an earlier test's panel must not count)
     drive.frames(2)
     viewer.stereo.headset = "custom"
     viewer.stereo.custom_size, viewer.stereo.custom_fov = [EYE.width, EYE.height], [EYE.fov_x, EYE.fov_y]
-    drive.click(item_rects["stereo preview"])
+    drive.click("stereo")
     drive.frames(1)  # panel edits apply from the next frame
     assert viewer.stereo.on and viewer.shown_stereo is not None
-    click_choice(drive, "stereo layout", "anaglyph")
+    click_choice(drive, "layout", "anaglyph (red/cyan)")
     assert viewer.stereo.layout == "anaglyph"
     drive.settle()
     left, right = headless_eyes(viewer)
     assert_matches(composed(viewer), compose(left, right, "anaglyph"))
     assert viewer.right_settings() is None  # no split view in stereo
-    click_choice(drive, "headset", "index")
+    index = PRESETS["index"]  # the entry shows the preset's label, eye size and field of view
+    click_choice(drive, "headset", f"{index.label}: {index.width}x{index.height}, {index.fov_x:g}x{index.fov_y:g} deg")
     drive.frames(1)
     assert viewer.stereo.headset_preset() == PRESETS["index"] and viewer.camera.width == PRESETS["index"].width
     # Off again: the mono view of the window.
-    drive.click(item_rects["stereo preview"])
+    drive.click("stereo")
     drive.settle()
     assert not viewer.stereo.on and viewer.shown_stereo is None
     assert viewer.camera.width == PANEL_WIDTH
@@ -210,14 +209,12 @@ def test_a_custom_headset_out_of_range_is_a_panel_error_and_the_preview_stays(op
 
 
 def test_frame_budget_meter_reports_both_eyes_against_each_rate(open_viewer):
-    from raygs_viewer.viewer.panel.widgets import item_rects
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT, stereo=StereoPreview.of(EYE, on=True))
     drive.settle()
     drive.frames(3)
     seconds = viewer.stats.gpu_seconds
     assert np.isfinite(seconds) and seconds > 0 and np.isfinite(viewer.stats.post_seconds)
-    for rate in (72, 90, 120):
-        assert f"budget {rate}" in item_rects
+    assert [bar.split(" Hz ")[0] for bar in drive.panel.labels("progress_bar")] == ["72", "90", "120"]
     # Each redraw is one reading of the eyes' timer and one of the post passes'.
     draws = viewer.stats.draws
     viewer.stereo.rig = replace(viewer.stereo.rig, ipd=0.05)
@@ -289,23 +286,20 @@ def test_stereo_screenshot_at_scale_and_with_the_lens(open_viewer, tmp_path):
 
 def test_stereo_sliders_set_the_rig_in_its_units(open_viewer):
     from raygs_viewer.viewer.panel.stereo import CONVERGENCE_RANGE, IPD_MM_RANGE, SCENE_SCALE_RANGE
-    from raygs_viewer.viewer.panel.widgets import item_rects
     # Tall enough for the whole panel with its Stereo section.
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=1100, stereo=StereoPreview.of(EYE, on=True))
-    item_rects.clear()
     drive.frames(2)
-    assert item_rects["scene scale"][3] < 1100
+    assert drive.panel.rect("scene scale (m/unit)")[3] < 1100
 
-    def click_end(tag, right):
-        x0, y0, x1, y1 = item_rects[tag]  # the slider's frame, then its label
-        label = {"IPD": "IPD (mm)", "convergence": "convergence (m)", "scene scale": "scene scale (m/unit)"}[tag]
+    def click_end(label, right):
+        x0, y0, x1, y1 = drive.panel.rect(label)  # the slider's frame, then its label
         x1 -= imgui.calc_text_size(label).x + imgui.get_style().item_inner_spacing.x
         drive.click_at(x1 - 2 if right else x0 + 2, (y0 + y1) / 2)
         drive.frames(1)
 
-    click_end("IPD", right=True)       # the slider shows millimetres; the rig takes metres
-    click_end("convergence", right=False)
-    click_end("scene scale", right=True)
+    click_end("IPD (mm)", right=True)  # the slider shows millimetres; the rig takes metres
+    click_end("convergence (m)", right=False)
+    click_end("scene scale (m/unit)", right=True)
     rig = viewer.stereo.view().rig
     assert rig.ipd == pytest.approx(IPD_MM_RANGE[1] / 1000)
     assert rig.convergence == pytest.approx(CONVERGENCE_RANGE[0])

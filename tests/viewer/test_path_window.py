@@ -12,7 +12,7 @@ from pathlib import Path
 import av
 import numpy as np
 import pytest
-from appkit import PANEL_HEIGHT, PANEL_WIDTH, WIDTH, project
+from appkit import PANEL_HEIGHT, PANEL_WIDTH, WIDTH, click_choice, project
 from imgui_bundle import imgui  # before glfw (see raygs_viewer.viewer.window)
 from PIL import Image
 
@@ -21,7 +21,6 @@ from raygs_viewer.camera.path import CameraPath, Keyframe
 from raygs_viewer.capture.path_file import load_path_document, save_path_document
 from raygs_viewer.capture.progress import FrameProgress, RenderDone, RenderInterrupted, progress_line
 from raygs_viewer.cli.main import main
-from raygs_viewer.viewer.panel.widgets import item_rects
 from raygs_viewer.viewer.path_overlay import frustum_lines, screen_segments
 from raygs_viewer.viewer.video_job import (
     VIDEO_SIZES,
@@ -35,10 +34,11 @@ PATH_PANEL = {"width": PANEL_WIDTH, "height": PANEL_HEIGHT}
 
 
 def click(drive, label: str) -> None:
-    """Clicks the panel's widget ``label``, scrolling the panel to it first."""
+    """Clicks the panel's widget ``label`` (appkit.Panel's names: the label as the panel
+    passes it to imgui), scrolling the panel to it first."""
     drive.frames(1)  # the panel as it is now (an edit may have moved the widgets)
     drive.reveal(label)
-    drive.click(item_rects[label])
+    drive.click(label)
 
 
 def same_pose(a: Pose, b: Pose) -> bool:
@@ -93,27 +93,27 @@ def test_k_adds_the_current_view_after_the_selected_keyframe(open_viewer):
 def test_panel_buttons_add_select_reorder_delete_and_retime(open_viewer):
     viewer, drive = open_viewer(**PATH_PANEL)
     drive.frames(2)
-    click(drive, "Add view")
+    click(drive, "Add view (K)")
     a = viewer.view.navigator.pose
     drive.key(imgui.Key.w, True)
     drive.frames(1)
     drive.key(imgui.Key.w, False)
     drive.frames(1)
-    click(drive, "Add view")
+    click(drive, "Add view (K)")
     b = viewer.view.navigator.pose
     path = viewer.camera_path.path
     assert len(path.keyframes) == 2 and same_pose(path.keyframes[0].pose, a) and same_pose(path.keyframes[1].pose, b)
 
-    click(drive, "keyframe 0")
+    click(drive, "##keyframe0")
     assert viewer.camera_path.selected == 0
-    click(drive, "Keyframe down")
+    click(drive, "Down##keyframe")
     assert [same_pose(k.pose, p) for k, p in zip(viewer.camera_path.path.keyframes, (b, a))] == [True, True]
     assert viewer.camera_path.selected == 1  # the moved keyframe stays selected
-    click(drive, "Keyframe up")
+    click(drive, "Up##keyframe")
     assert same_pose(viewer.camera_path.path.keyframes[0].pose, a)
 
     # Retime: "auto time" off pins the keyframe at its current time; the field then sets it.
-    click(drive, "keyframe 1")
+    click(drive, "##keyframe1")
     click(drive, "auto time")
     assert viewer.camera_path.path.keyframes[1].time == pytest.approx(viewer.camera_path.path.duration)
     viewer.camera_path.set_time(1, 7.5)   # what typing into the time field does
@@ -140,11 +140,11 @@ def test_panel_buttons_add_select_reorder_delete_and_retime(open_viewer):
         assert same_pose(keyframe.pose, Keyframe.of_camera(camera).pose)
         assert keyframe.fov_y_degrees == pytest.approx(Keyframe.of_camera(camera).fov_y_degrees)
 
-    click(drive, "keyframe 0")
-    click(drive, "Delete keyframe")
+    click(drive, "##keyframe0")
+    click(drive, "Delete##keyframe")
     assert len(viewer.camera_path.path.keyframes) == 1 + len(cameras)
     assert same_pose(viewer.camera_path.path.keyframes[0].pose, b)
-    click(drive, "Clear path")
+    click(drive, "Clear##path")
     assert viewer.camera_path.path.keyframes == () and viewer.camera_path.selected is None
 
 
@@ -154,9 +154,9 @@ def test_go_to_shows_the_keyframe_and_generators_replace_the_path(open_viewer):
     camera = viewer.camera
     viewer.camera_path.add([keyframe_ahead(camera, 1.0, fov=40.0), keyframe_ahead(camera, 2.0)])
     drive.frames(1)
-    drive.reveal("duration")  # a list box scrolled out of the panel draws no rows
-    click(drive, "keyframe 0")
-    click(drive, "Go to keyframe")
+    drive.reveal("duration (s)")  # a list box scrolled out of the panel draws no rows
+    click(drive, "##keyframe0")
+    click(drive, "Go to##keyframe")
     drive.frames(1)  # the panel's edits show from the next frame
     assert same_pose(viewer.view.navigator.pose, viewer.camera_path.path.keyframes[0].pose)
     assert viewer.view.lens.fov_y_degrees == 40.0
@@ -183,7 +183,7 @@ def test_play_follows_the_path_and_an_open_path_stops_at_its_end(open_viewer):
     viewer.camera_path.add([keyframe_ahead(camera, 0.0), keyframe_ahead(camera, 1.0, 0.5, fov=40.0),
                       keyframe_ahead(camera, 2.0, fov=70.0)])
     viewer.camera_path.set_duration(0.55)
-    click(drive, "Play")
+    click(drive, "Play###play")
     assert viewer.camera_path.playback.playing
     drive.frames(1)  # the panel's edits show from the next frame: its first frame of playback
     start = viewer.camera_path.playback.time
@@ -203,13 +203,13 @@ def test_play_follows_the_path_and_an_open_path_stops_at_its_end(open_viewer):
 
     # Play at the end starts over; a loop wraps instead of stopping.
     viewer.camera_path.set_loop(True)
-    click(drive, "Play")
+    click(drive, "Play###play")
     assert viewer.camera_path.playback.playing and viewer.camera_path.playback.time < 0.55
     drive.frames(8)
     assert viewer.camera_path.playback.playing
     assert 0.0 <= viewer.camera_path.playback.time < 0.55
     shows_pose_at(viewer, viewer.camera_path.playback.time)
-    click(drive, "Play")  # now Pause
+    click(drive, "Pause###play")  # the same button, playing
     assert not viewer.camera_path.playback.playing
 
 
@@ -245,21 +245,21 @@ def test_scrub_and_step_show_the_path_at_that_time(open_viewer):
     viewer.camera_path.set_duration(1.0)
     viewer.camera_path.set_fps(10.0)
     drive.frames(1)
-    drive.reveal("Scrub")
-    drive.click(item_rects["Scrub"])  # the slider's middle: about half the duration
+    drive.reveal("##scrub")
+    drive.click("##scrub")  # the slider's middle: about half the duration
     drive.frames(1)
     start = viewer.camera_path.playback.time
     assert 0.2 < start < 0.8 and not viewer.camera_path.playback.playing
     shows_pose_at(viewer, start)
     frame = viewer.camera_path.playback.frame_number(viewer.camera_path.path)
     for _ in range(3):
-        click(drive, "Step forward")
+        click(drive, "##step forward")
     drive.frames(1)
     assert viewer.camera_path.playback.frame_number(viewer.camera_path.path) == frame + 3
     # 10 frames over 1 s, the first and last on the path's ends: one each 1/9 s
     assert viewer.camera_path.playback.time == pytest.approx((frame + 3) / 9)
     shows_pose_at(viewer, viewer.camera_path.playback.time)
-    click(drive, "Step back")
+    click(drive, "##step back")
     drive.frames(1)
     assert viewer.camera_path.playback.frame_number(viewer.camera_path.path) == frame + 2
     shows_pose_at(viewer, viewer.camera_path.playback.time)
@@ -337,22 +337,22 @@ def test_save_and_load_through_the_panel_round_trip(open_viewer, tmp_path):
     file = tmp_path / "fly.json"
     viewer.camera_path.file = str(file)   # what typing into the file field does
     drive.frames(1)
-    click(drive, "Save path")
+    click(drive, "Save##path")
     assert file.exists() and viewer.panel.message == f"saved {file}"
     document = load_path_document(file)
     assert (document.width, document.height) == (viewer.camera.width, viewer.camera.height)
     assert document.settings == viewer.settings and document.stereo is None
     assert document.scene_path == "demo" and document.scene_sha256 == viewer.loaded.sha256
 
-    click(drive, "Save path")  # never replaces it unless asked to
+    click(drive, "Save##path")  # never replaces it unless asked to
     assert "already exists" in viewer.panel.error
     viewer.camera_path.set_fps(12.0)
-    click(drive, "overwrite path")
-    click(drive, "Save path")
+    click(drive, "overwrite")
+    click(drive, "Save##path")
     assert viewer.panel.error == "" and load_path_document(file).path.fps == 12.0
     saved = viewer.camera_path.path
-    click(drive, "Clear path")
-    click(drive, "Load path")
+    click(drive, "Clear##path")
+    click(drive, "Load##path")
     loaded = viewer.camera_path.path
     assert viewer.panel.error == "" and viewer.panel.message.startswith(f"loaded {file}: 2 keyframes")
     assert (loaded.duration, loaded.fps, loaded.interpolation.loop) == (4.0, saved.fps, True)
@@ -375,7 +375,7 @@ def test_save_and_load_through_the_panel_round_trip(open_viewer, tmp_path):
     other = tmp_path / "other.json"
     save_path_document(replace(document, scene_path="/elsewhere/scene.ply", scene_sha256="0" * 64), other)
     viewer.camera_path.file = str(other)
-    click(drive, "Load path")
+    click(drive, "Load##path")
     assert len(viewer.camera_path.path.keyframes) == 2
     assert "recorded on" in viewer.panel.message and viewer.panel.error == ""
 
@@ -384,13 +384,13 @@ def test_save_and_load_through_the_panel_round_trip(open_viewer, tmp_path):
 def test_a_bad_path_file_gives_an_error_line_and_keeps_the_path(open_viewer, tmp_path, content):
     viewer, drive = open_viewer(**PATH_PANEL)
     drive.frames(1)
-    click(drive, "Add view")
+    click(drive, "Add view (K)")
     before = viewer.camera_path.path
     file = tmp_path / "bad.json"
     if content is not None:
         file.write_text(content)
     viewer.camera_path.file = str(file)
-    click(drive, "Load path")
+    click(drive, "Load##path")
     assert viewer.panel.error.startswith("error: path not loaded: ") and "\n" not in viewer.panel.error
     assert viewer.camera_path.path is before
 
@@ -533,7 +533,8 @@ def test_render_video_runs_in_the_background_while_the_window_keeps_drawing(open
         drive.frames(1)
     drive.frames(2)
     assert job.running and viewer.frame_index >= frames + 3   # frames keep coming while it renders
-    assert "video progress" in item_rects and "Cancel video" in item_rects
+    # The job waits for the release after its second frame: the bar's text stands still.
+    assert drive.panel.labels("progress_bar") == [progress_text(job.progress)] and "Cancel##video" in drive.panel
     release.write_text("go")
     while viewer.camera_path.video.job is not None and time.monotonic() < deadline:
         drive.frames(1)
@@ -545,14 +546,14 @@ def test_render_video_runs_in_the_background_while_the_window_keeps_drawing(open
 def test_cancel_and_closing_the_window_stop_the_job(open_viewer, tmp_path):
     viewer, drive = open_viewer(**PATH_PANEL)
     drive.frames(1)
-    click(drive, "Add view")
+    click(drive, "Add view (K)")
     viewer.camera_path.video.folder = str(tmp_path / "videos")
     viewer.camera_path.video.command = lambda scene, document, out: INTERRUPTIBLE
     click(drive, "Render video")
     job = viewer.camera_path.video.job
     wait_for_progress(job, drive)
     deadline = time.monotonic() + 20
-    click(drive, "Cancel video")
+    click(drive, "Cancel##video")
     while viewer.camera_path.video.job is not None and time.monotonic() < deadline:
         drive.frames(1)
         time.sleep(0.01)
@@ -625,8 +626,9 @@ def test_render_video_button_runs_the_real_render_path(open_viewer, tmp_path, mo
     viewer.camera_path.set_duration(0.3)
     viewer.camera_path.set_fps(10)
     viewer.camera_path.video.folder = str(tmp_path / "videos")
-    click(drive, "video size")
-    click(drive, "video size 1280x720")
+    drive.frames(1)
+    drive.reveal("##video size")
+    click_choice(drive, "##video size", "1280x720")
     assert viewer.camera_path.video.size == "1280x720"
     monkeypatch.setitem(VIDEO_SIZES, "1280x720", (64, 36))   # the choice, at a test's size
     click(drive, "Render video")

@@ -2,8 +2,9 @@
 view, training cameras, screenshot), each drawing from and editing only the state it is
 given, and the panel's two message lines under them.
 
-Edits apply from the next frame on: the frame reads the state each time.
-``widgets.item_rects`` keeps where each labelled widget was drawn, for tests.
+Edits apply from the next frame on: the frame reads the state each time. Tests find
+the widgets by their imgui labels (tests/appkit.py records them): the panel carries no
+hook for them.
 """
 
 from __future__ import annotations

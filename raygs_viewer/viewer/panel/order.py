@@ -22,7 +22,7 @@ from raygs_viewer.render.settings import (
     ORDERS,
     RenderSettings,
 )
-from raygs_viewer.viewer.panel.widgets import choice, header, remember, tooltip
+from raygs_viewer.viewer.panel.widgets import choice, header, tooltip
 from raygs_viewer.viewer.stats import FrameStats, order_stats_lines
 
 PER_PIXEL_NEEDS_RAYGS = "per pixel needs a RayGS mode: EWA splats have no ray parameter to sort by"
@@ -69,13 +69,11 @@ def draw_order_section(settings: RenderSettings, set_settings: Callable[[RenderS
     if edited.per_pixel:
         k = edited.order_k
         changed, k = imgui.slider_int("K (window)", k, 0, MAX_ORDER_K, "exact" if k == 0 else "%d per pixel")
-        remember("order K")
         tooltip(K_HELP)
         if changed:
             edited = replace(edited, order_k=min(max(int(k), 0), MAX_ORDER_K))
     elif gs:
         imgui.text_disabled("(per pixel needs a RayGS mode)")
-        remember("order GS note")
     if edited != settings:
         set_settings(edited)
     _statistics(stats, split_shown)
@@ -90,4 +88,3 @@ def _statistics(stats: FrameStats, split_shown: bool) -> None:
             imgui.text(f"{name} side:")
         for line in order_stats_lines(side):
             imgui.text_disabled(line)
-        remember(f"order stats {name}")

@@ -12,7 +12,7 @@ from __future__ import annotations
 from imgui_bundle import imgui
 
 from raygs_viewer.camera.path import FOV_RANGE
-from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, remember, slider, tooltip
+from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, slider, tooltip
 from raygs_viewer.viewer.path_widget import PathWidget
 from raygs_viewer.viewer.video_job import VIDEO_SIZES, progress_text
 
@@ -33,7 +33,6 @@ def draw_path_section(widget: PathWidget) -> None:
 def _generators(widget: PathWidget) -> None:
     if imgui.button("Add view (K)"):
         widget.add_view()
-    remember("Add view")
     tooltip("the current view as a keyframe, after the selected one (or at the end)")
     imgui.same_line()
     training = widget.has_training_cameras
@@ -41,26 +40,21 @@ def _generators(widget: PathWidget) -> None:
     if imgui.button("Add training cameras"):
         widget.add_training_cameras()
     imgui.end_disabled()
-    remember("Add training cameras")
     tooltip("every training camera, in order" if training else "this scene has no training cameras")
     imgui.same_line()
     if imgui.button("Clear##path"):
         widget.clear()
-    remember("Clear path")
     if imgui.button("Orbit"):
         widget.orbit()
-    remember("Orbit")
     tooltip("replace the path by a turntable lap around the scene's centre, from the current heading")
     imgui.same_line()
     if imgui.button("Dolly"):
         widget.dolly()
-    remember("Dolly")
     tooltip("replace the path by a straight move from the current view along its direction "
             "(negative: backwards)")
     imgui.same_line()
     imgui.set_next_item_width(120)
     _, widget.dolly_distance = imgui.input_float("units##dolly", widget.dolly_distance, 0.0, 0.0, "%.3g")
-    remember("dolly distance")
 
 
 def _keyframes(widget: PathWidget) -> None:
@@ -73,7 +67,6 @@ def _keyframes(widget: PathWidget) -> None:
             label = f"{i}: {times[i]:.2f} s ({timing}), {keyframe.fov_y_degrees:.1f} deg##keyframe{i}"
             if imgui.selectable(label, widget.selected == i)[0]:
                 widget.select(i)
-            remember(f"keyframe {i}")
         if not path.keyframes:
             imgui.text_disabled("no keyframes: Add view (K), or a generator above")
         imgui.end_list_box()
@@ -81,16 +74,15 @@ def _keyframes(widget: PathWidget) -> None:
     if index is None or index >= len(path.keyframes):
         return
     keyframe = path.keyframes[index]
-    for label, tag, action in (("Go to", "Go to keyframe", lambda: widget.go_to(index)),
-                               ("Delete", "Delete keyframe", lambda: widget.delete(index)),
-                               ("Up", "Keyframe up", lambda: widget.move(index, -1)),
-                               ("Down", "Keyframe down", lambda: widget.move(index, +1))):
+    for label, action in (("Go to", lambda: widget.go_to(index)),
+                          ("Delete", lambda: widget.delete(index)),
+                          ("Up", lambda: widget.move(index, -1)),
+                          ("Down", lambda: widget.move(index, +1))):
         if imgui.button(f"{label}##keyframe"):
             action()
-        remember(tag)
         imgui.same_line()
     imgui.new_line()
-    auto = checkbox("auto time", keyframe.time is None, "auto time",
+    auto = checkbox("auto time", keyframe.time is None,
                     help_text="placed by the path's even pacing; off: at the time typed beside it")
     if auto != (keyframe.time is None):
         widget.set_time(index, None if auto else float(times[index]))
@@ -100,34 +92,30 @@ def _keyframes(widget: PathWidget) -> None:
     changed, seconds = imgui.input_float("s##keyframe time", float(times[index]), 0.0, 0.0, "%.3f",
                                          imgui.InputTextFlags_.enter_returns_true.value)
     imgui.end_disabled()
-    remember("keyframe time")
     if changed and not auto:
         widget.set_time(index, seconds)
     fov = slider("fov##keyframe", keyframe.fov_y_degrees, *FOV_RANGE, "%.1f deg")
-    remember("keyframe fov")
     if fov is not None:
         widget.set_fov(index, min(max(fov, FOV_RANGE[0]), FOV_RANGE[1]))
 
 
 def _timing(widget: PathWidget) -> None:
     path = widget.path
-    loop = checkbox("loop", path.interpolation.loop, "loop",
+    loop = checkbox("loop", path.interpolation.loop,
                     help_text="back from the last keyframe to the first, and around again")
     if loop != path.interpolation.loop:
         widget.set_loop(loop)
     imgui.same_line()
-    widget.show = checkbox("show path", widget.show, "show path",
+    widget.show = checkbox("show path", widget.show,
                            help_text="draw the path and its keyframes' frustums over the view")
     enter = imgui.InputTextFlags_.enter_returns_true.value
     imgui.set_next_item_width(120)
     changed, seconds = imgui.input_float("duration (s)", path.duration, 0.0, 0.0, "%.2f", enter)
-    remember("duration")
     if changed:
         widget.set_duration(seconds)
     imgui.same_line()
     imgui.set_next_item_width(80)
     changed, fps = imgui.input_float("fps", path.fps, 0.0, 0.0, "%.3g", enter)
-    remember("fps")
     if changed:
         widget.set_fps(fps)
     imgui.text_disabled(f"{len(path.keyframes)} keyframes, {path.frame_count} frames")
@@ -141,21 +129,17 @@ def _playback(widget: PathWidget) -> None:
             widget.pause()
         else:
             widget.play()
-    remember("Play")
     imgui.same_line()
     if imgui.arrow_button("##step back", imgui.Dir.left):
         widget.step(-1)
-    remember("Step back")
     tooltip("one frame back")
     imgui.same_line()
     if imgui.arrow_button("##step forward", imgui.Dir.right):
         widget.step(+1)
-    remember("Step forward")
     tooltip("one frame on")
     imgui.same_line()
     imgui.set_next_item_width(-1)
     scrub = slider("##scrub", min(playback.time, path.duration), 0.0, path.duration, "%.2f s")
-    remember("Scrub")
     imgui.end_disabled()
     if scrub is not None:
         widget.seek(scrub)
@@ -167,26 +151,22 @@ def _playback(widget: PathWidget) -> None:
 def _files(widget: PathWidget) -> None:
     imgui.set_next_item_width(-190)
     _, widget.file = imgui.input_text_with_hint("##path file", "path.json", widget.file)
-    remember("path file")
     imgui.same_line()
     imgui.begin_disabled(not widget.path.keyframes)
     if imgui.button("Save##path"):
         widget.save()
     imgui.end_disabled()
-    remember("Save path")
     imgui.same_line()
     if imgui.button("Load##path"):
         widget.load()
-    remember("Load path")
     tooltip("a path JSON saved here, or a nerfstudio camera_path file")
     imgui.begin_disabled(not widget.path.keyframes)
     if imgui.button("Export nerfstudio"):
         widget.export_nerfstudio()
     imgui.end_disabled()
-    remember("Export nerfstudio")
     tooltip("save the path as a nerfstudio camera_path file (every frame, and the keyframes for its viewer)")
     imgui.same_line()
-    widget.overwrite = checkbox("overwrite", widget.overwrite, "overwrite path",
+    widget.overwrite = checkbox("overwrite", widget.overwrite,
                                 help_text="let Save replace an existing file")
 
 
@@ -195,25 +175,20 @@ def _video(widget: PathWidget) -> None:
     if video.running:
         progress = video.job.progress
         imgui.progress_bar(0.0 if progress is None else progress.fraction, (-80, 0), progress_text(progress))
-        remember("video progress")
         imgui.same_line()
         if imgui.button("Cancel##video"):
             widget.cancel_video()
-        remember("Cancel video")
         return
     imgui.begin_disabled(not widget.path.keyframes)
     if imgui.button("Render video"):
         widget.render_video()
     imgui.end_disabled()
-    remember("Render video")
     tooltip("render-path in the background: the path and the current render settings, saved as "
             "<folder>/raygs-<time>.json and .mp4")
     imgui.same_line()
     imgui.set_next_item_width(110)
-    video.size = choice("##video size", video.size, {"view": "view's size", **{size: size for size in VIDEO_SIZES}},
-                        "video size")
+    video.size = choice("##video size", video.size, {"view": "view's size", **{size: size for size in VIDEO_SIZES}})
     tooltip("each frame's size (each eye's in the stereo preview)")
     imgui.same_line()
     imgui.set_next_item_width(-1)
     _, video.folder = imgui.input_text("##video folder", video.folder)
-    remember("video folder")

@@ -22,7 +22,7 @@ from raygs_viewer.render.settings import (
     RenderSettings,
 )
 from raygs_viewer.viewer.panel.order import with_mode
-from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, remember, slider, tooltip
+from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, slider, tooltip
 from raygs_viewer.viewer.state import SplitView, StereoPreview
 from raygs_viewer.viewer.window import Window
 
@@ -51,14 +51,12 @@ def draw_render_section(settings: RenderSettings, set_settings: Callable[[Render
     # The slider also shows the kappa = -2 ln(p_min / o) it implies at opacity 1.
     kappa = f"  kappa {-2 * math.log(edited.p_min):.2f}"
     p_min = slider("p_min", edited.p_min, *P_MIN_RANGE, "%.5f" + kappa, logarithmic=True)
-    remember("p_min")
     tooltip("opacity cut-off: a gaussian's support is kappa = -2 ln(p_min / o);\n"
             "the slider shows kappa at opacity o = 1")
     if p_min is not None:
         edited = replace(edited, p_min=min(max(p_min, P_MIN_RANGE[0]), P_MIN_RANGE[1]))
     edited = _accuracy_controls(edited, supports)
     changed, degree = imgui.slider_int("SH degree", edited.sh_degree, 0, scene_sh_degree)
-    remember("SH degree")
     if changed:
         edited = replace(edited, sh_degree=min(max(degree, 0), scene_sh_degree))
     changed, color = imgui.color_edit3("background", list(edited.background))
@@ -67,7 +65,6 @@ def draw_render_section(settings: RenderSettings, set_settings: Callable[[Render
     for name, value in (("black", 0.0), ("grey", 0.5), ("white", 1.0)):
         if imgui.small_button(name):
             edited = replace(edited, background=(value,) * 3)
-        remember(f"background {name}")
         imgui.same_line()
     if edited != settings:
         set_settings(edited)
@@ -103,7 +100,6 @@ def _accuracy_controls(settings: RenderSettings, supports: Supports) -> RenderSe
     imgui.begin_disabled(not filtered)
     sigma2 = slider("sigma^2 (px^2)", settings.mip_sigma2, *SIGMA2_RANGE, "%.3f")
     imgui.end_disabled()
-    remember("sigma^2")
     tooltip("the MIP filter's variance in px^2 of the rendered image (default 0.1).\n"
             "Ctrl-click to type a value (up to 100).")
     if sigma2 is not None:

@@ -8,7 +8,7 @@ from typing import Callable
 from imgui_bundle import imgui
 
 from raygs_viewer.scene.loader import LoadedScene, SceneLoader
-from raygs_viewer.viewer.panel.widgets import header, remember
+from raygs_viewer.viewer.panel.widgets import header
 from raygs_viewer.viewer.state import PanelState
 
 
@@ -27,10 +27,8 @@ def draw_scene_section(loaded: LoadedScene, panel: PanelState, open_scene: Calla
     entered, panel.open_path = imgui.input_text_with_hint(
         "##open", ".ply .splat .spz .sog (or drop a file)", panel.open_path,
         imgui.InputTextFlags_.enter_returns_true.value)
-    remember("open path")
     imgui.same_line()
     if imgui.button("Open") or entered:
         open_scene(panel.open_path)
-    remember("Open")
     if loader.busy:
         imgui.progress_bar(loader.progress, (-1, 0), loader.stage)

@@ -8,7 +8,7 @@ from typing import Callable
 from imgui_bundle import imgui
 
 from raygs_viewer.camera.pinhole import Camera
-from raygs_viewer.viewer.panel.widgets import header, remember
+from raygs_viewer.viewer.panel.widgets import header
 from raygs_viewer.viewer.state import ScreenshotOptions
 
 SCALE_CHOICES = (1.0, 2.0, 4.0, 8.0)
@@ -35,7 +35,6 @@ def draw_screenshot_section(options: ScreenshotOptions, camera: Camera | None, s
     _, options.folder = imgui.input_text("folder", options.folder)
     if imgui.button("Save screenshot (F12)"):
         request()
-    remember("Save screenshot")
     if stereo_shown and save_eyes:
         imgui.same_line()
         imgui.text_disabled("(-pair, -left, -right)")

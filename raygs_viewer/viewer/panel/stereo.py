@@ -10,7 +10,7 @@ from dataclasses import replace
 from imgui_bundle import imgui
 
 from raygs_viewer.camera.stereo import MAX_EYE_SIZE, MAX_FOV, MIN_FOV, PRESETS, frame_budget
-from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, ms, remember, slider, tooltip
+from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, ms, slider, tooltip
 from raygs_viewer.viewer.state import StereoPreview
 from raygs_viewer.viewer.stats import FrameStats
 
@@ -52,17 +52,14 @@ def draw_stereo_section(stereo: StereoPreview, stats: FrameStats) -> None:
 def _rig_controls(stereo: StereoPreview) -> None:
     rig = stereo.rig
     ipd_mm = slider("IPD (mm)", rig.ipd * 1000.0, *IPD_MM_RANGE, "%.1f")
-    remember("IPD")
     tooltip("distance between the eyes (default 63 mm). Ctrl-click to type a value.")
     if ipd_mm is not None:
         rig = replace(rig, ipd=min(max(ipd_mm / 1000.0, 0.0), 1.0))
     convergence = slider("convergence (m)", rig.convergence, *CONVERGENCE_RANGE, "%.2f", logarithmic=True)
-    remember("convergence")
     tooltip("distance of the plane both eyes see at the same pixel (zero disparity)")
     if convergence is not None:
         rig = replace(rig, convergence=min(max(convergence, 1e-3), 1e6))
     scale = slider("scene scale (m/unit)", rig.scene_scale, *SCENE_SCALE_RANGE, "%.4g", logarithmic=True)
-    remember("scene scale")
     tooltip("metres per scene unit: how big the scene feels (larger: the scene looks smaller)")
     if scale is not None and scale > 0:
         rig = replace(rig, scene_scale=min(max(scale, 1e-9), 1e9))
@@ -81,6 +78,5 @@ def _budget(stats: FrameStats) -> None:
         text = (f"{rate} Hz ({budget * 1000:.1f} ms): "
                 + (f"{fraction:.1f}x over" if over else f"{fraction * 100:.0f} %" if math.isfinite(fraction) else "-"))
         imgui.progress_bar(min(fraction, 1.0) if math.isfinite(fraction) else 0.0, (-1, 0), text)
-        remember(f"budget {rate}")
         if over:
             imgui.pop_style_color()

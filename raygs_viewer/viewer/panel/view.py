@@ -8,7 +8,7 @@ from typing import Callable
 from imgui_bundle import imgui
 
 from raygs_viewer.camera.navigation import UP_AXES, Navigator
-from raygs_viewer.viewer.panel.widgets import header, remember, slider, tooltip
+from raygs_viewer.viewer.panel.widgets import header, slider, tooltip
 
 FOV_RANGE = (10.0, 120.0)
 
@@ -22,7 +22,6 @@ def draw_view_section(navigator: Navigator, fov_y_degrees: float, set_fov: Calla
     for mode in ("fly", "orbit"):
         if imgui.radio_button(mode, navigator.mode == mode):
             navigator.set_mode(mode)
-        remember(mode)
         imgui.same_line()
     imgui.text_disabled("(Tab)")
     axes = list(UP_AXES)
@@ -37,4 +36,3 @@ def draw_view_section(navigator: Navigator, fov_y_degrees: float, set_fov: Calla
     imgui.same_line()
     if imgui.button("Reset view (R)"):
         reset_view()
-    remember("Reset view")

@@ -1,23 +1,10 @@
-"""The widgets every panel section shares, and where each labelled one was drawn.
-
-``item_rects`` keeps the last frame's rectangle of each labelled widget, for tests
-that click on them.
-"""
+"""The widgets every panel section shares."""
 
 from __future__ import annotations
 
 import math
 
 from imgui_bundle import imgui
-
-#: label -> (x0, y0, x1, y1) in screen coordinates of the last frame's widget.
-item_rects: dict[str, tuple[float, float, float, float]] = {}
-
-
-def remember(label: str) -> None:
-    """Keeps the last widget's rectangle as ``label``."""
-    low, high = imgui.get_item_rect_min(), imgui.get_item_rect_max()
-    item_rects[label] = (low.x, low.y, high.x, high.y)
 
 
 def tooltip(text: str) -> None:
@@ -31,12 +18,13 @@ def header(label: str, open_first: bool = True) -> bool:
     return imgui.collapsing_header(label, imgui.TreeNodeFlags_.default_open.value if open_first else 0)
 
 
-def choice(label: str, current: str, choices: dict[str, str], tag: str,
+def choice(label: str, current: str, choices: dict[str, str], tag: str = "",
            unavailable: dict[str, str] | None = None) -> str:
-    """A combo of ``choices`` (value -> shown text), every entry visible when it opens;
-    the combo's rect is remembered as ``tag`` and each open entry's as
-    ``f"{tag} {value}"``. ``unavailable``: value -> why it cannot be chosen now (the
-    entry is greyed out, the reason its tooltip). Returns the chosen value."""
+    """A combo of ``choices`` (value -> shown text), every entry visible when it opens.
+    ``unavailable``: value -> why it cannot be chosen now (the entry is greyed out, the
+    reason its tooltip). Returns the chosen value. ``tag`` is unused: it named the combo
+    for a test hook that tests/appkit.py replaced; it stays until the sections' calls
+    drop it."""
     chosen = current
     unavailable = unavailable or {}
     if imgui.begin_combo(label, choices.get(current, current), imgui.ComboFlags_.height_largest.value):
@@ -45,22 +33,20 @@ def choice(label: str, current: str, choices: dict[str, str], tag: str,
             if imgui.selectable(text, value == current)[0] and value not in unavailable:
                 chosen = value
             imgui.end_disabled()
-            remember(f"{tag} {value}")
             if value in unavailable:
                 tooltip(unavailable[value])
             if value == current:
                 imgui.set_item_default_focus()
         imgui.end_combo()
-    remember(tag)
     return chosen
 
 
-def checkbox(label: str, value: bool, tag: str, enabled: bool = True, help_text: str = "") -> bool:
-    """A checkbox remembered as ``tag``, greyed out unless ``enabled``; the new value."""
+def checkbox(label: str, value: bool, tag: str = "", enabled: bool = True, help_text: str = "") -> bool:
+    """A checkbox greyed out unless ``enabled``; the new value. ``tag`` is unused (see
+    :func:`choice`)."""
     imgui.begin_disabled(not enabled)
     _, value = imgui.checkbox(label, value)
     imgui.end_disabled()
-    remember(tag)
     if help_text:
         tooltip(help_text)
     return value

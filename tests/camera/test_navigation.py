@@ -1,6 +1,6 @@
-"""Navigation (controls.py): every direction is checked by what it does to the image,
-plus the pole limit, the animation, the letterbox lens, framing, and robustness against
-garbage input."""
+"""Navigation (camera/navigation.py) and the lens (camera/lens.py): every direction is
+checked by what it does to the image, plus the pole limit, the animation, the letterbox
+lens, framing, and robustness against garbage input."""
 
 import math
 
