@@ -23,10 +23,10 @@ import moderngl
 import numpy as np
 from imgui_bundle import imgui
 
+from raygs_viewer.camera.path import CameraPath
 from raygs_viewer.camera.pinhole import Camera, load_camera
 from raygs_viewer.camera.stereo import StereoView
 from raygs_viewer.capture.image_io import check_output_path, save_image
-from raygs_viewer.camera.path import CameraPath
 from raygs_viewer.capture.path_file import PathDocument
 from raygs_viewer.capture.screenshot import check_screenshot_path
 from raygs_viewer.errors import UserError, one_line
