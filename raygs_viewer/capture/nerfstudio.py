@@ -1,5 +1,7 @@
 """nerfstudio's ``camera_path`` JSON (what its viewer's *Render* tab writes and
-``ns-render camera-path`` reads), imported and exported.
+``ns-render camera-path`` reads), imported and exported as a :class:`NerfstudioPath`:
+a camera path, its render size and the notes of what an import could not honour.
+:mod:`raygs_viewer.capture.path_file` reads either format into its path document.
 
 The fields (nerfstudio's ``cameras/camera_paths.get_path_from_json``,
 ``scripts/render.py`` and ``viewer/render_panel.py``)::
@@ -45,6 +47,7 @@ and render settings have no place in the format and are not written.
 from __future__ import annotations
 
 import os
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -61,7 +64,7 @@ from raygs_viewer.camera.path import (
 )
 from raygs_viewer.camera.rotation import is_rotation
 from raygs_viewer.capture.image_io import check_output_path
-from raygs_viewer.capture.path_document import MAX_IMAGE_SIZE, NERFSTUDIO, PathDocument
+from raygs_viewer.capture.screenshot import MAX_SCREENSHOT_SIDE
 from raygs_viewer.capture.sidecar import ROTATION_TOLERANCE
 from raygs_viewer.errors import UserError
 from raygs_viewer.jsonfile import JsonFields, json_text, show_json
@@ -77,6 +80,18 @@ _LAST_ROW_TOLERANCE = 1e-6
 _DEFAULT_FPS = 30.0
 
 
+@dataclass(frozen=True)
+class NerfstudioPath:
+    """What a nerfstudio camera_path holds for us: the path, each frame's size in pixels
+    (render_width, render_height), and one-line notes of what the reader could not
+    honour (a crop box, per-frame render times), for the caller to show."""
+
+    path: CameraPath
+    width: int
+    height: int
+    notes: tuple[str, ...] = ()
+
+
 def is_nerfstudio(data) -> bool:
     """Whether parsed JSON looks like a nerfstudio camera path (an object with
     "camera_path" and no raygs-viewer "format")."""
@@ -86,8 +101,8 @@ def is_nerfstudio(data) -> bool:
 # --------------------------------------------------------------------------- import
 
 
-def read_nerfstudio(data: dict, where: str) -> PathDocument:
-    """The document of a parsed nerfstudio camera path; ``where`` (the file) starts every
+def read_nerfstudio(data: dict, where: str) -> NerfstudioPath:
+    """The path of a parsed nerfstudio camera path file; ``where`` (the file) starts every
     message. Any problem is a one-line UserError naming the field."""
     if not isinstance(data, dict):
         raise UserError(f"{where}: a nerfstudio camera path must be a JSON object")
@@ -145,14 +160,15 @@ def read_nerfstudio(data: dict, where: str) -> PathDocument:
         notes.append(f"{Path(where).name}: nerfstudio's per-frame 'render_time' is ignored (the scene is static)")
     interpolation = Interpolation(tension=tension, loop=loop, up=_nearest_axis(np.mean(ups, axis=0)))
     path = CameraPath(tuple(keyframes), duration, fps, interpolation)
-    return PathDocument(path, width, height, kind=NERFSTUDIO, notes=tuple(notes))
+    return NerfstudioPath(path, width, height, tuple(notes))
 
 
 def _size(fields: JsonFields, key: str) -> int:
-    # A whole number, also when written as a float (scripts often do: 1920.0).
+    # A whole number, also when written as a float (scripts often do: 1920.0); a frame
+    # is rendered as a screenshot is, so its side has the screenshot's limit.
     value = fields.get(key, float)
-    if not (value.is_integer() and 1 <= value <= MAX_IMAGE_SIZE):
-        raise UserError(f"{fields.path}: '{key}' must be a whole number from 1 to {MAX_IMAGE_SIZE}, "
+    if not (value.is_integer() and 1 <= value <= MAX_SCREENSHOT_SIDE):
+        raise UserError(f"{fields.path}: '{key}' must be a whole number from 1 to {MAX_SCREENSHOT_SIDE}, "
                         f"got {show_json(fields.data[key])}")
     return int(value)
 
@@ -197,13 +213,13 @@ def _matrix(pose: Pose) -> list[float]:
     return matrix.reshape(-1).tolist()
 
 
-def nerfstudio_json(doc: PathDocument) -> dict:
-    """nerfstudio's camera_path JSON of ``doc``: one entry per frame (see the module's
-    docstring). UserError for a path without keyframes."""
-    path = doc.path
+def nerfstudio_json(sized: NerfstudioPath) -> dict:
+    """nerfstudio's camera_path JSON of ``sized``: one entry per frame (see the module's
+    docstring; its notes are not written). UserError for a path without keyframes."""
+    path = sized.path
     if not path.keyframes:
         raise UserError("the camera path has no keyframes: nothing to export")
-    width, height = int(doc.width), int(doc.height)
+    width, height = int(sized.width), int(sized.height)
     aspect = width / height
     times = path.frame_times()
     frames = [path.pose_at(float(t)) for t in times]
@@ -234,12 +250,12 @@ def nerfstudio_json(doc: PathDocument) -> dict:
     }
 
 
-def save_nerfstudio(doc: PathDocument, file: str | os.PathLike, overwrite: bool = False) -> Path:
-    """Writes ``doc`` as a nerfstudio camera_path file, atomically; an existing file is
+def save_nerfstudio(sized: NerfstudioPath, file: str | os.PathLike, overwrite: bool = False) -> Path:
+    """Writes ``sized`` as a nerfstudio camera_path file, atomically; an existing file is
     replaced only with ``overwrite``. Checked like an imported file first, so nothing is
     written that :func:`read_nerfstudio` would refuse. Returns the path written."""
     file = check_output_path(file, overwrite, NERFSTUDIO_SUFFIXES)
-    data = nerfstudio_json(doc)
+    data = nerfstudio_json(sized)
     try:
         text = json_text(data)
     except ValueError:

@@ -1,9 +1,10 @@
-"""The camera path JSON: keyframes, their timing and interpolation, the render size and
-settings, and the scene's hash, like a screenshot's sidecar
-(:mod:`raygs_viewer.capture.sidecar`) is for one frame. The window saves and loads it;
-``raygs-viewer render-path`` renders it. :func:`load_path_document` also reads
-nerfstudio's ``camera_path`` files (:mod:`raygs_viewer.capture.nerfstudio`), told apart
-by their content.
+"""Camera path files: :class:`PathDocument`, a camera path with everything needed to
+render it (the render size, settings, stereo view and the scene it was recorded on),
+and its reading and writing. raygs-viewer's own path JSON is read and written here,
+like a screenshot's sidecar (:mod:`raygs_viewer.capture.sidecar`) is for one frame;
+nerfstudio's ``camera_path`` files (:mod:`raygs_viewer.capture.nerfstudio`) are told
+apart by their content and read into the same document. The window saves and loads
+documents; ``raygs-viewer render-path`` renders one.
 
 Layout (version 1)::
 
@@ -45,6 +46,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import os
+from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
 
@@ -63,10 +65,10 @@ from raygs_viewer.camera.path import (
     Keyframe,
 )
 from raygs_viewer.camera.rotation import is_rotation
+from raygs_viewer.camera.stereo import StereoView
 from raygs_viewer.capture.image_io import check_output_path
-from raygs_viewer.capture.nerfstudio import is_nerfstudio, read_nerfstudio
-from raygs_viewer.capture.path_document import MAX_IMAGE_SIZE, RAYGS, PathDocument
-from raygs_viewer.capture.screenshot import with_relative_scene_path
+from raygs_viewer.capture.nerfstudio import NerfstudioPath, is_nerfstudio, read_nerfstudio, save_nerfstudio
+from raygs_viewer.capture.screenshot import MAX_SCREENSHOT_SIDE, with_relative_scene_path
 from raygs_viewer.capture.sidecar import (
     DEMO,
     ROTATION_TOLERANCE,
@@ -78,8 +80,16 @@ from raygs_viewer.capture.sidecar import (
     stereo_entry,
 )
 from raygs_viewer.errors import UserError
-from raygs_viewer.jsonfile import JsonFields, json_text, parse_json, read_json_file, show_json
 from raygs_viewer.files import write_atomically
+from raygs_viewer.jsonfile import JsonFields, json_text, parse_json, read_json_file, show_json
+from raygs_viewer.render.settings import RenderSettings
+
+#: The formats a document is read from.
+RAYGS, NERFSTUDIO = "raygs", "nerfstudio"
+KINDS = (RAYGS, NERFSTUDIO)
+#: Largest render width or height a path file may ask for (pixels): a frame is rendered
+#: as a screenshot is.
+MAX_IMAGE_SIZE = MAX_SCREENSHOT_SIDE
 
 PATH_FORMAT = "raygs-viewer camera path"
 PATH_VERSION = 1
@@ -89,6 +99,33 @@ _TOP_REQUIRED = ("format", "version", "image", "path", "keyframes")
 _TOP_OPTIONAL = ("program", "created", "scene", "settings", "stereo", "extra")
 # How far "path.up" may be from unit length (a hand-edited file writes 0.7071).
 _UNIT_TOLERANCE = 1e-6
+
+
+@dataclass(frozen=True)
+class PathDocument:
+    """path: the keyframes and their timing. width, height: the size of each frame's
+    camera in pixels (with stereo, of each eye; capture.path_render.frame_size gives the frames').
+    settings: None for the reader's defaults (a nerfstudio file has none). stereo: None
+    for mono. scene_path: "demo" or an absolute path, None when unknown (nerfstudio);
+    scene_sha256: its hex digest (None: unknown, never checked); scene_count,
+    scene_sh_degree: the scene's gaussian count and SH degree, when known. source: the
+    file it was read from. kind: the format it was read from (one of KINDS). extra:
+    free-form details of the window (the file's "extra"). notes: one-line remarks about
+    what the reader could not honour (e.g. a nerfstudio crop box), for the caller to show."""
+
+    path: CameraPath
+    width: int
+    height: int
+    settings: RenderSettings | None = None
+    stereo: StereoView | None = None
+    scene_path: str | None = None
+    scene_sha256: str | None = None
+    source: Path | None = None
+    kind: str = RAYGS
+    scene_count: int | None = None
+    scene_sh_degree: int | None = None
+    extra: dict = field(default_factory=dict)
+    notes: tuple[str, ...] = ()
 
 
 # --------------------------------------------------------------------------- writing
@@ -146,6 +183,13 @@ def save_path_document(doc: PathDocument, file: str | os.PathLike, overwrite: bo
     return file
 
 
+def export_nerfstudio(doc: PathDocument, file: str | os.PathLike, overwrite: bool = False) -> Path:
+    """Writes ``doc``'s path at its size as a nerfstudio camera_path file (the format has
+    no place for the rest), never replacing a file without ``overwrite``. Returns the
+    path written."""
+    return save_nerfstudio(NerfstudioPath(doc.path, doc.width, doc.height), file, overwrite)
+
+
 # --------------------------------------------------------------------------- reading
 
 
@@ -156,7 +200,8 @@ def load_path_document(file: str | os.PathLike) -> PathDocument:
     file = Path(file)
     data = read_json_file(file, "a camera path .json file")
     if is_nerfstudio(data):
-        return dataclasses.replace(read_nerfstudio(data, str(file)), source=file)
+        sized = read_nerfstudio(data, str(file))
+        return PathDocument(sized.path, sized.width, sized.height, source=file, kind=NERFSTUDIO, notes=sized.notes)
     return read_path_json(data, file)
 
 

@@ -1,17 +1,28 @@
-"""Progress of a long render (``render-path``): a bar on a terminal, or JSON lines for
-a program that runs it (the window's *Render video* runs it as a subprocess and reads them).
+"""Progress of a long render (``render-path``): a bar on a terminal, or versioned JSON
+lines for a program that runs it, and the reader of those lines (the window's *Render
+video* runs render-path as a subprocess and reads them with :func:`read_progress_line`).
 
 Modes:
 
 - ``"bar"``: one line on stderr, redrawn in place:
   ``fly.mp4: 37/120 frames [#######-------------] 31%  2.3 fps  1:02 left``;
 - ``"auto"``: the bar when stderr is a terminal, else nothing;
-- ``"json"``: one JSON object per line on stdout, flushed at once:
-  ``{"frame": 37, "frames": 120, "fps": 2.3, "eta_s": 36.1}`` after each frame
-  (``fps``, ``eta_s``: null until there is a rate), ``{"done": true, "out": "fly.mp4",
-  "frames": 120}`` at the end, ``{"interrupted": true, "frames": 37, "out": "fly.mp4"}``
-  (``out`` null when nothing was kept) when stopped;
+- ``"json"``: one JSON object per line on stdout, flushed at once (below);
 - ``"none"``: nothing but the line of an interruption.
+
+The JSON lines (protocol version 1, :data:`PROTOCOL`); every line carries
+``"progress": 1``, so a reader can tell a line of its own version from anything else
+on the stream:
+
+- ``{"progress": 1, "frame": 37, "frames": 120, "fps": 2.3, "eta_s": 36.1}`` after
+  each frame (``fps``, ``eta_s``: null until there is a rate): :class:`FrameProgress`;
+- ``{"progress": 1, "done": true, "out": "fly.mp4", "frames": 120}`` at the end:
+  :class:`RenderDone`;
+- ``{"progress": 1, "interrupted": true, "frames": 37, "out": "fly.mp4"}`` when stopped
+  (``out`` null when nothing was kept): :class:`RenderInterrupted`.
+
+A change to a line's fields is a new version; a reader returns None for a line of
+another version, as for any line that is not one of these.
 
 The rate is taken over the last :data:`RATE_WINDOW` frames, so it follows a render
 whose frames get slower or faster (a flight into a dense part of the scene).
@@ -19,19 +30,118 @@ whose frames get slower or faster (a flight into a dense part of the scene).
 
 from __future__ import annotations
 
-import json
 import sys
 import time
 from collections import deque
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable, TextIO
 
+from raygs_viewer.errors import UserError
+from raygs_viewer.jsonfile import JsonFields, json_line, parse_json
+
+#: The version of the JSON lines, written into every line as "progress".
+PROTOCOL = 1
 MODES = ("auto", "bar", "json", "none")
 #: Frames the rate is measured over.
 RATE_WINDOW = 10
 BAR_WIDTH = 20
 #: Seconds between redraws of the bar (a small render makes hundreds of frames a second).
 REDRAW_INTERVAL = 0.1
+
+
+# --------------------------------------------------------------------------- the JSON lines
+
+
+@dataclass(frozen=True)
+class FrameProgress:
+    """``frame`` frames of ``frames`` are done; the rate (frames per second) and the time
+    left (seconds) are None until there is a rate."""
+
+    frame: int
+    frames: int
+    fps: float | None = None
+    eta_s: float | None = None
+
+    @property
+    def fraction(self) -> float:
+        return min(max(self.frame / self.frames, 0.0), 1.0) if self.frames > 0 else 0.0
+
+
+@dataclass(frozen=True)
+class RenderDone:
+    """The render is complete: ``frames`` frames written to ``out``."""
+
+    out: str
+    frames: int
+
+
+@dataclass(frozen=True)
+class RenderInterrupted:
+    """The render stopped after ``frames`` frames; ``out`` holds them (None: nothing kept)."""
+
+    frames: int
+    out: str | None
+
+
+#: What one line says.
+ProgressRecord = FrameProgress | RenderDone | RenderInterrupted
+
+
+def progress_line(record: ProgressRecord) -> str:
+    """``record`` as one JSON line of this protocol's version, with its newline."""
+    if isinstance(record, FrameProgress):
+        fields = {"frame": record.frame, "frames": record.frames, "fps": record.fps, "eta_s": record.eta_s}
+    elif isinstance(record, RenderDone):
+        fields = {"done": True, "out": record.out, "frames": record.frames}
+    else:
+        fields = {"interrupted": True, "frames": record.frames, "out": record.out}
+    return json_line({"progress": PROTOCOL, **fields})
+
+
+def read_progress_line(line: str) -> ProgressRecord | None:
+    """The record of one line written by :func:`progress_line`; None for anything else
+    (not JSON, another version, a field missing, unknown or of the wrong type): a stream
+    may hold other lines, and a reader must not fail on them."""
+    try:
+        data = parse_json(line, "progress line")
+        if not isinstance(data, dict) or data.get("progress") != PROTOCOL:
+            return None
+        return _record(JsonFields("progress line", data))
+    except UserError:
+        return None
+
+
+def _record(fields: JsonFields) -> ProgressRecord:
+    """The record of a line of this version; UserError when its fields are not one."""
+    data = fields.data
+    fields.get("progress", int)  # 1.0 and true equal 1 in Python, but are not this version
+    if "done" in data:
+        fields.keys("", data, ("progress", "done", "out", "frames"))
+        _true(fields, "done")
+        return RenderDone(fields.get("out", str), _count(fields, "frames"))
+    if "interrupted" in data:
+        fields.keys("", data, ("progress", "interrupted", "frames", "out"))
+        _true(fields, "interrupted")
+        return RenderInterrupted(_count(fields, "frames"), fields.optional("out", str))
+    fields.keys("", data, ("progress", "frame", "frames", "fps", "eta_s"))
+    return FrameProgress(_count(fields, "frame"), _count(fields, "frames"),
+                         fields.optional("fps", float), fields.optional("eta_s", float))
+
+
+def _true(fields: JsonFields, key: str) -> None:
+    if fields.get(key, bool) is not True:
+        raise UserError(f"{fields.path}: '{key}' must be true")
+
+
+def _count(fields: JsonFields, key: str) -> int:
+    value = fields.get(key, int)
+    if value < 0:
+        raise UserError(f"{fields.path}: '{key}' must not be negative")
+    return value
+
+
+# --------------------------------------------------------------------------- the writer
 
 
 class Progress:
@@ -67,9 +177,8 @@ class Progress:
                 self._drawn_at = now
         elif self.mode == "json":
             fps, eta = self.rate(), self.eta_seconds()
-            self._json({"frame": self.done, "frames": self.total,
-                        "fps": None if fps is None else round(fps, 3),
-                        "eta_s": None if eta is None else round(eta, 1)})
+            self._json(FrameProgress(self.done, self.total, None if fps is None else round(fps, 3),
+                                     None if eta is None else round(eta, 1)))
 
     def finish(self, out: Path | str) -> None:
         """The render is complete and written to ``out``."""
@@ -78,14 +187,14 @@ class Progress:
             self._text_stream().write("\n")
             self._text_stream().flush()
         elif self.mode == "json":
-            self._json({"done": True, "out": str(out), "frames": self.done})
+            self._json(RenderDone(str(out), self.done))
 
     def interrupted(self, done: int, out: Path | str | None = None) -> None:
         """The render stopped after ``done`` frames; ``out`` holds them (None: nothing
         was kept). Prints one line in every mode."""
         self.done = int(done)
         if self.mode == "json":
-            self._json({"interrupted": True, "frames": self.done, "out": None if out is None else str(out)})
+            self._json(RenderInterrupted(self.done, None if out is None else str(out)))
             return
         kept = f"kept {out} ({self.done} frames)" if out is not None else "nothing written"
         line = f"interrupted after {self.done}/{self.total} frames: {kept}"
@@ -125,9 +234,9 @@ class Progress:
         stream.flush()
         self._width = max(self._width, len(line))
 
-    def _json(self, record: dict) -> None:
+    def _json(self, record: ProgressRecord) -> None:
         stream = sys.stdout if self._stream is None else self._stream
-        stream.write(json.dumps(record) + "\n")
+        stream.write(progress_line(record))
         stream.flush()
 
 

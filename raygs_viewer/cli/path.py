@@ -21,8 +21,7 @@ from pathlib import Path
 from raygs_viewer.camera.navigation import UP_AXES, framing_distance, framing_pose, scene_bounds, up_vector
 from raygs_viewer.camera.path import FPS_RANGE, MAX_DURATION, CameraPath, orbit_path
 from raygs_viewer.capture.image_io import check_output_path
-from raygs_viewer.capture.path_document import PathDocument
-from raygs_viewer.capture.path_file import load_path_document, scene_mismatch
+from raygs_viewer.capture.path_file import PathDocument, load_path_document, scene_mismatch
 from raygs_viewer.capture.path_render import (
     cameras_of_entries,
     frame_camera_entries,
@@ -30,7 +29,7 @@ from raygs_viewer.capture.path_render import (
     render_frames,
     write_cameras_json,
 )
-from raygs_viewer.capture.progress import Progress
+from raygs_viewer.capture.progress import MODES, Progress
 from raygs_viewer.capture.video import check_video_output, open_sink
 from raygs_viewer.cli import argtypes
 from raygs_viewer.cli.commands import warn_dropped
@@ -47,7 +46,6 @@ from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.io import SCENE_FILES
 from raygs_viewer.scene.loader import DEMO, TerminalProgress, load_now
 
-PROGRESS_MODES = ("auto", "bar", "json", "none")
 #: The PATH argument that asks for a turntable instead of a path file, and its defaults.
 ORBIT = "orbit"
 ORBIT_SIZE = (1280, 720)
@@ -85,7 +83,7 @@ def add_parser(commands) -> None:
     parser.add_argument("--cameras-out", metavar="CAMERAS.json",
                         help="also write every frame's camera as an INRIA cameras.json (render --camera CAMERAS.json "
                              "--camera-index K reproduces frame K)")
-    parser.add_argument("--progress", choices=PROGRESS_MODES, default="auto",
+    parser.add_argument("--progress", choices=MODES, default="auto",
                         help="auto: a progress bar on a terminal (default); json: one JSON line per frame on stdout")
     argtypes.add_general_option(parser)
     argtypes.add_backend_option(parser)

@@ -10,7 +10,7 @@ from their sidecar (``raygs-viewer render --sidecar``).
 input (``input``), the camera (``view_control``), loading (``loading``), drawing
 (``drawing``, with ``render.gl.mono_frame`` and ``render.gl.stereo_frame``), the
 panel (``panel``), the split view's overlay (``overlay``), screenshots
-(``screenshots``) and the camera path with its playback and video (``path_control``).
+(``screenshots``) and the camera path with its playback and video (``path_widget``).
 """
 
 from __future__ import annotations
@@ -23,10 +23,11 @@ import moderngl
 import numpy as np
 from imgui_bundle import imgui
 
+from raygs_viewer.camera.path import CameraPath
 from raygs_viewer.camera.pinhole import Camera, load_camera
 from raygs_viewer.camera.stereo import StereoView
 from raygs_viewer.capture.image_io import check_output_path, save_image
-from raygs_viewer.capture.path_document import PathDocument
+from raygs_viewer.capture.path_file import PathDocument
 from raygs_viewer.capture.screenshot import check_screenshot_path
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.gl.context import context_description
@@ -48,7 +49,7 @@ from raygs_viewer.viewer.panel.statistics import draw_statistics
 from raygs_viewer.viewer.panel.stereo import draw_stereo_section
 from raygs_viewer.viewer.panel.training import draw_training_section
 from raygs_viewer.viewer.panel.view import draw_view_section
-from raygs_viewer.viewer.path_control import PathControl, scene_argument
+from raygs_viewer.viewer.path_widget import PathWidget, scene_argument
 from raygs_viewer.viewer.screenshots import Saved, ShownView, saved_message, sidecar_extra, take_screenshots
 from raygs_viewer.viewer.state import (
     PanelState,
@@ -94,13 +95,14 @@ class Viewer:
         self.scenes = SceneOpener(self.panel)
         self.window.set_drop_callback(self.scenes.drop)
         self.drawer = SceneDrawer(self.ctx)
+        self.camera_path = PathWidget(self.panel, self)
         self.input = InputHandler({
             "quit": self.window.request_close, "screenshot": self.request_screenshot,
             "switch_navigation": lambda: self.view.switch_mode(),
             "next_camera": lambda: self.view.step_training_camera(+1),
             "previous_camera": lambda: self.view.step_training_camera(-1),
-            "reset_view": self.reset_view, "toggle_panel": self.panel.toggle, "add_keyframe": lambda: self.paths.add_view(self.view)})
-        self.paths = PathControl(self.panel)
+            "reset_view": self.reset_view, "toggle_panel": self.panel.toggle,
+            "add_keyframe": self.camera_path.add_view})
         self.frame_index = 0
         self.input_script: Callable[[Viewer], None] | None = None
         self.fixed_dt: float | None = None  # tests: a deterministic frame time
@@ -150,7 +152,7 @@ class Viewer:
         # A new scene keeps the user's navigation choices.
         choices = self.options.navigation if self.view is None else self.view.choices()
         self.view = ViewControl(loaded, start_camera, choices, self.options.width / self.options.height, self.panel)
-        self.paths.editor.dolly_distance = float(self.view.radius)
+        self.camera_path.dolly_distance = float(self.view.radius)
         self.window.set_title(f"raygs-viewer — {scene_title(loaded.path)}")
 
     def right_settings(self) -> RenderSettings | None:
@@ -190,7 +192,7 @@ class Viewer:
         self.view.navigator.advance(dt)
         if self.options.navigation.turntable:
             self.view.turn(self.options.navigation.turntable)
-        self.paths.frame(self.view, self.fixed_dt, self.stats.all_frame_times[-1] if self.stats.all_frame_times else 0.0)
+        self.camera_path.frame(self.fixed_dt, self.stats.all_frame_times[-1] if self.stats.all_frame_times else 0.0)
 
         settings, right = self.settings, self.right_settings()
         stereo = self.stereo.frame_view(self.shown_stereo, self.panel)
@@ -211,7 +213,7 @@ class Viewer:
             draw_panel(self.panel, self._panel_sections())
         self.overlay_rects = {} if right is None else draw_split_overlay(
             self.viewport, self.split, self.settings, self.input.dragging_divider)
-        self.paths.draw(camera, self.viewport, self.view.radius, stereo is not None)
+        self.camera_path.draw_overlay(camera, self.viewport, self.view.radius, stereo is not None)
         imgui.render()
 
         orders, serial = self.stats.order_to_draw(result, sort_key(camera, p_min, dilation, cull_cameras, keys),
@@ -248,8 +250,7 @@ class Viewer:
             lambda: draw_screenshot_section(self.screenshots, self.camera, self.shown_stereo is not None,
                                             self.stereo.save_eyes, self.split.on and self.shown_stereo is None,
                                             self.request_screenshot),
-            lambda: draw_path_section(self.paths.editor, self.paths.playback, self.paths.video,
-                                      self.paths.actions(view, loaded, self._aspect(), self.path_document)),
+            lambda: draw_path_section(self.camera_path),
         ]
 
     def capture_window(self, overlay: bool = True) -> np.ndarray:
@@ -278,17 +279,17 @@ class Viewer:
                                                  self.stereo.save_eyes, extra, path)
         return self.last_screenshot
 
-    # -- camera path -------------------------------------------------------------------
-    def _aspect(self) -> float:
+    # -- what the camera path reads (path_widget.PathHost) ------------------------------
+    def view_aspect(self) -> float:
         _, _, width, height = self.viewport
         return width / height if width > 0 and height > 0 else self.options.width / self.options.height
 
-    def path_document(self) -> PathDocument:
-        """The path with what renders it as the window shows it: the view's size (in
+    def path_document(self, path: CameraPath) -> PathDocument:
+        """``path`` with what renders it as the window shows it: the view's size (in
         stereo, the headset's per eye), the render settings (the left side's), the
         stereo view when the preview is on, the scene."""
         width, height = (self.camera.width, self.camera.height) if self.camera is not None else self.viewport[2:]
-        return PathDocument(self.paths.editor.path, width, height, self.settings, self.shown_stereo,
+        return PathDocument(path, width, height, self.settings, self.shown_stereo,
                             scene_argument(self.loaded), self.loaded.sha256)
 
     # -- loop ------------------------------------------------------------------------
@@ -317,7 +318,7 @@ class Viewer:
     def close(self) -> None:
         if self.window is None:
             return
-        self.paths.close()
+        self.camera_path.close()
         self.scenes.close()
         if self.sorter is not None:
             self.sorter.close()

@@ -1,35 +1,39 @@
 """Render video in the background: the window writes its path document to a fresh pair
 of names in the videos folder (``raygs-YYYYmmdd-HHMMSS.json`` and ``.mp4``), then runs
-``raygs-viewer render-path`` on it as a subprocess and reads its progress.
+``raygs-viewer render-path`` on it as a subprocess (:class:`VideoJob`) and reads its
+progress. :class:`VideoRender` is the path widget's part that does this: the folder,
+the size, and the job under way.
 
-The command prints one JSON object a line on stdout (``--progress json``):
-``{"frame": k, "frames": n, "fps": r, "eta_s": s}`` while it renders, then
-``{"done": true, "out": "...", "frames": n}``, or ``{"interrupted": true, ...}`` after a
-SIGINT (it then leaves a playable truncated file, or none); a failure ends with an
-``error: ...`` line on stderr and exit status 2. The window polls the job once a frame
-and never waits on it, except briefly when it closes.
+The command prints the JSON lines of :mod:`raygs_viewer.capture.progress` on stdout
+(``--progress json``): a frame's progress while it renders, then the render's end,
+done or interrupted after a SIGINT (it then leaves a playable truncated file, or none);
+a failure ends with an ``error: ...`` line on stderr and exit status 2. The window
+polls the job once a frame and never waits on it, except briefly when it closes.
 """
 
 from __future__ import annotations
 
-import json
 import os
 import signal
 import subprocess
 import sys
 import threading
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from datetime import datetime
 from pathlib import Path
+from typing import Callable
 
-from raygs_viewer.capture.path_document import PathDocument
-from raygs_viewer.capture.path_file import save_path_document
+from raygs_viewer.capture.path_file import PathDocument, save_path_document
+from raygs_viewer.capture.progress import FrameProgress, RenderDone, RenderInterrupted, read_progress_line
 from raygs_viewer.errors import UserError
 
 VIDEO_PREFIX = "raygs-"
 _MAX_NAME_ATTEMPTS = 1000
 #: How long closing the window waits for a cancelled job to leave its truncated file.
 CLOSE_WAIT_S = 5.0
+#: Render video's sizes besides the view's own ("view"), "WxH" -> (width, height) per
+#: frame (per eye in the stereo preview).
+VIDEO_SIZES = {"1280x720": (1280, 720), "1920x1080": (1920, 1080), "3840x2160": (3840, 2160)}
 
 
 def render_path_command(scene: str, document: Path, out: Path) -> list[str]:
@@ -71,28 +75,17 @@ def write_video_document(document: PathDocument, folder: str | Path, now: dateti
     raise UserError(f"{folder}: no free video name from {stem} on")
 
 
-@dataclass(frozen=True)
-class JobProgress:
-    """The last progress line: frames done of ``frames``, rate (frames per second) and
-    time left (seconds); None where the command has not said yet."""
-
-    frame: int = 0
-    frames: int | None = None
-    fps: float | None = None
-    eta_s: float | None = None
-
-    @property
-    def fraction(self) -> float:
-        return min(max(self.frame / self.frames, 0.0), 1.0) if self.frames else 0.0
-
-    def describe(self) -> str:
-        """E.g. "frame 12 / 300, 4.1 fps, 70 s left"."""
-        text = f"frame {self.frame} / {self.frames if self.frames is not None else '?'}"
-        if self.fps is not None:
-            text += f", {self.fps:.3g} fps"
-        if self.eta_s is not None:
-            text += f", {self.eta_s:.0f} s left"
-        return text
+def progress_text(progress: FrameProgress | None) -> str:
+    """The progress bar's text, e.g. "frame 12 / 300, 4.1 fps, 70 s left" (None: the
+    command has said nothing yet)."""
+    if progress is None:
+        return "frame 0 / ?"
+    text = f"frame {progress.frame} / {progress.frames}"
+    if progress.fps is not None:
+        text += f", {progress.fps:.3g} fps"
+    if progress.eta_s is not None:
+        text += f", {progress.eta_s:.0f} s left"
+    return text
 
 
 @dataclass(frozen=True)
@@ -111,8 +104,8 @@ class VideoJob:
     def __init__(self, command: list[str], out: Path, document: Path):
         self.command, self.out, self.document = list(command), Path(out), Path(document)
         self._lock = threading.Lock()
-        self._progress = JobProgress()
-        self._final: dict | None = None      # the done or interrupted line
+        self._progress: FrameProgress | None = None
+        self._final: RenderDone | RenderInterrupted | None = None
         self._errors: list[str] = []         # stderr's lines (the last few)
         self.cancelled = False
         self._reported = False
@@ -130,18 +123,14 @@ class VideoJob:
     # -- reader threads -----------------------------------------------------------------
     def _read_stdout(self) -> None:
         for line in self.process.stdout:
-            try:
-                data = json.loads(line)
-            except ValueError:
-                continue  # not a progress line: nothing the window shows
-            if not isinstance(data, dict):
-                continue
+            record = read_progress_line(line)
+            if record is None:
+                continue  # not a progress line of ours: nothing the window shows
             with self._lock:
-                if data.get("done") or data.get("interrupted"):
-                    self._final = data
-                elif isinstance(data.get("frame"), int):
-                    self._progress = JobProgress(data["frame"], _number(data.get("frames"), int),
-                                                 _number(data.get("fps"), float), _number(data.get("eta_s"), float))
+                if isinstance(record, FrameProgress):
+                    self._progress = record
+                else:
+                    self._final = record
 
     def _read_stderr(self) -> None:
         for line in self.process.stderr:
@@ -156,7 +145,8 @@ class VideoJob:
         return self.process.poll() is None or any(reader.is_alive() for reader in self._readers)
 
     @property
-    def progress(self) -> JobProgress:
+    def progress(self) -> FrameProgress | None:
+        """The last progress line; None before the first."""
         with self._lock:
             return self._progress
 
@@ -182,13 +172,11 @@ class VideoJob:
         status = self.process.returncode
         with self._lock:
             final, errors, progress = self._final, list(self._errors), self._progress
-        if final is not None and final.get("done") and status == 0:
-            frames = final.get("frames", progress.frames)
-            return JobResult("done", f"saved {final.get('out', self.out)} ({frames} frames; path {self.document})")
-        if (final is not None and final.get("interrupted")) or (self.cancelled and status in (130, -signal.SIGINT)):
-            done = final.get("frames", final.get("frame")) if final else None
-            done = progress.frame if done is None else done
-            kept = final.get("out") if final else None
+        if isinstance(final, RenderDone) and status == 0:
+            return JobResult("done", f"saved {final.out} ({final.frames} frames; path {self.document})")
+        if isinstance(final, RenderInterrupted) or (self.cancelled and status in (130, -signal.SIGINT)):
+            done = final.frames if final else progress.frame if progress else 0
+            kept = final.out if final else None
             if kept is None and self.out.exists():
                 kept = str(self.out)
             where = f"{kept} holds the first {done} frames" if kept else "no video was written"
@@ -211,7 +199,45 @@ class VideoJob:
             reader.join(timeout=1.0)
 
 
-def _number(value, kind):
-    if isinstance(value, bool) or not isinstance(value, (int, float)):
-        return None
-    return kind(value)
+class VideoRender:
+    """Render video's part of the path widget: ``folder`` the videos go to, ``size``
+    ("view": the document's own, or a VIDEO_SIZES key), ``command(scene, document,
+    out)`` that renders one (tests run stand-ins), and ``job``, the render under way
+    (None: none)."""
+
+    def __init__(self) -> None:
+        self.folder = "videos"
+        self.size = "view"
+        self.command: Callable[[str, Path, Path], list[str]] = render_path_command
+        self.job: VideoJob | None = None
+
+    @property
+    def running(self) -> bool:
+        return self.job is not None and self.job.running
+
+    def start(self, document: PathDocument, scene: str) -> Path:
+        """Saves ``document`` (at the chosen size) into the folder and starts rendering
+        ``scene`` ("demo" or an absolute path) along it; returns the video's path.
+        UserError when the document cannot be saved or the command not started."""
+        if self.size in VIDEO_SIZES:
+            width, height = VIDEO_SIZES[self.size]
+            document = replace(document, width=width, height=height)
+        saved, out = write_video_document(document, self.folder)
+        self.job = VideoJob(self.command(scene, saved, out), out, saved)
+        return out
+
+    def cancel(self) -> None:
+        if self.job is not None:
+            self.job.cancel()
+
+    def poll(self) -> JobResult | None:
+        """The job's result once it has ended (the job is then forgotten); else None."""
+        result = None if self.job is None else self.job.poll()
+        if result is not None:
+            self.job = None
+        return result
+
+    def close(self) -> None:
+        """Stops a render still under way: it would outlive the window."""
+        if self.job is not None:
+            self.job.close()

@@ -16,12 +16,12 @@ import raygs_viewer.capture.nerfstudio as nerfstudio_module
 from raygs_viewer.camera.navigation import Pose
 from raygs_viewer.camera.path import CameraPath, Interpolation, Keyframe
 from raygs_viewer.capture.nerfstudio import (
+    NerfstudioPath,
     is_nerfstudio,
     nerfstudio_json,
     read_nerfstudio,
     save_nerfstudio,
 )
-from raygs_viewer.capture.path_document import PathDocument
 from raygs_viewer.capture.path_file import load_path_document
 from raygs_viewer.errors import UserError
 
@@ -120,12 +120,11 @@ def make_path(loop=False, count=4, seed=11) -> CameraPath:
 
 @pytest.mark.parametrize("loop", [False, True])
 def test_export_then_import_gives_the_same_frames(loop):
-    doc = PathDocument(make_path(loop), WIDTH, HEIGHT)
+    doc = NerfstudioPath(make_path(loop), WIDTH, HEIGHT)
     data = json.loads(json.dumps(nerfstudio_json(doc)))  # through JSON text, as a file would be
     assert len(data["camera_path"]) == doc.path.frame_count == 13
     imported = read_nerfstudio(data, "x.json")
-    assert imported.kind == "nerfstudio" and (imported.width, imported.height) == (WIDTH, HEIGHT)
-    assert imported.settings is None and imported.scene_path is None and imported.notes == ()
+    assert (imported.width, imported.height) == (WIDTH, HEIGHT) and imported.notes == ()
     assert imported.path.interpolation.loop == loop and imported.path.interpolation.tension == 0.3
     assert imported.path.frame_count == doc.path.frame_count
     assert imported.path.fps == pytest.approx(doc.path.fps, rel=1e-12)
@@ -160,7 +159,7 @@ def test_exported_keyframes_load_in_nerfstudios_viewer_at_our_times():
     """The viewer's *Load path* (render_panel.py) turns "matrix" back into its camera with
     matrix[:3, :3] @ rot_x(pi) and places keyframe i at the sum of the transitions before it."""
     path = make_path(loop=False).with_keyframe_changed(2, time=1.0)
-    doc = PathDocument(path, WIDTH, HEIGHT)
+    doc = NerfstudioPath(path, WIDTH, HEIGHT)
     data = nerfstudio_json(doc)
     assert "default_fov" not in data  # every keyframe's fov is then its own in the viewer
     rot_x_pi = np.diag([1.0, -1.0, -1.0])
@@ -175,7 +174,7 @@ def test_exported_keyframes_load_in_nerfstudios_viewer_at_our_times():
     assert np.allclose(np.cumsum([0.0] + transitions[1:]), path.keyframe_times(), rtol=0, atol=1e-12)
     assert sum(transitions[1:]) == pytest.approx(path.duration)
     # A loop: the first keyframe's transition closes the lap, and they sum to its duration.
-    looped = nerfstudio_json(PathDocument(make_path(loop=True), WIDTH, HEIGHT))
+    looped = nerfstudio_json(NerfstudioPath(make_path(loop=True), WIDTH, HEIGHT))
     assert sum(k["override_transition_sec"] for k in looped["keyframes"]) == pytest.approx(1.3)
     assert looped["default_transition_sec"] == pytest.approx(1.3 / 4)
 
@@ -210,6 +209,7 @@ def test_a_file_written_by_nerfstudios_viewer_imports(tmp_path):
     file.write_text(json.dumps(data))
     doc = load_path_document(file)
     assert doc.kind == "nerfstudio" and doc.source == file and (doc.width, doc.height) == (1920, 1080)
+    assert doc.settings is None and doc.stereo is None and doc.scene_path is None and doc.scene_sha256 is None
     assert doc.path.frame_count == frames and doc.path.fps == pytest.approx(fps)
     assert doc.path.interpolation.up == (0.0, 0.0, 1.0) and doc.path.interpolation.tension == 0.5
     assert len(doc.notes) == 1 and "crop" in doc.notes[0] and file.name in doc.notes[0]
@@ -221,7 +221,7 @@ def test_a_file_written_by_nerfstudios_viewer_imports(tmp_path):
 
 
 def test_save_nerfstudio_never_clobbers(tmp_path):
-    doc = PathDocument(make_path(), WIDTH, HEIGHT)
+    doc = NerfstudioPath(make_path(), WIDTH, HEIGHT)
     target = tmp_path / "camera_path.json"
     target.write_text("precious")
     with pytest.raises(UserError, match="already exists"):
@@ -230,7 +230,7 @@ def test_save_nerfstudio_never_clobbers(tmp_path):
     save_nerfstudio(doc, target, overwrite=True)
     assert load_path_document(target).kind == "nerfstudio" and listing(tmp_path) == ["camera_path.json"]
     with pytest.raises(UserError, match="no keyframes"):
-        nerfstudio_json(PathDocument(CameraPath(), WIDTH, HEIGHT))
+        nerfstudio_json(NerfstudioPath(CameraPath(), WIDTH, HEIGHT))
 
 
 def test_is_nerfstudio():

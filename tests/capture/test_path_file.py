@@ -33,10 +33,10 @@ from raygs_viewer.camera.navigation import Pose
 from raygs_viewer.camera.path import MAX_FRAMES, CameraPath, Interpolation, Keyframe
 from raygs_viewer.camera.pinhole import camera_to_json
 from raygs_viewer.camera.stereo import PRESETS, StereoRig, StereoView
-from raygs_viewer.capture.nerfstudio import nerfstudio_json
-from raygs_viewer.capture.path_document import PathDocument
+from raygs_viewer.capture.nerfstudio import NerfstudioPath, nerfstudio_json
 from raygs_viewer.capture.path_file import (
     PATH_FORMAT,
+    PathDocument,
     load_path_document,
     path_document_json,
     save_path_document,
@@ -391,7 +391,7 @@ def _nerfstudio_text() -> str:
     path = make_path(count=3)
     path = dataclasses.replace(path, keyframes=tuple(dataclasses.replace(k, time=None) for k in path.keyframes),
                                duration=0.5, fps=20.0)
-    return json.dumps(nerfstudio_json(PathDocument(path, 64, 48)))
+    return json.dumps(nerfstudio_json(NerfstudioPath(path, 64, 48)))
 
 
 def valid_nerfstudio_data() -> dict:

@@ -28,7 +28,7 @@ from raygs_viewer.capture.path_render import (
     render_frames,
     write_cameras_json,
 )
-from raygs_viewer.capture.progress import Progress
+from raygs_viewer.capture.progress import FrameProgress, Progress, RenderDone, RenderInterrupted, read_progress_line
 from raygs_viewer.capture.screenshot import render_tiled
 from raygs_viewer.capture.video import open_sink
 from raygs_viewer.render.settings import RenderSettings
@@ -201,8 +201,8 @@ def test_an_interrupt_leaves_a_playable_truncated_mp4_or_nothing(tmp_path, demo_
     sink, kept = render_path(Interrupting(demo_renderer, at), tmp_path / "fly.mp4", cameras, progress)
     assert sink.frames_written == at
     assert sorted(p.name for p in tmp_path.iterdir()) == ([] if at == 0 else ["fly.mp4"])  # no temporary files
-    assert lines.records[-1] == {"interrupted": True, "frames": at, "out": None if at == 0 else str(kept)}
-    assert [r["frame"] for r in lines.records[:-1]] == list(range(1, at + 1))
+    assert lines.records[-1] == RenderInterrupted(at, None if at == 0 else str(kept))
+    assert [r.frame for r in lines.records[:-1]] == list(range(1, at + 1))
     if at == 0:
         assert kept is None
         return
@@ -232,14 +232,15 @@ def test_a_finished_render_reports_json_progress(tmp_path, demo_renderer):
     progress = Progress(len(cameras), "json", lines)
     _, out = render_path(demo_renderer, tmp_path / "fly.mp4", cameras, progress)
     progress.finish(out)
-    assert [r["frame"] for r in lines.records[:-1]] == [1, 2, 3]
-    assert all(r["frames"] == 3 and r["fps"] > 0 and r["eta_s"] >= 0 for r in lines.records[:-1])
-    assert lines.records[-1] == {"done": True, "out": str(out), "frames": 3}
+    assert [r.frame for r in lines.records[:-1]] == [1, 2, 3]
+    assert all(isinstance(r, FrameProgress) and r.frames == 3 and r.fps > 0 and r.eta_s >= 0
+               for r in lines.records[:-1])
+    assert lines.records[-1] == RenderDone(str(out), 3)
     assert len(decoded_frames(out)) == 3
 
 
 class JsonLines:
-    """A stream that keeps the JSON objects written to it, one per line."""
+    """A stream that keeps the progress lines written to it, read back as records."""
 
     def __init__(self):
         self.text = ""
@@ -253,7 +254,9 @@ class JsonLines:
     @property
     def records(self):
         assert self.text.endswith("\n")
-        return [json.loads(line) for line in self.text.splitlines()]
+        records = [read_progress_line(line) for line in self.text.splitlines()]
+        assert None not in records
+        return records
 
 
 def test_nothing_is_rendered_when_the_output_is_refused(tmp_path, demo_renderer):

@@ -1,5 +1,5 @@
 """Frame sinks (an H.264 MP4 through PyAV, a PNG folder), the output checks made before
-any rendering, and the progress display.
+any rendering.
 
 The MP4's frames are compared with the rendered frames they encode. H.264 at crf 18 is
 not lossless, and 4:2:0 chroma (one colour sample per 2x2 pixels) alone costs these
@@ -12,8 +12,6 @@ scores 12-16 dB, a transposed one about 9 dB. The bounds below sit between.
 from __future__ import annotations
 
 import gc
-import io
-import json
 import os
 from fractions import Fraction
 from pathlib import Path
@@ -28,7 +26,6 @@ import raygs_viewer.capture.video as video
 from raygs_viewer.camera.path import path_through_cameras
 from raygs_viewer.capture.image_io import encode_image, to_rgb8
 from raygs_viewer.capture.path_render import frame_cameras, render_frame
-from raygs_viewer.capture.progress import Progress, format_duration
 from raygs_viewer.capture.video import check_video_output, even_size, open_sink
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.demo import demo_cameras
@@ -353,91 +350,3 @@ def test_valid_outputs_pass_the_check(tmp_path):
     (tmp_path / "empty").mkdir()
     assert check_video_output(tmp_path / "empty") == tmp_path / "empty"
     assert list(tmp_path.iterdir()) == [tmp_path / "empty"]  # checking creates nothing
-
-
-# --------------------------------------------------------------------------- progress
-
-
-class FakeClock:
-    def __init__(self):
-        self.now = 100.0
-
-    def __call__(self):
-        return self.now
-
-
-def test_progress_json_lines(tmp_path):
-    clock, stream = FakeClock(), io.StringIO()
-    progress = Progress(4, "json", stream, clock)
-    for done in (1, 2, 3, 4):
-        clock.now += 0.5
-        progress.update(done)
-    progress.finish(tmp_path / "fly.mp4")
-    progress.interrupted(3, None)
-    lines = [json.loads(line) for line in stream.getvalue().splitlines()]
-    assert lines[0] == {"frame": 1, "frames": 4, "fps": 2.0, "eta_s": 1.5}
-    assert lines[3] == {"frame": 4, "frames": 4, "fps": 2.0, "eta_s": 0.0}
-    assert lines[4] == {"done": True, "out": str(tmp_path / "fly.mp4"), "frames": 4}
-    assert lines[5] == {"interrupted": True, "frames": 3, "out": None}
-    assert len(lines) == 6
-
-
-def test_progress_json_before_any_rate_and_on_stdout(capsys):
-    clock = FakeClock()
-    progress = Progress(3, "json", clock=clock)
-    progress.update(0)
-    progress.interrupted(0, "fly.mp4")
-    out, err = capsys.readouterr()
-    assert err == ""
-    assert [json.loads(line) for line in out.splitlines()] == [
-        {"frame": 0, "frames": 3, "fps": None, "eta_s": None}, {"interrupted": True, "frames": 0, "out": "fly.mp4"}]
-
-
-def test_progress_bar_text_rate_window_and_time_left():
-    clock, stream = FakeClock(), io.StringIO()
-    progress = Progress(120, "bar", stream, clock, label="fly.mp4")
-    assert progress.bar_text() == "fly.mp4: 0/120 frames [--------------------] 0%  -- fps  --:-- left"
-    for done in range(1, 38):
-        clock.now += 0.1 if done <= 20 else 0.5     # slower from frame 21 on
-        progress.update(done)
-    # The rate is over the last 10 frames (2 fps), not the whole run: 83 frames in 41.5 s.
-    assert progress.bar_text() == "fly.mp4: 37/120 frames [######--------------] 30%  2.0 fps  0:42 left"
-    assert stream.getvalue().startswith("\rfly.mp4: 1/120 frames [")
-    assert stream.getvalue().endswith("\rfly.mp4: 37/120 frames [######--------------] 30%  2.0 fps  0:42 left")
-    assert "\n" not in stream.getvalue()  # redrawn in place
-    progress.interrupted(37, "fly.mp4")
-    assert stream.getvalue().endswith("\ninterrupted after 37/120 frames: kept fly.mp4 (37 frames)\n")
-
-
-def test_progress_bar_redraws_at_most_ten_times_a_second_and_ends_its_line():
-    clock, stream = FakeClock(), io.StringIO()
-    progress = Progress(50, "bar", stream, clock)
-    for done in range(1, 51):
-        clock.now += 0.01
-        progress.update(done)
-    progress.finish("fly.mp4")
-    text = stream.getvalue()
-    assert 5 <= text.count("\r") <= 8 and text.endswith("50/50 frames [####################] 100%  100 fps  0:00 left\n")
-
-
-def test_progress_auto_and_none():
-    class Terminal(io.StringIO):
-        def isatty(self):
-            return True
-    assert Progress(3, "auto", Terminal()).mode == "bar"
-    assert Progress(3, "auto", io.StringIO()).mode == "none"
-    stream = io.StringIO()
-    quiet = Progress(3, "none", stream)
-    quiet.update(1)
-    quiet.finish("fly.mp4")
-    assert stream.getvalue() == ""
-    quiet.interrupted(1, None)  # the one line every mode prints
-    assert stream.getvalue() == "interrupted after 1/3 frames: nothing written\n"
-    with pytest.raises(ValueError):
-        Progress(3, "loud")
-
-
-def test_format_duration():
-    assert [format_duration(s) for s in (0, 0.2, 59.5, 62, 3600, 3725.1)] == [
-        "0:00", "0:01", "1:00", "1:02", "1:00:00", "1:02:06"]
-

@@ -21,9 +21,8 @@ from raygs_viewer.camera.path import path_through_cameras
 from raygs_viewer.camera.pinhole import load_cameras
 from raygs_viewer.camera.stereo import StereoRig, StereoView
 from raygs_viewer.capture import path_render
-from raygs_viewer.capture.nerfstudio import save_nerfstudio
-from raygs_viewer.capture.path_document import PathDocument
-from raygs_viewer.capture.path_file import save_path_document
+from raygs_viewer.capture.path_file import PathDocument, export_nerfstudio, save_path_document
+from raygs_viewer.capture.progress import FrameProgress, RenderDone, RenderInterrupted, read_progress_line
 from raygs_viewer.capture.sidecar import demo_sha256
 from raygs_viewer.cli import path as path_command
 from raygs_viewer.cli.main import main
@@ -148,7 +147,7 @@ def test_stereo_from_the_file_or_the_options_is_side_by_side(tmp_path):
 
 
 def test_a_nerfstudio_camera_path_renders_the_same_frames(tmp_path, path_file):
-    nerfstudio = save_nerfstudio(demo_document(), tmp_path / "camera_path.json")
+    nerfstudio = export_nerfstudio(demo_document(), tmp_path / "camera_path.json")
     ours, theirs = tmp_path / "ours", tmp_path / "theirs"
     assert run("demo", str(path_file), "--out", str(ours)) == 0
     # nerfstudio files carry no render settings: give the background the path file recorded.
@@ -184,9 +183,10 @@ def test_ctrl_c_before_any_frame_leaves_no_file(tmp_path, path_file, monkeypatch
 
 def test_json_progress_lines(tmp_path, path_file, capsys):
     assert main(["render-path", "demo", str(path_file), "--out", str(tmp_path / "f"), "--progress", "json"]) == 0
-    records = [json.loads(line) for line in capsys.readouterr().out.splitlines()]
-    assert [r["frame"] for r in records[:-1]] == [1, 2, 3, 4]
-    assert records[-1] == {"done": True, "out": str(tmp_path / "f"), "frames": 4}
+    records = [read_progress_line(line) for line in capsys.readouterr().out.splitlines()]
+    assert all(isinstance(r, FrameProgress) for r in records[:-1])   # nothing but progress lines on stdout
+    assert [r.frame for r in records[:-1]] == [1, 2, 3, 4]
+    assert records[-1] == RenderDone(str(tmp_path / "f"), 4)
 
 
 def test_a_path_recorded_on_another_scene_renders_with_a_warning(tmp_path, capsys):
@@ -210,7 +210,7 @@ def test_bad_input_is_one_line_before_any_rendering_and_loses_nothing(tmp_path, 
     existing = tmp_path / "fly.mp4"
     existing.write_bytes(b"the user's video")
     (tmp_path / "bad.json").write_text("{not json")
-    timed = save_nerfstudio(demo_document(), tmp_path / "timed.json")   # every keyframe has its time
+    timed = export_nerfstudio(demo_document(), tmp_path / "timed.json")   # every keyframe has its time
     argv = {
         "missing path": ["demo", str(tmp_path / "nope.json"), "--out", str(tmp_path / "a.mp4")],
         "not json": ["demo", str(tmp_path / "bad.json"), "--out", str(tmp_path / "a.mp4")],
@@ -241,18 +241,18 @@ def test_a_real_sigint_mid_render_leaves_a_playable_video(tmp_path):
                                 "--out", str(video), "--progress", "json"],
                                stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     try:
-        first = json.loads(process.stdout.readline())   # a frame is done: the encoder holds some
+        first = read_progress_line(process.stdout.readline())   # a frame is done: the encoder holds some
         for _ in range(2):
             process.stdout.readline()
         process.send_signal(signal.SIGINT)
         out, err = process.communicate(timeout=60)
     finally:
         process.kill()
-    assert first["frame"] == 1 and first["frames"] == 200
+    assert first == FrameProgress(1, 200, first.fps, first.eta_s)
     assert process.returncode == 130
-    interrupted = json.loads(out.splitlines()[-1])
-    assert interrupted["interrupted"] is True and interrupted["out"] == str(video)
-    assert 3 <= interrupted["frames"] < 200
-    assert len(decoded(video)[0]) == interrupted["frames"]
+    interrupted = read_progress_line(out.splitlines()[-1])
+    assert isinstance(interrupted, RenderInterrupted) and interrupted.out == str(video)
+    assert 3 <= interrupted.frames < 200
+    assert len(decoded(video)[0]) == interrupted.frames
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fly.mp4", "long.json"]
     assert err.strip().splitlines()[-1].startswith("interrupted: ")
