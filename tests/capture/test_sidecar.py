@@ -50,6 +50,7 @@ from raygs_viewer.capture.sidecar import (
 from raygs_viewer.errors import UserError
 from raygs_viewer.jsonfile import JsonFields
 from raygs_viewer.render.reference import render_reference
+from raygs_viewer.render.setting_info import Setting, setting
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.demo import demo_scene
 from raygs_viewer.scene.io import load_scene
@@ -144,7 +145,7 @@ def test_settings_fields_flow_in_automatically():
     """A RenderSettings field added later is written and read back with no sidecar change."""
     @dataclasses.dataclass(frozen=True)
     class Extended(RenderSettings):
-        exposure: float = 1.0
+        exposure: float = setting(1.0, Setting("scale the image's brightness", "E", limits=(0.0, 8.0)))
 
     data = demo_sidecar(settings=Extended(exposure=2.5))
     assert data["settings"]["exposure"] == 2.5
