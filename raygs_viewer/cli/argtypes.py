@@ -55,6 +55,18 @@ def real_number(accept: Callable[[float], bool], meaning: str) -> Callable[[str]
     return parse
 
 
+def short_number(value: float) -> str:
+    """``value`` as a message writes it: 0.001, 1e6, 1e-9 (``:g`` without the
+    exponent's sign and leading zeros)."""
+    mantissa, exponent, power = f"{value:g}".partition("e")
+    return f"{mantissa}e{int(power)}" if exponent else mantissa
+
+
+def real_in(low: float, high: float, unit: str) -> Callable[[str], float]:
+    """An argparse type: a finite number in [low, high], in ``unit`` (its message says it)."""
+    return real_number(lambda v: low <= v <= high, f"not in [{short_number(low)}, {short_number(high)}] {unit}")
+
+
 def setting_type(setting: SettingField) -> Callable[[str], object]:
     """The argparse type of a settings field that is neither a switch nor a choice of
     strings, from its Setting (render.setting_info): R,G,B for a colour, a whole number

@@ -5,18 +5,16 @@ the render settings (:class:`RenderSettings`) and the stereo rig and view.
 from __future__ import annotations
 
 import argparse
-from dataclasses import fields, replace
+from dataclasses import replace
 
 from raygs_viewer.camera.lens_model import DEFAULT_LENS
 from raygs_viewer.camera.stereo import (
-    DEFAULT_CONVERGENCE,
     DEFAULT_HEADSET,
-    DEFAULT_IPD,
-    DEFAULT_SCENE_SCALE,
     LAYOUTS,
     PRESETS,
     StereoRig,
     StereoView,
+    rig_quantities,
 )
 from raygs_viewer.cli import argtypes
 from raygs_viewer.errors import UserError
@@ -32,7 +30,7 @@ def option_flag(name: str) -> str:
 
 
 #: render's stereo options besides --stereo: (flag, argparse dest).
-STEREO_OPTIONS = (("--ipd", "ipd"), ("--convergence", "convergence"), ("--scene-scale", "scene_scale"),
+STEREO_OPTIONS = (*((option_flag(name), name) for name in rig_quantities()),
                   ("--layout", "layout"), ("--lens-preview", "lens_preview"))
 
 
@@ -117,13 +115,10 @@ def add_stereo_options(parser: argparse.ArgumentParser, window: bool = False) ->
                             help="render the two eyes around the camera (which is their midpoint), each at the "
                                  "camera's size; the image is both eyes side by side unless --layout says "
                                  "otherwise")
-    parser.add_argument("--ipd", type=argtypes.real_number(lambda v: 0.0 <= v <= 1.0, "not in [0, 1] metres"),
-                        metavar="METRES", help=f"distance between the eyes (default {DEFAULT_IPD})")
-    parser.add_argument("--convergence",
-                        type=argtypes.real_number(lambda v: 1e-3 <= v <= 1e6, "not in [0.001, 1e6] metres"),
-                        metavar="METRES", help=f"distance of zero disparity (default {DEFAULT_CONVERGENCE})")
-    parser.add_argument("--scene-scale", type=argtypes.real_number(lambda v: 1e-9 <= v <= 1e9, "not a positive scale"),
-                        metavar="METRES_PER_UNIT", help=f"metres per scene unit (default {DEFAULT_SCENE_SCALE})")
+    start = StereoRig()
+    for name, quantity in rig_quantities().items():  # the rig's fields, and their limits, are the rig's
+        parser.add_argument(option_flag(name), type=argtypes.real_in(quantity.low, quantity.high, quantity.unit),
+                            metavar=quantity.metavar, help=f"{quantity.meaning} (default {getattr(start, name)})")
     parser.add_argument("--layout", choices=LAYOUTS,
                         help="sbs: left eye on the left (default); cross: for cross-eyed viewing; "
                              "anaglyph: red/cyan; left or right: one eye")
@@ -144,7 +139,7 @@ def add_stereo_options(parser: argparse.ArgumentParser, window: bool = False) ->
 
 def stereo_rig(args) -> StereoRig:
     """The rig of --ipd, --convergence and --scene-scale (defaults for those not given)."""
-    given = {f.name: getattr(args, f.name) for f in fields(StereoRig)}  # --ipd is dest "ipd", and so on
+    given = {name: getattr(args, name) for name in rig_quantities()}  # --ipd is dest "ipd", and so on
     return StereoRig(**{name: value for name, value in given.items() if value is not None})
 
 

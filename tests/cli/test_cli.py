@@ -15,6 +15,7 @@ from testkit import assert_one_line_error, listing, run_cli, write_inria_ply
 from raygs_viewer.bench.loading import write_generated_ply
 from raygs_viewer.camera.pinhole import Camera, camera_to_json, look_at
 from raygs_viewer.cli.main import main
+from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.storage import SceneBuffers
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.demo import demo_camera, demo_scene
@@ -828,6 +829,27 @@ def test_bad_stereo_options_are_one_line_errors(capsys, tmp_path, argv, fragment
     code, _, err = run_cli(capsys, "render", *SMALL, *argv, "--out", out)
     assert fragment in assert_one_line_error(code, err)
     assert not out.exists()
+
+
+@pytest.mark.parametrize("flag, low, high", [("--ipd", 0.0, 1.0), ("--convergence", 1e-3, 1e6),
+                                             ("--scene-scale", 1e-9, 1e9)])
+def test_the_command_line_and_the_rig_take_the_same_values(flag, low, high):
+    """One limit per rig field, read by both the options and StereoRig."""
+    from raygs_viewer.camera.stereo import StereoRig
+    from raygs_viewer.cli.main import build_parser
+    from raygs_viewer.cli.options import stereo_rig
+
+    name = flag[2:].replace("-", "_")
+    for value, accepted in ((low, True), (high, True), (low * 0.999 if low else -1e-9, False), (high * 1.001, False)):
+        argv = ["render", "--stereo", f"{flag}={value!r}", "--out", "x.png"]
+        if accepted:
+            assert getattr(stereo_rig(build_parser().parse_args(argv)), name) == value
+            assert getattr(StereoRig(**{name: value}), name) == value
+        else:
+            with pytest.raises(UserError, match=flag):
+                build_parser().parse_args(argv)
+            with pytest.raises(UserError, match=name.replace("_", " ")):
+                StereoRig(**{name: value})
 
 
 @pytest.mark.parametrize("argv, fields", [
