@@ -711,12 +711,20 @@ def test_up_axis(capsys, viewer, argv, axis):
     assert viewer.pop().navigation.up_axis == axis
 
 
-def test_up_axes_match_the_controls():
-    from raygs_viewer.cli.view import UP_AXES
-    controls = pytest.importorskip("raygs_viewer.camera.navigation")
-    if not hasattr(controls, "UP_AXES"):
-        pytest.skip("controls.UP_AXES not written yet")
-    assert set(UP_AXES) == set(controls.UP_AXES)
+def test_up_axes_are_the_six_signed_world_axes(capsys):
+    """--up-axis offers each signed world axis once, in this order, and each name means
+    the axis its sign and letter say: checked against a literal list, the help's choices
+    and a vector built from the name, not against the navigation's own table."""
+    from raygs_viewer.camera.navigation import up_vector
+
+    expected = ("-y", "+y", "+z", "-z", "+x", "-x")
+    with pytest.raises(SystemExit):
+        main(["view", "--help"])
+    assert "{" + ",".join(expected) + "}" in capsys.readouterr().out
+    for name in expected:
+        axis = np.zeros(3)
+        axis["xyz".index(name[1])] = 1.0 if name[0] == "+" else -1.0
+        np.testing.assert_array_equal(up_vector(name), axis)
 
 
 @pytest.mark.parametrize("scale", ["8", "0.25", "1e-3"])
