@@ -2,14 +2,15 @@
 
 import math
 from dataclasses import dataclass, fields, replace
+from pathlib import Path
 
 import pytest
 
 from raygs_viewer.cli.argtypes import Parser
 from raygs_viewer.cli.commands import describe_accuracy
-from raygs_viewer.cli.options import add_settings_options, render_settings
+from raygs_viewer.cli.options import add_settings_options, option_flag, render_settings
 from raygs_viewer.errors import UserError
-from raygs_viewer.render.setting_info import Setting, Shown, setting
+from raygs_viewer.render.setting_info import Setting, Shown, setting, settings_table
 from raygs_viewer.render.settings import ACCURACY_FIELDS, ACCURACY_PRESETS, RenderSettings, apply_preset
 from raygs_viewer.viewer.overlay import describe_settings
 
@@ -171,3 +172,12 @@ def test_the_command_line_and_the_settings_take_the_same_values(name, low, high,
             with pytest.raises(UserError):
                 RenderSettings(**{name: value}, **extra)
 
+
+def test_the_viewer_docs_name_every_setting_and_its_option():
+    """The sidecar's "settings" row and the command line's table in docs/viewer.md."""
+    text = (Path(__file__).resolve().parents[2] / "docs" / "viewer.md").read_text()
+    sidecar_row = next(line for line in text.splitlines() if line.startswith("| `settings` |"))
+    options = text.split("## Render settings on the command line")[1].split("\n## ")[0]
+    for row in settings_table(RenderSettings):
+        assert f"`{row.name}`" in sidecar_row, row.name
+        assert f"`{option_flag(row.name)}" in options, row.name
