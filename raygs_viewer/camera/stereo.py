@@ -20,7 +20,7 @@ Conventions (camera space: +x right, +y down, +z forward; the maths page, sectio
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
@@ -42,17 +42,40 @@ MIN_FOV, MAX_FOV = 1.0, 170.0
 
 
 @dataclass(frozen=True)
+class Quantity:
+    """What the readers of one rig field need besides its default: the values it takes
+    (a closed interval), its unit, and what it means (the command line's help and
+    metavar start from it). Each StereoRig field carries one (:func:`rig_quantities`)."""
+
+    low: float
+    high: float
+    unit: str
+    meaning: str
+    metavar: str
+
+    def clamp(self, value: float) -> float:
+        return min(max(value, self.low), self.high)
+
+
+def rig_field(default: float, quantity: Quantity):
+    """A StereoRig field with its default and its Quantity."""
+    return field(default=default, metadata={"quantity": quantity})
+
+
+@dataclass(frozen=True)
 class StereoRig:
     """ipd: metres between the eyes; convergence: metres from the eyes' midpoint to
     the plane of zero disparity; scene_scale: metres per scene unit."""
 
-    ipd: float = DEFAULT_IPD
-    convergence: float = DEFAULT_CONVERGENCE
-    scene_scale: float = DEFAULT_SCENE_SCALE
+    ipd: float = rig_field(DEFAULT_IPD, Quantity(0.0, 1.0, "metres", "distance between the eyes", "METRES"))
+    convergence: float = rig_field(DEFAULT_CONVERGENCE, Quantity(1e-3, 1e6, "metres", "distance of zero disparity",
+                                                                "METRES"))
+    scene_scale: float = rig_field(DEFAULT_SCENE_SCALE, Quantity(1e-9, 1e9, "metres per unit",
+                                                                "metres per scene unit", "METRES_PER_UNIT"))
 
     def __post_init__(self) -> None:
-        for name, low, high in (("ipd", 0.0, 1.0), ("convergence", 1e-3, 1e6), ("scene_scale", 1e-9, 1e9)):
-            object.__setattr__(self, name, checked_number(getattr(self, name), low, high,
+        for name, quantity in rig_quantities(type(self)).items():
+            object.__setattr__(self, name, checked_number(getattr(self, name), quantity.low, quantity.high,
                                                           f"stereo {name.replace('_', ' ')}"))
 
     @property
@@ -63,6 +86,15 @@ class StereoRig:
     @property
     def convergence_units(self) -> float:
         return self.convergence / self.scene_scale
+
+
+def rig_quantities(rig_type: type[StereoRig] = StereoRig) -> dict[str, Quantity]:
+    """Each field of ``rig_type`` (StereoRig or a subclass) with its Quantity; TypeError
+    for a field made without :func:`rig_field`, which no reader would know."""
+    missing = [declared.name for declared in fields(rig_type) if "quantity" not in declared.metadata]
+    if missing:
+        raise TypeError(f"{rig_type.__name__}.{missing[0]} has no Quantity: make it with rig_field()")
+    return {declared.name: declared.metadata["quantity"] for declared in fields(rig_type)}
 
 
 def eye_cameras(camera: Camera, rig: StereoRig) -> tuple[Camera, Camera]:

@@ -29,7 +29,9 @@ A stereo image (version 2) adds::
                 "headset": null or {"name", "label", "width", "height", "fov_x", "fov_y"}}
 
 Its "camera" is the midpoint between the eyes (each eye has that size) and "image" is
-the composed size (twice the width side by side). A file is written with the lowest
+the composed size (twice the width side by side). As in "settings", a key that a file
+written before it existed lacks takes its default (a headset's fields have none), and
+a key this version does not know is an error. A file is written with the lowest
 version that describes it, so older readers keep reading mono sidecars and refuse
 stereo ones instead of rendering them as one eye.
 
@@ -157,8 +159,8 @@ def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, 
 
 
 def stereo_entry(view: StereoView) -> dict:
-    return {"ipd": view.rig.ipd, "convergence": view.rig.convergence, "scene_scale": view.rig.scene_scale,
-            "layout": view.layout,
+    """The "stereo" section: every field of the rig, then the layout, the lens and the headset."""
+    return {**dataclasses.asdict(view.rig), "layout": view.layout,
             "lens": None if view.lens is None else dataclasses.asdict(view.lens),
             "headset": None if view.headset is None else dataclasses.asdict(view.headset)}
 
@@ -263,31 +265,22 @@ def _load_camera(fields: JsonFields) -> Camera:
     return Camera(camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy, R, t)
 
 
-_LENS_FIELDS = ("k1", "k2", "chroma_red", "chroma_blue")
-_HEADSET_FIELDS = {"name": str, "label": str, "width": int, "height": int, "fov_x": float, "fov_y": float}
-
-
-def load_stereo_entry(fields: JsonFields) -> StereoView:
-    """The "stereo" section; every key is required and none may be unknown (a newer
-    program's stereo option cannot be honoured)."""
+def load_stereo_entry(fields: JsonFields, rig_type: type[StereoRig] = StereoRig) -> StereoView:
+    """The "stereo" section: the fields of ``rig_type``, the layout, the lens and the
+    headset. A key the file lacks takes its default (the file was written before the
+    field existed; a headset's fields have none, so they stay required); an unknown key
+    is an error (a newer program's stereo option cannot be honoured)."""
     path = fields.path
     entry = fields.get("stereo", dict)
-    known = ("ipd", "convergence", "scene_scale", "layout", "lens", "headset")
-    fields.keys("stereo", entry, known)
-    layout = fields.get("stereo.layout", str)
+    view = {declared.name: declared.default for declared in dataclasses.fields(StereoView) if declared.name != "rig"}
+    fields.keys("stereo", entry, (), (*(declared.name for declared in dataclasses.fields(rig_type)), *view))
+    layout = fields.get("stereo.layout", str) if "layout" in entry else view["layout"]
     if layout not in LAYOUTS:
         raise UserError(f"{path}: 'stereo.layout' must be one of {', '.join(LAYOUTS)}, got {show_json(layout)}")
     try:
-        rig = StereoRig(**{name: fields.get(f"stereo.{name}", float) for name in known[:3]})
-        lens = None
-        if fields.get("stereo.lens", (dict, type(None))) is not None:
-            fields.keys("stereo.lens", entry["lens"], _LENS_FIELDS)
-            lens = LensModel(**{name: fields.get(f"stereo.lens.{name}", float) for name in _LENS_FIELDS})
-        headset = None
-        if fields.get("stereo.headset", (dict, type(None))) is not None:
-            fields.keys("stereo.headset", entry["headset"], tuple(_HEADSET_FIELDS))
-            headset = HeadsetPreset(**{name: fields.get(f"stereo.headset.{name}", kind)
-                                       for name, kind in _HEADSET_FIELDS.items()})
+        rig = rig_type(**_field_values(fields, "stereo", entry, rig_type))
+        lens, headset = (_nested_entry(fields, f"stereo.{name}", kind)
+                         for name, kind in (("lens", LensModel), ("headset", HeadsetPreset)))
     except UserError as exc:
         if str(exc).startswith(str(path)):
             raise
@@ -295,8 +288,30 @@ def load_stereo_entry(fields: JsonFields) -> StereoView:
     return StereoView(rig, layout, lens, headset)
 
 
+def _nested_entry(fields: JsonFields, dotted: str, kind: type):
+    """``kind`` from the object at ``dotted``, or None where it is null or absent: a key
+    it lacks takes the field's default where ``kind`` has one, an unknown key is an error."""
+    parent, _, key = dotted.rpartition(".")
+    if fields.get(parent, dict).get(key) is None:
+        return None
+    entry = fields.get(dotted, (dict, type(None)))
+    declared = dataclasses.fields(kind)
+    fields.keys(dotted, entry, tuple(f.name for f in declared if f.default is dataclasses.MISSING),
+                tuple(f.name for f in declared if f.default is not dataclasses.MISSING))
+    return kind(**_field_values(fields, dotted, entry, kind))
+
+
+def _field_values(fields: JsonFields, dotted: str, entry: dict, kind: type) -> dict:
+    """The values ``entry`` (the object at ``dotted``) gives for the fields of the
+    dataclass ``kind``, each checked against its annotated type (:func:`_setting`); the
+    fields it lacks are left out, to take their defaults."""
+    hints = typing.get_type_hints(kind)
+    return {f.name: _setting(entry[f.name], hints[f.name], f"{fields.path}: '{dotted}.{f.name}'")
+            for f in dataclasses.fields(kind) if f.name in entry}
+
+
 def load_settings_entry(fields: JsonFields, render_mode: str | None = None,
-                   settings_type: type[RenderSettings] = RenderSettings) -> RenderSettings:
+                        settings_type: type[RenderSettings] = RenderSettings) -> RenderSettings:
     """``settings_type`` from "settings": every key must be a field (a newer program's
     setting cannot be honoured, so it is an error); missing fields take their defaults
     (sidecars written before the field existed), except "mode", which older sidecars
@@ -309,14 +324,12 @@ def load_settings_entry(fields: JsonFields, render_mode: str | None = None,
         elif raw["mode"] != render_mode:
             raise UserError(f"{path}: 'settings.mode' {show_json(raw['mode'])} differs from 'render_mode' "
                             f"{show_json(render_mode)} (they must agree; edit both)")
-    hints = typing.get_type_hints(settings_type)
     known = {f.name for f in dataclasses.fields(settings_type)}
-    values = {}
-    for name, value in raw.items():
+    for name in raw:
         if name not in known:
             raise UserError(f"{path}: unknown setting 'settings.{json_key(name)}' "
                             f"(it may come from a newer raygs-viewer)")
-        values[name] = _setting(value, hints[name], f"{path}: 'settings.{name}'")
+    values = _field_values(fields, "settings", raw, settings_type)
     try:
         return settings_type(**values)
     except UserError as exc:

@@ -9,11 +9,13 @@ from __future__ import annotations
 
 import argparse
 import math
+import typing
 from typing import Callable
 
 from raygs_viewer.capture.screenshot import MAX_SCALE
 from raygs_viewer.errors import UserError
-from raygs_viewer.render.settings import MAX_MIP_SIGMA2, MAX_ORDER_K, MAX_SUPERSAMPLE
+from raygs_viewer.render.setting_info import SettingField, or_list, setting_field
+from raygs_viewer.render.settings import RenderSettings
 
 #: The longest side of an image the benchmarks accept, in pixels.
 MAX_SIDE = 16384
@@ -53,14 +55,38 @@ def real_number(accept: Callable[[float], bool], meaning: str) -> Callable[[str]
     return parse
 
 
+def short_number(value: float) -> str:
+    """``value`` as a message writes it: 0.001, 1e6, 1e-9 (``:g`` without the
+    exponent's sign and leading zeros)."""
+    mantissa, exponent, power = f"{value:g}".partition("e")
+    return f"{mantissa}e{int(power)}" if exponent else mantissa
+
+
+def real_in(low: float, high: float, unit: str) -> Callable[[str], float]:
+    """An argparse type: a finite number in [low, high], in ``unit`` (its message says it)."""
+    return real_number(lambda v: low <= v <= high, f"not in [{short_number(low)}, {short_number(high)}] {unit}")
+
+
+def setting_type(setting: SettingField) -> Callable[[str], object]:
+    """The argparse type of a settings field that is neither a switch nor a choice of
+    strings, from its Setting (render.setting_info): R,G,B for a colour, a whole number
+    among its choices or within its limits, or a number within its limits."""
+    name, info, hint = setting
+    if hint == tuple[float, float, float]:
+        return color
+    if int in (hint, *typing.get_args(hint)):
+        if info.choices:
+            return whole_number(min(info.choices), max(info.choices), f"not {or_list(info.choices)}")
+        low, high = info.limits
+        return whole_number(low, high, f"outside {info.low_words()}..{high}")
+    if info.limits is None:
+        raise TypeError(f"setting {name}: no command-line type for {hint} without limits")
+    return real_number(info.within, f"not in {info.interval()}")
+
+
 positive_int = whole_number(1, 65536)
-sh_degree = whole_number(0, 3, "not 0, 1, 2 or 3")
 frames = whole_number(1, math.inf, "not at least 1")
-supersample = whole_number(1, MAX_SUPERSAMPLE)
-order_k = whole_number(0, MAX_ORDER_K, f"outside 0 (exact)..{MAX_ORDER_K}")
-p_min = real_number(lambda v: 0.0 < v < 1.0, "not in (0, 1)")
 turntable = real_number(lambda v: abs(v) <= 180, "not between -180 and 180")
-mip_sigma2 = real_number(lambda v: 0.0 <= v <= MAX_MIP_SIGMA2, f"not in [0, {MAX_MIP_SIGMA2:g}] px^2")
 screenshot_scale = real_number(lambda v: 0.0 < v <= MAX_SCALE, f"not in (0, {MAX_SCALE:g}]")
 
 
@@ -73,6 +99,10 @@ def color(text: str) -> tuple[float, float, float]:
     if len(parts) != 3 or not all(math.isfinite(p) for p in parts):
         raise argparse.ArgumentTypeError(f"'{text}' is not three finite numbers R,G,B")
     return parts
+
+
+#: The opacity cut-off, as --p-min takes it (bench's --gt-p-min too).
+p_min = setting_type(setting_field(RenderSettings, "p_min"))
 
 
 def size(text: str) -> tuple[int, int]:

@@ -29,6 +29,7 @@ from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.gl.stereo_frame import render_stereo_view
 from raygs_viewer.render.gl.storage import gpu_bytes
 from raygs_viewer.render.reference import render_reference
+from raygs_viewer.render.setting_info import setting_parts
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.demo import demo_camera, demo_scene
 from raygs_viewer.scene.io import (
@@ -202,19 +203,6 @@ def command_verify(args) -> int:
 
 
 def describe_accuracy(settings: RenderSettings) -> str:
-    """One line of the accuracy options, for verify's report."""
-    parts = [f"mode {settings.mode}"]
-    if settings.mode == "raygs":
-        parts.append(f"MIP {'on' if settings.mip else 'off'}")
-    if settings.mip_active:
-        parts.append(f"sigma^2 {settings.mip_sigma2:g} px^2, modulation {'on' if settings.mip_modulation else 'off'}")
-    if settings.mode == "gs":
-        parts.append(f"compensation {'on' if settings.gs_compensation else 'off'}")
-    parts.append(f"supersample {settings.supersample}x{settings.supersample}")
-    parts.append(f"alpha clamp {'on' if settings.alpha_clamp else 'off'}")
-    parts.append(f"transmittance cut-off {'on' if settings.transmittance_cutoff else 'off'}")
-    if settings.per_pixel:
-        parts.append(f"order per-pixel ({'exact' if settings.order_k == 0 else f'K={settings.order_k}'})")
-    else:
-        parts.append(f"order {settings.order}")
-    return ", ".join(parts)
+    """One line of the accuracy options, for verify's report: each field's ``line``
+    (render.setting_info) where it applies, so a new setting shows up here by itself."""
+    return ", ".join(setting_parts(settings, "line", changes_only=False))

@@ -7,12 +7,16 @@ GL path, the float64 reference, the sidecar and the benchmark read one definitio
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, fields, replace
+from dataclasses import dataclass, replace
 
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.errors import UserError
+from raygs_viewer.render.setting_info import Setting, Shown, checked, setting, settings_table
 
 DEFAULT_P_MIN = 1.0 / 255.0
+DEFAULT_BACKGROUND = (0.0, 0.0, 0.0)
+#: The spherical-harmonics degrees a scene may store.
+SH_DEGREES = (0, 1, 2, 3)
 
 #: "raygs": RayGS, with the pixel-invariant MIP filter of Eq. 17 when ``mip`` is on.
 #: "raygs-exact-mip": RayGS with the pixel-dependent MIP filter (Appendix A.5),
@@ -79,21 +83,58 @@ class RenderSettings:
     "per-pixel", 0 sorts every pixel's fragments exactly; K in 1..MAX_ORDER_K
     re-orders them through a window of K entries (a k-buffer) fed in the global
     depth order. Per-pixel order needs a RayGS mode (EWA splats have no ray key).
+
+    Each field carries its Setting (:mod:`raygs_viewer.render.setting_info`): its
+    limits, where it applies, its command-line help and how verify's line and the
+    split view's label show it. The checks below, the command line, those describers
+    and the sidecar reader read nothing else, so a field added with its Setting
+    reaches all of them (the GL and reference renderers and the panel are its own).
     """
 
-    p_min: float = DEFAULT_P_MIN
-    background: tuple[float, float, float] = (0.0, 0.0, 0.0)
-    sh_degree: int | None = None
-    mode: str = "raygs"
-    mip: bool = False
-    mip_sigma2: float = 0.1
-    mip_modulation: bool = True
-    gs_compensation: bool = False
-    supersample: int = 1
-    alpha_clamp: bool = False
-    transmittance_cutoff: bool = False
-    order: str = "depth"
-    order_k: int = 0
+    p_min: float = setting(DEFAULT_P_MIN, Setting(
+        "opacity cut-off, sets kappa = -2 ln(P/o) (default 1/255)", "P", limits=(0.0, 1.0), open=True,
+        accuracy=False, label=Shown("p_min {:.3g}")))
+    background: tuple[float, float, float] = setting(DEFAULT_BACKGROUND, Setting(
+        "background colour, 0..1 each (default 0,0,0)", "R,G,B", accuracy=False))
+    sh_degree: int | None = setting(None, Setting(
+        f"highest spherical-harmonics band to evaluate, {SH_DEGREES[0]}..{SH_DEGREES[-1]}, capped at the scene's "
+        "(default: all the scene has)", "D", choices=SH_DEGREES, accuracy=False))
+    mode: str = setting("raygs", Setting(
+        "raygs: RayGS (default); raygs-exact-mip: RayGS with the exact, per-pixel MIP filter; gs: EWA splatting "
+        "as INRIA 3DGS renders (0.3 px^2 dilation)", choices=RENDER_MODES, words=MODE_LABELS, what="render mode",
+        line=Shown("mode {}"), label=Shown("{}", worded="{}", always=True)))
+    mip: bool = setting(False, Setting(
+        "RayGS mode: the pixel-invariant MIP filter (Eq. 17) (default off)", modes=("raygs",),
+        line=Shown("MIP {}")))
+    mip_sigma2: float = setting(0.1, Setting(
+        "the MIP filter's variance in px^2 of the rendered image (default 0.1); implies --mip unless --no-mip "
+        "is given", "S", limits=(0.0, MAX_MIP_SIGMA2), unit="px^2", what="MIP sigma^2", needs="mip_active",
+        implies=("mip", True), line=Shown("sigma^2 {:g} px^2"), label=Shown("MIP {:g} px²", always=True)))
+    mip_modulation: bool = setting(True, Setting(
+        "scale opacity so a filtered gaussian keeps its total opacity (default on); either form implies --mip "
+        "unless --no-mip is given", needs="mip_active", implies=("mip", True),
+        line=Shown("modulation {}"), label=Shown(" no mod.", joined=True)))
+    gs_compensation: bool = setting(False, Setting(
+        "gs mode: scale opacity by sqrt(det(S) / det(S + dilation)), as Mip-Splatting does", modes=("gs",),
+        line=Shown("compensation {}"), label=Shown("comp.")))
+    supersample: int = setting(1, Setting(
+        f"render K x K samples per pixel and average them, K = 1..{MAX_SUPERSAMPLE} (default 1)", "K",
+        limits=(1, MAX_SUPERSAMPLE), line=Shown("supersample {0}x{0}"), label=Shown("{0}×{0}")))
+    alpha_clamp: bool = setting(False, Setting(
+        "clamp every splat's alpha to 0.99, as INRIA and GOF do",
+        line=Shown("alpha clamp {}"), label=Shown("alpha clamp")))
+    transmittance_cutoff: bool = setting(False, Setting(
+        "stop compositing a pixel before its transmittance falls below 1e-4, as INRIA and GOF do",
+        line=Shown("transmittance cut-off {}"), label=Shown("T cut-off")))
+    order: str = setting("depth", Setting(
+        "how each pixel orders its gaussians: depth (one global sort by the centres' view depth, the default), "
+        "distance (by their distance from the camera), per-pixel (each pixel sorts its own by where its ray meets "
+        "them; RayGS modes)", choices=ORDERS, words=ORDER_LABELS, line=Shown("order {}")))
+    order_k: int = setting(0, Setting(
+        "per-pixel order: 0 sorts every fragment exactly (default); K re-orders them through a window of K per "
+        "pixel (a k-buffer), for speed; implies --order per-pixel", "K", limits=(0, MAX_ORDER_K),
+        words={0: "exact"}, what="order K", needs="per_pixel", implies=("order", "per-pixel"),
+        line=Shown(" (K={})", worded=" ({})", joined=True)))
 
     def effective_sh_degree(self, scene_degree: int) -> int:
         return scene_degree if self.sh_degree is None else min(self.sh_degree, scene_degree)
@@ -129,37 +170,20 @@ class RenderSettings:
         return sigma * EXACT_MIP_CULL_FACTOR if self.mode == "raygs-exact-mip" else sigma
 
     def __post_init__(self) -> None:
-        if not (isinstance(self.p_min, (int, float)) and 0.0 < self.p_min < 1.0):
-            raise UserError(f"p_min must be a number in (0, 1), got {self.p_min!r}")
-        if len(self.background) != 3 or not all(math.isfinite(c) for c in self.background):
-            raise UserError(f"background must be three finite numbers, got {self.background!r}")
-        object.__setattr__(self, "background", tuple(float(c) for c in self.background))
-        if self.sh_degree is not None and (isinstance(self.sh_degree, bool) or self.sh_degree not in (0, 1, 2, 3)):
-            raise UserError(f"sh_degree must be 0, 1, 2 or 3, got {self.sh_degree!r}")
-        if self.mode not in RENDER_MODES:
-            raise UserError(f"render mode must be one of {', '.join(RENDER_MODES)}, got {self.mode!r}")
-        sigma2 = self.mip_sigma2
-        if isinstance(sigma2, bool) or not isinstance(sigma2, (int, float)) or not 0.0 <= sigma2 <= MAX_MIP_SIGMA2:
-            raise UserError(f"MIP sigma^2 must be a number in [0, {MAX_MIP_SIGMA2:g}] px^2, got {sigma2!r}")
-        object.__setattr__(self, "mip_sigma2", float(sigma2))
-        k = self.supersample
-        if isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= MAX_SUPERSAMPLE:
-            raise UserError(f"supersample must be a whole number from 1 to {MAX_SUPERSAMPLE}, got {k!r}")
-        if self.order not in ORDERS:
-            raise UserError(f"order must be one of {', '.join(ORDERS)}, got {self.order!r}")
-        k = self.order_k
-        if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k <= MAX_ORDER_K:
-            raise UserError(f"order K must be a whole number from 0 (exact) to {MAX_ORDER_K}, got {k!r}")
+        for name, info, hint in settings_table(type(self)):
+            if name == "background":  # a shape the table does not describe
+                if len(self.background) != 3 or not all(math.isfinite(c) for c in self.background):
+                    raise UserError(f"background must be three finite numbers, got {self.background!r}")
+                object.__setattr__(self, "background", tuple(float(c) for c in self.background))
+            else:
+                object.__setattr__(self, name, checked(name, info, hint, getattr(self, name)))
         if self.per_pixel and self.mode == "gs":
             raise UserError("per-pixel order needs a RayGS mode: EWA splats have no ray parameter to sort by")
-        for switch in (f.name for f in fields(self) if f.type == "bool"):  # annotations are strings here
-            if not isinstance(getattr(self, switch), bool):
-                raise UserError(f"{switch} must be true or false, got {getattr(self, switch)!r}")
 
 
 #: The accuracy options: the RenderSettings fields beyond p_min, background and SH degree
 #: (what a preset sets, and what the command line's render-settings options carry).
-ACCURACY_FIELDS = tuple(f.name for f in fields(RenderSettings) if f.name not in ("p_min", "background", "sh_degree"))
+ACCURACY_FIELDS = tuple(name for name, info, _ in settings_table(RenderSettings) if info.accuracy)
 
 #: Named accuracy configurations, as overrides of RenderSettings: the A/B split view's
 #: choices for its right side and the rows of ``raygs-viewer bench accuracy``.

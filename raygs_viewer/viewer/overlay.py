@@ -6,7 +6,8 @@ from __future__ import annotations
 
 from imgui_bundle import imgui
 
-from raygs_viewer.render.settings import DEFAULT_P_MIN, MODE_LABELS, RenderSettings
+from raygs_viewer.render.setting_info import setting_parts
+from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.viewer.state import SplitView
 
 #: (x0, y0, x1, y1) in screen coordinates (imgui's).
@@ -14,20 +15,10 @@ Rect = tuple[float, float, float, float]
 
 
 def describe_settings(settings: RenderSettings) -> str:
-    """A short label of the accuracy options, e.g. "RayGS + MIP 0.1 px², 2×2"."""
-    parts = [MODE_LABELS[settings.mode]]
-    if settings.mip_active:
-        parts.append(f"MIP {settings.mip_sigma2:g} px²" + ("" if settings.mip_modulation else " no mod."))
-    if settings.mode == "gs" and settings.gs_compensation:
-        parts.append("comp.")
-    if settings.supersample > 1:
-        parts.append(f"{settings.supersample}×{settings.supersample}")
-    if settings.alpha_clamp:
-        parts.append("alpha clamp")
-    if settings.transmittance_cutoff:
-        parts.append("T cut-off")
-    if settings.p_min != DEFAULT_P_MIN:
-        parts.append(f"p_min {settings.p_min:.3g}")
+    """A short label of the settings that differ from the defaults, e.g. "RayGS + MIP
+    0.1 px², 2×2": each field's ``label`` (render.setting_info), so a new setting shows
+    up here by itself."""
+    parts = setting_parts(settings, "label", changes_only=True)
     return " + ".join(parts[:2]) + "".join(f", {part}" for part in parts[2:])
 
 

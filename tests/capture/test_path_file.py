@@ -250,7 +250,7 @@ MALFORMED = {
     "settings_p_min_string": (set_field("settings.p_min", "0.1"), "'settings.p_min'"),
     "settings_mode_unknown": (set_field("settings.mode", "ewa"), "'settings'"),
     "stereo_list": (set_field("stereo", []), "'stereo'"),
-    "stereo_ipd_missing": (delete_field("stereo.ipd"), "'stereo.ipd'"),
+    "stereo_ipd_string": (set_field("stereo.ipd", "63"), "'stereo.ipd'"),
     "stereo_layout_unknown": (set_field("stereo.layout", "top-bottom"), "'stereo.layout'"),
     "stereo_unknown": (set_field("stereo.eye_relief", 1), "'stereo.eye_relief'"),
     "path_missing": (delete_field("path"), "missing 'path'"),

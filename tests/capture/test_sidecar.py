@@ -33,7 +33,7 @@ import raygs_viewer
 import raygs_viewer.capture.sidecar as sidecar_module
 from raygs_viewer.camera.lens_model import LensModel
 from raygs_viewer.camera.pinhole import Camera, look_at
-from raygs_viewer.camera.stereo import PRESETS, StereoRig, StereoView
+from raygs_viewer.camera.stereo import PRESETS, Quantity, StereoRig, StereoView, rig_field
 from raygs_viewer.capture.image_io import encode_image
 from raygs_viewer.capture.screenshot import render_tiled, save_screenshot, scaled_camera
 from raygs_viewer.capture.sidecar import (
@@ -43,6 +43,7 @@ from raygs_viewer.capture.sidecar import (
     build_sidecar,
     demo_sha256,
     load_sidecar,
+    load_stereo_entry,
     resolve_scene,
     scene_sha256,
     verify_scene_hash,
@@ -50,6 +51,7 @@ from raygs_viewer.capture.sidecar import (
 from raygs_viewer.errors import UserError
 from raygs_viewer.jsonfile import JsonFields
 from raygs_viewer.render.reference import render_reference
+from raygs_viewer.render.setting_info import Setting, setting
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.demo import demo_scene
 from raygs_viewer.scene.io import load_scene
@@ -144,7 +146,7 @@ def test_settings_fields_flow_in_automatically():
     """A RenderSettings field added later is written and read back with no sidecar change."""
     @dataclasses.dataclass(frozen=True)
     class Extended(RenderSettings):
-        exposure: float = 1.0
+        exposure: float = setting(1.0, Setting("scale the image's brightness", "E", limits=(0.0, 8.0)))
 
     data = demo_sidecar(settings=Extended(exposure=2.5))
     assert data["settings"]["exposure"] == 2.5
@@ -592,7 +594,6 @@ def test_stereo_sidecar_round_trip(tmp_path, layout, width):
 MALFORMED_STEREO = {
     "old_version": (set_field("version", 1), "needs sidecar version 2"),
     "stereo_list": (set_field("stereo", []), "'stereo'"),
-    "ipd_missing": (delete_field("stereo.ipd"), "'stereo.ipd'"),
     "ipd_string": (set_field("stereo.ipd", "63"), "'stereo.ipd'"),
     "ipd_negative": (set_field("stereo.ipd", -0.01), "ipd"),
     "convergence_zero": (set_field("stereo.convergence", 0.0), "convergence"),
@@ -601,7 +602,8 @@ MALFORMED_STEREO = {
     "layout_number": (set_field("stereo.layout", 1), "'stereo.layout'"),
     "unknown_field": (set_field("stereo.eye_relief", 0.01), "'stereo.eye_relief'"),
     "lens_list": (set_field("stereo.lens", [0.2]), "'stereo.lens'"),
-    "lens_k1_missing": (delete_field("stereo.lens.k1"), "'stereo.lens.k1'"),
+    "lens_k1_string": (set_field("stereo.lens.k1", "0.2"), "'stereo.lens.k1'"),
+    "lens_k1_null": (set_field("stereo.lens.k1", None), "'stereo.lens.k1'"),
     "lens_k1_huge": (set_field("stereo.lens.k1", 1e6), "k1"),
     "lens_extra": (set_field("stereo.lens.k3", 0.1), "'stereo.lens.k3'"),
     "headset_width_zero": (set_field("stereo.headset.width", 0), "headset resolution"),
@@ -620,3 +622,55 @@ def test_malformed_stereo_sidecar_is_one_line_user_error(tmp_path, case):
     path = tmp_path / "pair.json"
     path.write_text(json.dumps(data))
     assert_user_error(lambda: load_sidecar(path), path, fragment)
+
+
+@pytest.mark.parametrize("missing, expected", [
+    ("stereo.ipd", dataclasses.replace(STEREO, rig=StereoRig(convergence=3.5, scene_scale=0.25))),
+    ("stereo.scene_scale", dataclasses.replace(STEREO, rig=StereoRig(0.07, 3.5))),
+    ("stereo.layout", STEREO),  # "sbs", the default
+    ("stereo.lens", dataclasses.replace(STEREO, lens=None)),
+    ("stereo.lens.k1", dataclasses.replace(STEREO, lens=LensModel(k2=0.1, chroma_red=0.99, chroma_blue=1.02))),
+    ("stereo.headset", dataclasses.replace(STEREO, headset=None)),
+])
+def test_a_stereo_key_the_file_lacks_takes_its_default(tmp_path, missing, expected):
+    """A file written before a stereo field existed still loads (the issue's trap: one
+    rig field added would otherwise have broken every stereo screenshot)."""
+    data = stereo_sidecar()
+    delete_field(missing)(data)
+    assert load_sidecar(write_json(tmp_path / "old.json", data)).stereo == expected
+
+
+@dataclasses.dataclass(frozen=True)
+class EyeReliefRig(StereoRig):
+    """The rig with one more field, as a later version might add it."""
+
+    eye_relief: float = rig_field(0.012, Quantity(0.0, 0.1, "metres", "distance from the eye to the lens", "METRES"))
+
+
+def test_a_rig_field_added_later_reads_the_files_written_before_it(tmp_path):
+    from raygs_viewer.camera.path import path_through_cameras
+    from raygs_viewer.capture.path_document import PathDocument
+    from raygs_viewer.capture.path_file import path_document_json
+
+    old_sidecar = json.loads(json.dumps(stereo_sidecar()))  # today's files, without the field
+    path = path_through_cameras([window_camera(), look_at([0, 0, -3], [0, 0, 0], width=64, height=48)])
+    old_path_file = json.loads(json.dumps(path_document_json(PathDocument(path, 64, 48, SETTINGS, STEREO, "demo",
+                                                                          demo_sha256()))))
+    for name, data in (("shot.json", old_sidecar), ("fly.json", old_path_file)):
+        view = load_stereo_entry(JsonFields(Path(name), data), EyeReliefRig)
+        assert view == dataclasses.replace(STEREO, rig=EyeReliefRig(0.07, 3.5, 0.25))
+        assert view.rig.eye_relief == 0.012
+
+    # The later version writes the field and reads it back, checked against its limits...
+    data = json.loads(json.dumps(stereo_sidecar(dataclasses.replace(STEREO, rig=EyeReliefRig(0.07, 3.5, 0.25, 0.02)))))
+    assert data["stereo"]["eye_relief"] == 0.02
+    assert load_stereo_entry(JsonFields(Path("new.json"), data), EyeReliefRig).rig == EyeReliefRig(0.07, 3.5, 0.25, 0.02)
+    for value, fragment in ((0.5, "stereo eye relief must be a number in [0, 0.1]"),
+                            ("12", "'stereo.eye_relief' must be a number")):
+        data["stereo"]["eye_relief"] = value
+        assert_user_error(lambda: load_stereo_entry(JsonFields(Path("new.json"), data), EyeReliefRig), "new.json",
+                          fragment)
+    # ... and today's program refuses it: it cannot honour an option it does not know.
+    data["stereo"]["eye_relief"] = 0.02
+    path = write_json(tmp_path / "new.json", data)
+    assert_user_error(lambda: load_sidecar(path), path, "unknown field 'stereo.eye_relief'", "newer raygs-viewer")

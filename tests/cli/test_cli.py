@@ -15,6 +15,7 @@ from testkit import assert_one_line_error, listing, run_cli, write_inria_ply
 from raygs_viewer.bench.loading import write_generated_ply
 from raygs_viewer.camera.pinhole import Camera, camera_to_json, look_at
 from raygs_viewer.cli.main import main
+from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.storage import SceneBuffers
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.demo import demo_camera, demo_scene
@@ -710,12 +711,20 @@ def test_up_axis(capsys, viewer, argv, axis):
     assert viewer.pop().navigation.up_axis == axis
 
 
-def test_up_axes_match_the_controls():
-    from raygs_viewer.cli.view import UP_AXES
-    controls = pytest.importorskip("raygs_viewer.camera.navigation")
-    if not hasattr(controls, "UP_AXES"):
-        pytest.skip("controls.UP_AXES not written yet")
-    assert set(UP_AXES) == set(controls.UP_AXES)
+def test_up_axes_are_the_six_signed_world_axes(capsys):
+    """--up-axis offers each signed world axis once, in this order, and each name means
+    the axis its sign and letter say: checked against a literal list, the help's choices
+    and a vector built from the name, not against the navigation's own table."""
+    from raygs_viewer.camera.navigation import up_vector
+
+    expected = ("-y", "+y", "+z", "-z", "+x", "-x")
+    with pytest.raises(SystemExit):
+        main(["view", "--help"])
+    assert "{" + ",".join(expected) + "}" in capsys.readouterr().out
+    for name in expected:
+        axis = np.zeros(3)
+        axis["xyz".index(name[1])] = 1.0 if name[0] == "+" else -1.0
+        np.testing.assert_array_equal(up_vector(name), axis)
 
 
 @pytest.mark.parametrize("scale", ["8", "0.25", "1e-3"])
@@ -828,6 +837,27 @@ def test_bad_stereo_options_are_one_line_errors(capsys, tmp_path, argv, fragment
     code, _, err = run_cli(capsys, "render", *SMALL, *argv, "--out", out)
     assert fragment in assert_one_line_error(code, err)
     assert not out.exists()
+
+
+@pytest.mark.parametrize("flag, low, high", [("--ipd", 0.0, 1.0), ("--convergence", 1e-3, 1e6),
+                                             ("--scene-scale", 1e-9, 1e9)])
+def test_the_command_line_and_the_rig_take_the_same_values(flag, low, high):
+    """One limit per rig field, read by both the options and StereoRig."""
+    from raygs_viewer.camera.stereo import StereoRig
+    from raygs_viewer.cli.main import build_parser
+    from raygs_viewer.cli.options import stereo_rig
+
+    name = flag[2:].replace("-", "_")
+    for value, accepted in ((low, True), (high, True), (low * 0.999 if low else -1e-9, False), (high * 1.001, False)):
+        argv = ["render", "--stereo", f"{flag}={value!r}", "--out", "x.png"]
+        if accepted:
+            assert getattr(stereo_rig(build_parser().parse_args(argv)), name) == value
+            assert getattr(StereoRig(**{name: value}), name) == value
+        else:
+            with pytest.raises(UserError, match=flag):
+                build_parser().parse_args(argv)
+            with pytest.raises(UserError, match=name.replace("_", " ")):
+                StereoRig(**{name: value})
 
 
 @pytest.mark.parametrize("argv, fields", [

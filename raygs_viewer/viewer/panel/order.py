@@ -16,6 +16,7 @@ from typing import Callable
 
 from imgui_bundle import imgui
 
+from raygs_viewer.render.setting_info import setting_field
 from raygs_viewer.render.settings import (
     MAX_ORDER_K,
     ORDER_LABELS,
@@ -26,6 +27,7 @@ from raygs_viewer.viewer.panel.widgets import choice, header, tooltip
 from raygs_viewer.viewer.stats import FrameStats, order_stats_lines
 
 PER_PIXEL_NEEDS_RAYGS = "per pixel needs a RayGS mode: EWA splats have no ray parameter to sort by"
+ORDER_K = setting_field(RenderSettings, "order_k").info
 
 
 def gs_fallback_note(order: str) -> str:
@@ -68,10 +70,15 @@ def draw_order_section(settings: RenderSettings, set_settings: Callable[[RenderS
     edited = replace(settings, order=order)
     if edited.per_pixel:
         k = edited.order_k
+<<<<<<< HEAD
         changed, k = imgui.slider_int("K (window)", k, 0, MAX_ORDER_K, "exact" if k == 0 else "%d per pixel")
+=======
+        changed, k = imgui.slider_int("K (window)", k, *ORDER_K.limits, ORDER_K.words.get(k, "%d per pixel"))
+        remember("order K")
+>>>>>>> settings
         tooltip(K_HELP)
         if changed:
-            edited = replace(edited, order_k=min(max(int(k), 0), MAX_ORDER_K))
+            edited = replace(edited, order_k=ORDER_K.clamp(int(k)))
     elif gs:
         imgui.text_disabled("(per pixel needs a RayGS mode)")
     if edited != settings:

@@ -13,10 +13,9 @@ from typing import Callable
 
 from imgui_bundle import imgui
 
+from raygs_viewer.render.setting_info import applies, setting_field
 from raygs_viewer.render.settings import (
     ACCURACY_PRESETS,
-    MAX_MIP_SIGMA2,
-    MAX_SUPERSAMPLE,
     MODE_LABELS,
     RENDER_MODES,
     RenderSettings,
@@ -27,7 +26,9 @@ from raygs_viewer.viewer.state import SplitView, StereoPreview
 from raygs_viewer.viewer.window import Window
 
 P_MIN_RANGE = (1e-4, 0.5)
-SIGMA2_RANGE = (0.0, 1.0)  # the slider's; ctrl-click types any value up to MAX_MIP_SIGMA2
+SIGMA2_RANGE = (0.0, 1.0)  # the slider's; ctrl-click types any value within the setting's limits
+SIGMA2 = setting_field(RenderSettings, "mip_sigma2").info
+SUPERSAMPLE = setting_field(RenderSettings, "supersample").info
 
 #: renderer.supports: why the GPU cannot render these settings, or None.
 Supports = Callable[[RenderSettings], "str | None"]
@@ -90,9 +91,9 @@ def _accuracy_controls(settings: RenderSettings, supports: Supports) -> RenderSe
     if exact:  # on by definition: shown checked, the RayGS mode's choice kept
         checkbox("MIP filter", True, "MIP filter", enabled=False, help_text=mip_help)
     else:
-        settings = replace(settings, mip=checkbox("MIP filter", settings.mip, "MIP filter", enabled=mode == "raygs",
-                                                  help_text=mip_help))
-    filtered = exact or (mode == "raygs" and settings.mip)
+        settings = replace(settings, mip=checkbox("MIP filter", settings.mip, "MIP filter",
+                                                  enabled=applies(settings, "mip"), help_text=mip_help))
+    filtered = applies(settings, "mip_sigma2")
     imgui.same_line()
     modulation = checkbox("opacity modulation", settings.mip_modulation, "opacity modulation", enabled=filtered,
                           help_text="scale the filtered opacity so a gaussian keeps its total opacity "
@@ -101,13 +102,14 @@ def _accuracy_controls(settings: RenderSettings, supports: Supports) -> RenderSe
     sigma2 = slider("sigma^2 (px^2)", settings.mip_sigma2, *SIGMA2_RANGE, "%.3f")
     imgui.end_disabled()
     tooltip("the MIP filter's variance in px^2 of the rendered image (default 0.1).\n"
-            "Ctrl-click to type a value (up to 100).")
+            f"Ctrl-click to type a value (up to {SIGMA2.limits[1]:g}).")
     if sigma2 is not None:
-        settings = replace(settings, mip_sigma2=min(max(float(sigma2), 0.0), MAX_MIP_SIGMA2))
+        settings = replace(settings, mip_sigma2=SIGMA2.clamp(float(sigma2)))
     settings = replace(settings, mip_modulation=modulation, gs_compensation=checkbox(
-        "GS compensation", settings.gs_compensation, "GS compensation", enabled=mode == "gs",
+        "GS compensation", settings.gs_compensation, "GS compensation", enabled=applies(settings, "gs_compensation"),
         help_text="GS mode: scale opacity by sqrt(det(S) / det(S + 0.3 px^2)), as Mip-Splatting does"))
-    factors = {str(k): f"{k}\u00d7{k}" for k in range(1, MAX_SUPERSAMPLE + 1)}
+    low, high = SUPERSAMPLE.limits
+    factors = {str(k): f"{k}\u00d7{k}" for k in range(low, high + 1)}
     settings = replace(settings, supersample=int(choice("supersampling", str(settings.supersample), factors,
                                                         "supersampling")))
     tooltip("render k x k samples per pixel and average them (a box filter)")

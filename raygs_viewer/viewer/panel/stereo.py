@@ -9,16 +9,18 @@ from dataclasses import replace
 
 from imgui_bundle import imgui
 
-from raygs_viewer.camera.stereo import MAX_EYE_SIZE, MAX_FOV, MIN_FOV, PRESETS, frame_budget
+from raygs_viewer.camera.stereo import MAX_EYE_SIZE, MAX_FOV, MIN_FOV, PRESETS, frame_budget, rig_quantities
 from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, ms, slider, tooltip
 from raygs_viewer.viewer.state import StereoPreview
 from raygs_viewer.viewer.stats import FrameStats
 
 STEREO_LAYOUT_LABELS = {"sbs": "side by side (parallel)", "cross": "side by side (cross-eyed)",
                         "anaglyph": "anaglyph (red/cyan)", "left": "left eye only", "right": "right eye only"}
-IPD_MM_RANGE = (0.0, 80.0)          # the slider's; ctrl-click types up to 1000 mm
+IPD_MM_RANGE = (0.0, 80.0)          # the slider's; ctrl-click types any value within the rig's limits
 CONVERGENCE_RANGE = (0.1, 100.0)    # metres, logarithmic
 SCENE_SCALE_RANGE = (0.001, 1000.0)  # metres per unit, logarithmic
+#: Each rig field's Quantity: the values it takes, whatever the slider's range.
+RIG = rig_quantities()
 
 
 def draw_stereo_section(stereo: StereoPreview, stats: FrameStats) -> None:
@@ -54,15 +56,15 @@ def _rig_controls(stereo: StereoPreview) -> None:
     ipd_mm = slider("IPD (mm)", rig.ipd * 1000.0, *IPD_MM_RANGE, "%.1f")
     tooltip("distance between the eyes (default 63 mm). Ctrl-click to type a value.")
     if ipd_mm is not None:
-        rig = replace(rig, ipd=min(max(ipd_mm / 1000.0, 0.0), 1.0))
+        rig = replace(rig, ipd=RIG["ipd"].clamp(ipd_mm / 1000.0))
     convergence = slider("convergence (m)", rig.convergence, *CONVERGENCE_RANGE, "%.2f", logarithmic=True)
     tooltip("distance of the plane both eyes see at the same pixel (zero disparity)")
     if convergence is not None:
-        rig = replace(rig, convergence=min(max(convergence, 1e-3), 1e6))
+        rig = replace(rig, convergence=RIG["convergence"].clamp(convergence))
     scale = slider("scene scale (m/unit)", rig.scene_scale, *SCENE_SCALE_RANGE, "%.4g", logarithmic=True)
     tooltip("metres per scene unit: how big the scene feels (larger: the scene looks smaller)")
     if scale is not None and scale > 0:
-        rig = replace(rig, scene_scale=min(max(scale, 1e-9), 1e9))
+        rig = replace(rig, scene_scale=RIG["scene_scale"].clamp(scale))
     stereo.rig = rig
     imgui.text_disabled(f"eyes {2 * rig.half_baseline:.4g} units apart, convergence at "
                         f"{rig.convergence_units:.4g} units")
