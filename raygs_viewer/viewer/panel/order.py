@@ -70,12 +70,7 @@ def draw_order_section(settings: RenderSettings, set_settings: Callable[[RenderS
     edited = replace(settings, order=order)
     if edited.per_pixel:
         k = edited.order_k
-<<<<<<< HEAD
-        changed, k = imgui.slider_int("K (window)", k, 0, MAX_ORDER_K, "exact" if k == 0 else "%d per pixel")
-=======
         changed, k = imgui.slider_int("K (window)", k, *ORDER_K.limits, ORDER_K.words.get(k, "%d per pixel"))
-        remember("order K")
->>>>>>> settings
         tooltip(K_HELP)
         if changed:
             edited = replace(edited, order_k=ORDER_K.clamp(int(k)))
