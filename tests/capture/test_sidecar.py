@@ -649,8 +649,7 @@ class EyeReliefRig(StereoRig):
 
 def test_a_rig_field_added_later_reads_the_files_written_before_it(tmp_path):
     from raygs_viewer.camera.path import path_through_cameras
-    from raygs_viewer.capture.path_document import PathDocument
-    from raygs_viewer.capture.path_file import path_document_json
+    from raygs_viewer.capture.path_file import PathDocument, path_document_json
 
     old_sidecar = json.loads(json.dumps(stereo_sidecar()))  # today's files, without the field
     path = path_through_cameras([window_camera(), look_at([0, 0, -3], [0, 0, 0], width=64, height=48)])
