@@ -46,13 +46,8 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.scene.describe import describe, dropped_summary, format_description
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.ply_file import load_ply
-from raygs_viewer.scene.reading import (
-    DROP_REASONS,
-    READ_CHUNK_BYTES,
-    ProgressCallback,
-    Reporter,
-    file_error,
-)
+from raygs_viewer.scene.progress import READ_CHUNK_BYTES, ProgressCallback, Reporter
+from raygs_viewer.scene.reading import DROP_REASONS, file_error
 from raygs_viewer.scene.sog_file import META_NAME, load_sog
 from raygs_viewer.scene.splat_file import SPLAT_ROW_BYTES, load_splat
 from raygs_viewer.scene.spz_file import load_spz

@@ -71,14 +71,8 @@ import zlib
 import numpy as np
 
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
-from raygs_viewer.scene.reading import (
-    DropTally,
-    Reporter,
-    build_scene,
-    file_error,
-    scene_arrays,
-    shown_token,
-)
+from raygs_viewer.scene.progress import Reporter
+from raygs_viewer.scene.reading import DropTally, build_scene, file_error, scene_arrays, shown_token
 
 SOG_FORMAT = "SOG v2"
 META_NAME = "meta.json"
@@ -548,7 +542,8 @@ def _load(source, meta: _Meta, shown: str, report: Reporter, chunk_bytes: int) -
             labels_px = images["labels"]
             palette, palette_bad = _palette(images.pop("centroids"), meta, coeffs)
 
-    positions, rotations, scales, opacities, sh = scene_arrays(n, degree)
+    arrays = scene_arrays(n, degree)
+    positions, rotations, scales, opacities, sh = arrays
     drops = DropTally(n)
     scale_nan, scale_inf, scale_zero = np.isnan(scale_lut), np.isinf(scale_lut), scale_lut == 0
     colour_nan, colour_inf = np.isnan(sh0_lut), np.isinf(sh0_lut)
@@ -583,7 +578,7 @@ def _load(source, meta: _Meta, shown: str, report: Reporter, chunk_bytes: int) -
         report.reading(done + stop, total)
     report.activating()
     report.validating()
-    return build_scene(shown, positions, rotations, scales, opacities, sh, degree, False, drops, report, SOG_FORMAT)
+    return build_scene(arrays=arrays, sh_degree=degree, drops=drops, report=report, source=shown, format=SOG_FORMAT)
 
 
 def _quaternions(pixels: np.ndarray) -> np.ndarray:

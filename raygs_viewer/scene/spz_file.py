@@ -78,7 +78,8 @@ import zstandard
 
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
-from raygs_viewer.scene.reading import DropTally, Reporter, build_scene, file_error, scene_arrays
+from raygs_viewer.scene.progress import Reporter
+from raygs_viewer.scene.reading import DropTally, build_scene, file_error, scene_arrays
 
 SPZ_MAGIC = 0x5053474E
 GZIP_MAGIC = b"\x1f\x8b"
@@ -416,7 +417,8 @@ def _decode(data: np.ndarray, layout: _Layout, system: int, shown: str, report: 
     sh_flips = flip_sh(flips, k)
 
     report.activating()
-    positions, rotations, scales, opacities, sh = scene_arrays(n, degree)
+    arrays = scene_arrays(n, degree)
+    positions, rotations, scales, opacities, sh = arrays
     drops = DropTally(n)
     step = max(1, chunk // max(1, layout.row_bytes))
     for start in range(0, n, step):
@@ -446,8 +448,8 @@ def _decode(data: np.ndarray, layout: _Layout, system: int, shown: str, report: 
             drops.add(start, {"nan": np.isnan(p).any(axis=1), "infinite position": np.isinf(p).any(axis=1)})
         report.activating()
     report.validating()
-    return build_scene(shown, positions, rotations, scales, opacities, sh, degree, False, drops, report,
-                       SPZ_FORMATS[layout.version])
+    return build_scene(arrays=arrays, sh_degree=degree, drops=drops, report=report, source=shown,
+                       format=SPZ_FORMATS[layout.version])
 
 
 def _unpack_rotations(raw: np.ndarray) -> np.ndarray:
