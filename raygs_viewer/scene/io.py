@@ -48,7 +48,8 @@ from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.ply_file import load_ply
 from raygs_viewer.scene.progress import READ_CHUNK_BYTES, ProgressCallback, Reporter
 from raygs_viewer.scene.reading import DROP_REASONS, file_error
-from raygs_viewer.scene.sog_file import META_NAME, load_sog
+from raygs_viewer.scene.sog_file import load_sog
+from raygs_viewer.scene.sog_source import is_sog_folder
 from raygs_viewer.scene.splat_file import SPLAT_ROW_BYTES, load_splat
 from raygs_viewer.scene.spz_file import load_spz
 
@@ -103,7 +104,7 @@ def _load(path: str | os.PathLike, report: Reporter, chunk_bytes: int) -> Scene:
     report(0.0, "reading")
     if not os.path.exists(path):
         raise file_error(shown, "no such file")
-    unbundled_sog = os.path.isdir(path) and os.path.isfile(os.path.join(path, META_NAME))
+    unbundled_sog = is_sog_folder(path)
     if os.path.isdir(path) and not unbundled_sog:
         raise file_error(shown, f"is a directory, expected a scene file ({SCENE_FILES})")
     if not os.path.isfile(path) and not unbundled_sog:

@@ -28,7 +28,6 @@ from raygs_viewer.jsonfile import read_json_file
 from raygs_viewer.scene.demo import DEMO_VIEW_NAMES, demo_cameras, demo_scene
 from raygs_viewer.scene.io import ProgressCallback, dropped_summary, load_scene
 from raygs_viewer.scene.model import Scene
-from raygs_viewer.scene.sog_file import META_NAME as SOG_META_NAME
 from raygs_viewer.scene.sog_file import scene_files as sog_scene_files
 
 #: ``read_scene(path, *, progress, cancel) -> Scene``: what reads the scene file
@@ -138,8 +137,9 @@ def file_sha256(path: str | os.PathLike, progress: ProgressCallback | None = Non
     buffer = bytearray(max(1, HASH_CHUNK_BYTES if chunk_bytes is None else chunk_bytes))
     view = memoryview(buffer)
     try:
-        several = os.path.isfile(os.path.join(path, SOG_META_NAME)) or Path(path).suffix.lower() == ".json"
-        files = sog_scene_files(path) if several else [path]
+        files = sog_scene_files(path)
+        several = files is not None
+        files = files if several else [path]
         total = sum(os.path.getsize(file) for file in files)
         done = 0
         for file in files:
