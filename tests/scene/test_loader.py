@@ -19,7 +19,7 @@ import pytest
 import testkit
 from testkit import gaussian_columns, write_ply
 
-import raygs_viewer.scene.loader as loader
+import raygs_viewer.scene.content_hash as content_hash
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.demo import (
     DEMO_VIEW_NAMES,
@@ -28,15 +28,8 @@ from raygs_viewer.scene.demo import (
     demo_scene,
 )
 from raygs_viewer.scene.io import load_scene
-from raygs_viewer.scene.loader import (
-    LoadedScene,
-    SceneLoader,
-    TerminalProgress,
-    arrays_sha256,
-    file_sha256,
-    find_training_cameras,
-    load_now,
-)
+from raygs_viewer.scene.content_hash import arrays_sha256, file_sha256
+from raygs_viewer.scene.loader import LoadedScene, SceneLoader, TerminalProgress, find_training_cameras, load_now
 
 DEADLOCK = 30.0
 
@@ -199,7 +192,7 @@ def test_hash_read_failure_is_a_user_error(tmp_path):
 
 def test_progress_is_monotone_and_ends_at_done(tmp_path, monkeypatch):
     scene = small_ply(tmp_path / "scene.ply", n=30)
-    monkeypatch.setattr(loader, "HASH_CHUNK_BYTES", 500)
+    monkeypatch.setattr(content_hash, "HASH_CHUNK_BYTES", 500)
     calls = []
     load_now(scene, progress=lambda f, s: calls.append((f, s)), read_scene=functools.partial(load_scene, chunk_bytes=200))
     fractions = [f for f, _ in calls]
@@ -233,7 +226,7 @@ def test_the_hash_runs_beside_the_read(tmp_path, monkeypatch):
     scene = small_ply(tmp_path / "scene.ply")
     hashing = SteeredHash()
     hashing.gate.set()
-    monkeypatch.setattr(loader, "file_sha256", hashing)
+    monkeypatch.setattr(content_hash, "file_sha256", hashing)
 
     def read_scene(path, **kwargs):
         assert hashing.started.wait(DEADLOCK), "the hash did not start before the scene was read"
@@ -246,7 +239,7 @@ def test_the_hash_runs_beside_the_read(tmp_path, monkeypatch):
 def test_a_hash_still_running_after_the_read_reports_its_progress(tmp_path, monkeypatch):
     scene = small_ply(tmp_path / "scene.ply")
     hashing = SteeredHash()
-    monkeypatch.setattr(loader, "file_sha256", hashing)
+    monkeypatch.setattr(content_hash, "file_sha256", hashing)
     calls = []
 
     def progress(fraction, stage):
@@ -265,7 +258,7 @@ def test_a_hash_still_running_after_the_read_reports_its_progress(tmp_path, monk
 def test_a_failed_or_cancelled_load_stops_its_hash(tmp_path, monkeypatch, how):
     scene = small_ply(tmp_path / "scene.ply")
     hashing = SteeredHash()
-    monkeypatch.setattr(loader, "file_sha256", hashing)
+    monkeypatch.setattr(content_hash, "file_sha256", hashing)
     cancel = threading.Event()
 
     def read_scene(path, **kwargs):
@@ -288,7 +281,7 @@ def test_a_hash_that_fails_after_a_good_read_is_the_error(tmp_path, monkeypatch)
     def failing_hash(path, *args, **kwargs):
         raise UserError(f"{path}: cannot read: Input/output error")
 
-    monkeypatch.setattr(loader, "file_sha256", failing_hash)
+    monkeypatch.setattr(content_hash, "file_sha256", failing_hash)
     testkit.assert_user_error(lambda: load_now(scene), scene, "Input/output error")
 
 
