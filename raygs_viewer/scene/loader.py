@@ -4,20 +4,18 @@ training cameras found beside it, a content hash, and warnings.
 :func:`load_now` does it synchronously (the scene named on the command line, so a
 bad file fails before a window opens); :class:`SceneLoader` does it on a daemon
 thread while the window keeps drawing, reporting progress and discarding a load
-that a newer one replaced. The hash is :mod:`~raygs_viewer.scene.content_hash`'s.
+that a newer one replaced. The hash is :mod:`~raygs_viewer.scene.content_hash`'s; a
+progress line on a terminal is the command line's (``cli/progress_line.py``).
 """
 
 from __future__ import annotations
 
 import fnmatch
 import os
-import sys
 import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
 
 from raygs_viewer.camera.pinhole import Camera, load_cameras
 from raygs_viewer.errors import UserError
@@ -37,7 +35,6 @@ __all__ = [
     "LoadedScene",
     "SceneLoader",
     "SceneReader",
-    "TerminalProgress",
     "arrays_sha256",
     # Kept importable from here, where capture/sidecar.py takes it; it lives in content_hash.
     "file_sha256",
@@ -194,62 +191,6 @@ def _training_cameras(shown: str, cameras: str | os.PathLike | None,
         warnings.append(f"training cameras skipped: {exc}")
         return [], [], None
     return found, _camera_names(discovered, len(found)), os.fspath(discovered)
-
-
-class TerminalProgress:
-    """A :data:`ProgressCallback` that shows a synchronous load on a terminal (the scene
-    named on the command line loads before the window opens): ``loading NAME: reading
-    42%`` redrawn in place at most every ``interval`` seconds, starting once the load has
-    taken ``delay`` seconds (small scenes print nothing), erased at "done" and on leaving
-    a ``with`` block (so a failed load's error starts on a clean line).
-
-    Writes only when ``stream`` (default: stderr) is a terminal, so piped and scripted
-    output stays as it was. ``clock`` is for tests.
-    """
-
-    def __init__(self, name: str, stream: TextIO | None = None, *, delay: float = 0.5, interval: float = 0.2,
-                 clock: Callable[[], float] = time.monotonic, force: bool = False) -> None:
-        self.name = name
-        self.stream = sys.stderr if stream is None else stream
-        self.delay, self.interval, self.clock = delay, interval, clock
-        self.enabled = force or _is_terminal(self.stream)
-        self.started = clock()
-        self.shown_at: float | None = None
-        self.width = 0
-
-    def __call__(self, fraction: float, stage: str) -> None:
-        if not self.enabled:
-            return
-        now = self.clock()
-        if stage == "done":
-            self.close()
-            return
-        if now - self.started < self.delay or (self.shown_at is not None and now - self.shown_at < self.interval):
-            return
-        line = f"loading {self.name}: {stage} {fraction * 100:3.0f}%"
-        self.stream.write("\r" + line.ljust(self.width))
-        self.stream.flush()
-        self.shown_at, self.width = now, max(self.width, len(line))
-
-    def close(self) -> None:
-        """Erases the line, if one is shown (a failed load's error then prints on a clean line)."""
-        if self.shown_at is not None:
-            self.stream.write("\r" + " " * self.width + "\r")
-            self.stream.flush()
-            self.shown_at = None
-
-    def __enter__(self) -> "TerminalProgress":
-        return self
-
-    def __exit__(self, *exc_info) -> None:
-        self.close()
-
-
-def _is_terminal(stream) -> bool:
-    try:
-        return bool(stream.isatty())
-    except (AttributeError, ValueError):  # no isatty, or a closed stream
-        return False
 
 
 class _Job:

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import io
 import json
 import threading
 from pathlib import Path
@@ -29,7 +28,7 @@ from raygs_viewer.scene.demo import (
 )
 from raygs_viewer.scene.io import load_scene
 from raygs_viewer.scene.content_hash import arrays_sha256, file_sha256
-from raygs_viewer.scene.loader import LoadedScene, SceneLoader, TerminalProgress, find_training_cameras, load_now
+from raygs_viewer.scene.loader import LoadedScene, SceneLoader, find_training_cameras, load_now
 
 DEADLOCK = 30.0
 
@@ -476,50 +475,3 @@ def test_a_finished_result_not_yet_polled_is_dropped_by_a_new_start(tmp_path, st
     assert scene_loader.poll() is None  # the good scene is not shown over the newer request
     assert scene_loader.discarded == 1
     scene_loader.cancel()
-
-
-# --------------------------------------------------------------------------- terminal progress
-
-
-class FakeTerminal(io.StringIO):
-    def isatty(self):
-        return True
-
-
-def test_terminal_progress_redraws_one_line_and_erases_it():
-    now = [0.0]
-    stream = FakeTerminal()
-    with TerminalProgress("big.ply", stream, delay=0.5, interval=0.2, clock=lambda: now[0]) as progress:
-        for t, fraction in ((0.1, 0.05), (0.6, 0.3), (0.65, 0.35), (0.9, 0.6)):
-            now[0] = t
-            progress(fraction, "reading")
-        now[0] = 1.2
-        progress(0.9, "hashing")
-        progress(1.0, "done")
-    text = stream.getvalue()
-    assert "\n" not in text
-    frames = text.split("\r")
-    assert frames[1:4] == ["loading big.ply: reading  30%", "loading big.ply: reading  60%",
-                           "loading big.ply: hashing  90%"]  # before 0.5 s and within 0.2 s: nothing
-    assert frames[-2:] == [" " * len(frames[3]), ""]  # erased once, at "done"
-
-
-def test_terminal_progress_is_silent_off_a_terminal_and_for_quick_loads(tmp_path):
-    scene = small_ply(tmp_path / "scene.ply")
-    piped = io.StringIO()
-    with TerminalProgress("scene.ply", piped, delay=0.0, interval=0.0) as progress:
-        load_now(scene, progress=progress)
-    assert piped.getvalue() == ""
-    quick = FakeTerminal()
-    with TerminalProgress("scene.ply", quick) as progress:  # the default half second delay
-        load_now(scene, progress=progress)
-    assert quick.getvalue() == ""
-
-
-def test_a_failed_load_leaves_a_clean_line_for_its_error(tmp_path):
-    stream = FakeTerminal()
-    with pytest.raises(UserError):
-        with TerminalProgress("gone.ply", stream, delay=0.0, interval=0.0) as progress:
-            progress(0.2, "reading")
-            load_now(tmp_path / "gone.ply", progress=progress)
-    assert stream.getvalue().endswith("\r" + " " * len("loading gone.ply: reading  20%") + "\r")
