@@ -71,6 +71,10 @@ ZIP_MAGIC = b"PK\x03\x04"
 #: layout or PlayCanvas's compressed one.
 SCENE_FILES = ".ply, .splat, .spz, .sog or a SOG meta.json"
 
+#: ``read(path, shown, report, chunk_bytes)``: one format's reader; ``shown`` is the path
+#: as messages name it, ``chunk_bytes`` how much is read between progress points.
+FormatReader = Callable[[str | os.PathLike, str, Reporter, int], Scene]
+
 
 class SceneFormat(NamedTuple):
     """A file format :func:`load_scene` reads: ``read(path, shown, report, chunk_bytes)``
@@ -80,7 +84,7 @@ class SceneFormat(NamedTuple):
 
     suffixes: tuple[str, ...]
     magic: Callable[[bytes], bool]
-    read: Callable[[str | os.PathLike, str, Reporter, int], Scene]
+    read: FormatReader
 
 
 #: Every format read, in the order their magic is tried (no two magics overlap). A
@@ -149,7 +153,7 @@ def _load(path: str | os.PathLike, report: Reporter, chunk_bytes: int) -> Scene:
         raise file_error(shown, "not enough memory to load this scene") from None
 
 
-def _reader(path: str | os.PathLike, shown: str):
+def _reader(path: str | os.PathLike, shown: str) -> FormatReader:
     """The reader of the file ``path``: by its name, else by its first bytes."""
     suffix = Path(path).suffix.lower()
     for scene_format in FORMATS:
