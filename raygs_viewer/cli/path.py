@@ -39,12 +39,13 @@ from raygs_viewer.cli.options import (
     settings_with_options,
     stereo_view,
 )
+from raygs_viewer.cli.progress_line import TerminalProgress
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.context import create_headless_context
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.io import SCENE_FILES
-from raygs_viewer.scene.loader import DEMO, TerminalProgress, load_now
+from raygs_viewer.scene.loader import DEMO, load_now
 
 #: The PATH argument that asks for a turntable instead of a path file, and its defaults.
 ORBIT = "orbit"

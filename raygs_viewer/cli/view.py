@@ -21,6 +21,7 @@ from raygs_viewer.cli.options import (
     render_settings,
     stereo_rig,
 )
+from raygs_viewer.cli.progress_line import TerminalProgress
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.settings import DEFAULT_P_MIN
 from raygs_viewer.scene.io import SCENE_FILES
@@ -123,4 +124,5 @@ def command_view(args) -> int:
         navigation=NavigationChoices(mode="orbit" if args.orbit else "fly", up_axis=args.up_axis,
                                      turntable=args.turntable),
         stereo=_viewer_stereo_options(args))
-    return run_viewer(options)
+    with TerminalProgress(options.scene) as progress:  # a multi-GB scene takes seconds before the window
+        return run_viewer(options, progress)

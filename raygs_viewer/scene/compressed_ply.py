@@ -47,19 +47,10 @@ import re
 
 import numpy as np
 
-from raygs_viewer.scene.model import (
-    SH_DEGREE_OF_REST_COUNT,
-    Scene,
-)
+from raygs_viewer.scene.model import SH_DEGREE_OF_REST_COUNT, Scene
 from raygs_viewer.scene.ply_header import PLY_TYPES, PlyElement
-from raygs_viewer.scene.reading import (
-    DropTally,
-    Reporter,
-    build_scene,
-    file_error,
-    scene_arrays,
-    shown_token,
-)
+from raygs_viewer.scene.progress import Reporter
+from raygs_viewer.scene.reading import DropTally, SceneArrays, build_scene, file_error, scene_arrays, shown_token
 from raygs_viewer.scene.sh import C0
 
 COMPRESSED_PLY_FORMAT = "PlayCanvas compressed PLY"
@@ -116,7 +107,7 @@ def load_compressed_ply(path, shown: str, report: Reporter, chunk_bytes: int, he
     if n and refusal is not None:
         raise file_error(shown, f"cannot read PLY data ({refusal})")
 
-    positions, rotations, scales, opacities, sh_out = scene_arrays(n, degree)
+    arrays = scene_arrays(n, degree)
     drops = DropTally(n)
     with open(path, "rb") as f:
         bounds_rows = _read_rows(f, shown, offsets["chunk"], chunk, 0, chunks)
@@ -129,17 +120,17 @@ def load_compressed_ply(path, shown: str, report: Reporter, chunk_bytes: int, he
             words = _read_rows(f, shown, offsets["vertex"], vertex, start, stop)
             coefficients = _read_rows(f, shown, offsets["sh"], sh, start, stop) if sh is not None else None
             _decode(start, stop, words, vertex, bounds[np.arange(start, stop) // CHUNK_GAUSSIANS], has_colour,
-                    coefficients, sh, rest_names, (positions, rotations, scales, opacities, sh_out), drops)
+                    coefficients, sh, rest_names, arrays, drops)
             del words, coefficients
             report.reading(stop, n)
     report.activating()
     report.validating()
-    return build_scene(shown, positions, rotations, scales, opacities, sh_out, degree, False, drops, report,
-                       COMPRESSED_PLY_FORMAT)
+    return build_scene(arrays=arrays, sh_degree=degree, drops=drops, report=report, source=shown,
+                       format=COMPRESSED_PLY_FORMAT)
 
 
 def _decode(start: int, stop: int, words: np.ndarray, vertex: PlyElement, block: np.ndarray, has_colour: bool,
-            coefficients: np.ndarray | None, sh: PlyElement | None, rest_names: list[str], out: tuple,
+            coefficients: np.ndarray | None, sh: PlyElement | None, rest_names: list[str], out: SceneArrays,
             drops: DropTally) -> None:
     """Gaussians ``start..stop`` from their raw vertex rows, their chunks' bounds ``block``
     (rows, 12 or 18) and raw sh rows, into the scene's arrays ``out``."""

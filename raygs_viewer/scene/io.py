@@ -8,10 +8,16 @@ public entry points:
 - :func:`dropped_summary` turns ``scene.dropped`` into one line per reason.
 - :func:`describe` / :func:`format_description` give the ``info`` statistics.
 
-The readers live beside it: :mod:`~raygs_viewer.scene.ply_header` and
-:mod:`~raygs_viewer.scene.ply_file` (PLY), :mod:`~raygs_viewer.scene.splat_file`
-(``.splat``), :mod:`~raygs_viewer.scene.reading` (progress, errors, dropping invalid
-gaussians) and :mod:`~raygs_viewer.scene.describe` (the statistics).
+Each format has its reader module (``load_<format>(path, shown, report, chunk_bytes)``),
+and :data:`FORMATS` says which names and first bytes choose it: a new format is a reader
+module and a row there. The readers: :mod:`~raygs_viewer.scene.ply_file` (INRIA PLY,
+handing PlayCanvas's compressed layout to :mod:`~raygs_viewer.scene.compressed_ply`;
+the header in :mod:`~raygs_viewer.scene.ply_header`),
+:mod:`~raygs_viewer.scene.splat_file`, :mod:`~raygs_viewer.scene.spz_file` and
+:mod:`~raygs_viewer.scene.sog_file`. What they share: :mod:`~raygs_viewer.scene.progress`
+(progress and cancel points) and :mod:`~raygs_viewer.scene.reading` (one-line errors,
+dropping invalid gaussians, building the Scene); :mod:`~raygs_viewer.scene.describe`
+gives the statistics.
 
 Bad input raises :class:`UserError` with a one-line message that starts with the
 path as given (``scene.ply: property 'scale_0' is double, expected float``).
@@ -40,20 +46,18 @@ from __future__ import annotations
 
 import os
 import threading
+from collections.abc import Callable
 from pathlib import Path
+from typing import NamedTuple
 
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.describe import describe, dropped_summary, format_description
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.ply_file import load_ply
-from raygs_viewer.scene.reading import (
-    DROP_REASONS,
-    READ_CHUNK_BYTES,
-    ProgressCallback,
-    Reporter,
-    file_error,
-)
-from raygs_viewer.scene.sog_file import META_NAME, load_sog
+from raygs_viewer.scene.progress import READ_CHUNK_BYTES, ProgressCallback, Reporter
+from raygs_viewer.scene.reading import DROP_REASONS, file_error
+from raygs_viewer.scene.sog_file import load_sog
+from raygs_viewer.scene.sog_source import is_sog_folder
 from raygs_viewer.scene.splat_file import SPLAT_ROW_BYTES, load_splat
 from raygs_viewer.scene.spz_file import load_spz
 
@@ -67,8 +71,34 @@ ZIP_MAGIC = b"PK\x03\x04"
 #: layout or PlayCanvas's compressed one.
 SCENE_FILES = ".ply, .splat, .spz, .sog or a SOG meta.json"
 
+#: ``read(path, shown, report, chunk_bytes)``: one format's reader; ``shown`` is the path
+#: as messages name it, ``chunk_bytes`` how much is read between progress points.
+FormatReader = Callable[[str | os.PathLike, str, Reporter, int], Scene]
+
+
+class SceneFormat(NamedTuple):
+    """A file format :func:`load_scene` reads: ``read(path, shown, report, chunk_bytes)``
+    reads it; a name ending in one of ``suffixes`` chooses it whatever the bytes say (a
+    .ply that is a zip is a broken PLY, not a SOG); for other names, ``magic(first four
+    bytes)`` does."""
+
+    suffixes: tuple[str, ...]
+    magic: Callable[[bytes], bool]
+    read: FormatReader
+
+
+#: Every format read, in the order their magic is tried (no two magics overlap). A
+#: .ply's own reader tells INRIA's layout from PlayCanvas's compressed one by its header.
+FORMATS = (
+    SceneFormat((".splat",), lambda magic: False, load_splat),  # headerless rows: only its name says .splat
+    SceneFormat((".spz",), lambda magic: magic[:2] == GZIP_MAGIC or magic == SPZ_MAGIC, load_spz),
+    SceneFormat((".sog", ".json"), lambda magic: magic == ZIP_MAGIC, load_sog),
+    SceneFormat((".ply",), lambda magic: magic[:3] == b"ply", load_ply),
+)
+
 __all__ = [
     "DROP_REASONS",
+    "FORMATS",
     "READ_CHUNK_BYTES",
     "SCENE_FILES",
     "SPLAT_ROW_BYTES",
@@ -86,9 +116,10 @@ def load_scene(path: str | os.PathLike, *, progress: ProgressCallback | None = N
 
     The format is chosen by the extension (``.splat``, ``.spz``, ``.sog``, ``.json``;
     a ``.ply`` is INRIA's or PlayCanvas's compressed layout by its header), and for
-    other names by the first bytes (``ply``, gzip or ``NGSP`` for .spz, a zip for SOG). Raises :class:`UserError`
-    for anything that is not a readable scene file. Invalid gaussians are
-    dropped and counted in ``scene.dropped`` (see the module docstring).
+    other names by the first bytes (``ply``, gzip or ``NGSP`` for .spz, a zip for SOG):
+    see :data:`FORMATS`. A folder holding a SOG ``meta.json`` is that scene. Raises
+    :class:`UserError` for anything that is not a readable scene file. Invalid
+    gaussians are dropped and counted in ``scene.dropped`` (see the module docstring).
 
     ``progress(fraction, stage)`` is called from the loading thread: first with
     0.0, then after every :data:`READ_CHUNK_BYTES` of gaussian data and at each
@@ -108,36 +139,32 @@ def _load(path: str | os.PathLike, report: Reporter, chunk_bytes: int) -> Scene:
     report(0.0, "reading")
     if not os.path.exists(path):
         raise file_error(shown, "no such file")
-    unbundled_sog = os.path.isdir(path) and os.path.isfile(os.path.join(path, META_NAME))
-    if os.path.isdir(path) and not unbundled_sog:
+    sog_folder = is_sog_folder(path)
+    if os.path.isdir(path) and not sog_folder:
         raise file_error(shown, f"is a directory, expected a scene file ({SCENE_FILES})")
-    if not os.path.isfile(path) and not unbundled_sog:
+    if not os.path.isfile(path) and not sog_folder:
         raise file_error(shown, "not a regular file")
     try:
-        if unbundled_sog:
-            return load_sog(path, shown, report, chunk_bytes)
-        suffix = Path(path).suffix.lower()
-        if suffix == ".splat":
-            return load_splat(path, shown, report, chunk_bytes)
-        with open(path, "rb") as f:
-            magic = f.read(4)
-        # The name decides first (a .ply that is a zip is a broken PLY, not a SOG); the
-        # magic, for names that say nothing.
-        named = suffix in (".ply", ".spz", ".sog", ".json")
-        if suffix == ".spz" or not named and magic[:2] == GZIP_MAGIC or not named and magic == SPZ_MAGIC:
-            return load_spz(path, shown, report, chunk_bytes)
-        if suffix in (".sog", ".json") or not named and magic == ZIP_MAGIC:
-            return load_sog(path, shown, report, chunk_bytes)
-        if magic[:3] == b"ply" and magic[3:4] in (b"\n", b"\r"):
-            return load_ply(path, shown, report, chunk_bytes)
-        if Path(path).suffix.lower() == ".ply" or magic[:3] == b"ply":
-            what = "empty file" if not magic else "does not start with the 'ply' magic line"
-            raise file_error(shown, f"not a PLY file ({what})")
-        raise file_error(shown, f"unrecognised file format: expected a scene file ({SCENE_FILES})")
+        read = load_sog if sog_folder else _reader(path, shown)
+        return read(path, shown, report, chunk_bytes)
     except OSError as exc:
         raise _os_error(shown, exc) from None
     except MemoryError:
         raise file_error(shown, "not enough memory to load this scene") from None
+
+
+def _reader(path: str | os.PathLike, shown: str) -> FormatReader:
+    """The reader of the file ``path``: by its name, else by its first bytes."""
+    suffix = Path(path).suffix.lower()
+    for scene_format in FORMATS:
+        if suffix in scene_format.suffixes:
+            return scene_format.read
+    with open(path, "rb") as f:
+        magic = f.read(4)
+    for scene_format in FORMATS:
+        if scene_format.magic(magic):
+            return scene_format.read
+    raise file_error(shown, f"unrecognised file format: expected a scene file ({SCENE_FILES})")
 
 
 def _os_error(path, exc: OSError) -> UserError:

@@ -4,32 +4,27 @@ training cameras found beside it, a content hash, and warnings.
 :func:`load_now` does it synchronously (the scene named on the command line, so a
 bad file fails before a window opens); :class:`SceneLoader` does it on a daemon
 thread while the window keeps drawing, reporting progress and discarding a load
-that a newer one replaced.
+that a newer one replaced. The hash is :mod:`~raygs_viewer.scene.content_hash`'s; a
+progress line on a terminal is the command line's (``cli/progress_line.py``).
 """
 
 from __future__ import annotations
 
 import fnmatch
-import hashlib
 import os
-import sys
 import threading
-import time
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
-
-import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera, load_cameras
 from raygs_viewer.errors import UserError
 from raygs_viewer.jsonfile import read_json_file
+from raygs_viewer.scene.content_hash import FileHash, arrays_sha256, file_sha256
 from raygs_viewer.scene.demo import DEMO_VIEW_NAMES, demo_cameras, demo_scene
-from raygs_viewer.scene.io import ProgressCallback, dropped_summary, load_scene
+from raygs_viewer.scene.io import dropped_summary, load_scene
 from raygs_viewer.scene.model import Scene
-from raygs_viewer.scene.sog_file import META_NAME as SOG_META_NAME
-from raygs_viewer.scene.sog_file import scene_files as sog_scene_files
+from raygs_viewer.scene.progress import ProgressCallback, Reporter
 
 #: ``read_scene(path, *, progress, cancel) -> Scene``: what reads the scene file
 #: (:func:`~raygs_viewer.scene.io.load_scene`; tests hand in a steered one).
@@ -37,12 +32,11 @@ SceneReader = Callable[..., Scene]
 
 __all__ = [
     "DEMO",
-    "HASH_CHUNK_BYTES",
     "LoadedScene",
     "SceneLoader",
     "SceneReader",
-    "TerminalProgress",
     "arrays_sha256",
+    # Kept importable from here, where capture/sidecar.py takes it; it lives in content_hash.
     "file_sha256",
     "find_training_cameras",
     "load_now",
@@ -51,20 +45,11 @@ __all__ = [
 #: The scene "path" that means the built-in demo scene.
 DEMO = "demo"
 
-#: The file hash reads this many bytes at a time (one reused buffer): hashing a
-#: multi-GB scene never holds more than this of it.
-HASH_CHUNK_BYTES = 1 << 20
-
 # Shares of the whole job in load_now's progress: reading and activating the scene
 # dominates; the hash runs beside it, and what is left of it once the scene is read
 # takes the next share.
 _SCENE_END = 0.85
 _HASH_END = 0.98
-
-# How often a load that has read its scene reports the hash it still waits for.
-_HASH_POLL_SECONDS = 0.05
-
-_DEMO_ARRAYS = ("positions", "rotations", "scales", "opacities", "sh")
 
 
 def find_training_cameras(scene_path: str | os.PathLike) -> Path | None:
@@ -112,99 +97,6 @@ class LoadedScene:
     warnings: list[str]
 
 
-def arrays_sha256(scene: Scene) -> str:
-    """Hex SHA-256 of the scene's positions, rotations, scales, opacities and sh, in that
-    order, as C-contiguous float32 bytes (for the demo, where there is no file to hash)."""
-    digest = hashlib.sha256()
-    for name in _DEMO_ARRAYS:
-        digest.update(np.ascontiguousarray(getattr(scene, name), dtype=np.float32).tobytes())
-    return digest.hexdigest()
-
-
-def file_sha256(path: str | os.PathLike, progress: ProgressCallback | None = None,
-                cancel: threading.Event | None = None, *, chunk_bytes: int | None = None) -> str:
-    """Hex SHA-256 of a scene file, read HASH_CHUNK_BYTES (or ``chunk_bytes``) at a time into one buffer.
-
-    A scene of several files (an unbundled SOG: its meta.json, or the folder holding it)
-    hashes each of them in turn (sog_file.scene_files), every file's bytes preceded by its
-    name and size, so that no file of the scene can change unseen; a one-file scene's
-    digest is its file's plain SHA-256.
-
-    ``progress(fraction, "hashing")`` follows each read; a set ``cancel`` stops it with
-    ``UserError("loading cancelled")``. Read failures are a one-line UserError naming the file.
-    """
-    shown = os.fspath(path)
-    digest = hashlib.sha256()
-    buffer = bytearray(max(1, HASH_CHUNK_BYTES if chunk_bytes is None else chunk_bytes))
-    view = memoryview(buffer)
-    try:
-        several = os.path.isfile(os.path.join(path, SOG_META_NAME)) or Path(path).suffix.lower() == ".json"
-        files = sog_scene_files(path) if several else [path]
-        total = sum(os.path.getsize(file) for file in files)
-        done = 0
-        for file in files:
-            with open(file, "rb") as f:
-                if several:
-                    digest.update(f"{os.path.basename(file)}\0{os.fstat(f.fileno()).st_size}\0".encode())
-                while True:
-                    if cancel is not None and cancel.is_set():
-                        raise UserError("loading cancelled")
-                    got = f.readinto(buffer)
-                    if not got:
-                        break
-                    digest.update(view[:got])
-                    done += got
-                    if progress is not None:
-                        progress(min(1.0, done / total) if total else 1.0, "hashing")
-    except FileNotFoundError:
-        raise UserError(f"{shown}: no such file") from None
-    except IsADirectoryError:
-        raise UserError(f"{shown}: is a folder, expected a scene file") from None
-    except OSError as exc:
-        raise UserError(f"{shown}: cannot read: {exc.strerror or exc}") from None
-    return digest.hexdigest()
-
-
-class _FileHash:
-    """:func:`file_sha256` of a file on a thread of its own, started beside the scene's
-    read: the two overlap (hashlib and numpy release the GIL), so a multi-GB scene costs
-    about the longer of the two instead of their sum, and the file, read twice, comes
-    from the disk once. ``stop`` ends it at its next chunk."""
-
-    def __init__(self, path: str | os.PathLike, cancel: threading.Event | None) -> None:
-        self.stop = threading.Event()
-        self.fraction = 0.0
-        self.digest: str | None = None
-        self.error: BaseException | None = None
-        self._cancel = cancel
-        self._thread = threading.Thread(target=self._run, args=(path,), name="raygs-hash", daemon=True)
-        self._thread.start()
-
-    def _run(self, path) -> None:
-        try:
-            self.digest = file_sha256(path, self._progress, self.stop)
-        except BaseException as exc:  # handed to the loading thread, which raises it
-            self.error = exc
-
-    def _progress(self, fraction: float, stage: str) -> None:
-        self.fraction = fraction
-        if self._cancel is not None and self._cancel.is_set():
-            self.stop.set()
-
-    def result(self, report: Callable[[float], None]) -> str:
-        """Waits for the digest, calling ``report(fraction)`` a few times a second (a
-        cancel point: it may raise); raises what the hash raised."""
-        while True:
-            self._thread.join(_HASH_POLL_SECONDS)
-            done = not self._thread.is_alive()
-            report(1.0 if done and self.error is None else self.fraction)
-            if done:
-                break
-        if self.error is not None:
-            raise self.error
-        return self.digest
-
-
 def _camera_names(path: Path, count: int) -> list[str]:
     """img_name of each camera in an already validated cameras.json, else "camera i"."""
     try:
@@ -247,46 +139,18 @@ def load_now(path: str | os.PathLike, cameras: str | os.PathLike | None = None,
     ``read_scene`` reads the scene file (:func:`load_scene`).
     """
     shown = os.fspath(path)
-
-    def report(fraction: float, stage: str) -> None:
-        if cancel is not None and cancel.is_set():
-            raise UserError("loading cancelled")
-        if progress is not None:
-            progress(fraction, stage)
-
+    report = Reporter(progress, cancel)
     try:
         if shown == DEMO:
             report(0.0, "building")
             scene = demo_scene()
             report(_SCENE_END, "hashing")
             digest = arrays_sha256(scene)
-            found: list[Camera] = demo_cameras()
-            names = list(DEMO_VIEW_NAMES)
-            cameras_path = None
         else:
-            hashing = _FileHash(path, cancel)
-            try:
-                scene = read_scene(path, progress=_scaled(progress, 0.0, _SCENE_END, "hashing"), cancel=cancel)
-                digest = hashing.result(lambda f: report(_SCENE_END + (_HASH_END - _SCENE_END) * f, "hashing"))
-            finally:
-                hashing.stop.set()  # a failed or cancelled load leaves no hash running
-            found, names, cameras_path = [], [], None
+            scene, digest = _read_and_hash(path, progress, report, cancel, read_scene)
         warnings = dropped_summary(scene)
         report(_HASH_END, "cameras")
-        if cameras is not None:
-            found = load_cameras(cameras)
-            cameras_path = os.fspath(cameras)
-            names = _camera_names(Path(cameras), len(found))
-        elif shown != DEMO:
-            discovered = find_training_cameras(path)
-            if discovered is not None:
-                try:
-                    found = load_cameras(discovered)
-                except UserError as exc:
-                    warnings.append(f"training cameras skipped: {exc}")
-                else:
-                    cameras_path = os.fspath(discovered)
-                    names = _camera_names(discovered, len(found))
+        found, names, cameras_path = _training_cameras(shown, cameras, warnings)
         report(1.0, "done")
     except MemoryError:
         raise UserError(f"{shown}: not enough memory to load this scene") from None
@@ -295,60 +159,38 @@ def load_now(path: str | os.PathLike, cameras: str | os.PathLike | None = None,
     return LoadedScene(scene, shown, digest, found, cameras_path, names, warnings)
 
 
-class TerminalProgress:
-    """A :data:`ProgressCallback` that shows a synchronous load on a terminal (the scene
-    named on the command line loads before the window opens): ``loading NAME: reading
-    42%`` redrawn in place at most every ``interval`` seconds, starting once the load has
-    taken ``delay`` seconds (small scenes print nothing), erased at "done" and on leaving
-    a ``with`` block (so a failed load's error starts on a clean line).
-
-    Writes only when ``stream`` (default: stderr) is a terminal, so piped and scripted
-    output stays as it was. ``clock`` is for tests.
-    """
-
-    def __init__(self, name: str, stream: TextIO | None = None, *, delay: float = 0.5, interval: float = 0.2,
-                 clock: Callable[[], float] = time.monotonic, force: bool = False) -> None:
-        self.name = name
-        self.stream = sys.stderr if stream is None else stream
-        self.delay, self.interval, self.clock = delay, interval, clock
-        self.enabled = force or _is_terminal(self.stream)
-        self.started = clock()
-        self.shown_at: float | None = None
-        self.width = 0
-
-    def __call__(self, fraction: float, stage: str) -> None:
-        if not self.enabled:
-            return
-        now = self.clock()
-        if stage == "done":
-            self.close()
-            return
-        if now - self.started < self.delay or (self.shown_at is not None and now - self.shown_at < self.interval):
-            return
-        line = f"loading {self.name}: {stage} {fraction * 100:3.0f}%"
-        self.stream.write("\r" + line.ljust(self.width))
-        self.stream.flush()
-        self.shown_at, self.width = now, max(self.width, len(line))
-
-    def close(self) -> None:
-        """Erases the line, if one is shown (a failed load's error then prints on a clean line)."""
-        if self.shown_at is not None:
-            self.stream.write("\r" + " " * self.width + "\r")
-            self.stream.flush()
-            self.shown_at = None
-
-    def __enter__(self) -> "TerminalProgress":
-        return self
-
-    def __exit__(self, *exc_info) -> None:
-        self.close()
-
-
-def _is_terminal(stream) -> bool:
+def _read_and_hash(path: str | os.PathLike, progress: ProgressCallback | None, report: Reporter,
+                   cancel: threading.Event | None, read_scene: SceneReader) -> tuple[Scene, str]:
+    """The scene file read and hashed side by side; a failed read stops the hash."""
+    hashing = FileHash(path, cancel)
     try:
-        return bool(stream.isatty())
-    except (AttributeError, ValueError):  # no isatty, or a closed stream
-        return False
+        scene = read_scene(path, progress=_scaled(progress, 0.0, _SCENE_END, "hashing"), cancel=cancel)
+        digest = hashing.result(lambda f: report(_SCENE_END + (_HASH_END - _SCENE_END) * f, "hashing"))
+    finally:
+        hashing.stop.set()  # a failed or cancelled load leaves no hash running
+    return scene, digest
+
+
+def _training_cameras(shown: str, cameras: str | os.PathLike | None,
+                      warnings: list[str]) -> tuple[list[Camera], list[str], str | None]:
+    """(cameras, their names, the cameras.json they came from) shown with the scene
+    ``shown``: the explicit ``cameras`` file (a bad one is a UserError); else the demo's
+    own views, or the cameras.json found beside a scene file (a bad one is skipped
+    with a line added to ``warnings``)."""
+    if cameras is not None:
+        found = load_cameras(cameras)
+        return found, _camera_names(Path(cameras), len(found)), os.fspath(cameras)
+    if shown == DEMO:
+        return demo_cameras(), list(DEMO_VIEW_NAMES), None
+    discovered = find_training_cameras(shown)
+    if discovered is None:
+        return [], [], None
+    try:
+        found = load_cameras(discovered)
+    except UserError as exc:
+        warnings.append(f"training cameras skipped: {exc}")
+        return [], [], None
+    return found, _camera_names(discovered, len(found)), os.fspath(discovered)
 
 
 class _Job:

@@ -1,6 +1,6 @@
 """Gaussian scenes: the activated, validated arrays every later stage reads.
 
-Loading (INRIA PLY and .splat files) lives in :mod:`raygs_viewer.scene.io`; the
+Loading them from any file format read lives in :mod:`raygs_viewer.scene.io`; the
 built-in demo scene in :mod:`raygs_viewer.scene.demo`.
 """
 
@@ -35,8 +35,8 @@ class Scene:
     source:     where it came from (a path, or "demo").
     dropped:    invalid gaussians skipped at load, by reason -> count.
     format:     the file format it was read from, with its version where it has one
-                ("INRIA PLY", ".splat", "spz v3", "PlayCanvas compressed PLY",
-                "SOG v2"); "" for a scene made in memory.
+                (its reader's name for it: "INRIA PLY", ".splat", "spz v3",
+                "PlayCanvas compressed PLY", "SOG v2", ...); "" for a scene made in memory.
     """
 
     positions: np.ndarray

@@ -18,21 +18,11 @@ import re
 import numpy as np
 from plyfile import PlyData, PlyParseError
 
-from raygs_viewer.scene.model import (
-    SH_DEGREE_OF_REST_COUNT,
-    Scene,
-    sh_coefficient_count,
-)
 from raygs_viewer.scene.compressed_ply import load_compressed_ply
+from raygs_viewer.scene.model import SH_DEGREE_OF_REST_COUNT, Scene, sh_coefficient_count
 from raygs_viewer.scene.ply_header import PLY_TYPES, parse_header
-from raygs_viewer.scene.reading import (
-    DropTally,
-    Reporter,
-    build_scene,
-    file_error,
-    scene_arrays,
-    shown_token,
-)
+from raygs_viewer.scene.progress import Reporter
+from raygs_viewer.scene.reading import DropTally, build_scene, file_error, scene_arrays, shown_token
 
 _REQUIRED = ("x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
              "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3")
@@ -218,7 +208,7 @@ class _Target:
         self.k = sh_coefficient_count(degree) - 1
         self.degree = degree
         self.has_filter = has_filter
-        self.positions, self.rotations, self.scales, self.opacities, self.sh = scene_arrays(n, degree)
+        self.arrays = scene_arrays(n, degree)
         self.drops = DropTally(n)
 
     def add(self, start: int, m: np.ndarray) -> None:
@@ -227,10 +217,10 @@ class _Target:
         k = self.k
         rows = m.shape[0]
         stop = start + rows
-        positions, scales = self.positions[start:stop], self.scales[start:stop]
+        positions, scales = self.arrays.positions[start:stop], self.arrays.scales[start:stop]
         rest = m[:, 14:14 + 3 * k]
         positions[:] = m[:, 0:3]
-        sh = self.sh[start:stop]
+        sh = self.arrays.sh[start:stop]
         sh[:, 0, :] = m[:, 3:6]
         sh[:, 1:, :] = rest.reshape(rows, 3, k).transpose(0, 2, 1)
         # The casts too: a signalling NaN (a flipped bit of +-inf) raises "invalid" when widened
@@ -248,8 +238,8 @@ class _Target:
                 scale = fused
             norm = np.sqrt(np.sum(rot * rot, axis=1))
             scales[:] = scale
-            self.opacities[start:stop] = opacity
-            self.rotations[start:stop] = rot / norm[:, None]
+            self.arrays.opacities[start:stop] = opacity
+            self.arrays.rotations[start:stop] = rot / norm[:, None]
 
             # Cheap prefilter: a row sum is finite unless the row holds a NaN or an inf
             # (or overflows, which only makes the row a candidate for the exact tests).
@@ -271,5 +261,5 @@ class _Target:
             })
 
     def build(self, shown: str, report: Reporter) -> Scene:
-        return build_scene(shown, self.positions, self.rotations, self.scales, self.opacities, self.sh,
-                           self.degree, self.has_filter, self.drops, report, PLY_FORMAT)
+        return build_scene(arrays=self.arrays, sh_degree=self.degree, filter_fused=self.has_filter,
+                           drops=self.drops, report=report, source=shown, format=PLY_FORMAT)

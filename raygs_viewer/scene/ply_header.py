@@ -40,8 +40,8 @@ class PlyElement:
 
 
 def parse_header(path, shown: str) -> tuple[int, list[PlyElement], str | None]:
-    """Validate the PLY header (read from at most 1 MiB): returns (header bytes, elements,
-    refusal).
+    """Validate the PLY header (read from at most 1 MiB, starting with the ``ply`` magic
+    line): returns (header bytes, elements, refusal).
 
     ``refusal`` is None, or why plyfile, which read the data of every PLY file before
     issue 16, refused this header (an empty line, ``obj_info`` after an element) though
@@ -50,6 +50,9 @@ def parse_header(path, shown: str) -> tuple[int, list[PlyElement], str | None]:
     """
     with open(path, "rb") as f:
         head = f.read(HEADER_LIMIT)
+    if head[:3] != b"ply" or head[3:4] not in (b"\n", b"\r"):
+        what = "empty file" if not head else "does not start with the 'ply' magic line"
+        raise file_error(shown, f"not a PLY file ({what})")
     nl = b"\r\n" if head.startswith(b"ply\r\n") else head[3:4]
     marker = nl + b"end_header" + nl
     end = head.find(marker)

@@ -1,17 +1,21 @@
-"""What the PLY and ``.splat`` readers share: progress and cancel points, one-line
-errors naming the file, and the last step that drops invalid gaussians and builds the
+"""What every scene reader shares: one-line errors naming the file, the tally of
+invalid gaussians, and the last step that drops them and builds the
 :class:`~raygs_viewer.scene.model.Scene` (see :mod:`raygs_viewer.scene.io` for the rules).
+
+A reader fills the arrays of :func:`scene_arrays` a chunk at a time, records what is
+invalid in a :class:`DropTally`, and ends in :func:`build_scene`, whose arguments are
+keywords only: the Scene's own field names, so a call reads like the Scene it builds.
 """
 
 from __future__ import annotations
 
-import threading
-from collections.abc import Callable
+from typing import NamedTuple
 
 import numpy as np
 
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
+from raygs_viewer.scene.progress import READ_CHUNK_BYTES, Reporter
 
 #: Every reason a gaussian can be dropped for, in the order they are tested.
 DROP_REASONS = (
@@ -25,23 +29,6 @@ DROP_REASONS = (
     "infinite colour",
 )
 
-#: Gaussian data is read (and PLY rows activated) this many bytes at a time,
-#: with a progress report and a cancel check after each chunk. A few MiB keeps a
-#: progress bar moving on multi-GB files at a negligible per-chunk overhead; tests
-#: pass a small ``chunk_bytes`` to get many chunks from a tiny file.
-READ_CHUNK_BYTES = 4 << 20
-
-#: ``progress(fraction, stage)``: fraction in [0, 1], never decreasing; stage is a
-#: short word ("reading", "activating", "validating", "done").
-ProgressCallback = Callable[[float, str], None]
-
-# Where each stage starts, as a fraction of the whole load. Reading dominates on a
-# cold file; the rest are vectorised passes over arrays already in memory.
-_READ_END = 0.7
-_ACTIVATE_AT = 0.72
-_VALIDATE_AT = 0.85
-_BUILD_AT = 0.93
-
 
 def shown_token(text: str, limit: int = 60) -> str:
     """A header token made safe for a one-line message (quoted, ASCII, clipped)."""
@@ -54,34 +41,6 @@ def file_error(path, message: str) -> UserError:
     """``UserError("<path>: <message>")`` on one line."""
     line = f"{path}: {message}"
     return UserError(" ".join(line.splitlines()))
-
-
-class Reporter:
-    """Forwards progress to the caller's callback and turns a set cancel event into
-    ``UserError("loading cancelled")``: every progress point is also a cancel point."""
-
-    def __init__(self, progress: ProgressCallback | None, cancel: threading.Event | None) -> None:
-        self.progress = progress
-        self.cancel = cancel
-        self.last = 0.0
-
-    def __call__(self, fraction: float, stage: str) -> None:
-        if self.cancel is not None and self.cancel.is_set():
-            raise UserError("loading cancelled")
-        if self.progress is not None:
-            # Clamped so a caller's bar never runs backwards, whatever the stage maths says.
-            self.last = min(1.0, max(self.last, float(fraction)))
-            self.progress(self.last, stage)
-
-    def reading(self, done: int, total: int) -> None:
-        """``done`` of ``total`` (rows, bytes) of the gaussian data read."""
-        self(_READ_END * done / total, "reading")
-
-    def activating(self) -> None:
-        self(_ACTIVATE_AT, "activating")
-
-    def validating(self) -> None:
-        self(_VALIDATE_AT, "validating")
 
 
 class DropTally:
@@ -113,6 +72,24 @@ class DropTally:
         return {reason: count for reason, count in self.counts.items() if count}
 
 
+class SceneArrays(NamedTuple):
+    """A reader's output arrays for N gaussians, activated, float32: positions (N, 3),
+    rotations (N, 4), scales (N, 3), opacities (N,), sh (N, (degree+1)^2, 3)."""
+
+    positions: np.ndarray
+    rotations: np.ndarray
+    scales: np.ndarray
+    opacities: np.ndarray
+    sh: np.ndarray
+
+
+def scene_arrays(n: int, degree: int) -> SceneArrays:
+    """Uninitialised :class:`SceneArrays` for ``n`` gaussians of SH ``degree``, to fill a
+    chunk at a time and hand to :func:`build_scene`."""
+    return SceneArrays(np.empty((n, 3), np.float32), np.empty((n, 4), np.float32), np.empty((n, 3), np.float32),
+                       np.empty(n, np.float32), np.empty((n, sh_coefficient_count(degree), 3), np.float32))
+
+
 def _compact(arrays: list[np.ndarray], keep: np.ndarray) -> list[np.ndarray]:
     """The rows ``keep`` (increasing indices) of each array, moved to its front in place,
     a few MiB of rows at a time: no second copy of a multi-GB scene. Safe because
@@ -126,33 +103,26 @@ def _compact(arrays: list[np.ndarray], keep: np.ndarray) -> list[np.ndarray]:
     return [array[:kept] for array in arrays]
 
 
-def scene_arrays(n: int, degree: int) -> tuple[np.ndarray, ...]:
-    """A reader's output for ``n`` gaussians of SH ``degree``, to fill a chunk at a time
-    and hand to :func:`build_scene`: positions (n, 3), rotations (n, 4), scales (n, 3),
-    opacities (n,), sh (n, (degree+1)^2, 3), all float32 and uninitialised."""
-    return (np.empty((n, 3), np.float32), np.empty((n, 4), np.float32), np.empty((n, 3), np.float32),
-            np.empty(n, np.float32), np.empty((n, sh_coefficient_count(degree), 3), np.float32))
-
-
-def build_scene(shown: str, positions, rotations, scales, opacities, sh, degree: int, fused: bool,
-                drops: DropTally, report: Reporter, format: str) -> Scene:
-    """Drop the invalid gaussians ``drops`` found (moving the valid ones to the front of
-    the arrays, which this takes over) and build the Scene; ``format``: Scene.format."""
-    report(_BUILD_AT, "validating")
+def build_scene(*, arrays: SceneArrays, sh_degree: int, drops: DropTally, report: Reporter, source: str,
+                format: str, filter_fused: bool = False) -> Scene:
+    """The Scene of a reader's ``arrays`` less the invalid gaussians ``drops`` found (the
+    valid ones are moved to the front of the arrays, which this takes over). ``source``,
+    ``format``, ``sh_degree`` and ``filter_fused`` are the Scene's fields of those names."""
+    report.building()
     dropped = drops.dropped
-    arrays = [positions, rotations, scales, opacities, sh]
+    kept = list(arrays)
     if dropped:
-        arrays = _compact(arrays, np.flatnonzero(~drops.bad))
-    positions, rotations, scales, opacities, sh = arrays
+        kept = _compact(kept, np.flatnonzero(~drops.bad))
+    positions, rotations, scales, opacities, sh = kept
     return Scene(
         positions=np.ascontiguousarray(positions, dtype=np.float32),
         rotations=np.ascontiguousarray(rotations, dtype=np.float32),
         scales=np.ascontiguousarray(scales, dtype=np.float32),
         opacities=np.ascontiguousarray(opacities, dtype=np.float32),
         sh=np.ascontiguousarray(sh, dtype=np.float32),
-        sh_degree=degree,
-        filter_fused=fused,
-        source=shown,
+        sh_degree=sh_degree,
+        filter_fused=filter_fused,
+        source=source,
         dropped=dropped,
         format=format,
     )

@@ -7,12 +7,8 @@ import os
 import numpy as np
 
 from raygs_viewer.scene.model import Scene
-from raygs_viewer.scene.reading import (
-    DropTally,
-    Reporter,
-    build_scene,
-    file_error,
-)
+from raygs_viewer.scene.progress import Reporter
+from raygs_viewer.scene.reading import DropTally, SceneArrays, build_scene, file_error
 from raygs_viewer.scene.sh import C0
 
 #: The 32-byte ``.splat`` row.
@@ -65,4 +61,5 @@ def load_splat(path, shown: str, report: Reporter, chunk_bytes: int) -> Scene:
     }
     drops = DropTally(n)
     drops.add(0, tests)
-    return build_scene(shown, positions, quat, scale, opacity, sh, 0, False, drops, report, SPLAT_FORMAT)
+    arrays = SceneArrays(positions=positions, rotations=quat, scales=scale, opacities=opacity, sh=sh)
+    return build_scene(arrays=arrays, sh_degree=0, drops=drops, report=report, source=shown, format=SPLAT_FORMAT)

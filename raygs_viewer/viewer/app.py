@@ -33,7 +33,8 @@ from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.gl.context import context_description
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import RenderSettings
-from raygs_viewer.scene.loader import LoadedScene, TerminalProgress, load_now
+from raygs_viewer.scene.loader import LoadedScene, load_now
+from raygs_viewer.scene.progress import ProgressCallback
 from raygs_viewer.sort.worker import BackgroundSorter
 from raygs_viewer.viewer.drawing import SceneDrawer, sort_cull, sort_keys
 from raygs_viewer.viewer.input import InputHandler
@@ -334,10 +335,11 @@ def start_camera(options: ViewerOptions) -> Camera | None:
     return None if options.camera is None else load_camera(options.camera, options.camera_index)
 
 
-def run_viewer(options: ViewerOptions) -> int:
+def run_viewer(options: ViewerOptions, progress: ProgressCallback | None = None) -> int:
     """Opens the window and runs until it is closed (or ``options.frames`` have been
     drawn); returns the exit status. Bad input found before the window opens (scene,
-    cameras, screenshot path) raises UserError, so the CLI exits with status 2."""
+    cameras, screenshot path) raises UserError, so the CLI exits with status 2.
+    ``progress`` follows the scene's load, before the window opens."""
     if choose_platform(options.platform) == "null" and options.frames is None and options.platform == "auto":
         # An invisible window that runs until killed would look like a hang.
         raise UserError("no display (DISPLAY and WAYLAND_DISPLAY are unset): run on a desktop, or add "
@@ -348,8 +350,7 @@ def run_viewer(options: ViewerOptions) -> int:
         if not options.window_screenshot.lower().endswith(".png"):
             raise UserError(f"{options.window_screenshot}: the window screenshot must be a .png")
         check_output_path(options.window_screenshot)
-    with TerminalProgress(options.scene) as progress:  # a multi-GB scene takes seconds before the window
-        loaded = load_now(options.scene, options.cameras, progress)
+    loaded = load_now(options.scene, options.cameras, progress)
     for warning in loaded.warnings:
         print(f"warning: {warning}", flush=True)
     viewer = Viewer(options, loaded, start_camera(options))

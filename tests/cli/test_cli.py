@@ -383,7 +383,7 @@ CASES = sorted(_bad_cases(Path("unused"), write=False))
 def test_error_paths_are_one_line(capsys, tmp_path, case, monkeypatch):
     import raygs_viewer.viewer.app as app
 
-    monkeypatch.setattr(app, "run_viewer", lambda options: pytest.fail(f"window opened with {options}"))
+    monkeypatch.setattr(app, "run_viewer", lambda options, progress=None: pytest.fail(f"window opened with {options}"))
     argv = _bad_cases(tmp_path)[case]
     before = listing(tmp_path)
     code, _, err = run_cli(capsys, *argv)
@@ -394,7 +394,7 @@ def test_error_paths_are_one_line(capsys, tmp_path, case, monkeypatch):
 def test_error_messages_name_what_is_wrong(capsys, tmp_path, monkeypatch):
     import raygs_viewer.viewer.app as app
 
-    monkeypatch.setattr(app, "run_viewer", lambda options: pytest.fail(f"window opened with {options}"))
+    monkeypatch.setattr(app, "run_viewer", lambda options, progress=None: pytest.fail(f"window opened with {options}"))
     cases = _bad_cases(tmp_path)
     expect = {
         "missing_scene": "nowhere.ply",
@@ -643,7 +643,7 @@ def viewer(monkeypatch):
 
     calls = []
 
-    def run_viewer(options):
+    def run_viewer(options, progress=None):
         calls.append(options)
         return 0
 
@@ -736,7 +736,7 @@ def test_screenshot_scale_range(capsys, viewer, scale):
 def test_view_returns_the_viewers_status(capsys, monkeypatch):
     import raygs_viewer.viewer.app as app
 
-    monkeypatch.setattr(app, "run_viewer", lambda options: 3)
+    monkeypatch.setattr(app, "run_viewer", lambda options, progress=None: 3)
     assert run_cli(capsys, "view")[0] == 3
 
 
@@ -744,7 +744,7 @@ def test_view_user_errors_are_one_line(capsys, monkeypatch):
     import raygs_viewer.viewer.app as app
     from raygs_viewer.errors import UserError
 
-    def fail(options):
+    def fail(options, progress=None):
         raise UserError(f"{options.scene}: no such file")
 
     monkeypatch.setattr(app, "run_viewer", fail)

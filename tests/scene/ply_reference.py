@@ -17,7 +17,8 @@ from raygs_viewer.scene.model import (
     Scene,
     sh_coefficient_count,
 )
-from raygs_viewer.scene.reading import DROP_REASONS, Reporter, file_error, shown_token
+from raygs_viewer.scene.progress import Reporter
+from raygs_viewer.scene.reading import DROP_REASONS, file_error, shown_token
 
 # --- ply_header.py as it was
 

@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import functools
 import hashlib
-import io
 import json
 import threading
 from pathlib import Path
@@ -19,7 +18,7 @@ import pytest
 import testkit
 from testkit import gaussian_columns, write_ply
 
-import raygs_viewer.scene.loader as loader
+import raygs_viewer.scene.content_hash as content_hash
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.demo import (
     DEMO_VIEW_NAMES,
@@ -28,15 +27,8 @@ from raygs_viewer.scene.demo import (
     demo_scene,
 )
 from raygs_viewer.scene.io import load_scene
-from raygs_viewer.scene.loader import (
-    LoadedScene,
-    SceneLoader,
-    TerminalProgress,
-    arrays_sha256,
-    file_sha256,
-    find_training_cameras,
-    load_now,
-)
+from raygs_viewer.scene.content_hash import arrays_sha256, file_sha256
+from raygs_viewer.scene.loader import LoadedScene, SceneLoader, find_training_cameras, load_now
 
 DEADLOCK = 30.0
 
@@ -199,7 +191,7 @@ def test_hash_read_failure_is_a_user_error(tmp_path):
 
 def test_progress_is_monotone_and_ends_at_done(tmp_path, monkeypatch):
     scene = small_ply(tmp_path / "scene.ply", n=30)
-    monkeypatch.setattr(loader, "HASH_CHUNK_BYTES", 500)
+    monkeypatch.setattr(content_hash, "HASH_CHUNK_BYTES", 500)
     calls = []
     load_now(scene, progress=lambda f, s: calls.append((f, s)), read_scene=functools.partial(load_scene, chunk_bytes=200))
     fractions = [f for f, _ in calls]
@@ -233,7 +225,7 @@ def test_the_hash_runs_beside_the_read(tmp_path, monkeypatch):
     scene = small_ply(tmp_path / "scene.ply")
     hashing = SteeredHash()
     hashing.gate.set()
-    monkeypatch.setattr(loader, "file_sha256", hashing)
+    monkeypatch.setattr(content_hash, "file_sha256", hashing)
 
     def read_scene(path, **kwargs):
         assert hashing.started.wait(DEADLOCK), "the hash did not start before the scene was read"
@@ -246,7 +238,7 @@ def test_the_hash_runs_beside_the_read(tmp_path, monkeypatch):
 def test_a_hash_still_running_after_the_read_reports_its_progress(tmp_path, monkeypatch):
     scene = small_ply(tmp_path / "scene.ply")
     hashing = SteeredHash()
-    monkeypatch.setattr(loader, "file_sha256", hashing)
+    monkeypatch.setattr(content_hash, "file_sha256", hashing)
     calls = []
 
     def progress(fraction, stage):
@@ -265,7 +257,7 @@ def test_a_hash_still_running_after_the_read_reports_its_progress(tmp_path, monk
 def test_a_failed_or_cancelled_load_stops_its_hash(tmp_path, monkeypatch, how):
     scene = small_ply(tmp_path / "scene.ply")
     hashing = SteeredHash()
-    monkeypatch.setattr(loader, "file_sha256", hashing)
+    monkeypatch.setattr(content_hash, "file_sha256", hashing)
     cancel = threading.Event()
 
     def read_scene(path, **kwargs):
@@ -288,7 +280,7 @@ def test_a_hash_that_fails_after_a_good_read_is_the_error(tmp_path, monkeypatch)
     def failing_hash(path, *args, **kwargs):
         raise UserError(f"{path}: cannot read: Input/output error")
 
-    monkeypatch.setattr(loader, "file_sha256", failing_hash)
+    monkeypatch.setattr(content_hash, "file_sha256", failing_hash)
     testkit.assert_user_error(lambda: load_now(scene), scene, "Input/output error")
 
 
@@ -483,50 +475,3 @@ def test_a_finished_result_not_yet_polled_is_dropped_by_a_new_start(tmp_path, st
     assert scene_loader.poll() is None  # the good scene is not shown over the newer request
     assert scene_loader.discarded == 1
     scene_loader.cancel()
-
-
-# --------------------------------------------------------------------------- terminal progress
-
-
-class FakeTerminal(io.StringIO):
-    def isatty(self):
-        return True
-
-
-def test_terminal_progress_redraws_one_line_and_erases_it():
-    now = [0.0]
-    stream = FakeTerminal()
-    with TerminalProgress("big.ply", stream, delay=0.5, interval=0.2, clock=lambda: now[0]) as progress:
-        for t, fraction in ((0.1, 0.05), (0.6, 0.3), (0.65, 0.35), (0.9, 0.6)):
-            now[0] = t
-            progress(fraction, "reading")
-        now[0] = 1.2
-        progress(0.9, "hashing")
-        progress(1.0, "done")
-    text = stream.getvalue()
-    assert "\n" not in text
-    frames = text.split("\r")
-    assert frames[1:4] == ["loading big.ply: reading  30%", "loading big.ply: reading  60%",
-                           "loading big.ply: hashing  90%"]  # before 0.5 s and within 0.2 s: nothing
-    assert frames[-2:] == [" " * len(frames[3]), ""]  # erased once, at "done"
-
-
-def test_terminal_progress_is_silent_off_a_terminal_and_for_quick_loads(tmp_path):
-    scene = small_ply(tmp_path / "scene.ply")
-    piped = io.StringIO()
-    with TerminalProgress("scene.ply", piped, delay=0.0, interval=0.0) as progress:
-        load_now(scene, progress=progress)
-    assert piped.getvalue() == ""
-    quick = FakeTerminal()
-    with TerminalProgress("scene.ply", quick) as progress:  # the default half second delay
-        load_now(scene, progress=progress)
-    assert quick.getvalue() == ""
-
-
-def test_a_failed_load_leaves_a_clean_line_for_its_error(tmp_path):
-    stream = FakeTerminal()
-    with pytest.raises(UserError):
-        with TerminalProgress("gone.ply", stream, delay=0.0, interval=0.0) as progress:
-            progress(0.2, "reading")
-            load_now(tmp_path / "gone.ply", progress=progress)
-    assert stream.getvalue().endswith("\r" + " " * len("loading gone.ply: reading  20%") + "\r")

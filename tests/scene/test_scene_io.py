@@ -290,14 +290,14 @@ def test_unreadable_file(tmp_path):
 def test_read_error_is_a_user_error(tmp_path, monkeypatch):
     import errno
 
-    import raygs_viewer.scene.io as scene_io
+    import raygs_viewer.scene.ply_header as ply_header
 
     path = write_ply(tmp_path / "flaky.ply", gaussian_columns(2))
 
     def failing_open(*args, **kwargs):
         raise OSError(errno.EIO, "Input/output error")
 
-    monkeypatch.setattr(scene_io, "open", failing_open, raising=False)
+    monkeypatch.setattr(ply_header, "open", failing_open, raising=False)  # the first read of a .ply
     assert_scene_error(path, "cannot read", "Input/output error")
 
 

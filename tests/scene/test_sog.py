@@ -283,7 +283,7 @@ def test_encoded_scenes_decode_within_the_quantisation_error(tmp_path, degree, l
 
 
 def test_a_folder_loads_as_its_meta_json(tmp_path):
-    from raygs_viewer.scene.reading import Reporter
+    from raygs_viewer.scene.progress import Reporter
     from raygs_viewer.scene.sog_file import load_sog
 
     meta, images, _ = encode_sog(*gaussians(n=20))

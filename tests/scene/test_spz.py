@@ -25,7 +25,8 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.scene.io import load_scene
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
 from raygs_viewer.scene.sh import sh_basis, sh_to_rgb
-from raygs_viewer.scene.spz_file import MAX_POINTS, spz_bytes
+from raygs_viewer.scene.spz_file import spz_bytes
+from raygs_viewer.scene.spz_stream import MAX_POINTS
 
 F = np.array([1.0, -1.0, -1.0])
 SHARED_SPZ = testkit.SHARED_SCENES / "formats" / "metalsplatter-train3.spz"
