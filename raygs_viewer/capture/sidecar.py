@@ -75,7 +75,7 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.jsonfile import JsonFields, json_key, read_json_file, show_json, typed
 from raygs_viewer.render.settings import RENDER_MODES, RenderSettings
 from raygs_viewer.scene.demo import demo_scene
-from raygs_viewer.scene.loader import arrays_sha256, file_sha256
+from raygs_viewer.scene.content_hash import arrays_sha256, file_sha256
 from raygs_viewer.scene.model import Scene
 
 SIDECAR_FORMAT = "raygs-viewer screenshot"

@@ -26,12 +26,12 @@ from raygs_viewer.cli import bench, commands, convert, path, view
 from raygs_viewer.cli.argtypes import Parser
 from raygs_viewer.cli.view import join_up_axis
 from raygs_viewer.errors import UserError
+from raygs_viewer.scene.io import SCENE_SUFFIXES
 from raygs_viewer.scene.loader import DEMO
 
 COMMANDS = ("view", "info", "render", "render-path", "verify", "convert", "bench")
 # Arguments that keep their meaning at the top level instead of starting the window.
 TOP_LEVEL_OPTIONS = ("-h", "--help", "--version")
-SCENE_SUFFIXES = (".ply", ".splat", ".spz", ".sog")
 RUN = {"view": view.command_view, "info": commands.command_info, "render": commands.command_render,
        "render-path": path.command_render_path,
        "verify": commands.command_verify, "convert": convert.command_convert, "bench": bench.command}

@@ -95,12 +95,16 @@ FORMATS = (
     SceneFormat((".sog", ".json"), lambda magic: magic == ZIP_MAGIC, load_sog),
     SceneFormat((".ply",), lambda magic: magic[:3] == b"ply", load_ply),
 )
+#: The names of scene files, for the command line's router and the panel's hint. A SOG
+#: meta.json is a scene only by its content: every other .json (cameras, paths) is not.
+SCENE_SUFFIXES = tuple(suffix for format_ in FORMATS for suffix in format_.suffixes if suffix != ".json")
 
 __all__ = [
     "DROP_REASONS",
     "FORMATS",
     "READ_CHUNK_BYTES",
     "SCENE_FILES",
+    "SCENE_SUFFIXES",
     "SPLAT_ROW_BYTES",
     "ProgressCallback",
     "describe",

@@ -35,9 +35,6 @@ __all__ = [
     "LoadedScene",
     "SceneLoader",
     "SceneReader",
-    "arrays_sha256",
-    # Kept importable from here, where capture/sidecar.py takes it; it lives in content_hash.
-    "file_sha256",
     "find_training_cameras",
     "load_now",
 ]

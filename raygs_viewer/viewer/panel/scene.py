@@ -7,6 +7,7 @@ from typing import Callable
 
 from imgui_bundle import imgui
 
+from raygs_viewer.scene.io import SCENE_SUFFIXES
 from raygs_viewer.scene.loader import LoadedScene, SceneLoader
 from raygs_viewer.viewer.panel.widgets import header
 from raygs_viewer.viewer.state import PanelState
@@ -25,7 +26,7 @@ def draw_scene_section(loaded: LoadedScene, panel: PanelState, open_scene: Calla
     imgui.text(f"{scene.count:,} gaussians, SH degree {scene.sh_degree}, "
                f"3D filter {'fused' if scene.filter_fused else 'none'}")
     entered, panel.open_path = imgui.input_text_with_hint(
-        "##open", ".ply .splat .spz .sog (or drop a file)", panel.open_path,
+        "##open", f"{' '.join(SCENE_SUFFIXES)} (or drop a file)", panel.open_path,
         imgui.InputTextFlags_.enter_returns_true.value)
     imgui.same_line()
     if imgui.button("Open") or entered:
