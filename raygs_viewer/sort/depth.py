@@ -340,9 +340,11 @@ class DepthSorter:
         """(3,) float32: the camera centre C of the distance key, snapped to a grid 2^-32
         of the scene's extent. A turn in place recomputes t from R and C, and C = -R^T t
         comes back off by rounding (1e-17 where it was 0, which float32 keeps): the
-        snapped centre is the same, so the keys of the turn are bit for bit the same."""
+        snapped centre is the same, so the keys of the turn are bit for bit the same.
+        Adding 0.0 turns the -0.0 that rounds from a tiny negative into 0.0: the cache
+        compares the bytes, and those of -0.0 and 0.0 differ."""
         step = 2.0 ** (math.frexp(max(self.coordinate_scale, 1e-30))[1] - 32)
-        return (np.round(np.asarray(camera.center, np.float64) / step) * step).astype(np.float32)
+        return (np.round(np.asarray(camera.center, np.float64) / step) * step + 0.0).astype(np.float32)
 
     def _camera_space(self, camera: Camera, rows: slice, out: np.ndarray) -> None:
         """out[:] = (3, n) mu = R p + t of the rows, in float32 (the form the GPU uses),
