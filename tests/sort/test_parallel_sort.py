@@ -20,7 +20,7 @@ from testkit import gaussian_columns, make_scene, random_scene, write_ply
 
 from raygs_viewer.camera.pinhole import Camera, look_at
 from raygs_viewer.scene.model import Scene
-from raygs_viewer.sort import depth
+from raygs_viewer.sort import ordering
 from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.worker import BackgroundSorter
 
@@ -63,8 +63,8 @@ def test_every_worker_count_gives_the_one_worker_order(seed, workers, chunk_rows
     kwargs = dict(dilation=dilation, cull_cameras=cull_cameras, keys=("depth", "distance"))
     reference = DepthSorter(scene, workers=1).orders(camera, P_MIN, method, **kwargs)
     with pytest.MonkeyPatch.context() as patch, DepthSorter(scene, workers, chunk_rows=chunk_rows) as sorter:
-        patch.setattr(depth, "BUCKET_KEYS", bucket_keys)
-        patch.setattr(depth, "PARALLEL_SORT_MIN", 0)
+        patch.setattr(ordering, "BUCKET_KEYS", bucket_keys)
+        patch.setattr(ordering, "PARALLEL_SORT_MIN", 0)
         parallel = sorter.orders(camera, P_MIN, method, **kwargs)
         one_worker = DepthSorter(scene, workers=1, chunk_rows=chunk_rows).orders(camera, P_MIN, method, **kwargs)
     for key in ("depth", "distance"):
@@ -81,8 +81,8 @@ def test_every_worker_count_gives_the_one_worker_order(seed, workers, chunk_rows
 def test_ties_across_chunks_and_buckets_keep_scene_order(monkeypatch):
     """Many gaussians at a few distinct places: each key value is shared by gaussians in
     every chunk, and the buckets are single keys; the order is by key, then index."""
-    monkeypatch.setattr(depth, "BUCKET_KEYS", 4)
-    monkeypatch.setattr(depth, "PARALLEL_SORT_MIN", 0)
+    monkeypatch.setattr(ordering, "BUCKET_KEYS", 4)
+    monkeypatch.setattr(ordering, "PARALLEL_SORT_MIN", 0)
     rng = np.random.default_rng(4)
     places = np.array([[0, 0, 1.0], [0.2, 0.1, 2.0], [-0.3, 0.2, 3.0], [0.1, -0.2, 1.5]])
     label = rng.integers(0, len(places), 500)
