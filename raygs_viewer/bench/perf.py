@@ -41,11 +41,13 @@ from typing import TextIO
 import numpy as np
 
 from raygs_viewer.bench.common import (
+    RunOptions,
     count_label,
     gl_context,
     load_scenes,
     median,
     printer,
+    report_head,
     write_plot,
     write_report,
 )
@@ -285,7 +287,7 @@ def _cpu(work) -> float:
 # --- the run --------------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
-class PerfOptions:
+class PerfOptions(RunOptions):
     counts: tuple[int, ...]
     sizes: tuple[str, ...]
     resolutions: tuple[tuple[int, int], ...]
@@ -295,8 +297,6 @@ class PerfOptions:
     report: Path | None = None
     plot: Path | None = None
     overwrite: bool = False
-    gl_backend: str | None = None
-    notes: tuple[str, ...] = ()
 
 
 @dataclass
@@ -369,17 +369,10 @@ def _ratio(value: float) -> str:
 
 def format_report(results: PerfResults) -> str:
     options = results.options
-    lines = [
-        "# Performance figures (generated)",
-        "",
-        f"Produced by `{options.command_line}` on {results.device}, in {results.seconds / 60:.1f} minutes. "
-        f"Every time is the median of {options.frames} moving-view frames; see `docs/performance.md` "
-        f"for what the stages and ratios mean.",
-        "",
-    ]
-    lines += [f"- note: {note}" for note in options.notes]
-    if options.notes:
-        lines.append("")
+    lines = report_head("Performance figures (generated)",
+                        f"Produced by `{options.command_line}` on {results.device}, in {results.seconds / 60:.1f} "
+                        f"minutes. Every time is the median of {options.frames} moving-view frames; see "
+                        f"`docs/performance.md` for what the stages and ratios mean.", options.notes)
     lines += ["## Stages (CPU ms with the GPU drained around each stage)", "",
               "| case | size | visible / N | cull | sort | upload | preprocess | draw | frame | fps | "
               "timer queries: preprocess, draw |",
