@@ -413,8 +413,8 @@ def _add_sort_parser(kinds) -> None:
     parser = _bench_parser(kinds, "sort",
                            f"stop at {count_label(sort_bench.QUICK_COUNTS[-1])}, {sort_bench.QUICK_REPEAT} runs; "
                            f"the freshness ({len(freshness.QUICK_SAMPLE_TIMES)} rendered frames per motion) "
-                           f"up to {count_label(sort_bench.QUICK_FRESHNESS_MAX)} gaussians and the loads up to "
-                           f"{count_label(sort_bench.QUICK_LOAD_MAX)} (under 3 minutes on two CPU cores)")
+                           f"for scenes up to {count_label(sort_bench.QUICK_FRESHNESS_MAX)} gaussians only (under 3 "
+                           f"minutes on two CPU cores)")
     parser.add_argument("--counts", nargs="+", type=argtypes.whole_number(1, 100_000_000), metavar="N",
                         help=f"scene sizes (default {_SORT_COUNTS}; --quick stops at "
                              f"{count_label(sort_bench.QUICK_COUNTS[-1])})")
@@ -438,7 +438,6 @@ def sort_options(args: argparse.Namespace) -> sort_bench.SortOptions:
         ladder_frames=freshness.QUICK_LADDER_FRAMES if quick else freshness.LADDER_FRAMES,
         freshness=not args.no_freshness, loads=not args.no_load,
         freshness_max=sort_bench.QUICK_FRESHNESS_MAX if quick else None,
-        load_max=sort_bench.QUICK_LOAD_MAX if quick else None,
         **_run_fields("sort", args, []))
 
 
