@@ -7,7 +7,6 @@ from __future__ import annotations
 
 import contextlib
 import datetime
-import io
 import math
 import os
 import sys
@@ -197,18 +196,11 @@ def report_head(title: str, intro: str, notes: Sequence[str] = ()) -> list[str]:
     return lines
 
 
-def png_bytes(image) -> bytes:
-    """A Pillow image encoded as PNG."""
-    buffer = io.BytesIO()
-    image.save(buffer, format="PNG")
-    return buffer.getvalue()
-
-
 def write_report(path: Path, text: str, overwrite: bool) -> None:
     """A markdown report, written atomically (UTF-8)."""
     write_atomically(path, text.encode("utf-8"), overwrite)
 
 
-def write_plot(path: Path, image, overwrite: bool) -> None:
-    """A Pillow image, written atomically as PNG."""
-    write_atomically(path, png_bytes(image), overwrite)
+def write_plot(path: Path, png: bytes, overwrite: bool) -> None:
+    """A plot (PNG bytes, from ``bench.plot``), written atomically."""
+    write_atomically(path, png, overwrite)

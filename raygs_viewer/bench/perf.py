@@ -51,6 +51,7 @@ from raygs_viewer.bench.common import (
     write_plot,
     write_report,
 )
+from raygs_viewer.bench.plot import Panel, Point, ScatterRow, scatter_png
 from raygs_viewer.camera.pinhole import Camera, look_at
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.context import context_description
@@ -399,26 +400,22 @@ def format_report(results: PerfResults) -> str:
     return "\n".join(lines)
 
 
-def draw_plot(results: PerfResults):
-    """Frame time (every stage) against N for the generated cases, one panel per resolution."""
-    # Pillow only when a plot is drawn.
-    from raygs_viewer.bench.plot import PALETTE, Panel, Point, scatter_panels
+def draw_plot(results: PerfResults) -> bytes:
+    """A PNG: frame time (every stage) against N for the generated cases, one panel per
+    resolution, a colour and marker per footprint, RayGS filled and GS hollow."""
     sizes = [s for s in SIZES if any(c.kind == s for c in results.cases)]
+    labels = {size: f"{size} ({SIZES[size]:g} px std. dev. at 720 rows)" for size in sizes}
     panels = []
     for width, height in results.options.resolutions:
-        panel = Panel(f"{width} x {height}")  # the plot's font has no multiplication sign
+        panel = Panel(f"{width} x {height}")
         for c in results.cases:
             if c.kind in SIZES and (c.width, c.height) == (width, height):
-                color = PALETTE[sizes.index(c.kind) % len(PALETTE)]
-                panel.points.append(Point(c.count, c.frame_ms, color, "circle"))
+                panel.points.append(Point(c.count, c.frame_ms, labels[c.kind], "RayGS"))
                 panel.points.append(Point(c.count, c.other["gs"] + c.stages["cull"] + c.stages["sort"]
-                                          + c.stages["upload"], color, "square"))
+                                          + c.stages["upload"], labels[c.kind], "GS (EWA)"))
         panels.append(panel)
-    series = [(f"{size} ({SIZES[size]:g} px std. dev. at 720 rows)", PALETTE[i % len(PALETTE)])
-              for i, size in enumerate(sizes)]
-    return scatter_panels(panels, title=f"Frame time against N ({results.device.split(' (')[0]})",
-                          x_label="gaussians", y_label="ms per frame (log)", series=series,
-                          groups=[("RayGS", "circle"), ("GS (EWA)", "square")], log_y=True)
+    return scatter_png([ScatterRow(f"Frame time against N ({results.device.split(' (')[0]})", panels, "gaussians",
+                                   "ms per frame (log)", list(labels.values()), ["RayGS", "GS (EWA)"], log_y=True)])
 
 
 def write_outputs(results: PerfResults) -> list[Path]:
