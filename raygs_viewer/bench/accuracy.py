@@ -36,6 +36,7 @@ import numpy as np
 
 from raygs_viewer.bench.common import (
     DEMO,
+    RunOptions,
     error_metrics,
     fmt_error,
     gl_context,
@@ -122,7 +123,7 @@ class AccuracyResults:
 
 
 @dataclass(frozen=True)
-class AccuracyOptions:
+class AccuracyOptions(RunOptions):
     scenes: tuple[str, ...]         # "demo" or scene files
     width: int
     repeat: int
@@ -131,9 +132,7 @@ class AccuracyOptions:
     plot: Path
     overwrite: bool = False
     command_line: str = "raygs-viewer bench accuracy"
-    gl_backend: str | None = None
     configs: tuple[str, ...] = CONFIGS
-    notes: tuple[str, ...] = ()
     gt_p_min: float = GT_P_MIN   # the ground truth's cut-off
 
 

@@ -22,6 +22,7 @@ from raygs_viewer.bench.accuracy import (
     fmt_number,
 )
 from raygs_viewer.bench.common import fmt_error, write_plot, write_report
+from raygs_viewer.bench.plot import Panel, Point, ScatterRow, scatter_png
 from raygs_viewer.bench.views import (
     CLOSE_FRACTION,
     CLOSE_SUPPORT_MARGIN,
@@ -219,40 +220,26 @@ def format_report(results: AccuracyResults, plot_link: str | None, human_verdict
     return "\n".join(lines)
 
 
-def draw_plot(results: AccuracyResults):
-    """A Pillow image: one panel per view class, PSNR against time ratio to RayGS (log x),
-    a colour per configuration and a marker shape per scene; below, the same per view
-    class averaged over the scenes (PSNR gain over RayGS, as in the verdict's tables)."""
-    # Pillow only when a plot is drawn.
-    from raygs_viewer.bench.plot import (
-        PALETTE,
-        SHAPES,
-        Panel,
-        Point,
-        scatter_panels,
-        stacked,
-    )
+def draw_plot(results: AccuracyResults) -> bytes:
+    """A PNG: one panel per view class, PSNR against time ratio to RayGS (log x), a colour
+    and marker per configuration and a fill per scene; below, the same per view class
+    averaged over the scenes (PSNR gain over RayGS, as in the verdict's tables)."""
     configs = list(results.cases[0].rows) if results.cases else list(CONFIGS)
-    colors = {c: PALETTE[i % len(PALETTE)] for i, c in enumerate(configs)}
     scene_names = list(dict.fromkeys(case.scene for case in results.cases))
-    shapes = {s: SHAPES[i % len(SHAPES)] for i, s in enumerate(scene_names)}
+    x_label = "GPU time / RayGS time (log scale)"
     panels = []
     for view in VIEW_CLASSES:
-        points = [Point(row.ratio, _capped(row.psnr, PSNR_CAP), colors[row.config], shapes[case.scene])
+        points = [Point(row.ratio, _capped(row.psnr, PSNR_CAP), row.config, f"scene: {case.scene}")
                   for case in results.cases if case.view == view for row in case.rows.values()]
         panels.append(Panel(VIEW_TITLES[view], points, guides_x=(1.0,)))
-    per_scene = scatter_panels(panels, title="Error against GPU time, per view class and scene",
-                               x_label="GPU time / RayGS time (log scale)", y_label="PSNR against ground truth (dB)",
-                               series=[(c, colors[c]) for c in configs],
-                               groups=[(f"scene: {s}", shapes[s]) for s in scene_names])
+    per_scene = ScatterRow("Error against GPU time, per view class and scene", panels, x_label,
+                           "PSNR against ground truth (dB)", configs, [f"scene: {s}" for s in scene_names])
     # The verdict's view: one marker per configuration, averaged over the scenes.
-    panels = [Panel(VIEW_TITLES[view], [Point(s.ratio, s.gain_db, colors[s.config]) for s in summarize(results, view)],
+    panels = [Panel(VIEW_TITLES[view], [Point(s.ratio, s.gain_db, s.config) for s in summarize(results, view)],
                     guides_x=(1.0,)) for view in VIEW_CLASSES]
-    mean = scatter_panels(panels, title=f"Mean over scenes (time: geometric mean; PSNR capped at "
-                                        f"{VERDICT_PSNR_CAP:g} dB before averaging)",
-                          x_label="GPU time / RayGS time (log scale)", y_label="PSNR gain over RayGS (dB)",
-                          series=[(c, colors[c]) for c in configs])
-    return stacked([per_scene, mean])
+    mean = ScatterRow(f"Mean over scenes (time: geometric mean; PSNR capped at {VERDICT_PSNR_CAP:g} dB before "
+                      f"averaging)", panels, x_label, "PSNR gain over RayGS (dB)", configs)
+    return scatter_png([per_scene, mean])
 
 
 def write_outputs(results: AccuracyResults, report: Path, plot: Path, overwrite: bool) -> None:

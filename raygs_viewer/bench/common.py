@@ -7,13 +7,13 @@ from __future__ import annotations
 
 import contextlib
 import datetime
-import io
 import math
 import os
 import sys
+import time
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Callable, Iterator, TextIO
+from typing import Callable, Iterable, Iterator, Sequence, TextIO
 
 import numpy as np
 
@@ -23,6 +23,16 @@ from raygs_viewer.files import write_atomically
 from raygs_viewer.render.gl.context import create_headless_context
 from raygs_viewer.scene.loader import DEMO, load_now
 from raygs_viewer.scene.model import Scene
+
+
+@dataclass(frozen=True, kw_only=True)
+class RunOptions:
+    """What every benchmark's options hold besides their own (keyword-only, so that each
+    benchmark's own fields keep their places): the GL backend, and notes on what the
+    run measures (a scene missing, ...) for its report."""
+
+    gl_backend: str | None = None
+    notes: tuple[str, ...] = ()
 
 
 @dataclass
@@ -132,6 +142,19 @@ def software_renderer(machine: str) -> bool:
     return "llvmpipe" in machine or "softpipe" in machine
 
 
+def run_end(kind: str, started: float, machine: str, notes: Iterable[str], software_note: str,
+            say: Callable[..., None]) -> tuple[float, list[str]]:
+    """The seconds since ``started`` (``time.perf_counter()``), printed as ``bench KIND: done
+    in S s``, and the run's notes, ``software_note`` added when ``machine`` is a software
+    renderer (its times say little about a GPU's)."""
+    seconds = time.perf_counter() - started
+    say(f"bench {kind}: done in {seconds:.1f} s")
+    notes = list(notes)
+    if software_renderer(machine):
+        notes.append(software_note)
+    return seconds, notes
+
+
 def median(values: list[float]) -> float:
     """The median of the finite values (NaN marks a timing the driver did not deliver);
     NaN for none."""
@@ -164,11 +187,13 @@ def fmt_error(value: float) -> str:
 
 # --- outputs ----------------------------------------------------------------------------------------
 
-def png_bytes(image) -> bytes:
-    """A Pillow image encoded as PNG."""
-    buffer = io.BytesIO()
-    image.save(buffer, format="PNG")
-    return buffer.getvalue()
+def report_head(title: str, intro: str, notes: Sequence[str] = ()) -> list[str]:
+    """The first lines of a markdown report: its title, the paragraph that says how it was
+    made, and a ``- note:`` line per note."""
+    lines = [f"# {title}", "", intro, ""]
+    if notes:
+        lines += [f"- note: {note}" for note in notes] + [""]
+    return lines
 
 
 def write_report(path: Path, text: str, overwrite: bool) -> None:
@@ -176,6 +201,6 @@ def write_report(path: Path, text: str, overwrite: bool) -> None:
     write_atomically(path, text.encode("utf-8"), overwrite)
 
 
-def write_plot(path: Path, image, overwrite: bool) -> None:
-    """A Pillow image, written atomically as PNG."""
-    write_atomically(path, png_bytes(image), overwrite)
+def write_plot(path: Path, png: bytes, overwrite: bool) -> None:
+    """A plot (PNG bytes, from ``bench.plot``), written atomically."""
+    write_atomically(path, png, overwrite)

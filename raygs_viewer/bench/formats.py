@@ -23,11 +23,13 @@ from pathlib import Path
 import numpy as np
 
 from raygs_viewer.bench.common import (
+    RunOptions,
     error_metrics,
     gl_context,
     load_scenes,
     median,
     printer,
+    report_head,
     run_date,
     shared_scenes_dir,
 )
@@ -54,13 +56,12 @@ QUICK_WIDTH, QUICK_REPEAT = 128, 2
 
 
 @dataclass(frozen=True)
-class FormatsOptions:
+class FormatsOptions(RunOptions):
     scenes: tuple[str, ...]      # reference scenes: "demo" or files
     samples: bool                # also the shared samples with twins
     width: int
     repeat: int
     command_line: str
-    gl_backend: str | None = None
 
 
 @dataclass(frozen=True)
@@ -151,14 +152,10 @@ def _render(ctx, scene: Scene, camera: Camera) -> np.ndarray:
 
 def format_report(results: FormatsResults) -> str:
     options = results.options
-    lines = [
-        "# File formats: what each keeps, and its load time",
-        "",
-        f"`{options.command_line}` on {results.date}; GL: {results.machine}. Render PSNR at the training-like "
-        f"view, {options.width} px wide, default settings, against the reference scene's own render; load: "
-        f"median of {options.repeat} loads in one process.",
-        "",
-    ]
+    intro = (f"`{options.command_line}` on {results.date}; GL: {results.machine}. Render PSNR at the "
+             f"training-like view, {options.width} px wide, default settings, against the reference scene's own "
+             f"render; load: median of {options.repeat} loads in one process.")
+    lines = report_head("File formats: what each keeps, and its load time", intro)
     header = ("| format | size | load | position (rel.) | scale (rel.) | colour | SH rest | opacity | rotation "
               "| render PSNR |")
     for name, description, rows in results.scenes:

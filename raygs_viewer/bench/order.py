@@ -69,7 +69,7 @@ DEFAULT_REPORT = "docs/ordering-figures.md"
 
 
 @dataclass(frozen=True)
-class OrderOptions:
+class OrderOptions(common.RunOptions):
     scenes: tuple[str, ...]
     width: int = DEFAULT_WIDTH
     frames: int = DEFAULT_FRAMES
@@ -78,8 +78,6 @@ class OrderOptions:
     out: Path | None = None
     overwrite: bool = False
     command_line: str = "raygs-viewer bench order"
-    gl_backend: str | None = None
-    notes: tuple[str, ...] = ()
 
 
 @dataclass
@@ -241,12 +239,10 @@ def run_order(options: OrderOptions, ctx=None, out: TextIO | None = None) -> Ord
             finally:
                 renders.release()
                 renderer.release()
-    seconds = time.perf_counter() - started
-    say(f"bench order: done in {seconds:.1f} s")
-    notes = list(options.notes)
-    if common.software_renderer(machine):
-        notes.append("This is a software OpenGL renderer (on the CPU): time ratios rank the modes on this "
-                     "machine; a GPU's differ (atomics and the resolve pass cost differently there).")
+    seconds, notes = common.run_end(
+        "order", started, machine, options.notes,
+        "This is a software OpenGL renderer (on the CPU): time ratios rank the modes on this machine; a GPU's "
+        "differ (atomics and the resolve pass cost differently there).", say)
     return OrderResults(views, machine, os.cpu_count() or 1, options,
                         common.run_date(),
                         [(s.name, s.description) for s in scenes], seconds, notes)

@@ -41,14 +41,17 @@ from typing import TextIO
 import numpy as np
 
 from raygs_viewer.bench.common import (
+    RunOptions,
     count_label,
     gl_context,
     load_scenes,
     median,
     printer,
+    report_head,
     write_plot,
     write_report,
 )
+from raygs_viewer.bench.plot import Panel, Point, ScatterRow, scatter_png
 from raygs_viewer.camera.pinhole import Camera, look_at
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.context import context_description
@@ -285,7 +288,7 @@ def _cpu(work) -> float:
 # --- the run --------------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
-class PerfOptions:
+class PerfOptions(RunOptions):
     counts: tuple[int, ...]
     sizes: tuple[str, ...]
     resolutions: tuple[tuple[int, int], ...]
@@ -295,8 +298,6 @@ class PerfOptions:
     report: Path | None = None
     plot: Path | None = None
     overwrite: bool = False
-    gl_backend: str | None = None
-    notes: tuple[str, ...] = ()
 
 
 @dataclass
@@ -369,17 +370,10 @@ def _ratio(value: float) -> str:
 
 def format_report(results: PerfResults) -> str:
     options = results.options
-    lines = [
-        "# Performance figures (generated)",
-        "",
-        f"Produced by `{options.command_line}` on {results.device}, in {results.seconds / 60:.1f} minutes. "
-        f"Every time is the median of {options.frames} moving-view frames; see `docs/performance.md` "
-        f"for what the stages and ratios mean.",
-        "",
-    ]
-    lines += [f"- note: {note}" for note in options.notes]
-    if options.notes:
-        lines.append("")
+    lines = report_head("Performance figures (generated)",
+                        f"Produced by `{options.command_line}` on {results.device}, in {results.seconds / 60:.1f} "
+                        f"minutes. Every time is the median of {options.frames} moving-view frames; see "
+                        f"`docs/performance.md` for what the stages and ratios mean.", options.notes)
     lines += ["## Stages (CPU ms with the GPU drained around each stage)", "",
               "| case | size | visible / N | cull | sort | upload | preprocess | draw | frame | fps | "
               "timer queries: preprocess, draw |",
@@ -406,26 +400,22 @@ def format_report(results: PerfResults) -> str:
     return "\n".join(lines)
 
 
-def draw_plot(results: PerfResults):
-    """Frame time (every stage) against N for the generated cases, one panel per resolution."""
-    # Pillow only when a plot is drawn.
-    from raygs_viewer.bench.plot import PALETTE, Panel, Point, scatter_panels
+def draw_plot(results: PerfResults) -> bytes:
+    """A PNG: frame time (every stage) against N for the generated cases, one panel per
+    resolution, a colour and marker per footprint, RayGS filled and GS hollow."""
     sizes = [s for s in SIZES if any(c.kind == s for c in results.cases)]
+    labels = {size: f"{size} ({SIZES[size]:g} px std. dev. at 720 rows)" for size in sizes}
     panels = []
     for width, height in results.options.resolutions:
-        panel = Panel(f"{width} x {height}")  # the plot's font has no multiplication sign
+        panel = Panel(f"{width} x {height}")
         for c in results.cases:
             if c.kind in SIZES and (c.width, c.height) == (width, height):
-                color = PALETTE[sizes.index(c.kind) % len(PALETTE)]
-                panel.points.append(Point(c.count, c.frame_ms, color, "circle"))
+                panel.points.append(Point(c.count, c.frame_ms, labels[c.kind], "RayGS"))
                 panel.points.append(Point(c.count, c.other["gs"] + c.stages["cull"] + c.stages["sort"]
-                                          + c.stages["upload"], color, "square"))
+                                          + c.stages["upload"], labels[c.kind], "GS (EWA)"))
         panels.append(panel)
-    series = [(f"{size} ({SIZES[size]:g} px std. dev. at 720 rows)", PALETTE[i % len(PALETTE)])
-              for i, size in enumerate(sizes)]
-    return scatter_panels(panels, title=f"Frame time against N ({results.device.split(' (')[0]})",
-                          x_label="gaussians", y_label="ms per frame (log)", series=series,
-                          groups=[("RayGS", "circle"), ("GS (EWA)", "square")], log_y=True)
+    return scatter_png([ScatterRow(f"Frame time against N ({results.device.split(' (')[0]})", panels, "gaussians",
+                                   "ms per frame (log)", list(labels.values()), ["RayGS", "GS (EWA)"], log_y=True)])
 
 
 def write_outputs(results: PerfResults) -> list[Path]:

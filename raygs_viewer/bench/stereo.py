@@ -150,7 +150,7 @@ class BudgetRow:
 
 
 @dataclass(frozen=True)
-class StereoOptions:
+class StereoOptions(common.RunOptions):
     scenes: tuple[str, ...]
     presets: tuple[str, ...]
     width: int
@@ -158,8 +158,6 @@ class StereoOptions:
     out: Path | None = None
     overwrite: bool = False
     command_line: str = "raygs-viewer bench stereo"
-    gl_backend: str | None = None
-    notes: tuple[str, ...] = ()
     rig: stereo.StereoRig = stereo.StereoRig()
 
 
@@ -253,12 +251,10 @@ def run_stereo(options: StereoOptions, ctx=None, out: TextIO | None = None) -> S
                         say(line)
             finally:
                 renderer.release()
-    seconds = time.perf_counter() - started
-    say(f"bench stereo: done in {seconds:.1f} s")
-    notes = list(options.notes)
-    if common.software_renderer(machine):
-        notes.append("This is a software OpenGL renderer (on the CPU): its times rank the presets and scenes "
-                     "on this machine; they say nothing about what a headset's GPU would take.")
+    seconds, notes = common.run_end(
+        "stereo", started, machine, options.notes,
+        "This is a software OpenGL renderer (on the CPU): its times rank the presets and scenes on this "
+        "machine; they say nothing about what a headset's GPU would take.", say)
     return StereoResults(errors, budgets, machine, os.cpu_count() or 1, options,
                          common.run_date(),
                          [(s.name, _describe(s)) for s in scenes], notes, seconds)

@@ -21,10 +21,9 @@ from raygs_viewer.scene.model import Scene
 VIEW_CLASSES = ("training", "far", "close")
 VIEW_TITLES = {"training": "training-like", "far": "far away, 1/4 resolution", "close": "very close"}
 
-#: The far view: this many times the training camera's distance from the scene's centre...
-FAR_DISTANCE_FACTOR = 2.0
-#: ... at 1/this of its resolution (per axis).
-FAR_RESOLUTION_DIVISOR = 4
+#: The far view: FAR_DISTANCE_FACTOR times the training camera's distance from the
+#: scene's centre, at 1/FAR_RESOLUTION_DIVISOR of its resolution (per axis).
+FAR_DISTANCE_FACTOR, FAR_RESOLUTION_DIVISOR = 2.0, 4
 
 #: The close view ends this fraction of the way short of the central gaussians ...
 CLOSE_FRACTION = 0.05
@@ -34,11 +33,11 @@ CLOSE_CENTRAL_WINDOW = 0.1
 #: ... and their depth being this percentile of the central gaussians' depths (robust to
 #: a few stray specks in front of the cluster).
 CLOSE_DEPTH_PERCENTILE = 10.0
-#: The camera must stay outside every gaussian's support with a margin: c^2 > margin * kappa
-#: (a camera just outside a support sees an unboundedly large quad, a robustness case
-#: rather than a view). Where it would not, it backs off by this factor at a time.
-CLOSE_SUPPORT_MARGIN = 2.0
-CLOSE_BACKOFF = 1.25
+#: The camera must stay outside every gaussian's support with a margin: c^2 >
+#: CLOSE_SUPPORT_MARGIN * kappa (a camera just outside a support sees an unboundedly
+#: large quad, a robustness case rather than a view). Where it would not, it backs off
+#: by the factor CLOSE_BACKOFF at a time.
+CLOSE_SUPPORT_MARGIN, CLOSE_BACKOFF = 2.0, 1.25
 
 
 def scene_centre(scene: Scene) -> np.ndarray:

@@ -9,13 +9,15 @@ import argparse
 import os
 import shlex
 from pathlib import Path
+from types import ModuleType
+from typing import Callable
 
-from raygs_viewer.bench import accuracy, accuracy_report, perf
+from raygs_viewer.bench import accuracy, accuracy_report, cube, freshness, perf, sort_timing
 from raygs_viewer.bench import formats as formats_bench
 from raygs_viewer.bench import order as order_bench
 from raygs_viewer.bench import sort as sort_bench
 from raygs_viewer.bench import stereo as stereo_bench
-from raygs_viewer.bench.common import DEMO, shared_scene_paths, write_report
+from raygs_viewer.bench.common import DEMO, RunOptions, count_label, shared_scene_paths, write_report
 from raygs_viewer.camera import stereo as camera_stereo
 from raygs_viewer.capture.image_io import check_output_path
 from raygs_viewer.cli import argtypes
@@ -39,8 +41,14 @@ def add_parser(commands) -> None:
 
 def command(args: argparse.Namespace, ctx=None) -> int:
     """Runs ``bench <kind>``. ``ctx``: a GL context to use instead of a new one (tests)."""
-    runs = {"accuracy": _run_accuracy, "stereo": _run_stereo, "perf": _run_perf, "order": _run_order,
-            "sort": _run_sort, "formats": _run_formats}
+    # The benchmarks that print a markdown report (and write it to --out): their options, run and report.
+    reported = {"stereo": (stereo_options, stereo_bench.run_stereo, stereo_bench.format_report),
+                "order": (order_options, order_bench.run_order, order_bench.format_report),
+                "sort": (sort_options, sort_bench.run_sort, sort_bench.format_report),
+                "formats": (formats_options, formats_bench.run_formats, formats_bench.format_report)}
+    runs = {"accuracy": _run_accuracy, "perf": _run_perf}
+    if args.bench in reported:
+        return _run_reported(*reported[args.bench], args, ctx)
     if args.bench not in runs:
         raise UserError(f"unknown benchmark '{args.bench}'")
     return runs[args.bench](args, ctx)
@@ -48,13 +56,80 @@ def command(args: argparse.Namespace, ctx=None) -> int:
 
 # --- shared ---------------------------------------------------------------------------------------
 
-def recorded_command(kind: str, args: argparse.Namespace, flags: tuple[str, ...],
-                     defaults: dict[str, object] | None = None) -> str:
-    """``raygs-viewer bench KIND`` and, in the order of ``flags``, every option given: a
-    switch alone, a list (even empty) as its words, WxH sizes as such. An option whose
-    value is None, False or its entry in ``defaults`` (by argparse dest) is left out."""
+#: The sizes of a full ``bench sort``, as its help names them.
+_SORT_COUNTS = ", ".join(count_label(n) for n in sort_bench.COUNTS)
+#: bench KIND: its one-line help (in ``bench --help``) and its description (in ``bench KIND --help``).
+ABOUT: dict[str, tuple[str, str]] = {
+    "accuracy": (
+        "GPU time and error against ground truth of every accuracy option",
+        "For every accuracy configuration and every view class (training-like, far at 1/4 "
+        "resolution, very close) of the demo and the shared real scenes: GPU time per frame "
+        "(timer queries, as a ratio to plain RayGS) and the error against the ground truth "
+        "(PSNR, p99, max). Writes a markdown report and a PNG plot."),
+    "stereo": (
+        "what the shared stereo sort and colour cost, and both eyes' time per headset preset",
+        "For the demo and the shared real scenes: the error of the shared stereo images (one sort "
+        "and SH colour from the eyes' midpoint) against per-eye ones, in the training-like and very "
+        "close views at 1 m per unit and with the scene 1 m across, taken apart into sort and "
+        "colour; and the GPU time of both eyes at every headset preset's resolution against each "
+        "refresh rate's frame budget. Prints markdown tables and machine-readable lines."),
+    "perf": (
+        "per-stage frame times and the cost ratios (RayGS/GS, floor, specialisation, sort)",
+        "Times every stage of a moving-view frame (cull, sort, upload, preprocess, draw) for "
+        "generated scenes of 10k, 100k and 1M gaussians, small and large on screen, and the shared "
+        "real scenes, at 1280x720 and 1920x1080; in the same frames EWA splatting, the floor pass "
+        "(the same quads, constant fragment), the general shader variant and a float argsort. "
+        "Prints a line per case and the ratios as 'NAME VALUE' lines."),
+    "order": (
+        "each order mode's time, error against the order of every ray, and popping in motion",
+        "For the demo and the shared real scenes, from the training-like and very close views: "
+        "every order mode (depth, distance, per-pixel with windows K and exact) timed as a ratio to "
+        "the depth order, its error against the per-ray, pixel-integrated ground truth, and along a "
+        "turn in place and a flight forward its error against each frame's per-ray truth and its "
+        "popping (how much that error flickers between frames). Prints a table per view and "
+        "machine-readable lines; --out writes the markdown report."),
+    "sort": (
+        "CPU cull and sort of generated scenes of 100k to 6M gaussians, and the drawn order's "
+        "freshness while turning and flying",
+        f"For generated scenes of {_SORT_COUNTS} gaussians (made in memory), seen whole: the cull, keys, "
+        f"sort and upload times with 1 worker, 2 and every core (medians, interleaved), the "
+        f"speed-up over one worker and 'cull+sort@N' lines; then, with those latencies and the "
+        f"projection to {sort_timing.PROJECTED_CORES} cores, a turn of "
+        f"{cube.TURN_DEGREES_PER_S:g} deg/s and a flight of {cube.FLY_RADII_PER_S:g} "
+        f"scene radii/s at {freshness.FPS:g} fps drawn with the order the window would hold: the "
+        f"error against the up-to-date order for the depth, distance and per-pixel orders."),
+    "formats": (
+        "what .ply, .splat and .spz keep of a scene (per attribute and in renders), and load times",
+        "Each reference scene (the demo, the shared INRIA PLYs, and the shared compressed-PLY and SOG "
+        "samples) is loaded from its own file, then written as .ply, .splat, .spz v3 and v4 and read "
+        "back: size, load time, the per-attribute error and the render PSNR against the scene; then "
+        "the shared .spz sample against its INRIA PLY twin."),
+}
+
+
+#: The options each benchmark's recorded command names, in their order there.
+RECORDED_FLAGS: dict[str, tuple[str, ...]] = {
+    "accuracy": ("--quick", "--scenes", "--width", "--repeat", "--gt-samples", "--gt-p-min", "--gl-backend",
+                 "--report", "--plot", "--overwrite"),
+    "stereo": ("--quick", "--scenes", "--presets", "--width", "--repeat", "--out", "--gl-backend", "--overwrite"),
+    "perf": ("--quick", "--counts", "--sizes", "--resolutions", "--scenes", "--frames", "--report", "--plot",
+             "--gl-backend", "--overwrite"),
+    "order": ("--quick", "--scenes", "--width", "--frames", "--repeat", "--gt-samples", "--out", "--gl-backend",
+              "--overwrite"),
+    "sort": ("--quick", "--counts", "--repeat", "--no-freshness", "--no-load", "--out", "--gl-backend", "--overwrite"),
+    "formats": ("--quick", "--scenes", "--no-samples", "--width", "--repeat", "--out", "--gl-backend", "--overwrite"),
+}
+#: Options a recorded command leaves out at these values (by argparse dest).
+RECORDED_DEFAULTS: dict[str, dict[str, object]] = {"perf": {"frames": perf.DEFAULT_FRAMES}}
+
+
+def recorded_command(kind: str, args: argparse.Namespace) -> str:
+    """``raygs-viewer bench KIND`` and, in the order of ``RECORDED_FLAGS[kind]``, every
+    option given: a switch alone, a list (even empty) as its words, WxH sizes as such. An
+    option whose value is None, False or its entry in ``RECORDED_DEFAULTS`` is left out."""
     parts = ["raygs-viewer", "bench", kind]
-    for flag in flags:
+    defaults = RECORDED_DEFAULTS.get(kind)
+    for flag in RECORDED_FLAGS[kind]:
         dest = flag.removeprefix("--").replace("-", "_")
         value = getattr(args, dest)
         if value is None or value is False or (defaults and dest in defaults and value == defaults[dest]):
@@ -80,6 +155,16 @@ def _check_distinct(report: Path, plot: Path) -> None:
         raise UserError(f"{report}: the report and the plot must be different files")
 
 
+def _bench_parser(kinds, kind: str, quick: str, scenes: bool = False) -> argparse.ArgumentParser:
+    """The parser of ``bench KIND`` (its ABOUT entry) with --quick (help ``quick``) and, with
+    ``scenes``, the --scenes of accuracy, stereo, order and formats."""
+    parser = kinds.add_parser(kind, help=ABOUT[kind][0], description=ABOUT[kind][1])
+    parser.add_argument("--quick", action="store_true", help=quick)
+    if scenes:
+        _add_scenes_option(parser)
+    return parser
+
+
 def _add_scenes_option(parser: argparse.ArgumentParser) -> None:
     """accuracy's and stereo's --scenes (perf's may be empty: generated scenes only)."""
     parser.add_argument("--scenes", nargs="+", metavar="SCENE",
@@ -90,6 +175,14 @@ def _add_width_and_repeat(parser: argparse.ArgumentParser, width_help: str, repe
     """accuracy's and stereo's --width (of the views measured) and --repeat (timed frames)."""
     parser.add_argument("--width", type=argtypes.whole_number(4, argtypes.MAX_SIDE), metavar="PX", help=width_help)
     parser.add_argument("--repeat", type=argtypes.whole_number(1, 100000), metavar="N", help=repeat_help)
+
+
+def _add_out_options(parser: argparse.ArgumentParser, out_help: str = "also write the markdown report there") -> None:
+    """The last options of stereo, order, sort and formats: --out (the markdown report),
+    --overwrite and --gl-backend."""
+    parser.add_argument("--out", metavar="PATH.md", help=out_help)
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
+    argtypes.add_backend_option(parser)
 
 
 def _show_report(report: str, out: Path | None, overwrite: bool) -> int:
@@ -107,27 +200,44 @@ def _print_notes(notes: tuple[str, ...]) -> None:
         print(f"note: {note}", flush=True)
 
 
+def _scene_choice(args: argparse.Namespace,
+                  default: Callable[[], tuple[tuple[str, ...], list[str]]]) -> tuple[tuple[str, ...], list[str]]:
+    """The scenes of --scenes as given, else ``default()``; with the notes on scenes not found."""
+    return (tuple(args.scenes), []) if args.scenes is not None else default()
+
+
+def _quick_or_default(args: argparse.Namespace, bench: ModuleType, names: tuple[str, ...]) -> dict[str, object]:
+    """{name: the option as given, else the benchmark module's QUICK_<NAME> with --quick, else
+    its DEFAULT_<NAME>}: the sizes every benchmark names the same way."""
+    prefix = "QUICK" if args.quick else "DEFAULT"
+    return {name: getattr(args, name) or getattr(bench, f"{prefix}_{name.upper()}") for name in names}
+
+
+def _run_fields(kind: str, args: argparse.Namespace, notes: list[str]) -> dict[str, object]:
+    """The fields of ``bench.common.RunOptions`` and the recorded command line, for any benchmark."""
+    return {"command_line": recorded_command(kind, args), "gl_backend": args.gl_backend, "notes": tuple(notes)}
+
+
+def _run_reported(make_options: Callable[[argparse.Namespace], RunOptions], run: Callable,
+                  report: Callable[..., str], args: argparse.Namespace, ctx) -> int:
+    """Makes the options (checking them before any work) and the --out path, prints the
+    notes, runs the benchmark and shows its report (written to --out, if given)."""
+    options = make_options(args)
+    out = _report_path(args.out, args.overwrite)
+    _print_notes(options.notes)
+    return _show_report(report(run(options, ctx)), out, args.overwrite)
+
+
 # --- accuracy ------------------------------------------------------------------------------------
 
-#: The options of a recorded ``bench accuracy`` command, in their order there.
-ACCURACY_FLAGS = ("--quick", "--scenes", "--width", "--repeat", "--gt-samples", "--gt-p-min", "--gl-backend",
-                  "--report", "--plot", "--overwrite")
-
-
-ACCURACY_DESCRIPTION = ("For every accuracy configuration and every view class (training-like, far at 1/4 "
-                        "resolution, very close) of the demo and the shared real scenes: GPU time per frame "
-                        "(timer queries, as a ratio to plain RayGS) and the error against the ground truth "
-                        "(PSNR, p99, max). Writes a markdown report and a PNG plot.")
 
 
 def _add_accuracy_parser(kinds) -> None:
-    parser = kinds.add_parser("accuracy", help="GPU time and error against ground truth of every accuracy option",
-                              description=ACCURACY_DESCRIPTION)
-    parser.add_argument("--quick", action="store_true",
-                        help=f"the demo and one small real scene, {accuracy.QUICK_WIDTH} px wide, "
-                             f"{accuracy.QUICK_REPEAT} timed frames, ground truth "
-                             f"{accuracy.QUICK_GT_SAMPLES}x{accuracy.QUICK_GT_SAMPLES} samples (under a minute)")
-    _add_scenes_option(parser)
+    parser = _bench_parser(kinds, "accuracy",
+                           f"the demo and one small real scene, {accuracy.QUICK_WIDTH} px wide, "
+                           f"{accuracy.QUICK_REPEAT} timed frames, ground truth "
+                           f"{accuracy.QUICK_GT_SAMPLES}x{accuracy.QUICK_GT_SAMPLES} samples (under a minute)",
+                           scenes=True)
     _add_width_and_repeat(parser,
                           f"width of the training-like view (default {accuracy.DEFAULT_WIDTH}, --quick "
                           f"{accuracy.QUICK_WIDTH}); the far view has a quarter of it",
@@ -151,30 +261,18 @@ def _add_accuracy_parser(kinds) -> None:
 
 def accuracy_command_line(args: argparse.Namespace) -> str:
     """The command that reproduces this run (options in a fixed order)."""
-    return recorded_command("accuracy", args, ACCURACY_FLAGS)
+    return recorded_command("accuracy", args)
 
 
 def accuracy_options(args: argparse.Namespace) -> accuracy.AccuracyOptions:
-    notes: list[str] = []
-    if args.scenes:
-        scenes = tuple(args.scenes)
-    else:
-        scenes, notes = accuracy.default_scenes(args.quick)
+    scenes, notes = _scene_choice(args, lambda: accuracy.default_scenes(args.quick))
     report, plot = Path(args.report), Path(args.plot)
     _check_distinct(report, plot)
     return accuracy.AccuracyOptions(
-        scenes=scenes,
-        width=args.width or (accuracy.QUICK_WIDTH if args.quick else accuracy.DEFAULT_WIDTH),
-        repeat=args.repeat or (accuracy.QUICK_REPEAT if args.quick else accuracy.DEFAULT_REPEAT),
-        gt_samples=args.gt_samples or (accuracy.QUICK_GT_SAMPLES if args.quick else accuracy.DEFAULT_GT_SAMPLES),
-        report=_report_path(report, args.overwrite),
-        plot=_plot_path(plot, args.overwrite),
-        overwrite=args.overwrite,
-        command_line=accuracy_command_line(args),
-        gl_backend=args.gl_backend,
-        notes=tuple(notes),
+        scenes=scenes, **_quick_or_default(args, accuracy, ("width", "repeat", "gt_samples")),
+        report=_report_path(report, args.overwrite), plot=_plot_path(plot, args.overwrite), overwrite=args.overwrite,
         gt_p_min=accuracy.GT_P_MIN if args.gt_p_min is None else args.gt_p_min,
-    )
+        **_run_fields("accuracy", args, notes))
 
 
 def _run_accuracy(args: argparse.Namespace, ctx) -> int:
@@ -188,39 +286,24 @@ def _run_accuracy(args: argparse.Namespace, ctx) -> int:
 
 # --- stereo --------------------------------------------------------------------------------------
 
-#: The options of a recorded ``bench stereo`` command, in their order there.
-STEREO_FLAGS = ("--quick", "--scenes", "--presets", "--width", "--repeat", "--out", "--gl-backend", "--overwrite")
-
-
-STEREO_DESCRIPTION = ("For the demo and the shared real scenes: the error of the shared stereo images (one sort "
-                      "and SH colour from the eyes' midpoint) against per-eye ones, in the training-like and very "
-                      "close views at 1 m per unit and with the scene 1 m across, taken apart into sort and "
-                      "colour; and the GPU time of both eyes at every headset preset's resolution against each "
-                      "refresh rate's frame budget. Prints markdown tables and machine-readable lines.")
 
 
 def _add_stereo_parser(kinds) -> None:
-    parser = kinds.add_parser(
-        "stereo", help="what the shared stereo sort and colour cost, and both eyes' time per headset preset",
-        description=STEREO_DESCRIPTION)
-    parser.add_argument("--quick", action="store_true",
-                        help=f"the demo scene only, {stereo_bench.QUICK_REPEAT} timed frames per preset (a few "
-                             f"seconds)")
-    _add_scenes_option(parser)
+    parser = _bench_parser(kinds, "stereo",
+                           f"the demo scene only, {stereo_bench.QUICK_REPEAT} timed frames per preset (a few seconds)",
+                           scenes=True)
     parser.add_argument("--presets", nargs="+", metavar="PRESET",
                         help="headset presets to time (default: all of " + ", ".join(camera_stereo.PRESETS) + ")")
     _add_width_and_repeat(parser,
                           f"width of the views the sharing error is measured in (default {stereo_bench.DEFAULT_WIDTH})",
                           f"timed frames per preset (default {stereo_bench.DEFAULT_REPEAT}, --quick "
                           f"{stereo_bench.QUICK_REPEAT})")
-    parser.add_argument("--out", metavar="PATH.md", help="also write the markdown report there")
-    parser.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
-    argtypes.add_backend_option(parser)
+    _add_out_options(parser)
 
 
 def stereo_command_line(args: argparse.Namespace) -> str:
     """The command that reproduces this run (options in a fixed order)."""
-    return recorded_command("stereo", args, STEREO_FLAGS)
+    return recorded_command("stereo", args)
 
 
 def stereo_options(args: argparse.Namespace) -> stereo_bench.StereoOptions:
@@ -229,47 +312,22 @@ def stereo_options(args: argparse.Namespace) -> stereo_bench.StereoOptions:
     for name in presets:
         if name not in camera_stereo.PRESETS:
             raise UserError(f"unknown headset preset '{name}': use one of {', '.join(camera_stereo.PRESETS)}")
-    notes: list[str] = []
-    if args.scenes:
-        scenes = tuple(args.scenes)
-    elif args.quick:
-        scenes = (DEMO,)
-    else:
-        scenes, notes = accuracy.default_scenes(False)
+    scenes, notes = _scene_choice(args, lambda: ((DEMO,), []) if args.quick else accuracy.default_scenes(False))
     return stereo_bench.StereoOptions(
-        scenes=scenes, presets=presets,
-        width=args.width or stereo_bench.DEFAULT_WIDTH,
-        repeat=args.repeat or (stereo_bench.QUICK_REPEAT if args.quick else stereo_bench.DEFAULT_REPEAT),
-        out=_report_path(args.out, args.overwrite),
-        overwrite=args.overwrite, command_line=stereo_command_line(args), gl_backend=args.gl_backend,
-        notes=tuple(notes))
+        scenes=scenes, presets=presets, width=args.width or stereo_bench.DEFAULT_WIDTH,
+        **_quick_or_default(args, stereo_bench, ("repeat",)),
+        out=_report_path(args.out, args.overwrite), overwrite=args.overwrite,
+        **_run_fields("stereo", args, notes))
 
-
-def _run_stereo(args: argparse.Namespace, ctx) -> int:
-    options = stereo_options(args)
-    _print_notes(options.notes)
-    results = stereo_bench.run_stereo(options, ctx)
-    return _show_report(stereo_bench.format_report(results), options.out, options.overwrite)
 
 
 # --- perf ----------------------------------------------------------------------------------------
 
-#: The options of a recorded ``bench perf`` command, in their order there.
-PERF_FLAGS = ("--quick", "--counts", "--sizes", "--resolutions", "--scenes", "--frames", "--report", "--plot",
-              "--gl-backend", "--overwrite")
 
 
 def _add_perf_parser(kinds) -> None:
-    parser = kinds.add_parser(
-        "perf", help="per-stage frame times and the cost ratios (RayGS/GS, floor, specialisation, sort)",
-        description="Times every stage of a moving-view frame (cull, sort, upload, preprocess, draw) for "
-                    "generated scenes of 10k, 100k and 1M gaussians, small and large on screen, and the shared "
-                    "real scenes, at 1280x720 and 1920x1080; in the same frames EWA splatting, the floor pass "
-                    "(the same quads, constant fragment), the general shader variant and a float argsort. "
-                    "Prints a line per case and the ratios as 'NAME VALUE' lines.")
-    parser.add_argument("--quick", action="store_true",
-                        help="10k and 100k gaussians, one real scene, 1280x720 only (under two minutes on two "
-                             "CPU cores)")
+    parser = _bench_parser(kinds, "perf",
+                           "10k and 100k gaussians, one real scene, 1280x720 only (under two minutes on two CPU cores)")
     parser.add_argument("--counts", nargs="+", type=argtypes.whole_number(1, 100_000_000), metavar="N",
                         help="generated scene sizes (default 10000 100000 1000000; --quick 10000 100000)")
     parser.add_argument("--sizes", nargs="+", choices=tuple(perf.SIZES), help="footprints (default: both)")
@@ -288,16 +346,13 @@ def _add_perf_parser(kinds) -> None:
 
 def perf_command_line(args: argparse.Namespace) -> str:
     """The command that reproduces this run (options in a fixed order, --frames only when not the default)."""
-    return recorded_command("perf", args, PERF_FLAGS, {"frames": perf.DEFAULT_FRAMES})
+    return recorded_command("perf", args)
 
 
 def perf_options(args: argparse.Namespace) -> perf.PerfOptions:
     """Checks everything that can be checked before any work."""
-    notes: list[str] = []
-    if args.scenes is not None:
-        scenes = tuple(args.scenes)
-    else:
-        scenes, notes = shared_scene_paths(perf.QUICK_REAL_SCENES if args.quick else perf.REAL_SCENES)
+    scenes, notes = _scene_choice(
+        args, lambda: shared_scene_paths(perf.QUICK_REAL_SCENES if args.quick else perf.REAL_SCENES))
     report = _report_path(args.report, args.overwrite)
     plot = _plot_path(args.plot, args.overwrite)
     if report is not None and plot is not None:
@@ -307,8 +362,8 @@ def perf_options(args: argparse.Namespace) -> perf.PerfOptions:
         sizes=tuple(dict.fromkeys(args.sizes or perf.SIZES)),
         resolutions=tuple(dict.fromkeys(args.resolutions
                                         or (perf.QUICK_RESOLUTIONS if args.quick else perf.RESOLUTIONS))),
-        scenes=scenes, frames=args.frames, command_line=perf_command_line(args), report=report, plot=plot,
-        overwrite=args.overwrite, gl_backend=args.gl_backend, notes=tuple(notes))
+        scenes=scenes, frames=args.frames, report=report, plot=plot, overwrite=args.overwrite,
+        **_run_fields("perf", args, notes))
 
 
 def _run_perf(args: argparse.Namespace, ctx) -> int:
@@ -322,24 +377,12 @@ def _run_perf(args: argparse.Namespace, ctx) -> int:
 
 # --- order ---------------------------------------------------------------------------------------
 
-#: The options of a recorded ``bench order`` command, in their order there.
-ORDER_FLAGS = ("--quick", "--scenes", "--width", "--frames", "--repeat", "--gt-samples", "--out", "--gl-backend",
-               "--overwrite")
 
 
 def _add_order_parser(kinds) -> None:
-    parser = kinds.add_parser(
-        "order", help="each order mode's time, error against the order of every ray, and popping in motion",
-        description="For the demo and the shared real scenes, from the training-like and very close views: "
-                    "every order mode (depth, distance, per-pixel with windows K and exact) timed as a ratio to "
-                    "the depth order, its error against the per-ray, pixel-integrated ground truth, and along a "
-                    "turn in place and a flight forward its error against each frame's per-ray truth and its "
-                    "popping (how much that error flickers between frames). Prints a table per view and "
-                    "machine-readable lines; --out writes the markdown report.")
-    parser.add_argument("--quick", action="store_true",
-                        help=f"the demo and one small real scene, {order_bench.QUICK_WIDTH} px wide, sweeps of "
-                             f"{order_bench.QUICK_FRAMES} frames (about 20 s)")
-    _add_scenes_option(parser)
+    parser = _bench_parser(kinds, "order",
+                           f"the demo and one small real scene, {order_bench.QUICK_WIDTH} px wide, sweeps of "
+                           f"{order_bench.QUICK_FRAMES} frames (about 20 s)", scenes=True)
     _add_width_and_repeat(parser,
                           f"width of the views (default {order_bench.DEFAULT_WIDTH}, --quick {order_bench.QUICK_WIDTH})",
                           f"timed frames per mode (default {order_bench.DEFAULT_REPEAT}, --quick "
@@ -350,139 +393,81 @@ def _add_order_parser(kinds) -> None:
     parser.add_argument("--gt-samples", type=argtypes.whole_number(1, 64), metavar="N",
                         help=f"ground-truth samples per pixel axis (default {order_bench.DEFAULT_GT_SAMPLES}, "
                              f"--quick {order_bench.QUICK_GT_SAMPLES})")
-    parser.add_argument("--out", metavar="PATH.md", help=f"also write the markdown report there (the docs' is "
-                                                         f"{order_bench.DEFAULT_REPORT})")
-    parser.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
-    argtypes.add_backend_option(parser)
+    _add_out_options(parser, f"also write the markdown report there (the docs' is {order_bench.DEFAULT_REPORT})")
 
 
 def order_options(args: argparse.Namespace) -> order_bench.OrderOptions:
-    notes: list[str] = []
-    if args.scenes:
-        scenes = tuple(args.scenes)
-    else:
-        scenes, notes = accuracy.default_scenes(args.quick)
-    quick = args.quick
+    scenes, notes = _scene_choice(args, lambda: accuracy.default_scenes(args.quick))
     return order_bench.OrderOptions(
-        scenes=scenes,
-        width=args.width or (order_bench.QUICK_WIDTH if quick else order_bench.DEFAULT_WIDTH),
-        frames=args.frames or (order_bench.QUICK_FRAMES if quick else order_bench.DEFAULT_FRAMES),
-        repeat=args.repeat or (order_bench.QUICK_REPEAT if quick else order_bench.DEFAULT_REPEAT),
-        gt_samples=args.gt_samples or (order_bench.QUICK_GT_SAMPLES if quick else order_bench.DEFAULT_GT_SAMPLES),
+        scenes=scenes, **_quick_or_default(args, order_bench, ("width", "frames", "repeat", "gt_samples")),
         out=_report_path(args.out, args.overwrite), overwrite=args.overwrite,
-        command_line=recorded_command("order", args, ORDER_FLAGS), gl_backend=args.gl_backend,
-        notes=tuple(notes))
+        **_run_fields("order", args, notes))
 
-
-def _run_order(args: argparse.Namespace, ctx) -> int:
-    options = order_options(args)
-    _print_notes(options.notes)
-    results = order_bench.run_order(options, ctx)
-    return _show_report(order_bench.format_report(results), options.out, options.overwrite)
 
 
 # --- sort ----------------------------------------------------------------------------------------
 
-#: The options of a recorded ``bench sort`` command, in their order there.
-SORT_FLAGS = ("--quick", "--counts", "--repeat", "--no-freshness", "--no-load", "--out", "--gl-backend",
-              "--overwrite")
 
 
 def _add_sort_parser(kinds) -> None:
-    full = ", ".join(sort_bench.count_label(n) for n in sort_bench.COUNTS)
-    parser = kinds.add_parser(
-        "sort", help="CPU cull and sort of generated scenes of 100k to 6M gaussians, and the drawn order's "
-                     "freshness while turning and flying",
-        description=f"For generated scenes of {full} gaussians (made in memory), seen whole: the cull, keys, "
-                    f"sort and upload times with 1 worker, 2 and every core (medians, interleaved), the "
-                    f"speed-up over one worker and 'cull+sort@N' lines; then, with those latencies and the "
-                    f"projection to {sort_bench.PROJECTED_CORES} cores, a turn of "
-                    f"{sort_bench.TURN_DEGREES_PER_S:g} deg/s and a flight of {sort_bench.FLY_RADII_PER_S:g} "
-                    f"scene radii/s at {sort_bench.FPS:g} fps drawn with the order the window would hold: the "
-                    f"error against the up-to-date order for the depth, distance and per-pixel orders.")
-    parser.add_argument("--quick", action="store_true",
-                        help=f"stop at {sort_bench.count_label(sort_bench.QUICK_COUNTS[-1])}, "
-                             f"{sort_bench.QUICK_REPEAT} runs, {len(sort_bench.QUICK_SAMPLE_TIMES)} rendered "
-                             f"frames per motion")
+    parser = _bench_parser(kinds, "sort",
+                           f"stop at {count_label(sort_bench.QUICK_COUNTS[-1])}, {sort_bench.QUICK_REPEAT} runs; "
+                           f"the freshness ({len(freshness.QUICK_SAMPLE_TIMES)} rendered frames per motion) "
+                           f"for scenes up to {count_label(sort_bench.QUICK_FRESHNESS_MAX)} gaussians only (under 3 "
+                           f"minutes on two CPU cores)")
     parser.add_argument("--counts", nargs="+", type=argtypes.whole_number(1, 100_000_000), metavar="N",
-                        help=f"scene sizes (default {full}; --quick stops at "
-                             f"{sort_bench.count_label(sort_bench.QUICK_COUNTS[-1])})")
+                        help=f"scene sizes (default {_SORT_COUNTS}; --quick stops at "
+                             f"{count_label(sort_bench.QUICK_COUNTS[-1])})")
     parser.add_argument("--repeat", type=argtypes.whole_number(1, 1000), metavar="N",
                         help=f"timed runs per worker count (default {sort_bench.DEFAULT_REPEAT}, --quick "
                              f"{sort_bench.QUICK_REPEAT})")
     parser.add_argument("--no-freshness", action="store_true", help="times only: no rendered motion")
     parser.add_argument("--no-load", action="store_true",
                         help=f"no load measurements (by default each size from "
-                             f"{sort_bench.count_label(sort_bench.LOAD_MIN)} up is written as an SH-3 PLY to a "
+                             f"{count_label(sort_bench.LOAD_MIN)} up is written as an SH-3 PLY to a "
                              f"temporary folder, loaded in a fresh process and deleted)")
-    parser.add_argument("--out", metavar="PATH.md", help="also write the markdown report there")
-    parser.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
-    argtypes.add_backend_option(parser)
+    _add_out_options(parser)
 
 
 def sort_options(args: argparse.Namespace) -> sort_bench.SortOptions:
+    quick = args.quick
     return sort_bench.SortOptions(
-        counts=tuple(dict.fromkeys(args.counts or (sort_bench.QUICK_COUNTS if args.quick else sort_bench.COUNTS))),
-        repeat=args.repeat or (sort_bench.QUICK_REPEAT if args.quick else sort_bench.DEFAULT_REPEAT),
-        sample_times=sort_bench.QUICK_SAMPLE_TIMES if args.quick else sort_bench.SAMPLE_TIMES,
-        ladder_frames=sort_bench.QUICK_LADDER_FRAMES if args.quick else sort_bench.LADDER_FRAMES,
+        counts=tuple(dict.fromkeys(args.counts or (sort_bench.QUICK_COUNTS if quick else sort_bench.COUNTS))),
+        **_quick_or_default(args, sort_bench, ("repeat",)),
+        sample_times=freshness.QUICK_SAMPLE_TIMES if quick else freshness.SAMPLE_TIMES,
+        ladder_frames=freshness.QUICK_LADDER_FRAMES if quick else freshness.LADDER_FRAMES,
         freshness=not args.no_freshness, loads=not args.no_load,
-        command_line=recorded_command("sort", args, SORT_FLAGS), gl_backend=args.gl_backend)
+        freshness_max=sort_bench.QUICK_FRESHNESS_MAX if quick else None,
+        **_run_fields("sort", args, []))
 
-
-def _run_sort(args: argparse.Namespace, ctx) -> int:
-    options = sort_options(args)
-    out = _report_path(args.out, args.overwrite)
-    results = sort_bench.run_sort(options, ctx)
-    return _show_report(sort_bench.format_report(results), out, args.overwrite)
 
 
 # --- formats ---------------------------------------------------------------------------------------
 
-FORMATS_FLAGS = ("--quick", "--scenes", "--no-samples", "--width", "--repeat", "--out", "--gl-backend", "--overwrite")
 
 
 def _add_formats_parser(kinds) -> None:
-    parser = kinds.add_parser(
-        "formats", help="what .ply, .splat and .spz keep of a scene (per attribute and in renders), and load times",
-        description="Each reference scene (the demo, the shared INRIA PLYs, and the shared compressed-PLY and SOG "
-                    "samples) is loaded from its own file, then written as .ply, .splat, .spz v3 and v4 and read "
-                    "back: size, load time, the per-attribute error and the render PSNR against the scene; then "
-                    "the shared .spz sample against its INRIA PLY twin.")
-    parser.add_argument("--quick", action="store_true",
-                        help=f"the demo and one real scene, {formats_bench.QUICK_WIDTH} px, "
-                             f"{formats_bench.QUICK_REPEAT} loads each")
-    _add_scenes_option(parser)
+    parser = _bench_parser(kinds, "formats",
+                           f"the demo and one real scene, {formats_bench.QUICK_WIDTH} px, "
+                           f"{formats_bench.QUICK_REPEAT} loads each", scenes=True)
     parser.add_argument("--no-samples", action="store_true",
                         help="not the shared .spz sample against its INRIA PLY twin")
     _add_width_and_repeat(parser, f"render width (default {formats_bench.DEFAULT_WIDTH}, --quick "
                                   f"{formats_bench.QUICK_WIDTH})",
                           f"loads timed per file (default {formats_bench.DEFAULT_REPEAT}, --quick "
                           f"{formats_bench.QUICK_REPEAT})")
-    parser.add_argument("--out", metavar="PATH.md", help="also write the markdown report there")
-    parser.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
-    argtypes.add_backend_option(parser)
+    _add_out_options(parser)
 
 
-def formats_options(args: argparse.Namespace) -> tuple[formats_bench.FormatsOptions, list[str]]:
-    notes: list[str] = []
-    if args.scenes:
-        scenes = tuple(args.scenes)
-    else:
-        wanted = formats_bench.DEFAULT_SCENES[:1] if args.quick else formats_bench.DEFAULT_SCENES
-        found, notes = shared_scene_paths(wanted)
-        scenes = ("demo", *found)
-    options = formats_bench.FormatsOptions(
-        scenes=scenes, samples=not args.no_samples,
-        width=args.width or (formats_bench.QUICK_WIDTH if args.quick else formats_bench.DEFAULT_WIDTH),
-        repeat=args.repeat or (formats_bench.QUICK_REPEAT if args.quick else formats_bench.DEFAULT_REPEAT),
-        command_line=recorded_command("formats", args, FORMATS_FLAGS), gl_backend=args.gl_backend)
-    return options, notes
+def _formats_scenes(quick: bool) -> tuple[tuple[str, ...], list[str]]:
+    """The demo and the shared reference scenes found (the first alone with --quick)."""
+    found, notes = shared_scene_paths(formats_bench.DEFAULT_SCENES[:1] if quick else formats_bench.DEFAULT_SCENES)
+    return ("demo", *found), notes
 
 
-def _run_formats(args: argparse.Namespace, ctx) -> int:
-    options, notes = formats_options(args)
-    out = _report_path(args.out, args.overwrite)
-    _print_notes(tuple(notes))
-    results = formats_bench.run_formats(options, ctx)
-    return _show_report(formats_bench.format_report(results), out, args.overwrite)
+def formats_options(args: argparse.Namespace) -> formats_bench.FormatsOptions:
+    scenes, notes = _scene_choice(args, lambda: _formats_scenes(args.quick))
+    return formats_bench.FormatsOptions(
+        scenes=scenes, samples=not args.no_samples, **_quick_or_default(args, formats_bench, ("width", "repeat")),
+        **_run_fields("formats", args, notes))
+

@@ -23,6 +23,7 @@ import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera, camera_key
 from raygs_viewer.errors import one_line
+from raygs_viewer.sort.closing import Closable
 
 __all__ = ["BackgroundSorter", "SortResult", "Sorter"]
 
@@ -116,7 +117,7 @@ def _snapshot(camera: Camera) -> Camera:
 
 
 
-class BackgroundSorter:
+class BackgroundSorter(Closable):
     """Sorts on a daemon worker thread; the frame loop only calls :meth:`request` and :meth:`latest`.
 
     Counters (plain ints, read without locking by the statistics panel and tests):
@@ -217,16 +218,6 @@ class BackgroundSorter:
         True when it has."""
         self._thread.join(timeout)
         return not self._thread.is_alive()
-
-    @property
-    def closed(self) -> bool:
-        return self._closed
-
-    def __enter__(self) -> "BackgroundSorter":
-        return self
-
-    def __exit__(self, *exc_info) -> None:
-        self.close()
 
     # ------------------------------------------------------------------ worker
 

@@ -125,12 +125,18 @@ def test_slug():
     assert len(set(slugs)) == len(slugs) and all(re.fullmatch(r"[a-z0-9-]+", s) for s in slugs)
 
 
-def test_plot_ticks():
-    from raygs_viewer.bench.plot import linear_ticks, log_ticks
-    assert linear_ticks(12.3, 38.9) == [15, 20, 25, 30, 35]
-    ticks = log_ticks(0.7, 2.4)
-    assert 1 in ticks and 2 in ticks and len(ticks) <= 7 and all(0.7 <= t <= 2.4 for t in ticks)
-    assert len(log_ticks(1e-3, 1e6)) <= 7
+def test_every_configuration_has_a_colour_and_a_marker_of_its_own():
+    """Thirteen configurations share one plot: no two may look alike, in colour or (for a
+    greyscale print) in shape; the scenes differ by fill."""
+    from raygs_viewer.bench.plot import group_fills, series_styles
+    styles = series_styles(list(ACCURACY_PRESETS))
+    assert list(styles) == list(ACCURACY_PRESETS)
+    assert len({style.color for style in styles.values()}) == len(ACCURACY_PRESETS)
+    assert len({style.marker for style in styles.values()}) == len(ACCURACY_PRESETS)
+    many = series_styles([f"series {i}" for i in range(60)])  # past the lists: still one pair each
+    assert len({(style.color, style.marker) for style in many.values()}) == 60
+    fills = group_fills(["a", "b", "c", "d"])
+    assert len(set(fills.values())) == 4 and fills["a"] == "full"
 
 
 # --- the whole benchmark, tiny --------------------------------------------------------------
@@ -202,11 +208,17 @@ def test_tiny_report_has_every_table(tiny_run):
     assert "cheapest within 0.5 dB" in report
 
 
-def test_tiny_plot_is_a_png(tiny_run):
+def test_tiny_plot_is_a_png_with_every_configuration(tiny_run):
+    """Two rows of three panels (per scene, mean over scenes) and a legend; every
+    configuration's colour is drawn (the mean panels draw each one filled)."""
+    from raygs_viewer.bench.plot import series_styles
     args = tiny_run[0]
     with Image.open(args.plot) as image:
         image.load()
-        assert image.format == "PNG" and image.width > 600 and image.height > 200
+        assert image.format == "PNG" and 1200 <= image.width <= 2000 and 600 <= image.height <= 1100
+        colours = {rgb for _, rgb in image.convert("RGB").getcolors(1 << 20)}
+    for style in series_styles(list(ACCURACY_PRESETS)).values():
+        assert tuple(int(style.color[i:i + 2], 16) for i in (1, 3, 5)) in colours, style
 
 
 def test_report_is_never_replaced_without_overwrite(tiny_run, monkeypatch):

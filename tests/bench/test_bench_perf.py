@@ -220,8 +220,13 @@ def test_tiny_report_and_plot(tiny_run):
     for name in bench_perf.RATIOS:  # the medians, as printed
         assert re.search(rf"^{re.escape(name)} \S+$", report, re.M)
     from PIL import Image
+
+    from raygs_viewer.bench.plot import series_styles
     with Image.open(args.plot) as image:
-        assert image.format == "PNG" and image.width > 600
+        assert image.format == "PNG" and 600 <= image.width <= 2000 and 300 <= image.height <= 800
+        colours = {rgb for _, rgb in image.convert("RGB").getcolors(1 << 20)}
+    for style in series_styles(["small", "large"]).values():  # both footprints' RayGS points, filled
+        assert tuple(int(style.color[i:i + 2], 16) for i in (1, 3, 5)) in colours, style
 
 
 def test_the_recorded_command_line_reproduces_the_options(tiny_run):

@@ -18,9 +18,9 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 from testkit import gaussian_columns, make_scene, random_scene, write_ply
 
-from raygs_viewer.camera.pinhole import look_at
+from raygs_viewer.camera.pinhole import Camera, look_at
 from raygs_viewer.scene.model import Scene
-from raygs_viewer.sort import depth
+from raygs_viewer.sort import ordering
 from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.worker import BackgroundSorter
 
@@ -63,8 +63,8 @@ def test_every_worker_count_gives_the_one_worker_order(seed, workers, chunk_rows
     kwargs = dict(dilation=dilation, cull_cameras=cull_cameras, keys=("depth", "distance"))
     reference = DepthSorter(scene, workers=1).orders(camera, P_MIN, method, **kwargs)
     with pytest.MonkeyPatch.context() as patch, DepthSorter(scene, workers, chunk_rows=chunk_rows) as sorter:
-        patch.setattr(depth, "BUCKET_KEYS", bucket_keys)
-        patch.setattr(depth, "PARALLEL_SORT_MIN", 0)
+        patch.setattr(ordering, "BUCKET_KEYS", bucket_keys)
+        patch.setattr(ordering, "PARALLEL_SORT_MIN", 0)
         parallel = sorter.orders(camera, P_MIN, method, **kwargs)
         one_worker = DepthSorter(scene, workers=1, chunk_rows=chunk_rows).orders(camera, P_MIN, method, **kwargs)
     for key in ("depth", "distance"):
@@ -81,8 +81,8 @@ def test_every_worker_count_gives_the_one_worker_order(seed, workers, chunk_rows
 def test_ties_across_chunks_and_buckets_keep_scene_order(monkeypatch):
     """Many gaussians at a few distinct places: each key value is shared by gaussians in
     every chunk, and the buckets are single keys; the order is by key, then index."""
-    monkeypatch.setattr(depth, "BUCKET_KEYS", 4)
-    monkeypatch.setattr(depth, "PARALLEL_SORT_MIN", 0)
+    monkeypatch.setattr(ordering, "BUCKET_KEYS", 4)
+    monkeypatch.setattr(ordering, "PARALLEL_SORT_MIN", 0)
     rng = np.random.default_rng(4)
     places = np.array([[0, 0, 1.0], [0.2, 0.1, 2.0], [-0.3, 0.2, 3.0], [0.1, -0.2, 1.5]])
     label = rng.integers(0, len(places), 500)
@@ -176,6 +176,26 @@ def test_a_turn_in_place_reuses_the_distance_order_and_equals_a_fresh_sort(worke
         np.testing.assert_array_equal(sorter.order(views[2], 0.05, method, key="distance"),
                                       DepthSorter(scene, 1).order(views[2], 0.05, method, key="distance"))
         assert sorter.reused == len(views) - 2
+
+
+def test_turns_whose_centres_round_to_either_sign_of_zero_reuse():
+    """A turn recomputes C = -R^T t, and a coordinate that was 0 comes back as -1e-19 in
+    one view and +1e-17 in the next; both snap to zero, and must be the same centre for
+    the cache (the bytes of -0.0 and 0.0 differ). The rotations here are exact (axis
+    permutations), so each centre is exactly the one written."""
+    scene = random_scene(n=400, seed=11, degree=0, spread=2.0, log_scale=(-4, -2))
+    quarter = np.array([[0.0, 0.0, 1.0], [0.0, 1.0, 0.0], [-1.0, 0.0, 0.0]])  # 90 deg about y
+    views = []
+    for R, x in ((np.eye(3), -1e-19), (quarter, 1e-17), (quarter.T, -1e-19)):
+        centre = np.array([x, 0.25, 0.0])
+        views.append(Camera(48, 32, 40.0, 40.0, 24.0, 16.0, R, -R @ centre))
+        assert views[-1].center[0] == x
+    with DepthSorter(scene, workers=2, chunk_rows=64) as sorter:
+        for view in views:
+            np.testing.assert_array_equal(sorter.order(view, P_MIN, key="distance"),
+                                          DepthSorter(scene, 1).order(view, P_MIN, key="distance"))
+        # The second view keeps the candidates sorted for the first's centre; the third reuses them.
+        assert (sorter.sorted, sorter.reused) == (2, 1)
 
 
 def test_the_distance_key_does_not_change_with_the_rotation():

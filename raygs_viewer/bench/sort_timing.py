@@ -1,0 +1,212 @@
+"""The timing half of ``bench sort``: how fast the CPU cull and sort are at real scene
+sizes, for 1 worker (the single-threaded path), 2 and every core, and projected to
+PROJECTED_CORES cores (maths page, section 9).
+
+Times, medians over ``repeat`` runs with the worker counts interleaved (one untimed run
+first): the cull alone, the keys (what the cull with keys adds), the sort, their sum
+(cull+sort, one ``DepthSorter.orders``), the distance key's cull+sort from a new centre
+and on a turn in place (reused, no sort), and the upload of the order into a GL buffer.
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from dataclasses import dataclass, replace
+from typing import Callable
+
+import numpy as np
+
+from raygs_viewer.bench.common import count_label
+from raygs_viewer.bench.cube import moved
+from raygs_viewer.camera.pinhole import Camera
+from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.scene.model import Scene
+from raygs_viewer.sort.depth import DepthSorter
+
+TIMING_SIZE = (1280, 720)
+PROJECTED_CORES = 16
+P_MIN = RenderSettings().p_min
+#: The key of the parallel path run on the calling thread alone (a closed DepthSorter of
+#: 2 workers): the parallel algorithm's own one-thread time, which the projection scales.
+ONE_THREAD = 0
+#: The times a scene's projection is made for (Timing's fields).
+PROJECTED = ("total", "distance", "distance_turn")
+
+
+@dataclass
+class Timing:
+    """Medians in ms for one scene and one worker count."""
+    workers: int
+    cull: float
+    cull_keys: float
+    sort: float
+    total: float             # cull+sort, depth key
+    distance: float          # cull+sort, distance key, from a new centre
+    distance_turn: float     # cull + the reused order, distance key, turned in place
+    visible: int
+
+    @property
+    def keys(self) -> float:
+        return max(0.0, self.cull_keys - self.cull)
+
+
+@dataclass
+class SceneTimes:
+    """Every time of one scene."""
+    count: int
+    timings: dict[int, Timing]
+    upload_ms: float
+    projected: dict[str, float]          # a PROJECTED field -> ms on PROJECTED_CORES cores
+    one_thread: Timing                   # the parallel path (2 workers) on one thread
+
+
+def worker_counts() -> tuple[int, ...]:
+    """1 (the single-threaded path), 2 and every core, each once."""
+    return tuple(sorted({1, 2, os.cpu_count() or 1}))
+
+
+def time_scene(ctx, scene: Scene, camera: Camera, repeat: int, workers: tuple[int, ...]) -> SceneTimes:
+    """Every time of ``scene`` seen from ``camera``, and the projection to PROJECTED_CORES."""
+    timings, order = measure_sorting(scene, camera, repeat, workers)
+    upload = upload_ms(ctx, order, repeat)
+    one_thread = timings.pop(ONE_THREAD)
+    parallel = {1: one_thread, **{w: t for w, t in timings.items() if w > 1}}
+    projected = {key: amdahl({w: getattr(t, key) for w, t in parallel.items()}, PROJECTED_CORES)
+                 for key in PROJECTED}
+    return SceneTimes(scene.count, timings, upload, projected, one_thread)
+
+
+def measure_sorting(scene: Scene, camera: Camera, repeat: int,
+                    workers: tuple[int, ...]) -> tuple[dict[int, Timing], np.ndarray]:
+    """Times every worker count and ONE_THREAD, runs interleaved (one untimed first);
+    returns the timings and the depth order (for the upload)."""
+    workers = (ONE_THREAD, *workers)
+    sorters = {w: DepthSorter(scene, w or 2) for w in workers}
+    sorters[ONE_THREAD].close()  # same algorithm as 2 workers, on the calling thread
+    samples: dict[int, dict[str, list[float]]] = {w: {k: [] for k in ("cull", "cull_keys", "sort", "total",
+                                                                     "distance", "distance_turn")}
+                                                  for w in workers}
+    # Centres a hair apart: each distance order is a fresh sort; turns about one centre reuse.
+    nudges = [replace(camera, t=camera.t + [0.0, 0.0, 1e-3 * (run + 1)]) for run in range(repeat + 1)]
+    turns = [moved(camera, "turn", 0.01 * (run % 2 + 1)) for run in range(repeat + 3)]
+    order = np.zeros(0, np.uint32)
+    try:
+        for sorter in sorters.values():  # the cache of two turns, before any timing
+            for turn in turns[:2]:
+                sorter.order(turn, P_MIN, key="distance")
+        for run in range(repeat + 1):
+            for w, sorter in sorters.items():
+                took = samples[w]
+                began = time.perf_counter()
+                order = sorter.order(camera, P_MIN)
+                total = time.perf_counter() - began
+                split = dict(sorter.last_seconds)
+                cull = _seconds(lambda: sorter.cull(camera, P_MIN))
+                distance = _seconds(lambda: sorter.order(nudges[run], P_MIN, key="distance"))
+                reused = sorter.reused
+                turn = _seconds(lambda: sorter.order(turns[run + 2], P_MIN, key="distance"))
+                if sorter.reused != reused + 1:
+                    raise RuntimeError("bench sort: a turn in place was sorted again instead of reused")
+                if run:
+                    for key, value in (("cull", cull), ("cull_keys", split["cull"]), ("sort", split["sort"]),
+                                       ("total", total), ("distance", distance), ("distance_turn", turn)):
+                        took[key].append(1e3 * value)
+    finally:
+        for sorter in sorters.values():
+            sorter.close()
+    timings = {w: Timing(w, **{k: float(np.median(v)) for k, v in samples[w].items()}, visible=order.size)
+               for w in workers}
+    return timings, order
+
+
+def _seconds(work: Callable[[], object]) -> float:
+    began = time.perf_counter()
+    work()
+    return time.perf_counter() - began
+
+
+def upload_ms(ctx, order: np.ndarray, repeat: int) -> float:
+    """Median ms to write ``order`` into a GL buffer of its size, the GPU drained on both sides."""
+    buffer = ctx.buffer(reserve=max(4, order.nbytes))
+    try:
+        times = []
+        for run in range(repeat + 1):
+            ctx.finish()
+            began = time.perf_counter()
+            buffer.write(order)
+            ctx.finish()
+            if run:
+                times.append(1e3 * (time.perf_counter() - began))
+        return float(np.median(times))
+    finally:
+        buffer.release()
+
+
+def amdahl(times: dict[int, float], cores: int) -> float:
+    """The time on ``cores`` of work measured at several worker counts, fitted as
+    serial + parallel / workers (least squares, both parts >= 0)."""
+    counts = sorted(times)
+    if len(counts) < 2:
+        return times[counts[0]]
+    a = np.array([[1.0, 1.0 / w] for w in counts])
+    b = np.array([times[w] for w in counts])
+    serial, parallel = np.linalg.lstsq(a, b, rcond=None)[0]
+    if serial < 0:
+        serial, parallel = 0.0, float(np.mean(b * np.array(counts)))
+    elif parallel < 0:
+        serial, parallel = float(np.mean(b)), 0.0
+    return float(serial + parallel / cores)
+
+
+# --- output ----------------------------------------------------------------------------------------
+
+def summary_line(count: int, ms: float) -> str:
+    """``cull+sort@1M 18.3 ms``."""
+    return f"cull+sort@{count_label(count)} {ms:.1f} ms"
+
+
+def timing_lines(times: SceneTimes) -> list[str]:
+    """What the run prints for a scene once it is timed."""
+    label = count_label(times.count)
+    single = times.timings[1].total
+    lines = []
+    for w, t in times.timings.items():
+        lines.append(f"  {label} workers={w}: cull {t.cull:.1f} ms, keys {t.keys:.1f} ms, sort {t.sort:.1f} ms, "
+                     f"cull+sort {t.total:.1f} ms (x{single / t.total:.2f} of 1 worker), distance "
+                     f"{t.distance:.1f} ms, distance turning in place {t.distance_turn:.1f} ms; "
+                     f"{t.visible:,} visible")
+    t = times.one_thread
+    lines.append(f"  {label} workers=2 on one thread (the parallel path's own scaling base): cull+sort "
+                 f"{t.total:.1f} ms (sort {t.sort:.1f} ms)")
+    lines.append(f"  {label} upload of the order: {times.upload_ms:.2f} ms; projected to {PROJECTED_CORES} cores "
+                 f"(Amdahl's law on the parallel path's 1-thread and multi-worker times): cull+sort "
+                 f"{times.projected['total']:.1f} ms")
+    return lines
+
+
+def table_rows(times: SceneTimes) -> list[str]:
+    """The report's rows of the times table for one scene."""
+    label, single = count_label(times.count), times.timings[1].total
+    lines = [f"| {label} | {w} | {t.cull:.1f} | {t.keys:.1f} | {t.sort:.1f} | {t.total:.1f} | "
+             f"{single / t.total:.2f} | {t.distance:.1f} | {t.distance_turn:.1f} | {times.upload_ms:.2f} |"
+             for w, t in times.timings.items()]
+    t = times.one_thread
+    lines.append(f"| {label} | 2 on one thread | {t.cull:.1f} | {t.keys:.1f} | {t.sort:.1f} | {t.total:.1f} | "
+                 f"{single / t.total:.2f} | {t.distance:.1f} | {t.distance_turn:.1f} | |")
+    lines.append(f"| {label} | {PROJECTED_CORES} (projected) | | | | {times.projected['total']:.1f} | "
+                 f"{single / times.projected['total']:.2f} | {times.projected['distance']:.1f} | "
+                 f"{times.projected['distance_turn']:.1f} | |")
+    return lines
+
+
+def summary_lines(scenes: list[SceneTimes]) -> list[str]:
+    """``cull+sort@N`` on every core, then the same per worker count and the speed-up."""
+    lines = [summary_line(s.count, s.timings[max(s.timings)].total) for s in scenes]
+    for scene in scenes:
+        label = count_label(scene.count)
+        for w, t in scene.timings.items():
+            lines.append(f"cull+sort-{w}-workers@{label} {t.total:.1f} ms")
+        lines.append(f"cull+sort-{PROJECTED_CORES}-cores-projected@{label} {scene.projected['total']:.1f} ms")
+        lines.append(f"speed-up@{label} {scene.timings[1].total / scene.timings[max(scene.timings)].total:.2f}")
+    return lines

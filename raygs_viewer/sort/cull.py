@@ -1,0 +1,233 @@
+"""The conservative cull of a scene's gaussians for a camera and p_min, and the sort keys
+of what it keeps, chunk by chunk (section 9).
+
+A chunk's camera-space centres mu (float32, one matmul) decide what may be visible, and
+the same mu gives the depth key (its z) of the visible ones; the distance key is
+|p - C| in float32, which a turn about C leaves bit for bit unchanged. Chunks are
+small enough that their working arrays stay in a core's cache, and independent, so
+the threads of a :class:`~raygs_viewer.sort.pool.ChunkPool` take them in turn.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+from dataclasses import dataclass, field
+from typing import NamedTuple, Sequence
+
+import numpy as np
+
+from raygs_viewer.camera.pinhole import Camera
+from raygs_viewer.scene.model import Scene
+from raygs_viewer.sort.keys import distances
+from raygs_viewer.sort.pool import Runner
+
+#: Gaussians per chunk of the cull: its working arrays (about 50 bytes a gaussian) stay
+#: in one core's cache. Fixed, not derived from the worker count, so that every worker
+#: count computes bit-identical keys.
+CHUNK_ROWS = 1 << 16
+#: Rows per matrix product (see ``Cull._camera_space``).
+_MATMUL_ROWS = 1 << 14
+
+
+@dataclass
+class Piece:
+    """What the cull leaves for one chunk.
+
+    visible: (m,) uint32 scene indices that may be visible, ascending.
+    values:  {key: (k,) float32 key values} of ``rows[key]`` (the visible ones, or every
+             candidate for a distance order that is being cached).
+    rows:    {key: (k,) uint32 scene indices the values belong to}.
+    ranges:  {key: (lo, hi)} the values' range over what the key quantises over (inf, -inf: none).
+    """
+
+    visible: np.ndarray
+    values: dict[str, np.ndarray] = field(default_factory=dict)
+    rows: dict[str, np.ndarray] = field(default_factory=dict)
+    ranges: dict[str, tuple[float, float]] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class CullRequest:
+    """One pass of the cull: its cameras (the one whose mu gives the depth key last)."""
+
+    camera: Camera
+    p_min: float
+    dilation: float | None
+    cull_cameras: tuple[Camera, ...]
+    depth_from_cull: bool   # the last cull camera has the sort camera's R and t
+    keys: tuple[str, ...]   # keys whose values the pass computes
+    candidates: bool        # distance over every candidate (to be cached), not the visible ones
+    centre: np.ndarray | None  # (3,) float32 camera centre: the distance key's C
+
+
+class Support(NamedTuple):
+    """What the cull needs per p_min, per gaussian: the radius of a sphere holding its
+    support, sqrt(max(kappa, 0)), and whether its opacity passes p_min."""
+
+    p_min: float
+    radius: np.ndarray
+    root_kappa: np.ndarray
+    candidate: np.ndarray
+
+
+class Cull:
+    """Holds what culling needs of a scene; culls and computes keys chunk by chunk.
+
+    ``chunk_rows``: gaussians per chunk (may be changed between passes). ``union``:
+    (N,) bool, what the last pass kept (what a cached order is filtered by)."""
+
+    def __init__(self, scene: Scene, chunk_rows: int = CHUNK_ROWS):
+        self.positions = scene.positions
+        self.chunk_rows = chunk_rows
+        self.max_scale = scene.scales.max(axis=1) if scene.count else np.zeros(0, np.float32)
+        with np.errstate(divide="ignore"):
+            self.log_opacity = np.log(scene.opacities)  # -inf for opacity 0: always culled
+        # float32 camera transforms lose ~1e-7 of the coordinates' magnitude: widen the
+        # culling bounds by that much so rounding never drops a visible gaussian.
+        self.coordinate_scale = float(np.abs(self.positions).max()) if scene.count else 0.0
+        self.union: np.ndarray | None = None
+        self._support: Support | None = None
+        self._local = threading.local()  # per-thread scratch arrays of one chunk
+
+    @property
+    def count(self) -> int:
+        return self.positions.shape[0]
+
+    def support(self, p_min: float) -> Support:
+        """The :class:`Support` of ``p_min``, cached for the last p_min: it changes only
+        with it. The radius: the kappa-ellipsoid fits in a sphere of sqrt(kappa)*max(s);
+        NaN-free, 0 where kappa <= 0 (those are culled separately)."""
+        if self._support is None or self._support.p_min != p_min:
+            kappa = 2.0 * (self.log_opacity - np.float32(math.log(p_min)))
+            root_kappa = np.sqrt(np.maximum(kappa, 0.0))
+            with np.errstate(over="ignore"):  # absurd scales give inf: a sphere that culls nothing
+                radius = root_kappa * self.max_scale
+            self._support = Support(p_min, radius, root_kappa, self.log_opacity > np.float32(math.log(p_min)))
+        return self._support
+
+    def request(self, camera: Camera, p_min: float, dilation: float | None,
+                cull_cameras: Sequence[Camera] | None, keys: tuple[str, ...], candidates: bool,
+                centre: np.ndarray | None) -> CullRequest:
+        """The pass for these arguments (see ``DepthSorter.cull`` for what they mean)."""
+        cameras = list(cull_cameras or (camera,))
+        same = [c for c in cameras if np.array_equal(c.R, camera.R) and np.array_equal(c.t, camera.t)]
+        if same:  # its mu is the last one computed: the depth key reads it
+            cameras.remove(same[0])
+            cameras.append(same[0])
+        return CullRequest(camera, p_min, dilation, tuple(cameras), bool(same), keys, candidates, centre)
+
+    def pieces(self, request: CullRequest, run: Runner) -> list[Piece]:
+        """The pass over every chunk, the chunks handed out by ``run``: one
+        :class:`Piece` per chunk, in scene order."""
+        self.support(request.p_min)  # once, before the threads read it
+        if self.union is None:
+            self.union = np.empty(self.count, bool)
+        count = -(-self.count // self.chunk_rows)
+        return run(lambda index: self._chunk(index, request), count)
+
+    def _scratch(self) -> "_Scratch":
+        size = min(self.chunk_rows, self.count)
+        scratch = getattr(self._local, "scratch", None)
+        if scratch is None or scratch.size < size:
+            scratch = self._local.scratch = _Scratch(size)
+        return scratch
+
+    def _chunk(self, index: int, request: CullRequest) -> Piece:
+        start = index * self.chunk_rows
+        stop = min(start + self.chunk_rows, self.count)
+        rows, n = slice(start, stop), stop - start
+        scratch = self._scratch()
+        union = scratch.union[:n]
+        for number, culling in enumerate(request.cull_cameras):
+            self._may_be_seen(culling, request.p_min, request.dilation, rows, scratch)
+            if number == 0:
+                union[:] = scratch.keep[:n]
+            else:
+                union |= scratch.keep[:n]
+        self.union[rows] = union
+        local = np.flatnonzero(union)
+        piece = Piece((local + start).astype(np.uint32))
+        if "depth" in request.keys:
+            if not request.depth_from_cull:
+                self._camera_space(request.camera, rows, scratch.mu[:, :n])
+            depth = scratch.mu[2, :n][local]
+            piece.values["depth"], piece.rows["depth"] = depth, piece.visible
+            piece.ranges["depth"] = _range(depth)
+        if "distance" in request.keys:
+            distance = scratch.radius[:n]  # free once the cull is done
+            distances(self.positions[rows], request.centre, scratch.mu[:, :n], distance)
+            candidate = self.support(request.p_min).candidate[rows]
+            among = distance[candidate]
+            piece.ranges["distance"] = _range(among)
+            if request.candidates:
+                piece.values["distance"] = among
+                piece.rows["distance"] = (np.flatnonzero(candidate) + start).astype(np.uint32)
+            else:
+                piece.values["distance"], piece.rows["distance"] = distance[local], piece.visible
+        return piece
+
+    def _camera_space(self, camera: Camera, rows: slice, out: np.ndarray) -> None:
+        """out[:] = (3, n) mu = R p + t of the rows, in float32 (the form the GPU uses),
+        one row per axis so that every later pass reads contiguous memory."""
+        rotation, positions = camera.R.astype(np.float32), self.positions[rows]
+        # OpenBLAS spreads a gemm over its own threads above m*n*k = 4 * 65536, and those
+        # threads then fight the pool's: keep each product below that.
+        for start in range(0, out.shape[1], _MATMUL_ROWS):
+            block = slice(start, start + _MATMUL_ROWS)
+            np.matmul(rotation, positions[block].T, out=out[:, block])
+        out += camera.t.astype(np.float32)[:, None]
+
+    def _may_be_seen(self, camera: Camera, p_min: float, dilation: float | None, rows: slice,
+                     scratch: "_Scratch") -> None:
+        """Sets ``scratch.keep[:n]`` to whether each support sphere of ``rows`` (n of
+        them) may reach a pixel of ``camera``; leaves their mu in ``scratch.mu[:n]``."""
+        n = rows.stop - rows.start
+        mu, radius, product, term, keep, test = (scratch.mu[:, :n], scratch.radius[:n], scratch.product[:n],
+                                                 scratch.term[:n], scratch.keep[:n], scratch.test[:n])
+        self._camera_space(camera, rows, mu)
+        slack = np.float32(1e-5 * (self.coordinate_scale + float(np.abs(camera.t).max())) + 1e-6)
+        support = self.support(p_min)
+        radius[:] = support.radius[rows]
+        if dilation:
+            np.multiply(mu[0], mu[0], out=term)
+            term += np.square(mu[1], out=product)
+            term += np.square(mu[2], out=product)
+            np.sqrt(term, out=term)
+            term *= support.root_kappa[rows]
+            term *= np.float32(dilation)
+            radius += term
+        radius *= np.float32(1.0 + 1e-5)
+        radius += slack
+        np.negative(radius, out=radius)  # from here on: -radius, the bound every test compares with
+        x, y, z = mu
+        np.greater(z, radius, out=keep)
+        keep &= support.candidate[rows]
+        if dilation is None:
+            return
+        # Side planes through the camera centre, at the image border (pixel centres lie
+        # half a pixel inside it), with unit normals pointing into the frustum.
+        for coordinate, a, b, extent in ((x, camera.fx, camera.cx, camera.width),
+                                         (y, camera.fy, camera.cy, camera.height)):
+            for normal in ((a, b), (-a, extent - b)):
+                norm = np.float32(1.0 / math.hypot(*normal))
+                np.multiply(coordinate, np.float32(normal[0]) * norm, out=product)
+                np.multiply(z, np.float32(normal[1]) * norm, out=term)
+                product += term
+                np.greater(product, radius, out=test)
+                keep &= test
+
+
+def _range(values: np.ndarray) -> tuple[float, float]:
+    """(min, max) of ``values``; (inf, -inf) when there are none."""
+    return (float(values.min()), float(values.max())) if values.size else (math.inf, -math.inf)
+
+
+class _Scratch:
+    """The chunk-sized working arrays of one thread."""
+
+    def __init__(self, count: int):
+        self.size = count
+        self.mu = np.empty((3, count), np.float32)  # one row per axis
+        self.radius, self.product, self.term = (np.empty(count, np.float32) for _ in range(3))
+        self.keep, self.test, self.union = (np.empty(count, bool) for _ in range(3))
