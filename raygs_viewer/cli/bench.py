@@ -24,12 +24,13 @@ from raygs_viewer.cli import argtypes
 from raygs_viewer.errors import UserError
 
 
-def add_parser(commands) -> None:
+def add_parsers(commands) -> None:
     """Adds ``bench`` and its subcommands to the CLI's subparsers."""
     bench = commands.add_parser("bench", help="benchmarks (accuracy against time; stereo sharing error and "
                                               "frame budget; per-stage frame times and cost ratios; "
                                               "order modes and popping; CPU cull and sort at millions, "
                                               "and the order's freshness in motion)")
+    bench.set_defaults(run=command)
     kinds = bench.add_subparsers(dest="bench", required=True, parser_class=type(bench))
     _add_accuracy_parser(kinds)
     _add_stereo_parser(kinds)

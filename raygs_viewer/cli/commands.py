@@ -53,6 +53,7 @@ def add_parsers(commands) -> None:
     info = commands.add_parser("info", help="describe a scene file")
     info.add_argument("scene", help=f"a scene file ({SCENE_FILES}), or '{DEMO}'")
     info.add_argument("--json", action="store_true", help="print JSON instead of text")
+    info.set_defaults(run=command_info)
 
     render = commands.add_parser("render", help="render one image headlessly")
     add_view_options(render)
@@ -63,6 +64,7 @@ def add_parsers(commands) -> None:
     render.add_argument("--out", required=True, metavar="OUT.png|OUT.npy",
                         help=".png: 8-bit RGB; .npy: float32 HxWx4 (RGB over background, alpha)")
     render.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
+    render.set_defaults(run=command_render)
     render.add_argument("--reference", action="store_true", help="use the float64 CPU reference renderer")
     add_stereo_options(render)
     argtypes.add_general_option(render)
@@ -70,6 +72,7 @@ def add_parsers(commands) -> None:
 
     verify = commands.add_parser("verify", help="render one view with GL and with the float64 reference; "
                                                 "print their difference and timings")
+    verify.set_defaults(run=command_verify)
     add_view_options(verify)
     argtypes.add_general_option(verify)
     argtypes.add_backend_option(verify)

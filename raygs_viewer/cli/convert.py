@@ -25,7 +25,8 @@ from raygs_viewer.scene.writing import SPZ_VERSIONS, WRITE_SUFFIXES, write_scene
 LOSSLESS_SUFFIXES = (".ply",)
 
 
-def add_parser(commands) -> None:
+def add_parsers(commands) -> None:
+    """Adds ``convert`` to the CLI's subparsers."""
     convert = commands.add_parser(
         "convert", help="write a scene as INRIA PLY, .splat or .spz, and report what the target lost",
         description=f"Reads IN ({SCENE_FILES}, or '{DEMO}'), writes OUT in the format its suffix names "
@@ -34,6 +35,7 @@ def add_parser(commands) -> None:
     convert.add_argument("input", metavar="IN", help=f"the scene to read (any readable format, or '{DEMO}')")
     convert.add_argument("output", metavar="OUT", help=f"the file to write: {', '.join(WRITE_SUFFIXES)}")
     convert.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
+    convert.set_defaults(run=command_convert)
     convert.add_argument("--spz-version", type=int, choices=SPZ_VERSIONS, default=SPZ_VERSIONS[0],
                          help=f"the .spz version written (default {SPZ_VERSIONS[0]})")
 

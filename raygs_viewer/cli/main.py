@@ -29,12 +29,12 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.scene.io import SCENE_SUFFIXES
 from raygs_viewer.scene.loader import DEMO
 
-COMMANDS = ("view", "info", "render", "render-path", "verify", "convert", "bench")
+#: The modules of the commands, in the order --help lists them: each one's
+#: ``add_parsers`` adds its commands, and each command's parser names the function that
+#: runs it (``set_defaults(run=...)``), so a new command is a module and its entry here.
+COMMAND_MODULES = (view, commands, path, convert, bench)
 # Arguments that keep their meaning at the top level instead of starting the window.
 TOP_LEVEL_OPTIONS = ("-h", "--help", "--version")
-RUN = {"view": view.command_view, "info": commands.command_info, "render": commands.command_render,
-       "render-path": path.command_render_path,
-       "verify": commands.command_verify, "convert": convert.command_convert, "bench": bench.command}
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -45,12 +45,14 @@ def build_parser() -> argparse.ArgumentParser:
                     "and plain 'raygs-viewer' shows the built-in demo.")
     parser.add_argument("--version", action="version", version=f"raygs-viewer {__version__}")
     subparsers = parser.add_subparsers(dest="command", required=True, parser_class=Parser)
-    view.add_parser(subparsers)
-    commands.add_parsers(subparsers)
-    path.add_parser(subparsers)
-    convert.add_parser(subparsers)
-    bench.add_parser(subparsers)
+    for module in COMMAND_MODULES:
+        module.add_parsers(subparsers)
+    parser.set_defaults(command_names=tuple(subparsers.choices))
     return parser
+
+
+#: Every command's name, in the order --help lists them.
+COMMANDS = build_parser().get_default("command_names")
 
 
 def route(argv: list[str]) -> list[str]:
@@ -72,7 +74,7 @@ def main(argv: list[str] | None = None) -> int:
     try:
         argv = join_up_axis(route(list(sys.argv[1:] if argv is None else argv)))
         args = build_parser().parse_args(argv)
-        return RUN[args.command](args)
+        return args.run(args)
     except UserError as exc:
         print(f"error: {str(exc).splitlines()[0] if str(exc) else 'failed'}", file=sys.stderr)
         return 2

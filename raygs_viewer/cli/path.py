@@ -53,7 +53,8 @@ ORBIT_SIZE = (1280, 720)
 ORBIT_FOV = 50.0
 
 
-def add_parser(commands) -> None:
+def add_parsers(commands) -> None:
+    """Adds ``render-path`` to the CLI's subparsers."""
     parser = commands.add_parser(
         "render-path", help="render a camera path to an MP4 or a folder of PNG frames",
         description="Renders every frame of a camera path (a path JSON saved by the window, or a nerfstudio "
@@ -89,6 +90,7 @@ def add_parser(commands) -> None:
     argtypes.add_general_option(parser)
     argtypes.add_backend_option(parser)
     parser.set_defaults(reference=False, sidecar=None)  # what stereo_view checks for render
+    parser.set_defaults(run=command_render_path)
 
 
 def command_render_path(args: argparse.Namespace) -> int:

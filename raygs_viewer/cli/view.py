@@ -37,9 +37,10 @@ from raygs_viewer.viewer.state import (
 UP_AXES = tuple(NAVIGATION_UP_AXES)
 
 
-def add_parser(commands) -> None:
+def add_parsers(commands) -> None:
     """Adds ``view`` to the CLI's subparsers: the fields of viewer.state.ViewerOptions."""
     parser = commands.add_parser("view", help="open the interactive window (the default command)")
+    parser.set_defaults(run=command_view)
     parser.add_argument("scene", nargs="?", default=DEMO, help=f"a scene file ({SCENE_FILES}), or '{DEMO}' (default)")
     parser.add_argument("--cameras", metavar="CAMERAS.json",
                         help="the scene's training cameras (default: a cameras.json found next to the scene)")

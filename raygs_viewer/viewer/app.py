@@ -211,7 +211,7 @@ class Viewer:
             self.stats.frames_with_sort_running += 1
 
         if self.panel.show_panel:
-            draw_panel(self.panel, self._panel_sections())
+            draw_panel(self.panel, panel_sections(self))
         self.overlay_rects = {} if right is None else draw_split_overlay(
             self.viewport, self.split, self.settings, self.input.dragging_divider)
         self.camera_path.draw_overlay(camera, self.viewport, self.view.radius, stereo is not None)
@@ -232,27 +232,6 @@ class Viewer:
                 self.panel.message, self.panel.error = saved_message(self.last_screenshots), ""
             except (UserError, MemoryError, moderngl.Error) as exc:
                 self.panel.error = f"error: screenshot not saved: {one_line(exc)}"
-
-    def _panel_sections(self) -> list[Callable[[], None]]:
-        """Each panel section with the state it edits (read when it is drawn: an edit
-        shows in the sections below it at once)."""
-        loaded, renderer, view = self.loaded, self.renderer, self.view
-        return [
-            lambda: draw_statistics(self.stats, loaded.scene.count, self.sorter, renderer.counters, renderer.general),
-            lambda: draw_scene_section(loaded, self.panel, self.scenes.open, self.scenes.loader),
-            lambda: draw_render_section(self.settings, self.set_settings, loaded.scene.sh_degree, renderer.supports,
-                                        self.window, self.stereo, self.split, self.panel.note),
-            lambda: draw_order_section(self.settings, self.set_settings, self.stats,
-                                       self.right_settings() is not None),
-            lambda: draw_stereo_section(self.stereo, self.stats),
-            lambda: draw_view_section(view.navigator, view.lens.fov_y_degrees, view.set_fov, self.reset_view),
-            lambda: draw_training_section(loaded, view.training_index, view.select_training_camera,
-                                          view.step_training_camera),
-            lambda: draw_screenshot_section(self.screenshots, self.camera, self.shown_stereo is not None,
-                                            self.stereo.save_eyes, self.split.on and self.shown_stereo is None,
-                                            self.request_screenshot),
-            lambda: draw_path_section(self.camera_path),
-        ]
 
     def capture_window(self, overlay: bool = True) -> np.ndarray:
         """(H, W, 3) uint8, top row first: the window as shown, panel included;
@@ -329,6 +308,27 @@ class Viewer:
         self.drawer.release()
         self.window.close()
         self.window = None
+
+
+def panel_sections(viewer: Viewer) -> list[Callable[[], None]]:
+    """Each panel section with the part of ``viewer``'s state it edits (read when it is
+    drawn: an edit shows in the sections below it at once)."""
+    loaded, renderer, view, stats = viewer.loaded, viewer.renderer, viewer.view, viewer.stats
+    return [
+        lambda: draw_statistics(stats, loaded.scene.count, viewer.sorter, renderer.counters, renderer.general),
+        lambda: draw_scene_section(loaded, viewer.panel, viewer.scenes.open, viewer.scenes.loader),
+        lambda: draw_render_section(viewer.settings, viewer.set_settings, loaded.scene.sh_degree, renderer.supports,
+                                    viewer.window, viewer.stereo, viewer.split, viewer.panel.note),
+        lambda: draw_order_section(viewer.settings, viewer.set_settings, stats, viewer.right_settings() is not None),
+        lambda: draw_stereo_section(viewer.stereo, stats),
+        lambda: draw_view_section(view.navigator, view.lens.fov_y_degrees, view.set_fov, viewer.reset_view),
+        lambda: draw_training_section(loaded, view.training_index, view.select_training_camera,
+                                      view.step_training_camera),
+        lambda: draw_screenshot_section(viewer.screenshots, viewer.camera, viewer.shown_stereo is not None,
+                                        viewer.stereo.save_eyes, viewer.split.on and viewer.shown_stereo is None,
+                                        viewer.request_screenshot),
+        lambda: draw_path_section(viewer.camera_path),
+    ]
 
 
 def start_camera(options: ViewerOptions) -> Camera | None:

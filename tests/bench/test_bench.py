@@ -27,7 +27,7 @@ from raygs_viewer.render.settings import ACCURACY_PRESETS
 def parse(*argv) -> argparse.Namespace:
     """What the CLI hands to cli.bench.command for ``raygs-viewer bench accuracy ARGV``."""
     parser = argparse.ArgumentParser()
-    bench_cli.add_parser(parser.add_subparsers(dest="command"))
+    bench_cli.add_parsers(parser.add_subparsers(dest="command"))
     return parser.parse_args(["bench", "accuracy", *map(str, argv)])
 
 

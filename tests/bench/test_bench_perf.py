@@ -26,7 +26,7 @@ from raygs_viewer.sort.depth import DepthSorter
 
 def parse(*argv) -> argparse.Namespace:
     parser = argparse.ArgumentParser()
-    bench_cli.add_parser(parser.add_subparsers(dest="command"))
+    bench_cli.add_parsers(parser.add_subparsers(dest="command"))
     return parser.parse_args(["bench", "perf", *map(str, argv)])
 
 

@@ -45,7 +45,7 @@ TINY_PRESETS = {
 def parse(*argv) -> argparse.Namespace:
     """What the CLI hands to cli.bench.command for ``raygs-viewer bench stereo ARGV``."""
     parser = argparse.ArgumentParser()
-    bench_cli.add_parser(parser.add_subparsers(dest="command"))
+    bench_cli.add_parsers(parser.add_subparsers(dest="command"))
     return parser.parse_args(["bench", "stereo", *map(str, argv)])
 
 

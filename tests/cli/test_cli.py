@@ -584,6 +584,19 @@ def test_render_and_its_sidecar_take_the_order(capsys, tmp_path, gl_ctx, demo, m
         np.testing.assert_allclose(np.load(again), gl_render(gl_ctx, demo, camera, settings), atol=1e-5)
 
 
+def test_every_command_names_the_function_that_runs_it():
+    from raygs_viewer.cli import bench, commands, convert, path, view
+    from raygs_viewer.cli.main import COMMANDS, build_parser
+    minimal = {"render": ["--out", "x.png"], "render-path": ["demo", "orbit", "--out", "x.mp4"],
+               "convert": ["demo", "x.ply"], "bench": ["accuracy"], "info": ["demo"]}
+    runs = {"view": view.command_view, "info": commands.command_info, "render": commands.command_render,
+            "verify": commands.command_verify, "render-path": path.command_render_path,
+            "convert": convert.command_convert, "bench": bench.command}
+    assert set(COMMANDS) == set(runs)
+    for name in COMMANDS:
+        assert build_parser().parse_args([name, *minimal.get(name, [])]).run is runs[name], name
+
+
 def test_bench_is_a_command(capsys):
     from raygs_viewer.cli.main import COMMANDS, route
     assert "bench" in COMMANDS and route(["bench", "accuracy"]) == ["bench", "accuracy"]

@@ -64,7 +64,7 @@ def draw_order_section(settings: RenderSettings, set_settings: Callable[[RenderS
     if not header("Order"):
         return
     gs = settings.mode == "gs"
-    order = choice("order", settings.order, {name: ORDER_LABELS[name] for name in ORDERS}, "order",
+    order = choice("order", settings.order, {name: ORDER_LABELS[name] for name in ORDERS},
                    {"per-pixel": PER_PIXEL_NEEDS_RAYGS} if gs else None)
     tooltip(ORDER_HELP)
     edited = replace(settings, order=order)

@@ -42,8 +42,7 @@ def draw_render_section(settings: RenderSettings, set_settings: Callable[[Render
     ``notify``: a note for the panel (GS switches a per-pixel order to distance)."""
     if not header("Render"):
         return
-    edited, note = with_mode(settings, choice("mode", settings.mode, {m: MODE_LABELS[m] for m in RENDER_MODES},
-                                              "mode"))
+    edited, note = with_mode(settings, choice("mode", settings.mode, {m: MODE_LABELS[m] for m in RENDER_MODES}))
     if note:
         notify(note)
     tooltip("RayGS: the ray-based opacity, with the pixel-invariant MIP filter when MIP is on.\n"
@@ -74,7 +73,7 @@ def draw_render_section(settings: RenderSettings, set_settings: Callable[[Render
     if changed:
         window.vsync = vsync
     imgui.same_line()
-    stereo.on = checkbox("stereo", stereo.on, "stereo preview",
+    stereo.on = checkbox("stereo", stereo.on,
                          help_text="the stereo preview: both eyes as a headset shows them, one sort from their "
                                    "midpoint, each eye rendered offscreen at the headset's resolution and scaled "
                                    "into the window (its controls: the Stereo section)")
@@ -89,13 +88,13 @@ def _accuracy_controls(settings: RenderSettings, supports: Supports) -> RenderSe
     mip_help = ("RayGS mode: the pixel-invariant MIP filter of Eq. 17 (a pixel-sized gaussian convolved into "
                 "every splat). Always on in exact MIP mode; not used by GS.")
     if exact:  # on by definition: shown checked, the RayGS mode's choice kept
-        checkbox("MIP filter", True, "MIP filter", enabled=False, help_text=mip_help)
+        checkbox("MIP filter", True, enabled=False, help_text=mip_help)
     else:
-        settings = replace(settings, mip=checkbox("MIP filter", settings.mip, "MIP filter",
+        settings = replace(settings, mip=checkbox("MIP filter", settings.mip,
                                                   enabled=applies(settings, "mip"), help_text=mip_help))
     filtered = applies(settings, "mip_sigma2")
     imgui.same_line()
-    modulation = checkbox("opacity modulation", settings.mip_modulation, "opacity modulation", enabled=filtered,
+    modulation = checkbox("opacity modulation", settings.mip_modulation, enabled=filtered,
                           help_text="scale the filtered opacity so a gaussian keeps its total opacity "
                                     "(the root of Eq. 17; per pixel in exact MIP mode)")
     imgui.begin_disabled(not filtered)
@@ -106,19 +105,18 @@ def _accuracy_controls(settings: RenderSettings, supports: Supports) -> RenderSe
     if sigma2 is not None:
         settings = replace(settings, mip_sigma2=SIGMA2.clamp(float(sigma2)))
     settings = replace(settings, mip_modulation=modulation, gs_compensation=checkbox(
-        "GS compensation", settings.gs_compensation, "GS compensation", enabled=applies(settings, "gs_compensation"),
+        "GS compensation", settings.gs_compensation, enabled=applies(settings, "gs_compensation"),
         help_text="GS mode: scale opacity by sqrt(det(S) / det(S + 0.3 px^2)), as Mip-Splatting does"))
     low, high = SUPERSAMPLE.limits
     factors = {str(k): f"{k}\u00d7{k}" for k in range(low, high + 1)}
-    settings = replace(settings, supersample=int(choice("supersampling", str(settings.supersample), factors,
-                                                        "supersampling")))
+    settings = replace(settings, supersample=int(choice("supersampling", str(settings.supersample), factors)))
     tooltip("render k x k samples per pixel and average them (a box filter)")
     parity = "matches the images of INRIA 3DGS and GOF (section 10)"
-    settings = replace(settings, alpha_clamp=checkbox("alpha clamp 0.99", settings.alpha_clamp, "alpha clamp",
+    settings = replace(settings, alpha_clamp=checkbox("alpha clamp 0.99", settings.alpha_clamp,
                                                       help_text=f"clamp each splat's alpha to 0.99: {parity}"))
     unsupported = supports(RenderSettings(transmittance_cutoff=True))
     return replace(settings, transmittance_cutoff=checkbox(
-        "transmittance cut-off 1e-4", settings.transmittance_cutoff, "transmittance cut-off",
+        "transmittance cut-off 1e-4", settings.transmittance_cutoff,
         enabled=not unsupported or settings.transmittance_cutoff,
         help_text=unsupported or f"stop compositing a pixel before its transmittance falls below 1e-4: {parity}.\n"
                                  f"INRIA's rule skips the splat that would cross it, so without the alpha clamp "
@@ -126,13 +124,13 @@ def _accuracy_controls(settings: RenderSettings, supports: Supports) -> RenderSe
 
 
 def _split_controls(split: SplitView, stereo_on: bool) -> None:
-    split.on = checkbox("split view", split.on, "split view", enabled=not stereo_on,
+    split.on = checkbox("split view", split.on, enabled=not stereo_on,
                         help_text="A/B: left of the divider the settings above, right of it the chosen "
                                   "preset applied to them. Drag the divider with the left mouse button."
                                   + ("\n(Off in the stereo preview.)" if stereo_on else ""))
     imgui.same_line()
     imgui.begin_disabled(not split.on)
     imgui.set_next_item_width(-1)
-    split.preset = choice("##right side", split.preset, {name: name for name in ACCURACY_PRESETS}, "split preset")
+    split.preset = choice("##right side", split.preset, {name: name for name in ACCURACY_PRESETS})
     imgui.end_disabled()
     tooltip("the right side's accuracy preset: the settings above with these options")

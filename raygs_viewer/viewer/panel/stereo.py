@@ -29,14 +29,14 @@ def draw_stereo_section(stereo: StereoPreview, stats: FrameStats) -> None:
     if not stereo.on or not header("Stereo"):
         return
     imgui.push_item_width(-imgui.calc_text_size("scene scale (m/unit)").x - 12)  # room for the longest label
-    stereo.lens_preview = checkbox("lens preview", stereo.lens_preview, "lens preview",
+    stereo.lens_preview = checkbox("lens preview", stereo.lens_preview,
                                    help_text="the barrel distortion and chromatic aberration correction a headset's "
                                              "compositor applies: what the headset's panel receives")
-    stereo.layout = choice("layout", stereo.layout, STEREO_LAYOUT_LABELS, "stereo layout")
+    stereo.layout = choice("layout", stereo.layout, STEREO_LAYOUT_LABELS)
     _rig_controls(stereo)
     headsets = {name: f"{p.label}: {p.width}x{p.height}, {p.fov_x:g}x{p.fov_y:g} deg" for name, p in PRESETS.items()}
     headsets["custom"] = "custom"
-    stereo.headset = choice("headset", stereo.headset, headsets, "headset")
+    stereo.headset = choice("headset", stereo.headset, headsets)
     tooltip("per-eye resolution and field of view; each eye renders offscreen at this size")
     if stereo.headset == "custom":
         changed, size = imgui.input_int2("per-eye size", stereo.custom_size)
@@ -45,7 +45,7 @@ def draw_stereo_section(stereo: StereoPreview, stats: FrameStats) -> None:
         changed, fov = imgui.input_float2("field of view (deg)", stereo.custom_fov, "%.1f")
         if changed and all(math.isfinite(v) for v in fov):
             stereo.custom_fov = [min(max(float(v), MIN_FOV), MAX_FOV) for v in fov]
-    stereo.save_eyes = checkbox("screenshots also save each eye", stereo.save_eyes, "save eyes",
+    stereo.save_eyes = checkbox("screenshots also save each eye", stereo.save_eyes,
                                 help_text="F12 saves the side-by-side pair; this adds -left and -right files")
     imgui.pop_item_width()
     _budget(stats)

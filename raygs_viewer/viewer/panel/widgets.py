@@ -18,13 +18,10 @@ def header(label: str, open_first: bool = True) -> bool:
     return imgui.collapsing_header(label, imgui.TreeNodeFlags_.default_open.value if open_first else 0)
 
 
-def choice(label: str, current: str, choices: dict[str, str], tag: str = "",
-           unavailable: dict[str, str] | None = None) -> str:
+def choice(label: str, current: str, choices: dict[str, str], unavailable: dict[str, str] | None = None) -> str:
     """A combo of ``choices`` (value -> shown text), every entry visible when it opens.
     ``unavailable``: value -> why it cannot be chosen now (the entry is greyed out, the
-    reason its tooltip). Returns the chosen value. ``tag`` is unused: it named the combo
-    for a test hook that tests/appkit.py replaced; it stays until the sections' calls
-    drop it."""
+    reason its tooltip). Returns the chosen value."""
     chosen = current
     unavailable = unavailable or {}
     if imgui.begin_combo(label, choices.get(current, current), imgui.ComboFlags_.height_largest.value):
@@ -41,9 +38,8 @@ def choice(label: str, current: str, choices: dict[str, str], tag: str = "",
     return chosen
 
 
-def checkbox(label: str, value: bool, tag: str = "", enabled: bool = True, help_text: str = "") -> bool:
-    """A checkbox greyed out unless ``enabled``; the new value. ``tag`` is unused (see
-    :func:`choice`)."""
+def checkbox(label: str, value: bool, enabled: bool = True, help_text: str = "") -> bool:
+    """A checkbox greyed out unless ``enabled``; the new value."""
     imgui.begin_disabled(not enabled)
     _, value = imgui.checkbox(label, value)
     imgui.end_disabled()
