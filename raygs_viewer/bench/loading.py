@@ -13,7 +13,6 @@ touches (those are resident too), but not the kernel's page cache of a file read
 
 from __future__ import annotations
 
-import json
 import os
 import subprocess
 import sys
@@ -27,6 +26,7 @@ import numpy as np
 from raygs_viewer.bench.common import count_label
 from raygs_viewer.errors import UserError
 from raygs_viewer.files import atomic_writer
+from raygs_viewer.jsonfile import parse_json
 from raygs_viewer.scene.writing import ply_header, ply_property_names
 
 #: Rows generated and written at a time: about 16 MiB of SH-3 rows.
@@ -36,7 +36,8 @@ GENERATE_CHUNK_ROWS = 1 << 16
 # On Linux the mark is reset first (clear_refs 5) and read from VmHWM, so an earlier
 # transient peak (the imports) cannot hide part of the load's; elsewhere ru_maxrss.
 _MEASURE = """
-import json, resource, sys, time
+import resource, sys, time
+from raygs_viewer.jsonfile import json_line
 from raygs_viewer.scene.io import load_scene
 
 def status(key):
@@ -54,7 +55,7 @@ except OSError:
 start = time.perf_counter()
 scene = load_scene(sys.argv[1])
 seconds = time.perf_counter() - start
-print(json.dumps({"seconds": seconds, "peak": peak() - before, "count": scene.count}))
+sys.stdout.write(json_line({"seconds": seconds, "peak": peak() - before, "count": scene.count}))
 """
 
 
@@ -120,7 +121,7 @@ def measure_load(path: str | os.PathLike) -> LoadFigures:
     if done.returncode != 0:
         lines = done.stderr.strip().splitlines() or [f"exit status {done.returncode}"]
         raise UserError(f"{path}: measuring the load failed ({lines[-1]})")
-    figures = json.loads(done.stdout.strip().splitlines()[-1])
+    figures = parse_json(done.stdout.strip().splitlines()[-1], f"{path}: the load's measurement")
     return LoadFigures(float(figures["seconds"]), int(figures["peak"]), path.stat().st_size)
 
 

@@ -5,7 +5,6 @@ from a screenshot's sidecar) and ``verify`` (GL against the float64 reference).
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import time
@@ -24,6 +23,7 @@ from raygs_viewer.cli.options import (
     stereo_view,
 )
 from raygs_viewer.errors import UserError
+from raygs_viewer.jsonfile import json_text
 from raygs_viewer.render.gl.context import context_description, create_headless_context
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.gl.stereo_frame import render_stereo_view
@@ -123,7 +123,10 @@ def command_info(args) -> int:
     warn_dropped(scene)
     description = describe(scene)
     description["gpu_bytes"] = gpu_bytes(scene.count, scene.sh_degree)
-    print(json.dumps(description, indent=2) if args.json else format_description(description))
+    if args.json:
+        sys.stdout.write(json_text(description))
+    else:
+        print(format_description(description))
     return 0
 
 

@@ -36,13 +36,13 @@ of the arrays). Quaternions are normalised after that rounding.
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
 import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera, camera_to_json, look_at
+from raygs_viewer.jsonfile import json_text
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
 from raygs_viewer.scene.sh import C0, sh_basis
 
@@ -436,5 +436,5 @@ def demo_cameras_json() -> list[dict]:
 
 if __name__ == "__main__":  # regenerate assets/demo_cameras.json from a source checkout
     target = Path(__file__).resolve().parents[2] / "assets" / "demo_cameras.json"
-    target.write_text(json.dumps(demo_cameras_json(), indent=1) + "\n", encoding="utf-8")
+    target.write_text(json_text(demo_cameras_json()), encoding="utf-8")
     print(target)
