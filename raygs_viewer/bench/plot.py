@@ -147,7 +147,7 @@ def scatter_png(rows: Sequence[ScatterRow]) -> bytes:
             ax.set_visible(False)
         handles = [lines.Line2D([], [], label=label, **_marker(styles[label])) for label in row.series]
         handles += [lines.Line2D([], [], label=label, **_marker(GROUP_STYLE, fills[label])) for label in row.groups]
-        sub.legend(handles=handles, loc="outside right upper", fontsize=8, frameon=False)
+        sub.legend(handles=handles, loc="outside right center", fontsize=8, frameon=False)  # below the title
     buffer = io.BytesIO()
     fig.savefig(buffer, format="png", dpi=DPI, facecolor="white")
     return buffer.getvalue()
