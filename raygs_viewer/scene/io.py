@@ -90,10 +90,10 @@ class SceneFormat(NamedTuple):
 #: Every format read, in the order their magic is tried (no two magics overlap). A
 #: .ply's own reader tells INRIA's layout from PlayCanvas's compressed one by its header.
 FORMATS = (
+    SceneFormat((".ply",), lambda magic: magic[:3] == b"ply", load_ply),
     SceneFormat((".splat",), lambda magic: False, load_splat),  # headerless rows: only its name says .splat
     SceneFormat((".spz",), lambda magic: magic[:2] == GZIP_MAGIC or magic == SPZ_MAGIC, load_spz),
     SceneFormat((".sog", ".json"), lambda magic: magic == ZIP_MAGIC, load_sog),
-    SceneFormat((".ply",), lambda magic: magic[:3] == b"ply", load_ply),
 )
 #: The names of scene files, for the command line's router and the panel's hint. A SOG
 #: meta.json is a scene only by its content: every other .json (cameras, paths) is not.
