@@ -19,8 +19,8 @@ and msgspec's messages ("Expected `int`, got `bool` - at `$.image.width`") would
 translating into ours. Python's parser with this thin layer keeps one way of checking
 and one wording, at no cost that matters.
 
-Writing: :func:`json_text` is the one writer (indented, every list of numbers on one
-line, NaN and infinities refused since they are not JSON). Python writes a float as
+Writing: :func:`json_text` is the one writer (indented, each innermost list of numbers
+on one line, NaN and infinities refused since they are not JSON). Python writes a float as
 the shortest repr that reads back to the same bits, so poses survive a round trip
 exactly. Files are written through :mod:`raygs_viewer.files`.
 """
@@ -221,8 +221,8 @@ class JsonFields:
 
 
 def json_text(data) -> str:
-    """``data`` as indented JSON with each list of numbers on one line (a pose stays a
-    few lines), ending in a newline. Non-finite numbers and values JSON cannot hold are
+    """``data`` as indented JSON with each innermost list of numbers on one line (a 3x3
+    matrix: a line a row), ending in a newline. Non-finite numbers and values JSON cannot hold are
     a ValueError or TypeError (nothing invalid is ever written)."""
     text = json.dumps(data, indent=2, allow_nan=False)
     return _NUMBER_LIST.sub(lambda m: "[" + " ".join(m.group(0)[1:-1].split()) + "]", text) + "\n"
