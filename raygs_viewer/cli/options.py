@@ -19,7 +19,7 @@ from raygs_viewer.camera.stereo import (
 from raygs_viewer.cli import argtypes
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.setting_info import SettingField, settings_table
-from raygs_viewer.render.settings import DEFAULT_BACKGROUND, RenderSettings  # noqa: F401 (view's default)
+from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.io import SCENE_FILES
 from raygs_viewer.scene.loader import DEMO
 

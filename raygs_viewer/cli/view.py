@@ -15,7 +15,6 @@ from raygs_viewer.camera.stereo import (
 from raygs_viewer.capture.screenshot import check_screenshot_path
 from raygs_viewer.cli import argtypes
 from raygs_viewer.cli.options import (
-    DEFAULT_BACKGROUND,
     add_settings_options,
     add_stereo_options,
     render_settings,
@@ -23,7 +22,7 @@ from raygs_viewer.cli.options import (
 )
 from raygs_viewer.cli.progress_line import TerminalProgress
 from raygs_viewer.errors import UserError
-from raygs_viewer.render.settings import DEFAULT_P_MIN
+from raygs_viewer.render.settings import DEFAULT_BACKGROUND, DEFAULT_P_MIN
 from raygs_viewer.scene.io import SCENE_FILES
 from raygs_viewer.scene.loader import DEMO
 from raygs_viewer.viewer.state import (
