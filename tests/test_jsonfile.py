@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 from hypothesis import given
 from hypothesis import strategies as st
+from testkit import assert_user_error
 
 from raygs_viewer.errors import UserError
 from raygs_viewer.jsonfile import (
@@ -28,16 +29,6 @@ from raygs_viewer.jsonfile import (
 FILE = Path("shot.json")
 
 
-def one_line_error(call, *fragments: str) -> str:
-    with pytest.raises(UserError) as info:
-        call()
-    message = str(info.value)
-    assert "\n" not in message
-    for fragment in fragments:
-        assert fragment in message, message
-    return message
-
-
 # --------------------------------------------------------------------------- parsing
 
 
@@ -50,26 +41,26 @@ def one_line_error(call, *fragments: str) -> str:
     ("[" * 100_000 + "]" * 100_000, "recursion"),
 ])
 def test_text_that_is_not_json_is_one_line_naming_the_file(text, detail):
-    one_line_error(lambda: parse_json(text, FILE), "shot.json: not valid JSON (", detail)
+    assert_user_error(lambda: parse_json(text, FILE), FILE, "shot.json: not valid JSON (", detail)
 
 
 def test_bytes_are_utf8_with_or_without_a_byte_order_mark():
     assert parse_json(b'\xef\xbb\xbf{"a": "\xc3\xa9"}', FILE) == {"a": "\u00e9"}
-    one_line_error(lambda: parse_json(b'{"a": "\xff"}', FILE), "shot.json: not valid JSON")
+    assert_user_error(lambda: parse_json(b'{"a": "\xff"}', FILE), FILE, "shot.json: not valid JSON")
 
 
 def test_nan_tokens_parse_for_the_field_checks_or_are_refused_at_once():
     assert math.isnan(parse_json('{"x": NaN}', FILE)["x"])
     for token in ("NaN", "Infinity", "-Infinity"):
-        one_line_error(lambda: parse_json(f'{{"x": {token}}}', FILE, constants=False),
+        assert_user_error(lambda: parse_json(f'{{"x": {token}}}', FILE, constants=False), FILE,
                        "shot.json: not valid JSON", f"{token} is not JSON")
 
 
 def test_a_file_that_is_missing_a_folder_or_unreadable_is_one_line(tmp_path):
-    one_line_error(lambda: read_json_file(tmp_path / "no.json", "a sidecar"), "no.json: no such file")
-    one_line_error(lambda: read_json_file(tmp_path, "a sidecar"), "is a folder, expected a sidecar")
+    assert_user_error(lambda: read_json_file(tmp_path / "no.json", "a sidecar"), "no.json", "no.json: no such file")
+    assert_user_error(lambda: read_json_file(tmp_path, "a sidecar"), tmp_path, "is a folder, expected a sidecar")
     (tmp_path / "latin1.json").write_bytes(b'{"a": "\xe9"}')
-    one_line_error(lambda: read_json_file(tmp_path / "latin1.json", "x"), "latin1.json: cannot read")
+    assert_user_error(lambda: read_json_file(tmp_path / "latin1.json", "x"), "latin1.json", "latin1.json: cannot read")
     (tmp_path / "good.json").write_text('{"a": [1, 2.5]}')
     assert read_json_file(tmp_path / "good.json", "x") == {"a": [1, 2.5]}
 
@@ -100,17 +91,17 @@ def test_a_value_of_the_asked_type_comes_back(value, kind, expected):
     (3, (dict, type(None)), "must be a JSON object or null, got 3"),
 ])
 def test_a_value_of_another_type_is_one_line_naming_the_field(value, kind, words):
-    one_line_error(lambda: typed(value, kind, "shot.json: 'image.width'"), "shot.json: 'image.width' " + words)
+    assert_user_error(lambda: typed(value, kind, "shot.json: 'image.width'"), FILE, "shot.json: 'image.width' " + words)
 
 
 def test_fields_are_read_by_their_dotted_names():
     fields = JsonFields(FILE, {"image": {"width": 64, "scale": 1}, "list": [1]})
     assert fields.get("image.width", int) == 64
     assert fields.get("image.scale", float) == 1.0
-    one_line_error(lambda: fields.get("image.height", int), "shot.json: missing 'image.height'")
-    one_line_error(lambda: fields.get("camera.fx", float), "shot.json: missing 'camera.fx'")
-    one_line_error(lambda: fields.get("list.x", int), "shot.json: 'list' must be a JSON object")
-    one_line_error(lambda: fields.get("image.width.x", int), "shot.json: 'image.width' must be a JSON object")
+    assert_user_error(lambda: fields.get("image.height", int), FILE, "shot.json: missing 'image.height'")
+    assert_user_error(lambda: fields.get("camera.fx", float), FILE, "shot.json: missing 'camera.fx'")
+    assert_user_error(lambda: fields.get("list.x", int), FILE, "shot.json: 'list' must be a JSON object")
+    assert_user_error(lambda: fields.get("image.width.x", int), FILE, "shot.json: 'image.width' must be a JSON object")
 
 
 def test_an_optional_field_absent_or_null_takes_its_default_and_is_checked_when_present():
@@ -119,7 +110,7 @@ def test_an_optional_field_absent_or_null_takes_its_default_and_is_checked_when_
     assert fields.optional("path.tension", float, 0.5) == 0.5
     assert fields.optional("path.alpha", float, 0.5) == 0.25
     assert fields.optional("extra", dict) is None
-    one_line_error(lambda: fields.optional("path.up", list), "shot.json: 'path.up' must be a JSON array")
+    assert_user_error(lambda: fields.optional("path.up", list), FILE, "shot.json: 'path.up' must be a JSON array")
 
 
 def test_an_array_has_its_shape_and_finite_numbers_only():
@@ -128,26 +119,26 @@ def test_an_array_has_its_shape_and_finite_numbers_only():
                                "huge": [1, 10 ** 400, 3], "short": [1, 2]})
     np.testing.assert_array_equal(fields.array("R", (3, 3)), np.eye(3))
     assert fields.array("t", (3,)).dtype == np.float64
-    one_line_error(lambda: fields.array("bad", (3,)), "shot.json: 'bad' must be 3 numbers, got [1, true, 3]")
-    one_line_error(lambda: fields.array("ragged", (3, 3)), "'ragged' must be 3x3 numbers")
-    one_line_error(lambda: fields.array("short", (3,)), "'short' must be 3 numbers")
-    one_line_error(lambda: fields.array("nan", (3,)), "'nan' must be finite")
-    one_line_error(lambda: fields.array("huge", (3,)), "'huge' must be finite")
+    assert_user_error(lambda: fields.array("bad", (3,)), FILE, "shot.json: 'bad' must be 3 numbers, got [1, true, 3]")
+    assert_user_error(lambda: fields.array("ragged", (3, 3)), FILE, "'ragged' must be 3x3 numbers")
+    assert_user_error(lambda: fields.array("short", (3,)), FILE, "'short' must be 3 numbers")
+    assert_user_error(lambda: fields.array("nan", (3,)), FILE, "'nan' must be finite")
+    assert_user_error(lambda: fields.array("huge", (3,)), FILE, "'huge' must be finite")
 
 
 def test_an_array_entry_is_named_by_its_index():
     fields = JsonFields.entry(FILE, "keyframes[3]", {"fov": "wide"})
-    one_line_error(lambda: fields.get("keyframes[3].fov", float), "shot.json: 'keyframes[3].fov' must be a number")
-    one_line_error(lambda: JsonFields.entry(FILE, "keyframes[4]", [1]), "'keyframes[4]' must be a JSON object")
+    assert_user_error(lambda: fields.get("keyframes[3].fov", float), FILE, "shot.json: 'keyframes[3].fov' must be a number")
+    assert_user_error(lambda: JsonFields.entry(FILE, "keyframes[4]", [1]), FILE, "'keyframes[4]' must be a JSON object")
 
 
 def test_keys_missing_or_unknown_are_one_line_and_a_strange_key_stays_on_it():
     fields = JsonFields(FILE, {})
     fields.keys("image", {"width": 1, "height": 2, "scale": 1}, ("width", "height"), ("scale",))
-    one_line_error(lambda: fields.keys("image", {"width": 1}, ("width", "height")), "shot.json: missing 'image.height'")
-    one_line_error(lambda: fields.keys("", {"format": 1, "zoom": 2}, ("format",)),
+    assert_user_error(lambda: fields.keys("image", {"width": 1}, ("width", "height")), FILE, "shot.json: missing 'image.height'")
+    assert_user_error(lambda: fields.keys("", {"format": 1, "zoom": 2}, ("format",)), FILE,
                    "shot.json: unknown field 'zoom'", "newer raygs-viewer")
-    message = one_line_error(lambda: fields.keys("stereo", {"a\nb": 1}, ()), "unknown field 'stereo.a\\nb'")
+    message = assert_user_error(lambda: fields.keys("stereo", {"a\nb": 1}, ()), FILE, "unknown field 'stereo.a\\nb'")
     assert json_key("a\nb\u00e9") == "a\\nb\\xe9" and "\n" not in message
 
 
@@ -159,7 +150,7 @@ def test_keys_missing_or_unknown_are_one_line_and_a_strange_key_stays_on_it():
 def test_the_version_is_one_this_program_reads(version, words):
     assert JsonFields(FILE, {"version": 2}).version(2, "sidecar") == 2
     assert JsonFields(FILE, {"version": 1}).version(2, "sidecar") == 1
-    one_line_error(lambda: JsonFields(FILE, {"version": version}).version(2, "sidecar"), words)
+    assert_user_error(lambda: JsonFields(FILE, {"version": version}).version(2, "sidecar"), FILE, words)
 
 
 def test_nested_numbers_are_numbers_to_a_bounded_depth():
