@@ -1,0 +1,97 @@
+"""Pictures of one output channel, for the eye: the window's view modes and ``render
+--channels ... --out X.png``.
+
+Depth (expected or median) goes through viridis, a perceptually uniform colour map,
+near bright and far dark, over a stated range; normals show as 0.5 + 0.5 n; alpha as
+grey. Pixels where a channel is undefined (no coverage; no median) are black.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import lru_cache
+
+import numpy as np
+
+from raygs_viewer.errors import UserError
+from raygs_viewer.render.channels import CHANNELS, NORMAL_SPACES, ChannelImage
+
+#: The channels a picture can show (every channel: rgb is the colour itself).
+PICTURE_CHANNELS = CHANNELS
+#: Percentiles of the defined depths that span an automatic range (robust to a few
+#: far-off floaters).
+AUTO_PERCENTILES = (1.0, 99.0)
+COLOR_MAP = "viridis"
+
+
+@dataclass(frozen=True)
+class ChannelView:
+    """What a picture shows: ``channel`` (one of PICTURE_CHANNELS), the depth range
+    (near, far) in scene units, None for automatic, and the space normals are shown in."""
+
+    channel: str = "rgb"
+    depth_range: tuple[float, float] | None = None
+    normal_space: str = "camera"
+
+    def __post_init__(self) -> None:
+        if self.channel not in PICTURE_CHANNELS:
+            raise UserError(f"unknown view channel {self.channel!r}: choose from {', '.join(PICTURE_CHANNELS)}")
+        if self.normal_space not in NORMAL_SPACES:
+            raise UserError(f"normal space must be one of {', '.join(NORMAL_SPACES)}, got {self.normal_space!r}")
+        if self.depth_range is not None:
+            near, far = (float(v) for v in self.depth_range)
+            if not (np.isfinite(near) and np.isfinite(far) and far > near):
+                raise UserError(f"depth range must be two finite numbers, near < far, got {self.depth_range!r}")
+            object.__setattr__(self, "depth_range", (near, far))
+
+    @property
+    def is_geometry(self) -> bool:
+        return self.channel in ("depth", "median_depth", "normal")
+
+
+@lru_cache(maxsize=1)
+def _color_table() -> np.ndarray:
+    """(256, 3) float32 viridis, from matplotlib's colour-map data (imported once)."""
+    from matplotlib import colormaps  # late: matplotlib costs a window ~0.3 s; only depth pictures need it
+    return colormaps[COLOR_MAP](np.linspace(0.0, 1.0, 256))[:, :3].astype(np.float32)
+
+
+def automatic_range(depth: np.ndarray) -> tuple[float, float] | None:
+    """(near, far) spanning the defined (> 0) values of ``depth`` between the
+    AUTO_PERCENTILES, or None where nothing is defined."""
+    values = depth[depth > 0]
+    if values.size == 0:
+        return None
+    near, far = (float(v) for v in np.percentile(values, AUTO_PERCENTILES))
+    if not far > near:
+        far = near + max(abs(near) * 1e-3, 1e-6)
+    return near, far
+
+
+def depth_picture(depth: np.ndarray, depth_range: tuple[float, float] | None) -> tuple[np.ndarray, tuple | None]:
+    """((H, W, 3) float32 picture, the range used): viridis, near bright, far dark,
+    values outside the range clamped, black where depth is 0 (undefined)."""
+    used = depth_range if depth_range is not None else automatic_range(depth)
+    picture = np.zeros(depth.shape + (3,), np.float32)
+    if used is None:
+        return picture, None
+    near, far = used
+    position = np.clip((far - depth.astype(np.float64)) / (far - near), 0.0, 1.0)
+    table = _color_table()
+    picture[:] = table[np.rint(position * (len(table) - 1)).astype(np.int64)]
+    picture[depth <= 0] = 0.0
+    return picture, used
+
+
+def channel_picture(image: ChannelImage, view: ChannelView) -> tuple[np.ndarray, tuple | None]:
+    """((H, W, 3) float32 in 0..1, the depth range used or None) showing ``view.channel``
+    of ``image`` (whose normals must already be in ``view.normal_space``)."""
+    if view.channel == "rgb":
+        return np.clip(image.rgb, 0.0, 1.0).astype(np.float32), None
+    if view.channel == "alpha":
+        return np.repeat(np.clip(image.alpha, 0.0, 1.0)[..., None], 3, axis=-1).astype(np.float32), None
+    if view.channel == "normal":
+        normal = image.normal
+        picture = np.where(np.any(normal != 0, axis=-1, keepdims=True), 0.5 + 0.5 * normal, 0.0)
+        return picture.astype(np.float32), None
+    return depth_picture(getattr(image, view.channel), view.depth_range)
