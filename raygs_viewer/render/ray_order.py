@@ -196,9 +196,10 @@ def _composite_layers(accumulator: FrontToBack, ordered: Fragments) -> None:
     position, depth = _layers(ordered.pixel)
     by_layer = np.argsort(position, kind="stable")
     bounds = np.searchsorted(position[by_layer], np.arange(depth + 1))
+    payload = ordered.payload()
     for layer in range(depth):
         chosen = by_layer[bounds[layer]:bounds[layer + 1]]
-        accumulator.add(ordered.pixel[chosen], **ordered.take(chosen).payload())
+        accumulator.add(ordered.pixel[chosen], **{name: column[chosen] for name, column in payload.items()})
 
 
 def _stream_through_window(accumulator: FrontToBack, arriving: Fragments, pixels: int, k: int) -> None:
