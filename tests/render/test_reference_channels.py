@@ -237,7 +237,8 @@ def test_supersampling_averages_every_accumulator_over_the_block(settings):
 # --- colour is render_reference's, bit for bit ------------------------------------------------
 
 SETTINGS = [RenderSettings(), RenderSettings(mip=True, mip_modulation=True), RenderSettings(mode="raygs-exact-mip"),
-            RenderSettings(mode="gs", gs_compensation=True), RenderSettings(alpha_clamp=True, transmittance_cutoff=True),
+            RenderSettings(mode="gs", gs_compensation=True),
+            RenderSettings(alpha_clamp=True, transmittance_cutoff=True),
             RenderSettings(supersample=2, background=(0.2, 0.3, 0.4)), RenderSettings(order="distance"),
             RenderSettings(order="per-pixel", transmittance_cutoff=True), RenderSettings(order="per-pixel", order_k=2)]
 

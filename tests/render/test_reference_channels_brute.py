@@ -13,19 +13,13 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from testkit import make_scene, random_rotation, random_scene
+from testkit import make_scene, random_scene
 
 from raygs_viewer.camera.pinhole import look_at
 from raygs_viewer.camera.rotation import quaternion_to_matrix
 from raygs_viewer.render.channels import MEDIAN_ALPHA
 from raygs_viewer.render.reference import global_order, render_reference, render_reference_channels
 from raygs_viewer.render.settings import GS_NEAR, TRANSMITTANCE_CUTOFF, RenderSettings
-
-
-def _quaternion(rotation):
-    w = np.sqrt(max(1.0 + np.trace(rotation), 1e-12)) / 2
-    return np.array([w, (rotation[2, 1] - rotation[1, 2]) / (4 * w),
-                     (rotation[0, 2] - rotation[2, 0]) / (4 * w), (rotation[1, 0] - rotation[0, 1]) / (4 * w)])
 
 
 def _fragment_fields(scene, camera, settings, i):
