@@ -118,7 +118,7 @@ def test_build_sidecar_fields(tmp_path, monkeypatch):
                          settings=RenderSettings(), scale=1.5, window_camera=window_camera(),
                          extra={"up_axis": "-y", "navigation": "orbit"})
     # Mono sidecars keep version 1, so that older readers still read them.
-    assert data["format"] == SIDECAR_FORMAT and data["version"] == 1 and SIDECAR_VERSION == 2
+    assert data["format"] == SIDECAR_FORMAT and data["version"] == 1 and SIDECAR_VERSION == 3
     assert data["program"] == {"name": "raygs-viewer", "version": raygs_viewer.__version__}
     created = datetime.fromisoformat(data["created"].replace("Z", "+00:00"))
     assert created.tzinfo is not None and created.utcoffset().total_seconds() == 0
@@ -249,7 +249,7 @@ MALFORMED = {
     "cameras_json": (json.dumps([{"width": 4}]), "not a raygs-viewer screenshot sidecar"),
     "no_format": (delete_field("format"), "'format'"),
     "wrong_format": (set_field("format", "something else"), "not a raygs-viewer screenshot sidecar"),
-    "newer_version": (set_field("version", 3), "newer raygs-viewer"),
+    "newer_version": (set_field("version", 4), "newer raygs-viewer"),
     "version_zero": (set_field("version", 0), "'version'"),
     "version_string": (set_field("version", "1"), "'version'"),
     "version_bool": (set_field("version", True), "'version'"),
@@ -350,7 +350,7 @@ def test_malformed_sidecar_cli(capsys, tmp_path, case):
 
 def test_newer_version_says_so(tmp_path):
     path = write_malformed(tmp_path, "newer_version")
-    assert_user_error(lambda: load_sidecar(path), path, "version 3", "newer raygs-viewer", "update")
+    assert_user_error(lambda: load_sidecar(path), path, "version 4", "newer raygs-viewer", "update")
 
 
 def test_the_valid_sidecar_behind_the_cases_loads(tmp_path):
