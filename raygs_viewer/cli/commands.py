@@ -157,9 +157,10 @@ def command_render(args) -> int:
     out = check_output_path(args.out, args.overwrite, CHANNEL_SUFFIXES)  # fail before any slow work
     shot = None if args.sidecar is None else load_sidecar(args.sidecar)
     output = channel_output(args, out, shot)
-    if stereo is not None and needs_geometry(output.channels):
-        raise UserError("--stereo composes colour; render each eye's geometry on its own "
-                        "(e.g. --camera with the eye's pose)")
+    if needs_geometry(output.channels) and (stereo is not None or (shot is not None and shot.stereo is not None)):
+        raise UserError(("--stereo" if shot is None else f"{shot.path}: the stereo image") + " composes colour: "
+                        f"{', '.join(c for c in output.channels if needs_geometry((c,)))} need one camera "
+                        "(render each eye with --camera)")
     if shot is not None:
         scene_name = resolve_scene(shot, args.scene)
         verify_scene_hash(shot, scene_name)

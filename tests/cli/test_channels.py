@@ -15,6 +15,7 @@ from testkit import assert_one_line_error, listing, run_cli, write_inria_ply
 
 import raygs_viewer.capture.screenshot as screenshot
 from raygs_viewer.camera.pinhole import Camera, camera_to_json, look_at
+from raygs_viewer.camera.stereo import StereoRig, StereoView
 from raygs_viewer.capture.image_io import to_rgb8
 from raygs_viewer.capture.sidecar import build_sidecar, demo_sha256
 from raygs_viewer.render import reference
@@ -309,3 +310,14 @@ def test_error_messages_say_what_to_do(capsys, tmp_path):
     for case, fragment in expect.items():
         err = run_cli(capsys, *cases[case])[2]
         assert fragment in err, (case, err)
+
+
+def test_a_stereo_sidecar_cannot_be_rendered_again_as_depth(capsys, tmp_path):
+    sidecar = tmp_path / "pair.json"
+    sidecar.write_text(json.dumps(build_sidecar(scene_path="demo", scene_sha256=demo_sha256(), scene=demo_scene(),
+                                                camera=demo_camera(32, 24), settings=RenderSettings(), scale=1.0,
+                                                stereo=StereoView(StereoRig()), channel_view=ChannelView("depth"))))
+    for argv in ([], ["--channels", "normal"]):
+        code, _, err = run_cli(capsys, "render", "--sidecar", sidecar, *argv, "--out", tmp_path / "again.png")
+        assert "the stereo image composes colour" in assert_one_line_error(code, err)
+    assert listing(tmp_path) == ["pair.json"]
