@@ -321,3 +321,14 @@ def test_a_stereo_sidecar_cannot_be_rendered_again_as_depth(capsys, tmp_path):
         code, _, err = run_cli(capsys, "render", "--sidecar", sidecar, *argv, "--out", tmp_path / "again.png")
         assert "the stereo image composes colour" in assert_one_line_error(code, err)
     assert listing(tmp_path) == ["pair.json"]
+
+
+def test_stereo_images_write_their_colour_channels(capsys, tmp_path):
+    """A stereo layout composes colour and alpha, so those channels go to any format."""
+    stereo = ["--width", "24", "--stereo", "--layout", "sbs"]
+    render(capsys, *stereo, "--out", tmp_path / "pair.npy")
+    render(capsys, *stereo, "--channels", "alpha,rgb", "--out", tmp_path / "pair.exr")
+    pair = np.load(tmp_path / "pair.npy")
+    _, planes = read_exr(tmp_path / "pair.exr")
+    assert pair.shape == (18, 48, 4) and sorted(planes) == ["A", "B", "G", "R"]
+    np.testing.assert_array_equal(np.stack([planes[n] for n in "RGBA"], axis=-1), pair)
