@@ -36,12 +36,12 @@ from raygs_viewer.cli.options import (
 )
 from raygs_viewer.errors import UserError
 from raygs_viewer.jsonfile import json_text
-from raygs_viewer.render.gl.context import context_description, create_headless_context
-from raygs_viewer.render.gl.renderer import GLRenderer
-from raygs_viewer.render.gl.stereo_frame import render_stereo_view
 from raygs_viewer.render import reference
 from raygs_viewer.render.channel_pictures import ChannelView
 from raygs_viewer.render.channels import DEFAULT_CHANNELS, ChannelImage, needs_geometry
+from raygs_viewer.render.gl.context import context_description, create_headless_context
+from raygs_viewer.render.gl.renderer import GLRenderer
+from raygs_viewer.render.gl.stereo_frame import render_stereo_view
 from raygs_viewer.render.gl.storage import gpu_bytes
 from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.setting_info import setting_parts
