@@ -321,3 +321,70 @@ def demo_scene_cached():
 
 DEMO_ARRAYS_SHA256 = "681ba16b73b4b817a049a853be122a212abe52c7cd0cf34d9f0bb0c41c312ef4"
 
+
+
+def channel_errors(image, reference):
+    """Per-output error figures of a GL ChannelImage against the reference's: rgb and
+    alpha absolute; depth and median depth relative to the reference's value; normal as
+    the length of the difference; ``median_found`` the share of pixels where only one
+    of the two has a median."""
+    both = (reference.median_depth > 0) & (image.median_depth > 0)
+    covered = reference.alpha > 0
+    def relative(a, b, where):
+        return np.where(where, np.abs(a.astype(np.float64) - b) / np.maximum(np.abs(b), 1e-30), 0.0)
+    return {
+        "rgb": np.abs(image.rgb.astype(np.float64) - reference.rgb).max(axis=-1),
+        "alpha": np.abs(image.alpha.astype(np.float64) - reference.alpha),
+        "depth": relative(image.depth, reference.depth, covered),
+        "median_depth": relative(image.median_depth, reference.median_depth, both),
+        "normal": np.where(covered, np.linalg.norm(image.normal.astype(np.float64) - reference.normal, axis=-1), 0.0),
+        "median_found": ((reference.median_depth > 0) != (image.median_depth > 0)).astype(np.float64),
+    }
+
+
+#: Per output: the error most pixels stay under, and the share of pixels allowed over it.
+#: The share covers a fragment within float32 rounding of p_min kept by one renderer and
+#: dropped by the other (see assert_matches), which moves the depth of a faint pixel, or
+#: its median across 0.5, by up to that fragment's own weight.
+CHANNEL_TOLERANCES = {"rgb": 1e-3, "alpha": 1e-3, "depth": 1e-4, "median_depth": 1e-5, "normal": 1e-3,
+                      "median_found": 0.5}
+CHANNEL_PIXEL_FRACTION = 0.003
+
+
+def assert_channels_match(image, reference, pixel_fraction=CHANNEL_PIXEL_FRACTION):
+    """Every output of a GL ChannelImage agrees with the reference's: at most
+    ``pixel_fraction`` of pixels over each tolerance; all outputs finite. Returns the
+    largest error of each output (for the closing figures)."""
+    for name in ("rgb", "alpha", "depth", "median_depth", "normal"):
+        assert np.all(np.isfinite(getattr(image, name))), f"NaN or Inf in {name}"
+    errors = channel_errors(image, reference)
+    for name, error in errors.items():
+        over = float((error > CHANNEL_TOLERANCES[name]).mean())
+        assert over <= pixel_fraction, f"{name}: {over:.4f} of pixels over {CHANNEL_TOLERANCES[name]} " \
+                                       f"(max {error.max():.3g}, p99.9 {np.quantile(error, 0.999):.3g})"
+    return {name: float(error.max()) for name, error in errors.items()}
+
+
+def assert_channels_differ(image, reference):
+    """The negative control: ``image`` must fail :func:`assert_channels_match`."""
+    try:
+        assert_channels_match(image, reference)
+    except AssertionError:
+        return
+    raise AssertionError("expected the outputs to differ from the reference")
+
+
+def patched_glsl(monkeypatch, name, old, new):
+    """Breaks one shader on purpose for a negative control: ``glsl/<name>`` is read with
+    ``old`` (which must occur) replaced by ``new`` until the test ends."""
+    from raygs_viewer.render.gl import shaders  # late: only the GL tests that patch need it
+    read = shaders._read
+
+    def patched(file):
+        text = read(file)
+        if file == name:
+            assert old in text, f"{old!r} not in {name}"
+            text = text.replace(old, new)
+        return text
+
+    monkeypatch.setattr(shaders, "_read", patched)

@@ -9,6 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from testkit import (
+    patched_glsl,
     PER_RAY_TIE_ERROR,
     SHARED_SCENES,
     assert_differs,
@@ -23,7 +24,6 @@ from raygs_viewer.camera.pinhole import frame_points, look_at
 from raygs_viewer.camera.stereo import StereoRig, eye_cameras
 from raygs_viewer.capture.screenshot import render_tiled
 from raygs_viewer.errors import UserError
-from raygs_viewer.render.gl import shaders
 from raygs_viewer.render.gl.fragment_lists import plan_parts
 from raygs_viewer.render.gl.kbuffer import max_window
 from raygs_viewer.render.gl.per_pixel import storage_block_problem
@@ -177,19 +177,6 @@ def test_stereo_eyes_and_tiles(renderers):
         np.testing.assert_allclose(tiled, whole, atol=2e-5)
 
 
-def _patched_glsl(monkeypatch, name, old, new):
-    read = shaders._read
-
-    def patched(file):
-        text = read(file)
-        if file == name:
-            assert old in text, f"{old!r} not in {name}"
-            text = text.replace(old, new)
-        return text
-
-    monkeypatch.setattr(shaders, "_read", patched)
-
-
 def _lists_image(ctx, scene):
     """The exact per-pixel image of ``scene`` through the lists, with the shaders as patched."""
     renderer = GLRenderer(ctx, scene, order_path="lists")
@@ -202,7 +189,7 @@ def _lists_image(ctx, scene):
 def test_a_reversed_t_star_fails(gl_session_ctx, monkeypatch):
     scene = needles()
     reference = render_reference(scene, CAMERA, EXACT)
-    _patched_glsl(monkeypatch, "raygs.frag", "v_color_opacity.a * exp(-0.5 * divergence), t_star)",
+    patched_glsl(monkeypatch, "raygs.frag", "v_color_opacity.a * exp(-0.5 * divergence), t_star)",
                   "v_color_opacity.a * exp(-0.5 * divergence), -t_star)")
     assert_differs(_lists_image(gl_session_ctx, scene), reference)
 
@@ -211,12 +198,12 @@ def test_a_dropped_fragment_is_reported_and_would_fail(gl_session_ctx, monkeypat
     scene = needles()
     reference = render_reference(scene, CAMERA, EXACT)
     # The fill pass loses each list's first fragment: the resolve's check reports it.
-    _patched_glsl(monkeypatch, "fragment_output.glsl", "if (!in_part(p)) return;",
+    patched_glsl(monkeypatch, "fragment_output.glsl", "if (!in_part(p)) return;",
                   "if (!in_part(p) || v_rank == 3u) return;")
     with pytest.raises(RuntimeError, match="left short"):
         _lists_image(gl_session_ctx, scene)
     # Without the check, the image would be wrong.
-    _patched_glsl(monkeypatch, "lists_resolve.comp", "if (cursors[i] != start + n) atomicAdd(status[1], 1u);",
+    patched_glsl(monkeypatch, "lists_resolve.comp", "if (cursors[i] != start + n) atomicAdd(status[1], 1u);",
                   "n = cursors[i] - start;")
     assert_differs(_lists_image(gl_session_ctx, scene), reference)
 
