@@ -10,9 +10,22 @@ uniform vec2 u_image_size;  // pixels
 out vec2 v_offset;
 flat out vec4 v_conic_opacity;
 flat out vec3 v_color;
+#if PER_PIXEL
+// The geometry outputs of the global order go through fragment lists (count, then fill
+// per part: every pass must keep exactly the same fragments), sorted by rank.
+invariant gl_Position;
+flat out uint v_index;
+flat out uint v_rank;
+#endif
 
 void main() {
+#if PER_PIXEL
+    v_index = this_instance_index();
+    v_rank = uint(gl_InstanceID);
+    Splat s = fetch_splat(v_index);
+#else
     Splat s = this_instance_splat();
+#endif
     v_conic_opacity = s.axis1_opacity;
     v_color = s.color.rgb;
     if (s.center_c2.w == 0.0) {

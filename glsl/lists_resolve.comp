@@ -3,6 +3,9 @@
 // background, accumulated alpha) in u_output. u_window 0: the exact order, ascending
 // (t*, scene index). u_window K: the k-buffer's result, the list sorted by arrival
 // (rank in the global front-to-back order) and streamed through a window of K.
+// u_window -1: the global order itself, by arrival (the geometry outputs of a global order).
+// GEOMETRY: also the sums of T alpha z and T alpha n in u_sums, and (median z, found) in
+// u_median (docs/geometry.md; render/channels.py finishes them).
 // Lists arrive nearly sorted: insertion sort up to INSERTION_MAX entries, heapsort
 // beyond (no fixed-size array caps a pixel's fragments).
 #define SPLATS_ONLY 1
@@ -14,6 +17,15 @@ layout(local_size_x = 8, local_size_y = 8) in;
 layout(rgba32f, binding = 0) uniform writeonly image2D u_output;
 uniform vec3 u_background;
 uniform int u_window;
+#if GEOMETRY
+layout(rgba32f, binding = 1) uniform writeonly image2D u_sums;
+layout(rgba32f, binding = 2) uniform writeonly image2D u_median;
+uniform vec4 u_intrinsics;  // fx, fy, cx, cy of the image's camera (sample pixels)
+uniform int u_height;
+vec3 g_ray;                 // this pixel's unit ray (OpenCV camera axes)
+vec4 g_sums = vec4(0.0);    // sum T alpha z, sum T alpha n
+vec2 g_median = vec2(0.0);  // z where the accumulated alpha first reaches 0.5, found
+#endif
 
 const uint INSERTION_MAX = 64u;
 
@@ -57,8 +69,24 @@ void sort_list(uint start, uint n) {
     }
 }
 
-vec3 color_of(uvec4 entry) {
-    return fetch_splat(entry.z).color.rgb;
+// Composites one list entry (t* bits, alpha bits, scene index, rank) behind ``state``.
+void take(inout vec4 state, uvec4 entry) {
+    Splat s = fetch_splat(entry.z);
+#if GEOMETRY
+    float weight = composite_fragment(state, s.color.rgb, uintBitsToFloat(entry.y));
+    if (weight < 0.0) return;
+    // t* lies on the unit ray: its z is t* times the ray's. EWA has no t*: the centre's z.
+#if MODE_GS
+    float z = s.center_c2.z;
+#else
+    float z = uintBitsToFloat(entry.x) * g_ray.z;
+#endif
+    vec3 n = dot(s.normal.xyz, g_ray) > 0.0 ? -s.normal.xyz : s.normal.xyz;
+    g_sums += weight * vec4(z, n);
+    if (g_median.y == 0.0 && state.a >= 0.5) g_median = vec2(z, 1.0);
+#else
+    composite_fragment(state, s.color.rgb, uintBitsToFloat(entry.y));
+#endif
 }
 
 bool entry_first(uvec4 a, uvec4 b) {
@@ -72,12 +100,14 @@ void main() {
     uint start = list_start(p), n = counts[i];
     if (cursors[i] != start + n) atomicAdd(status[1], 1u);
     sort_list(start, n);
+#if GEOMETRY
+    // p counts rows from the bottom; the camera's v from the top.
+    vec2 uv = vec2(float(p.x) + 0.5, float(u_height - 1 - p.y) + 0.5);
+    g_ray = normalize(vec3((uv - u_intrinsics.zw) / u_intrinsics.xy, 1.0));
+#endif
     vec4 state = vec4(0.0);
-    if (u_window == 0) {
-        for (uint j = 0u; j < n; ++j) {
-            uvec4 entry = pool[start + j];
-            composite_fragment(state, color_of(entry), uintBitsToFloat(entry.y));
-        }
+    if (u_window <= 0) {
+        for (uint j = 0u; j < n; ++j) take(state, pool[start + j]);
     } else {
         uvec4 window[MAX_ORDER_K];
         int held = 0;
@@ -90,9 +120,9 @@ void main() {
             int first = 0;
             for (int k = 1; k < held; ++k) if (entry_first(window[k], window[first])) first = k;
             if (entry_first(entry, window[first])) {
-                composite_fragment(state, color_of(entry), uintBitsToFloat(entry.y));
+                take(state, entry);
             } else {
-                composite_fragment(state, color_of(window[first]), uintBitsToFloat(window[first].y));
+                take(state, window[first]);
                 window[first] = entry;
             }
         }
@@ -105,7 +135,11 @@ void main() {
             }
             window[k + 1] = key;
         }
-        for (int j = 0; j < held; ++j) composite_fragment(state, color_of(window[j]), uintBitsToFloat(window[j].y));
+        for (int j = 0; j < held; ++j) take(state, window[j]);
     }
     imageStore(u_output, p, finish_pixel(state, u_background));
+#if GEOMETRY
+    imageStore(u_sums, p, g_sums);
+    imageStore(u_median, p, vec4(g_median, 0.0, 0.0));
+#endif
 }

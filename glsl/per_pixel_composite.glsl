@@ -9,15 +9,19 @@ bool comes_first(float t_a, uint index_a, float t_b, uint index_b) {
     return t_a < t_b || (t_a == t_b && index_a < index_b);
 }
 
-void composite_fragment(inout vec4 state, vec3 rgb, float alpha) {
-    if (state.a < -0.5) return;
+// Returns the fragment's weight T alpha, or -1 where it was not composited (the pixel
+// had ended, or it ends it): the geometry outputs weigh by it.
+float composite_fragment(inout vec4 state, vec3 rgb, float alpha) {
+    if (state.a < -0.5) return -1.0;
     float transmittance = 1.0 - state.a;
     float next = transmittance * (1.0 - alpha);
     if (CUTOFF && next < MIN_TRANSMITTANCE) {
         state.a -= 2.0;
-        return;
+        return -1.0;
     }
-    state = vec4(state.rgb + transmittance * alpha * rgb, 1.0 - next);
+    float weight = transmittance * alpha;
+    state = vec4(state.rgb + weight * rgb, 1.0 - next);
+    return weight;
 }
 
 // RGB over the background, A = accumulated alpha.

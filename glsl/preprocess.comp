@@ -110,6 +110,12 @@ void main() {
     s.center_c2 = vec4(mu, 0.0);
     s.axis0_half = vec4(0.0);
     s.axis1_opacity = vec4(0.0, 0.0, 0.0, opacity);
+#if GEOMETRY
+    // The stored scales, before any filter widens them (the filters are isotropic, so
+    // they never change which axis is shortest); ties go to the first, as in the reference.
+    int shortest = scale.x <= scale.y && scale.x <= scale.z ? 0 : (scale.y <= scale.z ? 1 : 2);
+    s.normal = vec4(to_camera[shortest], 0.0);
+#endif
 #if MODE_GS
     project_ewa(s, mu, to_camera, scale, opacity);
 #else

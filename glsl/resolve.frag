@@ -1,26 +1,48 @@
 // From the render target to the image: averages each k x k block of samples
 // (supersampling's box filter) and, after front-to-back compositing, adds the
 // background behind the remaining transmittance and removes the cut-off mark.
+// GEOMETRY: the geometry outputs' sums and median (attachments 1, 2) are averaged too,
+// all but their finishing, which render/channels.py does.
 // Texels come from the interpolated uv (see present.frag for why not gl_FragCoord).
 uniform sampler2D u_samples;
 uniform int u_factor;  // k
 uniform vec3 u_background;
 in vec2 v_uv;
-out vec4 out_color;
+layout(location = 0) out vec4 out_color;
+#if GEOMETRY
+uniform sampler2D u_sums;
+uniform sampler2D u_median;
+layout(location = 1) out vec4 out_sums;
+layout(location = 2) out vec4 out_median;
+#endif
 
 void main() {
     ivec2 size = textureSize(u_samples, 0) / u_factor;
     ivec2 pixel = clamp(ivec2(floor(v_uv * vec2(size))), ivec2(0), size - 1);
     vec4 sum = vec4(0.0);
+#if GEOMETRY
+    vec4 sums = vec4(0.0), median = vec4(0.0);
+#endif
     for (int j = 0; j < u_factor; ++j) {
         for (int i = 0; i < u_factor; ++i) {
-            vec4 s = texelFetch(u_samples, pixel * u_factor + ivec2(i, j), 0);
+            ivec2 at = pixel * u_factor + ivec2(i, j);
+            vec4 s = texelFetch(u_samples, at, 0);
 #if FRONT_TO_BACK
             if (s.a < -0.5) s.a += 2.0;
             s.rgb += (1.0 - s.a) * u_background;
 #endif
             sum += s;
+#if GEOMETRY
+            sums += texelFetch(u_sums, at, 0);
+            vec4 m = texelFetch(u_median, at, 0);
+            median += vec4(m.x * m.y, m.y, 0.0, 0.0);  // z where found; how many found
+#endif
         }
     }
-    out_color = sum / float(u_factor * u_factor);
+    float samples = float(u_factor * u_factor);
+    out_color = sum / samples;
+#if GEOMETRY
+    out_sums = sums / samples;
+    out_median = median / samples;
+#endif
 }

@@ -13,6 +13,9 @@
 //   axis0_half    the quad's two half-axes (xy, zw)
 //   axis1_opacity the inverse 2D covariance (xx, xy, yy) and the opacity
 //   color         RGB
+// GEOMETRY (the depth and normal outputs, docs/geometry.md) adds, in every mode:
+//   normal        the gaussian's shortest axis in camera space (xyz), not yet turned to
+//                 face a ray (each sample turns it to its own)
 struct Splat {
     vec4 center_c2;
     vec4 axis0_half;
@@ -22,5 +25,8 @@ struct Splat {
     vec4 local_center;
     vec4 local_axis0;
     vec4 local_axis1;
+#endif
+#if GEOMETRY
+    vec4 normal;
 #endif
 };

@@ -343,7 +343,7 @@ def test_a_pass_cut_short_leaves_no_stale_records(gl_ctx, make_renderer, monkeyp
     other = look_at([2.5, 0.5, 1.0], [0, 0, 0], width=80, height=60)
     image = renderer.render(FRONT, S())
     original = renderer.variants.preprocess
-    monkeypatch.setattr(renderer.variants, "preprocess", lambda settings: _FailingProgram(
+    monkeypatch.setattr(renderer.variants, "preprocess", lambda settings, geometry=False: _FailingProgram(
         original(settings), runs=3))
     with pytest.raises(RuntimeError, match="simulated"):
         renderer.preprocess(other, S())

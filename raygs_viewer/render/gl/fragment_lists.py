@@ -12,7 +12,8 @@ OpenGL 4.3 driver, exact or with a bounded window.
 3. Per part: lists_prepare.comp sets each pixel's cursor at its list's start; the fill
    pass draws the quads again, scissored to the part, and each kept fragment takes the
    next slot of its list and stores (t*, alpha, scene index, rank); lists_resolve.comp
-   sorts each list in place and composites it into the image. A fragment finding its
+   sorts each list in place and composites it into the image (the global order's
+   geometry outputs: sorted by rank, and the geometry written beside). A fragment finding its
    list full, or a list left short, is counted in a status word that
    :meth:`FragmentLists.render` checks: nothing is dropped silently.
 
@@ -91,6 +92,12 @@ def plan_parts(row_totals: np.ndarray, width: int, pool: int, row_counts) -> tup
     return parts, row_bases
 
 
+def _write_mask(target: FloatTarget, writes: bool) -> None:
+    """Every attachment of ``target`` written (True) or none: the draws only count and store."""
+    mask = (writes,) * 4
+    target.fbo.color_mask = mask if target.attachments == 1 else (mask,) * target.attachments
+
+
 class FragmentLists:
     """The lists path's buffers (per-pixel counters, row offsets and cursors, the pool)
     and passes. ``pool_fragments``: the pool's capacity (default
@@ -141,10 +148,12 @@ class FragmentLists:
         row_stats.bind_to_storage_buffer(ROW_STATS, size=height * 16)
 
     def render(self, renderer, target: FloatTarget, camera: Camera, settings: RenderSettings,
-               order: np.ndarray) -> OrderStats:
+               order: np.ndarray, geometry: bool = False) -> OrderStats:
         """Draws ``order`` (back to front; prepared by the renderer's last preprocess) with
         the per-pixel order into ``target`` (camera-sized, float32): RGB over the
-        background, A the accumulated alpha."""
+        background, A the accumulated alpha. ``geometry``: ``target`` has three
+        attachments and receives the geometry sums and median in the second and third
+        (glsl/lists_resolve.comp), in ``settings``' order: per-pixel, or the global one."""
         ctx = self.ctx
         width, height = camera.width, camera.height
         self._hold(width, height)
@@ -152,14 +161,15 @@ class FragmentLists:
         counts.clear(size=width * height * 4)
         self._status.clear()
         self._bind(width, height)
-        defines = renderer.variants.order_defines(settings, renderer.layout_for(settings), "lists")
+        defines = renderer.variants.order_defines(settings, renderer.layout_for(settings, geometry), "lists",
+                                                  geometry=geometry)
         programs = renderer.variants.programs
 
         # 1. count
         target.use()
-        target.fbo.color_mask = (False, False, False, False)
+        _write_mask(target, False)
         try:
-            renderer.draw(camera, settings, order, path="lists",
+            renderer.draw(camera, settings, order, path="lists", geometry=geometry,
                           uniforms={"u_pass": 0, "u_width": width, "u_part": (0, 0, width, height)})
             ctx.memory_barrier()
             # 2. scan and plan
@@ -181,8 +191,13 @@ class FragmentLists:
             set_uniform(prepare, "u_width", width)
             set_uniform(resolve, "u_width", width)
             set_uniform(resolve, "u_background", settings.background)
-            set_uniform(resolve, "u_window", settings.order_k)
-            target.texture.bind_to_image(0, read=False, write=True)
+            # -1: the global order itself (by rank), which only the geometry outputs take this way.
+            set_uniform(resolve, "u_window", settings.order_k if settings.per_pixel else -1)
+            for unit, texture in enumerate(target.textures):
+                texture.bind_to_image(unit, read=False, write=True)
+            if geometry:
+                set_uniform(resolve, "u_intrinsics", (camera.fx, camera.fy, camera.cx, camera.cy))
+                set_uniform(resolve, "u_height", height)
             for part in parts:
                 rect = (part.x0, part.y0, part.x1, part.y1)
                 groups = (-(-(rect[2] - rect[0]) // WORKGROUP_2D), -(-(rect[3] - rect[1]) // WORKGROUP_2D))
@@ -192,7 +207,7 @@ class FragmentLists:
                 if part.fragments:
                     target.use()
                     target.fbo.scissor = (rect[0], rect[1], rect[2] - rect[0], rect[3] - rect[1])
-                    renderer.draw(camera, settings, order, path="lists",
+                    renderer.draw(camera, settings, order, path="lists", geometry=geometry,
                                   uniforms={"u_pass": 1, "u_width": width, "u_part": rect})
                     target.fbo.scissor = None
                     ctx.memory_barrier()
@@ -201,7 +216,7 @@ class FragmentLists:
             ctx.memory_barrier()
         finally:
             target.fbo.scissor = None
-            target.fbo.color_mask = (True, True, True, True)
+            _write_mask(target, True)
         overflow, short = np.frombuffer(self._status.read(size=8), np.uint32)
         if overflow or short:
             raise RuntimeError(f"per-pixel fragment lists: {overflow} fragments found their list full and {short} "

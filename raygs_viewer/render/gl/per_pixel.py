@@ -61,30 +61,35 @@ class PerPixelOrder:
         self.lists = FragmentLists(ctx, block_limit, pool_fragments)
         self._kbuffer: kbuffer.KBuffer | None = None
 
-    def path_for(self, settings: RenderSettings) -> str:
-        """"lists" or "fetch" for ``settings`` (UserError: forced "fetch" cannot run)."""
+    def path_for(self, settings: RenderSettings, geometry: bool = False) -> str:
+        """"lists" or "fetch" for ``settings`` (UserError: forced "fetch" cannot run).
+        The geometry outputs always take the lists: the k-buffer's attachments are full."""
         problem = kbuffer.why_not(self.ctx, settings, self.scene_count)
+        if geometry:
+            problem = problem or "the geometry outputs need the fragment lists"
         if self.order_path == "fetch" and problem:
             raise UserError(problem)
         if self.order_path == "lists" or problem:
             return "lists"
         return "fetch"
 
-    def problem(self, settings: RenderSettings, splat_blocks: int = 1) -> str | None:
-        """None when ``settings``' per-pixel order can be rendered with records in
-        ``splat_blocks`` storage blocks, else why not (one line)."""
+    def problem(self, settings: RenderSettings, splat_blocks: int = 1, geometry: bool = False) -> str | None:
+        """None when ``settings``' per-pixel order (or, with ``geometry``, the geometry
+        outputs in ``settings``' order) can be rendered with records in ``splat_blocks``
+        storage blocks, else why not (one line)."""
         try:
-            path = self.path_for(settings)
+            path = self.path_for(settings, geometry)
         except UserError as error:
             return str(error)
         return storage_block_problem(self.ctx, path, splat_blocks)
 
     def render(self, renderer, target: FloatTarget, camera: Camera, settings: RenderSettings,
-               order: np.ndarray) -> OrderStats:
+               order: np.ndarray, geometry: bool = False) -> OrderStats:
         """Draws ``order`` into ``target`` (float32, camera-sized) by the per-pixel order;
-        the renderer has preprocessed ``camera``."""
-        if self.path_for(settings) == "lists":
-            return self.lists.render(renderer, target, camera, settings, order)
+        the renderer has preprocessed ``camera``. ``geometry``: ``target`` has the
+        geometry attachments (render/gl/fragment_lists.py), in ``settings``' order."""
+        if self.path_for(settings, geometry) == "lists":
+            return self.lists.render(renderer, target, camera, settings, order, geometry)
         if self._kbuffer is None:
             self._kbuffer = kbuffer.KBuffer(self.ctx)
         return self._kbuffer.render(renderer, target, camera, settings, order)

@@ -31,11 +31,15 @@ import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera, camera_key
 from raygs_viewer.errors import UserError
+from raygs_viewer.render.channel_pictures import ChannelView
+from raygs_viewer.render.channels import ChannelImage
+from raygs_viewer.render.gl.geometry import GeometryOutputs
 from raygs_viewer.render.gl.order_stats import OrderStats
 from raygs_viewer.render.gl.per_pixel import PerPixelOrder
 from raygs_viewer.render.gl.shaders import set_uniform
 from raygs_viewer.render.gl.storage import (
     EXACT_MIP_SPLAT_BYTES,
+    GEOMETRY_BYTES,
     SPLAT_BYTES,
     SceneBuffers,
     StorageLayout,
@@ -93,16 +97,19 @@ class GLRenderer:
         self.order_stats: OrderStats | None = None
         self._target: FloatTarget | None = None          # render()'s image, the latest size
         self._samples: FloatTarget | None = None         # supersampling and front to back
+        self.geometry = GeometryOutputs(ctx)
 
-    def layout_for(self, settings: RenderSettings) -> StorageLayout:
-        """The storage layout of ``settings``' records (exact MIP's are larger)."""
+    def layout_for(self, settings: RenderSettings, geometry: bool = False) -> StorageLayout:
+        """The storage layout of ``settings``' records (exact MIP's are larger, and
+        ``geometry``'s hold the normal too)."""
         splat_bytes = EXACT_MIP_SPLAT_BYTES if settings.mode == "raygs-exact-mip" else SPLAT_BYTES
-        return self.storage.layout_for(splat_bytes)
+        return self.storage.layout_for(splat_bytes + (GEOMETRY_BYTES if geometry else 0))
 
-    def supports(self, settings: RenderSettings) -> str | None:
-        """None when this GPU can render ``settings``, else why not (one line)."""
-        if settings.per_pixel:  # composites in its own passes, the cut-off included
-            return self.per_pixel.problem(settings, self.layout_for(settings).splat_blocks)
+    def supports(self, settings: RenderSettings, geometry: bool = False) -> str | None:
+        """None when this GPU can render ``settings`` (with the geometry outputs), else
+        why not (one line)."""
+        if settings.per_pixel or geometry:  # composites in its own passes, the cut-off included
+            return self.per_pixel.problem(settings, self.layout_for(settings, geometry).splat_blocks, geometry)
         if settings.transmittance_cutoff and GL_EXT_FRAMEBUFFER_FETCH not in self.ctx.extensions:
             return (f"the transmittance cut-off needs {GL_EXT_FRAMEBUFFER_FETCH}, "
                     f"which this GPU's OpenGL driver does not offer")
@@ -114,22 +121,23 @@ class GLRenderer:
                                  key=settings.sort_key)
 
     def preprocess(self, camera: Camera, settings: RenderSettings, frame: Camera | None = None,
-                   color_origin: np.ndarray | None = None) -> None:
+                   color_origin: np.ndarray | None = None, geometry: bool = False) -> None:
         """Writes the per-view splat record of every gaussian for ``camera`` (the camera
         actually rasterized: already supersampled). ``frame``: the whole image's camera
         when ``camera`` renders one tile of it (GS clamps rays to the whole image).
         ``color_origin``: the world point SH colour is seen from (default: the camera's
-        centre; stereo shares the eyes' midpoint)."""
+        centre; stereo shares the eyes' midpoint). ``geometry``: records with the normal."""
         origin = camera.center if color_origin is None else np.asarray(color_origin, np.float64)
-        key = (camera_key(camera), settings, None if frame is None else camera_key(frame), origin.tobytes())
+        key = (camera_key(camera), settings, None if frame is None else camera_key(frame), origin.tobytes(),
+               geometry)
         if key == self._preprocessed_key:
             self.counters.preprocess_skipped += 1
             return
         self._preprocessed_key = None  # until this pass has written every record
-        layout = self.layout_for(settings)
+        layout = self.layout_for(settings, geometry)
         self.storage.hold_records(layout, settings.mode)
         self._last_layout = layout
-        program = self.variants.preprocess(settings)
+        program = self.variants.preprocess(settings, geometry)
         self.variants.set_features(program, settings)
         program["u_world_to_camera"].write(camera.R.astype(np.float32).tobytes(order="F"))
         program["u_translation"].value = tuple(np.asarray(camera.t, np.float64).astype(np.float32))
@@ -153,22 +161,23 @@ class GLRenderer:
         return self.storage.read_records(self._last_layout)
 
     def draw(self, camera: Camera, settings: RenderSettings, order: np.ndarray, *, floor: bool = False,
-             path: str | None = None, uniforms: dict | None = None) -> None:
+             path: str | None = None, uniforms: dict | None = None, geometry: bool = False) -> None:
         """Draws the quads of ``order`` (back to front) into the bound framebuffer, as
         the last :meth:`preprocess` (same camera and settings) prepared them.
         ``floor``: the same quads with a constant, never discarded fragment instead
         (glsl/quads.*): the least this rasterizer can spend on them (bench perf).
         ``path``, ``uniforms``: a per-pixel order pass (render/gl/per_pixel.py) and its
-        uniforms; blending off, the quads drawn front to back."""
+        uniforms; blending off, the quads drawn front to back. ``geometry``: the lists
+        pass of the geometry outputs (render/gl/geometry.py)."""
         if order.size == 0:
             return
         if order.size > self.scene.count:
             raise ValueError("order longer than the scene")
-        layout = self.layout_for(settings)
-        problem = self.supports(settings)
+        layout = self.layout_for(settings, geometry)
+        problem = self.supports(settings, geometry)
         if problem:
             raise UserError(problem)
-        program, vao = self.variants.draw(settings, layout, floor, path)
+        program, vao = self.variants.draw(settings, layout, floor, path, geometry)
         for name, value in (uniforms or {}).items():
             set_uniform(program, name, value)
         self.upload_order(order)
@@ -212,10 +221,26 @@ class GLRenderer:
         self.render_into(self._target, camera, settings, order, frame, color_origin)
         return self._target.read()
 
+    def render_channels(self, camera: Camera, settings: RenderSettings = RenderSettings(),
+                        order: np.ndarray | None = None, frame: Camera | None = None,
+                        color_origin: np.ndarray | None = None) -> ChannelImage:
+        """Colour, alpha and the geometry outputs of ``camera``'s image (camera-space
+        normals; render/gl/geometry.py). Arguments as :meth:`render`."""
+        if order is None:
+            order = self.sort(camera, settings)
+        return self.geometry.render(self, camera, settings, order, frame, color_origin)
+
+    @property
+    def view_range(self) -> tuple[float, float] | None:
+        """The depth range the last depth view picture used (None: no depth view)."""
+        return self.geometry.view_range
+
     def render_into(self, target: FloatTarget, camera: Camera, settings: RenderSettings,
-                    order: np.ndarray, frame: Camera | None = None, color_origin: np.ndarray | None = None) -> None:
+                    order: np.ndarray, frame: Camera | None = None, color_origin: np.ndarray | None = None,
+                    view: ChannelView | None = None) -> None:
         """Clears ``target`` (camera-sized, float colour) and draws the scene into it:
-        background-composited colour in RGB and the accumulated alpha in A.
+        background-composited colour in RGB and the accumulated alpha in A; or, with a
+        ``view`` of another channel than rgb, that channel's picture (alpha 1).
 
         Plain back-to-front rendering draws straight into ``target``, cleared to
         (background, 0). Supersampling (k x k) draws into a k-times larger sample target
@@ -224,6 +249,10 @@ class GLRenderer:
         adds the background."""
         k = settings.supersample
         self.order_stats = None
+        self.geometry.view_range = None
+        if view is not None and view.channel != "rgb":
+            self.geometry.render_view(self, target, camera, settings, order, view, frame, color_origin)
+            return
         if settings.per_pixel:
             self._render_per_pixel(target, camera, settings, order, frame, color_origin)
             return
@@ -242,7 +271,7 @@ class GLRenderer:
             samples.fbo.clear(*settings.background, 0.0)
         self.preprocess(sampled, settings, frame or camera, color_origin)  # the bounds are scale-invariant
         self.draw(sampled, settings, order)
-        self._resolve(samples, target, k, settings, settings.transmittance_cutoff)
+        self.resolve_samples(samples, target, k, settings, settings.transmittance_cutoff)
 
     def _render_per_pixel(self, target: FloatTarget, camera: Camera, settings: RenderSettings,
                           order: np.ndarray, frame: Camera | None, color_origin: np.ndarray | None) -> None:
@@ -260,15 +289,22 @@ class GLRenderer:
         self.preprocess(sampled, settings, frame or camera, color_origin)
         self.order_stats = self.per_pixel.render(self, image, sampled, settings, order)
         if image is not target:
-            self._resolve(image, target, k, settings, False)
+            self.resolve_samples(image, target, k, settings, False)
 
-    def _resolve(self, samples: FloatTarget, target: FloatTarget, k: int,
-                 settings: RenderSettings, front_to_back: bool) -> None:
-        program, vao = self.variants.resolve(front_to_back)
+    def resolve_samples(self, samples: FloatTarget, target: FloatTarget, k: int,
+                        settings: RenderSettings, front_to_back: bool, geometry: bool = False) -> None:
+        """Averages ``samples``' k x k blocks into ``target`` (resolve.frag); after
+        front-to-back compositing, adds the background. ``geometry``: both have the
+        geometry attachments, averaged too."""
+        program, vao = self.variants.resolve(front_to_back, geometry)
         target.use()
         self.ctx.disable(moderngl.BLEND)
         samples.texture.use(0)
         program["u_samples"].value = 0
+        if geometry:
+            for unit, name in ((1, "u_sums"), (2, "u_median")):
+                samples.textures[unit].use(unit)
+                program[name].value = unit
         program["u_factor"].value = k
         set_uniform(program, "u_background", settings.background)
         vao.render(moderngl.TRIANGLES, vertices=3)
@@ -276,6 +312,7 @@ class GLRenderer:
     def release(self) -> None:
         release_all(self._target, self._samples)
         self._target = self._samples = None
+        self.geometry.release()
         self.per_pixel.release()
         self.variants.release()
         self.storage.release()

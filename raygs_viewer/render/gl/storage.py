@@ -26,6 +26,7 @@ GAUSSIAN_BYTES = 48  # struct Gaussian in preprocess.comp
 SPLAT_BYTES = 64     # struct Splat in splat.glsl
 COLOR_BYTES = 16     # RGB computed at load, for SH degree 0, padded so chunk ranges stay aligned
 EXACT_MIP_SPLAT_BYTES = 112  # ... with EXACT_MIP's three extra vec4
+GEOMETRY_BYTES = 16  # ... and GEOMETRY's normal, in any mode
 MAX_SPLAT_BLOCKS = 8  # bindings splat_blocks.glsl declares
 # GL guarantees 65535 workgroups per dispatch; drivers that report a 2 GiB block
 # limit would otherwise ask for more in one chunk.

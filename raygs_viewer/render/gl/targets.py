@@ -32,16 +32,23 @@ class FloatTarget:
     """A ``width`` x ``height`` colour target: float32 RGBA by default (``dtype="f4"``),
     or normalised 8-bit (``"f1"``) for what is shown as it is.
 
+    ``attachments`` > 1 adds textures of the same kind as further colour attachments
+    (the geometry outputs: render/gl/renderer.py); ``texture`` is the first.
     ``label`` and ``advice`` word the UserError for a size the GPU cannot render,
     e.g. "stereo image" and "; use a smaller scale"."""
 
     def __init__(self, ctx: moderngl.Context, width: int, height: int, *, dtype: str = "f4",
-                 label: str = "image", advice: str = ""):
+                 label: str = "image", advice: str = "", attachments: int = 1):
         check_size(ctx, width, height, label, advice)
         self.ctx = ctx
         self.dtype = dtype
-        self.texture = ctx.texture((width, height), 4, dtype=dtype)
-        self.fbo = ctx.framebuffer(color_attachments=[self.texture])
+        self.textures = [ctx.texture((width, height), 4, dtype=dtype) for _ in range(attachments)]
+        self.texture = self.textures[0]
+        self.fbo = ctx.framebuffer(color_attachments=self.textures)
+
+    @property
+    def attachments(self) -> int:
+        return len(self.textures)
 
     @property
     def size(self) -> tuple[int, int]:
@@ -50,26 +57,30 @@ class FloatTarget:
     def use(self) -> None:
         self.fbo.use()
 
-    def read(self, components: int = 4) -> np.ndarray:
-        """(H, W, components), top row first: float32 for "f4", uint8 for "f1"."""
+    def read(self, components: int = 4, attachment: int = 0) -> np.ndarray:
+        """(H, W, components) of one attachment, top row first: float32 for "f4", uint8 for "f1"."""
         width, height = self.size
         if self.dtype == "f4":
-            pixels = np.frombuffer(self.fbo.read(components=components, dtype="f4"), np.float32)
+            pixels = np.frombuffer(self.fbo.read(components=components, dtype="f4", attachment=attachment),
+                                   np.float32)
         else:
-            pixels = np.frombuffer(self.fbo.read(components=components), np.uint8)
+            pixels = np.frombuffer(self.fbo.read(components=components, attachment=attachment), np.uint8)
         return pixels.reshape(height, width, components)[::-1].copy()
 
     def release(self) -> None:
         if self.fbo is not None:
             self.fbo.release()
-            self.texture.release()
+            for texture in self.textures:
+                texture.release()
             self.fbo = self.texture = None
+            self.textures = []
 
 
 def sized(target: FloatTarget | None, ctx: moderngl.Context, width: int, height: int, **options) -> FloatTarget:
-    """``target`` when it already has this size, else a new one (``target`` released
-    first: one size held at a time)."""
-    if target is not None and target.size == (width, height):
+    """``target`` when it already has this size (and ``options``' attachments), else a
+    new one (``target`` released first: one size held at a time)."""
+    if (target is not None and target.size == (width, height)
+            and target.attachments == options.get("attachments", 1)):
         return target
     if target is not None:
         target.release()

@@ -72,10 +72,11 @@ class ShaderVariants:
         set_uniform(program, "u_gs_compensation", settings.mode == "gs" and settings.gs_compensation)
         set_uniform(program, "u_alpha_clamp", settings.alpha_clamp)
 
-    def preprocess(self, settings: RenderSettings) -> moderngl.ComputeShader:
-        """preprocess.comp for ``settings``."""
+    def preprocess(self, settings: RenderSettings, geometry: bool = False) -> moderngl.ComputeShader:
+        """preprocess.comp for ``settings``; ``geometry``: records with the normal."""
         defines = {"SH_STORED_DEGREE": self.sh_degree,
                    "MODE_GS": int(settings.mode == "gs"),
+                   "GEOMETRY": int(geometry),
                    "GS_DILATION": _glsl_float(GS_DILATION),
                    "GS_NEAR": _glsl_float(GS_NEAR),
                    "EXACT_MIP": int(settings.mode == "raygs-exact-mip"),
@@ -85,11 +86,14 @@ class ShaderVariants:
         return self.programs.compute("preprocess.comp", defines)
 
     def order_defines(self, settings: RenderSettings, layout: StorageLayout, path: str | None = None,
-                      window: int = 0) -> dict[str, object]:
+                      window: int = 0, geometry: bool = False) -> dict[str, object]:
         """What the per-pixel order's programs share with the draw: the splat blocks of
-        ``layout``, the cut-off, the path (PER_PIXEL) and the k-buffer's ``window``."""
+        ``layout``, the cut-off, the path (PER_PIXEL), the k-buffer's ``window`` and
+        whether the records and passes carry the geometry outputs."""
         return {"SPLAT_BLOCKS": layout.splat_blocks, "SPLATS_PER_BLOCK": layout.splats_per_block,
                 "EXACT_MIP": int(settings.mode == "raygs-exact-mip"),  # the record's layout
+                "GEOMETRY": int(geometry),
+                "MODE_GS": int(settings.mode == "gs"),
                 "MIN_TRANSMITTANCE": _glsl_float(TRANSMITTANCE_CUTOFF),
                 "PER_PIXEL": PER_PIXEL_PATHS[path],
                 "CUTOFF": _glsl_bool(settings.transmittance_cutoff),
@@ -98,23 +102,27 @@ class ShaderVariants:
                 "ORDER_K": max(1, window)}
 
     def draw(self, settings: RenderSettings, layout: StorageLayout, floor: bool = False,
-             path: str | None = None) -> ProgramAndArray:
+             path: str | None = None, geometry: bool = False) -> ProgramAndArray:
         """The quad stages for ``settings`` reading the splat blocks of ``layout``;
         ``floor``: glsl/quads.*, the same quads with a constant fragment. ``path``: the
         per-pixel order's draw ("lists": count and fill; "fetch": the k-buffer of
-        ``settings.order_k`` entries), None for blending."""
+        ``settings.order_k`` entries), None for blending. ``geometry``: records with
+        the normal (the lists feeding the geometry outputs)."""
         gs = settings.mode == "gs"
         if floor and gs:
             raise ValueError("the floor pass draws RayGS quads; EWA's records are not quads in space")
         defines = {"ALPHA_MAX": _glsl_float(ALPHA_CLAMP),
-                   **self.order_defines(settings, layout, path, settings.order_k if path == "fetch" else 0),
+                   **self.order_defines(settings, layout, path, settings.order_k if path == "fetch" else 0,
+                                        geometry),
                    **self.feature_defines(settings)}
         stage = "quads" if floor else "gs" if gs else "raygs"
         return self.programs.draw(f"{stage}.vert", f"{stage}.frag", defines)
 
-    def resolve(self, front_to_back: bool) -> ProgramAndArray:
-        """The full-screen pass that averages a sample target down (resolve.frag)."""
-        return self.programs.fullscreen("resolve.frag", {"FRONT_TO_BACK": int(front_to_back)})
+    def resolve(self, front_to_back: bool, geometry: bool = False) -> ProgramAndArray:
+        """The full-screen pass that averages a sample target down (resolve.frag); with
+        ``geometry``, its two geometry attachments too."""
+        return self.programs.fullscreen("resolve.frag", {"FRONT_TO_BACK": int(front_to_back),
+                                                         "GEOMETRY": int(geometry)})
 
     def release(self) -> None:
         self.programs.release()

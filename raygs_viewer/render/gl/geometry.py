@@ -1,0 +1,80 @@
+"""The geometry outputs on the GL path (docs/geometry.md): expected depth, median depth
+and normal beside colour, in the same resolve and the same order.
+
+The median needs each pixel's fragments in blend order (the first at which the
+accumulated alpha reaches 0.5), which blending cannot express. So geometry always goes
+through the fragment lists (render/gl/fragment_lists.py, any OpenGL 4.3 driver): the
+per-pixel order sorts each list by t* as it does for colour, a global order by rank (the
+very order blending would composite in), and one resolve pass writes colour, the sums
+of T alpha z and T alpha n, and the median. Records gain the gaussian's shortest axis
+(``GEOMETRY``), so a frame that asks for no geometry runs the variants without it and
+pays nothing. Supersampling averages the sums in its resolve pass;
+:func:`raygs_viewer.render.channels.finish` divides them out on the host.
+"""
+
+from __future__ import annotations
+
+import moderngl
+import numpy as np
+
+from raygs_viewer.camera.pinhole import Camera
+from raygs_viewer.errors import UserError
+from raygs_viewer.render.channel_pictures import ChannelView, channel_picture
+from raygs_viewer.render.channels import ChannelImage, finish
+from raygs_viewer.render.gl.targets import FloatTarget, release_all, sized
+from raygs_viewer.render.settings import RenderSettings
+
+#: Colour, the sums (T alpha z, T alpha n) and the median (z, found): a geometry target's attachments.
+GEOMETRY_ATTACHMENTS = 3
+
+
+class GeometryOutputs:
+    """One renderer's geometry targets (made on first use, one size held) and the depth
+    range of the last view picture it made (``view_range``; None unless a depth view)."""
+
+    def __init__(self, ctx: moderngl.Context):
+        self.ctx = ctx
+        self.view_range: tuple[float, float] | None = None
+        self._image: FloatTarget | None = None
+        self._samples: FloatTarget | None = None
+
+    def render(self, renderer, camera: Camera, settings: RenderSettings, order: np.ndarray,
+               frame: Camera | None = None, color_origin: np.ndarray | None = None) -> ChannelImage:
+        """Every channel of ``camera``'s image (camera-space normals) as ``renderer``
+        (a GLRenderer) draws ``order`` with ``settings``; ``frame``, ``color_origin``:
+        see GLRenderer.preprocess."""
+        problem = renderer.supports(settings, geometry=True)
+        if problem:
+            raise UserError(problem)
+        k = settings.supersample
+        sampled = camera.resized(camera.width * k, camera.height * k) if k > 1 else camera
+        self._image = image = sized(self._image, self.ctx, camera.width, camera.height,
+                                    attachments=GEOMETRY_ATTACHMENTS)
+        drawn = image
+        if k > 1:
+            self._samples = drawn = sized(self._samples, self.ctx, sampled.width, sampled.height,
+                                          attachments=GEOMETRY_ATTACHMENTS)
+        renderer.preprocess(sampled, settings, frame or camera, color_origin, geometry=True)
+        stats = renderer.per_pixel.render(renderer, drawn, sampled, settings, order, geometry=True)
+        renderer.order_stats = stats if settings.per_pixel else None
+        if k > 1:
+            renderer.resolve_samples(drawn, image, k, settings, front_to_back=False, geometry=True)
+        color, sums, median = (image.read(attachment=i) for i in range(GEOMETRY_ATTACHMENTS))
+        return finish(color, sums, median[..., :2])
+
+    def render_view(self, renderer, target: FloatTarget, camera: Camera, settings: RenderSettings,
+                    order: np.ndarray, view: ChannelView, frame: Camera | None = None,
+                    color_origin: np.ndarray | None = None) -> None:
+        """Puts the picture of ``view``'s channel (render/channel_pictures.py; alpha 1)
+        into ``target`` (camera-sized) and records the depth range it used."""
+        image = self.render(renderer, camera, settings, order, frame, color_origin)
+        picture, self.view_range = channel_picture(image.in_space(view.normal_space, camera), view)
+        rgba = np.concatenate([picture, np.ones(picture.shape[:2] + (1,), np.float32)], axis=-1)[::-1]
+        if target.dtype == "f4":
+            target.texture.write(np.ascontiguousarray(rgba, np.float32).tobytes())
+        else:
+            target.texture.write(np.ascontiguousarray(np.rint(rgba * 255.0), np.uint8).tobytes())
+
+    def release(self) -> None:
+        release_all(self._image, self._samples)
+        self._image = self._samples = None
