@@ -22,6 +22,7 @@ from imgui_bundle import imgui
 
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.camera.stereo import StereoView, rig_quantities
+from raygs_viewer.capture.measure_file import MeasureScale
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import RenderSettings
@@ -110,7 +111,7 @@ class PickTool:
             return
         navigator = self.host.view.navigator
         navigator.aim_at(picked.point)
-        panel.message = f"{describe(picked)}: {'orbiting around it' if navigator.mode == 'orbit' else 'facing it'}"
+        panel.message = f"{describe(picked, self.measure.scale)}: {'orbiting around it' if navigator.mode == 'orbit' else 'facing it'}"
 
     def click(self, x: float, y: float) -> None:
         if not self.measure.on:
@@ -122,7 +123,7 @@ class PickTool:
             self.measure.add_point(picked)
 
 
-def describe(picked: Picked, scale=None) -> str:
-    """"point (x, y, z), d from the camera" of a pick."""
+def describe(picked: Picked, scale: MeasureScale | None = None) -> str:
+    """"point (x, y, z), d from the camera" of a pick, d in ``scale``'s unit when set."""
     x, y, z = picked.point
     return f"point ({x:.4g}, {y:.4g}, {z:.4g}), {format_distance(picked.distance, scale)} from the camera"
