@@ -24,7 +24,9 @@ ratios, each a ratio of medians over the frames:
 - ``specialised/general``: preprocess + draw, the specialised variant over the general one;
 - ``radix/argsort``: the uint16 radix sort over a float32 argsort of the same depths;
 - ``fragments-kept``: fragments that pass the p_min cut-off over those the quads
-  rasterize (samples-passed queries; how tight the quads are).
+  rasterize (samples-passed queries; how tight the quads are);
+- ``geometry/colour``: preprocess + draw with the geometry outputs (depth, median depth,
+  normal: render/gl/geometry.py, its GPU work without the read-back) over colour alone.
 
 Each is printed per case as ``NAME@CASE VALUE`` and, as the median over the cases, as
 ``NAME VALUE``.
@@ -63,7 +65,7 @@ from raygs_viewer.scene.model import Scene, sh_coefficient_count
 from raygs_viewer.sort.depth import sort_back_to_front
 
 STAGES = ("cull", "sort", "upload", "preprocess", "draw")
-RATIOS = ("RayGS/GS", "RayGS/quads", "specialised/general", "radix/argsort", "fragments-kept")
+RATIOS = ("RayGS/GS", "RayGS/quads", "specialised/general", "radix/argsort", "fragments-kept", "geometry/colour")
 RATIO_TARGETS = {"RayGS/GS": "<= 1.10", "RayGS/quads": "<= 1.5"}
 
 COUNTS = (10_000, 100_000, 1_000_000)
@@ -230,6 +232,7 @@ def measure_case(ctx, case: PerfCase, frames: int, settings: RenderSettings = Re
             draw, draw_gpu = clock.both(lambda: renderer.draw(camera, settings, order))
             clear()
             quads = clock.cpu(lambda: renderer.draw(camera, settings, order, floor=True))
+            geometry = clock.cpu(lambda: renderer.geometry.draw(renderer, camera, settings, order))
             if frame == 0:  # fragments: counted once, untimed
                 result.visible = int(order.size)
                 clear()
@@ -258,7 +261,8 @@ def measure_case(ctx, case: PerfCase, frames: int, settings: RenderSettings = Re
             for name, value in (("cull", cull), ("sort", sort), ("upload", upload), ("preprocess", preprocess),
                                 ("draw", draw), ("gpu preprocess", preprocess_gpu), ("gpu draw", draw_gpu),
                                 ("quads", quads), ("gs", gs_pre + gs_draw), ("general", general_pre + general_draw),
-                                ("raygs", preprocess + draw), ("radix", radix), ("argsort", argsort)):
+                                ("raygs", preprocess + draw), ("radix", radix), ("argsort", argsort),
+                                ("geometry", geometry)):
                 record(name, value)
     finally:
         renderer.release()
@@ -268,13 +272,15 @@ def measure_case(ctx, case: PerfCase, frames: int, settings: RenderSettings = Re
 
     result.stages = {s: median(times[s]) for s in STAGES}
     result.gpu = {"preprocess": median(times["gpu preprocess"]), "draw": median(times["gpu draw"])}
-    result.other = {name: median(times[name]) for name in ("quads", "gs", "general", "raygs", "radix", "argsort")}
+    result.other = {name: median(times[name])
+                    for name in ("quads", "gs", "general", "raygs", "radix", "argsort", "geometry")}
     raygs = result.other["raygs"]
     result.ratios.update({
         "RayGS/GS": raygs / result.other["gs"],
         "RayGS/quads": result.stages["draw"] / result.other["quads"],
         "specialised/general": raygs / result.other["general"],
         "radix/argsort": result.other["radix"] / result.other["argsort"],
+        "geometry/colour": result.other["geometry"] / raygs,
     })
     return result
 

@@ -8,6 +8,7 @@ from pathlib import Path
 
 import numpy as np
 from PIL import Image
+from PIL.PngImagePlugin import PngInfo
 
 from raygs_viewer.errors import UserError
 from raygs_viewer.files import write_atomically
@@ -33,11 +34,17 @@ def encode_image(image: np.ndarray, suffix: str) -> bytes:
     return buffer.getvalue()
 
 
-def encode_png(rgb8: np.ndarray) -> bytes:
+def encode_png(rgb8: np.ndarray, text: dict[str, str] | None = None) -> bytes:
     """(H, W, 3) uint8 -> PNG bytes: what every saved PNG (screenshots, ``render``,
-    video frame folders) goes through, so equal pixels give equal files."""
+    video frame folders) goes through, so equal pixels give equal files. ``text``: tEXt
+    entries (e.g. a depth picture's range); without it the file is as it always was."""
     buffer = io.BytesIO()
-    Image.fromarray(rgb8, "RGB").save(buffer, format="PNG")
+    info = None
+    if text:
+        info = PngInfo()
+        for key, value in text.items():
+            info.add_text(key, value)
+    Image.fromarray(rgb8, "RGB").save(buffer, format="PNG", pnginfo=info)
     return buffer.getvalue()
 
 

@@ -21,12 +21,15 @@ import numpy as np
 from raygs_viewer.camera.path import CameraPath
 from raygs_viewer.camera.pinhole import Camera, camera_from_json, camera_to_json
 from raygs_viewer.camera.stereo import StereoView, composed_size
+from raygs_viewer.capture.channel_io import colour_channels
 from raygs_viewer.capture.image_io import check_output_path, to_rgb8
 from raygs_viewer.capture.progress import Progress
-from raygs_viewer.capture.screenshot import render_tiled
+from raygs_viewer.capture.screenshot import render_tiled, render_tiled_channels
 from raygs_viewer.capture.video import FRAME_PREFIX, FrameSink
+from raygs_viewer.errors import UserError
 from raygs_viewer.files import write_atomically
 from raygs_viewer.jsonfile import json_text, parse_json
+from raygs_viewer.render.channels import ChannelImage, needs_geometry
 from raygs_viewer.render.gl.stereo_frame import render_stereo_view
 from raygs_viewer.render.settings import RenderSettings
 
@@ -82,15 +85,34 @@ def render_frame(renderer: "GLRenderer", camera: Camera, settings: RenderSetting
     return render_tiled(renderer, camera, settings)
 
 
+def render_frame_channels(renderer: "GLRenderer", camera: Camera, settings: RenderSettings,
+                          stereo: StereoView | None, channels: tuple[str, ...],
+                          normal_space: str = "camera") -> ChannelImage:
+    """The ChannelImage of one frame, normals in ``normal_space`` of ``camera``: the
+    geometry render where ``channels`` need it (not with ``stereo``: its layouts compose
+    colour), else :func:`render_frame`'s colour."""
+    if not needs_geometry(channels):
+        return colour_channels(render_frame(renderer, camera, settings, stereo))
+    if stereo is not None:
+        raise UserError("--stereo composes colour; its frames cannot carry depth or normals")
+    return render_tiled_channels(renderer, camera, settings).in_space(normal_space, camera)
+
+
 def render_frames(renderer: "GLRenderer", cameras: list[Camera], settings: RenderSettings,
-                  stereo: StereoView | None, sink: FrameSink, progress: Progress | None = None) -> int:
+                  stereo: StereoView | None, sink: FrameSink, progress: Progress | None = None,
+                  channels: tuple[str, ...] | None = None, normal_space: str = "camera") -> int:
     """Renders each camera (:func:`render_frame`), converts it to 8 bits as a PNG
-    screenshot is, and writes it to ``sink``; returns the frames written. A
-    KeyboardInterrupt propagates between or inside frames: the caller aborts the sink,
-    whose ``frames_written`` then says what it holds."""
+    screenshot is, and writes it to ``sink``; returns the frames written. With
+    ``channels`` each frame goes to the sink as a ChannelImage instead
+    (:func:`render_frame_channels`; an ExrFolderSink). A KeyboardInterrupt propagates
+    between or inside frames: the caller aborts the sink, whose ``frames_written`` then
+    says what it holds."""
     written = 0
     for camera in cameras:
-        sink.write(to_rgb8(render_frame(renderer, camera, settings, stereo)))
+        if channels is not None:
+            sink.write(render_frame_channels(renderer, camera, settings, stereo, channels, normal_space))
+        else:
+            sink.write(to_rgb8(render_frame(renderer, camera, settings, stereo)))
         written += 1
         if progress is not None:
             progress.update(sink.frames_written)

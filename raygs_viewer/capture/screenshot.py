@@ -9,6 +9,7 @@ GPU gives the same PNG, byte for byte.
 from __future__ import annotations
 
 import os
+from collections.abc import Iterator
 from dataclasses import replace
 from datetime import datetime
 from pathlib import Path
@@ -21,6 +22,7 @@ from raygs_viewer.capture.image_io import encode_image
 from raygs_viewer.errors import UserError, finite_number
 from raygs_viewer.files import write_atomically
 from raygs_viewer.jsonfile import json_text
+from raygs_viewer.render.channels import CHANNEL_WIDTHS, CHANNELS, ChannelImage
 from raygs_viewer.render.settings import RenderSettings
 
 if TYPE_CHECKING:
@@ -84,19 +86,56 @@ def render_tiled(renderer: "GLRenderer", camera: Camera, settings: RenderSetting
     tiles are at most ``tile // k`` pixels a side: the GPU target stays within ``tile``.
     GS clamps its rays to the whole image's borders (``frame=camera``), not the tile's.
     """
+    if _fits_one_tile(camera, settings, tile):
+        return renderer.render(camera, settings)
+    image = _allocate(camera, [(4,)], "float32 RGBA image")[0]
+    for part, order, rows, columns in _tiles(renderer, camera, settings, tile):
+        pixels = renderer.render(part, settings, order, frame=camera)
+        image[rows, columns] = pixels[:rows.stop - rows.start, :columns.stop - columns.start]
+    return image
+
+
+def render_tiled_channels(renderer: "GLRenderer", camera: Camera, settings: RenderSettings = RenderSettings(),
+                          tile: int = DEFAULT_TILE) -> ChannelImage:
+    """The ChannelImage of :meth:`GLRenderer.render_channels` (camera-space normals),
+    drawn in tiles as :func:`render_tiled` draws colour, with the same order per tile."""
+    if _fits_one_tile(camera, settings, tile):
+        return renderer.render_channels(camera, settings)
+    # CHANNELS are ChannelImage's per-pixel fields, in its constructor's order.
+    shapes = [() if CHANNEL_WIDTHS[name] == 1 else (CHANNEL_WIDTHS[name],) for name in CHANNELS]
+    arrays = _allocate(camera, shapes, "set of float32 channels")
+    for part, order, rows, columns in _tiles(renderer, camera, settings, tile):
+        channels = renderer.render_channels(part, settings, order, frame=camera)
+        for name, array in zip(CHANNELS, arrays):
+            array[rows, columns] = getattr(channels, name)[:rows.stop - rows.start, :columns.stop - columns.start]
+    return ChannelImage(*arrays)
+
+
+def _fits_one_tile(camera: Camera, settings: RenderSettings, tile: int) -> bool:
     if tile < 1:
         raise ValueError(f"tile must be positive, got {tile}")
     tile = max(1, tile // settings.supersample)
+    return camera.width <= tile and camera.height <= tile
+
+
+def _allocate(camera: Camera, shapes: list[tuple[int, ...]], what: str) -> list[np.ndarray]:
+    """Empty float32 (H, W, *shape) arrays, or UserError when the image is too large."""
     width, height = camera.width, camera.height
-    if width <= tile and height <= tile:
-        return renderer.render(camera, settings)
     if max(width, height) > MAX_SCREENSHOT_SIDE:
         # Tiling lifts the GPU's size limit; this one keeps the read-back within memory.
         raise UserError(f"image size {width}x{height} exceeds {MAX_SCREENSHOT_SIDE} pixels a side")
     try:
-        image = np.empty((height, width, 4), np.float32)
+        return [np.empty((height, width, *shape), np.float32) for shape in shapes]
     except MemoryError:
-        raise UserError(f"not enough memory for a {width}x{height} float32 RGBA image") from None
+        raise UserError(f"not enough memory for a {width}x{height} {what}") from None
+
+
+def _tiles(renderer: "GLRenderer", camera: Camera, settings: RenderSettings, tile: int
+           ) -> Iterator[tuple[Camera, np.ndarray, slice, slice]]:
+    """(tile camera, its order, rows, columns of the image it fills) for each tile;
+    the tile's pixels beyond those rows and columns (an edge tile) are to be cropped."""
+    tile = max(1, tile // settings.supersample)
+    width, height = camera.width, camera.height
     order = renderer.sort(camera, settings)
     # Edge tiles are drawn at full tile size and cropped: one render target for all
     # tiles (the renderer reallocates its target whenever the size changes).
@@ -108,10 +147,7 @@ def render_tiled(renderer: "GLRenderer", camera: Camera, settings: RenderSetting
             # changes no pixel; the whole image's order keeps the blending sequence.
             visible = renderer.sort(part, settings)
             tile_order = order[np.isin(order, visible, assume_unique=True)]
-            pixels = renderer.render(part, settings, tile_order, frame=camera)
-            h, w = min(tile_h, height - y0), min(tile_w, width - x0)
-            image[y0:y0 + h, x0:x0 + w] = pixels[:h, :w]
-    return image
+            yield part, tile_order, slice(y0, min(y0 + tile_h, height)), slice(x0, min(x0 + tile_w, width))
 
 
 # --------------------------------------------------------------------------- saving

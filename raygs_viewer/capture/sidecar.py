@@ -28,6 +28,14 @@ A stereo image (version 2) adds::
                 "lens": null or {"k1": .., "k2": .., "chroma_red": .., "chroma_blue": ..},
                 "headset": null or {"name", "label", "width", "height", "fov_x", "fov_y"}}
 
+A picture of another channel than colour (version 3; docs/geometry.md) adds::
+
+     "channel_view": {"channel": "depth",            # one of channel_pictures.PICTURE_CHANNELS
+                      "depth_range": [near, far],    # the range the picture used; null if none
+                      "normal_space": "camera"}      # or "world"
+
+so that ``render --sidecar`` draws the same picture (a colour screenshot has none).
+
 Its "camera" is the midpoint between the eyes (each eye has that size) and "image" is
 the composed size (twice the width side by side). As in "settings", a key that a file
 written before it existed lacks takes its default (a headset's fields have none), and
@@ -73,14 +81,16 @@ from raygs_viewer.camera.stereo import (
 from raygs_viewer.capture.screenshot import MAX_SCALE
 from raygs_viewer.errors import UserError
 from raygs_viewer.jsonfile import JsonFields, json_key, read_json_file, show_json, typed
+from raygs_viewer.render.channel_pictures import ChannelView
 from raygs_viewer.render.settings import RENDER_MODES, RenderSettings
 from raygs_viewer.scene.demo import demo_scene
 from raygs_viewer.scene.content_hash import arrays_sha256, file_sha256
 from raygs_viewer.scene.model import Scene
 
 SIDECAR_FORMAT = "raygs-viewer screenshot"
-SIDECAR_VERSION = 2          # the newest this program reads and writes
+SIDECAR_VERSION = 3          # the newest this program reads and writes
 STEREO_SIDECAR_VERSION = 2   # the first with "stereo"
+CHANNEL_SIDECAR_VERSION = 3  # the first with "channel_view"
 DEMO = "demo"
 
 SHA256_HEX = re.compile(r"[0-9a-f]{64}")
@@ -125,12 +135,14 @@ def _pose(camera: Camera) -> dict:
 
 def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, settings: RenderSettings,
                   scale: float, window_camera: Camera | None = None, extra: dict | None = None,
-                  stereo: StereoView | None = None) -> dict:
+                  stereo: StereoView | None = None, channel_view: ChannelView | None = None) -> dict:
     """The sidecar of a screenshot rendered at ``camera`` (the window's camera already
     scaled by ``scale``) with ``settings``. ``scene_path`` is the loaded file ("demo"
     for the demo), recorded as an absolute path; ``window_camera`` is the on-screen
     view; ``extra`` holds free-form details of the window (up axis, navigation, GL
-    renderer, ...). ``stereo``: the image is that stereo view around ``camera``."""
+    renderer, ...). ``stereo``: the image is that stereo view around ``camera``.
+    ``channel_view``: the image is that picture of a channel (its ``depth_range`` the
+    range the picture used); colour (None, or the rgb channel) records nothing."""
     if scene_path == DEMO:
         recorded_path = DEMO
     else:
@@ -139,7 +151,8 @@ def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, 
         composed_size(camera.width, camera.height, stereo.layout)
     sidecar = {
         "format": SIDECAR_FORMAT,
-        "version": 1 if stereo is None else STEREO_SIDECAR_VERSION,
+        "version": max(STEREO_SIDECAR_VERSION if stereo is not None else 1,
+                       CHANNEL_SIDECAR_VERSION if _is_picture(channel_view) else 1),
         "program": {"name": "raygs-viewer", "version": raygs_viewer.__version__},
         "created": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
         "image": {"width": int(width), "height": int(height), "scale": float(scale)},
@@ -153,6 +166,8 @@ def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, 
     }
     if stereo is not None:
         sidecar["stereo"] = stereo_entry(stereo)
+    if _is_picture(channel_view):
+        sidecar["channel_view"] = channel_view_entry(channel_view)
     if window_camera is not None:
         sidecar["window"] = {"camera": _camera_entry(window_camera), "world_to_camera": _pose(window_camera)}
     return sidecar
@@ -163,6 +178,16 @@ def stereo_entry(view: StereoView) -> dict:
     return {**dataclasses.asdict(view.rig), "layout": view.layout,
             "lens": None if view.lens is None else dataclasses.asdict(view.lens),
             "headset": None if view.headset is None else dataclasses.asdict(view.headset)}
+
+
+def channel_view_entry(view: ChannelView) -> dict:
+    """The "channel_view" section: the channel, its depth range, the normals' space."""
+    return {"channel": view.channel, "depth_range": None if view.depth_range is None else list(view.depth_range),
+            "normal_space": view.normal_space}
+
+
+def _is_picture(view: ChannelView | None) -> bool:
+    return view is not None and view.channel != "rgb"
 
 
 # --------------------------------------------------------------------------- reading
@@ -176,7 +201,8 @@ class Sidecar:
     as written). settings: the render settings. scale: the window-to-screenshot scale
     (informational: camera already has the screenshot's size). render_mode: the
     settings' mode (one of RENDER_MODES).
-    raw: the parsed JSON, for fields only the window reads."""
+    raw: the parsed JSON, for fields only the window reads. channel_view: the picture
+    of a channel the image is (None: colour)."""
 
     path: Path
     scene_path: str
@@ -187,6 +213,7 @@ class Sidecar:
     render_mode: str
     raw: dict
     stereo: StereoView | None = None
+    channel_view: ChannelView | None = None
 
 
 def load_sidecar(path: str | os.PathLike) -> Sidecar:
@@ -238,7 +265,27 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
     settings = load_settings_entry(fields, render_mode)
     if "extra" in data:
         fields.get("extra", dict)
-    return Sidecar(path, scene_path, sha, camera, settings, scale, render_mode, data, stereo)
+    channel_view = load_channel_view_entry(fields) if "channel_view" in data else None
+    if channel_view is not None and version < CHANNEL_SIDECAR_VERSION:
+        raise UserError(f"{path}: 'channel_view' needs sidecar version {CHANNEL_SIDECAR_VERSION}, "
+                        f"the file says {version}")
+    return Sidecar(path, scene_path, sha, camera, settings, scale, render_mode, data, stereo, channel_view)
+
+
+def load_channel_view_entry(fields: JsonFields) -> ChannelView:
+    """The "channel_view" section: "channel" required; "depth_range" (null: automatic)
+    and "normal_space" take ChannelView's defaults where absent."""
+    entry = fields.get("channel_view", dict)
+    fields.keys("channel_view", entry, ("channel",), ("depth_range", "normal_space"))
+    channel = fields.get("channel_view.channel", str)
+    depth_range = None
+    if entry.get("depth_range") is not None:
+        depth_range = tuple(float(v) for v in fields.array("channel_view.depth_range", (2,)))
+    normal_space = fields.optional("channel_view.normal_space", str, "camera")
+    try:
+        return ChannelView(channel, depth_range, normal_space)
+    except UserError as exc:
+        raise UserError(f"{fields.path}: 'channel_view': {exc}") from None
 
 
 def _load_camera(fields: JsonFields) -> Camera:

@@ -1,4 +1,5 @@
-"""Where a rendered flight goes: an H.264 MP4 (PyAV) or a folder of numbered PNGs.
+"""Where a rendered flight goes: an H.264 MP4 (PyAV), a folder of numbered PNGs, or (for
+``render-path --channels``) a folder of numbered EXRs of a render's channels.
 
 Both are :class:`FrameSink`\\ s: frames are written one at a time as they are rendered,
 and the output appears only when it is complete (:meth:`FrameSink.finish`), or, when
@@ -18,9 +19,11 @@ from pathlib import Path
 
 import numpy as np
 
+from raygs_viewer.capture.channel_io import write_exr
 from raygs_viewer.capture.image_io import encode_png
 from raygs_viewer.errors import UserError
 from raygs_viewer.files import move_into_place, temporary_beside, write_atomically
+from raygs_viewer.render.channels import ChannelImage
 
 VIDEO_SUFFIX = ".mp4"
 #: Suffixes that name a file format we do not write: refused rather than taken for a
@@ -33,7 +36,6 @@ SUPPORTED = "an .mp4 file or a folder for PNG frames"
 CRF = 18
 PRESET = "medium"
 FRAME_PREFIX = "frame_"
-_FRAME_NAME = re.compile(rf"{FRAME_PREFIX}\d+\.png")
 
 
 def even_size(width: int, height: int) -> tuple[int, int]:
@@ -115,11 +117,14 @@ class FrameSink:
         """Appends ``frame``: (height, width, 3) uint8, top row first."""
         if self._closed:
             raise RuntimeError(f"{self.path}: write after finish or abort")
+        self._check(frame)
+        self._write(frame)
+        self.frames_written += 1
+
+    def _check(self, frame: np.ndarray) -> None:
         if frame.shape != (self.height, self.width, 3) or frame.dtype != np.uint8:
             raise ValueError(f"a frame must be ({self.height}, {self.width}, 3) uint8, "
                              f"got {frame.shape} {frame.dtype}")
-        self._write(frame)
-        self.frames_written += 1
 
     def finish(self) -> Path:
         """Completes the output and returns its path."""
@@ -256,12 +261,14 @@ class Mp4Sink(FrameSink):
             self._discard()
 
 
-class PngFolderSink(FrameSink):
-    """frame_00000.png, frame_00001.png, ... in ``path`` (created if missing), each
-    encoded as ``render --out x.png`` encodes it and written atomically.
+class FolderSink(FrameSink):
+    """frame_00000.SUFFIX, frame_00001.SUFFIX, ... in ``path`` (created if missing), each
+    written atomically (subclasses say how).
 
     With ``overwrite``, frames already in the folder are replaced, and at the end those
-    beyond the new count are removed (other files stay)."""
+    of this suffix beyond the new count are removed (other files stay)."""
+
+    suffix = ""
 
     def __init__(self, path: Path, width: int, height: int, overwrite: bool = False,
                  frames: int | None = None) -> None:
@@ -281,10 +288,7 @@ class PngFolderSink(FrameSink):
             raise UserError(f"{path}: cannot create the folder: {exc.strerror or exc}") from None
 
     def frame_path(self, index: int) -> Path:
-        return self.path / f"{FRAME_PREFIX}{index:0{self.digits}d}.png"
-
-    def _write(self, frame: np.ndarray) -> None:
-        write_atomically(self.frame_path(self.frames_written), encode_png(frame), self.overwrite)
+        return self.path / f"{FRAME_PREFIX}{index:0{self.digits}d}{self.suffix}"
 
     def finish(self) -> Path:
         self._close()
@@ -311,8 +315,9 @@ class PngFolderSink(FrameSink):
         if not self.overwrite:
             return
         written = {self.frame_path(i).name for i in range(self.frames_written)}
+        frame_name = re.compile(rf"{FRAME_PREFIX}\d+{re.escape(self.suffix)}")
         for entry in self.path.iterdir():
-            if _FRAME_NAME.fullmatch(entry.name) and entry.name not in written and entry.is_file():
+            if frame_name.fullmatch(entry.name) and entry.name not in written and entry.is_file():
                 try:
                     entry.unlink()
                 except FileNotFoundError:
@@ -324,3 +329,31 @@ class PngFolderSink(FrameSink):
                 self.path.rmdir()
             except OSError:  # something else was put there meanwhile: leave it
                 pass
+
+
+class PngFolderSink(FolderSink):
+    """The frames as PNGs, each encoded as ``render --out x.png`` encodes it."""
+
+    suffix = ".png"
+
+    def _write(self, frame: np.ndarray) -> None:
+        write_atomically(self.frame_path(self.frames_written), encode_png(frame), self.overwrite)
+
+
+class ExrFolderSink(FolderSink):
+    """The frames as EXRs of ``channels`` (:func:`write_exr`): each frame a ChannelImage
+    (its normals already in the space wanted), not 8-bit RGB."""
+
+    suffix = ".exr"
+
+    def __init__(self, path: Path, width: int, height: int, channels: tuple[str, ...], overwrite: bool = False,
+                 frames: int | None = None) -> None:
+        super().__init__(path, width, height, overwrite, frames)
+        self.channels = tuple(channels)
+
+    def _check(self, frame: ChannelImage) -> None:
+        if not isinstance(frame, ChannelImage) or frame.alpha.shape != (self.height, self.width):
+            raise ValueError(f"a frame must be a ({self.height}, {self.width}) ChannelImage, got {frame!r:.80}")
+
+    def _write(self, frame: ChannelImage) -> None:
+        write_exr(self.frame_path(self.frames_written), frame, self.channels, self.overwrite)

@@ -14,6 +14,7 @@ from typing import Callable
 
 from raygs_viewer.capture.screenshot import MAX_SCALE
 from raygs_viewer.errors import UserError
+from raygs_viewer.render.channels import parse_channels
 from raygs_viewer.render.setting_info import SettingField, or_list, setting_field
 from raygs_viewer.render.settings import RenderSettings
 
@@ -130,6 +131,25 @@ def fov_pair(text: str) -> tuple[float, float]:
     except ValueError:
         raise argparse.ArgumentTypeError(f"'{text}' is not two angles H,V in degrees, e.g. 100,95") from None
     return horizontal, vertical
+
+
+def channel_list(text: str) -> tuple[str, ...]:
+    """An argparse type: channels separated by commas (render.channels.parse_channels)."""
+    try:
+        return parse_channels(text)
+    except UserError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def depth_range(text: str) -> tuple[float, float]:
+    """An argparse type: NEAR,FAR, two finite numbers, NEAR < FAR."""
+    try:
+        near, far = (float(p) for p in text.split(","))
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"'{text}' is not two numbers NEAR,FAR, e.g. 0.5,20") from None
+    if not (math.isfinite(near) and math.isfinite(far) and near < far):
+        raise argparse.ArgumentTypeError(f"'{text}' is not two finite numbers with NEAR < FAR")
+    return near, far
 
 
 def add_general_option(parser: argparse.ArgumentParser) -> None:

@@ -8,22 +8,37 @@ import argparse
 import math
 import sys
 import time
+from dataclasses import dataclass
+from pathlib import Path
 
 import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera, frame_points, load_camera
 from raygs_viewer.capture import screenshot
+from raygs_viewer.capture.channel_io import (
+    CHANNEL_SUFFIXES,
+    colour_channels,
+    depth_range_line,
+    is_plain_colour,
+    picture_view,
+    save_channels,
+)
 from raygs_viewer.capture.image_io import check_output_path, save_image
-from raygs_viewer.capture.sidecar import load_sidecar, resolve_scene, verify_scene_hash
+from raygs_viewer.capture.sidecar import Sidecar, load_sidecar, resolve_scene, verify_scene_hash
 from raygs_viewer.cli import argtypes
 from raygs_viewer.cli.options import (
+    add_channel_options,
     add_stereo_options,
     add_view_options,
+    check_normal_space,
     render_settings,
     stereo_view,
 )
 from raygs_viewer.errors import UserError
 from raygs_viewer.jsonfile import json_text
+from raygs_viewer.render import reference
+from raygs_viewer.render.channel_pictures import ChannelView
+from raygs_viewer.render.channels import DEFAULT_CHANNELS, ChannelImage, needs_geometry
 from raygs_viewer.render.gl.context import context_description, create_headless_context
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.gl.stereo_frame import render_stereo_view
@@ -61,11 +76,14 @@ def add_parsers(commands) -> None:
                         help="render a screenshot again from its sidecar: scene, camera, settings and size "
                              "come from it (SCENE, if given, replaces the scene file but must have the same "
                              "sha256); the view options above cannot be combined with it")
-    render.add_argument("--out", required=True, metavar="OUT.png|OUT.npy",
-                        help=".png: 8-bit RGB; .npy: float32 HxWx4 (RGB over background, alpha)")
+    render.add_argument("--out", required=True, metavar="OUT.png|OUT.npy|OUT.exr",
+                        help=".png: 8-bit RGB (or a picture of the one channel --channels names); .npy: float32 "
+                             "HxWx4 (RGB over background, alpha) or HxWxC of --channels; .exr: float32 named "
+                             "channels (R, G, B, A unless --channels says otherwise)")
     render.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
     render.set_defaults(run=command_render)
     render.add_argument("--reference", action="store_true", help="use the float64 CPU reference renderer")
+    add_channel_options(render)
     add_stereo_options(render)
     argtypes.add_general_option(render)
     argtypes.add_backend_option(render)
@@ -136,9 +154,14 @@ def command_render(args) -> int:
         if given:
             raise UserError(f"--sidecar already sets the view; drop {', '.join(given)}")
     stereo = stereo_view(args)
-    out = check_output_path(args.out, args.overwrite)  # fail before any slow work
-    if args.sidecar is not None:
-        shot = load_sidecar(args.sidecar)
+    out = check_output_path(args.out, args.overwrite, CHANNEL_SUFFIXES)  # fail before any slow work
+    shot = None if args.sidecar is None else load_sidecar(args.sidecar)
+    output = channel_output(args, out, shot)
+    if needs_geometry(output.channels) and (stereo is not None or (shot is not None and shot.stereo is not None)):
+        raise UserError(("--stereo" if shot is None else f"{shot.path}: the stereo image") + " composes colour: "
+                        f"{', '.join(c for c in output.channels if needs_geometry((c,)))} need one camera "
+                        "(render each eye with --camera)")
+    if shot is not None:
         scene_name = resolve_scene(shot, args.scene)
         verify_scene_hash(shot, scene_name)
         camera, settings, stereo = shot.camera, shot.settings, shot.stereo
@@ -148,27 +171,75 @@ def command_render(args) -> int:
         settings = render_settings(args)
         scene, camera = _scene_and_camera(args)
     start = time.perf_counter()
-    if args.reference:
-        image = render_reference(scene, camera, settings)
-    else:
-        ctx = create_headless_context(args.gl_backend)
-        try:
-            renderer = GLRenderer(ctx, scene, general=args.general)
-            if stereo is not None:
-                image = render_stereo_view(renderer, camera, settings, stereo)[0]
-            else:
-                # Tiled like the window's screenshots: the same pixels, and sizes beyond
-                # the GPU's largest render target.
-                image = screenshot.render_tiled(renderer, camera, settings)
-            renderer.release()
-        finally:
-            ctx.release()
+    image = render_image(args, scene, camera, settings, stereo, output.channels)
     elapsed = time.perf_counter() - start
-    save_image(out, image, args.overwrite)
-    print(f"{out}: {image.shape[1]}x{image.shape[0]}, {scene.count} gaussians, "
+    if isinstance(image, np.ndarray) and is_plain_colour(output.channels, out.suffix):
+        save_image(out, image, args.overwrite)  # what render always wrote, byte for byte
+        height, width = image.shape[:2]
+    else:
+        channels = image if isinstance(image, ChannelImage) else colour_channels(image)
+        channels = channels.in_space(output.normal_space, camera)
+        used = save_channels(out, channels, output.channels, output.view, args.overwrite)
+        height, width = channels.alpha.shape
+        if output.view is not None and output.view.channel in ("depth", "median_depth"):
+            print(depth_range_line(output.view, used))
+    print(f"{out}: {width}x{height}, {scene.count} gaussians, "
           f"{'reference' if args.reference else 'GL'} render {elapsed * 1000:.0f} ms"
+          + (f", {','.join(output.channels)}" if output.channels != DEFAULT_CHANNELS else "")
           + (f", view from {args.sidecar}" if args.sidecar is not None else ""))
     return 0
+
+
+@dataclass(frozen=True)
+class ChannelOutput:
+    """What render writes: the channels, the normals' space, and for a .png the picture."""
+
+    channels: tuple[str, ...]
+    normal_space: str
+    view: ChannelView | None
+
+
+def channel_output(args, out: Path, shot: Sidecar | None) -> ChannelOutput:
+    """--channels, --normal-space and --depth-range checked against OUT's format; those
+    not given come from the picture a sidecar recorded (a screenshot of a depth view
+    renders again as that depth picture), else the defaults (colour and alpha)."""
+    recorded = None if shot is None else shot.channel_view
+    channels = args.channels or ((recorded.channel,) if recorded is not None else DEFAULT_CHANNELS)
+    normal_space = args.normal_space
+    if normal_space is None and recorded is not None and "normal" in channels:
+        normal_space = recorded.normal_space
+    normal_space = check_normal_space(channels, normal_space)
+    depth_range = args.depth_range
+    if depth_range is None and recorded is not None and out.suffix.lower() == ".png" \
+            and channels == (recorded.channel,):
+        depth_range = recorded.depth_range
+    return ChannelOutput(channels, normal_space, picture_view(channels, out.suffix, depth_range, normal_space))
+
+
+def render_image(args, scene: Scene, camera: Camera, settings: RenderSettings, stereo,
+                 channels: tuple[str, ...]) -> np.ndarray | ChannelImage:
+    """The render: a ChannelImage (camera-space normals) when ``channels`` need geometry,
+    else the (H, W, 4) RGBA image render always made (float64 from the reference)."""
+    geometry = needs_geometry(channels)
+    if args.reference:
+        if geometry:
+            return reference.render_reference_channels(scene, camera, settings)
+        return render_reference(scene, camera, settings)
+    ctx = create_headless_context(args.gl_backend)
+    try:
+        renderer = GLRenderer(ctx, scene, general=args.general)
+        try:
+            if stereo is not None:
+                return render_stereo_view(renderer, camera, settings, stereo)[0]
+            # Tiled like the window's screenshots: the same pixels, and sizes beyond
+            # the GPU's largest render target.
+            if geometry:
+                return screenshot.render_tiled_channels(renderer, camera, settings)
+            return screenshot.render_tiled(renderer, camera, settings)
+        finally:
+            renderer.release()
+    finally:
+        ctx.release()
 
 
 def command_verify(args) -> int:

@@ -18,6 +18,7 @@ from raygs_viewer.camera.stereo import (
 )
 from raygs_viewer.cli import argtypes
 from raygs_viewer.errors import UserError
+from raygs_viewer.render.channels import CHANNELS, DEFAULT_CHANNELS, NORMAL_SPACES
 from raygs_viewer.render.setting_info import SettingField, settings_table
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.io import SCENE_FILES
@@ -98,6 +99,35 @@ def settings_with_options(base: RenderSettings, args) -> RenderSettings:
     """``base`` (e.g. what a path file recorded) with the settings options that were
     given put over it, with the same implications as :func:`render_settings`."""
     return replace(base, **given_settings(args, type(base)))
+
+
+# --- channels (docs/geometry.md) ------------------------------------------------------------------
+
+def add_channel_options(parser: argparse.ArgumentParser, picture: bool = True) -> None:
+    """--channels and --normal-space; ``picture``: render's --depth-range too (a PNG of
+    a depth channel). Defaults are None so that a sidecar's recorded picture can fill them."""
+    listed = f"separated by commas, from {', '.join(CHANNELS)}"
+    if picture:
+        what = (f"what to write, {listed} (default {','.join(DEFAULT_CHANNELS)}): .npy gets float32 HxWxC in the "
+                "order listed (rgb and normal 3 each), .exr named channels (R,G,B A Z Z.median N.X,N.Y,N.Z), .png a "
+                "picture of one channel")
+    else:
+        what = f"write each frame as an EXR of these channels, {listed}, named like the PNG frames (OUT: a folder)"
+    parser.add_argument("--channels", type=argtypes.channel_list, metavar="LIST", help=what)
+    parser.add_argument("--normal-space", choices=NORMAL_SPACES,
+                        help="the normal channel's axes: the camera's (OpenCV: x right, y down, z forward; "
+                             "default) or the scene's")
+    if picture:
+        parser.add_argument("--depth-range", type=argtypes.depth_range, metavar="NEAR,FAR",
+                            help="a .png of depth or median_depth: the depths the colour map spans, near bright, "
+                                 "far dark (default: automatic, the 1st to 99th percentile; printed)")
+
+
+def check_normal_space(channels, normal_space: str | None) -> str:
+    """The normals' space (default camera); UserError for --normal-space without normals."""
+    if normal_space is not None and "normal" not in channels:
+        raise UserError("--normal-space is for the normal channel; add normal to --channels")
+    return normal_space or "camera"
 
 
 # --- stereo -------------------------------------------------------------------------------------------

@@ -30,18 +30,21 @@ from raygs_viewer.capture.path_render import (
     write_cameras_json,
 )
 from raygs_viewer.capture.progress import MODES, Progress
-from raygs_viewer.capture.video import check_video_output, open_sink
+from raygs_viewer.capture.video import VIDEO_SUFFIX, ExrFolderSink, check_video_output, open_sink
 from raygs_viewer.cli import argtypes
 from raygs_viewer.cli.commands import warn_dropped
 from raygs_viewer.cli.options import (
+    add_channel_options,
     add_settings_options,
     add_stereo_options,
+    check_normal_space,
     settings_with_options,
     stereo_view,
 )
 from raygs_viewer.cli.progress_line import TerminalProgress
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.context import create_headless_context
+from raygs_viewer.render.channels import needs_geometry
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.io import SCENE_FILES
@@ -81,6 +84,7 @@ def add_parsers(commands) -> None:
                         help="each frame's camera size (default: the path's); side by side stereo doubles the width")
     add_settings_options(parser, None, None)
     add_stereo_options(parser)
+    add_channel_options(parser, picture=False)
     parser.add_argument("--overwrite", action="store_true", help="replace OUT (and --cameras-out) if it exists")
     parser.add_argument("--cameras-out", metavar="CAMERAS.json",
                         help="also write every frame's camera as an INRIA cameras.json (render --camera CAMERAS.json "
@@ -96,6 +100,10 @@ def add_parsers(commands) -> None:
 def command_render_path(args: argparse.Namespace) -> int:
     # Every check that needs no rendering comes first: a typo must not cost a long render.
     out = check_video_output(args.out, args.overwrite)
+    if args.channels is not None and out.suffix.lower() == VIDEO_SUFFIX:
+        raise UserError(f"{out}: a video carries 8-bit colour only; --channels writes EXR frames into a folder "
+                        "(give --out a folder name)")
+    check_normal_space(args.channels or (), args.normal_space)
     cameras_out = None if args.cameras_out is None else \
         check_output_path(args.cameras_out, args.overwrite, suffixes=(".json",))
     if cameras_out is not None and cameras_out.resolve() == out.resolve():
@@ -104,6 +112,8 @@ def command_render_path(args: argparse.Namespace) -> int:
     settings = settings_with_options(document.settings if document and document.settings else RenderSettings(),
                                      args)
     stereo = stereo_view(args) if args.stereo else document.stereo if document else None
+    if stereo is not None and args.channels is not None and needs_geometry(args.channels):
+        raise UserError("--stereo composes colour; its frames cannot carry depth or normals")
     path = None if document is None else retimed(document.path, args)
 
     with TerminalProgress(args.scene) as loading:  # the scene's hash is taken while it is read
@@ -166,14 +176,18 @@ def orbit_document(scene, up: str, width: int, height: int) -> PathDocument:
 
 
 def _render(renderer, cameras, settings, stereo, out: Path, image_size, fps: float, args) -> int:
-    sink = open_sink(out, *image_size, fps, args.overwrite, frames=len(cameras))
+    if args.channels is not None:
+        sink = ExrFolderSink(out, *image_size, args.channels, args.overwrite, frames=len(cameras))
+    else:
+        sink = open_sink(out, *image_size, fps, args.overwrite, frames=len(cameras))
     if sink.note:
         print(f"note: {sink.note}", file=sys.stderr)
     progress = Progress(len(cameras), args.progress, label=out.name)
     timed = TimedSink(sink)
     start = time.perf_counter()
     try:
-        render_frames(renderer, cameras, settings, stereo, timed, progress)
+        render_frames(renderer, cameras, settings, stereo, timed, progress, args.channels,
+                      check_normal_space(args.channels or (), args.normal_space))
         written = timed.finish()
     except KeyboardInterrupt:
         kept = sink.abort()
@@ -223,6 +237,6 @@ class TimedSink:
 
 def _size_of(path: Path) -> str:
     """The output's size on disk, in MB (kB below 1 MB)."""
-    files = [path] if path.is_file() else list(path.glob("*.png"))
+    files = [path] if path.is_file() else [*path.glob("*.png"), *path.glob("*.exr")]
     size = sum(f.stat().st_size for f in files)
     return f"{size / 1e6:.1f} MB" if size >= 1e6 else f"{size / 1e3:.0f} kB"

@@ -17,13 +17,19 @@ Both composite front to back; with the transmittance cut-off, INRIA's rule: the
 fragment that would take the transmittance below the cut-off ends the pixel, itself
 not drawn (section 10). Everything is vectorised over pixels; the loops run over
 fragment layers (a pixel's first, second, ... fragment), not over pixels.
+
+Fragments may carry geometry (their peak's z and their normal, facing the ray): then
+:class:`GeometrySums` accumulates the geometry outputs of
+:mod:`raygs_viewer.render.channels` in the order the fragments are composited.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 import numpy as np
+
+from raygs_viewer.render.channels import MEDIAN_ALPHA
 
 
 @dataclass(frozen=True)
@@ -34,6 +40,8 @@ class Fragments:
     key: (F,) float64 t*. index: (F,) int64 scene index of the gaussian (ties).
     rank: (F,) int64 position in the global back-to-front order (arrival: highest first).
     alpha: (F,) float64 opacity, > 0. color: (F, 3) float64 the gaussian's colour.
+    With geometry (else None): z (F,) float64 camera-space z of the peak point, normal
+    (F, 3) float64 the gaussian's unit normal turned to face the pixel's ray.
     """
 
     pixel: np.ndarray
@@ -42,34 +50,82 @@ class Fragments:
     rank: np.ndarray
     alpha: np.ndarray
     color: np.ndarray
+    z: np.ndarray | None = None
+    normal: np.ndarray | None = None
 
     @classmethod
-    def concatenate(cls, parts: list[tuple]) -> "Fragments":
-        """Fragments from (pixel, key, index, rank, alpha, color) tuples of arrays."""
+    def concatenate(cls, parts: list[tuple], geometry: bool = False) -> "Fragments":
+        """Fragments from (pixel, key, index, rank, alpha, color) tuples of arrays, with
+        (z, normal) after them when ``geometry``."""
         if not parts:
             empty = np.zeros(0)
+            geometry_columns = (empty, np.zeros((0, 3))) if geometry else ()
             return cls(empty.astype(np.int64), empty, empty.astype(np.int64), empty.astype(np.int64), empty,
-                       np.zeros((0, 3)))
+                       np.zeros((0, 3)), *geometry_columns)
         columns = list(zip(*parts))
         return cls(*(np.concatenate(column) for column in columns))
 
+    @property
+    def has_geometry(self) -> bool:
+        return self.z is not None
+
+    def payload(self) -> dict[str, np.ndarray]:
+        """What compositing needs of each fragment: alpha and colour, and z and normal
+        with geometry (the keyword arguments of :meth:`FrontToBack.add`)."""
+        names = ("alpha", "color", "z", "normal") if self.has_geometry else ("alpha", "color")
+        return {name: getattr(self, name) for name in names}
+
     def take(self, selection: np.ndarray) -> "Fragments":
-        return Fragments(self.pixel[selection], self.key[selection], self.index[selection],
-                         self.rank[selection], self.alpha[selection], self.color[selection])
+        return Fragments(*(None if (value := getattr(self, field.name)) is None else value[selection]
+                           for field in fields(self)))
+
+
+class GeometrySums:
+    """The geometry accumulators of samples of any ``shape`` ((P,) or a band's (H, W)),
+    front to back: depth_sum = sum w T z, normal_sum = sum w T n, and the median depth
+    (z of the first fragment after which the accumulated alpha reaches MEDIAN_ALPHA)
+    with ``found`` where it was reached."""
+
+    def __init__(self, shape: tuple[int, ...]):
+        self.depth_sum = np.zeros(shape)
+        self.normal_sum = np.zeros(shape + (3,))
+        self.median = np.zeros(shape)
+        self.found = np.zeros(shape, dtype=bool)
+
+    def add(self, where, weight: np.ndarray, accumulated: np.ndarray, z, normal: np.ndarray) -> None:
+        """One fragment at each sample of ``where`` (distinct flat indices, or a tuple of
+        slices): ``weight`` w T, ``accumulated`` the alpha 1 - T after it (0 where it was not
+        composited), ``z`` its z (or one z for all), ``normal`` (..., 3)."""
+        self.depth_sum[where] += weight * z
+        self.normal_sum[where] += weight[..., None] * normal
+        found = self.found[where]
+        reached = ~found & (accumulated >= MEDIAN_ALPHA)
+        self.median[where] = np.where(reached, z, self.median[where])
+        self.found[where] = found | reached
+
+    def stacked(self) -> np.ndarray:
+        """(*shape, 6): depth_sum, normal_sum (x, y, z), median * found, found, the last
+        two the ``median`` input of :func:`raygs_viewer.render.channels.finish`."""
+        return np.concatenate((self.depth_sum[..., None], self.normal_sum, self.median[..., None],
+                               self.found[..., None].astype(np.float64)), axis=-1)
 
 
 class FrontToBack:
     """Front-to-back accumulation over ``pixels`` samples: colour so far, transmittance,
-    and (with ``cutoff``) which pixels INRIA's rule has ended."""
+    (with ``cutoff``) which pixels INRIA's rule has ended, and (with ``geometry``) the
+    geometry sums."""
 
-    def __init__(self, pixels: int, cutoff: float | None):
+    def __init__(self, pixels: int, cutoff: float | None, geometry: bool = False):
         self.color = np.zeros((pixels, 3))
         self.transmittance = np.ones(pixels)
         self.cutoff = cutoff
         self.done = np.zeros(pixels, dtype=bool)
+        self.geometry = GeometrySums((pixels,)) if geometry else None
 
-    def add(self, pixels: np.ndarray, alpha: np.ndarray, color: np.ndarray) -> None:
-        """Composites one fragment at each of ``pixels`` (distinct), behind what is there."""
+    def add(self, pixels: np.ndarray, alpha: np.ndarray, color: np.ndarray,
+            z: np.ndarray | None = None, normal: np.ndarray | None = None) -> None:
+        """Composites one fragment at each of ``pixels`` (distinct), behind what is there;
+        ``z`` and ``normal`` are needed with geometry."""
         t = self.transmittance[pixels]
         after = t * (1.0 - alpha)
         take = np.ones(len(pixels), dtype=bool)
@@ -81,6 +137,8 @@ class FrontToBack:
         pixels, t, alpha, after = pixels[take], t[take], alpha[take], after[take]
         self.color[pixels] += (t * alpha)[:, None] * color[take]
         self.transmittance[pixels] = after
+        if self.geometry is not None:
+            self.geometry.add(pixels, t * alpha, 1.0 - after, z[take], normal[take])
 
     def image(self, background) -> np.ndarray:
         """(pixels, 4): RGB over ``background`` and the accumulated alpha 1 - T."""
@@ -96,7 +154,20 @@ def composite_per_pixel(fragments: Fragments, pixels: int, background, *, window
     its fragments composited per pixel: exactly by (t*, index) with ``window`` 0, else
     through a k-buffer of ``window`` entries (module docstring). ``cutoff``: the
     transmittance cut-off, or None."""
-    accumulator = FrontToBack(pixels, cutoff)
+    return _accumulate(fragments, pixels, window, cutoff).image(background)
+
+
+def composite_per_pixel_geometry(fragments: Fragments, pixels: int, background, *, window: int = 0,
+                                 cutoff: float | None = None) -> np.ndarray:
+    """(pixels, 10) float64: :func:`composite_per_pixel`'s RGBA, then the geometry sums
+    (:meth:`GeometrySums.stacked`) accumulated in the order the fragments composite;
+    ``fragments`` must carry geometry."""
+    accumulator = _accumulate(fragments, pixels, window, cutoff)
+    return np.concatenate((accumulator.image(background), accumulator.geometry.stacked()), axis=-1)
+
+
+def _accumulate(fragments: Fragments, pixels: int, window: int, cutoff: float | None) -> FrontToBack:
+    accumulator = FrontToBack(pixels, cutoff, geometry=fragments.has_geometry)
     if window == 0:
         # By pixel, then t*, then index: each pixel's fragments in the order they composite.
         order = np.lexsort((fragments.index, fragments.key, fragments.pixel))
@@ -105,7 +176,7 @@ def composite_per_pixel(fragments: Fragments, pixels: int, background, *, window
         # By pixel, then arrival (rank descending): the stream each pixel's window sees.
         order = np.lexsort((-fragments.rank, fragments.pixel))
         _stream_through_window(accumulator, fragments.take(order), pixels, window)
-    return accumulator.image(background)
+    return accumulator
 
 
 def _layers(pixel: np.ndarray) -> tuple[np.ndarray, int]:
@@ -125,29 +196,32 @@ def _composite_layers(accumulator: FrontToBack, ordered: Fragments) -> None:
     position, depth = _layers(ordered.pixel)
     by_layer = np.argsort(position, kind="stable")
     bounds = np.searchsorted(position[by_layer], np.arange(depth + 1))
+    payload = ordered.payload()
     for layer in range(depth):
         chosen = by_layer[bounds[layer]:bounds[layer + 1]]
-        accumulator.add(ordered.pixel[chosen], ordered.alpha[chosen], ordered.color[chosen])
+        accumulator.add(ordered.pixel[chosen], **{name: column[chosen] for name, column in payload.items()})
 
 
 def _stream_through_window(accumulator: FrontToBack, arriving: Fragments, pixels: int, k: int) -> None:
     """The k-buffer: fragments sorted by pixel and arrival go through a window of k per pixel."""
     key = np.full((pixels, k), np.inf)
     index = np.zeros((pixels, k), np.int64)
-    alpha = np.zeros((pixels, k))
-    color = np.zeros((pixels, k, 3))
+    # What each slot holds for compositing: alpha and colour, and z and normal with geometry.
+    slots = {name: np.zeros((pixels, k) + column.shape[1:]) for name, column in arriving.payload().items()}
     held = np.zeros(pixels, np.int64)
     position, depth = _layers(arriving.pixel)
     by_layer = np.argsort(position, kind="stable")
     bounds = np.searchsorted(position[by_layer], np.arange(depth + 1))
     for layer in range(depth):
         new = arriving.take(by_layer[bounds[layer]:bounds[layer + 1]])
+        payload = new.payload()
         p = new.pixel
         room = held[p] < k
         # A free slot: the fragment joins the window.
         q, slot = p[room], held[p[room]]
-        key[q, slot], index[q, slot], alpha[q, slot], color[q, slot] = (
-            new.key[room], new.index[room], new.alpha[room], new.color[room])
+        key[q, slot], index[q, slot] = new.key[room], new.index[room]
+        for name, column in payload.items():
+            slots[name][q, slot] = column[room]
         held[q] += 1
         # A full window: the smallest of the k + 1 leaves, composited.
         full = ~room
@@ -156,13 +230,14 @@ def _stream_through_window(accumulator: FrontToBack, arriving: Fragments, pixels
             continue
         slot = _smallest(key[q], index[q])
         window_first = _before(key[q, slot], index[q, slot], new.key[full], new.index[full])
-        leave_alpha = np.where(window_first, alpha[q, slot], new.alpha[full])
-        leave_color = np.where(window_first[:, None], color[q, slot], new.color[full])
-        accumulator.add(q, leave_alpha, leave_color)
+        leaving = {name: np.where(window_first.reshape((-1,) + (1,) * (column.ndim - 1)), slots[name][q, slot],
+                                  column[full]) for name, column in payload.items()}
+        accumulator.add(q, **leaving)
         keep = window_first  # the arriving fragment takes the leaving one's slot
         qs, ss = q[keep], slot[keep]
         key[qs, ss], index[qs, ss] = new.key[full][keep], new.index[full][keep]
-        alpha[qs, ss], color[qs, ss] = new.alpha[full][keep], new.color[full][keep]
+        for name, column in payload.items():
+            slots[name][qs, ss] = column[full][keep]
     # Flush: every window in ascending (t*, index); empty slots (t* = inf) sort last.
     flush = np.lexsort((index, key), axis=1)
     rows = np.arange(pixels)
@@ -170,7 +245,7 @@ def _stream_through_window(accumulator: FrontToBack, arriving: Fragments, pixels
         slot = flush[:, column]
         present = column < held
         q = rows[present]
-        accumulator.add(q, alpha[q, slot[present]], color[q, slot[present]])
+        accumulator.add(q, **{name: held_values[q, slot[present]] for name, held_values in slots.items()})
 
 
 def _smallest(key: np.ndarray, index: np.ndarray) -> np.ndarray:

@@ -153,9 +153,10 @@ def test_a_measured_case_runs_every_stage_every_frame(gl_ctx):
     result = bench_perf.measure_case(gl_ctx, case, frames, renderer_type=Recording)
     assert [r.general for r in made] == [False, True]
     specialised, general = made
-    # Every frame (and the warm-up) ran its own preprocessing for RayGS and for GS, and
-    # uploaded a new order for each: the view changed every frame, nothing was skipped.
-    assert specialised.counters.preprocessed == 2 * (frames + 1)
+    # Every frame (and the warm-up) ran its own preprocessing for RayGS, for GS and for
+    # RayGS with the geometry records, and uploaded a new order for RayGS and GS: the view
+    # changed every frame, nothing was skipped.
+    assert specialised.counters.preprocessed == 3 * (frames + 1)
     assert specialised.counters.preprocess_skipped == 0
     assert general.counters.preprocessed == frames + 1 and general.counters.preprocess_skipped == 0
     assert specialised.counters.uploads == 2 * (frames + 1)
@@ -168,6 +169,7 @@ def test_a_measured_case_runs_every_stage_every_frame(gl_ctx):
     assert result.ratios["RayGS/GS"] == pytest.approx(result.other["raygs"] / result.other["gs"])
     assert result.ratios["RayGS/quads"] == pytest.approx(result.stages["draw"] / result.other["quads"])
     assert result.ratios["specialised/general"] == pytest.approx(result.other["raygs"] / result.other["general"])
+    assert result.ratios["geometry/colour"] == pytest.approx(result.other["geometry"] / result.other["raygs"])
     assert result.ratios["radix/argsort"] == pytest.approx(result.other["radix"] / result.other["argsort"])
     assert result.frame_ms == pytest.approx(sum(result.stages.values()))
 

@@ -23,11 +23,13 @@ from raygs_viewer.capture.screenshot import (
     check_screenshot_path,
     next_screenshot_path,
     render_tiled,
+    render_tiled_channels,
     save_screenshot,
     save_screenshots,
     scaled_camera,
 )
 from raygs_viewer.errors import UserError
+from raygs_viewer.render.channels import CHANNELS
 from raygs_viewer.render.settings import RenderSettings
 
 NOW = datetime(2025, 3, 4, 5, 6, 7)
@@ -489,3 +491,43 @@ def test_render_tiled_draws_every_tile_in_the_settings_key(renderer, monkeypatch
     if order == "distance":  # the premise: the two keys order this view differently
         depth = renderer.sorter.order(camera, settings.p_min, key="depth")
         assert not np.array_equal(whole, depth)
+
+
+# --------------------------------------------------------------------------- tiled channels
+
+
+@pytest.mark.parametrize("settings", [RenderSettings(), RenderSettings(order="per-pixel", supersample=2)],
+                         ids=["global", "per-pixel-2x2"])
+def test_render_tiled_channels_equal_one_whole_render(renderer, settings, monkeypatch):
+    """Every channel of a tiled render (edge tiles cropped) is the whole render's: the
+    tiles' normals stay in the whole camera's space, their depths its z."""
+    camera = off_centre_camera()
+    whole = renderer.render_channels(camera, settings)
+    sizes = []
+    render_channels = renderer.render_channels
+    monkeypatch.setattr(renderer, "render_channels", lambda part, *args, **kwargs: sizes.append(
+        (part.width, part.height)) or render_channels(part, *args, **kwargs))
+    tiled = render_tiled_channels(renderer, camera, settings, tile=40)
+    monkeypatch.undo()
+    side = 40 // settings.supersample
+    assert set(sizes) == {(side, side)} and len(sizes) == -(-64 // side) * -(-48 // side)  # really tiled
+    assert tiled.normal_space == "camera" and tiled.depth.shape == (48, 64) and tiled.normal.shape == (48, 64, 3)
+    assert (tiled.alpha > 0.5).mean() > 0.2 and np.ptp(tiled.depth[tiled.alpha > 0.5]) > 0.5  # shows the scene
+    for name in CHANNELS:
+        a, b = getattr(tiled, name), getattr(whole, name)
+        assert a.dtype == np.float32 and a.shape == b.shape, name
+        # The rasterizer's rounding differs between tile projections (see above): a few
+        # pixels may differ, the rest agree closely.
+        close = np.isclose(a, b, rtol=1e-4, atol=1e-4)
+        assert close.mean() > 0.995, (name, close.mean())
+    # Negative control: the depth of a tile offset off by one pixel would not pass.
+    assert np.isclose(tiled.depth, np.roll(whole.depth, 1, axis=1), rtol=1e-4, atol=1e-4).mean() < 0.9
+
+
+def test_render_tiled_channels_with_one_tile_is_the_plain_render(renderer):
+    camera = off_centre_camera(40, 30)
+    tiled, whole = render_tiled_channels(renderer, camera), renderer.render_channels(camera)
+    for name in CHANNELS:
+        np.testing.assert_array_equal(getattr(tiled, name), getattr(whole, name))
+    with pytest.raises(UserError, match=f"{MAX_SCREENSHOT_SIDE + 1}x48"):
+        render_tiled_channels(renderer, off_centre_camera(MAX_SCREENSHOT_SIDE + 1, 48))

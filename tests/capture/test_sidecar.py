@@ -50,6 +50,7 @@ from raygs_viewer.capture.sidecar import (
 )
 from raygs_viewer.errors import UserError
 from raygs_viewer.jsonfile import JsonFields
+from raygs_viewer.render.channel_pictures import ChannelView
 from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.setting_info import Setting, setting
 from raygs_viewer.render.settings import RenderSettings
@@ -118,7 +119,7 @@ def test_build_sidecar_fields(tmp_path, monkeypatch):
                          settings=RenderSettings(), scale=1.5, window_camera=window_camera(),
                          extra={"up_axis": "-y", "navigation": "orbit"})
     # Mono sidecars keep version 1, so that older readers still read them.
-    assert data["format"] == SIDECAR_FORMAT and data["version"] == 1 and SIDECAR_VERSION == 2
+    assert data["format"] == SIDECAR_FORMAT and data["version"] == 1 and SIDECAR_VERSION == 3
     assert data["program"] == {"name": "raygs-viewer", "version": raygs_viewer.__version__}
     created = datetime.fromisoformat(data["created"].replace("Z", "+00:00"))
     assert created.tzinfo is not None and created.utcoffset().total_seconds() == 0
@@ -249,7 +250,7 @@ MALFORMED = {
     "cameras_json": (json.dumps([{"width": 4}]), "not a raygs-viewer screenshot sidecar"),
     "no_format": (delete_field("format"), "'format'"),
     "wrong_format": (set_field("format", "something else"), "not a raygs-viewer screenshot sidecar"),
-    "newer_version": (set_field("version", 3), "newer raygs-viewer"),
+    "newer_version": (set_field("version", 4), "newer raygs-viewer"),
     "version_zero": (set_field("version", 0), "'version'"),
     "version_string": (set_field("version", "1"), "'version'"),
     "version_bool": (set_field("version", True), "'version'"),
@@ -350,7 +351,7 @@ def test_malformed_sidecar_cli(capsys, tmp_path, case):
 
 def test_newer_version_says_so(tmp_path):
     path = write_malformed(tmp_path, "newer_version")
-    assert_user_error(lambda: load_sidecar(path), path, "version 3", "newer raygs-viewer", "update")
+    assert_user_error(lambda: load_sidecar(path), path, "version 4", "newer raygs-viewer", "update")
 
 
 def test_the_valid_sidecar_behind_the_cases_loads(tmp_path):
@@ -673,3 +674,63 @@ def test_a_rig_field_added_later_reads_the_files_written_before_it(tmp_path):
     data["stereo"]["eye_relief"] = 0.02
     path = write_json(tmp_path / "new.json", data)
     assert_user_error(lambda: load_sidecar(path), path, "unknown field 'stereo.eye_relief'", "newer raygs-viewer")
+
+
+# --------------------------------------------------------------------------- channel pictures (version 3)
+
+
+@pytest.mark.parametrize("view", [ChannelView("depth", (0.5, 7.25)), ChannelView("median_depth"),
+                                  ChannelView("normal", None, "world"), ChannelView("alpha")])
+def test_channel_view_sidecar_round_trip(tmp_path, view):
+    data = demo_sidecar(channel_view=view)
+    assert data["version"] == 3
+    assert data["channel_view"] == {"channel": view.channel,
+                                    "depth_range": None if view.depth_range is None else list(view.depth_range),
+                                    "normal_space": view.normal_space}
+    loaded = load_sidecar(write_json(tmp_path / "shot.json", data))
+    assert loaded.channel_view == view
+    assert loaded.settings == SETTINGS
+    assert_bit_identical(loaded.camera, window_camera())
+    both = load_sidecar(write_json(tmp_path / "pair.json", stereo_sidecar(channel_view=view)))
+    assert both.channel_view == view and both.stereo == STEREO and both.raw["version"] == 3
+
+
+@pytest.mark.parametrize("view", [None, ChannelView("rgb"), ChannelView("rgb", normal_space="world")])
+def test_colour_sidecars_record_no_channel_view_and_keep_their_version(tmp_path, view):
+    """Older readers keep reading colour screenshots; a picture of another channel they
+    would render as colour, so it takes version 3, which they refuse."""
+    data = demo_sidecar(channel_view=view)
+    assert "channel_view" not in data and data["version"] == 1
+    assert stereo_sidecar(channel_view=view)["version"] == 2
+    assert load_sidecar(write_json(tmp_path / "shot.json", data)).channel_view is None
+
+
+@pytest.mark.parametrize("missing, expected", [("channel_view.depth_range", ChannelView("normal", None, "world")),
+                                               ("channel_view.normal_space", ChannelView("normal"))])
+def test_a_channel_view_key_the_file_lacks_takes_its_default(tmp_path, missing, expected):
+    data = demo_sidecar(channel_view=ChannelView("normal", None, "world"))
+    delete_field(missing)(data)
+    assert load_sidecar(write_json(tmp_path / "old.json", data)).channel_view == expected
+
+
+MALFORMED_CHANNEL_VIEW = {
+    "old_version": (set_field("version", 2), "needs sidecar version 3"),
+    "not_object": (set_field("channel_view", "depth"), "'channel_view'"),
+    "channel_missing": (delete_field("channel_view.channel"), "missing 'channel_view.channel'"),
+    "channel_unknown": (set_field("channel_view.channel", "disparity"), "unknown view channel"),
+    "channel_number": (set_field("channel_view.channel", 3), "'channel_view.channel'"),
+    "range_reversed": (set_field("channel_view.depth_range", [5.0, 1.0]), "near < far"),
+    "range_three": (set_field("channel_view.depth_range", [1.0, 2.0, 3.0]), "'channel_view.depth_range'"),
+    "range_words": (set_field("channel_view.depth_range", "1,2"), "'channel_view.depth_range'"),
+    "space_unknown": (set_field("channel_view.normal_space", "object"), "normal space"),
+    "unknown_field": (set_field("channel_view.gamma", 2.2), "'channel_view.gamma'"),
+}
+
+
+@pytest.mark.parametrize("case", sorted(MALFORMED_CHANNEL_VIEW))
+def test_malformed_channel_view_is_one_line_user_error(tmp_path, case):
+    change, fragment = MALFORMED_CHANNEL_VIEW[case]
+    data = copy.deepcopy(demo_sidecar(channel_view=ChannelView("depth", (1.0, 4.0))))
+    change(data)
+    path = write_json(tmp_path / "shot.json", data)
+    assert_user_error(lambda: load_sidecar(path), path, fragment)

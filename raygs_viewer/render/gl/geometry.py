@@ -43,6 +43,14 @@ class GeometryOutputs:
         """Every channel of ``camera``'s image (camera-space normals) as ``renderer``
         (a GLRenderer) draws ``order`` with ``settings``; ``frame``, ``color_origin``:
         see GLRenderer.preprocess."""
+        image = self.draw(renderer, camera, settings, order, frame, color_origin)
+        color, sums, median = (image.read(attachment=i) for i in range(GEOMETRY_ATTACHMENTS))
+        return finish(color, sums, median[..., :2])
+
+    def draw(self, renderer, camera: Camera, settings: RenderSettings, order: np.ndarray,
+             frame: Camera | None = None, color_origin: np.ndarray | None = None) -> FloatTarget:
+        """The GPU work of :meth:`render`: the camera-sized target holding colour, the
+        sums and the median (its three attachments), not yet read back."""
         problem = renderer.supports(settings, geometry=True)
         if problem:
             raise UserError(problem)
@@ -59,8 +67,7 @@ class GeometryOutputs:
         renderer.order_stats = stats if settings.per_pixel else None
         if k > 1:
             renderer.resolve_samples(drawn, image, k, settings, front_to_back=False, geometry=True)
-        color, sums, median = (image.read(attachment=i) for i in range(GEOMETRY_ATTACHMENTS))
-        return finish(color, sums, median[..., :2])
+        return image
 
     def render_view(self, renderer, target: FloatTarget, camera: Camera, settings: RenderSettings,
                     order: np.ndarray, view: ChannelView, frame: Camera | None = None,
