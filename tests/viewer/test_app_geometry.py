@@ -9,8 +9,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from appkit import PANEL_HEIGHT, PANEL_WIDTH, click_choice, right_image, window_image
-from imgui_bundle import imgui  # before glfw (see raygs_viewer.viewer.window)  # noqa: F401
+from appkit import PANEL_HEIGHT, click_choice, right_image, window_image
 from PIL import Image
 
 from raygs_viewer.camera.stereo import StereoRig, custom_preset, eye_cameras
@@ -20,6 +19,7 @@ from raygs_viewer.render.gl.stereo_frame import stereo_order
 from raygs_viewer.viewer.state import StereoPreview
 
 W, H = 64, 48
+PANEL_NARROW = 380  # the panel (360 wide) and a sliver of view: a small scene image to draw
 EYE = custom_preset(40, 30, 90.0, 72.0)
 # The window's picture and a headless one of the same view and order: float32 rounding
 # of the same passes (a depth's colour-map entry may round to its neighbour).
@@ -47,20 +47,19 @@ def assert_picture(shown: np.ndarray, expected: np.ndarray) -> None:
     assert np.mean(difference > PICTURE_TOLERANCE) < 0.005, difference.max()
 
 
-@pytest.mark.parametrize("channel", ["depth", "median_depth", "normal", "alpha"])
-def test_each_view_mode_shows_the_channel_picture(open_viewer, channel):
+def test_each_view_mode_shows_the_channel_picture(open_viewer):
     viewer, drive = small(open_viewer)
     colour = window_image(viewer).copy()
-    viewer.view_mode.channel = channel
-    drive.frames(2)
-    view = ChannelView(channel)
-    expected, used = expected_picture(viewer, view)
-    assert_picture(window_image(viewer), expected)
-    assert np.abs(window_image(viewer)[..., :3] - colour[..., :3]).max() > 0.2  # not the colour any more
-    if channel in ("depth", "median_depth"):
-        assert viewer.drawer.view_range == pytest.approx(used, rel=1e-4)
-    else:
-        assert viewer.drawer.view_range is None
+    for channel in ("depth", "median_depth", "normal", "alpha"):
+        viewer.view_mode.channel = channel
+        drive.frames(2)
+        expected, used = expected_picture(viewer, ChannelView(channel))
+        assert_picture(window_image(viewer), expected)
+        assert np.abs(window_image(viewer)[..., :3] - colour[..., :3]).max() > 0.2  # not the colour any more
+        if channel in ("depth", "median_depth"):
+            assert viewer.drawer.view_range == pytest.approx(used, rel=1e-4)
+        else:
+            assert viewer.drawer.view_range is None
     viewer.view_mode.channel = "rgb"
     drive.frames(2)
     np.testing.assert_array_equal(window_image(viewer), colour)
@@ -98,7 +97,7 @@ def test_a_set_depth_range_is_used_and_a_bad_one_is_a_standing_error(open_viewer
 
 
 def test_the_panel_switches_the_view_and_states_the_range_in_use(open_viewer):
-    viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
+    viewer, drive = open_viewer(width=PANEL_NARROW, height=PANEL_HEIGHT)
     drive.frames(2)
     drive.reveal("show")
     click_choice(drive, "show", "median depth")

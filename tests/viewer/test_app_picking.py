@@ -9,10 +9,11 @@ imgui's timing has recognised it, so no test waits on real time; single clicks a
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 import pytest
-from appkit import PANEL_HEIGHT, PANEL_WIDTH, headless, presented
-from imgui_bundle import imgui  # before glfw (see raygs_viewer.viewer.window)
+from appkit import PANEL_HEIGHT, headless, presented
 from PIL import Image
 
 from raygs_viewer.camera.pinhole import look_at
@@ -26,6 +27,7 @@ from raygs_viewer.viewer.pick_tool import NOTHING_THERE
 from raygs_viewer.viewer.state import StereoPreview
 
 W, H = 64, 48
+PANEL_NARROW = 380  # the panel (360 wide) and a sliver of view: a small scene image to draw
 EYE = custom_preset(40, 30, 90.0, 72.0)
 
 
@@ -89,7 +91,6 @@ def test_screen_positions_map_to_pixels_and_stereo_eyes():
     sbs = (0, 0, 80, 30)
     eye, u, v = stereo_pixel(45.5, 3.5, sbs, (1.0, 1.0), camera, view)
     assert (u, v) == (5, 3) and np.array_equal(eye.t, right.t) and eye.cx == right.cx
-    from dataclasses import replace
     eye, u, v = stereo_pixel(45.5, 3.5, sbs, (1.0, 1.0), camera, replace(view, layout="cross"))
     assert (u, v) == (5, 3) and eye.cx == left.cx
     eye, u, v = stereo_pixel(5.5, 3.5, (0, 0, 40, 30), (1.0, 1.0), camera, replace(view, layout="anaglyph"))
@@ -144,7 +145,7 @@ def test_double_click_on_an_empty_pixel_changes_nothing_and_says_so(open_viewer)
 
 
 def test_double_click_over_the_panel_is_the_panels(open_viewer):
-    viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
+    viewer, drive = open_viewer(width=PANEL_NARROW, height=PANEL_HEIGHT)
     drive.frames(2)
     pose = viewer.view.navigator.pose
     x0, y0, x1, y1 = drive.panel.rect("Reset view (R)")
@@ -247,7 +248,7 @@ def test_a_scale_from_one_known_length_converts_every_distance(open_viewer):
 
 
 def test_the_measure_section_lists_deletes_saves_and_loads(open_viewer, tmp_path):
-    viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
+    viewer, drive = open_viewer(width=PANEL_NARROW, height=PANEL_HEIGHT)
     drive.frames(2)
     widget = viewer.measure
     widget.measurements = [Measurement([0, 0, 0], [0, 0, 2.0]), Measurement([0, 0, 0], [3, 4, 0])]
