@@ -44,6 +44,8 @@ from raygs_viewer.viewer.loading import SceneOpener, scene_title
 from raygs_viewer.viewer.measure import MeasureWidget
 from raygs_viewer.viewer.overlay import draw_split_overlay
 from raygs_viewer.viewer.panel import draw_panel
+from raygs_viewer.viewer.panel.geometry import draw_geometry_section
+from raygs_viewer.viewer.panel.measure import draw_measure_section
 from raygs_viewer.viewer.panel.order import draw_order_section
 from raygs_viewer.viewer.panel.path import draw_path_section
 from raygs_viewer.viewer.panel.render import draw_render_section
@@ -52,8 +54,6 @@ from raygs_viewer.viewer.panel.screenshot import draw_screenshot_section
 from raygs_viewer.viewer.panel.statistics import draw_statistics
 from raygs_viewer.viewer.panel.stereo import draw_stereo_section
 from raygs_viewer.viewer.panel.training import draw_training_section
-from raygs_viewer.viewer.panel.geometry import draw_geometry_section
-from raygs_viewer.viewer.panel.measure import draw_measure_section
 from raygs_viewer.viewer.panel.view import draw_view_section
 from raygs_viewer.viewer.path_widget import PathWidget, scene_argument
 from raygs_viewer.viewer.pick_tool import PickTool

@@ -22,8 +22,8 @@ from raygs_viewer.capture.image_io import to_rgb8
 from raygs_viewer.capture.measure_file import Measurement, load_measure_document
 from raygs_viewer.viewer.path_overlay import screen_segments
 from raygs_viewer.viewer.path_widget import OVERLAY_NEAR
-from raygs_viewer.viewer.picking import mono_pixel, pixel_camera, stereo_pixel, unproject
 from raygs_viewer.viewer.pick_tool import NOTHING_THERE
+from raygs_viewer.viewer.picking import mono_pixel, pixel_camera, stereo_pixel, unproject
 from raygs_viewer.viewer.state import StereoPreview
 
 W, H = 64, 48
