@@ -53,6 +53,7 @@ ZOOM_STEP = 0.85          # distance factor per wheel tick, orbit mode
 MIN_DISTANCE = 1e-6       # times the scene radius
 MAX_DISTANCE = 1e6        # times the scene radius
 FAST, SLOW = 4.0, 0.25
+AIM_SECONDS = 0.3         # the glide of a double-click's aim (SuperSplat's is about as quick)
 # Pixel deltas beyond this are input garbage (a warped cursor, a broken driver); they
 # are clamped so one event cannot throw the camera out to 1e300.
 MAX_PIXELS = 1e6
@@ -203,6 +204,38 @@ def framing_distance(radius: float, fov_y_degrees: float, aspect: float) -> floa
     # The narrower of the two half-angles decides: the sphere's cone must fit both ways.
     half = min(half_y, math.atan(math.tan(half_y) * aspect))
     return radius / math.sin(half)
+
+
+# --------------------------------------------------------------------------- aiming at a point
+
+
+def centred_on(pose: Pose, point, up: np.ndarray) -> tuple[Pose, float] | None:
+    """Orbit mode's aim, as SuperSplat's double-click and Blender's "center view to
+    mouse" do: the view keeps its direction and slides so that ``point`` (3,) sits on the
+    image centre at the distance it has now. (pose, that distance), or None when the
+    point is not finite or is the camera centre."""
+    distance = _distance_to(pose, point)
+    if distance is None:
+        return None
+    return Pose(np.asarray(point, np.float64) - distance * pose.R[2], pose.R), distance
+
+
+def facing(pose: Pose, point, up: np.ndarray) -> tuple[Pose, float] | None:
+    """Fly mode's aim: the view stays where it is and turns, level about ``up``, to look
+    at ``point``. (pose, its distance), or None as for :func:`centred_on`."""
+    distance = _distance_to(pose, point)
+    if distance is None:
+        return None
+    forward = np.asarray(point, np.float64) - pose.position
+    return Pose(pose.position, level_rotation(forward, up, pose.R[0])), distance
+
+
+def _distance_to(pose: Pose, point) -> float | None:
+    point = np.asarray(point, np.float64).reshape(-1)
+    if point.shape != (3,) or not np.all(np.isfinite(point)):
+        return None
+    distance = float(np.linalg.norm(point - pose.position))
+    return distance if math.isfinite(distance) and distance > 0 else None
 
 
 # --------------------------------------------------------------------------- navigator
@@ -417,6 +450,16 @@ class Navigator:
     def set_pose(self, pose: Pose) -> None:
         self._cancel()
         self._set(pose.position, pose.R)
+
+    @_quiet
+    def aim_at(self, point, duration: float = AIM_SECONDS) -> bool:
+        """Glides to :func:`centred_on` ``point`` (orbit mode) or :func:`facing` it (fly);
+        the orbit distance becomes its distance. False, nothing done, for a bad point."""
+        aimed = (centred_on if self._mode == "orbit" else facing)(self.pose, point, self._up_vec)
+        if aimed is not None:
+            self.fly_to(aimed[0], duration)
+            self._distance = aimed[1]
+        return aimed is not None
 
     def reset(self, pose: Pose) -> None:
         self.set_pose(pose)

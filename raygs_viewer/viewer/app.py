@@ -10,7 +10,9 @@ from their sidecar (``raygs-viewer render --sidecar``).
 input (``input``), the camera (``view_control``), loading (``loading``), drawing
 (``drawing``, with ``render.gl.mono_frame`` and ``render.gl.stereo_frame``), the
 panel (``panel``), the split view's overlay (``overlay``), screenshots
-(``screenshots``) and the camera path with its playback and video (``path_widget``).
+(``screenshots``), the camera path with its playback and video (``path_widget``), the
+view mode (``state.ViewMode``), and picking points by double-click and measuring
+between them (``pick_tool``, ``measure``).
 """
 
 from __future__ import annotations
@@ -39,8 +41,11 @@ from raygs_viewer.sort.worker import BackgroundSorter
 from raygs_viewer.viewer.drawing import SceneDrawer, sort_cull, sort_keys
 from raygs_viewer.viewer.input import InputHandler
 from raygs_viewer.viewer.loading import SceneOpener, scene_title
+from raygs_viewer.viewer.measure import MeasureWidget
 from raygs_viewer.viewer.overlay import draw_split_overlay
 from raygs_viewer.viewer.panel import draw_panel
+from raygs_viewer.viewer.panel.geometry import draw_geometry_section
+from raygs_viewer.viewer.panel.measure import draw_measure_section
 from raygs_viewer.viewer.panel.order import draw_order_section
 from raygs_viewer.viewer.panel.path import draw_path_section
 from raygs_viewer.viewer.panel.render import draw_render_section
@@ -51,6 +56,7 @@ from raygs_viewer.viewer.panel.stereo import draw_stereo_section
 from raygs_viewer.viewer.panel.training import draw_training_section
 from raygs_viewer.viewer.panel.view import draw_view_section
 from raygs_viewer.viewer.path_widget import PathWidget, scene_argument
+from raygs_viewer.viewer.pick_tool import PickTool
 from raygs_viewer.viewer.screenshots import Saved, ShownView, saved_message, sidecar_extra, take_screenshots
 from raygs_viewer.viewer.state import (
     PanelState,
@@ -58,6 +64,7 @@ from raygs_viewer.viewer.state import (
     SplitView,
     StereoPreview,
     ViewerOptions,
+    ViewMode,
 )
 from raygs_viewer.viewer.stats import FrameStats, sort_key, summary
 from raygs_viewer.viewer.view_control import ViewControl
@@ -91,19 +98,22 @@ class Viewer:
         self.stereo: StereoPreview = replace(options.stereo)
         self.screenshots: ScreenshotOptions = replace(options.screenshots)
         self.split = SplitView()
+        self.view_mode = ViewMode()
         self.panel = PanelState()
         self.stats = FrameStats()
         self.scenes = SceneOpener(self.panel)
         self.window.set_drop_callback(self.scenes.drop)
         self.drawer = SceneDrawer(self.ctx)
         self.camera_path = PathWidget(self.panel, self)
+        self.measure = MeasureWidget(self.panel, self)
+        self.picker = PickTool(self, self.measure)
         self.input = InputHandler({
             "quit": self.window.request_close, "screenshot": self.request_screenshot,
             "switch_navigation": lambda: self.view.switch_mode(),
             "next_camera": lambda: self.view.step_training_camera(+1),
             "previous_camera": lambda: self.view.step_training_camera(-1),
             "reset_view": self.reset_view, "toggle_panel": self.panel.toggle,
-            "add_keyframe": self.camera_path.add_view})
+            "add_keyframe": self.camera_path.add_view}, self.picker.click, self.picker.double_click)
         self.frame_index = 0
         self.input_script: Callable[[Viewer], None] | None = None
         self.fixed_dt: float | None = None  # tests: a deterministic frame time
@@ -143,7 +153,7 @@ class Viewer:
             self.sorter.close()
         self.renderer, self.sorter = renderer, self.sorter_factory(renderer.sorter)
         self.stats.request_frames.clear()
-        self.drawer.mono.forget()
+        self.drawer.forget()
         self.loaded = loaded
         # The options' sh_degree None: every scene's own; else the panel's, capped at this scene's.
         degree = loaded.scene.sh_degree
@@ -215,11 +225,13 @@ class Viewer:
         self.overlay_rects = {} if right is None else draw_split_overlay(
             self.viewport, self.split, self.settings, self.input.dragging_divider)
         self.camera_path.draw_overlay(camera, self.viewport, self.view.radius, stereo is not None)
+        self.measure.draw_overlay(camera, self.viewport, self.view.radius, stereo is not None)
         imgui.render()
 
         orders, serial = self.stats.order_to_draw(result, sort_key(camera, p_min, dilation, cull_cameras, keys),
                                                   self.frame_index, camera)
-        self.drawer.draw(self.renderer, camera, settings, right, stereo, orders, serial, self.stats, self.panel)
+        self.drawer.draw(self.renderer, camera, settings, right, stereo, orders, serial, self.stats, self.panel,
+                         self.view_mode.frame_view(self.panel))
         self.drawer.mono.present(self.ctx.screen, (width, height), self.viewport, self.split.column(self.viewport[2]))
         if self.capture_window_next:
             self.capture_window_next = False
@@ -252,7 +264,7 @@ class Viewer:
         if self.camera is None:
             raise UserError("nothing has been drawn yet")
         shown = ShownView(self.camera, self.settings, self.split if self.right_settings() is not None else None,
-                          self.shown_stereo)
+                          self.shown_stereo, self.drawer.shown_view)
         extra = sidecar_extra(self.view.navigator, self.loaded, self.view.training_index,
                               context_description(self.ctx))
         self.last_screenshots = take_screenshots(self.renderer, self.loaded, shown, self.screenshots,
@@ -327,7 +339,10 @@ def panel_sections(viewer: Viewer) -> list[Callable[[], None]]:
         lambda: draw_screenshot_section(viewer.screenshots, viewer.camera, viewer.shown_stereo is not None,
                                         viewer.stereo.save_eyes, viewer.split.on and viewer.shown_stereo is None,
                                         viewer.request_screenshot),
+        lambda: draw_geometry_section(viewer.view_mode, viewer.drawer.view_range, viewer.picker.last,
+                                      viewer.measure.scale, viewer.stereo),
         lambda: draw_path_section(viewer.camera_path),
+        lambda: draw_measure_section(viewer.measure),
     ]
 
 

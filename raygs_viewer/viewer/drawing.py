@@ -13,6 +13,10 @@ preview and the layout compose one image.
 
 After each per-pixel-order render the renderer's ``order_stats`` (what the per-pixel
 pass did: fragments, pool, parts) is kept in the frame statistics, per side.
+
+A channel view (the panel's view mode: depth, median depth, normal or alpha) is drawn
+on every side and eye; an automatic depth range is the left side's (or left eye's),
+fixed for the other, so that one colour is one depth across the divider.
 """
 
 from __future__ import annotations
@@ -26,7 +30,8 @@ from raygs_viewer.camera.pinhole import Camera, camera_key
 from raygs_viewer.camera.stereo import StereoView
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.gl.mono_frame import MonoFrame
-from raygs_viewer.render.gl.stereo_frame import StereoFrame
+from raygs_viewer.render.channel_pictures import ChannelView
+from raygs_viewer.render.gl.stereo_frame import StereoFrame, fixed_range, view_argument
 from raygs_viewer.render.gl.timing import GpuTimer
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.viewer.state import PanelState
@@ -62,7 +67,10 @@ def order_for(orders: Mapping[str, np.ndarray], key: str) -> np.ndarray:
 class SceneDrawer:
     """The window's frames (``mono``, and ``stereo`` once the preview has been on) and
     the timers of their passes: ``timer`` the scene's draw (both sides in the split
-    view, both eyes in stereo), ``post_timer`` the stereo lens preview and layout."""
+    view, both eyes in stereo), ``post_timer`` the stereo lens preview and layout.
+    ``view``: the picture the last frame showed (None: the colour), ``view_range``: the
+    depth range it uses (None: not a depth view); ``orders``: the orders of the last
+    frame, by sort key (what a pick in the view draws with)."""
 
     def __init__(self, ctx: moderngl.Context):
         self.ctx = ctx
@@ -70,17 +78,22 @@ class SceneDrawer:
         self.stereo: StereoFrame | None = None
         self.timer = GpuTimer(ctx)
         self.post_timer = GpuTimer(ctx)
+        self.view: ChannelView | None = None
+        self.view_range: tuple[float, float] | None = None
+        self.orders: dict[str, np.ndarray] = {}
 
     def draw(self, renderer, camera: Camera, settings: RenderSettings, right: RenderSettings | None,
              stereo: StereoView | None, orders: Mapping[str, np.ndarray], serial: int, stats: FrameStats,
-             panel: PanelState) -> None:
+             panel: PanelState, view: ChannelView | None = None) -> None:
         """Draws each side with its key's order from ``orders`` ({sort key: order} of
         sort request ``serial``) unless the frame already holds this view, these settings
         and these orders, and notes the draw, its GPU times and the per-pixel order's
-        statistics in ``stats``. Settings this GPU cannot render (the panel greys those
-        out) are a standing error in ``panel``; the frame is then drawn again next time."""
+        statistics in ``stats``. ``view``: the picture shown instead of the colour.
+        Settings this GPU cannot render (the panel greys those out) are a standing error
+        in ``panel``; the frame is then drawn again next time."""
+        self.orders, self.view = dict(orders), view
         try:
-            drew = self._draw(renderer, camera, settings, right, stereo, orders, serial, stats)
+            drew = self._draw(renderer, camera, settings, right, stereo, orders, serial, stats, view)
         except UserError as exc:
             panel.stand("draw", f"error: {one_line(exc)}")
             return
@@ -90,8 +103,9 @@ class SceneDrawer:
         stats.gpu_seconds, stats.post_seconds = self.timer.seconds, self.post_timer.seconds
 
     def _draw(self, renderer, camera: Camera, settings: RenderSettings, right: RenderSettings | None,
-              stereo: StereoView | None, orders: Mapping[str, np.ndarray], serial: int, stats: FrameStats) -> bool:
-        key = (camera_key(camera), settings, right, stereo, serial)
+              stereo: StereoView | None, orders: Mapping[str, np.ndarray], serial: int, stats: FrameStats,
+              view: ChannelView | None) -> bool:
+        key = (camera_key(camera), settings, right, stereo, view, serial)
         if stereo is None:
             left_target, right_target = self.mono.targets(camera.width, camera.height, split=right is not None)
         elif self.stereo is None:
@@ -107,22 +121,36 @@ class SceneDrawer:
         order = order_for(orders, settings.sort_key)
         if stereo is None:
             with self.timer.measure():  # the whole frame's GPU time, both sides in the split view
-                renderer.render_into(left_target, camera, settings, order)
+                renderer.render_into(left_target, camera, settings, order, **view_argument(view))
+                self.view_range = None if view is None else renderer.view_range
                 left_stats = _order_stats(renderer, settings)
                 right_stats = None
                 if right is not None:
-                    renderer.render_into(right_target, camera, right, order_for(orders, right.sort_key))
+                    renderer.render_into(right_target, camera, right, order_for(orders, right.sort_key),
+                                         **view_argument(fixed_range(view, self.view_range)))
                     right_stats = _order_stats(renderer, right)
             stats.order_stats = (left_stats, right_stats)
             self.mono.drawn(key)
         else:
             with self.timer.measure():  # both eyes: what the frame-budget meter compares
-                self.stereo.draw_eyes(renderer, camera, settings, stereo.rig, order)
+                self.stereo.draw_eyes(renderer, camera, settings, stereo.rig, order, view)
+                self.view_range = self.stereo.view_range
             stats.order_stats = (_order_stats(renderer, settings), None)  # the last eye's (the right)
             with self.post_timer.measure():
                 self.stereo.finish(stereo)
             self.mono.drawn(key, self.stereo.image)
         return True
+
+    @property
+    def shown_view(self) -> ChannelView | None:
+        """``view`` with an automatic range fixed to the one in use: what reproduces the
+        picture shown (screenshots)."""
+        return fixed_range(self.view, self.view_range)
+
+    def forget(self) -> None:
+        """A new scene: nothing drawn is of it."""
+        self.mono.forget()
+        self.orders = {}
 
     def release(self) -> None:
         self.mono.release()

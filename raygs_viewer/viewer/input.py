@@ -1,5 +1,12 @@
-"""Keys and mouse, read from imgui once a frame: shortcuts, camera movement, and the
-A/B split view's divider drag.
+"""Keys and mouse, read from imgui once a frame: shortcuts, camera movement, the A/B
+split view's divider drag, and clicks and double-clicks on the view (picking a point).
+
+A click is a left press and release with the mouse moved at most CLICK_SLOP screen
+units between them (a drag turns the camera instead); a double-click is imgui's (two
+presses within its io.mouse_double_click_time). Both go to the "click" and
+"double_click" actions with the screen position. :meth:`InputHandler.inject` queues a
+double-click directly, through the same handling, for what cannot wait on real time
+(tests, scripts).
 
 imgui has already decided whether the panel wants the keyboard or the mouse; what it
 wants is left alone. Positions are in screen coordinates (imgui's), the viewport in
@@ -21,6 +28,8 @@ from raygs_viewer.viewer.state import SplitView
 SPLIT_RANGE = (0.02, 0.98)
 #: The divider can be grabbed this many screen pixels either side of it.
 SPLIT_GRAB = 6.0
+#: A press and release this close (screen units) are a click, not a drag.
+CLICK_SLOP = 3.0
 
 Key = imgui.Key
 #: The shortcuts, in the order they are handled: action name -> the keys that trigger it.
@@ -37,11 +46,22 @@ SHORTCUTS: dict[str, tuple] = {
 
 
 class InputHandler:
-    """``actions`` maps each SHORTCUTS name to what it does."""
+    """``actions`` maps each SHORTCUTS name to what it does; ``on_click(x, y)`` and
+    ``on_double_click(x, y)`` take clicks on the view (screen coordinates)."""
 
-    def __init__(self, actions: Mapping[str, Callable[[], None]]):
+    def __init__(self, actions: Mapping[str, Callable[[], None]],
+                 on_click: Callable[[float, float], None] = lambda x, y: None,
+                 on_double_click: Callable[[float, float], None] = lambda x, y: None):
         self.actions = dict(actions)
+        self.on_click, self.on_double_click = on_click, on_double_click
         self.dragging_divider = False   # the left button holds the split view's divider
+        self._press: tuple[float, float] | None = None   # where the left button went down on the view
+        self._injected: list[tuple[float, float]] = []
+
+    def inject(self, x: float, y: float) -> None:
+        """A double-click at screen position (x, y), handled in the next frame as a real
+        one is (unless the panel has the mouse there)."""
+        self._injected.append((float(x), float(y)))
 
     def handle(self, dt: float, navigator: Navigator, camera: Camera | None,
                viewport: tuple[int, int, int, int], split: SplitView | None) -> None:
@@ -50,10 +70,31 @@ class InputHandler:
         io = imgui.get_io()
         if not io.want_capture_keyboard:
             self._keys(io, dt, navigator)
+        injected, self._injected = self._injected, []
         if self._divider(io, viewport, split):
+            self._press = None
             return  # the mouse drags the split view's divider, not the camera
         if not io.want_capture_mouse:
+            self._clicks(io, injected)
             self._mouse(io, navigator, camera, viewport)
+        else:
+            self._press = None
+
+    def _clicks(self, io, injected: list[tuple[float, float]]) -> None:
+        x, y = io.mouse_pos.x, io.mouse_pos.y
+        if not (math.isfinite(x) and math.isfinite(y)):
+            self._press = None
+            return
+        if imgui.is_mouse_clicked(0):
+            self._press = (x, y)
+        elif self._press is not None and imgui.is_mouse_released(0):
+            press, self._press = self._press, None
+            if abs(x - press[0]) <= CLICK_SLOP and abs(y - press[1]) <= CLICK_SLOP:
+                self.on_click(x, y)
+        if imgui.is_mouse_double_clicked(0):
+            injected.append((x, y))
+        for position in injected:
+            self.on_double_click(*position)
 
     def _keys(self, io, dt: float, navigator: Navigator) -> None:
         for action, keys in SHORTCUTS.items():

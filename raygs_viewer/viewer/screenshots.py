@@ -6,12 +6,17 @@ In the split view each side is saved whole with its own settings and sidecar
 (``<name>-left.png``, ``<name>-right.png``). In the stereo preview: the side-by-side
 pair of eyes at the headset's size times the scale, and on request each eye
 (``<name>-pair.png``, ``<name>-left.png``, ``<name>-right.png``).
+
+In a view mode (a depth, median depth, normal or alpha picture) the screenshot is that
+picture, in the depth range the window showed (an automatic range is fixed to the one
+in use, so the file shows what the window did), and the sidecar's "extra" records the
+view. Those pictures come from one render of the channels, not tiles.
 """
 
 from __future__ import annotations
 
 import os
-from dataclasses import dataclass, replace
+from dataclasses import asdict, dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -21,6 +26,7 @@ from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.camera.stereo import StereoView
 from raygs_viewer.capture.screenshot import render_tiled, save_screenshot, save_screenshots, scaled_camera
 from raygs_viewer.capture.sidecar import build_sidecar
+from raygs_viewer.render.channel_pictures import ChannelView, channel_picture
 from raygs_viewer.render.gl.stereo_frame import render_stereo_view
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.loader import LoadedScene
@@ -35,12 +41,14 @@ class ShownView:
     """What the window showed in its last frame: the camera (viewport-sized; in stereo
     the midpoint between the eyes at the headset's size), the render settings (the
     left side's in the split view), the split view when it was shown, the stereo view
-    when the preview was on."""
+    when the preview was on, the picture shown instead of the colour (its depth range
+    the one in use)."""
 
     camera: Camera
     settings: RenderSettings
     split: SplitView | None = None
     stereo: StereoView | None = None
+    view: ChannelView | None = None
 
 
 def sidecar_extra(navigator: Navigator, loaded: LoadedScene, training_index: int | None, gl: str) -> dict:
@@ -64,14 +72,17 @@ def take_screenshots(renderer, loaded: LoadedScene, shown: ShownView, options: S
         return build_sidecar(scene_path=scene_path, scene_sha256=loaded.sha256, scene=loaded.scene, camera=camera,
                              settings=settings, scale=scale, window_camera=shown.camera, extra=details, stereo=stereo)
 
+    if shown.view is not None:
+        extra = {**extra, "view": asdict(shown.view)}
     if shown.stereo is not None:
         shots = [(image, sidecar(shown.settings, {**extra, "stereo_window_layout": shown.stereo.layout}, view), tag)
-                 for image, view, tag in _stereo_images(renderer, camera, shown.settings, shown.stereo, save_eyes)]
+                 for image, view, tag in _stereo_images(renderer, camera, shown.settings, shown.stereo, save_eyes,
+                                                        shown.view)]
     elif shown.split is None:
-        shots = [(render_tiled(renderer, camera, shown.settings), sidecar(shown.settings, extra), "left")]
+        shots = [(render_shown(renderer, camera, shown.settings, shown.view), sidecar(shown.settings, extra), "left")]
     else:
         split = shown.split
-        shots = [(render_tiled(renderer, camera, settings), sidecar(settings, {**extra, "split_view": {
+        shots = [(render_shown(renderer, camera, settings, shown.view), sidecar(settings, {**extra, "split_view": {
                      "side": side, "preset": split.preset if side == "right" else None, "divider": split.fraction}}),
                   side)
                  for side, settings in (("left", shown.settings), ("right", split.right(shown.settings)))]
@@ -85,12 +96,22 @@ def take_screenshots(renderer, loaded: LoadedScene, shown: ShownView, options: S
     return save_screenshots(shots, folder=Path(options.folder))
 
 
-def _stereo_images(renderer, camera: Camera, settings: RenderSettings, stereo: StereoView, save_eyes: bool
-                   ) -> list[tuple[np.ndarray, StereoView, str]]:
+def render_shown(renderer, camera: Camera, settings: RenderSettings, view: ChannelView | None) -> np.ndarray:
+    """(H, W, 4) float32, top row first: the colour (tiled), or the picture ``view``
+    shows (alpha 1)."""
+    if view is None:
+        return render_tiled(renderer, camera, settings)
+    channels = renderer.render_channels(camera, settings).in_space(view.normal_space, camera)
+    picture, _ = channel_picture(channels, view)
+    return np.concatenate([picture, np.ones(picture.shape[:2] + (1,), np.float32)], axis=-1)
+
+
+def _stereo_images(renderer, camera: Camera, settings: RenderSettings, stereo: StereoView, save_eyes: bool,
+                   view: ChannelView | None) -> list[tuple[np.ndarray, StereoView, str]]:
     """The side-by-side pair whatever the window's layout (the sidecar notes that
     layout), and each eye when asked, each with the view that reproduces it."""
     pair = replace(stereo, layout="sbs")
-    image, left, right = render_stereo_view(renderer, camera, settings, pair)
+    image, left, right = render_stereo_view(renderer, camera, settings, pair, view)
     shots = [(image, pair, "pair")]
     if save_eyes:
         shots += [(left, replace(stereo, layout="left"), "left"), (right, replace(stereo, layout="right"), "right")]

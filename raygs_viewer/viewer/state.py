@@ -2,8 +2,9 @@
 
 The render settings are one :class:`~raygs_viewer.render.settings.RenderSettings`, held
 by the viewer and replaced whole on every edit. What is not a render setting lives
-here: the A/B split view, the stereo preview, the screenshot options, the navigation
-choices and the panel's own state. :class:`ViewerOptions` holds the start value of each.
+here: the A/B split view, the stereo preview, the view mode (which channel the window
+shows), the screenshot options, the navigation choices and the panel's own state.
+:class:`ViewerOptions` holds the start value of each.
 The panel, the keys and the mouse edit the viewer's copies; the frame reads them each
 time, so an edit shows from the next frame on.
 """
@@ -23,6 +24,7 @@ from raygs_viewer.camera.stereo import (
     custom_preset,
 )
 from raygs_viewer.errors import UserError, one_line
+from raygs_viewer.render.channel_pictures import ChannelView
 from raygs_viewer.render.settings import RenderSettings, apply_preset
 
 #: The right side's preset when the split view is first switched on.
@@ -56,6 +58,8 @@ class StereoPreview:
     the layout, whether the lens preview is applied, and the headset: a PRESETS key, or
     "custom", then custom_size ([width, height] per eye) and custom_fov ([horizontal,
     vertical] degrees) describe it. save_eyes: stereo screenshots also save each eye.
+    converge_on_pick: a double-click on the preview sets the convergence to the picked
+    point's depth (instead of aiming the view at it).
 
     ViewerOptions holds the start value; the panel edits the viewer's copy."""
 
@@ -67,6 +71,7 @@ class StereoPreview:
     custom_size: list[int] = field(default_factory=lambda: [CUSTOM_START.width, CUSTOM_START.height])
     custom_fov: list[float] = field(default_factory=lambda: [CUSTOM_START.fov_x, CUSTOM_START.fov_y])
     save_eyes: bool = False
+    converge_on_pick: bool = False
 
     def __post_init__(self) -> None:
         check_layout(self.layout)
@@ -100,6 +105,39 @@ class StereoPreview:
             panel.stand("stereo", f"error: {one_line(exc)}")
             return shown if self.on else None
         panel.mend("stereo")
+        return view
+
+
+@dataclass
+class ViewMode:
+    """What the window shows: ``channel`` (render.channel_pictures.PICTURE_CHANNELS: the
+    colour, or a picture of alpha, depth, median depth or normals), the depth pictures'
+    range (``automatic``: spanning each image's depths; else ``near`` to ``far``, scene
+    units) and the space normals are shown in ("camera" or "world"). Both sides of the
+    split view and both stereo eyes show it; screenshots save it."""
+
+    channel: str = "rgb"
+    automatic: bool = True
+    near: float = 0.1
+    far: float = 10.0
+    normal_space: str = "camera"
+
+    def view(self) -> ChannelView | None:
+        """The channel view to draw; None for the colour (the renderer's plain path).
+        UserError for a set range that is not near < far."""
+        if self.channel == "rgb":
+            return None
+        return ChannelView(self.channel, None if self.automatic else (self.near, self.far), self.normal_space)
+
+    def frame_view(self, panel: PanelState) -> ChannelView | None:
+        """The view to draw this frame. A set range that is not one is a standing error in
+        ``panel``, and the frame shows the automatic range meanwhile."""
+        try:
+            view = self.view()
+        except UserError as exc:
+            panel.stand("view", f"error: {one_line(exc)}")
+            return ChannelView(self.channel, None, self.normal_space)
+        panel.mend("view")
         return view
 
 

@@ -250,7 +250,7 @@ def test_panel_accuracy_controls_change_the_settings_and_the_image(open_viewer):
 def test_controls_this_gpu_cannot_render_are_greyed_out(open_viewer, monkeypatch):
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
     monkeypatch.setattr(viewer.renderer, "supports",
-                        lambda settings: "no framebuffer fetch" if settings.transmittance_cutoff else None)
+                        lambda settings, geometry=False: "no framebuffer fetch" if settings.transmittance_cutoff else None)
     drive.frames(2)
     drive.click("transmittance cut-off 1e-4")
     assert not viewer.settings.transmittance_cutoff and viewer.panel.error == ""
@@ -261,10 +261,10 @@ def test_settings_the_renderer_refuses_show_an_error_and_keep_running(open_viewe
     viewer, drive = open_viewer(hide_panel=True)
     render_into = viewer.renderer.render_into
 
-    def refusing(target, camera, settings, order, *args):
+    def refusing(target, camera, settings, order, *args, **kwargs):
         if settings.transmittance_cutoff:
             raise UserError("the transmittance cut-off needs GL_EXT_shader_framebuffer_fetch")
-        return render_into(target, camera, settings, order, *args)
+        return render_into(target, camera, settings, order, *args, **kwargs)
 
     monkeypatch.setattr(viewer.renderer, "render_into", refusing)
     drive.settle()

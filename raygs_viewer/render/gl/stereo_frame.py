@@ -4,17 +4,38 @@ targets, the optional lens preview on each, and the layout composed into one ima
 The window keeps one :class:`StereoFrame` and shows its composed target; screenshots
 and ``render --stereo`` use a fresh one through
 :func:`render_stereo_view`, so both go through the same passes.
+
+With a channel view (a depth, normal or alpha picture instead of the colour) both eyes
+show it; an automatic depth range is the left eye's, fixed for the right eye, so the
+same colour is the same depth in both (:func:`fixed_range`).
 """
 
 from __future__ import annotations
+
+from dataclasses import replace
 
 import moderngl
 import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.camera.stereo import StereoRig, StereoView, composed_size, eye_cameras
+from raygs_viewer.render.channel_pictures import ChannelView
 from raygs_viewer.render.gl.stereo_passes import StereoPasses
 from raygs_viewer.render.gl.targets import FloatTarget, release_all, sized
+
+
+def view_argument(view: ChannelView | None) -> dict:
+    """render_into's keyword for ``view``: none for the colour (None), so a renderer
+    stand-in that predates channel views still draws colour."""
+    return {} if view is None else {"view": view}
+
+
+def fixed_range(view: ChannelView | None, used: tuple[float, float] | None) -> ChannelView | None:
+    """``view`` with an automatic depth range replaced by ``used`` (the range the first
+    side or eye took), so a second one shows depths in the same colours."""
+    if view is None or view.depth_range is not None or used is None:
+        return view
+    return replace(view, depth_range=used)
 
 
 def stereo_order(renderer, camera: Camera, settings, rig: StereoRig) -> np.ndarray:
@@ -40,15 +61,17 @@ def render_stereo(renderer, camera: Camera, settings, rig: StereoRig, *,
     return tuple(renderer.render(eye, settings) for eye in (left, right))
 
 
-def render_stereo_view(renderer, camera: Camera, settings, view: StereoView
+def render_stereo_view(renderer, camera: Camera, settings, view: StereoView, channel_view: ChannelView | None = None
                        ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(image, left, right) float32 (H, W, 4) arrays, top row first: the composed
     stereo image of ``view`` around the midpoint ``camera``, and each eye as it goes
-    into the layout (after the lens preview). The same GL passes as the window's, with
-    an exact sort: what screenshots and ``render --stereo`` save."""
+    into the layout (after the lens preview); ``channel_view``: the eyes show that
+    picture instead of the colour. The same GL passes as the window's, with an exact
+    sort: what screenshots and ``render --stereo`` save."""
     frame = StereoFrame(renderer.ctx)
     try:
-        frame.draw_eyes(renderer, camera, settings, view.rig, stereo_order(renderer, camera, settings, view.rig))
+        frame.draw_eyes(renderer, camera, settings, view.rig, stereo_order(renderer, camera, settings, view.rig),
+                        channel_view)
         frame.finish(view)
         return frame.read_image(), *frame.read_eyes()
     finally:
@@ -62,6 +85,8 @@ class StereoFrame:
         self.ctx = ctx
         self.passes = StereoPasses(ctx)
         self.eyes: tuple[Camera, Camera] | None = None   # the eye cameras of the last draw
+        #: The depth range both eyes' pictures used in the last draw (None: not a depth view).
+        self.view_range: tuple[float, float] | None = None
         self._eye_targets: list[FloatTarget | None] = [None, None]
         self._lens_targets: list[FloatTarget | None] = [None, None]
         self._image: FloatTarget | None = None
@@ -72,13 +97,19 @@ class StereoFrame:
         """The composed target of the last :meth:`finish`."""
         return self._image
 
-    def draw_eyes(self, renderer, camera: Camera, settings, rig: StereoRig, order: np.ndarray) -> None:
+    def draw_eyes(self, renderer, camera: Camera, settings, rig: StereoRig, order: np.ndarray,
+                  view: ChannelView | None = None) -> None:
         """Draws both eyes around the midpoint ``camera`` with ``order``; SH colour is
-        seen from the midpoint (see :mod:`raygs_viewer.camera.stereo`)."""
+        seen from the midpoint (see :mod:`raygs_viewer.camera.stereo`). ``view``: the
+        picture both eyes show instead of the colour (the right eye in the left's range)."""
         self.eyes = eye_cameras(camera, rig)
+        self.view_range = None
         for side, eye in enumerate(self.eyes):
             target = self._sized(self._eye_targets, side, eye.width, eye.height)
-            renderer.render_into(target, eye, settings, order, color_origin=camera.center)
+            shown = fixed_range(view, self.view_range)
+            renderer.render_into(target, eye, settings, order, color_origin=camera.center, **view_argument(shown))
+            if view is not None and side == 0:
+                self.view_range = renderer.view_range
 
     def finish(self, view: StereoView) -> FloatTarget:
         """The lens preview (if on) and the layout, into the composed target."""

@@ -1,7 +1,7 @@
 """The imgui panel: one module per section (statistics, scene, render, order, stereo,
-view, training cameras, camera path, screenshot), each drawing from and editing only
-the state it is given (the path section: the viewer's PathWidget), and the panel's two
-message lines under them.
+view, training cameras, screenshot, geometry, camera path, measure), each drawing from
+and editing only the state it is given (the path and measure sections: the viewer's
+PathWidget and MeasureWidget), and the panel's two message lines under them.
 
 Edits apply from the next frame on: the frame reads the state each time. Tests find
 the widgets by their imgui labels (tests/appkit.py records them): the panel carries no

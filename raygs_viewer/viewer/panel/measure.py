@@ -1,0 +1,96 @@
+"""The panel's Measure section: the measure tool's switch, the measurements (select,
+delete, clear), the scale from one known length, and the measurements' file.
+
+It draws the :class:`~raygs_viewer.viewer.measure.MeasureWidget` and edits it only
+through the widget's methods and its form fields.
+"""
+
+from __future__ import annotations
+
+import math
+
+from imgui_bundle import imgui
+
+from raygs_viewer.viewer.measure import MeasureWidget
+from raygs_viewer.viewer.panel.widgets import checkbox, header, tooltip
+
+LIST_ROWS = 5
+
+
+def draw_measure_section(widget: MeasureWidget) -> None:
+    if not header("Measure", open_first=False):
+        return
+    widget.on = checkbox("measure", widget.on,
+                         help_text="click two points on the view for their distance (each point is its pixel's "
+                                   "median depth); a double-click does not move the view while this is on")
+    if widget.on:
+        imgui.same_line()
+        imgui.text_disabled("second point next" if widget.pending is not None else "click a point")
+    _list(widget)
+    _scale(widget)
+    _files(widget)
+
+
+def _list(widget: MeasureWidget) -> None:
+    count = len(widget.measurements)
+    rows = min(max(count, 1), LIST_ROWS)
+    if imgui.begin_list_box("##measurements", (-1, rows * imgui.get_text_line_height_with_spacing() + 6)):
+        for i in range(count):
+            if imgui.selectable(f"{i}: {widget.describe(i)}##measurement{i}", widget.selected == i)[0]:
+                widget.selected = i
+        if not count:
+            imgui.text_disabled("no measurements: tick measure and click two points")
+        imgui.end_list_box()
+    selected = widget.selected
+    imgui.begin_disabled(selected is None)
+    if imgui.button("Delete##measurement") and selected is not None:
+        widget.delete(selected)
+    imgui.end_disabled()
+    imgui.same_line()
+    if imgui.button("Clear##measurements"):
+        widget.clear()
+
+
+def _scale(widget: MeasureWidget) -> None:
+    imgui.set_next_item_width(90)
+    changed, length = imgui.input_float("##known length", widget.known_length, 0.0, 0.0, "%.4g")
+    if changed and math.isfinite(length):
+        widget.known_length = length
+    tooltip("the true length of the selected measurement")
+    imgui.same_line()
+    imgui.set_next_item_width(60)
+    changed, unit = imgui.input_text("unit##measure", widget.unit)
+    if changed:
+        widget.set_unit(unit)
+    imgui.same_line()
+    selected = widget.selected
+    imgui.begin_disabled(selected is None)
+    if imgui.button("Set scale") and selected is not None:
+        widget.set_scale(selected)
+    imgui.end_disabled()
+    tooltip("the selected measurement is this long: every distance is shown converted")
+    scale = widget.scale
+    if scale is None:
+        imgui.text_disabled("distances in scene units")
+        return
+    source = "" if scale.reference is None else f" (from {scale.reference})"
+    imgui.text(f"1 scene unit = {scale.factor:.6g} {scale.unit}{source}")
+    imgui.same_line()
+    if imgui.small_button("no scale"):
+        widget.clear_scale()
+
+
+def _files(widget: MeasureWidget) -> None:
+    imgui.set_next_item_width(-190)
+    _, widget.file = imgui.input_text_with_hint("##measure file", "measurements.json", widget.file)
+    imgui.same_line()
+    imgui.begin_disabled(not widget.measurements)
+    if imgui.button("Save##measure"):
+        widget.save()
+    imgui.end_disabled()
+    imgui.same_line()
+    if imgui.button("Load##measure"):
+        widget.load()
+    imgui.same_line()
+    widget.overwrite = checkbox("replace file##measure", widget.overwrite,
+                                help_text="let Save replace an existing file")
