@@ -36,7 +36,7 @@ import numpy as np
 import raygs_viewer
 from raygs_viewer.camera.pinhole import MAX_COORDINATE
 from raygs_viewer.capture.image_io import check_output_path
-from raygs_viewer.capture.sidecar import DEMO, SHA256_HEX, demo_sha256, scene_sha256
+from raygs_viewer.capture.sidecar import DEMO, SHA256_HEX, scene_mismatch_warning
 from raygs_viewer.errors import UserError
 from raygs_viewer.files import write_atomically
 from raygs_viewer.jsonfile import JsonFields, json_text, parse_json, read_json_file, show_json
@@ -247,14 +247,7 @@ def measure_scene_mismatch(doc: MeasureDocument, scene_name: str, actual_sha256:
     digest when known) is not the scene ``doc`` was measured on (by SHA-256); None when
     it is or when the document records no hash. A warning, not an error: another
     training run of the same scene measures the same."""
-    if doc.scene_sha256 is None:
-        return None
-    if actual_sha256 is None:
-        actual_sha256 = demo_sha256() if scene_name == DEMO else scene_sha256(scene_name)
-    if actual_sha256 == doc.scene_sha256:
-        return None
-    where = doc.source.name if doc.source is not None else "the measurements"
-    recorded = "the demo scene" if doc.scene_path == DEMO else (doc.scene_path or "another scene")
-    scene = "the demo scene" if scene_name == DEMO else scene_name
-    return (f"{where} was measured on {recorded}, not on {scene} (sha256 {doc.scene_sha256[:12]}… recorded, "
-            f"{actual_sha256[:12]}… now); the points may not match")
+    return scene_mismatch_warning(
+        document=doc.source.name if doc.source is not None else "the measurements", recorded_path=doc.scene_path,
+        recorded_sha256=doc.scene_sha256, scene_name=scene_name, actual_sha256=actual_sha256, verb="measured",
+        consequence="the points may not match")

@@ -73,10 +73,9 @@ from raygs_viewer.capture.sidecar import (
     DEMO,
     ROTATION_TOLERANCE,
     SHA256_HEX,
-    demo_sha256,
     load_settings_entry,
     load_stereo_entry,
-    scene_sha256,
+    scene_mismatch_warning,
     stereo_entry,
 )
 from raygs_viewer.errors import UserError
@@ -357,16 +356,7 @@ def scene_mismatch(doc: PathDocument, scene_name: str, actual_sha256: str | None
     already has it); None when it is, or when the document records no hash. A warning,
     not an error: a path recorded on one training run is often rendered on another run
     of the same scene."""
-    if doc.scene_sha256 is None:
-        return None
-    if actual_sha256 is None:
-        actual_sha256 = demo_sha256() if scene_name == DEMO else scene_sha256(scene_name)
-    if actual_sha256 == doc.scene_sha256:
-        return None
-    where = doc.source.name if doc.source is not None else "the camera path"
-    hashes = f"sha256 {doc.scene_sha256[:12]}… recorded, {actual_sha256[:12]}… now"
-    if scene_name == DEMO and doc.scene_path == DEMO:
-        return f"{where} was recorded on another version of the demo scene ({hashes}); the views may not match"
-    recorded = "the demo scene" if doc.scene_path == DEMO else (doc.scene_path or "another scene")
-    scene = "the demo scene" if scene_name == DEMO else scene_name
-    return f"{where} was recorded on {recorded}, not on {scene} ({hashes}); the views may not match"
+    return scene_mismatch_warning(
+        document=doc.source.name if doc.source is not None else "the camera path", recorded_path=doc.scene_path,
+        recorded_sha256=doc.scene_sha256, scene_name=scene_name, actual_sha256=actual_sha256, verb="recorded",
+        consequence="the views may not match")

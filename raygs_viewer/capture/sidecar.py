@@ -118,6 +118,27 @@ def demo_sha256(generator: Callable[[], Scene] = demo_scene) -> str:
     return arrays_sha256(generator())
 
 
+def scene_mismatch_warning(*, document: str, recorded_path: str | None, recorded_sha256: str | None,
+                           scene_name: str, actual_sha256: str | None, verb: str, consequence: str) -> str | None:
+    """A one-line warning when ``scene_name`` ("demo" or a file; ``actual_sha256`` its
+    digest when the caller has it) is not the scene a ``document`` (a path file, a
+    measurements file) was ``verb`` ("recorded", "measured") on, by SHA-256; None when it
+    is, or when nothing was recorded. A warning, not an error: another training run of
+    the same scene is often what the user means, and ``consequence`` says what may be off."""
+    if recorded_sha256 is None:
+        return None
+    if actual_sha256 is None:
+        actual_sha256 = demo_sha256() if scene_name == DEMO else scene_sha256(scene_name)
+    if actual_sha256 == recorded_sha256:
+        return None
+    hashes = f"sha256 {recorded_sha256[:12]}… recorded, {actual_sha256[:12]}… now"
+    if scene_name == DEMO and recorded_path == DEMO:
+        return f"{document} was {verb} on another version of the demo scene ({hashes}); {consequence}"
+    recorded = "the demo scene" if recorded_path == DEMO else (recorded_path or "another scene")
+    scene = "the demo scene" if scene_name == DEMO else scene_name
+    return f"{document} was {verb} on {recorded}, not on {scene} ({hashes}); {consequence}"
+
+
 # --------------------------------------------------------------------------- writing
 
 

@@ -9,14 +9,14 @@ pair of eyes at the headset's size times the scale, and on request each eye
 
 In a view mode (a depth, median depth, normal or alpha picture) the screenshot is that
 picture, in the depth range the window showed (an automatic range is fixed to the one
-in use, so the file shows what the window did), and the sidecar's "extra" records the
-view. Those pictures come from one render of the channels, not tiles.
+in use, so the file shows what the window did), and the sidecar's "channel_view" records
+it (capture/sidecar.py), so ``render --sidecar`` draws the same picture again. Those pictures come from one render of the channels, not tiles.
 """
 
 from __future__ import annotations
 
 import os
-from dataclasses import asdict, dataclass, replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -70,10 +70,9 @@ def take_screenshots(renderer, loaded: LoadedScene, shown: ShownView, options: S
 
     def sidecar(settings: RenderSettings, details: dict, stereo: StereoView | None = None) -> dict:
         return build_sidecar(scene_path=scene_path, scene_sha256=loaded.sha256, scene=loaded.scene, camera=camera,
-                             settings=settings, scale=scale, window_camera=shown.camera, extra=details, stereo=stereo)
+                             settings=settings, scale=scale, window_camera=shown.camera, extra=details, stereo=stereo,
+                             channel_view=shown.view)
 
-    if shown.view is not None:
-        extra = {**extra, "view": asdict(shown.view)}
     if shown.stereo is not None:
         shots = [(image, sidecar(shown.settings, {**extra, "stereo_window_layout": shown.stereo.layout}, view), tag)
                  for image, view, tag in _stereo_images(renderer, camera, shown.settings, shown.stereo, save_eyes,

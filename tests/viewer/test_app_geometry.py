@@ -14,6 +14,7 @@ from PIL import Image
 
 from raygs_viewer.camera.stereo import StereoRig, custom_preset, eye_cameras
 from raygs_viewer.capture.image_io import to_rgb8
+from raygs_viewer.capture.sidecar import load_sidecar
 from raygs_viewer.render.channel_pictures import ChannelView, channel_picture
 from raygs_viewer.render.gl.stereo_frame import stereo_order
 from raygs_viewer.viewer.state import StereoPreview
@@ -153,8 +154,10 @@ def test_a_screenshot_saves_the_picture_shown_and_records_the_view(open_viewer):
     shown = to_rgb8(window_image(viewer)[..., :3]).astype(int)
     assert np.mean(np.abs(saved - shown) > 4) < 0.005
     near, far = viewer.drawer.view_range
-    view = json.loads(sidecar.read_text())["extra"]["view"]
+    view = json.loads(sidecar.read_text())["channel_view"]
     assert view == {"channel": "depth", "depth_range": [near, far], "normal_space": "camera"}
+    # What `render --sidecar` reads back to draw the same picture.
+    assert load_sidecar(sidecar).channel_view == ChannelView("depth", (near, far))
 
 
 def test_a_split_screenshot_saves_each_side_in_the_range_shown(open_viewer):
@@ -167,7 +170,7 @@ def test_a_split_screenshot_saves_each_side_in_the_range_shown(open_viewer):
     for (png, sidecar), shown in zip(saved, (window_image(viewer), right_image(viewer))):
         image = np.asarray(Image.open(png).convert("RGB")).astype(int)
         assert np.mean(np.abs(image - to_rgb8(shown[..., :3]).astype(int)) > 4) < 0.005
-        assert json.loads(sidecar.read_text())["extra"]["view"]["depth_range"] == list(viewer.drawer.view_range)
+        assert json.loads(sidecar.read_text())["channel_view"]["depth_range"] == list(viewer.drawer.view_range)
 
 
 def test_the_colour_view_draws_without_a_view_argument(open_viewer, monkeypatch):
