@@ -28,15 +28,13 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass
-from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
 
-import raygs_viewer
 from raygs_viewer.camera.pinhole import MAX_COORDINATE
 from raygs_viewer.capture.image_io import check_output_path
-from raygs_viewer.capture.sidecar import DEMO, SHA256_HEX, scene_mismatch_warning
+from raygs_viewer.capture.sidecar import DEMO, SHA256_HEX, document_head, scene_mismatch_warning
 from raygs_viewer.errors import UserError
 from raygs_viewer.files import write_atomically
 from raygs_viewer.jsonfile import JsonFields, json_text, parse_json, read_json_file, show_json
@@ -143,10 +141,7 @@ def measure_document_json(doc: MeasureDocument) -> dict:
     scale = None if doc.scale is None else {"factor": doc.scale.factor, "unit": doc.scale.unit,
                                             "reference": doc.scale.reference}
     return {
-        "format": MEASURE_FORMAT,
-        "version": MEASURE_VERSION,
-        "program": {"name": "raygs-viewer", "version": raygs_viewer.__version__},
-        "created": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        **document_head(MEASURE_FORMAT, MEASURE_VERSION),
         "scene": scene,
         "scale": scale,
         "measurements": [{"a": m.a.tolist(), "b": m.b.tolist()} for m in doc.measurements],

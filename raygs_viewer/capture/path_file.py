@@ -47,12 +47,10 @@ import dataclasses
 import math
 import os
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
 from pathlib import Path
 
 import numpy as np
 
-import raygs_viewer
 from raygs_viewer.camera.navigation import Pose
 from raygs_viewer.camera.path import (
     FOV_RANGE,
@@ -73,6 +71,7 @@ from raygs_viewer.capture.sidecar import (
     DEMO,
     ROTATION_TOLERANCE,
     SHA256_HEX,
+    document_head,
     load_settings_entry,
     load_stereo_entry,
     scene_mismatch_warning,
@@ -142,10 +141,7 @@ def path_document_json(doc: PathDocument, extra: dict | None = None) -> dict:
                  "count": None if doc.scene_count is None else int(doc.scene_count),
                  "sh_degree": None if doc.scene_sh_degree is None else int(doc.scene_sh_degree)}
     return {
-        "format": PATH_FORMAT,
-        "version": PATH_VERSION,
-        "program": {"name": "raygs-viewer", "version": raygs_viewer.__version__},
-        "created": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        **document_head(PATH_FORMAT, PATH_VERSION),
         "scene": scene,
         "image": {"width": int(doc.width), "height": int(doc.height)},
         "settings": None if doc.settings is None else dataclasses.asdict(doc.settings),

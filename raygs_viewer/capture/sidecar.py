@@ -118,6 +118,14 @@ def demo_sha256(generator: Callable[[], Scene] = demo_scene) -> str:
     return arrays_sha256(generator())
 
 
+def document_head(format_name: str, version: int) -> dict:
+    """The keys every file this program writes starts with: its format and version,
+    the program that wrote it and when (UTC)."""
+    return {"format": format_name, "version": int(version),
+            "program": {"name": "raygs-viewer", "version": raygs_viewer.__version__},
+            "created": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ")}
+
+
 def scene_mismatch_warning(*, document: str, recorded_path: str | None, recorded_sha256: str | None,
                            scene_name: str, actual_sha256: str | None, verb: str, consequence: str) -> str | None:
     """A one-line warning when ``scene_name`` ("demo" or a file; ``actual_sha256`` its
@@ -171,11 +179,8 @@ def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, 
     width, height = (camera.width, camera.height) if stereo is None else \
         composed_size(camera.width, camera.height, stereo.layout)
     sidecar = {
-        "format": SIDECAR_FORMAT,
-        "version": max(STEREO_SIDECAR_VERSION if stereo is not None else 1,
-                       CHANNEL_SIDECAR_VERSION if _is_picture(channel_view) else 1),
-        "program": {"name": "raygs-viewer", "version": raygs_viewer.__version__},
-        "created": datetime.now(timezone.utc).strftime("%Y-%m-%dT%H:%M:%SZ"),
+        **document_head(SIDECAR_FORMAT, max(STEREO_SIDECAR_VERSION if stereo is not None else 1,
+                                            CHANNEL_SIDECAR_VERSION if _is_picture(channel_view) else 1)),
         "image": {"width": int(width), "height": int(height), "scale": float(scale)},
         "scene": {"path": recorded_path, "sha256": scene_sha256, "count": int(scene.count),
                   "sh_degree": int(scene.sh_degree), "filter_fused": bool(scene.filter_fused)},
