@@ -7,6 +7,10 @@
 // colour so far and 1 - T, and a pixel whose cut-off fired is marked by alpha - 2
 // (below -1), after which every later fragment is skipped, as INRIA's loop stops.
 // The resolve pass adds the background and removes the mark.
+// GEOMETRY (the geometry outputs of a global order without the cut-off,
+// render/gl/geometry.py): two more attachments blended exactly as colour is, so they
+// hold sum T alpha z and sum T alpha n: (z alpha, 0, 0, alpha) and (n alpha, alpha), the
+// alpha there only for the blend factor.
 // PER_PIXEL 1 (fragment lists, fragment_lists.glsl): no colour output; the fragment
 // is counted, or stored with its t* in its pixel's list. PER_PIXEL 2 (a k-buffer,
 // kbuffer.glsl): the fragment enters its pixel's window of K, through framebuffer fetch.
@@ -44,13 +48,21 @@ void store_fragment(vec3 rgb, float alpha, float t) {
 #elif PER_PIXEL == 2
 #include "kbuffer.glsl"
 #elif FRONT_TO_BACK
+#if GEOMETRY
+#error the geometry outputs of the cut-off go through the fragment lists
+#endif
 inout vec4 frag_color;
+#elif GEOMETRY
+layout(location = 0) out vec4 frag_color;
+layout(location = 1) out vec4 geometry_depth;
+layout(location = 2) out vec4 geometry_normal;
 #else
 out vec4 frag_color;
 #endif
 
-// t: the ray parameter of the gaussian's peak on this pixel's unit ray (per-pixel order only).
-void emit_at(vec3 rgb, float alpha, float t) {
+// t: the ray parameter of the gaussian's peak on this pixel's unit ray (per-pixel order
+// only); z, normal: the fragment's depth and normal (GEOMETRY only).
+void emit_geometry(vec3 rgb, float alpha, float t, float z, vec3 normal) {
     if (alpha < u_p_min) discard;
     if (ALPHA_CLAMP) alpha = min(alpha, ALPHA_MAX);
 #if PER_PIXEL
@@ -67,7 +79,15 @@ void emit_at(vec3 rgb, float alpha, float t) {
     frag_color = vec4(so_far.rgb + transmittance * alpha * rgb, 1.0 - next);
 #else
     frag_color = vec4(rgb * alpha, alpha);
+#if GEOMETRY
+    geometry_depth = vec4(z * alpha, 0.0, 0.0, alpha);
+    geometry_normal = vec4(normal * alpha, alpha);
 #endif
+#endif
+}
+
+void emit_at(vec3 rgb, float alpha, float t) {
+    emit_geometry(rgb, alpha, t, 0.0, vec3(0.0));
 }
 
 void emit(vec3 rgb, float alpha) {

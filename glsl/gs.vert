@@ -10,6 +10,10 @@ uniform vec2 u_image_size;  // pixels
 out vec2 v_offset;
 flat out vec4 v_conic_opacity;
 flat out vec3 v_color;
+#if GEOMETRY && !PER_PIXEL
+out vec2 v_pixel;            // image coordinates (v downwards): the fragment's ray
+flat out vec4 v_normal_depth;  // the shortest axis, and the centre's camera-space z
+#endif
 #if PER_PIXEL
 // The geometry outputs of the global order go through fragment lists (count, then fill
 // per part: every pass must keep exactly the same fragments), sorted by rank.
@@ -28,6 +32,10 @@ void main() {
 #endif
     v_conic_opacity = s.axis1_opacity;
     v_color = s.color.rgb;
+#if GEOMETRY && !PER_PIXEL
+    v_normal_depth = vec4(s.normal.xyz, s.center_c2.z);
+    v_pixel = vec2(0.0);
+#endif
     if (s.center_c2.w == 0.0) {
         gl_Position = vec4(0.0);
         v_offset = vec2(0.0);
@@ -36,5 +44,8 @@ void main() {
     vec2 corner = quad_corner();
     v_offset = corner.x * s.axis0_half.xy + corner.y * s.axis0_half.zw;
     vec2 pixel = s.center_c2.xy + v_offset;  // image coordinates, v downwards
+#if GEOMETRY && !PER_PIXEL
+    v_pixel = pixel;
+#endif
     gl_Position = vec4(2.0 * pixel.x / u_image_size.x - 1.0, 1.0 - 2.0 * pixel.y / u_image_size.y, 0.0, 1.0);
 }

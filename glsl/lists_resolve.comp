@@ -4,8 +4,8 @@
 // (t*, scene index). u_window K: the k-buffer's result, the list sorted by arrival
 // (rank in the global front-to-back order) and streamed through a window of K.
 // u_window -1: the global order itself, by arrival (the geometry outputs of a global order).
-// GEOMETRY: also the sums of T alpha z and T alpha n in u_sums, and (median z, found) in
-// u_median (docs/geometry.md; render/channels.py finishes them).
+// GEOMETRY: also (sum T alpha z, median z or 0, found, 0) in u_depth and
+// (sum T alpha n, 0) in u_normal (docs/geometry.md; render/gl/geometry.py reads them).
 // Lists arrive nearly sorted: insertion sort up to INSERTION_MAX entries, heapsort
 // beyond (no fixed-size array caps a pixel's fragments).
 #define SPLATS_ONLY 1
@@ -18,8 +18,8 @@ layout(rgba32f, binding = 0) uniform writeonly image2D u_output;
 uniform vec3 u_background;
 uniform int u_window;
 #if GEOMETRY
-layout(rgba32f, binding = 1) uniform writeonly image2D u_sums;
-layout(rgba32f, binding = 2) uniform writeonly image2D u_median;
+layout(rgba32f, binding = 1) uniform writeonly image2D u_depth;
+layout(rgba32f, binding = 2) uniform writeonly image2D u_normal;
 uniform vec4 u_intrinsics;  // fx, fy, cx, cy of the image's camera (sample pixels)
 uniform int u_height;
 vec3 g_ray;                 // this pixel's unit ray (OpenCV camera axes)
@@ -139,7 +139,7 @@ void main() {
     }
     imageStore(u_output, p, finish_pixel(state, u_background));
 #if GEOMETRY
-    imageStore(u_sums, p, g_sums);
-    imageStore(u_median, p, vec4(g_median, 0.0, 0.0));
+    imageStore(u_depth, p, vec4(g_sums.x, g_median, 0.0));
+    imageStore(u_normal, p, vec4(g_sums.yzw, 0.0));
 #endif
 }

@@ -6,9 +6,24 @@
 in vec2 v_plane;
 flat in vec4 v_color_opacity;
 flat in vec2 v_inv_c2_kappa;
-#if PER_PIXEL
+#if PER_PIXEL || GEOMETRY
 in vec3 v_point;              // the quad point in camera space
 #endif
+#if GEOMETRY && !PER_PIXEL
+flat in vec3 v_normal;        // the shortest axis, to be turned to face this ray
+#endif
+
+// The fragment's geometry outputs (docs/geometry.md): the z of its peak at t* on the unit
+// ray, and the normal facing the ray. Only the GEOMETRY blend reads them.
+void emit_peak(vec3 rgb, float alpha, float t_star) {
+#if GEOMETRY && !PER_PIXEL
+    vec3 ray = normalize(v_point);
+    vec3 normal = dot(v_normal, ray) > 0.0 ? -v_normal : v_normal;
+    emit_geometry(rgb, alpha, t_star, t_star * ray.z, normal);
+#else
+    emit_at(rgb, alpha, t_star);
+#endif
+}
 #if EXACT_MIP
 in vec3 v_offset;             // the quad point relative to the centre (rotated frame)
 flat in vec3 v_local_center;
@@ -47,17 +62,17 @@ void main() {
     }
     // t* (section 11) with this pixel's filtered scales, along the unit ray.
     float t_star = 0.0;
-#if PER_PIXEL
+#if PER_PIXEL || GEOMETRY
     t_star = dot(ray * v_local_center, 1.0 / s2_hat) / dot(ray * ray, 1.0 / s2_hat);
 #endif
-    emit_at(v_color_opacity.rgb, opacity * exp(-0.5 * divergence), t_star);
+    emit_peak(v_color_opacity.rgb, opacity * exp(-0.5 * divergence), t_star);
 #else
     // t* (section 11) along the unit ray: the whitened quad point y satisfies y.w = c^2
     // and |y|^2 = c^2 + r^2, so t*(q) = c^2 / (c^2 + r^2) and t* = |q| / (1 + r^2 / c^2).
     float t_star = 0.0;
-#if PER_PIXEL
+#if PER_PIXEL || GEOMETRY
     t_star = length(v_point) / (1.0 + r2 * v_inv_c2_kappa.x);
 #endif
-    emit_at(v_color_opacity.rgb, v_color_opacity.a * exp(-0.5 * divergence), t_star);
+    emit_peak(v_color_opacity.rgb, v_color_opacity.a * exp(-0.5 * divergence), t_star);
 #endif
 }

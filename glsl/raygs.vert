@@ -7,9 +7,14 @@ uniform mat4 u_projection;  // OpenCV camera space -> clip space
 // The per-pixel order draws the same quads in several passes (count, then fill per
 // part); each pass must keep exactly the same fragments.
 invariant gl_Position;
-out vec3 v_point;            // the quad point in camera space, for t* (section 11)
 flat out uint v_index;       // the gaussian's scene index: its record, and the tie-break
 flat out uint v_rank;        // its place in the global front-to-back order
+#endif
+#if PER_PIXEL || GEOMETRY
+out vec3 v_point;            // the quad point in camera space, for t* (section 11)
+#endif
+#if GEOMETRY && !PER_PIXEL
+flat out vec3 v_normal;      // the shortest axis (the lists' resolve reads it from the record)
 #endif
 
 out vec2 v_plane;            // position in the quad's plane, whitened units (z of Eq. 16)
@@ -25,10 +30,15 @@ void main() {
 #if PER_PIXEL
     v_index = this_instance_index();
     v_rank = uint(gl_InstanceID);
-    v_point = vec3(0.0);
     Splat s = fetch_splat(v_index);
 #else
     Splat s = this_instance_splat();
+#endif
+#if PER_PIXEL || GEOMETRY
+    v_point = vec3(0.0);
+#endif
+#if GEOMETRY && !PER_PIXEL
+    v_normal = s.normal.xyz;
 #endif
     v_color_opacity = vec4(s.color.rgb, s.axis1_opacity.w);
     v_inv_c2_kappa = vec2(1.0 / s.center_c2.w, s.color.a);
@@ -45,7 +55,7 @@ void main() {
     vec2 corner = quad_corner();
     vec3 position = s.center_c2.xyz + corner.x * s.axis0_half.xyz + corner.y * s.axis1_opacity.xyz;
     v_plane = corner * s.axis0_half.w;
-#if PER_PIXEL
+#if PER_PIXEL || GEOMETRY
     v_point = position;
 #endif
 #if EXACT_MIP

@@ -1,8 +1,8 @@
 // From the render target to the image: averages each k x k block of samples
 // (supersampling's box filter) and, after front-to-back compositing, adds the
 // background behind the remaining transmittance and removes the cut-off mark.
-// GEOMETRY: the geometry outputs' sums and median (attachments 1, 2) are averaged too,
-// all but their finishing, which render/channels.py does.
+// GEOMETRY: the geometry attachments (1, 2) are averaged too: their sums, and the
+// median as the mean of (z where found, else 0) and of found (render/gl/geometry.py).
 // Texels come from the interpolated uv (see present.frag for why not gl_FragCoord).
 uniform sampler2D u_samples;
 uniform int u_factor;  // k
@@ -10,10 +10,10 @@ uniform vec3 u_background;
 in vec2 v_uv;
 layout(location = 0) out vec4 out_color;
 #if GEOMETRY
-uniform sampler2D u_sums;
-uniform sampler2D u_median;
-layout(location = 1) out vec4 out_sums;
-layout(location = 2) out vec4 out_median;
+uniform sampler2D u_depth;
+uniform sampler2D u_normal;
+layout(location = 1) out vec4 out_depth;
+layout(location = 2) out vec4 out_normal;
 #endif
 
 void main() {
@@ -21,7 +21,7 @@ void main() {
     ivec2 pixel = clamp(ivec2(floor(v_uv * vec2(size))), ivec2(0), size - 1);
     vec4 sum = vec4(0.0);
 #if GEOMETRY
-    vec4 sums = vec4(0.0), median = vec4(0.0);
+    vec4 depth = vec4(0.0), normal = vec4(0.0);
 #endif
     for (int j = 0; j < u_factor; ++j) {
         for (int i = 0; i < u_factor; ++i) {
@@ -33,16 +33,15 @@ void main() {
 #endif
             sum += s;
 #if GEOMETRY
-            sums += texelFetch(u_sums, at, 0);
-            vec4 m = texelFetch(u_median, at, 0);
-            median += vec4(m.x * m.y, m.y, 0.0, 0.0);  // z where found; how many found
+            depth += texelFetch(u_depth, at, 0);
+            normal += texelFetch(u_normal, at, 0);
 #endif
         }
     }
     float samples = float(u_factor * u_factor);
     out_color = sum / samples;
 #if GEOMETRY
-    out_sums = sums / samples;
-    out_median = median / samples;
+    out_depth = depth / samples;
+    out_normal = normal / samples;
 #endif
 }

@@ -25,8 +25,10 @@ ratios, each a ratio of medians over the frames:
 - ``radix/argsort``: the uint16 radix sort over a float32 argsort of the same depths;
 - ``fragments-kept``: fragments that pass the p_min cut-off over those the quads
   rasterize (samples-passed queries; how tight the quads are);
-- ``geometry/colour``: preprocess + draw with the geometry outputs (depth, median depth,
-  normal: render/gl/geometry.py, its GPU work without the read-back) over colour alone.
+- ``geometry/colour``: preprocess + draw with the depth and normal outputs blended beside
+  colour (render/gl/geometry.py, its GPU work without the read-back) over colour alone;
+- ``median/colour``: the same with the median depth too, which takes the fragment lists
+  (count, fill and resolve passes; more parts where the fragments overflow the pool).
 
 Each is printed per case as ``NAME@CASE VALUE`` and, as the median over the cases, as
 ``NAME VALUE``.
@@ -65,7 +67,8 @@ from raygs_viewer.scene.model import Scene, sh_coefficient_count
 from raygs_viewer.sort.depth import sort_back_to_front
 
 STAGES = ("cull", "sort", "upload", "preprocess", "draw")
-RATIOS = ("RayGS/GS", "RayGS/quads", "specialised/general", "radix/argsort", "fragments-kept", "geometry/colour")
+RATIOS = ("RayGS/GS", "RayGS/quads", "specialised/general", "radix/argsort", "fragments-kept", "geometry/colour",
+          "median/colour")
 RATIO_TARGETS = {"RayGS/GS": "<= 1.10", "RayGS/quads": "<= 1.5"}
 
 COUNTS = (10_000, 100_000, 1_000_000)
@@ -232,7 +235,8 @@ def measure_case(ctx, case: PerfCase, frames: int, settings: RenderSettings = Re
             draw, draw_gpu = clock.both(lambda: renderer.draw(camera, settings, order))
             clear()
             quads = clock.cpu(lambda: renderer.draw(camera, settings, order, floor=True))
-            geometry = clock.cpu(lambda: renderer.geometry.draw(renderer, camera, settings, order))
+            geometry = clock.cpu(lambda: renderer.geometry.draw(renderer, camera, settings, order, median=False))
+            with_median = clock.cpu(lambda: renderer.geometry.draw(renderer, camera, settings, order))
             if frame == 0:  # fragments: counted once, untimed
                 result.visible = int(order.size)
                 clear()
@@ -262,7 +266,7 @@ def measure_case(ctx, case: PerfCase, frames: int, settings: RenderSettings = Re
                                 ("draw", draw), ("gpu preprocess", preprocess_gpu), ("gpu draw", draw_gpu),
                                 ("quads", quads), ("gs", gs_pre + gs_draw), ("general", general_pre + general_draw),
                                 ("raygs", preprocess + draw), ("radix", radix), ("argsort", argsort),
-                                ("geometry", geometry)):
+                                ("geometry", geometry), ("median", with_median)):
                 record(name, value)
     finally:
         renderer.release()
@@ -273,7 +277,7 @@ def measure_case(ctx, case: PerfCase, frames: int, settings: RenderSettings = Re
     result.stages = {s: median(times[s]) for s in STAGES}
     result.gpu = {"preprocess": median(times["gpu preprocess"]), "draw": median(times["gpu draw"])}
     result.other = {name: median(times[name])
-                    for name in ("quads", "gs", "general", "raygs", "radix", "argsort", "geometry")}
+                    for name in ("quads", "gs", "general", "raygs", "radix", "argsort", "geometry", "median")}
     raygs = result.other["raygs"]
     result.ratios.update({
         "RayGS/GS": raygs / result.other["gs"],
@@ -281,6 +285,7 @@ def measure_case(ctx, case: PerfCase, frames: int, settings: RenderSettings = Re
         "specialised/general": raygs / result.other["general"],
         "radix/argsort": result.other["radix"] / result.other["argsort"],
         "geometry/colour": result.other["geometry"] / raygs,
+        "median/colour": result.other["median"] / raygs,
     })
     return result
 

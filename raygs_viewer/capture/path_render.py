@@ -95,7 +95,8 @@ def render_frame_channels(renderer: "GLRenderer", camera: Camera, settings: Rend
         return colour_channels(render_frame(renderer, camera, settings, stereo))
     if stereo is not None:
         raise UserError("--stereo composes colour; its frames cannot carry depth or normals")
-    return render_tiled_channels(renderer, camera, settings).in_space(normal_space, camera)
+    return render_tiled_channels(renderer, camera, settings,
+                                 median="median_depth" in channels).in_space(normal_space, camera)
 
 
 def render_frames(renderer: "GLRenderer", cameras: list[Camera], settings: RenderSettings,

@@ -234,7 +234,8 @@ def render_image(args, scene: Scene, camera: Camera, settings: RenderSettings, s
             # Tiled like the window's screenshots: the same pixels, and sizes beyond
             # the GPU's largest render target.
             if geometry:
-                return screenshot.render_tiled_channels(renderer, camera, settings)
+                return screenshot.render_tiled_channels(renderer, camera, settings,
+                                                        median="median_depth" in channels)
             return screenshot.render_tiled(renderer, camera, settings)
         finally:
             renderer.release()

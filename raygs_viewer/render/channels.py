@@ -62,21 +62,24 @@ class ChannelImage:
     """A finished render, every array float32 and top row first.
 
     rgb: (H, W, 3) colour over the background. alpha: (H, W). depth, median_depth:
-    (H, W) camera-space z (0 where undefined: no coverage, or alpha never reaches 0.5).
-    normal: (H, W, 3) unit vectors, 0 where alpha is 0; camera space (OpenCV axes) unless
-    ``normal_space`` is "world".
+    (H, W) camera-space z (0 where undefined: no coverage, or alpha never reaches 0.5);
+    median_depth is None when the render was not asked for it (it costs an ordered walk
+    of each pixel's fragments). normal: (H, W, 3) unit vectors, 0 where alpha is 0;
+    camera space (OpenCV axes) unless ``normal_space`` is "world".
     """
 
     rgb: np.ndarray
     alpha: np.ndarray
     depth: np.ndarray
-    median_depth: np.ndarray
+    median_depth: np.ndarray | None
     normal: np.ndarray
     normal_space: str = "camera"
 
     def channel(self, name: str) -> np.ndarray:
         """(H, W, width) of one channel."""
         value = getattr(self, name)
+        if value is None:
+            raise ValueError(f"this render has no {name}: ask the renderer for it")
         return value[..., None] if value.ndim == 2 else value
 
     def stack(self, channels: Sequence[str]) -> np.ndarray:
@@ -98,22 +101,25 @@ class ChannelImage:
                             normal.astype(np.float32), space)
 
 
-def finish(color: np.ndarray, sums: np.ndarray, median: np.ndarray) -> ChannelImage:
+def finish(color: np.ndarray, sums: np.ndarray, median: np.ndarray | None) -> ChannelImage:
     """The channels from a renderer's accumulated (and sample-averaged) outputs.
 
     color: (H, W, 4) RGB over the background and alpha. sums: (H, W, 4) depth_sum and
-    normal_sum (x, y, z). median: (H, W, 2) mean of median * found, and mean of found.
-    Computed in float64 whatever the inputs, returned as float32."""
+    normal_sum (x, y, z). median: (H, W, 2) mean of median * found, and mean of found;
+    None where it was not computed. Computed in float64 whatever the inputs, returned as
+    float32."""
     color = np.asarray(color, np.float64)
     sums = np.asarray(sums, np.float64)
-    median = np.asarray(median, np.float64)
     alpha = color[..., 3]
     covered = alpha > 0
     depth = np.where(covered, sums[..., 0] / np.where(covered, alpha, 1.0), 0.0)
     length = np.sqrt(np.einsum("...i,...i->...", sums[..., 1:4], sums[..., 1:4]))
     facing = covered & (length > 0)
     normal = np.where(facing[..., None], sums[..., 1:4] / np.where(facing, length, 1.0)[..., None], 0.0)
-    found = median[..., 1] > 0
-    median_depth = np.where(found, median[..., 0] / np.where(found, median[..., 1], 1.0), 0.0)
+    median_depth = None
+    if median is not None:
+        median = np.asarray(median, np.float64)
+        found = median[..., 1] > 0
+        median_depth = np.where(found, median[..., 0] / np.where(found, median[..., 1], 1.0), 0.0).astype(np.float32)
     return ChannelImage(color[..., :3].astype(np.float32), alpha.astype(np.float32), depth.astype(np.float32),
-                        median_depth.astype(np.float32), normal.astype(np.float32))
+                        median_depth, normal.astype(np.float32))

@@ -10,7 +10,7 @@ pair of eyes at the headset's size times the scale, and on request each eye
 In a view mode (a depth, median depth, normal or alpha picture) the screenshot is that
 picture, in the depth range the window showed (an automatic range is fixed to the one
 in use, so the file shows what the window did), and the sidecar's "channel_view" records
-it (capture/sidecar.py), so ``render --sidecar`` draws the same picture again. Those pictures come from one render of the channels, not tiles.
+it (capture/sidecar.py), so ``render --sidecar`` draws the same picture again.
 """
 
 from __future__ import annotations
@@ -24,7 +24,13 @@ import numpy as np
 from raygs_viewer.camera.navigation import Navigator
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.camera.stereo import StereoView
-from raygs_viewer.capture.screenshot import render_tiled, save_screenshot, save_screenshots, scaled_camera
+from raygs_viewer.capture.screenshot import (
+    render_tiled,
+    render_tiled_channels,
+    save_screenshot,
+    save_screenshots,
+    scaled_camera,
+)
 from raygs_viewer.capture.sidecar import build_sidecar
 from raygs_viewer.render.channel_pictures import ChannelView, channel_picture
 from raygs_viewer.render.gl.stereo_frame import render_stereo_view
@@ -100,7 +106,8 @@ def render_shown(renderer, camera: Camera, settings: RenderSettings, view: Chann
     shows (alpha 1)."""
     if view is None:
         return render_tiled(renderer, camera, settings)
-    channels = renderer.render_channels(camera, settings).in_space(view.normal_space, camera)
+    channels = render_tiled_channels(renderer, camera, settings, median=view.channel == "median_depth")
+    channels = channels.in_space(view.normal_space, camera)
     picture, _ = channel_picture(channels, view)
     return np.concatenate([picture, np.ones(picture.shape[:2] + (1,), np.float32)], axis=-1)
 

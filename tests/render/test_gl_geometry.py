@@ -1,8 +1,9 @@
 """The GL geometry outputs (render/gl/geometry.py) against the float64 reference's
 (render_reference_channels): every output, in every mode, order and accuracy switch,
-on a generated scene and the shared real scenes; negative controls break the shaders
-the way the issue names (a wrong z convention, an unflipped normal, a median at the
-wrong crossing) and show the comparison fails."""
+through both ways (the fragment lists, and the blend beside colour where no median is
+asked for), on a generated scene and the shared real scenes; negative controls break
+the shaders the way the issue names (a wrong z convention, an unflipped normal, a
+median at the wrong crossing) and show the comparison fails."""
 
 from dataclasses import replace
 
@@ -21,6 +22,7 @@ from raygs_viewer.camera.pinhole import frame_points, look_at
 from raygs_viewer.camera.stereo import StereoRig, eye_cameras
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.channel_pictures import ChannelView, channel_picture
+from raygs_viewer.render.gl.geometry import takes_lists
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.gl.targets import FloatTarget
 from raygs_viewer.render.reference import render_reference, render_reference_channels
@@ -65,6 +67,11 @@ def test_every_output_matches_the_reference(renderer, scene, name):
     reference = render_reference_channels(scene, CAMERA, settings)
     assert (reference.median_depth > 0).mean() > 0.2, "the view must hold pixels with a median"
     assert_channels_match(renderer.render_channels(CAMERA, settings), reference)
+    # Without the median, a global order without the cut-off blends beside colour instead.
+    blended = renderer.render_channels(CAMERA, settings, median=False)
+    assert blended.median_depth is None
+    assert takes_lists(settings, median=False) == (settings.per_pixel or settings.transmittance_cutoff)
+    assert_channels_match(blended, reference)
 
 
 def test_the_cut_off_fires_in_the_scene(scene):
@@ -93,11 +100,12 @@ def test_stereo_eyes_match_the_reference(renderer, scene):
 def test_view_pictures_show_the_channels(renderer, gl_session_ctx):
     target = FloatTarget(gl_session_ctx, CAMERA.width, CAMERA.height)
     try:
-        channels = renderer.render_channels(CAMERA, RenderSettings())
         for view in (ChannelView("depth"), ChannelView("median_depth", (2.0, 4.0)),
                      ChannelView("normal", normal_space="world"), ChannelView("alpha")):
             renderer.render_into(target, CAMERA, RenderSettings(), renderer.sort(CAMERA, RenderSettings()),
                                  view=view)
+            # The view asks for the median only where it shows it (the blend serves the rest).
+            channels = renderer.render_channels(CAMERA, RenderSettings(), median=view.channel == "median_depth")
             expected, used = channel_picture(channels.in_space(view.normal_space, CAMERA), view)
             np.testing.assert_allclose(target.read()[..., :3], expected, atol=1e-6)
             assert renderer.view_range == used
@@ -135,28 +143,38 @@ def test_hard_cases_stay_finite_and_match(gl_session_ctx):
 
 # --- negative controls ----------------------------------------------------------------------------
 
-#: (shader text, its broken form, the order it is checked in): each fault in the order
-#: where it is least obvious, so both the global and the per-pixel resolve are covered.
+#: (shader, its text, the broken form, the settings, whether the median is asked for):
+#: the lists' resolve in the order where each fault is least obvious, and the blend.
 FAULTS = {
-    "z as the distance along the ray": ("float z = uintBitsToFloat(entry.x) * g_ray.z;",
-                                        "float z = uintBitsToFloat(entry.x);", "per-pixel"),
-    "an unflipped normal": ("vec3 n = dot(s.normal.xyz, g_ray) > 0.0 ? -s.normal.xyz : s.normal.xyz;",
-                            "vec3 n = s.normal.xyz;", "depth"),
-    "the median after the crossing": ("state.a >= 0.5) g_median", "state.a - weight >= 0.5) g_median", "depth"),
-    "the median at the last fragment past 0.5": ("g_median.y == 0.0 && state.a >= 0.5", "state.a >= 0.5",
-                                                 "per-pixel"),
+    "lists: z as the distance along the ray": (
+        "lists_resolve.comp", "float z = uintBitsToFloat(entry.x) * g_ray.z;", "float z = uintBitsToFloat(entry.x);",
+        RenderSettings(order="per-pixel"), True),
+    "lists: an unflipped normal": (
+        "lists_resolve.comp", "vec3 n = dot(s.normal.xyz, g_ray) > 0.0 ? -s.normal.xyz : s.normal.xyz;",
+        "vec3 n = s.normal.xyz;", RenderSettings(), True),
+    "lists: the median after the crossing": (
+        "lists_resolve.comp", "state.a >= 0.5) g_median", "state.a - weight >= 0.5) g_median", RenderSettings(), True),
+    "lists: the median at the last fragment past 0.5": (
+        "lists_resolve.comp", "g_median.y == 0.0 && state.a >= 0.5", "state.a >= 0.5",
+        RenderSettings(order="per-pixel"), True),
+    "blend: z as the distance along the ray": (
+        "raygs.frag", "t_star * ray.z, normal", "t_star, normal", RenderSettings(), False),
+    "blend: an unflipped normal": (
+        "raygs.frag", "dot(v_normal, ray) > 0.0 ? -v_normal : v_normal", "v_normal", RenderSettings(), False),
+    "blend, GS: an unflipped normal": (
+        "gs.frag", "dot(v_normal_depth.xyz, ray) > 0.0 ? -v_normal_depth.xyz : v_normal_depth.xyz",
+        "v_normal_depth.xyz", RenderSettings(mode="gs"), False),
 }
 
 
 @pytest.mark.parametrize("fault", FAULTS)
 def test_a_broken_output_fails_the_comparison(monkeypatch, gl_session_ctx, scene, fault):
-    old, new, order = FAULTS[fault]
-    settings = RenderSettings(order=order)
+    shader, old, new, settings, median = FAULTS[fault]
     reference = render_reference_channels(scene, CAMERA, settings)
-    patched_glsl(monkeypatch, "lists_resolve.comp", old, new)
+    patched_glsl(monkeypatch, shader, old, new)
     renderer = GLRenderer(gl_session_ctx, scene)
     try:
-        assert_channels_differ(renderer.render_channels(CAMERA, settings), reference)
+        assert_channels_differ(renderer.render_channels(CAMERA, settings, median=median), reference)
     finally:
         renderer.release()
 

@@ -174,7 +174,7 @@ class GLRenderer:
         if order.size > self.scene.count:
             raise ValueError("order longer than the scene")
         layout = self.layout_for(settings, geometry)
-        problem = self.supports(settings, geometry)
+        problem = self.supports(settings, geometry and path is not None)  # the blended geometry needs nothing more
         if problem:
             raise UserError(problem)
         program, vao = self.variants.draw(settings, layout, floor, path, geometry)
@@ -187,6 +187,7 @@ class GLRenderer:
         set_uniform(program, "u_pixel_variance", settings.pixel_variance(camera))
         set_uniform(program, "u_order_count", int(order.size))
         set_uniform(program, "u_p_min", settings.p_min)
+        set_uniform(program, "u_intrinsics", (camera.fx, camera.fy, camera.cx, camera.cy))  # GS geometry
         self.variants.set_features(program, settings)
         ctx = self.ctx
         ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
@@ -223,12 +224,13 @@ class GLRenderer:
 
     def render_channels(self, camera: Camera, settings: RenderSettings = RenderSettings(),
                         order: np.ndarray | None = None, frame: Camera | None = None,
-                        color_origin: np.ndarray | None = None) -> ChannelImage:
+                        color_origin: np.ndarray | None = None, median: bool = True) -> ChannelImage:
         """Colour, alpha and the geometry outputs of ``camera``'s image (camera-space
-        normals; render/gl/geometry.py). Arguments as :meth:`render`."""
+        normals; render/gl/geometry.py). Arguments as :meth:`render`; ``median`` False
+        leaves the median depth out (None): a global order then draws once, blending."""
         if order is None:
             order = self.sort(camera, settings)
-        return self.geometry.render(self, camera, settings, order, frame, color_origin)
+        return self.geometry.render(self, camera, settings, order, frame, color_origin, median)
 
     @property
     def view_range(self) -> tuple[float, float] | None:
@@ -302,7 +304,7 @@ class GLRenderer:
         samples.texture.use(0)
         program["u_samples"].value = 0
         if geometry:
-            for unit, name in ((1, "u_sums"), (2, "u_median")):
+            for unit, name in ((1, "u_depth"), (2, "u_normal")):
                 samples.textures[unit].use(unit)
                 program[name].value = unit
         program["u_factor"].value = k
