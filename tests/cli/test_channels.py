@@ -83,8 +83,8 @@ def test_the_contract_command_writes_float32_hxwx6_in_order(capsys, tmp_path, ti
     alpha,depth,median_depth,normal --out G.npy: alpha, depth, median depth, normal x, y, z."""
     scene, cameras = tiny
     tiled = []
-    monkeypatch.setattr(screenshot, "render_tiled_channels", lambda *args: tiled.append(args[1:])
-                        or render_tiled_channels(*args))
+    monkeypatch.setattr(screenshot, "render_tiled_channels", lambda *args, **kwargs: tiled.append(args[1:])
+                        or render_tiled_channels(*args, **kwargs))
     out = tmp_path / "G.npy"
     stdout = render(capsys, scene, "--camera", cameras, "--camera-index", "1", "--order", "per-pixel",
                     "--channels", GEOMETRY, "--out", out)
