@@ -24,10 +24,9 @@ import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.camera.stereo import StereoView, eye_cameras
+from raygs_viewer.render.gl.mono_frame import Viewport
 from raygs_viewer.render.settings import RenderSettings
 
-#: (x, y, w, h): the image's rectangle in the window's framebuffer, y from the top.
-Viewport = tuple[int, int, int, int]
 #: The stereo layouts whose composed image is two eyes side by side, and which eye is on the left.
 _SIDE_BY_SIDE = {"sbs": (0, 1), "cross": (1, 0)}
 #: The single-image layouts and the eye each shows (anaglyph: the midpoint, None).
