@@ -230,8 +230,12 @@ class Viewer:
 
         orders, serial = self.stats.order_to_draw(result, sort_key(camera, p_min, dilation, cull_cameras, keys),
                                                   self.frame_index, camera)
+        if right is None:
+            left_view = right_view = self.view_mode.frame_view(self.panel)
+        else:
+            left_view, right_view = self.view_mode.side_views(self.panel)
         self.drawer.draw(self.renderer, camera, settings, right, stereo, orders, serial, self.stats, self.panel,
-                         self.view_mode.frame_view(self.panel))
+                         left_view, right_view)
         self.drawer.mono.present(self.ctx.screen, (width, height), self.viewport, self.split.column(self.viewport[2]))
         if self.capture_window_next:
             self.capture_window_next = False
@@ -264,7 +268,7 @@ class Viewer:
         if self.camera is None:
             raise UserError("nothing has been drawn yet")
         shown = ShownView(self.camera, self.settings, self.split if self.right_settings() is not None else None,
-                          self.shown_stereo, self.drawer.shown_view)
+                          self.shown_stereo, self.drawer.shown_view, self.drawer.shown_right_view)
         extra = sidecar_extra(self.view.navigator, self.loaded, self.view.training_index,
                               context_description(self.ctx))
         self.last_screenshots = take_screenshots(self.renderer, self.loaded, shown, self.screenshots,
@@ -340,7 +344,8 @@ def panel_sections(viewer: Viewer) -> list[Callable[[], None]]:
                                         viewer.stereo.save_eyes, viewer.split.on and viewer.shown_stereo is None,
                                         viewer.request_screenshot),
         lambda: draw_geometry_section(viewer.view_mode, viewer.drawer.view_range, viewer.picker.last,
-                                      viewer.measure.scale, viewer.stereo),
+                                      viewer.measure.scale, viewer.stereo,
+                                      viewer.split.on and viewer.shown_stereo is None),
         lambda: draw_path_section(viewer.camera_path),
         lambda: draw_measure_section(viewer.measure),
     ]

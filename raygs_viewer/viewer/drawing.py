@@ -79,21 +79,23 @@ class SceneDrawer:
         self.timer = GpuTimer(ctx)
         self.post_timer = GpuTimer(ctx)
         self.view: ChannelView | None = None
+        self.right_view: ChannelView | None = None
         self.view_range: tuple[float, float] | None = None
         self.orders: dict[str, np.ndarray] = {}
 
     def draw(self, renderer, camera: Camera, settings: RenderSettings, right: RenderSettings | None,
              stereo: StereoView | None, orders: Mapping[str, np.ndarray], serial: int, stats: FrameStats,
-             panel: PanelState, view: ChannelView | None = None) -> None:
+             panel: PanelState, view: ChannelView | None = None, right_view: ChannelView | None = None) -> None:
         """Draws each side with its key's order from ``orders`` ({sort key: order} of
         sort request ``serial``) unless the frame already holds this view, these settings
         and these orders, and notes the draw, its GPU times and the per-pixel order's
-        statistics in ``stats``. ``view``: the picture shown instead of the colour.
+        statistics in ``stats``. ``view``: the picture shown instead of the colour (the
+        left side's in the split view; ``right_view`` the right side's).
         Settings this GPU cannot render (the panel greys those out) are a standing error
         in ``panel``; the frame is then drawn again next time."""
-        self.orders, self.view = dict(orders), view
+        self.orders, self.view, self.right_view = dict(orders), view, right_view
         try:
-            drew = self._draw(renderer, camera, settings, right, stereo, orders, serial, stats, view)
+            drew = self._draw(renderer, camera, settings, right, stereo, orders, serial, stats, view, right_view)
         except UserError as exc:
             panel.stand("draw", f"error: {one_line(exc)}")
             return
@@ -104,8 +106,8 @@ class SceneDrawer:
 
     def _draw(self, renderer, camera: Camera, settings: RenderSettings, right: RenderSettings | None,
               stereo: StereoView | None, orders: Mapping[str, np.ndarray], serial: int, stats: FrameStats,
-              view: ChannelView | None) -> bool:
-        key = (camera_key(camera), settings, right, stereo, view, serial)
+              view: ChannelView | None, right_view: ChannelView | None) -> bool:
+        key = (camera_key(camera), settings, right, stereo, view, right_view, serial)
         if stereo is None:
             left_target, right_target = self.mono.targets(camera.width, camera.height, split=right is not None)
         elif self.stereo is None:
@@ -126,9 +128,12 @@ class SceneDrawer:
                 left_stats = _order_stats(renderer, settings)
                 right_stats = None
                 if right is not None:
+                    # One depth range for both sides where both show depths: one colour, one depth.
                     renderer.render_into(right_target, camera, right, order_for(orders, right.sort_key),
-                                         **view_argument(fixed_range(view, self.view_range)))
+                                         **view_argument(fixed_range(right_view, self.view_range)))
                     right_stats = _order_stats(renderer, right)
+                    if self.view_range is None and right_view is not None:
+                        self.view_range = renderer.view_range
             stats.order_stats = (left_stats, right_stats)
             self.mono.drawn(key)
         else:
@@ -146,6 +151,11 @@ class SceneDrawer:
         """``view`` with an automatic range fixed to the one in use: what reproduces the
         picture shown (screenshots)."""
         return fixed_range(self.view, self.view_range)
+
+    @property
+    def shown_right_view(self) -> ChannelView | None:
+        """:attr:`shown_view` of the split view's right side."""
+        return fixed_range(self.right_view, self.view_range)
 
     def forget(self) -> None:
         """A new scene: nothing drawn is of it."""

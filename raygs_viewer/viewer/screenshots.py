@@ -55,6 +55,7 @@ class ShownView:
     split: SplitView | None = None
     stereo: StereoView | None = None
     view: ChannelView | None = None
+    right_view: ChannelView | None = None
 
 
 def sidecar_extra(navigator: Navigator, loaded: LoadedScene, training_index: int | None, gl: str) -> dict:
@@ -74,10 +75,11 @@ def take_screenshots(renderer, loaded: LoadedScene, shown: ShownView, options: S
     camera = scaled_camera(shown.camera, scale)
     scene_path = loaded.path if loaded.path == "demo" else os.path.abspath(loaded.path)
 
-    def sidecar(settings: RenderSettings, details: dict, stereo: StereoView | None = None) -> dict:
+    def sidecar(settings: RenderSettings, details: dict, stereo: StereoView | None = None,
+                view: ChannelView | None = shown.view) -> dict:
         return build_sidecar(scene_path=scene_path, scene_sha256=loaded.sha256, scene=loaded.scene, camera=camera,
                              settings=settings, scale=scale, window_camera=shown.camera, extra=details, stereo=stereo,
-                             channel_view=shown.view)
+                             channel_view=view)
 
     if shown.stereo is not None:
         shots = [(image, sidecar(shown.settings, {**extra, "stereo_window_layout": shown.stereo.layout}, view), tag)
@@ -87,10 +89,11 @@ def take_screenshots(renderer, loaded: LoadedScene, shown: ShownView, options: S
         shots = [(render_shown(renderer, camera, shown.settings, shown.view), sidecar(shown.settings, extra), "left")]
     else:
         split = shown.split
-        shots = [(render_shown(renderer, camera, settings, shown.view), sidecar(settings, {**extra, "split_view": {
-                     "side": side, "preset": split.preset if side == "right" else None, "divider": split.fraction}}),
-                  side)
-                 for side, settings in (("left", shown.settings), ("right", split.right(shown.settings)))]
+        shots = [(render_shown(renderer, camera, settings, view), sidecar(settings, {**extra, "split_view": {
+                     "side": side, "preset": split.preset if side == "right" else None, "divider": split.fraction}},
+                     view=view), side)
+                 for side, settings, view in (("left", shown.settings, shown.view),
+                                              ("right", split.right(shown.settings), shown.right_view))]
     if len(shots) == 1:
         image, data, _ = shots[0]
         if path is not None:

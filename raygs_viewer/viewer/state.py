@@ -108,19 +108,25 @@ class StereoPreview:
         return view
 
 
+#: Which sides of the split view show the view mode's picture.
+VIEW_SIDES = {"both": "both sides", "left": "left side (A)", "right": "right side (B)"}
+
+
 @dataclass
 class ViewMode:
     """What the window shows: ``channel`` (render.channel_pictures.PICTURE_CHANNELS: the
     colour, or a picture of alpha, depth, median depth or normals), the depth pictures'
     range (``automatic``: spanning each image's depths; else ``near`` to ``far``, scene
-    units) and the space normals are shown in ("camera" or "world"). Both sides of the
-    split view and both stereo eyes show it; screenshots save it."""
+    units) and the space normals are shown in ("camera" or "world"). Both stereo eyes
+    show it; in the split view ``side`` says which side does ("both", "left", "right":
+    e.g. colour on one side, depth on the other); screenshots save what is shown."""
 
     channel: str = "rgb"
     automatic: bool = True
     near: float = 0.1
     far: float = 10.0
     normal_space: str = "camera"
+    side: str = "both"
 
     def view(self) -> ChannelView | None:
         """The channel view to draw; None for the colour (the renderer's plain path).
@@ -128,6 +134,12 @@ class ViewMode:
         if self.channel == "rgb":
             return None
         return ChannelView(self.channel, None if self.automatic else (self.near, self.far), self.normal_space)
+
+    def side_views(self, panel: PanelState) -> tuple[ChannelView | None, ChannelView | None]:
+        """(left, right) views of the split view this frame: :meth:`frame_view` on the
+        sides ``side`` names, the colour (None) on the other."""
+        view = self.frame_view(panel)
+        return (view if self.side in ("both", "left") else None, view if self.side in ("both", "right") else None)
 
     def frame_view(self, panel: PanelState) -> ChannelView | None:
         """The view to draw this frame. A set range that is not one is a standing error in

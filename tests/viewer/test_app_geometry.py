@@ -111,6 +111,14 @@ def test_the_panel_switches_the_view_and_states_the_range_in_use(open_viewer):
     drive.frames(2)
     assert not viewer.view_mode.automatic
     assert viewer.drawer.view_range == (viewer.view_mode.near, viewer.view_mode.far)
+    assert "on" not in drive.panel.labels()  # the sides matter only in the split view
+    viewer.split.on = True
+    drive.frames(2)
+    drive.reveal("on")
+    click_choice(drive, "on", "right side (B)")
+    drive.frames(2)
+    assert viewer.view_mode.side == "right"
+    assert viewer.drawer.view is None and viewer.drawer.right_view is not None
 
 
 def test_both_sides_of_the_split_view_show_it_in_one_range(open_viewer):
@@ -126,6 +134,26 @@ def test_both_sides_of_the_split_view_show_it_in_one_range(open_viewer):
     assert_picture(window_image(viewer), left)
     assert_picture(right_image(viewer), right)
     assert np.abs(right_image(viewer) - window_image(viewer)).max() > 0.05  # GS's depths differ
+
+
+@pytest.mark.parametrize("side", ["left", "right"])
+def test_one_side_of_the_split_view_shows_it_and_the_other_the_colour(open_viewer, side):
+    viewer, drive = small(open_viewer)
+    viewer.split.on, viewer.split.preset = True, "GS"
+    viewer.view_mode.channel, viewer.view_mode.side = "depth", side
+    drive.settle()
+    settings = viewer.settings if side == "left" else viewer.right_settings()
+    picture, used = expected_picture(viewer, ChannelView("depth"), settings=settings)
+    depth_side, colour_side = (window_image, right_image) if side == "left" else (right_image, window_image)
+    assert_picture(depth_side(viewer), picture)
+    colour_settings = viewer.right_settings() if side == "left" else viewer.settings
+    np.testing.assert_allclose(colour_side(viewer), viewer.renderer.render(viewer.camera, colour_settings), atol=1e-6)
+    assert viewer.drawer.view_range == pytest.approx(used, rel=1e-4)
+    # Each side's screenshot is what it shows, and its sidecar says so.
+    viewer.save_screenshot()
+    views = {png.stem.rsplit("-", 1)[1]: load_sidecar(sidecar).channel_view for png, sidecar in viewer.last_screenshots}
+    assert views[side] == ChannelView("depth", viewer.drawer.view_range)
+    assert views["left" if side == "right" else "right"] is None
 
 
 def test_both_stereo_eyes_show_it(open_viewer):

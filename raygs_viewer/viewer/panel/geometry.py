@@ -14,7 +14,7 @@ from raygs_viewer.render.channels import NORMAL_SPACES
 from raygs_viewer.viewer.measure import format_distance
 from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, tooltip
 from raygs_viewer.viewer.picking import Picked
-from raygs_viewer.viewer.state import StereoPreview, ViewMode
+from raygs_viewer.viewer.state import VIEW_SIDES, StereoPreview, ViewMode
 
 VIEW_LABELS = {"rgb": "colour", "alpha": "alpha", "depth": "depth", "median_depth": "median depth",
                "normal": "normal"}
@@ -28,14 +28,18 @@ PICK_HELP = ("double-click the view: orbit mode orbits around the point under th
 
 
 def draw_geometry_section(mode: ViewMode, range_in_use: tuple[float, float] | None, picked: Picked | None,
-                          scale: MeasureScale | None, stereo: StereoPreview) -> None:
+                          scale: MeasureScale | None, stereo: StereoPreview, split: bool = False) -> None:
     """Edits ``mode`` (and ``stereo.converge_on_pick`` while the preview is on);
     ``range_in_use``: the depth range the last draw used; ``picked``: the last
-    double-click's point, its distance shown in ``scale``'s unit when one is set."""
+    double-click's point, its distance shown in ``scale``'s unit when one is set;
+    ``split``: the split view is shown (then ``mode.side`` picks the sides)."""
     if not header("Geometry"):
         return
     mode.channel = choice("show", mode.channel, VIEW_LABELS)
     tooltip(VIEW_HELP)
+    if split and mode.channel != "rgb":
+        mode.side = choice("on", mode.side, VIEW_SIDES)
+        tooltip("which side of the split view shows the picture; the other shows the colour")
     if mode.channel in ("depth", "median_depth"):
         _depth_range(mode, range_in_use)
     elif mode.channel == "normal":
