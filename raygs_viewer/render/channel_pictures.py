@@ -8,6 +8,7 @@ grey. Pixels where a channel is undefined (no coverage; no median) are black.
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from functools import lru_cache
 
@@ -21,6 +22,10 @@ PICTURE_CHANNELS = CHANNELS
 #: Percentiles of the defined depths that span an automatic range (robust to a few
 #: far-off floaters).
 AUTO_PERCENTILES = (1.0, 99.0)
+#: At most about this many pixels are sampled for an automatic range: a regular grid, the
+#: same whether the window's GPU pass or a file's picture takes them, so the range does
+#: not need the whole image read back.
+AUTO_SAMPLES = 1 << 16
 COLOR_MAP = "viridis"
 
 
@@ -49,17 +54,35 @@ class ChannelView:
         return self.channel in ("depth", "median_depth", "normal")
 
 
+def sample_step(height: int, width: int) -> int:
+    """Every how many rows and columns :func:`depth_samples` takes a pixel."""
+    return max(1, math.ceil(math.sqrt(height * width / AUTO_SAMPLES)))
+
+
+def depth_samples(depth: np.ndarray) -> np.ndarray:
+    """The pixels of an (H, W) depth image an automatic range is taken from: every
+    :func:`sample_step`-th pixel of every such row, from the top-left."""
+    step = sample_step(*depth.shape)
+    return depth[::step, ::step]
+
+
 @lru_cache(maxsize=1)
-def _color_table() -> np.ndarray:
+def color_table() -> np.ndarray:
     """(256, 3) float32 viridis, from matplotlib's colour-map data (imported once)."""
     from matplotlib import colormaps  # late: matplotlib costs a window ~0.3 s; only depth pictures need it
     return colormaps[COLOR_MAP](np.linspace(0.0, 1.0, 256))[:, :3].astype(np.float32)
 
 
 def automatic_range(depth: np.ndarray) -> tuple[float, float] | None:
-    """(near, far) spanning the defined (> 0) values of ``depth`` between the
-    AUTO_PERCENTILES, or None where nothing is defined."""
-    values = depth[depth > 0]
+    """(near, far) spanning the defined (> 0) values of ``depth`` (an (H, W) image) at
+    its :func:`depth_samples` between the AUTO_PERCENTILES, or None where nothing is
+    defined."""
+    return range_of_samples(depth_samples(depth))
+
+
+def range_of_samples(samples: np.ndarray) -> tuple[float, float] | None:
+    """:func:`automatic_range` from its samples (any shape)."""
+    values = samples[samples > 0]
     if values.size == 0:
         return None
     near, far = (float(v) for v in np.percentile(values, AUTO_PERCENTILES))
@@ -77,7 +100,7 @@ def depth_picture(depth: np.ndarray, depth_range: tuple[float, float] | None) ->
         return picture, None
     near, far = used
     position = np.clip((far - depth.astype(np.float64)) / (far - near), 0.0, 1.0)
-    table = _color_table()
+    table = color_table()
     picture[:] = table[np.rint(position * (len(table) - 1)).astype(np.int64)]
     picture[depth <= 0] = 0.0
     return picture, used

@@ -17,7 +17,8 @@ T alpha n, -)):
 Records gain the gaussian's shortest axis (``GEOMETRY``), so a frame that asks for no
 geometry runs the variants without it and pays nothing. Supersampling averages every
 attachment in its resolve pass; :func:`raygs_viewer.render.channels.finish` divides the
-sums out on the host.
+sums out on the host. The window's view pictures are drawn from the target on the GPU
+(glsl/channel_picture.frag), with only an automatic range's samples read back.
 """
 
 from __future__ import annotations
@@ -27,13 +28,16 @@ import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.errors import UserError
-from raygs_viewer.render.channel_pictures import ChannelView, channel_picture
+from raygs_viewer.render.channel_pictures import ChannelView, color_table, range_of_samples, sample_step
 from raygs_viewer.render.channels import ChannelImage, finish
+from raygs_viewer.render.gl.shaders import set_uniform
 from raygs_viewer.render.gl.targets import FloatTarget, release_all, sized
 from raygs_viewer.render.settings import RenderSettings
 
 #: Colour, depth (sum T alpha z, median z or 0, found) and normal (sum T alpha n).
 GEOMETRY_ATTACHMENTS = 3
+#: glsl/channel_picture.frag's CHANNEL for each picture it draws.
+PICTURE_DEFINES = {"alpha": 1, "depth": 2, "median_depth": 3, "normal": 4}
 
 
 def takes_lists(settings: RenderSettings, median: bool) -> bool:
@@ -51,6 +55,8 @@ class GeometryOutputs:
         self.view_range: tuple[float, float] | None = None
         self._image: FloatTarget | None = None
         self._samples: FloatTarget | None = None
+        self._gathered: FloatTarget | None = None   # an automatic range's depth samples
+        self._palette: moderngl.Texture | None = None  # viridis, 256 x 1
 
     def render(self, renderer, camera: Camera, settings: RenderSettings, order: np.ndarray,
                frame: Camera | None = None, color_origin: np.ndarray | None = None,
@@ -77,12 +83,11 @@ class GeometryOutputs:
         sampled = camera.resized(camera.width * k, camera.height * k) if k > 1 else camera
         self._image = image = sized(self._image, self.ctx, camera.width, camera.height,
                                     attachments=GEOMETRY_ATTACHMENTS)
-        # The blend starts every attachment at 0 (colour without its background, which the
-        # resolve pass adds behind what remains transparent); the lists' resolve writes
-        # finished colour, and needs a resolve pass only to average samples.
-        resolved = k > 1 or not lists
+        # The blend starts colour at (background, 0), as the colour draw does, and the
+        # sums at 0; the lists' resolve writes finished colour. Either way a resolve pass
+        # only averages samples.
         drawn = image
-        if resolved:
+        if k > 1:
             self._samples = drawn = sized(self._samples, self.ctx, sampled.width, sampled.height,
                                           attachments=GEOMETRY_ATTACHMENTS)
         renderer.preprocess(sampled, settings, frame or camera, color_origin, geometry=True)
@@ -91,27 +96,64 @@ class GeometryOutputs:
             stats = renderer.per_pixel.render(renderer, drawn, sampled, settings, order, geometry=True)
             renderer.order_stats = stats if settings.per_pixel else None
         else:
+            drawn.clear_each((*settings.background, 0.0), (0.0,) * 4, (0.0,) * 4)
             drawn.use()
-            drawn.fbo.clear(0.0, 0.0, 0.0, 0.0)
             renderer.draw(sampled, settings, order, geometry=True)
-        if resolved:
-            renderer.resolve_samples(drawn, image, k, settings, front_to_back=not lists, geometry=True)
+        if k > 1:
+            renderer.resolve_samples(drawn, image, k, settings, front_to_back=False, geometry=True)
         return image
 
     def render_view(self, renderer, target: FloatTarget, camera: Camera, settings: RenderSettings,
                     order: np.ndarray, view: ChannelView, frame: Camera | None = None,
                     color_origin: np.ndarray | None = None) -> None:
-        """Puts the picture of ``view``'s channel (render/channel_pictures.py; alpha 1)
-        into ``target`` (camera-sized) and records the depth range it used."""
-        image = self.render(renderer, camera, settings, order, frame, color_origin,
-                            median=view.channel == "median_depth")
-        picture, self.view_range = channel_picture(image.in_space(view.normal_space, camera), view)
-        rgba = np.concatenate([picture, np.ones(picture.shape[:2] + (1,), np.float32)], axis=-1)[::-1]
-        if target.dtype == "f4":
-            target.texture.write(np.ascontiguousarray(rgba, np.float32).tobytes())
-        else:
-            target.texture.write(np.ascontiguousarray(np.rint(rgba * 255.0), np.uint8).tobytes())
+        """Draws the picture of ``view``'s channel (glsl/channel_picture.frag, the twin of
+        render/channel_pictures.py; alpha 1) into ``target`` (camera-sized) and records
+        the depth range it used. Nothing is read back but an automatic range's samples."""
+        image = self.draw(renderer, camera, settings, order, frame, color_origin,
+                          median=view.channel == "median_depth")
+        channel = PICTURE_DEFINES[view.channel]
+        self.view_range = None
+        if view.channel in ("depth", "median_depth"):
+            self.view_range = view.depth_range or range_of_samples(self._depth_samples(renderer, image, channel))
+        program, vao = renderer.variants.programs.fullscreen("channel_picture.frag", {"CHANNEL": channel, "SAMPLES": 0})
+        to_space = np.asarray(camera.R, np.float32).T if view.normal_space == "world" else np.eye(3, dtype=np.float32)
+        set_uniform(program, "u_to_space", to_space.tobytes(order="F"))
+        set_uniform(program, "u_range", self.view_range or (0.0, 1.0))
+        self._bind_inputs(program, image)
+        target.use()
+        self.ctx.disable(moderngl.BLEND)
+        vao.render(moderngl.TRIANGLES, vertices=3)
+
+    def _depth_samples(self, renderer, image: FloatTarget, channel: int) -> np.ndarray:
+        """The depths an automatic range is taken from (render/channel_pictures.depth_samples),
+        gathered on the GPU into a small target and read back."""
+        height, width = image.size[1], image.size[0]
+        step = sample_step(height, width)
+        columns, rows = -(-width // step), -(-height // step)
+        self._gathered = gathered = sized(self._gathered, self.ctx, columns, rows)
+        program, vao = renderer.variants.programs.fullscreen("channel_picture.frag", {"CHANNEL": channel, "SAMPLES": 1})
+        set_uniform(program, "u_step", step)
+        set_uniform(program, "u_samples", (columns, rows))
+        self._bind_inputs(program, image)
+        gathered.use()
+        self.ctx.disable(moderngl.BLEND)
+        vao.render(moderngl.TRIANGLES, vertices=3)
+        return gathered.read()[..., 0]
+
+    def _bind_inputs(self, program, image: FloatTarget) -> None:
+        if self._palette is None:
+            table = color_table()
+            palette = np.concatenate([table, np.ones((len(table), 1), np.float32)], axis=1)
+            self._palette = self.ctx.texture((len(table), 1), 4, palette.astype(np.float32).tobytes(), dtype="f4")
+        for unit, (name, texture) in enumerate(zip(("u_color", "u_depth", "u_normal"), image.textures)):
+            texture.use(unit)
+            set_uniform(program, name, unit)
+        self._palette.use(3)
+        set_uniform(program, "u_palette", 3)
 
     def release(self) -> None:
-        release_all(self._image, self._samples)
-        self._image = self._samples = None
+        release_all(self._image, self._samples, self._gathered)
+        self._image = self._samples = self._gathered = None
+        if self._palette is not None:
+            self._palette.release()
+            self._palette = None

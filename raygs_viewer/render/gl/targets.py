@@ -45,6 +45,7 @@ class FloatTarget:
         self.textures = [ctx.texture((width, height), 4, dtype=dtype) for _ in range(attachments)]
         self.texture = self.textures[0]
         self.fbo = ctx.framebuffer(color_attachments=self.textures)
+        self._single: list[moderngl.Framebuffer] = []  # one per attachment, for clear_each
 
     @property
     def attachments(self) -> int:
@@ -56,6 +57,13 @@ class FloatTarget:
 
     def use(self) -> None:
         self.fbo.use()
+
+    def clear_each(self, *colors: tuple[float, float, float, float]) -> None:
+        """Clears attachment i to ``colors[i]`` (a framebuffer clear sets them all alike)."""
+        if not self._single:
+            self._single = [self.ctx.framebuffer(color_attachments=[texture]) for texture in self.textures]
+        for fbo, color in zip(self._single, colors, strict=True):
+            fbo.clear(*color)
 
     def read(self, components: int = 4, attachment: int = 0) -> np.ndarray:
         """(H, W, components) of one attachment, top row first: float32 for "f4", uint8 for "f1"."""
@@ -69,6 +77,9 @@ class FloatTarget:
 
     def release(self) -> None:
         if self.fbo is not None:
+            for fbo in self._single:
+                fbo.release()
+            self._single = []
             self.fbo.release()
             for texture in self.textures:
                 texture.release()
