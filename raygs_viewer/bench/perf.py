@@ -28,7 +28,9 @@ ratios, each a ratio of medians over the frames:
 - ``geometry/colour``: preprocess + draw with the depth and normal outputs blended beside
   colour (render/gl/geometry.py, its GPU work without the read-back) over colour alone;
 - ``median/colour``: the same with the median depth too, which takes the fragment lists
-  (count, fill and resolve passes; more parts where the fragments overflow the pool).
+  (count, fill and resolve passes; more parts where the fragments overflow the pool);
+- ``depth-view/colour``: the window's depth view (the blended geometry, an automatic
+  range's samples read back, the picture pass) over colour alone.
 
 Each is printed per case as ``NAME@CASE VALUE`` and, as the median over the cases, as
 ``NAME VALUE``.
@@ -58,6 +60,7 @@ from raygs_viewer.bench.common import (
 from raygs_viewer.bench.plot import Panel, Point, ScatterRow, scatter_png
 from raygs_viewer.camera.pinhole import Camera, look_at
 from raygs_viewer.errors import UserError
+from raygs_viewer.render.channel_pictures import ChannelView
 from raygs_viewer.render.gl.context import context_description
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.gl.targets import FloatTarget
@@ -68,7 +71,7 @@ from raygs_viewer.sort.depth import sort_back_to_front
 
 STAGES = ("cull", "sort", "upload", "preprocess", "draw")
 RATIOS = ("RayGS/GS", "RayGS/quads", "specialised/general", "radix/argsort", "fragments-kept", "geometry/colour",
-          "median/colour")
+          "median/colour", "depth-view/colour")
 RATIO_TARGETS = {"RayGS/GS": "<= 1.10", "RayGS/quads": "<= 1.5"}
 
 COUNTS = (10_000, 100_000, 1_000_000)
@@ -89,6 +92,8 @@ GENERATED_DISTANCE = 3.0
 GENERATED_FOV_Y = 60.0
 DEFAULT_REPORT = "docs/performance-figures.md"
 DEFAULT_PLOT = "docs/images/performance.png"
+#: The window's depth view, automatic range (``depth-view/colour``).
+DEPTH_VIEW = ChannelView("depth")
 
 
 # --- cases ----------------------------------------------------------------------------------------
@@ -237,6 +242,7 @@ def measure_case(ctx, case: PerfCase, frames: int, settings: RenderSettings = Re
             quads = clock.cpu(lambda: renderer.draw(camera, settings, order, floor=True))
             geometry = clock.cpu(lambda: renderer.geometry.draw(renderer, camera, settings, order, median=False))
             with_median = clock.cpu(lambda: renderer.geometry.draw(renderer, camera, settings, order))
+            depth_view = clock.cpu(lambda: renderer.render_into(target, camera, settings, order, view=DEPTH_VIEW))
             if frame == 0:  # fragments: counted once, untimed
                 result.visible = int(order.size)
                 clear()
@@ -266,7 +272,7 @@ def measure_case(ctx, case: PerfCase, frames: int, settings: RenderSettings = Re
                                 ("draw", draw), ("gpu preprocess", preprocess_gpu), ("gpu draw", draw_gpu),
                                 ("quads", quads), ("gs", gs_pre + gs_draw), ("general", general_pre + general_draw),
                                 ("raygs", preprocess + draw), ("radix", radix), ("argsort", argsort),
-                                ("geometry", geometry), ("median", with_median)):
+                                ("geometry", geometry), ("median", with_median), ("depth view", depth_view)):
                 record(name, value)
     finally:
         renderer.release()
@@ -277,7 +283,8 @@ def measure_case(ctx, case: PerfCase, frames: int, settings: RenderSettings = Re
     result.stages = {s: median(times[s]) for s in STAGES}
     result.gpu = {"preprocess": median(times["gpu preprocess"]), "draw": median(times["gpu draw"])}
     result.other = {name: median(times[name])
-                    for name in ("quads", "gs", "general", "raygs", "radix", "argsort", "geometry", "median")}
+                    for name in ("quads", "gs", "general", "raygs", "radix", "argsort", "geometry", "median",
+                                 "depth view")}
     raygs = result.other["raygs"]
     result.ratios.update({
         "RayGS/GS": raygs / result.other["gs"],
@@ -286,6 +293,7 @@ def measure_case(ctx, case: PerfCase, frames: int, settings: RenderSettings = Re
         "radix/argsort": result.other["radix"] / result.other["argsort"],
         "geometry/colour": result.other["geometry"] / raygs,
         "median/colour": result.other["median"] / raygs,
+        "depth-view/colour": result.other["depth view"] / raygs,
     })
     return result
 

@@ -154,10 +154,10 @@ def test_a_measured_case_runs_every_stage_every_frame(gl_ctx):
     assert [r.general for r in made] == [False, True]
     specialised, general = made
     # Every frame (and the warm-up) ran its own preprocessing for RayGS, for GS and for
-    # RayGS with the geometry records (once: the median's pass reuses them), and uploaded
-    # a new order for RayGS and GS: the view changed every frame, nothing was skipped.
+    # RayGS with the geometry records (once: the median's pass and the depth view reuse
+    # them), and uploaded a new order for RayGS and GS: the view changed every frame.
     assert specialised.counters.preprocessed == 3 * (frames + 1)
-    assert specialised.counters.preprocess_skipped == frames + 1
+    assert specialised.counters.preprocess_skipped == 2 * (frames + 1)
     assert general.counters.preprocessed == frames + 1 and general.counters.preprocess_skipped == 0
     assert specialised.counters.uploads == 2 * (frames + 1)
     assert result.visible == result.count == 400 and result.frames == frames
@@ -171,6 +171,7 @@ def test_a_measured_case_runs_every_stage_every_frame(gl_ctx):
     assert result.ratios["specialised/general"] == pytest.approx(result.other["raygs"] / result.other["general"])
     assert result.ratios["geometry/colour"] == pytest.approx(result.other["geometry"] / result.other["raygs"])
     assert result.ratios["median/colour"] == pytest.approx(result.other["median"] / result.other["raygs"])
+    assert result.ratios["depth-view/colour"] == pytest.approx(result.other["depth view"] / result.other["raygs"])
     assert result.ratios["radix/argsort"] == pytest.approx(result.other["radix"] / result.other["argsort"])
     assert result.frame_ms == pytest.approx(sum(result.stages.values()))
 
