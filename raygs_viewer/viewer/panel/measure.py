@@ -12,7 +12,7 @@ import math
 from imgui_bundle import imgui
 
 from raygs_viewer.viewer.measure import MeasureWidget
-from raygs_viewer.viewer.panel.widgets import checkbox, header, tooltip
+from raygs_viewer.viewer.panel.widgets import button, checkbox, header, tooltip
 
 LIST_ROWS = 5
 
@@ -41,11 +41,8 @@ def _list(widget: MeasureWidget) -> None:
         if not count:
             imgui.text_disabled("no measurements: tick measure and click two points")
         imgui.end_list_box()
-    selected = widget.selected
-    imgui.begin_disabled(selected is None)
-    if imgui.button("Delete##measurement") and selected is not None:
-        widget.delete(selected)
-    imgui.end_disabled()
+    if button("Delete##measurement", widget.selected is not None):
+        widget.delete(widget.selected)
     imgui.same_line()
     if imgui.button("Clear##measurements"):
         widget.clear()
@@ -63,11 +60,8 @@ def _scale(widget: MeasureWidget) -> None:
     if changed:
         widget.set_unit(unit)
     imgui.same_line()
-    selected = widget.selected
-    imgui.begin_disabled(selected is None)
-    if imgui.button("Set scale") and selected is not None:
-        widget.set_scale(selected)
-    imgui.end_disabled()
+    if button("Set scale", widget.selected is not None):
+        widget.set_scale(widget.selected)
     tooltip("the selected measurement is this long: every distance is shown converted")
     scale = widget.scale
     if scale is None:

@@ -48,6 +48,14 @@ def checkbox(label: str, value: bool, enabled: bool = True, help_text: str = "")
     return value
 
 
+def button(label: str, enabled: bool = True) -> bool:
+    """A button, greyed out (and never pressed) unless ``enabled``; True when pressed."""
+    imgui.begin_disabled(not enabled)
+    pressed = imgui.button(label)
+    imgui.end_disabled()
+    return pressed and enabled
+
+
 def slider(label: str, value: float, low: float, high: float, fmt: str, logarithmic: bool = False) -> float | None:
     """A float slider over [low, high] (ctrl-click types any value); the new value when
     it was moved to a finite one, else None."""
