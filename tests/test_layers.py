@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "raygs_viewer"
-LAYERS = {"errors": 0, "jsonfile": 1, "camera": 2, "files": 2, "scene": 3, "sort": 4, "render": 5, "capture": 6, "viewer": 7,
+LAYERS = {"errors": 0, "jsonfile": 1, "camera": 2, "files": 2, "scene": 3, "sort": 4, "render": 5, "capture": 6, "photos": 6.5, "viewer": 7,
           "bench": 7, "cli": 8, "__main__": 9}
 
 
