@@ -116,9 +116,8 @@ def open_lpips() -> tuple[Lpips | None, str | None]:
     """(the LPIPS metric, None), or (None, the one line a report shows saying why not):
     the extra is not installed, or the VGG weights are not on this machine."""
     try:
-        # Late: the optional extra (torch, lpips) is large and most installs lack it.
-        import lpips
-        import torch
+        import lpips  # late: the optional extra (torch, lpips) is large and most installs lack it
+        import torch  # late: as lpips
     except ImportError:
         return None, LPIPS_MISSING
     if not _vgg_weights_cached(torch):
