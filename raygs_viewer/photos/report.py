@@ -50,8 +50,12 @@ def check_report_paths(path: str | Path, overwrite: bool = False) -> tuple[Path,
 
 
 def settings_line(result: EvaluationResult) -> str:
-    """The render settings in the words the window's status line uses."""
-    return ", ".join(setting_parts(result.settings, "line", changes_only=True)) or "defaults"
+    """The render settings in the words the window's status line uses, the mode always
+    (the line leaves the default out; a report must say it)."""
+    parts = setting_parts(result.settings, "line", changes_only=True)
+    if not any(part.startswith("mode ") for part in parts):
+        parts.insert(0, f"mode {result.settings.mode}")
+    return ", ".join(parts)
 
 
 def report_document(result: EvaluationResult, about: dict | None = None) -> dict:
