@@ -80,7 +80,8 @@ def open_dataset(path: str | Path, images: str | Path | None = None) -> Dataset:
         path = path.parent
     if path.is_file():
         if path.suffix.lower() != ".json":
-            raise UserError(f"{path}: not a dataset: expected a transforms.json, an INRIA model folder or a COLMAP folder")
+            raise UserError(f"{path}: not a dataset: expected a transforms.json, an INRIA model folder "
+                            f"or a COLMAP folder")
         return _open_nerfstudio(path, folder)
     if not path.is_dir():
         raise UserError(f"{path}: no such file or folder")
