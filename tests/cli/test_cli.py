@@ -585,13 +585,13 @@ def test_render_and_its_sidecar_take_the_order(capsys, tmp_path, gl_ctx, demo, m
 
 
 def test_every_command_names_the_function_that_runs_it():
-    from raygs_viewer.cli import bench, commands, convert, path, view
+    from raygs_viewer.cli import bench, commands, convert, evaluate, path, view
     from raygs_viewer.cli.main import COMMANDS, build_parser
     minimal = {"render": ["--out", "x.png"], "render-path": ["demo", "orbit", "--out", "x.mp4"],
-               "convert": ["demo", "x.ply"], "bench": ["accuracy"], "info": ["demo"]}
+               "convert": ["demo", "x.ply"], "bench": ["accuracy"], "info": ["demo"], "evaluate": ["x"]}
     runs = {"view": view.command_view, "info": commands.command_info, "render": commands.command_render,
             "verify": commands.command_verify, "render-path": path.command_render_path,
-            "convert": convert.command_convert, "bench": bench.command}
+            "convert": convert.command_convert, "bench": bench.command, "evaluate": evaluate.command_evaluate}
     assert set(COMMANDS) == set(runs)
     for name in COMMANDS:
         assert build_parser().parse_args([name, *minimal.get(name, [])]).run is runs[name], name

@@ -4,18 +4,14 @@ contact sheet, settings options, skipped photos, bad input."""
 from __future__ import annotations
 
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
+from noisy_kit import write_noisy_dataset
+from testkit import assert_one_line_error, listing, run_cli
 
-# The photo datasets' kits live beside the photos tests (tests/photos has no __init__.py).
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "photos"))
-
-from noisy_kit import write_noisy_dataset  # noqa: E402
-from raygs_viewer.photos.metrics import LPIPS_MISSING, psnr, ssim_3dgs  # noqa: E402
-from testkit import assert_one_line_error, listing, run_cli  # noqa: E402
+from raygs_viewer.photos.metrics import LPIPS_MISSING, psnr, ssim_3dgs
 
 
 @pytest.fixture
