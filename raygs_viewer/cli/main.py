@@ -1,6 +1,6 @@
 """The ``raygs-viewer`` command line: ``view`` (the window), ``info``, ``render``,
 ``render-path`` (a camera path to a video), ``verify``, ``convert`` (a scene to
-another format) and ``bench``.
+another format), ``evaluate`` (renders against the photos) and ``bench``.
 
 Without a command the window opens: ``raygs-viewer`` shows the demo, and
 ``raygs-viewer SCENE.ply [view options]`` or ``raygs-viewer --frames 3`` mean
@@ -10,7 +10,7 @@ window again from the JSON sidecar saved beside it.
 Bad input ends in one line, ``error: <what and where>``, and exit status 2.
 
 The commands live beside this module: :mod:`cli.view`, :mod:`cli.commands` (info,
-render, verify), :mod:`cli.path` (render-path), :mod:`cli.convert` and :mod:`cli.bench`;
+render, verify), :mod:`cli.path` (render-path), :mod:`cli.convert`, :mod:`cli.evaluate` and :mod:`cli.bench`;
 :mod:`cli.argtypes` and :mod:`cli.options` hold what their parsers share.
 """
 
@@ -22,7 +22,7 @@ import sys
 from pathlib import Path
 
 from raygs_viewer import __version__
-from raygs_viewer.cli import bench, commands, convert, path, view
+from raygs_viewer.cli import bench, commands, convert, evaluate, path, view
 from raygs_viewer.cli.argtypes import Parser
 from raygs_viewer.cli.view import join_up_axis
 from raygs_viewer.errors import UserError
@@ -32,7 +32,7 @@ from raygs_viewer.scene.loader import DEMO
 #: The modules of the commands, in the order --help lists them: each one's
 #: ``add_parsers`` adds its commands, and each command's parser names the function that
 #: runs it (``set_defaults(run=...)``), so a new command is a module and its entry here.
-COMMAND_MODULES = (view, commands, path, convert, bench)
+COMMAND_MODULES = (view, commands, path, convert, evaluate, bench)
 # Arguments that keep their meaning at the top level instead of starting the window.
 TOP_LEVEL_OPTIONS = ("-h", "--help", "--version")
 
