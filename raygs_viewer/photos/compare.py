@@ -1,6 +1,6 @@
 """A render beside its photo, as pictures: the |difference| heat map, the split between
-photo and render, and the PSNR of the pair. The window's Photo view and the reports'
-error pictures draw them; every image here is (H, W, 3) float32 in 0..1, top row first.
+photo and render, a photo resampled to the size shown. The window's Photo view draws
+them; every image here is (H, W, 3) float32 in 0..1, top row first.
 """
 
 from __future__ import annotations
@@ -51,13 +51,6 @@ def split_picture(photo: np.ndarray, render: np.ndarray, fraction: float) -> np.
     _check_pair(render, photo)
     column = int(round(min(max(fraction, 0.0), 1.0) * photo.shape[1]))
     return np.concatenate([photo[:, :column], render[:, column:]], axis=1).astype(np.float32)
-
-
-def plain_psnr(render: np.ndarray, photo: np.ndarray) -> float:
-    """10 log10(1 / MSE) over every pixel and channel (inf for identical images)."""
-    _check_pair(render, photo)
-    mse = float(np.mean((render.astype(np.float64) - photo.astype(np.float64)) ** 2))
-    return math.inf if mse == 0.0 else 10.0 * math.log10(1.0 / mse)
 
 
 def _check_pair(render: np.ndarray, photo: np.ndarray) -> None:

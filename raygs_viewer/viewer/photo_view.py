@@ -37,11 +37,11 @@ from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.photos.compare import (
     DEFAULT_HEAT_MAX,
     difference_picture,
-    plain_psnr,
     resize_picture,
     split_picture,
 )
 from raygs_viewer.photos.dataset import Dataset, PhotoView, load_photo, open_dataset
+from raygs_viewer.photos.metrics import psnr
 from raygs_viewer.render.gl.mono_frame import MonoFrame
 from raygs_viewer.render.gl.targets import FloatTarget, sized
 from raygs_viewer.scene.loader import LoadedScene
@@ -130,7 +130,7 @@ class PhotoCompare:
         photo, self.camera_size = photo
         self.size = (camera.width, camera.height)
         self.render = np.clip(mono.left.read()[..., :3], 0.0, 1.0)
-        self.psnr = plain_psnr(self.render, photo)
+        self.psnr = psnr(self.render, photo)
         self.picture = self._picture(self.render, photo)
         self._key = key
         self.status = self._measured(loaded, index)
