@@ -48,7 +48,6 @@ from raygs_viewer.viewer.panel.geometry import draw_geometry_section
 from raygs_viewer.viewer.panel.measure import draw_measure_section
 from raygs_viewer.viewer.panel.order import draw_order_section
 from raygs_viewer.viewer.panel.path import draw_path_section
-from raygs_viewer.viewer.panel.photo import draw_photo_section
 from raygs_viewer.viewer.panel.render import draw_render_section
 from raygs_viewer.viewer.panel.scene import draw_scene_section
 from raygs_viewer.viewer.panel.screenshot import draw_screenshot_section
@@ -361,8 +360,7 @@ def panel_sections(viewer: Viewer) -> list[Callable[[], None]]:
         lambda: draw_stereo_section(viewer.stereo, stats),
         lambda: draw_view_section(view.navigator, view.lens.fov_y_degrees, view.set_fov, viewer.reset_view),
         lambda: draw_training_section(loaded, view.training_index, view.select_training_camera,
-                                      view.step_training_camera),
-        lambda: draw_photo_section(viewer.photo, bool(loaded.cameras)),
+                                      view.step_training_camera, viewer.photo),
         lambda: draw_screenshot_section(viewer.screenshots, viewer.camera, viewer.shown_stereo is not None,
                                         viewer.stereo.save_eyes, viewer.split.on and viewer.shown_stereo is None,
                                         viewer.request_screenshot),

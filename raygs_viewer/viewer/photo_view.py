@@ -87,7 +87,8 @@ class PhotoCompare:
         #: (view index, width, height) -> (photo, the camera's own size), or why there is none.
         self._photos: OrderedDict[tuple, tuple[np.ndarray, tuple[int, int]] | str] = OrderedDict()
         self._key: tuple | None = None
-        self._written: tuple | None = None  # the key of the picture in ``target``
+        self._computed = 0  # pictures computed so far
+        self._written = -1  # which of them ``target`` holds
 
     def choose(self, mode: str) -> None:
         if mode not in MODES:
@@ -133,6 +134,7 @@ class PhotoCompare:
         self.psnr = psnr(self.render, photo)
         self.picture = self._picture(self.render, photo)
         self._key = key
+        self._computed += 1
         self.status = self._measured(loaded, index)
         self._show(mono)
         return message
@@ -154,19 +156,22 @@ class PhotoCompare:
         return text
 
     def _show(self, mono: MonoFrame) -> None:
-        if self.picture is None:
-            self._hide(mono)
+        if self.picture is None:  # the render, compared: the PSNR stays
+            self._detach(mono)
             return
         height, width = self.picture.shape[:2]
-        if self.target is None or self.target.size != (width, height) or self._key != self._written:
+        if self.target is None or self.target.size != (width, height) or self._written != self._computed:
             self.target = sized(self.target, self.ctx, width, height, label="photo view")
             rgba = np.concatenate([self.picture, np.ones((height, width, 1), np.float32)], axis=2)
             self.target.texture.write(np.ascontiguousarray(rgba[::-1], np.float32).tobytes())  # GL: bottom row first
-            self._written = self._key
+            self._written = self._computed
         mono.stereo_image = self.target
 
     def _hide(self, mono: MonoFrame) -> None:
         self.picture = self.psnr = None
+        self._detach(mono)
+
+    def _detach(self, mono: MonoFrame) -> None:
         if self.target is not None and mono.stereo_image is self.target:
             mono.stereo_image = None
 

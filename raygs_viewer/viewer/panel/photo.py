@@ -1,25 +1,20 @@
-"""The panel's Photo section: at a training camera, what the window shows (the render,
-the photo, |difference| as a heat map, or a split between them) and the PSNR of the
-render against the photo (see viewer.photo_view)."""
+"""The Training cameras section's Photo controls: at a training camera, what the window
+shows (the render, the photo, |difference| as a heat map, or a split between them) and
+the PSNR of the render against the photo (see viewer.photo_view)."""
 
 from __future__ import annotations
 
 from imgui_bundle import imgui
 
-from raygs_viewer.viewer.panel.widgets import header, slider, tooltip
+from raygs_viewer.viewer.panel.widgets import slider, tooltip
 from raygs_viewer.viewer.photo_view import MODES, PhotoCompare
 
 
-def draw_photo_section(photo: PhotoCompare, has_cameras: bool) -> None:
+def draw_photo_controls(photo: PhotoCompare) -> None:
     """Edits ``photo``'s mode, divider and heat map scale; shows its status line."""
-    if not header("Photo###photo", open_first=False):
-        return
-    if not has_cameras:
-        imgui.text_disabled("no training cameras, so no photos")
-        return
-    for i, (mode, label) in enumerate(MODES.items()):
-        if i:
-            imgui.same_line()
+    imgui.text("Photo:")
+    for mode, label in MODES.items():
+        imgui.same_line()
         if imgui.radio_button(f"{label}##photo", photo.mode == mode):
             photo.choose(mode)
     if photo.mode == "split":
