@@ -147,3 +147,15 @@ def test_panel_chooses_the_photo_and_shows_the_psnr_at_the_window_size(open_view
     assert viewer.photo.psnr == value
     status = [label for label in drive.panel.labels("text_wrapped") if "PSNR" in label]
     assert status == [f"view_000: PSNR {value:.2f} dB at {width}x{height} (the window's size; the camera's is 48x32)"]
+
+
+def test_images_option_names_the_photos_folder(open_viewer, model, tmp_path):
+    elsewhere = tmp_path / "elsewhere"
+    (model.parent / "source" / "images").rename(elsewhere)
+    viewer, drive = open_viewer(scene_of(model), hide_panel=True, width=SIZE[0], height=SIZE[1],
+                                images=str(elsewhere))
+    at_camera(drive)
+    viewer.photo.choose("photo")
+    drive.frames(1)
+    dataset = open_dataset(model, elsewhere)
+    np.testing.assert_array_equal(presented(viewer), to_rgb8(load_photo(dataset.views[0], dataset.background)))
