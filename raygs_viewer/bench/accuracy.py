@@ -16,8 +16,16 @@ measures
 
 The view classes (training-like, far, very close) are built by :mod:`bench.views`.
 
+``--photos MODEL`` adds the photos as a second truth: the model's trained scene at the
+first ``--photos-views`` test views of its dataset (``photos.dataset``: every 8th view;
+each camera scaled to ``--width`` where it is wider, its photo resized to it as the
+INRIA loader does), every configuration over the dataset's background, timed and
+compared with the float64 truth as above and with the photo: PSNR and the 3DGS SSIM
+(``photos.metrics``) of the render clipped to 0..1, as the training code measures it.
+
 Output: a table per (scene, view class) and machine-readable lines
-``KEY SCENE VIEW CONFIG VALUE`` (KEY: ratio, ms, psnr, p99, max) on stdout, a
+``KEY SCENE VIEW CONFIG VALUE`` (KEY: ratio, ms, psnr, p99, max; for a photo view VIEW
+is ``photo-NAME`` and photo_psnr, photo_ssim follow) on stdout, a
 markdown report and a PNG plot of PSNR against time ratio, one panel per view class
 (:mod:`bench.accuracy_report`).
 """
@@ -48,7 +56,9 @@ from raygs_viewer.bench.common import (
 )
 from raygs_viewer.bench.views import VIEW_CLASSES, VIEW_TITLES, view_cameras
 from raygs_viewer.camera.pinhole import Camera
-from raygs_viewer.errors import UserError
+from raygs_viewer.errors import UserError, one_line
+from raygs_viewer.photos.dataset import PhotoView, load_photo, open_dataset, select_split
+from raygs_viewer.photos.metrics import psnr, ssim_3dgs
 from raygs_viewer.render import reference
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.gl.targets import FloatTarget
@@ -82,6 +92,11 @@ DEFAULT_PLOT = "docs/images/accuracy-vs-time.png"
 #: rows are judged against an image whose faint tails are (nearly) all there.
 GT_P_MIN = 1e-4
 
+#: --photos-views: the test views measured against their photos (the first in name order).
+DEFAULT_PHOTO_VIEWS = 4
+#: The ``view`` of a case measured at a photo's camera (its name in ``CaseResult.photo``).
+PHOTO_VIEW = "photo"
+
 
 # --- running it ---------------------------------------------------------------------------
 
@@ -94,6 +109,8 @@ class ConfigResult:
     p99: float
     max_error: float
     times_ms: list[float] = field(default_factory=list)
+    photo_psnr: float = math.nan   # against the photo (photo cases only)
+    photo_ssim: float = math.nan
 
 
 @dataclass
@@ -106,6 +123,7 @@ class CaseResult:
     gt_samples: int
     gt_seconds: float
     rows: dict[str, ConfigResult]
+    photo: str = ""   # the photo's view name, for view PHOTO_VIEW
 
 
 @dataclass
@@ -120,6 +138,7 @@ class AccuracyResults:
     scenes: list[tuple[str, str]]   # (name, "N gaussians, from ...")
     notes: list[str] = field(default_factory=list)
     gt_p_min: float = GT_P_MIN
+    photos: str = ""   # the photo dataset measured, described ("" without --photos)
 
 
 @dataclass(frozen=True)
@@ -134,6 +153,8 @@ class AccuracyOptions(RunOptions):
     command_line: str = "raygs-viewer bench accuracy"
     configs: tuple[str, ...] = CONFIGS
     gt_p_min: float = GT_P_MIN   # the ground truth's cut-off
+    photos: str | None = None    # a dataset (INRIA model folder) whose test photos are a second truth
+    photos_views: int = DEFAULT_PHOTO_VIEWS
 
 
 def default_scenes(quick: bool) -> tuple[tuple[str, ...], list[str]]:
@@ -212,11 +233,69 @@ def run_accuracy(options: AccuracyOptions, ctx=None, out: TextIO | None = None,
                         say(line)
             finally:
                 renderer.release()
+        photos = ""
+        if options.photos is not None:
+            photo_results, photos = photo_cases(ctx, options, base, ground_truth, say)
+            cases += photo_results
     say(f"bench accuracy: done in {time.perf_counter() - started:.1f} s")
     return AccuracyResults(cases, renderer_name, os.cpu_count() or 1, options.command_line,
                            run_date(),
                            options.repeat, options.width, [(s.name, s.description) for s in scenes],
-                           list(options.notes), options.gt_p_min)
+                           list(options.notes), options.gt_p_min, photos)
+
+
+def photo_camera(camera: Camera, width: int) -> Camera:
+    """``camera`` scaled to ``width`` pixels wide where it is wider (the height rounded)."""
+    if camera.width <= width:
+        return camera
+    return camera.resized(width, max(1, round(camera.height * width / camera.width)))
+
+
+def photo_cases(ctx, options: AccuracyOptions, base: RenderSettings, ground_truth: Callable[..., np.ndarray],
+                say: Callable[[str], None]) -> tuple[list[CaseResult], str]:
+    """The cases of ``--photos`` (see the module docstring) and the dataset described."""
+    dataset = open_dataset(options.photos)
+    if dataset.scene_path is None:
+        raise UserError(f"--photos {options.photos}: no trained scene in it (an INRIA model folder holds "
+                        f"point_cloud/iteration_*/point_cloud.ply)")
+    views = select_split(dataset.views, "test")[:options.photos_views]
+    if not views:
+        raise UserError(f"--photos {options.photos}: the dataset has no test views")
+    item = load_scenes((str(dataset.scene_path),))[0]
+    over = replace(base, background=dataset.background)
+    settings = {name: apply_preset(over, name) for name in options.configs}
+    truth_settings = replace(over, p_min=options.gt_p_min, order="per-pixel")
+    cases, skipped = [], 0
+    say(f"[photos] {item.name}: {len(views)} test view(s) of {dataset.root} against their photos")
+    renderer = GLRenderer(ctx, item.scene)
+    try:
+        for view in views:
+            camera = photo_camera(view.camera, options.width)
+            try:
+                photo = load_photo(PhotoView(view.name, camera, view.image_path, view.index), dataset.background)
+            except UserError as exc:
+                say(f"[photos] skipped {view.name}: {one_line(exc)}")
+                skipped += 1
+                continue
+            clock = time.perf_counter()
+            truth = ground_truth(item.scene, camera, truth_settings, options.gt_samples)
+            gt_seconds = time.perf_counter() - clock
+            times, images = measure(ctx, renderer, camera, settings, options.repeat)
+            rows = compare(times, images, truth)
+            for name, row in rows.items():
+                shown = np.clip(images[name][..., :3], 0.0, 1.0)
+                row.photo_psnr, row.photo_ssim = psnr(shown, photo), ssim_3dgs(shown, photo)
+            case = CaseResult(item.name, PHOTO_VIEW, camera.width, camera.height, options.gt_samples, gt_seconds,
+                              rows, photo=view.name)
+            cases.append(case)
+            say(format_case_text(case))
+            for line in machine_lines(case):
+                say(line)
+    finally:
+        renderer.release()
+    described = (f"{len(cases)} test view(s) of {dataset.root} ({dataset.layout}), scene {item.name}, "
+                 f"background {dataset.background}" + (f"; {skipped} skipped" if skipped else ""))
+    return cases, described
 
 
 def compare(times: dict[str, list[float]], images: dict[str, np.ndarray], truth: np.ndarray
@@ -249,23 +328,38 @@ def fmt_number(value: float, digits: int = 2) -> str:
     return f"{value:.{digits}f}"
 
 
+def case_title(case: CaseResult) -> str:
+    """A view class's title, or "test view NAME against its photo"."""
+    return f"test view {case.photo} against its photo" if case.photo else VIEW_TITLES[case.view]
+
+
 def format_case_text(case: CaseResult) -> str:
     """The plain-text table printed while running."""
     head = f"{'configuration':<28} {'GPU ms':>8} {'ratio':>6} {'PSNR dB':>8} {'p99':>8} {'max':>8}"
-    lines = [f"{case.scene} / {VIEW_TITLES[case.view]} ({case.width}x{case.height})", head, "-" * len(head)]
+    if case.photo:
+        head += f" {'photo dB':>8} {'SSIM':>6}"
+    lines = [f"{case.scene} / {case_title(case)} ({case.width}x{case.height})", head, "-" * len(head)]
     for row in case.rows.values():
-        lines.append(f"{row.config:<28} {fmt_number(row.gpu_ms):>8} {fmt_number(row.ratio):>6} "
-                     f"{fmt_number(row.psnr):>8} {fmt_error(row.p99):>8} {fmt_error(row.max_error):>8}")
+        line = (f"{row.config:<28} {fmt_number(row.gpu_ms):>8} {fmt_number(row.ratio):>6} "
+                f"{fmt_number(row.psnr):>8} {fmt_error(row.p99):>8} {fmt_error(row.max_error):>8}")
+        if case.photo:
+            line += f" {fmt_number(row.photo_psnr):>8} {fmt_number(row.photo_ssim, 4):>6}"
+        lines.append(line)
     return "\n".join(lines)
 
 
 def machine_lines(case: CaseResult) -> list[str]:
-    """``KEY SCENE VIEW CONFIG VALUE`` lines (KEY: ratio, ms, psnr, p99, max; CONFIG as a slug)."""
+    """``KEY SCENE VIEW CONFIG VALUE`` lines (KEY: ratio, ms, psnr, p99, max, and for a
+    photo case, whose VIEW is ``photo-NAME``, photo_psnr and photo_ssim; CONFIG as a slug)."""
     lines = []
+    view = f"{PHOTO_VIEW}-{slug(case.photo)}" if case.photo else case.view
     for row in case.rows.values():
-        for key, value in (("ratio", row.ratio), ("ms", row.gpu_ms), ("psnr", row.psnr),
-                           ("p99", row.p99), ("max", row.max_error)):
-            lines.append(f"{key} {case.scene} {case.view} {slug(row.config)} {value:.6g}")
+        values = [("ratio", row.ratio), ("ms", row.gpu_ms), ("psnr", row.psnr), ("p99", row.p99),
+                  ("max", row.max_error)]
+        if case.photo:
+            values += [("photo_psnr", row.photo_psnr), ("photo_ssim", row.photo_ssim)]
+        for key, value in values:
+            lines.append(f"{key} {case.scene} {view} {slug(row.config)} {value:.6g}")
     return lines
 
 

@@ -1,6 +1,6 @@
 """``raygs-viewer bench accuracy``'s report and plot: the verdict's data-driven part
-(per view class over the scenes: mean time ratio and PSNR gain, the Pareto front), the
-markdown report (whose human verdict survives a rewrite) and the PNG plot of PSNR
+(per view class over the scenes: mean time ratio and PSNR gain, the Pareto front; with
+``--photos``, each configuration over the photos' views), the markdown report (whose human verdict survives a rewrite) and the PNG plot of PSNR
 against time ratio.
 """
 
@@ -19,6 +19,7 @@ from raygs_viewer.bench.accuracy import (
     CONFIGS,
     AccuracyResults,
     CaseResult,
+    case_title,
     fmt_number,
 )
 from raygs_viewer.bench.common import fmt_error, write_plot, write_report
@@ -127,6 +128,64 @@ def case_notes(case: CaseResult) -> dict[str, str]:
     return notes
 
 
+@dataclass
+class PhotoSummary:
+    """One configuration over the ``--photos`` views: time ratio (geometric mean), and
+    means of PSNR against the float64 truth, PSNR and SSIM against the photos, and the
+    photo PSNR's gain over BASELINE."""
+    config: str
+    ratio: float
+    psnr: float
+    photo_psnr: float
+    photo_ssim: float
+    photo_gain_db: float
+
+
+def summarize_photos(results: AccuracyResults) -> list[PhotoSummary]:
+    cases = [c for c in results.cases if c.photo]
+    if not cases:
+        return []
+    summaries = []
+    for config in cases[0].rows:
+        rows = [c.rows[config] for c in cases]
+        good = [r.ratio for r in rows if r.ratio > 0 and math.isfinite(r.ratio)]
+        ratio = math.exp(sum(math.log(r) for r in good) / len(good)) if good else math.nan
+        gains = [c.rows[config].photo_psnr - c.rows[BASELINE].photo_psnr for c in cases]
+        summaries.append(PhotoSummary(config, ratio, float(np.mean([_capped(r.psnr, PSNR_CAP) for r in rows])),
+                                      float(np.mean([r.photo_psnr for r in rows])),
+                                      float(np.mean([r.photo_ssim for r in rows])), float(np.mean(gains))))
+    return summaries
+
+
+def photo_summary_lines(results: AccuracyResults) -> list[str]:
+    """The report's table of the configurations against the photos (none without them)."""
+    summaries = summarize_photos(results)
+    if not summaries:
+        return []
+    lines = ["#### Against the photos", "",
+             f"Over the {sum(1 for c in results.cases if c.photo)} test view(s) of the photos: time ratio as a "
+             f"geometric mean, the rest as means (PSNR against the float64 truth capped at {PSNR_CAP:g} dB).", "",
+             "| configuration | time ratio | PSNR truth (dB) | PSNR photos (dB) | SSIM photos | photo PSNR gain (dB) |",
+             "|---|---:|---:|---:|---:|---:|"]
+    for s in summaries:
+        lines.append(f"| {s.config} | {fmt_number(s.ratio)} | {fmt_number(s.psnr)} | {fmt_number(s.photo_psnr)} | "
+                     f"{fmt_number(s.photo_ssim, 4)} | {s.photo_gain_db:+.2f} |")
+    return lines + [""]
+
+
+def _case_table(case: CaseResult) -> list[str]:
+    notes = case_notes(case)
+    photo_head, photo_rule = (" PSNR photo (dB) | SSIM photo |", "---:|---:|") if case.photo else ("", "")
+    lines = [f"| configuration | GPU ms | ratio to RayGS | PSNR (dB) | p99 error | max error |{photo_head} note |",
+             f"|---|---:|---:|---:|---:|---:|{photo_rule}---|"]
+    for row in case.rows.values():
+        photo = f" {fmt_number(row.photo_psnr)} | {fmt_number(row.photo_ssim, 4)} |" if case.photo else ""
+        lines.append(f"| {row.config} | {fmt_number(row.gpu_ms)} | {fmt_number(row.ratio)} | "
+                     f"{fmt_number(row.psnr)} | {fmt_error(row.p99)} | {fmt_error(row.max_error)} |{photo} "
+                     f"{notes.get(row.config, '')} |")
+    return lines
+
+
 # --- the report and the plot ---------------------------------------------------------------------
 
 def _existing_human_verdict(path: Path) -> str | None:
@@ -177,6 +236,12 @@ def format_report(results: AccuracyResults, plot_link: str | None, human_verdict
         "",
     ]
     lines += [f"- **{name}**: {description}" for name, description in results.scenes]
+    if results.photos:
+        lines += ["", f"Photos (`--photos`), a second truth: {results.photos}. Each configuration over the "
+                  "dataset's background at its test views (every 8th), scaled to the width above, against the "
+                  "photo resized to it: PSNR and SSIM as the 3DGS training code reports them (11-pixel gaussian "
+                  "window, sigma 1.5, zero padding, the mean over pixels and channels) of the render clipped "
+                  "to 0..1; the float64 truth's columns beside them."]
     notes = list(results.notes)
     if results.gt_p_min == DEFAULT_P_MIN:
         notes.append("The ground truth has the baseline's cut-off p_min 1/255, so the rows that change p_min show "
@@ -204,19 +269,13 @@ def format_report(results: AccuracyResults, plot_link: str | None, human_verdict
             lines.append(f"| {s.config} | {fmt_number(s.ratio)} | {s.gain_db:+.2f} | {s.worst_gain_db:+.2f} | "
                          f"{'yes' if s.pareto else ''} |")
         lines.append("")
+    lines += photo_summary_lines(results)
     lines += ["## Results per scene and view", ""]
     for case in results.cases:
-        notes = case_notes(case)
-        lines += [f"### {case.scene}: {VIEW_TITLES[case.view]}", "",
+        lines += [f"### {case.scene}: {case_title(case)}", "",
                   f"{case.width}x{case.height} px; ground truth {case.gt_samples}x{case.gt_samples} samples "
-                  f"per pixel ({case.gt_seconds:.1f} s).", "",
-                  "| configuration | GPU ms | ratio to RayGS | PSNR (dB) | p99 error | max error | note |",
-                  "|---|---:|---:|---:|---:|---:|---|"]
-        for row in case.rows.values():
-            lines.append(f"| {row.config} | {fmt_number(row.gpu_ms)} | {fmt_number(row.ratio)} | "
-                         f"{fmt_number(row.psnr)} | {fmt_error(row.p99)} | {fmt_error(row.max_error)} | "
-                         f"{notes.get(row.config, '')} |")
-        lines.append("")
+                  f"per pixel ({case.gt_seconds:.1f} s).", ""]
+        lines += _case_table(case) + [""]
     return "\n".join(lines)
 
 
@@ -225,7 +284,7 @@ def draw_plot(results: AccuracyResults) -> bytes:
     and marker per configuration and a fill per scene; below, the same per view class
     averaged over the scenes (PSNR gain over RayGS, as in the verdict's tables)."""
     configs = list(results.cases[0].rows) if results.cases else list(CONFIGS)
-    scene_names = list(dict.fromkeys(case.scene for case in results.cases))
+    scene_names = list(dict.fromkeys(case.scene for case in results.cases if not case.photo))
     x_label = "GPU time / RayGS time (log scale)"
     panels = []
     for view in VIEW_CLASSES:

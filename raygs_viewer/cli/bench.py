@@ -110,8 +110,8 @@ ABOUT: dict[str, tuple[str, str]] = {
 
 #: The options each benchmark's recorded command names, in their order there.
 RECORDED_FLAGS: dict[str, tuple[str, ...]] = {
-    "accuracy": ("--quick", "--scenes", "--width", "--repeat", "--gt-samples", "--gt-p-min", "--gl-backend",
-                 "--report", "--plot", "--overwrite"),
+    "accuracy": ("--quick", "--scenes", "--width", "--repeat", "--gt-samples", "--gt-p-min", "--photos",
+                 "--photos-views", "--gl-backend", "--report", "--plot", "--overwrite"),
     "stereo": ("--quick", "--scenes", "--presets", "--width", "--repeat", "--out", "--gl-backend", "--overwrite"),
     "perf": ("--quick", "--counts", "--sizes", "--resolutions", "--scenes", "--frames", "--report", "--plot",
              "--gl-backend", "--overwrite"),
@@ -251,6 +251,11 @@ def _add_accuracy_parser(kinds) -> None:
     parser.add_argument("--gt-p-min", type=argtypes.p_min, metavar="P",
                         help=f"opacity cut-off of the ground truth (default {accuracy.GT_P_MIN:g}, below every "
                              f"configuration's, so that the p_min rows are judged against the faint tails too)")
+    parser.add_argument("--photos", metavar="MODEL",
+                        help="also measure this trained model (an INRIA model folder) at its test views against "
+                             "their photos: PSNR and SSIM beside the float64 truth's")
+    parser.add_argument("--photos-views", type=argtypes.whole_number(1, 1000), metavar="N",
+                        help=f"how many test views --photos measures (default {accuracy.DEFAULT_PHOTO_VIEWS})")
     parser.add_argument("--report", default=accuracy.DEFAULT_REPORT, metavar="PATH.md",
                         help=f"markdown report (default {accuracy.DEFAULT_REPORT})")
     parser.add_argument("--plot", default=accuracy.DEFAULT_PLOT, metavar="PATH.png",
@@ -273,6 +278,8 @@ def accuracy_options(args: argparse.Namespace) -> accuracy.AccuracyOptions:
         scenes=scenes, **_quick_or_default(args, accuracy, ("width", "repeat", "gt_samples")),
         report=_report_path(report, args.overwrite), plot=_plot_path(plot, args.overwrite), overwrite=args.overwrite,
         gt_p_min=accuracy.GT_P_MIN if args.gt_p_min is None else args.gt_p_min,
+        photos=args.photos,
+        photos_views=accuracy.DEFAULT_PHOTO_VIEWS if args.photos_views is None else args.photos_views,
         **_run_fields("accuracy", args, notes))
 
 

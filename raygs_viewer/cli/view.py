@@ -43,6 +43,9 @@ def add_parsers(commands) -> None:
     parser.add_argument("scene", nargs="?", default=DEMO, help=f"a scene file ({SCENE_FILES}), or '{DEMO}' (default)")
     parser.add_argument("--cameras", metavar="CAMERAS.json",
                         help="the scene's training cameras (default: a cameras.json found next to the scene)")
+    parser.add_argument("--images", metavar="DIR",
+                        help="the training photos, for the Photo view at a training camera (default: the "
+                             "images folder the model folder's cfg_args names)")
     parser.add_argument("--camera", metavar="CAMERAS.json", help="start at a camera of this INRIA cameras.json")
     parser.add_argument("--camera-index", type=int, default=0, metavar="I",
                         help="which camera of --camera to start at (default 0)")
@@ -123,6 +126,6 @@ def command_view(args) -> int:
         vsync=not args.no_vsync, platform=args.window_platform, general=args.general,
         navigation=NavigationChoices(mode="orbit" if args.orbit else "fly", up_axis=args.up_axis,
                                      turntable=args.turntable),
-        stereo=_viewer_stereo_options(args))
+        stereo=_viewer_stereo_options(args), images=args.images)
     with TerminalProgress(options.scene) as progress:  # a multi-GB scene takes seconds before the window
         return run_viewer(options, progress)

@@ -56,6 +56,7 @@ from raygs_viewer.viewer.panel.stereo import draw_stereo_section
 from raygs_viewer.viewer.panel.training import draw_training_section
 from raygs_viewer.viewer.panel.view import draw_view_section
 from raygs_viewer.viewer.path_widget import PathWidget, scene_argument
+from raygs_viewer.viewer.photo_view import PhotoCompare, blocked_reason, standing_at
 from raygs_viewer.viewer.pick_tool import PickTool
 from raygs_viewer.viewer.screenshots import Saved, ShownView, saved_message, sidecar_extra, take_screenshots
 from raygs_viewer.viewer.state import (
@@ -104,6 +105,7 @@ class Viewer:
         self.scenes = SceneOpener(self.panel)
         self.window.set_drop_callback(self.scenes.drop)
         self.drawer = SceneDrawer(self.ctx)
+        self.photo = PhotoCompare(self.ctx, options.images)
         self.camera_path = PathWidget(self.panel, self)
         self.measure = MeasureWidget(self.panel, self)
         self.picker = PickTool(self, self.measure)
@@ -154,6 +156,7 @@ class Viewer:
         self.renderer, self.sorter = renderer, self.sorter_factory(renderer.sorter)
         self.stats.request_frames.clear()
         self.drawer.forget()
+        self.photo.forget_scene()
         self.loaded = loaded
         # The options' sh_degree None: every scene's own; else the panel's, capped at this scene's.
         degree = loaded.scene.sh_degree
@@ -234,8 +237,10 @@ class Viewer:
             left_view = right_view = self.view_mode.frame_view(self.panel)
         else:
             left_view, right_view = self.view_mode.side_views(self.panel)
+        draws = self.stats.draws
         self.drawer.draw(self.renderer, camera, settings, right, stereo, orders, serial, self.stats, self.panel,
                          left_view, right_view)
+        self.photo_frame(camera, stereo is not None, right is not None, self.stats.draws != draws)
         self.drawer.mono.present(self.ctx.screen, (width, height), self.viewport, self.split.column(self.viewport[2]))
         if self.capture_window_next:
             self.capture_window_next = False
@@ -248,6 +253,18 @@ class Viewer:
                 self.panel.message, self.panel.error = saved_message(self.last_screenshots), ""
             except (UserError, MemoryError, moderngl.Error) as exc:
                 self.panel.error = f"error: screenshot not saved: {one_line(exc)}"
+
+    def photo_frame(self, camera: Camera, stereo: bool, split: bool, drew: bool) -> None:
+        """The Photo view after the draw: the photo, the difference or the split shown
+        instead of the render while standing at a training camera."""
+        view = self.view
+        index = standing_at(view.cameras, view.training_index, view.lens, view.navigator.pose)
+        blocked = blocked_reason(stereo, split, self.view_mode.channel)
+        if self.drawer.mono.left is None:  # nothing drawn (the draw failed): nothing to compare
+            index = None
+        message = self.photo.frame(self.loaded, index, camera, blocked, self.drawer.mono, drew)
+        if message:
+            self.panel.note(message)
 
     def capture_window(self, overlay: bool = True) -> np.ndarray:
         """(H, W, 3) uint8, top row first: the window as shown, panel included;
@@ -267,6 +284,10 @@ class Viewer:
         it; returns ``last_screenshot``."""
         if self.camera is None:
             raise UserError("nothing has been drawn yet")
+        if self.photo.showing:
+            # A screenshot re-renders the view from its sidecar; a photo or a heat map would not reproduce.
+            raise UserError(f"screenshots save renders: the window shows the Photo view's "
+                            f"{self.photo.mode}; choose 'render' in the Photo section first")
         shown = ShownView(self.camera, self.settings, self.split if self.right_settings() is not None else None,
                           self.shown_stereo, self.drawer.shown_view, self.drawer.shown_right_view)
         extra = sidecar_extra(self.view.navigator, self.loaded, self.view.training_index,
@@ -339,7 +360,7 @@ def panel_sections(viewer: Viewer) -> list[Callable[[], None]]:
         lambda: draw_stereo_section(viewer.stereo, stats),
         lambda: draw_view_section(view.navigator, view.lens.fov_y_degrees, view.set_fov, viewer.reset_view),
         lambda: draw_training_section(loaded, view.training_index, view.select_training_camera,
-                                      view.step_training_camera),
+                                      view.step_training_camera, viewer.photo),
         lambda: draw_screenshot_section(viewer.screenshots, viewer.camera, viewer.shown_stereo is not None,
                                         viewer.stereo.save_eyes, viewer.split.on and viewer.shown_stereo is None,
                                         viewer.request_screenshot),

@@ -217,6 +217,8 @@ class ViewerOptions:
     what scale. platform: GLFW platform ("auto", "x11", "wayland", "null"; auto picks
     null without a display). general: the all-features shader variant
     (GLRenderer(general=)), to compare. stereo: the stereo preview's start value.
+    images: the training photos' folder for the Photo view (None: the one the model
+    folder's cfg_args names).
     """
 
     scene: str = "demo"
@@ -235,3 +237,4 @@ class ViewerOptions:
     platform: str = "auto"
     general: bool = False
     stereo: StereoPreview = field(default_factory=StereoPreview)
+    images: str | None = None

@@ -1,5 +1,5 @@
 """The panel's Training cameras section: the scene's training views, to fly to one by
-one or by picking from the list."""
+one or by picking from the list, and at one the Photo view's controls (panel.photo)."""
 
 from __future__ import annotations
 
@@ -8,13 +8,16 @@ from typing import Callable
 from imgui_bundle import imgui
 
 from raygs_viewer.scene.loader import LoadedScene
+from raygs_viewer.viewer.panel.photo import draw_photo_controls
 from raygs_viewer.viewer.panel.widgets import header
+from raygs_viewer.viewer.photo_view import PhotoCompare
 
 
 def draw_training_section(loaded: LoadedScene, current: int | None, select: Callable[[int], None],
-                          step: Callable[[int], None]) -> None:
+                          step: Callable[[int], None], photo: PhotoCompare) -> None:
     """``current``: the training camera flown to last (None: a free view); ``select``
-    flies to a camera by index, ``step`` to the next (+1) or previous (-1)."""
+    flies to a camera by index, ``step`` to the next (+1) or previous (-1); ``photo``:
+    the Photo view the controls under the list edit."""
     label = f"Training cameras ({len(loaded.cameras)})"
     if not header(label + "###training", open_first=False):
         return
@@ -34,3 +37,4 @@ def draw_training_section(loaded: LoadedScene, current: int | None, select: Call
                 select(i)
                 current = i  # the entries below are drawn knowing it
         imgui.end_list_box()
+    draw_photo_controls(photo)
