@@ -5,12 +5,12 @@ from __future__ import annotations
 
 import argparse
 import math
-import sys
 from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
 import pytest
+from datasets_kit import write_dataset
 from testkit import random_scene
 
 from raygs_viewer.bench import accuracy as bench
@@ -22,10 +22,6 @@ from raygs_viewer.photos.metrics import psnr, ssim_3dgs
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import DEFAULT_P_MIN, RenderSettings, apply_preset
 from raygs_viewer.scene.loader import load_now
-
-# The datasets kit lives with the photos tests, whose folder is on the path only when they run.
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "photos"))
-from datasets_kit import write_dataset  # noqa: E402
 
 CONFIGS = ("RayGS", "RayGS + MIP")
 

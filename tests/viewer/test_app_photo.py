@@ -4,7 +4,6 @@ missing photo, screenshots."""
 
 from __future__ import annotations
 
-import sys
 from pathlib import Path
 
 import numpy as np
@@ -12,6 +11,7 @@ import pytest
 from appkit import PANEL_HEIGHT, PANEL_WIDTH, presented, split_expected, window_image
 from imgui_bundle import imgui  # before glfw (see raygs_viewer.viewer.window)
 from matplotlib import colormaps
+from datasets_kit import write_dataset
 from testkit import random_scene
 
 from raygs_viewer.camera.pinhole import look_at
@@ -19,10 +19,6 @@ from raygs_viewer.capture.image_io import to_rgb8
 from raygs_viewer.photos.compare import resize_picture
 from raygs_viewer.photos.dataset import load_photo, open_dataset
 from raygs_viewer.photos.metrics import psnr
-
-# The datasets kit lives with the photos tests, whose folder is on the path only when they run.
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "photos"))
-from datasets_kit import write_dataset  # noqa: E402
 
 SIZE = (48, 32)  # the cameras' and, for exact pixels, the window's
 
