@@ -394,3 +394,16 @@ def patched_glsl(monkeypatch, name, old, new):
         return text
 
     monkeypatch.setattr(shaders, "_read", patched)
+
+
+class LineSink:
+    """A text stream that keeps what is written, as a list of strings (``sink``)."""
+
+    def __init__(self, sink: list):
+        self.sink = sink
+
+    def write(self, text):
+        self.sink.append(text)
+
+    def flush(self):
+        pass

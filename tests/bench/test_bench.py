@@ -11,7 +11,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from PIL import Image
-from testkit import assert_user_error, gaussian_columns, make_scene, write_ply
+from testkit import LineSink, assert_user_error, gaussian_columns, make_scene, write_ply
 
 from raygs_viewer.bench import accuracy as bench
 from raygs_viewer.bench import accuracy_report as bench_report
@@ -154,20 +154,9 @@ def tiny_run(tmp_path_factory, gl_session_ctx):
     args = parse("--scenes", "demo", ply, *TINY, "--report", folder / "acc.md", "--plot", folder / "acc.png")
     captured = []
     options = bench_cli.accuracy_options(args)
-    results = bench.run_accuracy(options, ctx=gl_ctx, out=_Lines(captured))
+    results = bench.run_accuracy(options, ctx=gl_ctx, out=LineSink(captured))
     bench_report.write_outputs(results, options.report, options.plot, options.overwrite)
     return args, "".join(captured), (folder / "acc.md").read_text(encoding="utf-8"), results
-
-
-class _Lines:
-    def __init__(self, sink):
-        self.sink = sink
-
-    def write(self, text):
-        self.sink.append(text)
-
-    def flush(self):
-        pass
 
 
 def test_tiny_run_covers_every_configuration_and_view(tiny_run):
@@ -320,5 +309,5 @@ def test_the_ground_truth_composites_every_ray_in_its_own_order(gl_ctx, tmp_path
 
     options = bench_cli.accuracy_options(parse("--scenes", "demo", *TINY, "--report", tmp_path / "a.md",
                                                "--plot", tmp_path / "a.png"))
-    bench.run_accuracy(replace(options, configs=("RayGS",)), ctx=gl_ctx, out=_Lines([]), ground_truth=truth)
+    bench.run_accuracy(replace(options, configs=("RayGS",)), ctx=gl_ctx, out=LineSink([]), ground_truth=truth)
     assert seen == ["per-pixel"] * 3  # one per view class

@@ -6,12 +6,11 @@ from __future__ import annotations
 import argparse
 import math
 from dataclasses import replace
-from pathlib import Path
 
 import numpy as np
 import pytest
 from datasets_kit import write_dataset
-from testkit import random_scene
+from testkit import LineSink, random_scene
 
 from raygs_viewer.bench import accuracy as bench
 from raygs_viewer.bench import accuracy_report as bench_report
@@ -30,17 +29,6 @@ def parse(*argv) -> argparse.Namespace:
     parser = argparse.ArgumentParser()
     bench_cli.add_parsers(parser.add_subparsers(dest="command"))
     return parser.parse_args(["bench", "accuracy", *map(str, argv)])
-
-
-class _Lines:
-    def __init__(self, sink):
-        self.sink = sink
-
-    def write(self, text):
-        self.sink.append(text)
-
-    def flush(self):
-        pass
 
 
 @pytest.fixture(scope="module")
@@ -64,7 +52,7 @@ def photo_run(tmp_path_factory, gl_session_ctx):
                  "--photos-views", "2", "--report", folder / "acc.md", "--plot", folder / "acc.png")
     options = replace(bench_cli.accuracy_options(args), configs=CONFIGS)
     captured = []
-    results = bench.run_accuracy(options, ctx=gl_session_ctx, out=_Lines(captured))
+    results = bench.run_accuracy(options, ctx=gl_session_ctx, out=LineSink(captured))
     bench_report.write_outputs(results, options.report, options.plot, options.overwrite)
     return model, results, "".join(captured), (folder / "acc.md").read_text(encoding="utf-8")
 
