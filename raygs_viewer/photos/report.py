@@ -22,6 +22,7 @@ from PIL import Image, ImageDraw
 from raygs_viewer.capture.image_io import check_output_path, encode_png, to_rgb8
 from raygs_viewer.files import write_atomically
 from raygs_viewer.jsonfile import json_text
+from raygs_viewer.photos.compare import difference_picture
 from raygs_viewer.photos.evaluate import METRICS, EvaluationResult, finite_or_none
 from raygs_viewer.photos.metrics import SSIM_KIND
 from raygs_viewer.render.setting_info import setting_parts
@@ -29,9 +30,6 @@ from raygs_viewer.render.setting_info import setting_parts
 REPORT_SUFFIXES = (".json", ".csv", ".md")
 #: How many of the worst views (by PSNR) the Markdown lists and the contact sheet shows.
 WORST_COUNT = 5
-#: The heat map's scale: |photo - render| (mean over RGB) from 0 to this is the colour map's range.
-HEAT_MAX = 0.25
-HEAT_COLORMAP = "inferno"
 #: A contact sheet tile's largest width in pixels (photos are scaled down to it).
 TILE_WIDTH = 320
 LABEL_HEIGHT = 16
@@ -145,16 +143,6 @@ def write_report(path: Path, result: EvaluationResult, about: dict | None = None
     return path
 
 
-def heat_map(photo: np.ndarray, render: np.ndarray) -> np.ndarray:
-    """(H, W, 3) float in 0..1: |photo - render| (mean over RGB) through the colour map,
-    0 to HEAT_MAX."""
-    # Late: matplotlib's colour maps are only needed for a contact sheet.
-    from matplotlib import colormaps
-
-    error = np.abs(np.asarray(photo, np.float64) - render).mean(axis=2) / HEAT_MAX
-    return colormaps[HEAT_COLORMAP](np.clip(error, 0.0, 1.0))[..., :3]
-
-
 def contact_sheet(rows: list[tuple[str, np.ndarray, np.ndarray]]) -> np.ndarray:
     """(H, W, 3) uint8: one row per (label, photo, render), each (h, w, 3) in 0..1: the
     photo, the render and the heat map side by side, under the label, scaled down to
@@ -165,7 +153,8 @@ def contact_sheet(rows: list[tuple[str, np.ndarray, np.ndarray]]) -> np.ndarray:
         scale = min(1.0, TILE_WIDTH / width)
         size = (max(1, round(width * scale)), max(1, round(height * scale)))
         row = [np.asarray(Image.fromarray(to_rgb8(image)).resize(size, Image.BILINEAR))
-               for image in (photo, render, heat_map(photo, render))]
+               for image in (photo, render, difference_picture(np.asarray(render, np.float32),
+                                                                             np.asarray(photo, np.float32)))]
         strip = np.concatenate(row, axis=1)
         banner = Image.new("RGB", (strip.shape[1], LABEL_HEIGHT), (255, 255, 255))
         ImageDraw.Draw(banner).text((2, 2), label, fill=(0, 0, 0))
