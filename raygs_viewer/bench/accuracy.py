@@ -228,9 +228,7 @@ def run_accuracy(options: AccuracyOptions, ctx=None, out: TextIO | None = None,
                     case = CaseResult(item.name, view, camera.width, camera.height, samples[view], gt_seconds,
                                       compare(times, images, truth))
                     cases.append(case)
-                    say(format_case_text(case))
-                    for line in machine_lines(case):
-                        say(line)
+                    say_case(case, say)
             finally:
                 renderer.release()
         photos = ""
@@ -249,6 +247,13 @@ def photo_camera(camera: Camera, width: int) -> Camera:
     if camera.width <= width:
         return camera
     return camera.resized(width, max(1, round(camera.height * width / camera.width)))
+
+
+def say_case(case: CaseResult, say) -> None:
+    """Prints a measured case: its text and its machine-readable lines."""
+    say(format_case_text(case))
+    for line in machine_lines(case):
+        say(line)
 
 
 def photo_cases(ctx, options: AccuracyOptions, base: RenderSettings, ground_truth: Callable[..., np.ndarray],
@@ -288,9 +293,7 @@ def photo_cases(ctx, options: AccuracyOptions, base: RenderSettings, ground_trut
             case = CaseResult(item.name, PHOTO_VIEW, camera.width, camera.height, options.gt_samples, gt_seconds,
                               rows, photo=view.name)
             cases.append(case)
-            say(format_case_text(case))
-            for line in machine_lines(case):
-                say(line)
+            say_case(case, say)
     finally:
         renderer.release()
     described = (f"{len(cases)} test view(s) of {dataset.root} ({dataset.layout}), scene {item.name}, "
