@@ -15,6 +15,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from raygs_viewer.capture.screenshot import render_tiled
 from raygs_viewer.errors import UserError
 from raygs_viewer.photos.dataset import Dataset, PhotoView, load_photo
 from raygs_viewer.photos.metrics import Lpips, flip, psnr, ssim_3dgs
@@ -89,8 +90,10 @@ def evaluation_settings(settings: RenderSettings, dataset: Dataset) -> RenderSet
 
 
 def render_view(renderer, view: PhotoView, settings: RenderSettings) -> np.ndarray:
-    """(H, W, 3) float32 in 0..1: the view's camera rendered (RGB over the background)."""
-    return np.clip(renderer.render(view.camera, settings)[..., :3], 0.0, 1.0)
+    """(H, W, 3) float32 in 0..1: the view's camera rendered (RGB over the background),
+    in tiles as screenshots are, so full-size photos beyond the GPU's largest target
+    still compare."""
+    return np.clip(render_tiled(renderer, view.camera, settings)[..., :3], 0.0, 1.0)
 
 
 def score_view(name: str, photo: np.ndarray, render: np.ndarray, lpips: Lpips | None = None) -> ViewScore:
