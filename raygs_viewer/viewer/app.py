@@ -38,7 +38,7 @@ from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.loader import LoadedScene, load_now
 from raygs_viewer.scene.progress import ProgressCallback
 from raygs_viewer.sort.worker import BackgroundSorter
-from raygs_viewer.viewer.drawing import SceneDrawer, sort_cull, sort_keys
+from raygs_viewer.viewer.drawing import SceneDrawer, request_sort
 from raygs_viewer.viewer.input import InputHandler
 from raygs_viewer.viewer.loading import SceneOpener, scene_title
 from raygs_viewer.viewer.measure import MeasureWidget
@@ -56,7 +56,7 @@ from raygs_viewer.viewer.panel.stereo import draw_stereo_section
 from raygs_viewer.viewer.panel.training import draw_training_section
 from raygs_viewer.viewer.panel.view import draw_view_section
 from raygs_viewer.viewer.path_widget import PathWidget, scene_argument
-from raygs_viewer.viewer.photo_view import PhotoCompare, blocked_reason, standing_at
+from raygs_viewer.viewer.photo_view import PhotoCompare, blocked_reason
 from raygs_viewer.viewer.pick_tool import PickTool
 from raygs_viewer.viewer.screenshots import Saved, ShownView, saved_message, sidecar_extra, take_screenshots
 from raygs_viewer.viewer.state import (
@@ -67,7 +67,7 @@ from raygs_viewer.viewer.state import (
     ViewerOptions,
     ViewMode,
 )
-from raygs_viewer.viewer.stats import FrameStats, sort_key, summary
+from raygs_viewer.viewer.stats import FrameStats, summary
 from raygs_viewer.viewer.view_control import ViewControl
 from raygs_viewer.viewer.window import Window, choose_platform
 
@@ -212,16 +212,9 @@ class Viewer:
         stereo = self.stereo.frame_view(self.shown_stereo, self.panel)
         camera, self.viewport, cull_cameras = self.view.camera(width, height, stereo)
         self.camera, self.shown_stereo = camera, stereo
-        p_min, dilation = sort_cull(camera, settings, right)  # the eyes share the midpoint's fx, fy
-        keys = sort_keys(settings, right)  # one cull, an order per key shown
-        serial = self.sorter.request(camera, p_min, dilation, cull_cameras, keys)
-        self.stats.asked(serial, self.frame_index)
-        if self.wait_for_sort:
-            # Only the last frame of a scripted run: its capture must show the finished view.
-            self.sorter.wait(serial, timeout=120)
-        result = self.sorter.latest()
-        if self.sorter.started > self.sorter.finished:
-            self.stats.frames_with_sort_running += 1
+        # wait_for_sort: only the last frame of a scripted run, whose capture must show the finished view.
+        result, key = request_sort(self.sorter, self.stats, camera, settings, right, cull_cameras, self.frame_index,
+                                   self.wait_for_sort)
 
         if self.panel.show_panel:
             draw_panel(self.panel, panel_sections(self))
@@ -231,16 +224,14 @@ class Viewer:
         self.measure.draw_overlay(camera, self.viewport, self.view.radius, stereo is not None)
         imgui.render()
 
-        orders, serial = self.stats.order_to_draw(result, sort_key(camera, p_min, dilation, cull_cameras, keys),
-                                                  self.frame_index, camera)
-        if right is None:
-            left_view = right_view = self.view_mode.frame_view(self.panel)
-        else:
-            left_view, right_view = self.view_mode.side_views(self.panel)
+        orders, serial = self.stats.order_to_draw(result, key, self.frame_index, camera)
         draws = self.stats.draws
         self.drawer.draw(self.renderer, camera, settings, right, stereo, orders, serial, self.stats, self.panel,
-                         left_view, right_view)
-        self.photo_frame(camera, stereo is not None, right is not None, self.stats.draws != draws)
+                         *self.view_mode.side_views(self.panel, split=right is not None))
+        blocked = blocked_reason(stereo is not None, right is not None, self.view_mode.channel)
+        if message := self.photo.after_draw(self.view, self.loaded, camera, self.drawer.mono, blocked,
+                                            drew=self.stats.draws != draws):
+            self.panel.note(message)
         self.drawer.mono.present(self.ctx.screen, (width, height), self.viewport, self.split.column(self.viewport[2]))
         if self.capture_window_next:
             self.capture_window_next = False
@@ -253,18 +244,6 @@ class Viewer:
                 self.panel.message, self.panel.error = saved_message(self.last_screenshots), ""
             except (UserError, MemoryError, moderngl.Error) as exc:
                 self.panel.error = f"error: screenshot not saved: {one_line(exc)}"
-
-    def photo_frame(self, camera: Camera, stereo: bool, split: bool, drew: bool) -> None:
-        """The Photo view after the draw: the photo, the difference or the split shown
-        instead of the render while standing at a training camera."""
-        view = self.view
-        index = standing_at(view.cameras, view.training_index, view.lens, view.navigator.pose)
-        blocked = blocked_reason(stereo, split, self.view_mode.channel)
-        if self.drawer.mono.left is None:  # nothing drawn (the draw failed): nothing to compare
-            index = None
-        message = self.photo.frame(self.loaded, index, camera, blocked, self.drawer.mono, drew)
-        if message:
-            self.panel.note(message)
 
     def capture_window(self, overlay: bool = True) -> np.ndarray:
         """(H, W, 3) uint8, top row first: the window as shown, panel included;
@@ -284,10 +263,7 @@ class Viewer:
         it; returns ``last_screenshot``."""
         if self.camera is None:
             raise UserError("nothing has been drawn yet")
-        if self.photo.showing:
-            # A screenshot re-renders the view from its sidecar; a photo or a heat map would not reproduce.
-            raise UserError(f"screenshots save renders: the window shows the Photo view's "
-                            f"{self.photo.mode}; choose 'render' in the Photo section first")
+        self.photo.check_screenshot()
         shown = ShownView(self.camera, self.settings, self.split if self.right_settings() is not None else None,
                           self.shown_stereo, self.drawer.shown_view, self.drawer.shown_right_view)
         extra = sidecar_extra(self.view.navigator, self.loaded, self.view.training_index,

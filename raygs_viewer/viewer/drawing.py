@@ -35,7 +35,7 @@ from raygs_viewer.render.gl.stereo_frame import StereoFrame, fixed_range, view_a
 from raygs_viewer.render.gl.timing import GpuTimer
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.viewer.state import PanelState
-from raygs_viewer.viewer.stats import FrameStats
+from raygs_viewer.viewer.stats import FrameStats, sort_key
 
 
 def sort_cull(camera: Camera, left: RenderSettings, right: RenderSettings | None = None
@@ -52,6 +52,24 @@ def sort_cull(camera: Camera, left: RenderSettings, right: RenderSettings | None
 def sort_keys(left: RenderSettings, right: RenderSettings | None = None) -> tuple[str, ...]:
     """The sort keys of every side shown, the left's first, each once."""
     return tuple(dict.fromkeys(side.sort_key for side in (left, right) if side is not None))
+
+
+def request_sort(sorter, stats: FrameStats, camera: Camera, settings: RenderSettings, right: RenderSettings | None,
+                 cull_cameras, frame_index: int, wait: bool = False) -> tuple[object, tuple]:
+    """Asks ``sorter`` (a BackgroundSorter) for this frame's view: one cull for every side
+    shown, an order per key; ``wait``: until that sort is done (a scripted run's last
+    frame). Returns (its newest finished result, the key of the orders this view wants:
+    stats.order_to_draw takes both)."""
+    p_min, dilation = sort_cull(camera, settings, right)  # the eyes share the midpoint's fx, fy
+    keys = sort_keys(settings, right)
+    serial = sorter.request(camera, p_min, dilation, cull_cameras, keys)
+    stats.asked(serial, frame_index)
+    if wait:
+        sorter.wait(serial, timeout=120)
+    result = sorter.latest()
+    if sorter.started > sorter.finished:
+        stats.frames_with_sort_running += 1
+    return result, sort_key(camera, p_min, dilation, cull_cameras, keys)
 
 
 def order_for(orders: Mapping[str, np.ndarray], key: str) -> np.ndarray:
@@ -124,7 +142,7 @@ class SceneDrawer:
         if stereo is None:
             with self.timer.measure():  # the whole frame's GPU time, both sides in the split view
                 renderer.render_into(left_target, camera, settings, order, **view_argument(view))
-                self.view_range = None if view is None else renderer.view_range
+                self.view_range = None if view is None else renderer.geometry.view_range
                 left_stats = _order_stats(renderer, settings)
                 right_stats = None
                 if right is not None:
@@ -133,7 +151,7 @@ class SceneDrawer:
                                          **view_argument(fixed_range(right_view, self.view_range)))
                     right_stats = _order_stats(renderer, right)
                     if self.view_range is None and right_view is not None:
-                        self.view_range = renderer.view_range
+                        self.view_range = renderer.geometry.view_range
             stats.order_stats = (left_stats, right_stats)
             self.mono.drawn(key)
         else:

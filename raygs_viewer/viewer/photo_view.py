@@ -106,7 +106,21 @@ class PhotoCompare:
         """Whether the window shows something other than the render."""
         return self.picture is not None
 
+    def check_screenshot(self) -> None:
+        """UserError while a photo, difference or split is shown: a screenshot re-renders
+        the view from its sidecar, which a photo or a heat map would not reproduce."""
+        if self.showing:
+            raise UserError(f"screenshots save renders: the window shows the Photo view's "
+                            f"{self.mode}; choose 'render' in the Photo section first")
+
     # -- each frame ---------------------------------------------------------------------
+    def after_draw(self, view, loaded: LoadedScene, camera: Camera, mono: MonoFrame, blocked: str,
+                   drew: bool) -> str:
+        """:meth:`frame` for the window's ``view`` (a ViewControl): at the training camera it
+        stands at, none while nothing has been drawn (the draw failed)."""
+        index = standing_at(view.cameras, view.training_index, view.lens, view.navigator.pose)
+        return self.frame(loaded, None if mono.left is None else index, camera, blocked, mono, drew)
+
     def frame(self, loaded: LoadedScene, index: int | None, camera: Camera, blocked: str, mono: MonoFrame,
               drew: bool) -> str:
         """Called after the frame's draw: ``index`` the training camera stood at (see

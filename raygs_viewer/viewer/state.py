@@ -135,10 +135,13 @@ class ViewMode:
             return None
         return ChannelView(self.channel, None if self.automatic else (self.near, self.far), self.normal_space)
 
-    def side_views(self, panel: PanelState) -> tuple[ChannelView | None, ChannelView | None]:
-        """(left, right) views of the split view this frame: :meth:`frame_view` on the
-        sides ``side`` names, the colour (None) on the other."""
+    def side_views(self, panel: PanelState, split: bool = True) -> tuple[ChannelView | None, ChannelView | None]:
+        """(left, right) views this frame: in the split view :meth:`frame_view` on the
+        sides ``side`` names and the colour (None) on the other; else the view itself
+        (``side`` names a side of the split view only)."""
         view = self.frame_view(panel)
+        if not split:
+            return view, view
         return (view if self.side in ("both", "left") else None, view if self.side in ("both", "right") else None)
 
     def frame_view(self, panel: PanelState) -> ChannelView | None:

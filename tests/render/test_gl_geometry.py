@@ -108,10 +108,10 @@ def test_view_pictures_show_the_channels(renderer, gl_session_ctx):
             channels = renderer.render_channels(CAMERA, RenderSettings(), median=view.channel == "median_depth")
             expected, used = channel_picture(channels.in_space(view.normal_space, CAMERA), view)
             np.testing.assert_allclose(target.read()[..., :3], expected, atol=1e-6)
-            assert renderer.view_range == used
+            assert renderer.geometry.view_range == used
             assert (used is not None) == (view.channel in ("depth", "median_depth"))
         renderer.render_into(target, CAMERA, RenderSettings(), renderer.sort(CAMERA, RenderSettings()))
-        assert renderer.view_range is None
+        assert renderer.geometry.view_range is None
         np.testing.assert_array_equal(target.read(), renderer.render(CAMERA, RenderSettings()))
     finally:
         target.release()

@@ -232,17 +232,13 @@ class GLRenderer:
             order = self.sort(camera, settings)
         return self.geometry.render(self, camera, settings, order, frame, color_origin, median)
 
-    @property
-    def view_range(self) -> tuple[float, float] | None:
-        """The depth range the last depth view picture used (None: no depth view)."""
-        return self.geometry.view_range
-
     def render_into(self, target: FloatTarget, camera: Camera, settings: RenderSettings,
                     order: np.ndarray, frame: Camera | None = None, color_origin: np.ndarray | None = None,
                     view: ChannelView | None = None) -> None:
         """Clears ``target`` (camera-sized, float colour) and draws the scene into it:
         background-composited colour in RGB and the accumulated alpha in A; or, with a
-        ``view`` of another channel than rgb, that channel's picture (alpha 1).
+        ``view`` of another channel than rgb, that channel's picture (alpha 1; the depth
+        range it used is then ``geometry.view_range``).
 
         Plain back-to-front rendering draws straight into ``target``, cleared to
         (background, 0). Supersampling (k x k) draws into a k-times larger sample target

@@ -109,7 +109,7 @@ class StereoFrame:
             shown = fixed_range(view, self.view_range)
             renderer.render_into(target, eye, settings, order, color_origin=camera.center, **view_argument(shown))
             if view is not None and side == 0:
-                self.view_range = renderer.view_range
+                self.view_range = renderer.geometry.view_range
 
     def finish(self, view: StereoView) -> FloatTarget:
         """The lens preview (if on) and the layout, into the composed target."""
