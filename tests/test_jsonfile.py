@@ -13,7 +13,6 @@ from hypothesis import given
 from hypothesis import strategies as st
 from testkit import assert_user_error
 
-from raygs_viewer.errors import UserError
 from raygs_viewer.jsonfile import (
     JsonFields,
     json_key,

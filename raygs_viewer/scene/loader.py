@@ -20,7 +20,7 @@ from pathlib import Path
 from raygs_viewer.camera.pinhole import Camera, load_cameras
 from raygs_viewer.errors import UserError
 from raygs_viewer.jsonfile import read_json_file
-from raygs_viewer.scene.content_hash import FileHash, arrays_sha256, file_sha256
+from raygs_viewer.scene.content_hash import FileHash, arrays_sha256
 from raygs_viewer.scene.demo import DEMO_VIEW_NAMES, demo_cameras, demo_scene
 from raygs_viewer.scene.io import dropped_summary, load_scene
 from raygs_viewer.scene.model import Scene

@@ -149,12 +149,7 @@ class MeasureWidget:
         return MeasureDocument(tuple(self.measurements), self.scale, scene_argument(loaded), loaded.sha256)
 
     def save(self) -> None:
-        try:
-            saved = save_measure_document(self.document(), self.file, self.overwrite)
-        except UserError as exc:
-            self.panel.error = f"error: measurements not saved: {one_line(exc)}"
-            return
-        self.panel.message, self.panel.error = f"saved {saved}", ""
+        self.panel.saved("measurements", lambda: save_measure_document(self.document(), self.file, self.overwrite))
 
     def load(self) -> None:
         """The file's measurements and scale replace these; a file measured on another

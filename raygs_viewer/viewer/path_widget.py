@@ -239,12 +239,7 @@ class PathWidget:
         self._write(export_nerfstudio)
 
     def _write(self, writer: Callable[[PathDocument, str, bool], Path]) -> None:
-        try:
-            saved = writer(self.document(), self.file, self.overwrite)
-        except UserError as exc:
-            self.panel.error = f"error: path not saved: {one_line(exc)}"
-            return
-        self.panel.message, self.panel.error = f"saved {saved}", ""
+        self.panel.saved("path", lambda: writer(self.document(), self.file, self.overwrite))
 
     def load(self) -> None:
         """The path JSON (or nerfstudio camera_path file) in ``file`` becomes the path,

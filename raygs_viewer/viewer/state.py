@@ -11,6 +11,7 @@ time, so an edit shows from the next frame on.
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from raygs_viewer.camera.lens_model import DEFAULT_LENS
@@ -192,6 +193,16 @@ class PanelState:
 
     def toggle(self) -> None:
         self.show_panel = not self.show_panel
+
+    def saved(self, what: str, save: Callable[[], object]) -> None:
+        """Runs ``save`` (which returns where it wrote); the message line names the file,
+        or the error line says in one line why ``what`` was not saved."""
+        try:
+            where = save()
+        except UserError as exc:
+            self.error = f"error: {what} not saved: {one_line(exc)}"
+            return
+        self.message, self.error = f"saved {where}", ""
 
     def note(self, message: str) -> None:
         """Shows ``message`` on the message line (what an edit did besides the obvious)."""

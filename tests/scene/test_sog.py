@@ -36,7 +36,7 @@ from testkit import SHARED_SCENES, assert_user_error, run_cli, unit_quaternions
 
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.io import load_scene
-from raygs_viewer.scene.loader import file_sha256
+from raygs_viewer.scene.content_hash import file_sha256
 
 pytestmark = pytest.mark.filterwarnings("error")
 
