@@ -23,7 +23,9 @@ layout(std430, binding = 0) readonly buffer Gaussians { Gaussian gaussians[]; };
 layout(std430, binding = 1) readonly buffer Harmonics { float harmonics[]; };
 layout(std430, binding = 2) writeonly buffer Splats { Splat splats[]; };
 
-uniform uint u_count;        // gaussians in this chunk
+uniform uint u_first;        // first gaussian of this dispatch within the chunk (a level-of-detail
+                             // choice preprocesses only the spans it draws)
+uniform uint u_count;        // gaussians in this dispatch
 uniform uint u_out_offset;   // first output slot of this chunk within the bound range
 uniform mat3 u_world_to_camera;
 uniform vec3 u_translation;   // t of the world-to-camera transform: mu = R p + t
@@ -90,8 +92,8 @@ void project_ewa(inout Splat s, vec3 mu, mat3 to_camera, vec3 scale, float opaci
 #endif
 
 void main() {
-    uint i = gl_GlobalInvocationID.x;
-    if (i >= u_count) return;
+    if (gl_GlobalInvocationID.x >= u_count) return;
+    uint i = u_first + gl_GlobalInvocationID.x;
     g_index = i;
     Gaussian g = gaussians[i];
     vec3 scale = g.scale.xyz;

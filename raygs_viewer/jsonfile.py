@@ -171,6 +171,14 @@ class JsonFields:
             return default
         return self.get(dotted, kind)
 
+    def choice(self, dotted: str, choices: tuple[str, ...], default: str) -> str:
+        """:meth:`optional` for a string that must be one of ``choices``."""
+        value = self.optional(dotted, str, default)
+        if value not in choices:
+            raise UserError(f"{self.path}: '{dotted}' must be {' or '.join(map(show_json, choices))}, "
+                            f"got {show_json(value)}")
+        return value
+
     def array(self, dotted: str, shape: tuple[int, ...]) -> np.ndarray:
         """The field as a float64 array of ``shape``: nested arrays of finite numbers."""
         value = self.get(dotted, list)

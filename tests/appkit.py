@@ -320,7 +320,8 @@ def open_viewer_factory(tmp_path):
         options.setdefault("screenshots", ScreenshotOptions(folder=str(tmp_path / "shots")))
         factories = {name: options.pop(name) for name in ("renderer_factory", "sorter_factory") if name in options}
         viewer_options = ViewerOptions(scene=scene, platform="null", **options)
-        viewer = Viewer(viewer_options, load_now(scene), start_camera(viewer_options), **factories)
+        viewer = Viewer(viewer_options, load_now(scene, spz_axes=viewer_options.spz_axes), start_camera(viewer_options),
+                        **factories)
         viewers.append(viewer)
         viewer.panel.show_panel = not hide_panel
         return viewer, Driver(viewer, recorder)

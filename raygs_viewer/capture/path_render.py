@@ -31,7 +31,9 @@ from raygs_viewer.files import write_atomically
 from raygs_viewer.jsonfile import json_text, parse_json
 from raygs_viewer.render.channels import ChannelImage, needs_geometry
 from raygs_viewer.render.gl.stereo_frame import render_stereo_view
+from raygs_viewer.render.lod_view import restrict_to_view
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.sort.lod_choice import LodRequest
 
 if TYPE_CHECKING:
     # Only for the annotations: importing the renderer pulls in moderngl.
@@ -101,15 +103,18 @@ def render_frame_channels(renderer: "GLRenderer", camera: Camera, settings: Rend
 
 def render_frames(renderer: "GLRenderer", cameras: list[Camera], settings: RenderSettings,
                   stereo: StereoView | None, sink: FrameSink, progress: Progress | None = None,
-                  channels: tuple[str, ...] | None = None, normal_space: str = "camera") -> int:
+                  channels: tuple[str, ...] | None = None, normal_space: str = "camera",
+                  lod: LodRequest | None = None) -> int:
     """Renders each camera (:func:`render_frame`), converts it to 8 bits as a PNG
     screenshot is, and writes it to ``sink``; returns the frames written. With
     ``channels`` each frame goes to the sink as a ChannelImage instead
-    (:func:`render_frame_channels`; an ExrFolderSink). A KeyboardInterrupt propagates
+    (:func:`render_frame_channels`; an ExrFolderSink). ``lod``: a streamed scene's
+    levels, chosen for each frame's camera. A KeyboardInterrupt propagates
     between or inside frames: the caller aborts the sink, whose ``frames_written`` then
     says what it holds."""
     written = 0
     for camera in cameras:
+        restrict_to_view(renderer, lod, camera)
         if channels is not None:
             sink.write(render_frame_channels(renderer, camera, settings, stereo, channels, normal_space))
         else:

@@ -12,6 +12,7 @@ Layout (version 1)::
      "image": {"width": W, "height": H, "scale": K},           # the screenshot's size
      "scene": {"path": "/abs/scene.ply" or "demo", "sha256": "...", "count": N,
                "sh_degree": d, "filter_fused": false,
+               "spz_axes": "rub",                              # a .spz only: the axes it was read in
                "relative_path": "../scene.ply"},               # added when saved, from the sidecar's folder
      "camera": {INRIA cameras.json entry, cx and cy always present},
      "world_to_camera": {"R": 3x3, "t": 3},                    # the exact float64 pose
@@ -35,6 +36,9 @@ A picture of another channel than colour (version 3; docs/geometry.md) adds::
                       "normal_space": "camera"}      # or "world"
 
 so that ``render --sidecar`` draws the same picture (a colour screenshot has none).
+
+A ``.spz`` scene's "spz_axes" (``SPZ_AXES``; older sidecars: "rub") is read in again;
+"rdf" makes version 4, which a reader that would show it upside down (as "rub") refuses.
 
 Its "camera" is the midpoint between the eyes (each eye has that size) and "image" is
 the composed size (twice the width side by side). As in "settings", a key that a file
@@ -86,11 +90,13 @@ from raygs_viewer.render.settings import RENDER_MODES, RenderSettings
 from raygs_viewer.scene.demo import demo_scene
 from raygs_viewer.scene.content_hash import arrays_sha256, file_sha256
 from raygs_viewer.scene.model import Scene
+from raygs_viewer.scene.spz_format import DEFAULT_SPZ_AXES, SPZ_AXES
 
 SIDECAR_FORMAT = "raygs-viewer screenshot"
-SIDECAR_VERSION = 3          # the newest this program reads and writes
+SIDECAR_VERSION = 4          # the newest this program reads and writes
 STEREO_SIDECAR_VERSION = 2   # the first with "stereo"
 CHANNEL_SIDECAR_VERSION = 3  # the first with "channel_view"
+RDF_SIDECAR_VERSION = 4      # the first with a .spz read in "rdf"
 DEMO = "demo"
 
 SHA256_HEX = re.compile(r"[0-9a-f]{64}")
@@ -178,12 +184,15 @@ def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, 
         recorded_path = os.path.abspath(os.fspath(scene_path))
     width, height = (camera.width, camera.height) if stereo is None else \
         composed_size(camera.width, camera.height, stereo.layout)
+    axes = scene.axes  # a .spz's (scene.model.FileAxes)
     sidecar = {
         **document_head(SIDECAR_FORMAT, max(STEREO_SIDECAR_VERSION if stereo is not None else 1,
-                                            CHANNEL_SIDECAR_VERSION if _is_picture(channel_view) else 1)),
+                                            CHANNEL_SIDECAR_VERSION if _is_picture(channel_view) else 1,
+                                            RDF_SIDECAR_VERSION if axes and axes.assumed != DEFAULT_SPZ_AXES else 1)),
         "image": {"width": int(width), "height": int(height), "scale": float(scale)},
         "scene": {"path": recorded_path, "sha256": scene_sha256, "count": int(scene.count),
-                  "sh_degree": int(scene.sh_degree), "filter_fused": bool(scene.filter_fused)},
+                  "sh_degree": int(scene.sh_degree), "filter_fused": bool(scene.filter_fused),
+                  **({"spz_axes": axes.assumed} if axes else {})},
         "camera": _camera_entry(camera),
         "world_to_camera": _pose(camera),
         "settings": dataclasses.asdict(settings),
@@ -228,7 +237,8 @@ class Sidecar:
     (informational: camera already has the screenshot's size). render_mode: the
     settings' mode (one of RENDER_MODES).
     raw: the parsed JSON, for fields only the window reads. channel_view: the picture
-    of a channel the image is (None: colour)."""
+    of a channel the image is (None: colour). spz_axes: the convention a .spz scene was
+    read in ("rub" for other scenes and older sidecars)."""
 
     path: Path
     scene_path: str
@@ -240,6 +250,7 @@ class Sidecar:
     raw: dict
     stereo: StereoView | None = None
     channel_view: ChannelView | None = None
+    spz_axes: str = DEFAULT_SPZ_AXES
 
 
 def load_sidecar(path: str | os.PathLike) -> Sidecar:
@@ -267,6 +278,10 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
         raise UserError(f"{path}: 'scene.sha256' must be 64 lowercase hex digits, got {show_json(sha)}")
     if "relative_path" in scene:
         fields.get("scene.relative_path", str)
+    spz_axes = fields.choice("scene.spz_axes", SPZ_AXES, DEFAULT_SPZ_AXES)
+    if spz_axes != DEFAULT_SPZ_AXES and version < RDF_SIDECAR_VERSION:
+        raise UserError(f"{path}: 'scene.spz_axes' {spz_axes} needs sidecar version {RDF_SIDECAR_VERSION}, "
+                        f"the file says {version}")
 
     camera = _load_camera(fields)
     stereo = load_stereo_entry(fields) if "stereo" in data else None
@@ -295,7 +310,7 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
     if channel_view is not None and version < CHANNEL_SIDECAR_VERSION:
         raise UserError(f"{path}: 'channel_view' needs sidecar version {CHANNEL_SIDECAR_VERSION}, "
                         f"the file says {version}")
-    return Sidecar(path, scene_path, sha, camera, settings, scale, render_mode, data, stereo, channel_view)
+    return Sidecar(path, scene_path, sha, camera, settings, scale, render_mode, data, stereo, channel_view, spz_axes)
 
 
 def load_channel_view_entry(fields: JsonFields) -> ChannelView:

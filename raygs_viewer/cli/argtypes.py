@@ -17,6 +17,7 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.render.channels import parse_channels
 from raygs_viewer.render.setting_info import SettingField, or_list, setting_field
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.scene.spz_format import DEFAULT_SPZ_AXES, SPZ_AXES
 
 #: The longest side of an image the benchmarks accept, in pixels.
 MAX_SIDE = 16384
@@ -162,3 +163,19 @@ def add_general_option(parser: argparse.ArgumentParser) -> None:
 def add_backend_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--gl-backend", choices=("auto", "egl", "osmesa"),
                         help="headless OpenGL (default: $RAYGS_GL_BACKEND or auto: EGL, else OSMesa)")
+
+
+def add_spz_axes_option(parser: argparse.ArgumentParser, flag: str = "--spz-axes",
+                        what: str = "the axes a .spz scene that declares none is read in") -> argparse.Action:
+    """``--spz-axes rub|rdf``. Its default is None, so that a command can tell it was not
+    given (render --sidecar, render-path take the recorded one); :func:`spz_axes` applies
+    the default."""
+    return parser.add_argument(flag, choices=SPZ_AXES, default=None,
+                               help=f"{what}: rub, the .spz specification's (Niantic's spz, Scaniverse; the "
+                                    f"default), or rdf, the PLY's own (PlayCanvas splat-transform, SuperSplat)")
+
+
+def spz_axes(value: str | None, recorded: str | None = None) -> str:
+    """The .spz convention to use: the option's ``value`` if given, else ``recorded`` (a
+    sidecar's or a path file's), else the specification's."""
+    return value or recorded or DEFAULT_SPZ_AXES

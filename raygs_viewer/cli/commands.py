@@ -40,10 +40,12 @@ from raygs_viewer.render import reference
 from raygs_viewer.render.channel_pictures import ChannelView
 from raygs_viewer.render.channels import DEFAULT_CHANNELS, ChannelImage, needs_geometry
 from raygs_viewer.render.gl.context import context_description, create_headless_context
+from raygs_viewer.render.gl.memory import scene_fits
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.gl.stereo_frame import render_stereo_view
 from raygs_viewer.render.gl.storage import gpu_bytes
 from raygs_viewer.render.reference import render_reference
+from raygs_viewer.render.lod_view import OpenedScene, lod_settings_given, open_scene, restrict_to_view
 from raygs_viewer.render.setting_info import setting_parts
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.demo import demo_camera, demo_scene
@@ -55,7 +57,9 @@ from raygs_viewer.scene.io import (
     load_scene,
 )
 from raygs_viewer.scene.loader import DEMO
+from raygs_viewer.scene.lod_file import lod_summary
 from raygs_viewer.scene.model import Scene
+from raygs_viewer.sort.lod_choice import LodChoice
 
 #: render options that set what --sidecar already fixes, (flag, argparse dest): every
 #: view option.
@@ -68,6 +72,7 @@ def add_parsers(commands) -> None:
     info = commands.add_parser("info", help="describe a scene file")
     info.add_argument("scene", help=f"a scene file ({SCENE_FILES}), or '{DEMO}'")
     info.add_argument("--json", action="store_true", help="print JSON instead of text")
+    argtypes.add_spz_axes_option(info)
     info.set_defaults(run=command_info)
 
     render = commands.add_parser("render", help="render one image headlessly")
@@ -81,6 +86,8 @@ def add_parsers(commands) -> None:
                              "HxWx4 (RGB over background, alpha) or HxWxC of --channels; .exr: float32 named "
                              "channels (R, G, B, A unless --channels says otherwise)")
     render.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
+    argtypes.add_spz_axes_option(render, what="the axes a .spz scene that declares none is read in (with "
+                                              "--sidecar: the sidecar's)")
     render.set_defaults(run=command_render)
     render.add_argument("--reference", action="store_true", help="use the float64 CPU reference renderer")
     add_channel_options(render)
@@ -92,6 +99,7 @@ def add_parsers(commands) -> None:
                                                 "print their difference and timings")
     verify.set_defaults(run=command_verify)
     add_view_options(verify)
+    argtypes.add_spz_axes_option(verify)
     argtypes.add_general_option(verify)
     argtypes.add_backend_option(verify)
     verify.add_argument("--repeat", type=argtypes.positive_int, default=5, metavar="N",
@@ -100,8 +108,32 @@ def add_parsers(commands) -> None:
 
 # --- scenes and cameras ---------------------------------------------------------------------------
 
-def load_scene_argument(name: str) -> Scene:
-    return demo_scene() if name == DEMO else load_scene(name)
+def load_scene_argument(name: str, spz_axes: str | None = None, lod: int | None = None) -> Scene:
+    """The demo, or the scene file ``name`` (a .spz in ``spz_axes``, default "rub"; a
+    streamed SOG's level ``lod``, default its finest)."""
+    if name == DEMO:
+        return demo_scene()
+    return load_scene(name, spz_axes=argtypes.spz_axes(spz_axes), lod=lod)
+
+
+def open_scene_argument(name: str, settings: RenderSettings, spz_axes: str | None = None,
+                        ctx=None) -> OpenedScene:
+    """The demo, or the scene file ``name`` opened for ``settings`` (a streamed SOG: its
+    level or the levels the GPU of ``ctx`` holds, render/lod_view.py); warns about what
+    it dropped and what it left unread."""
+    if name == DEMO:
+        given = lod_settings_given(settings)
+        if given:
+            raise UserError(f"the demo scene is not a streamed SOG: {', '.join(given)} "
+                            f"appl{'y' if len(given) > 1 else 'ies'} to a lod-meta.json scene")
+        opened = OpenedScene(demo_scene())
+    else:
+        fits = None if ctx is None else scene_fits(ctx)[0]
+        opened = open_scene(name, settings, spz_axes=argtypes.spz_axes(spz_axes), fits=fits)
+    warn_dropped(opened.scene)
+    if opened.note:
+        print(f"warning: {opened.note}", file=sys.stderr)
+    return opened
 
 
 def warn_dropped(scene: Scene) -> None:
@@ -109,16 +141,17 @@ def warn_dropped(scene: Scene) -> None:
         print(f"warning: {line}", file=sys.stderr)
 
 
-def choose_camera(scene: Scene, scene_name: str, camera_file: str | None, index: int | None, width: int | None,
-                  height: int | None) -> Camera:
+def choose_camera(positions: np.ndarray, scene_name: str, camera_file: str | None, index: int | None,
+                  width: int | None, height: int | None) -> Camera:
     """The camera of ``--camera``/``--camera-index``, else the demo's or one framing the
-    scene; resized when --width/--height are given (one alone keeps the aspect ratio)."""
+    scene's ``positions``; resized when --width/--height are given (one alone keeps the
+    aspect ratio)."""
     if camera_file is not None:
         camera = load_camera(camera_file, index or 0)
     elif scene_name == DEMO:
         camera = demo_camera()
     else:
-        camera = frame_points(scene.positions)
+        camera = frame_points(positions)
     if width or height:
         width = width or max(1, round(height * camera.width / camera.height))
         height = height or max(1, round(width * camera.height / camera.width))
@@ -126,21 +159,31 @@ def choose_camera(scene: Scene, scene_name: str, camera_file: str | None, index:
     return camera
 
 
-def _scene_and_camera(args) -> tuple[Scene, Camera]:
-    """The scene of render's or verify's options (warning about what it dropped) and its camera."""
+def _scene_and_camera(args, settings: RenderSettings, ctx) -> tuple[OpenedScene, Camera]:
+    """The scene of render's or verify's options and its camera."""
     scene_name = args.scene or DEMO
-    scene = load_scene_argument(scene_name)
-    warn_dropped(scene)
-    return scene, choose_camera(scene, scene_name, args.camera, args.camera_index, args.width, args.height)
+    opened = open_scene_argument(scene_name, settings, args.spz_axes, ctx)
+    return opened, choose_camera(opened.framed, scene_name, args.camera, args.camera_index, args.width, args.height)
+
+
+def _drawn(opened: OpenedScene, camera: Camera) -> tuple[Scene, LodChoice | None]:
+    """What ``camera`` draws of ``opened`` as a Scene of its own (the reference renderer's
+    input), and the level-of-detail choice it came from."""
+    if opened.lod is None:
+        return opened.scene, None
+    choice = opened.lod.choose(camera)
+    return opened.lod.lod.subset(choice.spans), choice
 
 
 # --- the commands ---------------------------------------------------------------------------------
 
 def command_info(args) -> int:
-    scene = load_scene_argument(args.scene)
+    scene = load_scene_argument(args.scene, args.spz_axes)
     warn_dropped(scene)
     description = describe(scene)
     description["gpu_bytes"] = gpu_bytes(scene.count, scene.sh_degree)
+    if args.scene != DEMO:
+        description["lod"] = lod_summary(args.scene)  # a streamed SOG: its levels (the figures above: level 0's)
     if args.json:
         sys.stdout.write(json_text(description))
     else:
@@ -153,6 +196,8 @@ def command_render(args) -> int:
         given = [flag for flag, dest in SIDECAR_CONFLICTS if getattr(args, dest) is not None]
         if given:
             raise UserError(f"--sidecar already sets the view; drop {', '.join(given)}")
+        if args.spz_axes is not None:
+            raise UserError("--sidecar records the axes its .spz scene was read in; drop --spz-axes")
     stereo = stereo_view(args)
     out = check_output_path(args.out, args.overwrite, CHANNEL_SUFFIXES)  # fail before any slow work
     shot = None if args.sidecar is None else load_sidecar(args.sidecar)
@@ -161,18 +206,22 @@ def command_render(args) -> int:
         raise UserError(("--stereo" if shot is None else f"{shot.path}: the stereo image") + " composes colour: "
                         f"{', '.join(c for c in output.channels if needs_geometry((c,)))} need one camera "
                         "(render each eye with --camera)")
-    if shot is not None:
-        scene_name = resolve_scene(shot, args.scene)
-        verify_scene_hash(shot, scene_name)
-        camera, settings, stereo = shot.camera, shot.settings, shot.stereo
-        scene = load_scene_argument(scene_name)
-        warn_dropped(scene)
-    else:
-        settings = render_settings(args)
-        scene, camera = _scene_and_camera(args)
-    start = time.perf_counter()
-    image = render_image(args, scene, camera, settings, stereo, output.channels)
-    elapsed = time.perf_counter() - start
+    ctx = None if args.reference else create_headless_context(args.gl_backend)
+    try:
+        if shot is not None:
+            scene_name = resolve_scene(shot, args.scene)
+            verify_scene_hash(shot, scene_name)
+            camera, settings, stereo = shot.camera, shot.settings, shot.stereo
+            opened = open_scene_argument(scene_name, settings, shot.spz_axes, ctx)
+        else:
+            settings = render_settings(args)
+            opened, camera = _scene_and_camera(args, settings, ctx)
+        start = time.perf_counter()
+        image, drawn = render_image(args, ctx, opened, camera, settings, stereo, output.channels)
+        elapsed = time.perf_counter() - start
+    finally:
+        if ctx is not None:
+            ctx.release()
     if isinstance(image, np.ndarray) and is_plain_colour(output.channels, out.suffix):
         save_image(out, image, args.overwrite)  # what render always wrote, byte for byte
         height, width = image.shape[:2]
@@ -183,7 +232,7 @@ def command_render(args) -> int:
         height, width = channels.alpha.shape
         if output.view is not None and output.view.channel in ("depth", "median_depth"):
             print(depth_range_line(output.view, used))
-    print(f"{out}: {width}x{height}, {scene.count} gaussians, "
+    print(f"{out}: {width}x{height}, {drawn}, "
           f"{'reference' if args.reference else 'GL'} render {elapsed * 1000:.0f} ms"
           + (f", {','.join(output.channels)}" if output.channels != DEFAULT_CHANNELS else "")
           + (f", view from {args.sidecar}" if args.sidecar is not None else ""))
@@ -216,39 +265,49 @@ def channel_output(args, out: Path, shot: Sidecar | None) -> ChannelOutput:
     return ChannelOutput(channels, normal_space, picture_view(channels, out.suffix, depth_range, normal_space))
 
 
-def render_image(args, scene: Scene, camera: Camera, settings: RenderSettings, stereo,
-                 channels: tuple[str, ...]) -> np.ndarray | ChannelImage:
+def render_image(args, ctx, opened: OpenedScene, camera: Camera, settings: RenderSettings, stereo,
+                 channels: tuple[str, ...]) -> tuple[np.ndarray | ChannelImage, str]:
     """The render: a ChannelImage (camera-space normals) when ``channels`` need geometry,
-    else the (H, W, 4) RGBA image render always made (float64 from the reference)."""
+    else the (H, W, 4) RGBA image render always made (float64 from the reference); and
+    what it drew, in words. ``ctx``: the GL context (None with --reference)."""
     geometry = needs_geometry(channels)
     if args.reference:
+        scene, choice = _drawn(opened, camera)
         if geometry:
-            return reference.render_reference_channels(scene, camera, settings)
-        return render_reference(scene, camera, settings)
-    ctx = create_headless_context(args.gl_backend)
+            return reference.render_reference_channels(scene, camera, settings), drawn_words(opened, choice)
+        return render_reference(scene, camera, settings), drawn_words(opened, choice)
+    renderer = GLRenderer(ctx, opened.scene, general=args.general)
     try:
-        renderer = GLRenderer(ctx, scene, general=args.general)
-        try:
-            if stereo is not None:
-                return render_stereo_view(renderer, camera, settings, stereo)[0]
-            # Tiled like the window's screenshots: the same pixels, and sizes beyond
-            # the GPU's largest render target.
-            if geometry:
-                return screenshot.render_tiled_channels(renderer, camera, settings,
-                                                        median="median_depth" in channels)
-            return screenshot.render_tiled(renderer, camera, settings)
-        finally:
-            renderer.release()
+        choice = restrict_to_view(renderer, opened.lod, camera)  # stereo: the eyes' midpoint chooses
+        if stereo is not None:
+            return render_stereo_view(renderer, camera, settings, stereo)[0], drawn_words(opened, choice)
+        # Tiled like the window's screenshots: the same pixels, and sizes beyond
+        # the GPU's largest render target.
+        if geometry:
+            return (screenshot.render_tiled_channels(renderer, camera, settings, median="median_depth" in channels),
+                    drawn_words(opened, choice))
+        return screenshot.render_tiled(renderer, camera, settings), drawn_words(opened, choice)
     finally:
-        ctx.release()
+        renderer.release()
+
+
+def drawn_words(opened: OpenedScene, choice: LodChoice | None) -> str:
+    """"N gaussians", or for a level-of-detail choice what it drew of what was read."""
+    if choice is None:
+        return f"{opened.scene.count} gaussians"
+    per_level = ", ".join(f"{n} at level {level}" for level, n in enumerate(choice.per_level(opened.lod.lod.levels))
+                          if n)
+    over = "; the coarsest levels alone exceed the budget" if choice.over_budget else ""
+    return f"{choice.count} of {opened.scene.count} gaussians (parts: {per_level}{over})"
 
 
 def command_verify(args) -> int:
     settings = render_settings(args)
-    scene, camera = _scene_and_camera(args)
     ctx = create_headless_context(args.gl_backend)
     try:
-        renderer = GLRenderer(ctx, scene, general=args.general)
+        opened, camera = _scene_and_camera(args, settings, ctx)
+        renderer = GLRenderer(ctx, opened.scene, general=args.general)
+        restrict_to_view(renderer, opened.lod, camera)
         image = renderer.render(camera, settings)  # warm-up: shader compilation, first upload
         gl_times = []
         for _ in range(args.repeat):
@@ -259,13 +318,14 @@ def command_verify(args) -> int:
         device = context_description(ctx)
     finally:
         ctx.release()
+    scene, choice = _drawn(opened, camera)  # the reference draws what the GL renderer was restricted to
     start = time.perf_counter()
     reference = render_reference(scene, camera, settings)
     reference_time = time.perf_counter() - start
     error = np.abs(image.astype(np.float64) - reference)
     mse = float(np.mean(error[..., :3] ** 2))
     gl_time = float(np.median(gl_times))
-    print(f"scene       {scene.source} ({scene.count} gaussians, SH degree {scene.sh_degree})")
+    print(f"scene       {scene.source} ({drawn_words(opened, choice)}, SH degree {scene.sh_degree})")
     print(f"image       {camera.width}x{camera.height}, p_min {settings.p_min:.6g}")
     print(f"settings    {describe_accuracy(settings)}")
     print(f"device      {device}")

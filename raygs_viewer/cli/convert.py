@@ -14,11 +14,14 @@ import os
 from pathlib import Path
 
 from raygs_viewer.capture.image_io import check_output_path
+from raygs_viewer.cli import argtypes
 from raygs_viewer.cli.commands import load_scene_argument, warn_dropped
 from raygs_viewer.errors import UserError
+from raygs_viewer.render.settings import MAX_LOD_LEVELS
 from raygs_viewer.scene.compare import attribute_errors, format_errors
 from raygs_viewer.scene.io import SCENE_FILES, load_scene
 from raygs_viewer.scene.loader import DEMO
+from raygs_viewer.scene.model import FileAxes
 from raygs_viewer.scene.writing import SPZ_VERSIONS, WRITE_SUFFIXES, write_scene, writing_notes
 
 #: Targets that hold every attribute as float32 (up to rounding of the activations).
@@ -38,6 +41,13 @@ def add_parsers(commands) -> None:
     convert.set_defaults(run=command_convert)
     convert.add_argument("--spz-version", type=int, choices=SPZ_VERSIONS, default=SPZ_VERSIONS[0],
                          help=f"the .spz version written (default {SPZ_VERSIONS[0]})")
+    convert.add_argument("--lod", type=argtypes.whole_number(0, MAX_LOD_LEVELS - 1), metavar="N",
+                         help="IN a streamed SOG (lod-meta.json): write its level N (0 the finest, the default) "
+                              "with its environment")
+    argtypes.add_spz_axes_option(convert, what="the axes IN, when a .spz that declares none, is read in")
+    argtypes.add_spz_axes_option(convert, "--out-spz-axes", "the axes OUT, when a .spz, is written in (default: "
+                                                            "--spz-axes; rub and rdf re-label a file for the "
+                                                            "other convention's tools)")
 
 
 def command_convert(args) -> int:
@@ -45,13 +55,17 @@ def command_convert(args) -> int:
     if source != DEMO and _same_file(source, target):
         raise UserError(f"{target}: is the input too; write to another file")
     check_output_path(target, args.overwrite, WRITE_SUFFIXES)  # before any slow work
-    scene = load_scene_argument(source)
+    in_axes = argtypes.spz_axes(args.spz_axes)
+    out_axes = argtypes.spz_axes(args.out_spz_axes, in_axes)
+    scene = load_scene_argument(source, in_axes, args.lod)
     warn_dropped(scene)
-    print(f"read {source}: {scene.format or 'built-in'}, {scene.count:,} gaussians, SH degree {scene.sh_degree}")
-    write_scene(scene, target, args.overwrite, args.spz_version)
+    print(f"read {source}: {scene.format or 'built-in'}{_axes(scene.axes)}, {scene.count:,} gaussians, "
+          f"SH degree {scene.sh_degree}")
+    write_scene(scene, target, args.overwrite, args.spz_version, out_axes)
     print(f"wrote {target}: {os.path.getsize(target):,} bytes")
-    back = load_scene(target)
-    print(f"read back {target}: {back.format}, {back.count:,} gaussians, SH degree {back.sh_degree}")
+    back = load_scene(target, spz_axes=out_axes)
+    print(f"read back {target}: {back.format}{_axes(back.axes)}, {back.count:,} gaussians, "
+          f"SH degree {back.sh_degree}")
     for note in writing_notes(scene, target.suffix):
         print(f"note: {note}")
     try:
@@ -66,6 +80,11 @@ def command_convert(args) -> int:
     for line in format_errors(errors):
         print(line)
     return 0
+
+
+def _axes(axes: FileAxes | None) -> str:
+    """", RDF axes" for a .spz (", RUB axes declared" when the file said so); "" otherwise."""
+    return "" if axes is None else f", {axes.stored} axes{' declared' if axes.declared else ''}"
 
 
 def _same_file(source: str, target: Path) -> bool:

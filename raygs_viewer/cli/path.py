@@ -86,6 +86,8 @@ def add_parsers(commands) -> None:
     add_stereo_options(parser)
     add_channel_options(parser, picture=False)
     parser.add_argument("--overwrite", action="store_true", help="replace OUT (and --cameras-out) if it exists")
+    argtypes.add_spz_axes_option(parser, what="the axes a .spz scene that declares none is read in (default: what "
+                                              "the path file recorded, else rub)")
     parser.add_argument("--cameras-out", metavar="CAMERAS.json",
                         help="also write every frame's camera as an INRIA cameras.json (render --camera CAMERAS.json "
                              "--camera-index K reproduces frame K)")
@@ -117,7 +119,8 @@ def command_render_path(args: argparse.Namespace) -> int:
     path = None if document is None else retimed(document.path, args)
 
     with TerminalProgress(args.scene) as loading:  # the scene's hash is taken while it is read
-        loaded = load_now(args.scene, progress=loading)
+        loaded = load_now(args.scene, progress=loading,
+                          spz_axes=argtypes.spz_axes(args.spz_axes, document and document.scene_spz_axes))
     scene = loaded.scene
     warn_dropped(scene)
     if document is None:

@@ -41,6 +41,8 @@ def add_parsers(commands) -> None:
     parser = commands.add_parser("view", help="open the interactive window (the default command)")
     parser.set_defaults(run=command_view)
     parser.add_argument("scene", nargs="?", default=DEMO, help=f"a scene file ({SCENE_FILES}), or '{DEMO}' (default)")
+    argtypes.add_spz_axes_option(parser, what="the axes a .spz scene that declares none is read in (the panel "
+                                              "switches them)")
     parser.add_argument("--cameras", metavar="CAMERAS.json",
                         help="the scene's training cameras (default: a cameras.json found next to the scene)")
     parser.add_argument("--images", metavar="DIR",
@@ -126,6 +128,6 @@ def command_view(args) -> int:
         vsync=not args.no_vsync, platform=args.window_platform, general=args.general,
         navigation=NavigationChoices(mode="orbit" if args.orbit else "fly", up_axis=args.up_axis,
                                      turntable=args.turntable),
-        stereo=_viewer_stereo_options(args), images=args.images)
+        stereo=_viewer_stereo_options(args), images=args.images, spz_axes=argtypes.spz_axes(args.spz_axes))
     with TerminalProgress(options.scene) as progress:  # a multi-GB scene takes seconds before the window
         return run_viewer(options, progress)

@@ -144,7 +144,7 @@ def setting_parts(settings, which: str, changes_only: bool) -> list[str]:
     table = sorted(settings_table(type(settings)), key=lambda row: not row.info.accuracy)
     for name, info, _ in table:
         shown, value = getattr(info, which), getattr(settings, name)
-        if shown is None or not applies(settings, name):
+        if shown is None or value is None or not applies(settings, name):  # None: not set, nothing to show
             continue
         if changes_only and not shown.always and value == default[name]:
             continue

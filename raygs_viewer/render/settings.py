@@ -12,6 +12,7 @@ from dataclasses import dataclass, replace
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.setting_info import Setting, Shown, checked, setting, settings_table
+from raygs_viewer.scene.lod_meta import MAX_LEVELS
 
 DEFAULT_P_MIN = 1.0 / 255.0
 DEFAULT_BACKGROUND = (0.0, 0.0, 0.0)
@@ -47,6 +48,9 @@ GS_NEAR = 0.01
 ALPHA_CLAMP = 0.99
 #: ... and stop compositing a pixel front to back before its transmittance falls below this.
 TRANSMITTANCE_CUTOFF = 1e-4
+#: The levels a streamed SOG may have, and the largest budget of gaussians taken.
+MAX_LOD_LEVELS = MAX_LEVELS
+MAX_LOD_BUDGET = 1 << 40
 #: Supersampling factors per axis the renderers accept (k x k samples per pixel).
 MAX_SUPERSAMPLE = 4
 #: Largest MIP filter variance accepted, px^2 (a filter 10 px wide is no longer anti-aliasing).
@@ -135,6 +139,18 @@ class RenderSettings:
         "pixel (a k-buffer), for speed; implies --order per-pixel", "K", limits=(0, MAX_ORDER_K),
         words={0: "exact"}, what="order K", needs="per_pixel", implies=("order", "per-pixel"),
         line=Shown(" (K={})", worded=" ({})", joined=True)))
+    lod: int | None = setting(None, Setting(
+        "a streamed SOG (lod-meta.json): draw level N everywhere, 0 the finest (default: choose each part's "
+        "level per view)", "N", limits=(0, MAX_LOD_LEVELS - 1), what="level of detail", accuracy=False,
+        line=Shown("level {}"), label=Shown("level {}")))
+    lod_budget: int | None = setting(None, Setting(
+        "a streamed SOG: the most gaussians the per-view choice of levels draws; what is largest on screen "
+        "is refined first (default: no limit)", "COUNT", limits=(1, MAX_LOD_BUDGET), what="LOD budget",
+        accuracy=False, line=Shown("budget {:,}"), label=Shown("budget {:,}")))
+    lod_distance: float | None = setting(None, Setting(
+        "a streamed SOG: the distance (scene units) from which level 1 is drawn; level l from 2^(l-1) times it "
+        "(default: four half-diagonals of the median part)", "D", limits=(0.0, 1e30), open=True,
+        what="LOD distance", accuracy=False, line=Shown("LOD distance {:g}")))
 
     def effective_sh_degree(self, scene_degree: int) -> int:
         return scene_degree if self.sh_degree is None else min(self.sh_degree, scene_degree)

@@ -14,6 +14,7 @@ import numpy as np
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.progress import ProgressCallback
+from raygs_viewer.scene.lod_file import lod_scene_files
 from raygs_viewer.scene.sog_file import scene_files as sog_scene_files
 
 #: The file hash reads this many bytes at a time (one reused buffer): hashing a
@@ -39,8 +40,9 @@ def file_sha256(path: str | os.PathLike, progress: ProgressCallback | None = Non
                 cancel: threading.Event | None = None, *, chunk_bytes: int | None = None) -> str:
     """Hex SHA-256 of a scene file, read HASH_CHUNK_BYTES (or ``chunk_bytes``) at a time into one buffer.
 
-    A scene of several files (an unbundled SOG: its meta.json, or the folder holding it)
-    hashes each of them in turn (sog_file.scene_files), every file's bytes preceded by its
+    A scene of several files (an unbundled SOG: its meta.json, or the folder holding it;
+    a streamed SOG: its lod-meta.json and every unit's files) hashes each of them in turn
+    (sog_file.scene_files, lod_file.lod_scene_files), every file's bytes preceded by its
     name and size, so that no file of the scene can change unseen; a one-file scene's
     digest is its file's plain SHA-256.
 
@@ -52,7 +54,7 @@ def file_sha256(path: str | os.PathLike, progress: ProgressCallback | None = Non
     buffer = bytearray(max(1, HASH_CHUNK_BYTES if chunk_bytes is None else chunk_bytes))
     view = memoryview(buffer)
     try:
-        files = sog_scene_files(path)
+        files = lod_scene_files(path) or sog_scene_files(path)
         several = files is not None
         files = files if several else [path]
         total = sum(os.path.getsize(file) for file in files)

@@ -28,7 +28,9 @@ def _stats(values: np.ndarray, *names: str) -> dict[str, float] | None:
 def describe(scene: Scene) -> dict:
     """JSON-serialisable statistics of a scene (for ``raygs-viewer info``).
 
-    Keys: source, format (Scene.format), count, sh_degree, filter_fused, bbox ({min, max} of positions,
+    Keys: source, format (Scene.format), axes (for a .spz, {stored: "RUB", "RDF", ...;
+    declared: whether the file said so, else it was assumed; spz_axes: the convention
+    it was read with}; None for other formats), count, sh_degree, filter_fused, bbox ({min, max} of positions,
     or None when empty), opacity ({min, median, mean, max} or None), scale
     ({min, median, max} over all axes, plus median_anisotropy = median of each
     gaussian's max/min scale ratio; None when empty), dropped ({total, by_reason}).
@@ -46,6 +48,8 @@ def describe(scene: Scene) -> dict:
     return {
         "source": scene.source,
         "format": scene.format,
+        "axes": None if scene.axes is None else {"stored": scene.axes.stored, "declared": bool(scene.axes.declared),
+                                                 "spz_axes": scene.axes.assumed},
         "count": n,
         "sh_degree": scene.sh_degree,
         "filter_fused": bool(scene.filter_fused),
@@ -55,6 +59,15 @@ def describe(scene: Scene) -> dict:
         "dropped": {"total": int(sum(scene.dropped.values())),
                     "by_reason": {k: int(v) for k, v in scene.dropped.items()}},
     }
+
+
+def axes_words(axes: dict) -> str:
+    """How a .spz's axes were taken, in words, from :func:`describe`'s "axes"."""
+    if axes["declared"]:
+        return f"{axes['stored']} declared by the file (--spz-axes does not apply)"
+    if axes["spz_axes"] == "rdf":
+        return "RDF assumed (--spz-axes rdf: splat-transform's, the PLY's own axes)"
+    return "RUB assumed (the .spz specification's; --spz-axes rdf for files splat-transform wrote)"
 
 
 def format_description(info: dict) -> str:
@@ -68,6 +81,7 @@ def format_description(info: dict) -> str:
     lines = [
         f"source:       {info['source']}",
         f"format:       {info.get('format') or 'in memory'}",
+        *([f"axes:         {axes_words(info['axes'])}"] if info.get("axes") else []),
         f"gaussians:    {info['count']}",
         f"SH degree:    {info['sh_degree']}",
         f"3D filter:    {'fused at load' if info['filter_fused'] else 'none'}",
@@ -88,6 +102,12 @@ def format_description(info: dict) -> str:
     if s:
         lines.append(f"scale:        min {g(s['min'])}  median {g(s['median'])}  max {g(s['max'])}  "
                      f"median max/min ratio {g(s['median_anisotropy'])}")
+    lod = info.get("lod")
+    if lod:
+        counts = ", ".join(f"{level}: {count:,}" for level, count in enumerate(lod["counts"]))
+        environment = "none" if lod["environment"] is None else f"{lod['environment']:,} gaussians"
+        lines.append(f"levels:       {lod['levels']} (0 the finest; gaussians per level {counts}); "
+                     f"{lod['leaves']} parts in {lod['files']} files; environment {environment}")
     if info.get("gpu_bytes") is not None:
         lines.append(f"GPU memory:   {info['gpu_bytes'] / (1 << 20):,.1f} MiB of storage buffers "
                      f"(gaussians, SH, splat records, order)")

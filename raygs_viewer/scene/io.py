@@ -44,6 +44,7 @@ Decisions (the maths page leaves these open):
 
 from __future__ import annotations
 
+import functools
 import os
 import threading
 from collections.abc import Callable
@@ -52,6 +53,7 @@ from typing import NamedTuple
 
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.describe import describe, dropped_summary, format_description
+from raygs_viewer.scene.lod_file import load_level, lod_index_file
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.ply_file import load_ply
 from raygs_viewer.scene.progress import READ_CHUNK_BYTES, ProgressCallback, Reporter
@@ -60,6 +62,7 @@ from raygs_viewer.scene.sog_file import load_sog
 from raygs_viewer.scene.sog_source import is_sog_folder
 from raygs_viewer.scene.splat_file import SPLAT_ROW_BYTES, load_splat
 from raygs_viewer.scene.spz_file import load_spz
+from raygs_viewer.scene.spz_format import DEFAULT_SPZ_AXES, spz_axes_system
 
 #: The first bytes that name a format whatever the file's name: gzip (.spz versions 2
 #: and 3), an uncompressed .spz (version 4's header), a zip (a bundled .sog).
@@ -69,7 +72,7 @@ ZIP_MAGIC = b"PK\x03\x04"
 
 #: The files :func:`load_scene` reads, in words (help texts and errors); a .ply is INRIA's
 #: layout or PlayCanvas's compressed one.
-SCENE_FILES = ".ply, .splat, .spz, .sog or a SOG meta.json"
+SCENE_FILES = ".ply, .splat, .spz, .sog, a SOG meta.json or a streamed SOG's lod-meta.json"
 
 #: ``read(path, shown, report, chunk_bytes)``: one format's reader; ``shown`` is the path
 #: as messages name it, ``chunk_bytes`` how much is read between progress points.
@@ -115,7 +118,8 @@ __all__ = [
 
 
 def load_scene(path: str | os.PathLike, *, progress: ProgressCallback | None = None,
-               cancel: threading.Event | None = None, chunk_bytes: int | None = None) -> Scene:
+               cancel: threading.Event | None = None, chunk_bytes: int | None = None,
+               spz_axes: str = DEFAULT_SPZ_AXES, lod: int | None = None) -> Scene:
     """Read a scene file (:data:`SCENE_FILES`) into an activated :class:`Scene`.
 
     The format is chosen by the extension (``.splat``, ``.spz``, ``.sog``, ``.json``;
@@ -131,14 +135,34 @@ def load_scene(path: str | os.PathLike, *, progress: ProgressCallback | None = N
     When ``cancel`` is set, loading stops at the next progress point (whether or
     not a callback is given) with ``UserError("loading cancelled")``. ``chunk_bytes``
     replaces :data:`READ_CHUNK_BYTES` (tests read tiny files in many chunks).
+
+    A streamed SOG (its ``lod-meta.json``, or the folder holding it) reads as one level,
+    ``lod`` (default 0, the finest), with its environment
+    (:func:`~raygs_viewer.scene.lod_file.load_level`); the view-dependent choice between
+    levels needs all of them, :func:`~raygs_viewer.scene.lod_file.load_lod`.
+
+    ``spz_axes`` ("rub" or "rdf", :data:`~raygs_viewer.scene.spz_format.SPZ_AXES`): the
+    axes a ``.spz`` that declares none is taken to store; other formats ignore it. A bad
+    value is a UserError whatever the file.
     """
+    spz_axes_system(spz_axes)
+    if lod_index_file(path) is not None:
+        try:
+            return load_level(path, 0 if lod is None else lod, progress=progress, cancel=cancel,
+                              chunk_bytes=READ_CHUNK_BYTES if chunk_bytes is None else chunk_bytes)
+        except OSError as exc:
+            raise _os_error(os.fspath(path), exc) from None
+        except MemoryError:
+            raise file_error(os.fspath(path), "not enough memory to load this scene") from None
+    if lod is not None:
+        raise file_error(os.fspath(path), "not a streamed SOG: a level (--lod) applies to a lod-meta.json scene")
     report = Reporter(progress, cancel)
-    scene = _load(path, report, READ_CHUNK_BYTES if chunk_bytes is None else chunk_bytes)
+    scene = _load(path, report, READ_CHUNK_BYTES if chunk_bytes is None else chunk_bytes, spz_axes)
     report(1.0, "done")
     return scene
 
 
-def _load(path: str | os.PathLike, report: Reporter, chunk_bytes: int) -> Scene:
+def _load(path: str | os.PathLike, report: Reporter, chunk_bytes: int, spz_axes: str) -> Scene:
     shown = os.fspath(path)
     report(0.0, "reading")
     if not os.path.exists(path):
@@ -150,6 +174,8 @@ def _load(path: str | os.PathLike, report: Reporter, chunk_bytes: int) -> Scene:
         raise file_error(shown, "not a regular file")
     try:
         read = load_sog if sog_folder else _reader(path, shown)
+        if read is load_spz:  # the one reader with an option of its own
+            read = functools.partial(load_spz, spz_axes=spz_axes)
         return read(path, shown, report, chunk_bytes)
     except OSError as exc:
         raise _os_error(shown, exc) from None

@@ -25,9 +25,10 @@ from raygs_viewer.scene.demo import DEMO_VIEW_NAMES, demo_cameras, demo_scene
 from raygs_viewer.scene.io import dropped_summary, load_scene
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.progress import ProgressCallback, Reporter
+from raygs_viewer.scene.spz_format import DEFAULT_SPZ_AXES, spz_axes_system
 
-#: ``read_scene(path, *, progress, cancel) -> Scene``: what reads the scene file
-#: (:func:`~raygs_viewer.scene.io.load_scene`; tests hand in a steered one).
+#: ``read_scene(path, *, progress, cancel, spz_axes) -> Scene``: what reads the scene
+#: file (:func:`~raygs_viewer.scene.io.load_scene`; tests hand in a steered one).
 SceneReader = Callable[..., Scene]
 
 __all__ = [
@@ -122,7 +123,8 @@ def _scaled(progress: ProgressCallback | None, start: float, end: float,
 
 def load_now(path: str | os.PathLike, cameras: str | os.PathLike | None = None,
              progress: ProgressCallback | None = None, *,
-             cancel: threading.Event | None = None, read_scene: SceneReader = load_scene) -> LoadedScene:
+             cancel: threading.Event | None = None, read_scene: SceneReader = load_scene,
+             spz_axes: str = DEFAULT_SPZ_AXES) -> LoadedScene:
     """Loads a scene (a scene file path, or "demo") with its training cameras, synchronously.
 
     ``cameras``: an explicit cameras.json; a bad one is a UserError. Without it the
@@ -133,8 +135,10 @@ def load_now(path: str | os.PathLike, cameras: str | os.PathLike | None = None,
     ``progress(fraction, stage)``: non-decreasing fractions in [0, 1], ending with
     ``(1.0, "done")``. ``cancel``: when set, stops at the next progress point with
     ``UserError("loading cancelled")``. Every failure is a one-line UserError.
-    ``read_scene`` reads the scene file (:func:`load_scene`).
+    ``read_scene`` reads the scene file (:func:`load_scene`); ``spz_axes`` is its
+    convention for a ``.spz`` that declares no axes ("rub" or "rdf").
     """
+    spz_axes_system(spz_axes)  # a bad value fails even for the demo
     shown = os.fspath(path)
     report = Reporter(progress, cancel)
     try:
@@ -144,7 +148,7 @@ def load_now(path: str | os.PathLike, cameras: str | os.PathLike | None = None,
             report(_SCENE_END, "hashing")
             digest = arrays_sha256(scene)
         else:
-            scene, digest = _read_and_hash(path, progress, report, cancel, read_scene)
+            scene, digest = _read_and_hash(path, progress, report, cancel, read_scene, spz_axes)
         warnings = dropped_summary(scene)
         report(_HASH_END, "cameras")
         found, names, cameras_path = _training_cameras(shown, cameras, warnings)
@@ -157,11 +161,12 @@ def load_now(path: str | os.PathLike, cameras: str | os.PathLike | None = None,
 
 
 def _read_and_hash(path: str | os.PathLike, progress: ProgressCallback | None, report: Reporter,
-                   cancel: threading.Event | None, read_scene: SceneReader) -> tuple[Scene, str]:
+                   cancel: threading.Event | None, read_scene: SceneReader, spz_axes: str) -> tuple[Scene, str]:
     """The scene file read and hashed side by side; a failed read stops the hash."""
     hashing = FileHash(path, cancel)
     try:
-        scene = read_scene(path, progress=_scaled(progress, 0.0, _SCENE_END, "hashing"), cancel=cancel)
+        scene = read_scene(path, progress=_scaled(progress, 0.0, _SCENE_END, "hashing"), cancel=cancel,
+                           spz_axes=spz_axes)
         digest = hashing.result(lambda f: report(_SCENE_END + (_HASH_END - _SCENE_END) * f, "hashing"))
     finally:
         hashing.stop.set()  # a failed or cancelled load leaves no hash running
@@ -193,9 +198,10 @@ def _training_cameras(shown: str, cameras: str | os.PathLike | None,
 class _Job:
     """One load on its own thread; its fields are written by that thread only."""
 
-    def __init__(self, path: str, cameras: str | None) -> None:
+    def __init__(self, path: str, cameras: str | None, spz_axes: str) -> None:
         self.path = path
         self.cameras = cameras
+        self.spz_axes = spz_axes
         self.cancel = threading.Event()
         self.progress = 0.0
         self.stage = "queued"
@@ -228,10 +234,11 @@ class SceneLoader:
         self.delivered = 0
         self.discarded = 0
 
-    def start(self, path: str, cameras: str | None = None) -> None:
-        """Cancels a load in progress (its result is discarded) and starts this one;
-        a finished result not yet polled is dropped too. RuntimeError after :meth:`close`."""
-        job = _Job(os.fspath(path), None if cameras is None else os.fspath(cameras))
+    def start(self, path: str, cameras: str | None = None, spz_axes: str = DEFAULT_SPZ_AXES) -> None:
+        """Cancels a load in progress (its result is discarded) and starts this one
+        (``spz_axes``: as for :func:`load_now`); a finished result not yet polled is
+        dropped too. RuntimeError after :meth:`close`."""
+        job = _Job(os.fspath(path), None if cameras is None else os.fspath(cameras), spz_axes)
         thread = threading.Thread(target=self._run, args=(job,), name="raygs-load", daemon=True)
         with self._cond:
             if self._closed:
@@ -319,7 +326,7 @@ class SceneLoader:
 
         try:
             result: LoadedScene | UserError = load_now(job.path, job.cameras, progress, cancel=job.cancel,
-                                                       read_scene=self.read_scene)
+                                                       read_scene=self.read_scene, spz_axes=job.spz_axes)
         except UserError as exc:
             result = exc
         except Exception as exc:  # a bug or an odd OS failure: still one line for the panel

@@ -20,6 +20,26 @@ def sh_coefficient_count(degree: int) -> int:
 
 
 @dataclass(frozen=True)
+class FileAxes:
+    """The axes a file stored its gaussians in, when they may differ from the Scene's
+    (a ``.spz``: see :mod:`raygs_viewer.scene.spz_format`); the reader converted them.
+
+    assumed:  the convention the reader was told to take for a file that names none,
+              "rub" or "rdf" (``spz_format.SPZ_AXES``): the option it was read with.
+    declared: the coordinate system the file names itself ("RUB", "RDF", "LUF", ...),
+              which wins over ``assumed``; "" when it names none.
+    """
+
+    assumed: str
+    declared: str = ""
+
+    @property
+    def stored(self) -> str:
+        """The system the gaussians were read as: "RUB", "RDF", ..."""
+        return self.declared or self.assumed.upper()
+
+
+@dataclass(frozen=True)
 class Scene:
     """N activated gaussians in world space (OpenCV axes), float32 throughout.
 
@@ -37,6 +57,8 @@ class Scene:
     format:     the file format it was read from, with its version where it has one
                 (its reader's name for it: "INRIA PLY", ".splat", "spz v3",
                 "PlayCanvas compressed PLY", "SOG v2", ...); "" for a scene made in memory.
+    axes:       for a file whose stored axes may differ from these (a .spz), what they
+                were and how the reader knew (:class:`FileAxes`); None otherwise.
     """
 
     positions: np.ndarray
@@ -49,6 +71,7 @@ class Scene:
     source: str = ""
     dropped: dict[str, int] = field(default_factory=dict)
     format: str = ""
+    axes: FileAxes | None = None
 
     def __post_init__(self) -> None:
         n = self.positions.shape[0]
@@ -76,5 +99,5 @@ class Scene:
         return Scene(
             self.positions, self.rotations, self.scales, self.opacities,
             np.ascontiguousarray(self.sh[:, : sh_coefficient_count(degree)]),
-            degree, self.filter_fused, self.source, dict(self.dropped), self.format,
+            degree, self.filter_fused, self.source, dict(self.dropped), self.format, self.axes,
         )

@@ -87,6 +87,12 @@ _QUAT_COMPONENT = (np.arange(256) / 255.0 - 0.5) * math.sqrt(2.0)
 
 def load_sog(path, shown: str, report: Reporter, chunk_bytes: int) -> Scene:
     """``path``: a bundled .sog file, an unbundled scene's meta.json, or its folder."""
+    return read_sog(path, shown, report, chunk_bytes)[0]
+
+
+def read_sog(path, shown: str, report: Reporter, chunk_bytes: int) -> tuple[Scene, np.ndarray | None]:
+    """:func:`load_sog`'s scene, and which of the file's rows it dropped ((count,) bool),
+    or None where it dropped none: a streamed SOG's index addresses the file's rows."""
     with open_source(path, shown) as source:
         meta = parse_meta(source.shown_meta, source.read_meta())
         chunk_bytes = max(1, chunk_bytes)
@@ -160,7 +166,7 @@ def _read_images(source: SogSource, meta: SogMeta, shown: str, report: Reporter,
 
 
 def _decode(images: dict[str, np.ndarray], meta: SogMeta, shown: str, report: Reporter, chunk_bytes: int,
-            done: int, total: int) -> Scene:
+            done: int, total: int) -> tuple[Scene, np.ndarray | None]:
     """The gaussians of the decoded images, a chunk at a time; progress goes on from
     ``done`` of ``total``."""
     n = meta.count
@@ -215,7 +221,9 @@ def _decode(images: dict[str, np.ndarray], meta: SogMeta, shown: str, report: Re
         report.reading(done + stop, total)
     report.activating()
     report.validating()
-    return build_scene(arrays=arrays, sh_degree=degree, drops=drops, report=report, source=shown, format=SOG_FORMAT)
+    dropped = drops.bad.copy() if drops.dropped else None
+    return (build_scene(arrays=arrays, sh_degree=degree, drops=drops, report=report, source=shown, format=SOG_FORMAT),
+            dropped)
 
 
 def _quaternions(pixels: np.ndarray) -> np.ndarray:

@@ -96,8 +96,8 @@ def _check_version(shown: str, meta: dict) -> None:
     version = meta["version"]
     if not is_number(version) or version != 2:
         if "lodLevels" in meta or "tree" in meta:
-            raise file_error(shown, "a streamed SOG index (lod-meta.json) is not supported; "
-                                    "open one of its chunks' meta.json")
+            raise file_error(shown, "a streamed SOG index, not a SOG meta.json: open it by its folder "
+                                    "or as lod-meta.json")
         raise file_error(shown, f"SOG version {show_json(version, _SHOWN_CHARACTERS)} is not supported "
                                 "(this reader reads version 2)")
 

@@ -1,19 +1,31 @@
 """The gaussians of a ``.spz`` file: the packed arrays decoded into an activated Scene in
 the project's axes (:func:`load_spz`), and a Scene quantised into them (:func:`spz_bytes`),
-as the owners' ``packGaussians`` does with its default options. The layout, and why the
-axes flip, are in :mod:`~raygs_viewer.scene.spz_format`; the header and the compressed
-streams in :mod:`~raygs_viewer.scene.spz_stream`.
+as the owners' ``packGaussians`` does with its default options. The layout, why the axes
+flip, and the two conventions of ``spz_axes`` ("rub", the specification's; "rdf",
+splat-transform's) are in :mod:`~raygs_viewer.scene.spz_format`; the header and the
+compressed streams in :mod:`~raygs_viewer.scene.spz_stream`.
 """
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from raygs_viewer.errors import UserError
-from raygs_viewer.scene.model import Scene, sh_coefficient_count
+from raygs_viewer.scene.model import FileAxes, Scene, sh_coefficient_count
 from raygs_viewer.scene.progress import Reporter
 from raygs_viewer.scene.reading import DropTally, build_scene, scene_arrays
-from raygs_viewer.scene.spz_format import RDF, RUB, Layout, axis_flips, flip_quaternion_xyz, flip_sh
+from raygs_viewer.scene.spz_format import (
+    COORDINATE_SYSTEMS,
+    DEFAULT_SPZ_AXES,
+    RDF,
+    Layout,
+    axis_flips,
+    flip_quaternion_xyz,
+    flip_sh,
+    spz_axes_system,
+)
 from raygs_viewer.scene.spz_stream import pack_spz_file, read_spz_file
 
 #: The owners' default: 12 fractional bits, about 0.24 mm for scenes in metres.
@@ -35,11 +47,15 @@ _SMALLEST_THREE_SLOTS = np.array([[i for i in range(3, -1, -1) if i != largest] 
 SPZ_FORMATS = {1: "spz v1", 2: "spz v2", 3: "spz v3", 4: "spz v4"}
 
 
-def load_spz(path, shown: str, report: Reporter, chunk_bytes: int) -> Scene:
-    """Read a ``.spz`` file (any version 1-4) into an activated Scene in RDF axes."""
+def load_spz(path, shown: str, report: Reporter, chunk_bytes: int, *, spz_axes: str = DEFAULT_SPZ_AXES) -> Scene:
+    """Read a ``.spz`` file (any version 1-4) into an activated Scene in RDF axes. A file
+    that declares no coordinate system is taken to be in ``spz_axes`` ("rub" or "rdf");
+    ``Scene.axes`` says which was used."""
+    assumed = spz_axes_system(spz_axes)
     chunk = max(1, int(chunk_bytes))
-    layout, data, system = read_spz_file(path, shown, report, chunk)
-    return _decode(data, layout, system, shown, report, chunk)
+    layout, data, declared = read_spz_file(path, shown, report, chunk)
+    scene = _decode(data, layout, declared or assumed, shown, report, chunk)
+    return replace(scene, axes=FileAxes(spz_axes, COORDINATE_SYSTEMS[declared - 1] if declared else ""))
 
 
 def _decode(data: np.ndarray, layout: Layout, system: int, shown: str, report: Reporter, chunk: int) -> Scene:
@@ -109,9 +125,10 @@ def _unpack_rotations(raw: np.ndarray) -> np.ndarray:
     return q
 
 
-def spz_bytes(scene: Scene, version: int = 3) -> bytes:
+def spz_bytes(scene: Scene, version: int = 3, spz_axes: str = DEFAULT_SPZ_AXES) -> bytes:
     """The whole ``.spz`` file for a scene: version 2 or 3 (gzip) or 4 (zstd), quantised
-    as the owners' ``packGaussians`` does with its default options, in RUB axes.
+    as the owners' ``packGaussians`` does with its default options, in the axes of
+    ``spz_axes`` ("rub", the specification's; "rdf", splat-transform's), unmarked.
 
     Positions use the owners' 12 fractional bits when every coordinate fits the 24-bit
     word (|x| < 2048); otherwise the largest number of fractional bits that fits (the
@@ -121,6 +138,7 @@ def spz_bytes(scene: Scene, version: int = 3) -> bytes:
     """
     if version not in (2, 3, 4):
         raise UserError(f"cannot write .spz version {version} (versions 2, 3 and 4 are written)")
+    flips = axis_flips(RDF, spz_axes_system(spz_axes))
     n, degree = scene.count, scene.sh_degree
     positions = scene.positions.astype(np.float64)
     if not np.isfinite(positions).all():
@@ -131,7 +149,6 @@ def spz_bytes(scene: Scene, version: int = 3) -> bytes:
     if fractional_bits is None:
         raise UserError(f"cannot write .spz: a coordinate of magnitude {extent:.6g} does not fit its 24-bit "
                         "fixed-point positions (at most 8,388,607)")
-    flips = axis_flips(RDF, RUB)
     fixed = _round_half_away(positions * flips * 2.0 ** fractional_bits).astype(np.int64) & 0xFFFFFF
     position_bytes = np.stack([fixed & 0xFF, fixed >> 8 & 0xFF, fixed >> 16], axis=-1).astype(np.uint8)
     with np.errstate(divide="ignore"):

@@ -48,6 +48,16 @@ uses it too. An ``SPZ_ADOBE_coordinate_system`` extension (type 0xADBE0003) nami
 standard-family system other than RUB is honoured the same way; one of the rotated
 family (which needs a 90-degree SH rotation) is refused in one line.
 
+Two conventions for files without that extension (:data:`SPZ_AXES`, the ``spz_axes``
+keyword of reading and writing): "rub", the specification's, which Niantic's library
+and Scaniverse write; and "rdf", the INRIA PLY's own axes, which PlayCanvas's
+splat-transform (and so SuperSplat) writes and reads with no mark in the file
+(``src/lib/spz-module.ts``: ``from: CoordinateSystem.UNSPECIFIED`` on data kept in PLY
+axes; ``readers/read-spz.ts`` decodes without conversion). Nothing in such a file tells
+the two apart, so the reader is told; a declaration in the file wins over it. The
+writer writes no extension for either, like splat-transform, so what it writes in
+"rdf" reads in splat-transform as that tool's own files do.
+
 Decisions:
 
 - Version 1 (float16 positions, never released by the owners) is read; versions
@@ -73,6 +83,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from raygs_viewer.errors import UserError
 from raygs_viewer.scene.model import sh_coefficient_count
 
 SPZ_MAGIC = 0x5053474E
@@ -82,6 +93,10 @@ LATEST_VERSION = 4
 COORDINATE_SYSTEMS = ("LDB", "RDB", "LUB", "RUB", "LDF", "RDF", "LUF", "RUF",
                       "LFD", "RFD", "LFU", "RFU", "LBD", "RBD", "LBU", "RBU")
 RUB, RDF = 4, 6
+#: The conventions for a .spz that declares no coordinate system (see the module's
+#: "Axes"), the first the default: the specification's.
+SPZ_AXES = ("rub", "rdf")
+DEFAULT_SPZ_AXES = SPZ_AXES[0]
 #: Which of x, y, z each SH basis function k = 1..15 (INRIA's order, ``scene/sh.py``)
 #: is odd in: flipping an axis negates the coefficient once per odd axis.
 _SH_PARITY = np.array([
@@ -122,6 +137,14 @@ class Layout:
     @property
     def row_bytes(self) -> int:
         return self.position_bytes + 7 + self.rotation_bytes + 3 * self.sh_dim
+
+
+def spz_axes_system(spz_axes: str) -> int:
+    """The coordinate system (an index into COORDINATE_SYSTEMS, from 1) of a convention
+    of :data:`SPZ_AXES`; a UserError for any other value."""
+    if spz_axes not in SPZ_AXES:
+        raise UserError(f"unknown .spz axes convention {spz_axes!r} (expected {' or '.join(SPZ_AXES)})")
+    return COORDINATE_SYSTEMS.index(spz_axes.upper()) + 1
 
 
 def axis_flips(source: int, target: int) -> np.ndarray:

@@ -18,7 +18,7 @@ import zstandard
 
 from raygs_viewer.scene.progress import Reporter
 from raygs_viewer.scene.reading import file_error
-from raygs_viewer.scene.spz_format import COORDINATE_SYSTEMS, LATEST_VERSION, RUB, SPZ_MAGIC, Layout
+from raygs_viewer.scene.spz_format import COORDINATE_SYSTEMS, LATEST_VERSION, SPZ_MAGIC, Layout
 
 GZIP_MAGIC = b"\x1f\x8b"
 #: More gaussians than any shared scene holds (the largest are a few tens of millions);
@@ -39,7 +39,8 @@ _NGSP_HEADER = struct.Struct("<IIIBBBBI12x")
 
 def read_spz_file(path, shown: str, report: Reporter, chunk: int) -> tuple[Layout, np.ndarray, int]:
     """The header's layout, the packed arrays' bytes (uint8, in the file's order) and the
-    coordinate system they are stored in (an index into COORDINATE_SYSTEMS, from 1)."""
+    coordinate system the file declares they are stored in (an index into
+    COORDINATE_SYSTEMS, from 1; 0 when it declares none: the reader's convention decides)."""
     size = os.path.getsize(path)
     with open(path, "rb") as f:
         magic = f.read(4)
@@ -246,10 +247,10 @@ def _extension_records(data: bytes) -> dict[int, bytes]:
 def _coordinate_system(extensions: dict[int, bytes], shown: str) -> int:
     payload = extensions.get(_EXT_COORDINATE_SYSTEM)
     if payload is None or len(payload) < 4:
-        return RUB
+        return 0
     system = struct.unpack_from("<I", payload)[0]
-    if system == 0:  # UNSPECIFIED: the owners fall back to RUB
-        return RUB
+    if system == 0:  # UNSPECIFIED: as if no extension (the owners fall back to RUB, splat-transform to RDF)
+        return 0
     if system > len(COORDINATE_SYSTEMS):
         raise file_error(shown, f"corrupt .spz: unknown coordinate system {system} in its extension")
     if system > 8:

@@ -13,7 +13,8 @@
   rounded), the quaternion as four bytes ``q * 128 + 128`` rounded and clipped. SH
   beyond the DC term is lost.
 - ``.spz``: :func:`raygs_viewer.scene.spz_file.spz_bytes` (Niantic's format, version 3
-  or 4).
+  or 4), in the axes of ``spz_axes``: "rub" (the specification's) or "rdf" (the PLY's
+  own, as splat-transform writes them).
 
 :func:`write_scene` picks the format by suffix and writes atomically through
 :mod:`raygs_viewer.files`: a temporary beside the target moved into place, never over
@@ -34,6 +35,7 @@ from raygs_viewer.files import atomic_writer
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
 from raygs_viewer.scene.sh import C0
 from raygs_viewer.scene.spz_file import DC_LIMIT, LOG_SCALE_RANGE, spz_bytes
+from raygs_viewer.scene.spz_format import DEFAULT_SPZ_AXES, spz_axes_system
 
 #: The suffixes :func:`write_scene` writes.
 WRITE_SUFFIXES = (".ply", ".splat", ".spz")
@@ -175,11 +177,14 @@ def write_splat(scene: Scene, path: str | os.PathLike, overwrite: bool = False) 
     return _write(path, splat_chunks(scene), overwrite)
 
 
-def write_scene(scene: Scene, path: str | os.PathLike, overwrite: bool = False, spz_version: int = 3) -> Path:
+def write_scene(scene: Scene, path: str | os.PathLike, overwrite: bool = False, spz_version: int = 3,
+                spz_axes: str = DEFAULT_SPZ_AXES) -> Path:
     """Writes ``scene`` in the format its suffix names (:data:`WRITE_SUFFIXES`), through
     a temporary beside ``path`` moved into place; an existing ``path`` is replaced only
-    with ``overwrite``. One-line UserError for an unknown suffix, an existing file, a
-    missing folder or a failed write."""
+    with ``overwrite``. A ``.spz`` stores the axes of ``spz_axes`` ("rub" or "rdf").
+    One-line UserError for an unknown suffix, an unknown ``spz_axes``, an existing file,
+    a missing folder or a failed write."""
+    spz_axes_system(spz_axes)
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in WRITE_SUFFIXES:
@@ -191,7 +196,7 @@ def write_scene(scene: Scene, path: str | os.PathLike, overwrite: bool = False, 
     if spz_version not in SPZ_VERSIONS:
         raise UserError(f"{path}: .spz version {spz_version} is not written (versions {SPZ_VERSIONS[0]} "
                         f"and {SPZ_VERSIONS[1]} are)")
-    return _write(path, [spz_bytes(scene, spz_version)], overwrite)
+    return _write(path, [spz_bytes(scene, spz_version, spz_axes)], overwrite)
 
 
 def _write(path: str | os.PathLike, chunks, overwrite: bool) -> Path:

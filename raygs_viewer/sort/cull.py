@@ -59,6 +59,7 @@ class CullRequest:
     keys: tuple[str, ...]   # keys whose values the pass computes
     candidates: bool        # distance over every candidate (to be cached), not the visible ones
     centre: np.ndarray | None  # (3,) float32 camera centre: the distance key's C
+    chunks: np.ndarray | None = None  # (C, 2) int64 [start, stop) rows of each chunk; None: the whole scene
 
 
 class Support(NamedTuple):
@@ -108,14 +109,15 @@ class Cull:
 
     def request(self, camera: Camera, p_min: float, dilation: float | None,
                 cull_cameras: Sequence[Camera] | None, keys: tuple[str, ...], candidates: bool,
-                centre: np.ndarray | None) -> CullRequest:
+                centre: np.ndarray | None, spans: np.ndarray | None = None) -> CullRequest:
         """The pass for these arguments (see ``DepthSorter.cull`` for what they mean)."""
         cameras = list(cull_cameras or (camera,))
         same = [c for c in cameras if np.array_equal(c.R, camera.R) and np.array_equal(c.t, camera.t)]
         if same:  # its mu is the last one computed: the depth key reads it
             cameras.remove(same[0])
             cameras.append(same[0])
-        return CullRequest(camera, p_min, dilation, tuple(cameras), bool(same), keys, candidates, centre)
+        chunks = None if spans is None else span_chunks(spans, self.chunk_rows)
+        return CullRequest(camera, p_min, dilation, tuple(cameras), bool(same), keys, candidates, centre, chunks)
 
     def pieces(self, request: CullRequest, run: Runner) -> list[Piece]:
         """The pass over every chunk, the chunks handed out by ``run``: one
@@ -123,7 +125,11 @@ class Cull:
         self.support(request.p_min)  # once, before the threads read it
         if self.union is None:
             self.union = np.empty(self.count, bool)
-        count = -(-self.count // self.chunk_rows)
+        if request.chunks is None:
+            count = -(-self.count // self.chunk_rows)
+        else:
+            self.union.fill(False)  # rows outside the spans were not kept: a cached order drops them
+            count = request.chunks.shape[0]
         return run(lambda index: self._chunk(index, request), count)
 
     def _scratch(self) -> "_Scratch":
@@ -134,8 +140,11 @@ class Cull:
         return scratch
 
     def _chunk(self, index: int, request: CullRequest) -> Piece:
-        start = index * self.chunk_rows
-        stop = min(start + self.chunk_rows, self.count)
+        if request.chunks is None:
+            start = index * self.chunk_rows
+            stop = min(start + self.chunk_rows, self.count)
+        else:
+            start, stop = (int(v) for v in request.chunks[index])
         rows, n = slice(start, stop), stop - start
         scratch = self._scratch()
         union = scratch.union[:n]
@@ -216,6 +225,17 @@ class Cull:
                 product += term
                 np.greater(product, radius, out=test)
                 keep &= test
+
+
+def span_chunks(spans: np.ndarray, chunk_rows: int) -> np.ndarray:
+    """(C, 2) int64: ``spans`` ((S, 2) ascending [start, stop) rows) cut into chunks of
+    at most ``chunk_rows``, in order."""
+    spans = np.asarray(spans, np.int64).reshape(-1, 2)
+    lengths = spans[:, 1] - spans[:, 0]
+    pieces = np.maximum(0, -(-lengths // chunk_rows))
+    first = np.repeat(spans[:, 0], pieces) + chunk_rows * (np.arange(int(pieces.sum()))
+                                                           - np.repeat(np.cumsum(pieces) - pieces, pieces))
+    return np.stack([first, np.minimum(first + chunk_rows, np.repeat(spans[:, 1], pieces))], axis=1)
 
 
 def _range(values: np.ndarray) -> tuple[float, float]:

@@ -123,17 +123,20 @@ class DepthSorter(Closable):
 
     def order(self, camera: Camera, p_min: float, method: SortMethod = "auto", *,
               dilation: float | None = 0.0, cull_cameras: Sequence[Camera] | None = None,
-              key: SortKey = "depth") -> np.ndarray:
+              key: SortKey = "depth", spans: np.ndarray | None = None) -> np.ndarray:
         """(M,) uint32 indices of the gaussians that may be visible, back to front by
         ``key``: what :meth:`orders` returns for it (see there and :meth:`cull`)."""
-        return self.orders(camera, p_min, method, dilation=dilation, cull_cameras=cull_cameras, keys=(key,))[key]
+        return self.orders(camera, p_min, method, dilation=dilation, cull_cameras=cull_cameras, keys=(key,),
+                           spans=spans)[key]
 
     def orders(self, camera: Camera, p_min: float, method: SortMethod = "auto", *,
                dilation: float | None = 0.0, cull_cameras: Sequence[Camera] | None = None,
-               keys: Sequence[SortKey] = ("depth",)) -> dict[str, np.ndarray]:
+               keys: Sequence[SortKey] = ("depth",), spans: np.ndarray | None = None) -> dict[str, np.ndarray]:
         """{key: (M,) uint32 order} for each distinct key of ``keys``, one cull for all
         (the A/B split view may show two keys of one view). The cull is :meth:`cull`'s;
         each order holds its gaussians back to front by that key, ties in scene order.
+        ``spans``: (S, 2) ascending [start, stop) rows: only these are culled and sorted
+        (a level-of-detail choice, ``sort.lod_choice``); None: the whole scene.
 
         ``method``: "radix" quantises the key to 16 bits (depth over the visible depths,
         distance over the distances of every gaussian with opacity > p_min), so keys
@@ -147,11 +150,11 @@ class DepthSorter(Closable):
         with self._lock:
             begin = time.perf_counter()
             centre = snapped_centre(camera, self._cull.coordinate_scale)
-            turn = turn_of(centre, p_min, method)
+            turn = turn_of(centre, p_min, method, spans)
             kept = self._turns.kept(turn) if "distance" in keys else None
             keep = "distance" in keys and kept is None and self._turns.worth_keeping(turn)
             computed = tuple(key for key in keys if not (key == "distance" and kept is not None))
-            request = self._cull.request(camera, p_min, dilation, cull_cameras, computed, keep, centre)
+            request = self._cull.request(camera, p_min, dilation, cull_cameras, computed, keep, centre, spans)
             pieces = self._cull.pieces(request, self._pool.run)
             culled = time.perf_counter()
             result = {}
@@ -171,7 +174,7 @@ class DepthSorter(Closable):
             return result
 
     def cull(self, camera: Camera, p_min: float, *, dilation: float | None = 0.0,
-             cull_cameras: Sequence[Camera] | None = None) -> np.ndarray:
+             cull_cameras: Sequence[Camera] | None = None, spans: np.ndarray | None = None) -> np.ndarray:
         """(M,) int64 indices, ascending, of the gaussians that may be visible.
 
         A gaussian is dropped only when it cannot reach any pixel: opacity <= p_min
@@ -188,7 +191,7 @@ class DepthSorter(Closable):
         if self._cull.count == 0:
             return np.zeros(0, np.int64)
         with self._lock:
-            request = self._cull.request(camera, p_min, dilation, cull_cameras, (), False, None)
+            request = self._cull.request(camera, p_min, dilation, cull_cameras, (), False, None, spans)
             pieces = self._cull.pieces(request, self._pool.run)
             return np.concatenate([piece.visible for piece in pieces]).astype(np.int64)
 

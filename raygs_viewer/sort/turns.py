@@ -16,12 +16,13 @@ import numpy as np
 from raygs_viewer.sort.keys import SortMethod
 from raygs_viewer.sort.pool import Runner
 
-#: What a distance order is reused for: (bytes of the snapped centre, p_min, method).
-Turn = tuple[bytes, float, str]
+#: What a distance order is reused for: (bytes of the snapped centre, p_min, method,
+#: bytes of the spans culled: a level-of-detail choice changes the candidates).
+Turn = tuple[bytes, float, str, bytes]
 
 
-def turn_of(centre: np.ndarray, p_min: float, method: SortMethod) -> Turn:
-    return (centre.tobytes(), float(p_min), method)
+def turn_of(centre: np.ndarray, p_min: float, method: SortMethod, spans: np.ndarray | None = None) -> Turn:
+    return (centre.tobytes(), float(p_min), method, b"" if spans is None else np.asarray(spans, np.int64).tobytes())
 
 
 class TurnCache:

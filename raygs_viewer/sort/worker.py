@@ -24,6 +24,7 @@ import numpy as np
 from raygs_viewer.camera.pinhole import Camera, camera_key
 from raygs_viewer.errors import one_line
 from raygs_viewer.sort.closing import Closable
+from raygs_viewer.sort.lod_choice import LodChoice, LodRequest
 
 __all__ = ["BackgroundSorter", "SortResult", "Sorter"]
 
@@ -56,6 +57,7 @@ class SortResult:
     requested_at, finished_at: ``time.perf_counter()`` when the request was queued and
              when its sort finished: the drawn order's age is ``perf_counter() - requested_at``
              (it shows the view as it was then), its latency ``finished_at - requested_at``.
+    lod:     the level-of-detail choice the orders hold (None: the whole scene); its age is the order's.
     """
 
     order: np.ndarray
@@ -68,6 +70,7 @@ class SortResult:
     orders: Mapping[str, np.ndarray] = field(default_factory=dict)
     requested_at: float = 0.0
     finished_at: float = 0.0
+    lod: LodChoice | None = None
 
     @property
     def keys(self) -> tuple[str, ...]:
@@ -87,6 +90,7 @@ class _Request:
     cull_cameras: tuple[Camera, ...] | None
     keys: tuple[str, ...]
     requested_at: float
+    lod: LodRequest | None = None
 
 
 def _dilation(value: float | None) -> float | None:
@@ -102,11 +106,13 @@ def _keys(keys: Sequence[str]) -> tuple[str, ...]:
 
 
 def _view_key(camera: Camera, p_min: float, dilation: float | None = 0.0,
-              cull_cameras: tuple[Camera, ...] | None = None, keys: Sequence[str] = ("depth",)) -> tuple:
+              cull_cameras: tuple[Camera, ...] | None = None, keys: Sequence[str] = ("depth",),
+              lod: LodRequest | None = None) -> tuple:
     """Everything the orders depend on, as exact values: equal keys give equal orders
     (a dilation of None, no frustum culling, differs from every number)."""
     culled_for = None if cull_cameras is None else tuple(camera_key(c) for c in cull_cameras)
-    return camera_key(camera) + (float(p_min), _dilation(dilation), culled_for, _keys(keys))
+    return camera_key(camera) + (float(p_min), _dilation(dilation), culled_for, _keys(keys),
+                                 None if lod is None else lod.key)
 
 
 def _snapshot(camera: Camera) -> Camera:
@@ -156,7 +162,8 @@ class BackgroundSorter(Closable):
     # ------------------------------------------------------------------ frame-loop side
 
     def request(self, camera: Camera, p_min: float, dilation: float | None = 0.0,
-                cull_cameras: tuple[Camera, ...] | None = None, keys: Sequence[str] = ("depth",)) -> int:
+                cull_cameras: tuple[Camera, ...] | None = None, keys: Sequence[str] = ("depth",),
+                lod: LodRequest | None = None) -> int:
         """Non-blocking. Queues a sort for this view and returns its serial; a request
         not yet started is replaced by the newer one (only the newest view matters). A
         request equal to the last one queued (same camera R, t, intrinsics, p_min,
@@ -165,10 +172,11 @@ class BackgroundSorter(Closable):
         :meth:`raygs_viewer.render.settings.RenderSettings.cull_dilation`), and ``cull_cameras``
         (stereo: both eyes; None: ``camera``) likewise. ``keys``: the sort keys whose
         orders the result must hold ("depth", "distance"; culled once, sorted once per
-        distinct key; another set of keys is another request). Raises RuntimeError after
-        :meth:`close`."""
+        distinct key; another set of keys is another request). ``lod``: choose the levels
+        of a streamed scene for the view first and cull and sort only those
+        (``SortResult.lod``). Raises RuntimeError after :meth:`close`."""
         keys = _keys(keys)
-        key = _view_key(camera, p_min, dilation, cull_cameras, keys)
+        key = _view_key(camera, p_min, dilation, cull_cameras, keys, lod)
         with self._cond:
             if self._closed:
                 raise RuntimeError("BackgroundSorter.request after close()")
@@ -180,7 +188,7 @@ class BackgroundSorter(Closable):
                 self.superseded += 1
             cull = None if cull_cameras is None else tuple(_snapshot(c) for c in cull_cameras)
             self._pending = _Request(self.requested, _snapshot(camera), float(p_min), _dilation(dilation), cull,
-                                     keys, time.perf_counter())
+                                     keys, time.perf_counter(), lod)
             self._last_key = key
             self._cond.notify_all()
             return self.requested
@@ -239,8 +247,10 @@ class BackgroundSorter(Closable):
                 self.started += 1
             begin = time.perf_counter()
             try:
+                choice = None if request.lod is None else request.lod.choose(request.camera)
+                spans = {} if choice is None else {"spans": choice.spans}
                 sorted_ = self._sorter.orders(request.camera, request.p_min, dilation=request.dilation,
-                                              cull_cameras=request.cull_cameras, keys=request.keys)
+                                              cull_cameras=request.cull_cameras, keys=request.keys, **spans)
                 orders = {key: np.asarray(sorted_[key], dtype=np.uint32) for key in request.keys}
             except Exception as exc:  # reported in .error; the thread must keep serving
                 with self._cond:
@@ -252,7 +262,7 @@ class BackgroundSorter(Closable):
             finished = time.perf_counter()
             result = SortResult(orders[request.keys[0]], request.serial, request.camera, request.p_min,
                                 finished - begin, request.dilation, request.cull_cameras, orders,
-                                request.requested_at, finished)
+                                request.requested_at, finished, choice)
             with self._cond:
                 self._latest = result
                 self.finished += 1

@@ -102,7 +102,7 @@ class Viewer:
         self.view_mode = ViewMode()
         self.panel = PanelState()
         self.stats = FrameStats()
-        self.scenes = SceneOpener(self.panel)
+        self.scenes = SceneOpener(self.panel, options.spz_axes)
         self.window.set_drop_callback(self.scenes.drop)
         self.drawer = SceneDrawer(self.ctx)
         self.photo = PhotoCompare(self.ctx, options.images)
@@ -282,8 +282,10 @@ class Viewer:
         stereo, the headset's per eye), the render settings (the left side's), the
         stereo view when the preview is on, the scene."""
         width, height = (self.camera.width, self.camera.height) if self.camera is not None else self.viewport[2:]
+        axes = self.loaded.scene.axes  # a .spz's: render-path reads it in the same axes
         return PathDocument(path, width, height, self.settings, self.shown_stereo,
-                            scene_argument(self.loaded), self.loaded.sha256)
+                            scene_argument(self.loaded), self.loaded.sha256,
+                            scene_spz_axes=None if axes is None else axes.assumed)
 
     # -- loop ------------------------------------------------------------------------
     def run(self) -> None:
@@ -329,7 +331,8 @@ def panel_sections(viewer: Viewer) -> list[Callable[[], None]]:
     loaded, renderer, view, stats = viewer.loaded, viewer.renderer, viewer.view, viewer.stats
     return [
         lambda: draw_statistics(stats, loaded.scene.count, viewer.sorter, renderer.counters, renderer.general),
-        lambda: draw_scene_section(loaded, viewer.panel, viewer.scenes.open, viewer.scenes.loader),
+        lambda: draw_scene_section(loaded, viewer.panel, viewer.scenes.open, viewer.scenes.loader,
+                                   lambda axes: viewer.scenes.switch_spz_axes(loaded, axes)),
         lambda: draw_render_section(viewer.settings, viewer.set_settings, loaded.scene.sh_degree, renderer.supports,
                                     viewer.window, viewer.stereo, viewer.split, viewer.panel.note),
         lambda: draw_order_section(viewer.settings, viewer.set_settings, stats, viewer.right_settings() is not None),
@@ -367,7 +370,7 @@ def run_viewer(options: ViewerOptions, progress: ProgressCallback | None = None)
         if not options.window_screenshot.lower().endswith(".png"):
             raise UserError(f"{options.window_screenshot}: the window screenshot must be a .png")
         check_output_path(options.window_screenshot)
-    loaded = load_now(options.scene, options.cameras, progress)
+    loaded = load_now(options.scene, options.cameras, progress, spz_axes=options.spz_axes)
     for warning in loaded.warnings:
         print(f"warning: {warning}", flush=True)
     viewer = Viewer(options, loaded, start_camera(options))

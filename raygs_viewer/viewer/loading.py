@@ -1,6 +1,7 @@
 """Opening scenes while the window runs: a path from the panel or files dropped on the
 window load in the background; the current scene stays until the new one is on the
-GPU, and the panel's lines say how it went."""
+GPU, and the panel's lines say how it went. A ``.spz`` opens in the axes the opener's
+``spz_axes`` names; switching them reads the current one again."""
 
 from __future__ import annotations
 
@@ -11,6 +12,7 @@ import moderngl
 
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.scene.loader import LoadedScene, SceneLoader
+from raygs_viewer.scene.spz_format import DEFAULT_SPZ_AXES
 from raygs_viewer.viewer.state import PanelState
 
 
@@ -19,21 +21,32 @@ def scene_title(path: str) -> str:
 
 
 class SceneOpener:
-    """``loader`` does the loading; ``panel`` gets the message and error lines."""
+    """``loader`` does the loading; ``panel`` gets the message and error lines;
+    ``spz_axes`` ("rub" or "rdf") is how a .spz that declares no axes is read."""
 
-    def __init__(self, panel: PanelState):
+    def __init__(self, panel: PanelState, spz_axes: str = DEFAULT_SPZ_AXES):
         self.panel = panel
         self.loader = SceneLoader()
+        self.spz_axes = spz_axes
 
-    def open(self, path: str) -> None:
-        """Starts loading ``path`` in the background."""
+    def open(self, path: str, cameras: str | None = None) -> None:
+        """Starts loading ``path`` in the background (with ``cameras``, a cameras.json,
+        instead of one found beside it)."""
         path = path.strip()
         if not path:
             self.panel.error = "error: no file given"
             return
         self.panel.error = ""
         self.panel.message = f"loading {path} ..."
-        self.loader.start(path)
+        self.loader.start(path, cameras, self.spz_axes)
+
+    def switch_spz_axes(self, loaded: LoadedScene, spz_axes: str) -> None:
+        """Reads ``loaded`` again in ``spz_axes`` when it is a .spz (with the cameras it
+        has), and opens later ones so."""
+        self.spz_axes = spz_axes
+        if loaded.scene.axes is not None:
+            self.open(loaded.path, loaded.cameras_path)
+            self.panel.message = f"reading {scene_title(loaded.path)} again in {spz_axes.upper()} axes ..."
 
     def drop(self, paths: list[str]) -> None:
         """Files dropped on the window: the first is opened."""

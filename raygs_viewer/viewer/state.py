@@ -27,6 +27,7 @@ from raygs_viewer.camera.stereo import (
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.channel_pictures import ChannelView
 from raygs_viewer.render.settings import RenderSettings, apply_preset
+from raygs_viewer.scene.spz_format import DEFAULT_SPZ_AXES
 
 #: The right side's preset when the split view is first switched on.
 DEFAULT_SPLIT_PRESET = "GS"
@@ -232,7 +233,9 @@ class ViewerOptions:
     null without a display). general: the all-features shader variant
     (GLRenderer(general=)), to compare. stereo: the stereo preview's start value.
     images: the training photos' folder for the Photo view (None: the one the model
-    folder's cfg_args names).
+    folder's cfg_args names). spz_axes: the axes a .spz that declares none is read in
+    ("rub" or "rdf"); the panel's Scene section switches them (loading.SceneOpener
+    holds the current choice).
     """
 
     scene: str = "demo"
@@ -252,3 +255,4 @@ class ViewerOptions:
     general: bool = False
     stereo: StereoPreview = field(default_factory=StereoPreview)
     images: str | None = None
+    spz_axes: str = DEFAULT_SPZ_AXES

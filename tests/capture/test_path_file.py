@@ -83,7 +83,7 @@ def assert_same_path(a: CameraPath, b: CameraPath):
 def assert_same_document(a: PathDocument, b: PathDocument):
     assert_same_path(a.path, b.path)
     for name in ("width", "height", "settings", "stereo", "scene_path", "scene_sha256", "scene_count",
-                 "scene_sh_degree", "kind"):
+                 "scene_sh_degree", "scene_spz_axes", "kind"):
         assert getattr(a, name) == getattr(b, name), name
 
 
@@ -98,7 +98,10 @@ def assert_same_document(a: PathDocument, b: PathDocument):
     {"path": make_path(loop=True)},
     {"path": make_path(count=1)},
     {"scene_sha256": None, "scene_count": None},
-], ids=["mono", "stereo", "anaglyph_gs", "no_scene_no_settings", "loop", "one_keyframe", "unknown_hash"])
+    {"scene_path": "/scenes/st.spz", "scene_spz_axes": "rdf"},
+    {"scene_path": "/scenes/niantic.spz", "scene_spz_axes": "rub"},
+], ids=["mono", "stereo", "anaglyph_gs", "no_scene_no_settings", "loop", "one_keyframe", "unknown_hash", "spz_rdf",
+        "spz_rub"])
 def test_round_trip_is_bit_identical(tmp_path, changes):
     doc = make_doc(**changes)
     file = save_path_document(doc, tmp_path / "fly.json")
@@ -135,6 +138,9 @@ def test_the_files_fields(tmp_path):
     created = datetime.strptime(data["created"], "%Y-%m-%dT%H:%M:%SZ").replace(tzinfo=timezone.utc)
     assert abs((datetime.now(timezone.utc) - created).total_seconds()) < 3600  # UTC, not local time
     assert data["scene"] == {"path": "demo", "sha256": SHA, "count": 1234, "sh_degree": 3}  # no relative path
+    # A .spz's axes only where they were recorded: older readers refuse the key (strict keys).
+    assert path_document_json(make_doc(scene_spz_axes="rdf"))["scene"]["spz_axes"] == "rdf"
+    assert load_path_document(file).scene_spz_axes is None
     assert data["image"] == {"width": 64, "height": 48}  # each eye's: the frames are composed
     assert data["settings"] == json.loads(json.dumps(dataclasses.asdict(SETTINGS)))
     assert data["stereo"] == stereo_entry(STEREO)
@@ -237,6 +243,8 @@ MALFORMED = {
     "scene_count_float": (set_field("scene.count", 1.5), "'scene.count'"),
     "scene_sh_degree_four": (set_field("scene.sh_degree", 4), "'scene.sh_degree'"),
     "scene_relative_number": (set_field("scene.relative_path", 2), "'scene.relative_path'"),
+    "scene_spz_axes_unknown": (set_field("scene.spz_axes", "luf"), "'scene.spz_axes' must be \"rub\" or \"rdf\""),
+    "scene_spz_axes_number": (set_field("scene.spz_axes", 1), "'scene.spz_axes'"),
     "image_missing": (delete_field("image"), "missing 'image'"),
     "image_list": (set_field("image", [64, 48]), "'image'"),
     "image_width_missing": (delete_field("image.width"), "missing 'image.width'"),

@@ -32,7 +32,7 @@ from testkit import (
 import raygs_viewer
 import raygs_viewer.capture.sidecar as sidecar_module
 from raygs_viewer.camera.lens_model import LensModel
-from raygs_viewer.camera.pinhole import Camera, look_at
+from raygs_viewer.camera.pinhole import Camera, frame_points, look_at
 from raygs_viewer.camera.stereo import PRESETS, Quantity, StereoRig, StereoView, rig_field
 from raygs_viewer.capture.image_io import encode_image
 from raygs_viewer.capture.screenshot import render_tiled, save_screenshot, scaled_camera
@@ -119,7 +119,7 @@ def test_build_sidecar_fields(tmp_path, monkeypatch):
                          settings=RenderSettings(), scale=1.5, window_camera=window_camera(),
                          extra={"up_axis": "-y", "navigation": "orbit"})
     # Mono sidecars keep version 1, so that older readers still read them.
-    assert data["format"] == SIDECAR_FORMAT and data["version"] == 1 and SIDECAR_VERSION == 3
+    assert data["format"] == SIDECAR_FORMAT and data["version"] == 1 and SIDECAR_VERSION == 4
     assert data["program"] == {"name": "raygs-viewer", "version": raygs_viewer.__version__}
     created = datetime.fromisoformat(data["created"].replace("Z", "+00:00"))
     assert created.tzinfo is not None and created.utcoffset().total_seconds() == 0
@@ -250,7 +250,7 @@ MALFORMED = {
     "cameras_json": (json.dumps([{"width": 4}]), "not a raygs-viewer screenshot sidecar"),
     "no_format": (delete_field("format"), "'format'"),
     "wrong_format": (set_field("format", "something else"), "not a raygs-viewer screenshot sidecar"),
-    "newer_version": (set_field("version", 4), "newer raygs-viewer"),
+    "newer_version": (set_field("version", SIDECAR_VERSION + 1), "newer raygs-viewer"),
     "version_zero": (set_field("version", 0), "'version'"),
     "version_string": (set_field("version", "1"), "'version'"),
     "version_bool": (set_field("version", True), "'version'"),
@@ -351,7 +351,8 @@ def test_malformed_sidecar_cli(capsys, tmp_path, case):
 
 def test_newer_version_says_so(tmp_path):
     path = write_malformed(tmp_path, "newer_version")
-    assert_user_error(lambda: load_sidecar(path), path, "version 4", "newer raygs-viewer", "update")
+    assert_user_error(lambda: load_sidecar(path), path, f"version {SIDECAR_VERSION + 1}", "newer raygs-viewer",
+                      "update")
 
 
 def test_the_valid_sidecar_behind_the_cases_loads(tmp_path):
@@ -734,3 +735,64 @@ def test_malformed_channel_view_is_one_line_user_error(tmp_path, case):
     change(data)
     path = write_json(tmp_path / "shot.json", data)
     assert_user_error(lambda: load_sidecar(path), path, fragment)
+
+
+# --------------------------------------------------------------------------- a .spz's axes
+
+
+def spz_scene_file(tmp_path, spz_axes="rdf"):
+    """A .spz of 40 gaussians written in ``spz_axes``, as splat-transform writes "rdf"."""
+    from raygs_viewer.scene.writing import write_scene
+    scene = load_scene(write_inria_ply(tmp_path / "source.ply", n=40, seed=5))
+    return write_scene(scene, tmp_path / f"scene-{spz_axes}.spz", spz_axes=spz_axes)
+
+
+def test_a_spz_scene_records_the_axes_it_was_read_in(tmp_path):
+    spz = spz_scene_file(tmp_path)
+    for axes, version in (("rub", 1), ("rdf", 4)):
+        scene = load_scene(spz, spz_axes=axes)
+        data = build_sidecar(scene_path=str(spz), scene_sha256=scene_sha256(spz), scene=scene,
+                             camera=window_camera(40, 30), settings=RenderSettings(), scale=1.0)
+        # "rdf" needs version 4: a reader without the key would show the scene upside down.
+        assert data["scene"]["spz_axes"] == axes and data["version"] == version
+        assert load_sidecar(write_json(tmp_path / f"{axes}.json", data)).spz_axes == axes
+    ply = load_scene(tmp_path / "source.ply")
+    data = build_sidecar(scene_path=str(tmp_path / "source.ply"), scene_sha256="0" * 64, scene=ply,
+                         camera=window_camera(40, 30), settings=RenderSettings(), scale=1.0)
+    assert "spz_axes" not in data["scene"]
+    # Older sidecars, and other scenes, read as the specification's axes.
+    assert load_sidecar(write_json(tmp_path / "ply.json", data)).spz_axes == "rub"
+    assert load_sidecar(write_json(tmp_path / "d.json", demo_sidecar())).spz_axes == "rub"
+
+
+@pytest.mark.parametrize("change,fragment", [
+    ({"spz_axes": "up"}, "'scene.spz_axes' must be \"rub\" or \"rdf\", got \"up\""),
+    ({"spz_axes": 6}, "'scene.spz_axes'"),
+    ({"spz_axes": "rdf", "version": 3}, "'scene.spz_axes' rdf needs sidecar version 4"),
+])
+def test_a_bad_spz_axes_entry_is_one_line(tmp_path, change, fragment):
+    data = demo_sidecar()
+    data["scene"]["spz_axes"] = change["spz_axes"]
+    data["version"] = change.get("version", SIDECAR_VERSION)
+    path = write_json(tmp_path / "bad.json", data)
+    assert_user_error(lambda: load_sidecar(path), path, fragment)
+
+
+def test_render_sidecar_reads_the_spz_in_its_recorded_axes(capsys, tmp_path):
+    spz = spz_scene_file(tmp_path)
+    rdf, rub = load_scene(spz, spz_axes="rdf"), load_scene(spz)
+    camera = frame_points(rdf.positions, 48, 36)
+    data = build_sidecar(scene_path=str(spz), scene_sha256=scene_sha256(spz), scene=rdf, camera=camera,
+                         settings=RenderSettings(), scale=1.0)
+    js = write_json(tmp_path / "shot.json", data)
+    out = tmp_path / "again.npy"
+    code, _, err = run_cli(capsys, "render", "--sidecar", js, "--reference", "--out", out)
+    assert code == 0, err
+    expected = render_reference(rdf, camera, RenderSettings())
+    np.testing.assert_array_equal(np.load(out), expected.astype(np.float32))
+    assert np.abs(expected - render_reference(rub, camera, RenderSettings())).max() > 0.1  # the axes matter
+    # The sidecar says how: an explicit --spz-axes is refused, whatever it says.
+    for axes in ("rdf", "rub"):
+        code, _, err = run_cli(capsys, "render", "--sidecar", js, "--spz-axes", axes, "--out", tmp_path / "x.png")
+        assert "drop --spz-axes" in assert_one_line_error(code, err)
+    assert not (tmp_path / "x.png").exists()

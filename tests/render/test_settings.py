@@ -24,8 +24,9 @@ def test_every_switch_takes_only_true_or_false(switch, value):
         RenderSettings(**{switch: value})
 
 
-def test_the_accuracy_fields_are_every_field_but_p_min_background_and_sh_degree():
-    assert set(ACCURACY_FIELDS) == {f.name for f in fields(RenderSettings)} - {"p_min", "background", "sh_degree"}
+def test_the_accuracy_fields_are_every_field_but_p_min_background_sh_degree_and_the_level_of_detail():
+    assert set(ACCURACY_FIELDS) == {f.name for f in fields(RenderSettings)} - {
+        "p_min", "background", "sh_degree", "lod", "lod_budget", "lod_distance"}
     assert set(SWITCHES) < set(ACCURACY_FIELDS)
 
 

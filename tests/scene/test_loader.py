@@ -377,9 +377,9 @@ class SteeredLoad:
         self.gate = threading.Event()
         self.saw_cancel = threading.Event()
 
-    def __call__(self, path, *, progress=None, cancel=None):
+    def __call__(self, path, *, progress=None, cancel=None, **options):
         if Path(path).name != "slow.ply":
-            return self.real(path, progress=progress, cancel=cancel)
+            return self.real(path, progress=progress, cancel=cancel, **options)
         progress(0.5, "reading")
         self.entered.set()
         if self.honour_cancel:
@@ -388,7 +388,7 @@ class SteeredLoad:
             raise UserError("loading cancelled")
         assert self.gate.wait(DEADLOCK), "the test never released the slow load"
         progress(0.9, "activating")  # a stale load must not move the new one's progress
-        return self.real(path, progress=progress, cancel=None)
+        return self.real(path, progress=progress, cancel=None, **options)
 
 
 @pytest.fixture

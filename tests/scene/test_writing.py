@@ -241,22 +241,30 @@ def test_write_scene_refuses_what_it_cannot_write(tmp_path):
     assert sorted(p.name for p in tmp_path.iterdir()) == ["folder.ply"]
 
 
-@pytest.mark.parametrize("version", [3, 4])
-def test_spz_goes_through_spz_bytes_with_its_version(tmp_path, monkeypatch, version):
+@pytest.mark.parametrize("version,axes", [(3, None), (4, None), (3, "rdf"), (4, "rub")])
+def test_spz_goes_through_spz_bytes_with_its_version_and_axes(tmp_path, monkeypatch, version, axes):
     """The dispatch alone (the .spz encoder is scene/spz_file.py's, tested there)."""
     calls = []
 
-    def fake_spz_bytes(scene, version):
-        calls.append((scene.count, version))
+    def fake_spz_bytes(scene, version, spz_axes):
+        calls.append((scene.count, version, spz_axes))
         return b"NGSP fake"
 
     monkeypatch.setattr(writing, "spz_bytes", fake_spz_bytes)
-    path = write_scene(random_scene(n=3, degree=0), tmp_path / "out.spz", spz_version=version)
-    assert calls == [(3, version)] and path.read_bytes() == b"NGSP fake"
+    given = {} if axes is None else {"spz_axes": axes}
+    path = write_scene(random_scene(n=3, degree=0), tmp_path / "out.spz", spz_version=version, **given)
+    assert calls == [(3, version, axes or "rub")] and path.read_bytes() == b"NGSP fake"
+
+
+def test_an_unknown_spz_axes_is_refused_before_writing(tmp_path):
+    for name in ("out.spz", "out.ply"):
+        assert_user_error(lambda: write_scene(random_scene(n=3, degree=0), tmp_path / name, spz_axes="lub"),
+                          "lub", "rub or rdf")
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_spz_writer_failure_leaves_nothing(tmp_path, monkeypatch):
-    def failing(scene, version):
+    def failing(scene, version, spz_axes):
         raise UserError("cannot encode")
 
     monkeypatch.setattr(writing, "spz_bytes", failing)

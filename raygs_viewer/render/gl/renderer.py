@@ -98,6 +98,9 @@ class GLRenderer:
         self._target: FloatTarget | None = None          # render()'s image, the latest size
         self._samples: FloatTarget | None = None         # supersampling and front to back
         self.geometry = GeometryOutputs(ctx)
+        #: (S, 2) int64 ascending [start, stop) rows that sorting and preprocessing cover
+        #: (a level-of-detail choice: :meth:`restrict`); None: the whole scene.
+        self.spans: np.ndarray | None = None
 
     def layout_for(self, settings: RenderSettings, geometry: bool = False) -> StorageLayout:
         """The storage layout of ``settings``' records (exact MIP's are larger, and
@@ -115,10 +118,20 @@ class GLRenderer:
                     f"which this GPU's OpenGL driver does not offer")
         return None
 
+    def restrict(self, spans: np.ndarray | None) -> None:
+        """Sort and preprocess only the rows of ``spans`` ((S, 2) ascending [start, stop);
+        None: every row) from now on: a streamed scene's chosen levels
+        (``sort.lod_choice``). Orders drawn must hold only those rows."""
+        if spans is not None:
+            spans = np.asarray(spans, np.int64).reshape(-1, 2)
+            if spans.size and (spans[0, 0] < 0 or spans[-1, 1] > self.scene.count):
+                raise ValueError("spans outside the scene")
+        self.spans = spans
+
     # -- per-frame passes ---------------------------------------------------------
     def sort(self, camera: Camera, settings: RenderSettings) -> np.ndarray:
         return self.sorter.order(camera, settings.p_min, dilation=settings.cull_dilation(camera),
-                                 key=settings.sort_key)
+                                 key=settings.sort_key, spans=self.spans)
 
     def preprocess(self, camera: Camera, settings: RenderSettings, frame: Camera | None = None,
                    color_origin: np.ndarray | None = None, geometry: bool = False) -> None:
@@ -129,7 +142,7 @@ class GLRenderer:
         centre; stereo shares the eyes' midpoint). ``geometry``: records with the normal."""
         origin = camera.center if color_origin is None else np.asarray(color_origin, np.float64)
         key = (camera_key(camera), settings, None if frame is None else camera_key(frame), origin.tobytes(),
-               geometry)
+               geometry, None if self.spans is None else self.spans.tobytes())
         if key == self._preprocessed_key:
             self.counters.preprocess_skipped += 1
             return
@@ -147,9 +160,11 @@ class GLRenderer:
         set_uniform(program, "u_intrinsics", (camera.fx, camera.fy, camera.cx, camera.cy))
         set_uniform(program, "u_ray_bounds", gs_ray_bounds(frame or camera))
         for chunk in self.storage.preprocess_chunks(layout, self.variants.colors_at_load(settings)):
-            program["u_count"].value = chunk.count
             program["u_out_offset"].value = chunk.offset
-            program.run(group_x=-(-chunk.count // WORKGROUP))
+            for first, count in chunk_runs(chunk.start, chunk.count, self.spans):
+                program["u_first"].value = first
+                program["u_count"].value = count
+                program.run(group_x=-(-count // WORKGROUP))
         self.ctx.memory_barrier()
         self.counters.preprocessed += 1
         self._preprocessed_key = key
@@ -315,6 +330,17 @@ class GLRenderer:
         self.variants.release()
         self.storage.release()
         self.sorter.close()  # its thread pool; a later sort runs on the calling thread
+
+
+def chunk_runs(start: int, count: int, spans: np.ndarray | None) -> list[tuple[int, int]]:
+    """(first, count) runs, relative to the chunk, of the chunk's rows ``start ..
+    start + count`` that ``spans`` cover (all of them for None)."""
+    if spans is None:
+        return [(0, count)]
+    lo = np.maximum(spans[:, 0], start)
+    hi = np.minimum(spans[:, 1], start + count)
+    keep = hi > lo
+    return [(int(a) - start, int(b - a)) for a, b in zip(lo[keep], hi[keep])]
 
 
 def gs_ray_bounds(camera: Camera) -> tuple[float, float, float, float]:

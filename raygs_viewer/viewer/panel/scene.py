@@ -1,5 +1,6 @@
 """The panel's Scene section: what is loaded, a path field to open another (or drop a
-file on the window), and the progress of a load under way."""
+file on the window), and the progress of a load under way. For a ``.spz``, the axes it
+was read in, with a switch between the two conventions when the file declares none."""
 
 from __future__ import annotations
 
@@ -9,14 +10,16 @@ from imgui_bundle import imgui
 
 from raygs_viewer.scene.io import SCENE_SUFFIXES
 from raygs_viewer.scene.loader import LoadedScene, SceneLoader
-from raygs_viewer.viewer.panel.widgets import header
+from raygs_viewer.scene.model import FileAxes
+from raygs_viewer.viewer.panel.widgets import checkbox, header
 from raygs_viewer.viewer.state import PanelState
 
 
 def draw_scene_section(loaded: LoadedScene, panel: PanelState, open_scene: Callable[[str], None],
-                       loader: SceneLoader) -> None:
+                       loader: SceneLoader, switch_axes: Callable[[str], None]) -> None:
     """``panel``: its path field; ``open_scene``: what Open (or Enter) does with it;
-    ``loader``: the background load whose progress is shown."""
+    ``loader``: the background load whose progress is shown; ``switch_axes(spz_axes)``:
+    reads the .spz again in the other convention."""
     if not header("Scene"):
         return
     scene = loaded.scene
@@ -25,6 +28,8 @@ def draw_scene_section(loaded: LoadedScene, panel: PanelState, open_scene: Calla
         imgui.text(scene.format)
     imgui.text(f"{scene.count:,} gaussians, SH degree {scene.sh_degree}, "
                f"3D filter {'fused' if scene.filter_fused else 'none'}")
+    if scene.axes is not None:
+        _draw_axes(scene.axes, switch_axes, loader.busy)
     entered, panel.open_path = imgui.input_text_with_hint(
         "##open", f"{' '.join(SCENE_SUFFIXES)} (or drop a file)", panel.open_path,
         imgui.InputTextFlags_.enter_returns_true.value)
@@ -33,3 +38,15 @@ def draw_scene_section(loaded: LoadedScene, panel: PanelState, open_scene: Calla
         open_scene(panel.open_path)
     if loader.busy:
         imgui.progress_bar(loader.progress, (-1, 0), loader.stage)
+
+
+def _draw_axes(axes: FileAxes, switch_axes: Callable[[str], None], busy: bool) -> None:
+    if axes.declared:  # the file's word wins: nothing to switch
+        imgui.text(f"axes: {axes.stored}, declared by the file")
+        return
+    # Nothing in such a file tells the conventions apart; a scene upside down is the sign.
+    rdf = checkbox("RDF axes (splat-transform's .spz)", axes.assumed == "rdf", not busy,
+                   "off: RUB, the .spz specification's (Niantic, Scaniverse); on: RDF, the PLY's own axes,\n"
+                   "which PlayCanvas's splat-transform and SuperSplat write. Switching reads the file again.")
+    if rdf != (axes.assumed == "rdf"):
+        switch_axes("rdf" if rdf else "rub")
