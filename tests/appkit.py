@@ -17,6 +17,7 @@ from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.loader import load_now
 from raygs_viewer.sort.worker import BackgroundSorter
 from raygs_viewer.viewer.app import Viewer, start_camera
+from raygs_viewer.viewer.lod_window import first_levels
 from raygs_viewer.viewer.state import ScreenshotOptions, ViewerOptions
 
 WIDTH, HEIGHT = 192, 144
@@ -320,8 +321,10 @@ def open_viewer_factory(tmp_path):
         options.setdefault("screenshots", ScreenshotOptions(folder=str(tmp_path / "shots")))
         factories = {name: options.pop(name) for name in ("renderer_factory", "sorter_factory") if name in options}
         viewer_options = ViewerOptions(scene=scene, platform="null", **options)
-        viewer = Viewer(viewer_options, load_now(scene, spz_axes=viewer_options.spz_axes), start_camera(viewer_options),
-                        **factories)
+        # As run_viewer reads it: a streamed SOG's coarsest level (or --lod N's), the rest in the window.
+        loaded = load_now(scene, spz_axes=viewer_options.spz_axes,
+                          lod_levels=first_levels(scene, viewer_options.settings))
+        viewer = Viewer(viewer_options, loaded, start_camera(viewer_options), **factories)
         viewers.append(viewer)
         viewer.panel.show_panel = not hide_panel
         return viewer, Driver(viewer, recorder)
@@ -376,8 +379,8 @@ class RecordingSorter(BackgroundSorter):
         self.culled_for: list[tuple | None] = []
         self.keys: list[tuple[str, ...]] = []
 
-    def request(self, camera, p_min, dilation=0.0, cull_cameras=None, keys=("depth",)):
+    def request(self, camera, p_min, dilation=0.0, cull_cameras=None, keys=("depth",), lod=None):
         self.asked.append((p_min, dilation))
         self.culled_for.append(cull_cameras)
         self.keys.append(tuple(keys))
-        return super().request(camera, p_min, dilation, cull_cameras, keys)
+        return super().request(camera, p_min, dilation, cull_cameras, keys, lod)

@@ -14,14 +14,23 @@ from typing import Callable
 
 from raygs_viewer.bench import accuracy, accuracy_report, cube, freshness, perf, sort_timing
 from raygs_viewer.bench import formats as formats_bench
+from raygs_viewer.bench import lod as lod_bench
 from raygs_viewer.bench import order as order_bench
 from raygs_viewer.bench import sort as sort_bench
 from raygs_viewer.bench import stereo as stereo_bench
-from raygs_viewer.bench.common import DEMO, RunOptions, count_label, shared_scene_paths, write_report
+from raygs_viewer.bench.common import (
+    DEMO,
+    RunOptions,
+    count_label,
+    shared_scene_paths,
+    shared_scenes_dir,
+    write_report,
+)
 from raygs_viewer.camera import stereo as camera_stereo
 from raygs_viewer.capture.image_io import check_output_path
 from raygs_viewer.cli import argtypes
 from raygs_viewer.errors import UserError
+from raygs_viewer.scene.lod_meta import LOD_META_NAME
 
 
 def add_parsers(commands) -> None:
@@ -38,6 +47,7 @@ def add_parsers(commands) -> None:
     _add_order_parser(kinds)
     _add_sort_parser(kinds)
     _add_formats_parser(kinds)
+    _add_lod_parser(kinds)
 
 
 def command(args: argparse.Namespace, ctx=None) -> int:
@@ -46,7 +56,8 @@ def command(args: argparse.Namespace, ctx=None) -> int:
     reported = {"stereo": (stereo_options, stereo_bench.run_stereo, stereo_bench.format_report),
                 "order": (order_options, order_bench.run_order, order_bench.format_report),
                 "sort": (sort_options, sort_bench.run_sort, sort_bench.format_report),
-                "formats": (formats_options, formats_bench.run_formats, formats_bench.format_report)}
+                "formats": (formats_options, formats_bench.run_formats, formats_bench.format_report),
+                "lod": (lod_options, lod_bench.run_lod, lod_bench.format_report)}
     runs = {"accuracy": _run_accuracy, "perf": _run_perf}
     if args.bench in reported:
         return _run_reported(*reported[args.bench], args, ctx)
@@ -105,6 +116,15 @@ ABOUT: dict[str, tuple[str, str]] = {
         "samples) is loaded from its own file, then written as .ply, .splat, .spz v3 and v4 and read "
         "back: size, load time, the per-attribute error and the render PSNR against the scene; then "
         "the shared .spz sample against its INRIA PLY twin."),
+    "lod": (
+        "what a streamed SOG's level of detail costs and saves at each budget, against its finest level",
+        "For each streamed SOG (lod-meta.json), in a view framing it, a closer and a farther one: its finest "
+        "level drawn everywhere, then the view-dependent choice of levels at budgets of "
+        + ", ".join(f"{f * 100:g} %" for f in lod_bench.FRACTIONS) + " of the finest level's gaussians (plus "
+        "the environment's), side by side: gaussians drawn, CPU time of the choice and of the cull+sort, "
+        "time of preprocess+draw (GPU timer, and drained), their ratios to the finest level, and the image's "
+        "PSNR and largest error against the finest level's. Prints a table per view and machine-readable "
+        "lines; --out writes the markdown report."),
 }
 
 
@@ -119,6 +139,7 @@ RECORDED_FLAGS: dict[str, tuple[str, ...]] = {
               "--overwrite"),
     "sort": ("--quick", "--counts", "--repeat", "--no-freshness", "--no-load", "--out", "--gl-backend", "--overwrite"),
     "formats": ("--quick", "--scenes", "--no-samples", "--width", "--repeat", "--out", "--gl-backend", "--overwrite"),
+    "lod": ("--quick", "--scenes", "--width", "--repeat", "--lod-distance", "--out", "--gl-backend", "--overwrite"),
 }
 #: Options a recorded command leaves out at these values (by argparse dest).
 RECORDED_DEFAULTS: dict[str, dict[str, object]] = {"perf": {"frames": perf.DEFAULT_FRAMES}}
@@ -479,3 +500,44 @@ def formats_options(args: argparse.Namespace) -> formats_bench.FormatsOptions:
         scenes=scenes, samples=not args.no_samples, **_quick_or_default(args, formats_bench, ("width", "repeat")),
         **_run_fields("formats", args, notes))
 
+
+
+# --- lod -------------------------------------------------------------------------------------------
+
+
+
+def _add_lod_parser(kinds) -> None:
+    parser = _bench_parser(kinds, "lod",
+                           f"{lod_bench.QUICK_WIDTH} px, {lod_bench.QUICK_REPEAT} timed frames per case "
+                           f"(under a minute for a scene of 100k gaussians on two CPU cores)")
+    parser.add_argument("--scenes", nargs="+", metavar="LOD.json",
+                        help="streamed SOGs (lod-meta.json, or folders holding one) instead of every "
+                             "lod-meta.json under ../shared/scenes")
+    _add_width_and_repeat(parser, f"width of the views (default {lod_bench.DEFAULT_WIDTH}, --quick "
+                                  f"{lod_bench.QUICK_WIDTH})",
+                          f"timed frames per case (default {lod_bench.DEFAULT_REPEAT}, --quick "
+                          f"{lod_bench.QUICK_REPEAT})")
+    parser.add_argument("--lod-distance", type=argtypes.real_number(lambda v: 0 < v <= 1e30, "not a distance above 0"), metavar="D",
+                        help="the distance (scene units) from which level 1 is chosen, as render's "
+                             "--lod-distance (default: automatic, four half-diagonals of the median part)")
+    _add_out_options(parser)
+
+
+def _lod_scenes() -> tuple[tuple[str, ...], list[str]]:
+    """Every lod-meta.json under ../shared/scenes (sorted); UserError when there is none."""
+    folder = shared_scenes_dir()
+    found = [] if folder is None else sorted(os.path.relpath(p) for p in folder.rglob(LOD_META_NAME) if p.is_file())
+    if not found:
+        where = "no ../shared/scenes folder" if folder is None else f"no {LOD_META_NAME} under {os.path.relpath(folder)}"
+        raise UserError(f"bench lod: {where}; pass --scenes LOD.json ... (a streamed SOG, e.g. one made by "
+                        f"docs/lod_real_scene.sh)")
+    return tuple(found), []
+
+
+def lod_options(args: argparse.Namespace) -> lod_bench.LodOptions:
+    scenes, notes = _scene_choice(args, _lod_scenes)
+    lod_bench.check_scenes(scenes)  # before any work
+    return lod_bench.LodOptions(
+        scenes=scenes, **_quick_or_default(args, lod_bench, ("width", "repeat")), distance=args.lod_distance,
+        out=_report_path(args.out, args.overwrite), overwrite=args.overwrite,
+        **_run_fields("lod", args, notes))

@@ -45,7 +45,7 @@ from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.gl.stereo_frame import render_stereo_view
 from raygs_viewer.render.gl.storage import gpu_bytes
 from raygs_viewer.render.reference import render_reference
-from raygs_viewer.render.lod_view import OpenedScene, lod_settings_given, open_scene, restrict_to_view
+from raygs_viewer.render.lod_view import OpenedScene, open_scene, refuse_lod_settings, restrict_to_view
 from raygs_viewer.render.setting_info import setting_parts
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.demo import demo_camera, demo_scene
@@ -122,10 +122,7 @@ def open_scene_argument(name: str, settings: RenderSettings, spz_axes: str | Non
     level or the levels the GPU of ``ctx`` holds, render/lod_view.py); warns about what
     it dropped and what it left unread."""
     if name == DEMO:
-        given = lod_settings_given(settings)
-        if given:
-            raise UserError(f"the demo scene is not a streamed SOG: {', '.join(given)} "
-                            f"appl{'y' if len(given) > 1 else 'ies'} to a lod-meta.json scene")
+        refuse_lod_settings("the demo scene", settings)
         opened = OpenedScene(demo_scene())
     else:
         fits = None if ctx is None else scene_fits(ctx)[0]

@@ -18,6 +18,8 @@ import time
 from dataclasses import replace
 from pathlib import Path
 
+import numpy as np
+
 from raygs_viewer.camera.navigation import UP_AXES, framing_distance, framing_pose, scene_bounds, up_vector
 from raygs_viewer.camera.path import FPS_RANGE, MAX_DURATION, CameraPath, orbit_path
 from raygs_viewer.capture.image_io import check_output_path
@@ -45,10 +47,13 @@ from raygs_viewer.cli.progress_line import TerminalProgress
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.context import create_headless_context
 from raygs_viewer.render.channels import needs_geometry
+from raygs_viewer.render.gl.memory import scene_fits
 from raygs_viewer.render.gl.renderer import GLRenderer
+from raygs_viewer.render.lod_view import OpenedScene, for_settings, lod_levels, refuse_lod_settings
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.io import SCENE_FILES
 from raygs_viewer.scene.loader import DEMO, load_now
+from raygs_viewer.sort.lod_choice import LodRequest
 
 #: The PATH argument that asks for a turntable instead of a path file, and its defaults.
 ORBIT = "orbit"
@@ -118,13 +123,29 @@ def command_render_path(args: argparse.Namespace) -> int:
         raise UserError("--stereo composes colour; its frames cannot carry depth or normals")
     path = None if document is None else retimed(document.path, args)
 
+    ctx = create_headless_context(args.gl_backend)
+    try:
+        return _render_scene(ctx, args, document, settings, stereo, path, out, cameras_out)
+    finally:
+        ctx.release()
+
+
+def _render_scene(ctx, args, document, settings, stereo, path, out, cameras_out) -> int:
+    """render-path once its options are checked: the scene read (a streamed SOG: the
+    levels the GPU of ``ctx`` holds, chosen for each frame), the frames rendered."""
     with TerminalProgress(args.scene) as loading:  # the scene's hash is taken while it is read
         loaded = load_now(args.scene, progress=loading,
-                          spz_axes=argtypes.spz_axes(args.spz_axes, document and document.scene_spz_axes))
-    scene = loaded.scene
+                          spz_axes=argtypes.spz_axes(args.spz_axes, document and document.scene_spz_axes),
+                          lod_levels=lod_levels(settings), fits=scene_fits(ctx)[0])
+    if loaded.lod is None:
+        refuse_lod_settings("the demo scene" if args.scene == DEMO else args.scene, settings)
+    opened = OpenedScene(loaded.scene) if loaded.lod is None else for_settings(loaded.lod, settings)
+    scene = opened.scene
     warn_dropped(scene)
+    if opened.note:
+        print(f"warning: {opened.note}", file=sys.stderr)
     if document is None:
-        document = orbit_document(scene, args.up_axis or "-y", *(args.size or ORBIT_SIZE))
+        document = orbit_document(opened.framed, args.up_axis or "-y", *(args.size or ORBIT_SIZE))
         path = retimed(document.path, args)
     else:
         mismatch = scene_mismatch(document, args.scene, loaded.sha256)
@@ -133,21 +154,17 @@ def command_render_path(args: argparse.Namespace) -> int:
     width, height = args.size or (document.width, document.height)
     entries = frame_camera_entries(path, width, height)
     cameras = cameras_of_entries(entries)  # what render --camera loads from the entries
-    ctx = create_headless_context(args.gl_backend)
+    renderer = GLRenderer(ctx, scene, general=args.general)
     try:
-        renderer = GLRenderer(ctx, scene, general=args.general)
-        try:
-            problem = renderer.supports(settings)
-            if problem:
-                raise UserError(problem)
-            if cameras_out is not None:
-                write_cameras_json(entries, cameras_out, args.overwrite)
-            return _render(renderer, cameras, settings, stereo, out, frame_size(width, height, stereo), path.fps,
-                           args)
-        finally:
-            renderer.release()
+        problem = renderer.supports(settings)
+        if problem:
+            raise UserError(problem)
+        if cameras_out is not None:
+            write_cameras_json(entries, cameras_out, args.overwrite)
+        return _render(renderer, cameras, settings, stereo, out, frame_size(width, height, stereo), path.fps,
+                       args, opened.lod)
     finally:
-        ctx.release()
+        renderer.release()
 
 
 def read_document(args: argparse.Namespace) -> PathDocument:
@@ -166,11 +183,12 @@ def retimed(path: CameraPath, args: argparse.Namespace) -> CameraPath:
     return replace(path, fps=args.fps or path.fps, duration=args.duration or path.duration)
 
 
-def orbit_document(scene, up: str, width: int, height: int) -> PathDocument:
-    """One lap around the scene's centre (its bounds', as the window's Reset view finds
-    them), from the side the window's Reset view looks from, at the distance that fits
-    the scene's bounding sphere in the view, 20 degrees above the horizon of ``up``."""
-    center, radius = scene_bounds(scene.positions)
+def orbit_document(positions: np.ndarray, up: str, width: int, height: int) -> PathDocument:
+    """One lap around the centre of ``positions`` (the scene's, without a streamed SOG's
+    environment; their bounds', as the window's Reset view finds them), from the side the
+    window's Reset view looks from, at the distance that fits their bounding sphere in
+    the view, 20 degrees above the horizon of ``up``."""
+    center, radius = scene_bounds(positions)
     aspect = width / height
     start = framing_pose(center, radius, up, ORBIT_FOV, aspect)
     path = orbit_path(center, framing_distance(radius, ORBIT_FOV, aspect), up_vector(up), start=start,
@@ -178,7 +196,8 @@ def orbit_document(scene, up: str, width: int, height: int) -> PathDocument:
     return PathDocument(path, width, height)
 
 
-def _render(renderer, cameras, settings, stereo, out: Path, image_size, fps: float, args) -> int:
+def _render(renderer, cameras, settings, stereo, out: Path, image_size, fps: float, args,
+            lod: LodRequest | None) -> int:
     if args.channels is not None:
         sink = ExrFolderSink(out, *image_size, args.channels, args.overwrite, frames=len(cameras))
     else:
@@ -190,7 +209,7 @@ def _render(renderer, cameras, settings, stereo, out: Path, image_size, fps: flo
     start = time.perf_counter()
     try:
         render_frames(renderer, cameras, settings, stereo, timed, progress, args.channels,
-                      check_normal_space(args.channels or (), args.normal_space))
+                      check_normal_space(args.channels or (), args.normal_space), lod)
         written = timed.finish()
     except KeyboardInterrupt:
         kept = sink.abort()

@@ -18,7 +18,7 @@ from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.io import load_scene
-from raygs_viewer.scene.lod_file import Fits, load_lod, lod_index_file
+from raygs_viewer.scene.lod_file import Fits, LodScene, level_scene, load_lod, lod_index_file
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.sort.lod_choice import LodChoice, LodRequest
 
@@ -35,16 +35,14 @@ class OpenedScene:
     scene: Scene
     lod: LodRequest | None = None
     note: str = ""
+    environment: int = 0
 
     @property
     def framed(self) -> np.ndarray:
         """(N, 3) the positions a camera that frames the scene should see: a streamed
-        SOG's levels without its environment (which surrounds the scene from afar)."""
-        if self.lod is None:
-            return self.scene.positions
-        start, count = self.lod.lod.environment
-        positions = self.scene.positions
-        return np.concatenate([positions[:start], positions[start + count:]])
+        SOG's levels without its environment (its first rows, which surround the scene
+        from afar)."""
+        return self.scene.positions[self.environment:]
 
 
 def lod_settings_given(settings: RenderSettings) -> list[str]:
@@ -52,20 +50,37 @@ def lod_settings_given(settings: RenderSettings) -> list[str]:
     return ["--" + name.replace("_", "-") for name in LOD_FIELDS if getattr(settings, name) is not None]
 
 
+def refuse_lod_settings(what: str, settings: RenderSettings) -> None:
+    """UserError when ``settings`` set a level-of-detail option for ``what``, a scene
+    that is not a streamed SOG (the option would silently do nothing)."""
+    given = lod_settings_given(settings)
+    if given:
+        raise UserError(f"{what}: not a streamed SOG: {', '.join(given)} "
+                        f"appl{'y' if len(given) > 1 else 'ies'} to a lod-meta.json scene")
+
+
 def open_scene(path: str, settings: RenderSettings, *, spz_axes: str = "rub", fits: Fits | None = None
                ) -> OpenedScene:
     """The scene file ``path`` for ``settings`` (see the module docstring); ``fits``:
     whether a scene of (count, SH degree) fits the GPU (``render.gl.memory.scene_fits``)."""
     if lod_index_file(path) is None:
-        given = lod_settings_given(settings)
-        if given:
-            raise UserError(f"{path}: not a streamed SOG: {', '.join(given)} "
-                            f"appl{'y' if len(given) > 1 else 'ies'} to a lod-meta.json scene")
+        refuse_lod_settings(path, settings)
         return OpenedScene(load_scene(path, spz_axes=spz_axes))
+    return for_settings(load_lod(path, levels=lod_levels(settings), fits=fits), settings)
+
+
+def lod_levels(settings: RenderSettings) -> tuple[int, ...] | None:
+    """The levels of a streamed SOG that ``settings`` need read (None: all that fit)."""
+    return None if settings.lod is None else (settings.lod,)
+
+
+def for_settings(lod: LodScene, settings: RenderSettings) -> OpenedScene:
+    """A streamed SOG read with :func:`lod_levels` opened for ``settings``: level
+    ``settings.lod`` as a scene of its own, or every level read with the choice to make."""
     if settings.lod is not None:
-        return OpenedScene(load_scene(path, lod=settings.lod))
-    lod = load_lod(path, fits=fits)
-    return OpenedScene(lod.scene, LodRequest(lod, None, settings.lod_budget, settings.lod_distance), lod.unread)
+        return OpenedScene(level_scene(lod, settings.lod), environment=lod.environment[1])
+    return OpenedScene(lod.scene, LodRequest(lod, None, settings.lod_budget, settings.lod_distance), lod.unread,
+                       lod.environment[1])
 
 
 def restrict_to_view(renderer, lod: LodRequest | None, camera: Camera) -> LodChoice | None:

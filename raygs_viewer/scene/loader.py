@@ -6,6 +6,11 @@ bad file fails before a window opens); :class:`SceneLoader` does it on a daemon
 thread while the window keeps drawing, reporting progress and discarding a load
 that a newer one replaced. The hash is :mod:`~raygs_viewer.scene.content_hash`'s; a
 progress line on a terminal is the command line's (``cli/progress_line.py``).
+
+A streamed SOG (``lod-meta.json``) is read level by level, coarsest first
+(:func:`~raygs_viewer.scene.lod_file.load_lod`), and each level read is handed on at
+once (``on_level``; the background loader delivers it like a finished load, marked
+``refines``), so the window shows the coarsest level while the finer ones are read.
 """
 
 from __future__ import annotations
@@ -14,8 +19,10 @@ import fnmatch
 import os
 import threading
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
+
+import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera, load_cameras
 from raygs_viewer.errors import UserError
@@ -23,6 +30,7 @@ from raygs_viewer.jsonfile import read_json_file
 from raygs_viewer.scene.content_hash import FileHash, arrays_sha256
 from raygs_viewer.scene.demo import DEMO_VIEW_NAMES, demo_cameras, demo_scene
 from raygs_viewer.scene.io import dropped_summary, load_scene
+from raygs_viewer.scene.lod_file import Fits, LodScene, load_lod, lod_index_file
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.progress import ProgressCallback, Reporter
 from raygs_viewer.scene.spz_format import DEFAULT_SPZ_AXES, spz_axes_system
@@ -30,10 +38,14 @@ from raygs_viewer.scene.spz_format import DEFAULT_SPZ_AXES, spz_axes_system
 #: ``read_scene(path, *, progress, cancel, spz_axes) -> Scene``: what reads the scene
 #: file (:func:`~raygs_viewer.scene.io.load_scene`; tests hand in a steered one).
 SceneReader = Callable[..., Scene]
+#: ``read_lod(path, *, levels, fits, progress, cancel, on_level) -> LodScene``: what reads
+#: a streamed SOG (:func:`~raygs_viewer.scene.lod_file.load_lod`; tests step through it).
+LodReader = Callable[..., LodScene]
 
 __all__ = [
     "DEMO",
     "LoadedScene",
+    "LodReader",
     "SceneLoader",
     "SceneReader",
     "find_training_cameras",
@@ -84,6 +96,11 @@ class LoadedScene:
                   the demo: ``DEMO_VIEW_NAMES``.
     warnings:     one-line warnings without a "warning:" prefix: the dropped-gaussian
                   summary, and why a discovered cameras.json was skipped.
+    lod:          a streamed SOG's levels read so far (``scene`` is ``lod.scene``); None
+                  for any other scene.
+    refines:      a finer reading of the scene delivered before it by the same load (a
+                  level read since), not a new scene: the window keeps its view.
+                  ``sha256`` is "" while the files are still being hashed.
     """
 
     scene: Scene
@@ -93,6 +110,18 @@ class LoadedScene:
     cameras_path: str | None
     camera_names: list[str]
     warnings: list[str]
+    lod: LodScene | None = None
+    refines: bool = False
+
+    @property
+    def framed(self) -> np.ndarray:
+        """(N, 3) the positions a view that frames the scene should see: a streamed
+        SOG's without its environment, which surrounds the scene from afar."""
+        if self.lod is None:
+            return self.scene.positions
+        start, count = self.lod.environment
+        positions = self.scene.positions
+        return np.concatenate([positions[:start], positions[start + count:]])
 
 
 def _camera_names(path: Path, count: int) -> list[str]:
@@ -124,7 +153,9 @@ def _scaled(progress: ProgressCallback | None, start: float, end: float,
 def load_now(path: str | os.PathLike, cameras: str | os.PathLike | None = None,
              progress: ProgressCallback | None = None, *,
              cancel: threading.Event | None = None, read_scene: SceneReader = load_scene,
-             spz_axes: str = DEFAULT_SPZ_AXES) -> LoadedScene:
+             spz_axes: str = DEFAULT_SPZ_AXES, lod_levels: tuple[int, ...] | None = None, fits: Fits | None = None,
+             on_level: Callable[[LoadedScene], None] | None = None,
+             read_lod: LodReader = load_lod) -> LoadedScene:
     """Loads a scene (a scene file path, or "demo") with its training cameras, synchronously.
 
     ``cameras``: an explicit cameras.json; a bad one is a UserError. Without it the
@@ -137,6 +168,11 @@ def load_now(path: str | os.PathLike, cameras: str | os.PathLike | None = None,
     ``UserError("loading cancelled")``. Every failure is a one-line UserError.
     ``read_scene`` reads the scene file (:func:`load_scene`); ``spz_axes`` is its
     convention for a ``.spz`` that declares no axes ("rub" or "rdf").
+
+    A streamed SOG is read by ``read_lod`` (:func:`load_lod`): ``lod_levels`` (None:
+    every level) while they ``fit``; ``on_level`` gets the scene so far after each level
+    (from this thread, its ``sha256`` "" until the hash is done), and the result holds
+    every level read (``LoadedScene.lod``).
     """
     spz_axes_system(spz_axes)  # a bad value fails even for the demo
     shown = os.fspath(path)
@@ -147,6 +183,9 @@ def load_now(path: str | os.PathLike, cameras: str | os.PathLike | None = None,
             scene = demo_scene()
             report(_SCENE_END, "hashing")
             digest = arrays_sha256(scene)
+        elif lod_index_file(path) is not None:
+            return _read_levels(path, cameras, progress, report, cancel, read_lod,
+                                dict(levels=lod_levels, fits=fits), on_level)
         else:
             scene, digest = _read_and_hash(path, progress, report, cancel, read_scene, spz_axes)
         warnings = dropped_summary(scene)
@@ -171,6 +210,31 @@ def _read_and_hash(path: str | os.PathLike, progress: ProgressCallback | None, r
     finally:
         hashing.stop.set()  # a failed or cancelled load leaves no hash running
     return scene, digest
+
+
+def _read_levels(path: str | os.PathLike, cameras: str | os.PathLike | None, progress: ProgressCallback | None,
+                 report: Reporter, cancel: threading.Event | None, read_lod: LodReader, which: dict,
+                 on_level: Callable[[LoadedScene], None] | None) -> LoadedScene:
+    """A streamed SOG read and hashed side by side (``which``: read_lod's ``levels`` and
+    ``fits``). The cameras come first: the coarsest level is shown with them."""
+    shown = os.fspath(path)
+    camera_warnings: list[str] = []
+    found, names, cameras_path = _training_cameras(shown, cameras, camera_warnings)
+
+    def loaded(lod: LodScene, digest: str) -> LoadedScene:
+        return LoadedScene(lod.scene, shown, digest, found, cameras_path, names,
+                           dropped_summary(lod.scene) + camera_warnings, lod)
+
+    hashing = FileHash(path, cancel)
+    try:
+        lod = read_lod(path, progress=_scaled(progress, 0.0, _SCENE_END, "hashing"), cancel=cancel,
+                       on_level=None if on_level is None else lambda lod: on_level(loaded(lod, hashing.digest or "")),
+                       **which)
+        digest = hashing.result(lambda f: report(_SCENE_END + (_HASH_END - _SCENE_END) * f, "hashing"))
+    finally:
+        hashing.stop.set()
+    report(1.0, "done")
+    return loaded(lod, digest)
 
 
 def _training_cameras(shown: str, cameras: str | os.PathLike | None,
@@ -198,10 +262,13 @@ def _training_cameras(shown: str, cameras: str | os.PathLike | None,
 class _Job:
     """One load on its own thread; its fields are written by that thread only."""
 
-    def __init__(self, path: str, cameras: str | None, spz_axes: str) -> None:
+    def __init__(self, path: str, cameras: str | None, spz_axes: str, lod: dict, refines: bool) -> None:
         self.path = path
         self.cameras = cameras
         self.spz_axes = spz_axes
+        self.lod = lod          # load_now's lod_levels and fits
+        self.refines = refines  # every result refines the scene shown
+        self.delivered = False  # a result of this job has been polled
         self.cancel = threading.Event()
         self.progress = 0.0
         self.stage = "queued"
@@ -220,11 +287,14 @@ class SceneLoader:
     handed to poll/wait), ``discarded`` (results of loads that a newer start or
     :meth:`cancel` replaced).
 
-    ``read_scene`` reads each scene file (:func:`load_scene`), on the load's thread.
+    ``read_scene`` reads each scene file (:func:`load_scene`), ``read_lod`` each
+    streamed SOG (:func:`load_lod`), on the load's thread. A streamed SOG's load delivers
+    each level as it is read: every result after its first is marked ``refines``.
     """
 
-    def __init__(self, read_scene: SceneReader = load_scene) -> None:
+    def __init__(self, read_scene: SceneReader = load_scene, read_lod: LodReader = load_lod) -> None:
         self.read_scene = read_scene
+        self.read_lod = read_lod
         self._cond = threading.Condition()
         self._job: _Job | None = None
         self._result: LoadedScene | UserError | None = None
@@ -234,11 +304,15 @@ class SceneLoader:
         self.delivered = 0
         self.discarded = 0
 
-    def start(self, path: str, cameras: str | None = None, spz_axes: str = DEFAULT_SPZ_AXES) -> None:
+    def start(self, path: str, cameras: str | None = None, spz_axes: str = DEFAULT_SPZ_AXES, *,
+              lod_levels: tuple[int, ...] | None = None, fits: Fits | None = None, refines: bool = False) -> None:
         """Cancels a load in progress (its result is discarded) and starts this one
-        (``spz_axes``: as for :func:`load_now`); a finished result not yet polled is
-        dropped too. RuntimeError after :meth:`close`."""
-        job = _Job(os.fspath(path), None if cameras is None else os.fspath(cameras), spz_axes)
+        (``spz_axes``, ``lod_levels``, ``fits``: as for :func:`load_now`); a finished result
+        not yet polled is dropped too. ``refines``: every result, the first too, is a finer
+        reading of the scene shown (the rest of a streamed SOG's levels). RuntimeError
+        after :meth:`close`."""
+        job = _Job(os.fspath(path), None if cameras is None else os.fspath(cameras), spz_axes,
+                   dict(lod_levels=lod_levels, fits=fits), refines)
         thread = threading.Thread(target=self._run, args=(job,), name="raygs-load", daemon=True)
         with self._cond:
             if self._closed:
@@ -269,6 +343,12 @@ class SceneLoader:
         return job.stage if job is not None else ""
 
     @property
+    def path(self) -> str:
+        """The path of the current load as given ("" with none)."""
+        job = self._job
+        return job.path if job is not None else ""
+
+    @property
     def busy(self) -> bool:
         """A load is in progress (its result not yet available)."""
         job = self._job
@@ -276,11 +356,15 @@ class SceneLoader:
 
     def poll(self) -> LoadedScene | UserError | None:
         """Non-blocking: the finished result once (then None); a failed load gives the
-        UserError object, for the window to show."""
+        UserError object, for the window to show. While a streamed SOG is read, each
+        level read is a result of its own (a newer one replaces one not yet polled)."""
         with self._cond:
             result, self._result = self._result, None
             if result is not None:
                 self.delivered += 1
+            if isinstance(result, LoadedScene) and self._job is not None:
+                result = replace(result, refines=self._job.refines or self._job.delivered)
+                self._job.delivered = True
             return result
 
     def wait(self, timeout: float | None = None) -> LoadedScene | UserError | None:
@@ -324,9 +408,16 @@ class SceneLoader:
         def progress(fraction: float, stage: str) -> None:
             job.progress, job.stage = fraction, stage
 
+        def level(loaded: LoadedScene) -> None:
+            with self._cond:
+                if job is self._job and not job.cancel.is_set():
+                    self._result = loaded
+                    self._cond.notify_all()
+
         try:
             result: LoadedScene | UserError = load_now(job.path, job.cameras, progress, cancel=job.cancel,
-                                                       read_scene=self.read_scene, spz_axes=job.spz_axes)
+                                                       read_scene=self.read_scene, spz_axes=job.spz_axes,
+                                                       on_level=level, read_lod=self.read_lod, **job.lod)
         except UserError as exc:
             result = exc
         except Exception as exc:  # a bug or an odd OS failure: still one line for the panel

@@ -305,7 +305,13 @@ def load_level(path, level: int, *, progress: ProgressCallback | None = None,
                cancel: threading.Event | None = None, chunk_bytes: int = 4 << 20) -> Scene:
     """One level of the streamed SOG at ``path`` (0 the finest) and its environment, as
     a Scene of their own: what ``--lod N`` renders and ``convert --lod N`` writes."""
-    lod = load_lod(path, levels=(level,), progress=progress, cancel=cancel, chunk_bytes=chunk_bytes)
+    return level_scene(load_lod(path, levels=(level,), progress=progress, cancel=cancel, chunk_bytes=chunk_bytes),
+                       level)
+
+
+def level_scene(lod: LodScene, level: int) -> Scene:
+    """Level ``level`` of ``lod`` (read) and its environment, as a Scene of their own:
+    the environment's gaussians first, then the level's in file order."""
     environment = lod.environment[1]
     with_environment = f" with its environment ({environment:,})" if environment else ""
     return subset_scene(lod.scene, lod.level_spans(level),

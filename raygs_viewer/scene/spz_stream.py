@@ -249,7 +249,7 @@ def _coordinate_system(extensions: dict[int, bytes], shown: str) -> int:
     if payload is None or len(payload) < 4:
         return 0
     system = struct.unpack_from("<I", payload)[0]
-    if system == 0:  # UNSPECIFIED: as if no extension (the owners fall back to RUB, splat-transform to RDF)
+    if system == 0:  # UNSPECIFIED declares nothing: the reader's convention decides, as without the extension
         return 0
     if system > len(COORDINATE_SYSTEMS):
         raise file_error(shown, f"corrupt .spz: unknown coordinate system {system} in its extension")

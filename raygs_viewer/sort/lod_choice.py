@@ -11,10 +11,12 @@ The rule, for a view from camera centre C:
 2. **Readiness.** A level not read yet (or left unread: the GPU's memory) is replaced by
    the finest read level coarser than it: a leaf waits on its coarser level, never
    opening a hole.
-3. **Budget.** Leaves whose bounding sphere lies outside the view stay at their
-   coarsest level and are not counted (the per-gaussian cull drops what of them cannot
-   reach a pixel). When the wanted levels of the leaves in view, with the environment,
-   exceed ``budget`` gaussians, every leaf in view starts at its coarsest level and
+3. **View.** A leaf whose bounding sphere lies outside the view draws its coarsest
+   level: only the tails of its gaussians can reach the image (the box holds their
+   centres and one standard deviation), and the per-gaussian cull drops the rest.
+4. **Budget.** When the wanted levels of the leaves in view, with the environment,
+   exceed ``budget`` gaussians (the leaves out of view are not counted), every leaf in
+   view starts at its coarsest level and
    steps to finer levels are taken in order of priority, ``s_k 2^l`` for the step to
    level l (``s_k``: the leaf's projected radius in pixels), while the total stays within
    the budget: what is large on screen is refined first, and every leaf's coarse steps
@@ -22,7 +24,7 @@ The rule, for a view from camera centre C:
    the budget, they are drawn, and the choice says so.
 
 ``level`` (``--lod N``) instead draws one level everywhere (waiting on coarser ones as
-in 2), with no budget.
+in 2), with no budget and whatever the view.
 """
 
 from __future__ import annotations
@@ -120,8 +122,11 @@ def choose(lod: LodScene, camera: Camera, *, level: int | None = None, budget: i
     target = ready[np.maximum(wanted, finest)]
     counts = lod.rows[:, :, 1]
     over = False
-    if level is None and budget is not None:
-        target, over = _within_budget(lod, camera, target, counts, ready[coarsest], int(budget))
+    if level is None:
+        in_view, size = screen_radius(lod.index.bounds, camera)
+        target[~in_view] = coarsest
+        if budget is not None:
+            target, over = _within_budget(lod, in_view, size, target, counts, coarsest, int(budget))
     spans = lod.spans(target)
     return LodChoice(target, wanted, spans, int((spans[:, 1] - spans[:, 0]).sum()), over)
 
@@ -139,10 +144,9 @@ def _ready_levels(loaded: np.ndarray) -> np.ndarray:
     return ready
 
 
-def _within_budget(lod: LodScene, camera: Camera, target: np.ndarray, counts: np.ndarray, coarsest: int,
-                   budget: int) -> tuple[np.ndarray, bool]:
+def _within_budget(lod: LodScene, in_view: np.ndarray, size: np.ndarray, target: np.ndarray, counts: np.ndarray,
+                   coarsest: int, budget: int) -> tuple[np.ndarray, bool]:
     """``target`` coarsened until the leaves in view and the environment fit ``budget``."""
-    in_view, size = screen_radius(lod.index.bounds, camera)
     leaves = np.arange(target.shape[0])
     environment = lod.environment[1]
     wanted_total = environment + int(counts[leaves[in_view], target[in_view]].sum())

@@ -58,6 +58,8 @@ class SortResult:
              when its sort finished: the drawn order's age is ``perf_counter() - requested_at``
              (it shows the view as it was then), its latency ``finished_at - requested_at``.
     lod:     the level-of-detail choice the orders hold (None: the whole scene); its age is the order's.
+    lod_key: the ``LodRequest.key`` the choice was made for (None: none): what tells the
+             window whether the drawn choice is the one its settings and scene now ask for.
     """
 
     order: np.ndarray
@@ -71,6 +73,7 @@ class SortResult:
     requested_at: float = 0.0
     finished_at: float = 0.0
     lod: LodChoice | None = None
+    lod_key: tuple | None = None
 
     @property
     def keys(self) -> tuple[str, ...]:
@@ -262,7 +265,8 @@ class BackgroundSorter(Closable):
             finished = time.perf_counter()
             result = SortResult(orders[request.keys[0]], request.serial, request.camera, request.p_min,
                                 finished - begin, request.dilation, request.cull_cameras, orders,
-                                request.requested_at, finished, choice)
+                                request.requested_at, finished, choice,
+                                None if request.lod is None else request.lod.key)
             with self._cond:
                 self._latest = result
                 self.finished += 1

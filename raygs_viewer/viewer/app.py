@@ -41,10 +41,12 @@ from raygs_viewer.sort.worker import BackgroundSorter
 from raygs_viewer.viewer.drawing import SceneDrawer, request_sort
 from raygs_viewer.viewer.input import InputHandler
 from raygs_viewer.viewer.loading import SceneOpener, scene_title
+from raygs_viewer.viewer.lod_window import WindowLod, first_levels
 from raygs_viewer.viewer.measure import MeasureWidget
 from raygs_viewer.viewer.overlay import draw_split_overlay
 from raygs_viewer.viewer.panel import draw_panel
 from raygs_viewer.viewer.panel.geometry import draw_geometry_section
+from raygs_viewer.viewer.panel.lod import draw_lod_section
 from raygs_viewer.viewer.panel.measure import draw_measure_section
 from raygs_viewer.viewer.panel.order import draw_order_section
 from raygs_viewer.viewer.panel.path import draw_path_section
@@ -104,6 +106,7 @@ class Viewer:
         self.stats = FrameStats()
         self.scenes = SceneOpener(self.panel, options.spz_axes)
         self.window.set_drop_callback(self.scenes.drop)
+        self.lod = WindowLod(self)
         self.drawer = SceneDrawer(self.ctx)
         self.photo = PhotoCompare(self.ctx, options.images)
         self.camera_path = PathWidget(self.panel, self)
@@ -147,17 +150,11 @@ class Viewer:
     # -- scene and view ----------------------------------------------------------------
     def _install(self, loaded: LoadedScene, start_camera: Camera | None = None) -> None:
         """Puts a loaded scene on the GPU; on failure the current scene stays."""
-        # A UserError (too large for this GPU) leaves everything as it was.
-        renderer = self.renderer_factory(self.ctx, loaded.scene, general=self.options.general)
-        if self.renderer is not None:
-            self.renderer.release()
-        if self.sorter is not None:
-            self.sorter.close()
-        self.renderer, self.sorter = renderer, self.sorter_factory(renderer.sorter)
-        self.stats.request_frames.clear()
-        self.drawer.forget()
-        self.photo.forget_scene()
+        if self.lod.refines(loaded):  # a streamed SOG's next level: the view stays
+            return self.lod.refine(loaded)
+        self.swap_scene(loaded.scene)
         self.loaded = loaded
+        self.settings = self.lod.installed(loaded, self.settings)
         # The options' sh_degree None: every scene's own; else the panel's, capped at this scene's.
         degree = loaded.scene.sh_degree
         if self.options.settings.sh_degree is not None:
@@ -168,6 +165,19 @@ class Viewer:
         self.view = ViewControl(loaded, start_camera, choices, self.options.width / self.options.height, self.panel)
         self.camera_path.dolly_distance = float(self.view.radius)
         self.window.set_title(f"raygs-viewer — {scene_title(loaded.path)}")
+
+    def swap_scene(self, scene) -> None:
+        """``scene`` on the GPU with a sorter of its own; nothing drawn is of it yet."""
+        # A UserError (too large for this GPU) leaves everything as it was.
+        renderer = self.renderer_factory(self.ctx, scene, general=self.options.general)
+        if self.renderer is not None:
+            self.renderer.release()
+        if self.sorter is not None:
+            self.sorter.close()
+        self.renderer, self.sorter = renderer, self.sorter_factory(renderer.sorter)
+        self.stats.request_frames.clear()
+        self.drawer.forget()
+        self.photo.forget_scene()
 
     def right_settings(self) -> RenderSettings | None:
         """The split view's right side; None when it is off (it is off in the stereo preview)."""
@@ -214,7 +224,8 @@ class Viewer:
         self.camera, self.shown_stereo = camera, stereo
         # wait_for_sort: only the last frame of a scripted run, whose capture must show the finished view.
         result, key = request_sort(self.sorter, self.stats, camera, settings, right, cull_cameras, self.frame_index,
-                                   self.wait_for_sort)
+                                   self.wait_for_sort, self.lod.for_frame())
+        result = self.lod.shown(result)  # after a streamed SOG's level arrives: the last order until its first
 
         if self.panel.show_panel:
             draw_panel(self.panel, panel_sections(self))
@@ -227,7 +238,8 @@ class Viewer:
         orders, serial = self.stats.order_to_draw(result, key, self.frame_index, camera)
         draws = self.stats.draws
         self.drawer.draw(self.renderer, camera, settings, right, stereo, orders, serial, self.stats, self.panel,
-                         *self.view_mode.side_views(self.panel, split=right is not None))
+                         *self.view_mode.side_views(self.panel, split=right is not None),
+                         spans=None if result is None or result.lod is None else result.lod.spans)
         blocked = blocked_reason(stereo is not None, right is not None, self.view_mode.channel)
         if message := self.photo.after_draw(self.view, self.loaded, camera, self.drawer.mono, blocked,
                                             drew=self.stats.draws != draws):
@@ -264,12 +276,13 @@ class Viewer:
         if self.camera is None:
             raise UserError("nothing has been drawn yet")
         self.photo.check_screenshot()
+        self.lod.check_screenshot()
         shown = ShownView(self.camera, self.settings, self.split if self.right_settings() is not None else None,
                           self.shown_stereo, self.drawer.shown_view, self.drawer.shown_right_view)
         extra = sidecar_extra(self.view.navigator, self.loaded, self.view.training_index,
                               context_description(self.ctx))
         self.last_screenshots = take_screenshots(self.renderer, self.loaded, shown, self.screenshots,
-                                                 self.stereo.save_eyes, extra, path)
+                                                 self.stereo.save_eyes, extra, path, self.lod.request())
         return self.last_screenshot
 
     # -- what the camera path reads (path_widget.PathHost) ------------------------------
@@ -333,6 +346,7 @@ def panel_sections(viewer: Viewer) -> list[Callable[[], None]]:
         lambda: draw_statistics(stats, loaded.scene.count, viewer.sorter, renderer.counters, renderer.general),
         lambda: draw_scene_section(loaded, viewer.panel, viewer.scenes.open, viewer.scenes.loader,
                                    lambda axes: viewer.scenes.switch_spz_axes(loaded, axes)),
+        lambda: draw_lod_section(viewer.lod, viewer.settings, viewer.set_settings, stats, viewer.scenes.loader),
         lambda: draw_render_section(viewer.settings, viewer.set_settings, loaded.scene.sh_degree, renderer.supports,
                                     viewer.window, viewer.stereo, viewer.split, viewer.panel.note),
         lambda: draw_order_section(viewer.settings, viewer.set_settings, stats, viewer.right_settings() is not None),
@@ -370,7 +384,9 @@ def run_viewer(options: ViewerOptions, progress: ProgressCallback | None = None)
         if not options.window_screenshot.lower().endswith(".png"):
             raise UserError(f"{options.window_screenshot}: the window screenshot must be a .png")
         check_output_path(options.window_screenshot)
-    loaded = load_now(options.scene, options.cameras, progress, spz_axes=options.spz_axes)
+    # A streamed SOG: its coarsest level (or --lod N's) now, the rest once the window is up.
+    loaded = load_now(options.scene, options.cameras, progress, spz_axes=options.spz_axes,
+                      lod_levels=first_levels(options.scene, options.settings))
     for warning in loaded.warnings:
         print(f"warning: {warning}", flush=True)
     viewer = Viewer(options, loaded, start_camera(options))

@@ -14,6 +14,10 @@ preview and the layout compose one image.
 After each per-pixel-order render the renderer's ``order_stats`` (what the per-pixel
 pass did: fragments, pool, parts) is kept in the frame statistics, per side.
 
+A streamed SOG's level-of-detail choice is made on the sort thread with the order
+(``request_sort``'s ``lod``); every side and eye draws the one result, so the renderer
+is restricted to that result's rows (``SceneDrawer.draw``'s ``spans``) before drawing.
+
 A channel view (the panel's view mode: depth, median depth, normal or alpha) is drawn
 on every side and eye; an automatic depth range is the left side's (or left eye's),
 fixed for the other, so that one colour is one depth across the divider.
@@ -34,6 +38,7 @@ from raygs_viewer.render.channel_pictures import ChannelView
 from raygs_viewer.render.gl.stereo_frame import StereoFrame, fixed_range, view_argument
 from raygs_viewer.render.gl.timing import GpuTimer
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.sort.lod_choice import LodRequest
 from raygs_viewer.viewer.state import PanelState
 from raygs_viewer.viewer.stats import FrameStats, sort_key
 
@@ -55,21 +60,22 @@ def sort_keys(left: RenderSettings, right: RenderSettings | None = None) -> tupl
 
 
 def request_sort(sorter, stats: FrameStats, camera: Camera, settings: RenderSettings, right: RenderSettings | None,
-                 cull_cameras, frame_index: int, wait: bool = False) -> tuple[object, tuple]:
+                 cull_cameras, frame_index: int, wait: bool = False, lod: LodRequest | None = None
+                 ) -> tuple[object, tuple]:
     """Asks ``sorter`` (a BackgroundSorter) for this frame's view: one cull for every side
-    shown, an order per key; ``wait``: until that sort is done (a scripted run's last
-    frame). Returns (its newest finished result, the key of the orders this view wants:
-    stats.order_to_draw takes both)."""
+    shown, an order per key, of the levels ``lod`` chooses for the view (a streamed SOG);
+    ``wait``: until that sort is done (a scripted run's last frame). Returns (its newest
+    finished result, the key of the orders this view wants: stats.order_to_draw takes both)."""
     p_min, dilation = sort_cull(camera, settings, right)  # the eyes share the midpoint's fx, fy
     keys = sort_keys(settings, right)
-    serial = sorter.request(camera, p_min, dilation, cull_cameras, keys)
+    serial = sorter.request(camera, p_min, dilation, cull_cameras, keys, lod)
     stats.asked(serial, frame_index)
     if wait:
         sorter.wait(serial, timeout=120)
     result = sorter.latest()
     if sorter.started > sorter.finished:
         stats.frames_with_sort_running += 1
-    return result, sort_key(camera, p_min, dilation, cull_cameras, keys)
+    return result, sort_key(camera, p_min, dilation, cull_cameras, keys, None if lod is None else lod.key)
 
 
 def order_for(orders: Mapping[str, np.ndarray], key: str) -> np.ndarray:
@@ -103,15 +109,20 @@ class SceneDrawer:
 
     def draw(self, renderer, camera: Camera, settings: RenderSettings, right: RenderSettings | None,
              stereo: StereoView | None, orders: Mapping[str, np.ndarray], serial: int, stats: FrameStats,
-             panel: PanelState, view: ChannelView | None = None, right_view: ChannelView | None = None) -> None:
+             panel: PanelState, view: ChannelView | None = None, right_view: ChannelView | None = None,
+             spans: np.ndarray | None = None) -> None:
         """Draws each side with its key's order from ``orders`` ({sort key: order} of
         sort request ``serial``) unless the frame already holds this view, these settings
         and these orders, and notes the draw, its GPU times and the per-pixel order's
         statistics in ``stats``. ``view``: the picture shown instead of the colour (the
-        left side's in the split view; ``right_view`` the right side's).
+        left side's in the split view; ``right_view`` the right side's). ``spans``: the rows
+        of the level-of-detail choice the orders hold (None: the whole scene); the renderer
+        stays restricted to them, so that a pick draws what was drawn.
         Settings this GPU cannot render (the panel greys those out) are a standing error
         in ``panel``; the frame is then drawn again next time."""
         self.orders, self.view, self.right_view = dict(orders), view, right_view
+        if spans is not None:
+            renderer.restrict(spans)
         try:
             drew = self._draw(renderer, camera, settings, right, stereo, orders, serial, stats, view, right_view)
         except UserError as exc:

@@ -12,6 +12,7 @@ import moderngl
 
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.scene.loader import LoadedScene, SceneLoader
+from raygs_viewer.scene.lod_file import Fits
 from raygs_viewer.scene.spz_format import DEFAULT_SPZ_AXES
 from raygs_viewer.viewer.state import PanelState
 
@@ -22,12 +23,14 @@ def scene_title(path: str) -> str:
 
 class SceneOpener:
     """``loader`` does the loading; ``panel`` gets the message and error lines;
-    ``spz_axes`` ("rub" or "rdf") is how a .spz that declares no axes is read."""
+    ``spz_axes`` ("rub" or "rdf") is how a .spz that declares no axes is read; ``fits()``
+    says what fits the GPU, for a streamed SOG's levels (None: no limit)."""
 
     def __init__(self, panel: PanelState, spz_axes: str = DEFAULT_SPZ_AXES):
         self.panel = panel
         self.loader = SceneLoader()
         self.spz_axes = spz_axes
+        self.fits: Callable[[], Fits | None] = lambda: None
 
     def open(self, path: str, cameras: str | None = None) -> None:
         """Starts loading ``path`` in the background (with ``cameras``, a cameras.json,
@@ -38,7 +41,7 @@ class SceneOpener:
             return
         self.panel.error = ""
         self.panel.message = f"loading {path} ..."
-        self.loader.start(path, cameras, self.spz_axes)
+        self.loader.start(path, cameras, self.spz_axes, fits=self.fits())
 
     def switch_spz_axes(self, loaded: LoadedScene, spz_axes: str) -> None:
         """Reads ``loaded`` again in ``spz_axes`` when it is a .spz (with the cameras it

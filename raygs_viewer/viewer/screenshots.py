@@ -11,6 +11,10 @@ In a view mode (a depth, median depth, normal or alpha picture) the screenshot i
 picture, in the depth range the window showed (an automatic range is fixed to the one
 in use, so the file shows what the window did), and the sidecar's "channel_view" records
 it (capture/sidecar.py), so ``render --sidecar`` draws the same picture again.
+
+A streamed SOG's screenshot draws the level-of-detail choice for its own camera, as
+``render --sidecar`` does with the settings the sidecar records (budget, distance, level):
+the renderer is restricted to it for the capture, then to what the window drew.
 """
 
 from __future__ import annotations
@@ -31,11 +35,13 @@ from raygs_viewer.capture.screenshot import (
     save_screenshots,
     scaled_camera,
 )
-from raygs_viewer.capture.sidecar import build_sidecar
+from raygs_viewer.capture.sidecar import build_sidecar, scene_sha256
 from raygs_viewer.render.channel_pictures import ChannelView, channel_picture
 from raygs_viewer.render.gl.stereo_frame import render_stereo_view
+from raygs_viewer.render.lod_view import restrict_to_view
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.loader import LoadedScene
+from raygs_viewer.sort.lod_choice import LodRequest
 from raygs_viewer.viewer.state import ScreenshotOptions, SplitView
 
 #: (png, sidecar) paths of one saved image.
@@ -67,17 +73,30 @@ def sidecar_extra(navigator: Navigator, loaded: LoadedScene, training_index: int
 
 
 def take_screenshots(renderer, loaded: LoadedScene, shown: ShownView, options: ScreenshotOptions, save_eyes: bool,
-                     extra: dict, path: str | Path | None = None) -> list[Saved]:
+                     extra: dict, path: str | Path | None = None, lod: LodRequest | None = None) -> list[Saved]:
     """Renders and saves ``shown`` at ``options.scale`` into ``options.folder`` (or at
     ``path``, tagged names beside it for several images); never overwrites anything.
-    Returns every (png, json) pair written, the left side's or the pair's first."""
+    ``lod``: a streamed SOG's choice, made for the screenshot's camera. Returns every
+    (png, json) pair written, the left side's or the pair's first."""
+    camera = scaled_camera(shown.camera, options.scale)
+    drawn = renderer.spans
+    restrict_to_view(renderer, lod, camera)  # both sides, both eyes: the one camera's choice
+    try:
+        return _take(renderer, loaded, shown, options, save_eyes, extra, path, camera)
+    finally:
+        renderer.restrict(drawn)
+
+
+def _take(renderer, loaded: LoadedScene, shown: ShownView, options: ScreenshotOptions, save_eyes: bool,
+          extra: dict, path: str | Path | None, camera: Camera) -> list[Saved]:
     scale = options.scale
-    camera = scaled_camera(shown.camera, scale)
     scene_path = loaded.path if loaded.path == "demo" else os.path.abspath(loaded.path)
+    # A streamed SOG shown before its files were all hashed: hashed now, the sidecar needs it.
+    sha256 = loaded.sha256 or scene_sha256(loaded.path)
 
     def sidecar(settings: RenderSettings, details: dict, stereo: StereoView | None = None,
                 view: ChannelView | None = shown.view) -> dict:
-        return build_sidecar(scene_path=scene_path, scene_sha256=loaded.sha256, scene=loaded.scene, camera=camera,
+        return build_sidecar(scene_path=scene_path, scene_sha256=sha256, scene=loaded.scene, camera=camera,
                              settings=settings, scale=scale, window_camera=shown.camera, extra=details, stereo=stereo,
                              channel_view=view)
 

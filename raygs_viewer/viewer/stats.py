@@ -89,7 +89,7 @@ class FrameStats:
         for older in [n for n in self.request_frames if n < result.serial]:  # answered or skipped
             del self.request_frames[older]
         current = sort_key(result.camera, result.p_min, result.dilation, result.cull_cameras,
-                           result.keys) == asked
+                           result.keys, result.lod_key) == asked
         self.order_age = 0 if current else frame_index - self.request_frames.get(result.serial, frame_index)
         if not current:
             now = time.perf_counter() if now is None else now
@@ -120,11 +120,11 @@ def order_freshness(stats: FrameStats) -> str:
 
 
 def sort_key(camera: Camera, p_min: float, dilation: float | None, cull_cameras,
-             keys: Sequence[str] = ("depth",)) -> tuple:
-    """What tells sort requests apart: the view, the cull, the cameras culled for and
-    the sort keys ordered by."""
+             keys: Sequence[str] = ("depth",), lod: tuple | None = None) -> tuple:
+    """What tells sort requests apart: the view, the cull, the cameras culled for, the
+    sort keys ordered by and the level-of-detail choice's key (``LodRequest.key``)."""
     return (camera_key(camera), p_min, dilation,
-            None if cull_cameras is None else tuple(camera_key(c) for c in cull_cameras), tuple(keys))
+            None if cull_cameras is None else tuple(camera_key(c) for c in cull_cameras), tuple(keys), lod)
 
 
 def order_stats_lines(stats: OrderStats) -> list[str]:

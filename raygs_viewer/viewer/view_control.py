@@ -26,7 +26,7 @@ class ViewControl:
         a window of ``aspect`` (width / height)."""
         self.cameras = loaded.cameras
         self.panel = panel
-        self.center, self.radius = scene_bounds(loaded.scene.positions)
+        self.center, self.radius = scene_bounds(loaded.framed)
         self.training_index: int | None = None
         if start_camera is not None:
             pose, self.lens = Pose.from_camera(start_camera), Lens.of_camera(start_camera)

@@ -189,9 +189,11 @@ def test_round_trip_through_save_screenshot(tmp_path):
     assert loaded.settings == RenderSettings()
 
 
-#: A non-default value of every accuracy field (those after p_min, background, sh_degree).
+#: A non-default value of every field after p_min, background, sh_degree: the accuracy
+#: options and a streamed SOG's level of detail.
 ACCURACY = dict(mode="raygs-exact-mip", mip=True, mip_sigma2=0.37, mip_modulation=False, gs_compensation=True,
-                supersample=3, alpha_clamp=True, transmittance_cutoff=True, order="per-pixel", order_k=5)
+                supersample=3, alpha_clamp=True, transmittance_cutoff=True, order="per-pixel", order_k=5,
+                lod=2, lod_budget=123456, lod_distance=7.5)
 
 
 def test_every_accuracy_setting_round_trips(tmp_path):

@@ -25,7 +25,7 @@ from raygs_viewer.viewer.stats import (
 def _result(camera, requested_at):
     return SimpleNamespace(camera=camera, p_min=0.01, dilation=0.0, cull_cameras=None, keys=("depth",), serial=1,
                            seconds=0.01, order=np.arange(5, dtype=np.uint32), orders={"depth": np.arange(5)},
-                           requested_at=requested_at)
+                           requested_at=requested_at, lod_key=None)
 
 
 def test_turned_degrees_is_the_rotation_angle():

@@ -162,7 +162,7 @@ class GLRenderer:
         for chunk in self.storage.preprocess_chunks(layout, self.variants.colors_at_load(settings)):
             program["u_out_offset"].value = chunk.offset
             for first, count in chunk_runs(chunk.start, chunk.count, self.spans):
-                program["u_first"].value = first
+                set_uniform(program, "u_first", first)  # gone where a negative control breaks the shader
                 program["u_count"].value = count
                 program.run(group_x=-(-count // WORKGROUP))
         self.ctx.memory_barrier()

@@ -1,0 +1,228 @@
+"""The window's level of detail for a streamed SOG (``lod-meta.json``; docs/lod.md).
+
+Reading. The command line's scene is read before the window opens only up to what the
+first picture needs (:func:`first_levels`: the coarsest level, or ``--lod N``'s), so a
+bad file still fails before a window opens; the window then reads the levels its
+settings want in the background (:meth:`WindowLod.for_frame`), coarsest first, as a
+scene opened from the panel is read. Each level read replaces the renderer's scene and
+keeps the view (:meth:`WindowLod.refine`). A level only adds rows after those read
+before (``scene.lod_file``), so the last order and its choice still name the right
+gaussians: they are drawn until the new scene's first sort is done, and a level arriving
+never blanks the picture.
+
+Each frame the sort thread makes the choice (:meth:`WindowLod.request`, from the scene and
+the settings ``lod``, ``lod_budget``, ``lod_distance``); the drawer restricts the renderer
+to the drawn result's rows. Screenshots restrict it to the choice for their own camera,
+as ``render --sidecar`` does, so the sidecar's settings reproduce them.
+
+Colour by level draws a copy of the scene whose colours say each gaussian's level
+(:data:`LEVEL_COLOURS`; the environment grey): the same rows, so orders and choices carry
+over, and no shader knows of it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import moderngl
+import numpy as np
+
+from raygs_viewer.errors import UserError, one_line
+from raygs_viewer.render.gl.memory import scene_fits
+from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.scene.lod_file import Fits, LodScene, lod_index_file, merged_spans, read_index, span_rows
+from raygs_viewer.scene.loader import DEMO, LoadedScene
+from raygs_viewer.scene.model import Scene
+from raygs_viewer.scene.sh import C0
+from raygs_viewer.sort.lod_choice import LodChoice, LodRequest
+
+#: The window's budget of gaussians when the command line gives none (``render`` has no
+#: limit): about what a laptop GPU sorts and draws at an interactive rate.
+DEFAULT_WINDOW_BUDGET = 2_000_000
+
+#: Colour by level: level l is drawn in ``LEVEL_COLOURS[l % 8]`` (0 the finest, red), the
+#: environment in :data:`ENVIRONMENT_COLOUR`.
+LEVEL_COLOURS = ((0.9, 0.15, 0.1), (0.15, 0.8, 0.2), (0.15, 0.35, 0.95), (0.95, 0.85, 0.1),
+                 (0.85, 0.2, 0.85), (0.1, 0.85, 0.85), (0.95, 0.55, 0.1), (0.55, 0.3, 0.9))
+ENVIRONMENT_COLOUR = (0.5, 0.5, 0.5)
+
+
+def first_levels(scene: str, settings: RenderSettings) -> tuple[int, ...] | None:
+    """The levels of ``scene`` read before the window opens: ``settings.lod``'s, else the
+    coarsest; None when ``scene`` is not a streamed SOG (read it whole)."""
+    if scene == DEMO or lod_index_file(scene) is None:
+        return None
+    if settings.lod is not None:
+        return (settings.lod,)
+    return (read_index(scene, scene).levels - 1,)
+
+
+def window_settings(settings: RenderSettings, start: RenderSettings, loaded: LoadedScene) -> RenderSettings:
+    """``settings`` for a newly opened scene: a streamed SOG's level, budget and distance
+    start at the command line's (``start``; the budget at :data:`DEFAULT_WINDOW_BUDGET`
+    when it gave none), any other scene takes none of them (its sidecars could not be
+    rendered again with them)."""
+    if loaded.lod is None:
+        return replace(settings, lod=None, lod_budget=None, lod_distance=None)
+    budget = DEFAULT_WINDOW_BUDGET if start.lod_budget is None else start.lod_budget
+    return replace(settings, lod=start.lod, lod_budget=budget, lod_distance=start.lod_distance)
+
+
+def wanted_levels(levels: int, level: int | None) -> list[int]:
+    """The levels the setting ``lod`` (``level``) draws from: one, or every level."""
+    return list(range(levels)) if level is None else [min(level, levels - 1)]
+
+
+def row_levels(lod: LodScene) -> np.ndarray:
+    """(N,) int64: the level of each row of ``lod.scene``; -1 for the environment (and
+    any row no leaf names)."""
+    levels = np.full(lod.scene.count, -1, np.int64)
+    for level in np.flatnonzero(lod.loaded):
+        start, count = lod.rows[:, level].T
+        levels[span_rows(merged_spans(np.stack([start, start + count], axis=1)))] = level
+    return levels
+
+
+def tinted_scene(lod: LodScene) -> Scene:
+    """``lod.scene`` with each gaussian's colour its level's (SH degree 0)."""
+    palette = np.array(LEVEL_COLOURS + (ENVIRONMENT_COLOUR,), np.float64)
+    levels = row_levels(lod)
+    rgb = palette[np.where(levels < 0, len(LEVEL_COLOURS), levels % len(LEVEL_COLOURS))]
+    dc = ((rgb - 0.5) / C0).astype(np.float32)[:, None, :]  # the inverse of colour = 0.5 + C0 dc
+    return replace(lod.scene, sh=dc, sh_degree=0)
+
+
+def extends(old: LodScene, new: LodScene) -> bool:
+    """Whether ``new`` holds ``old``'s rows where ``old`` had them (levels read since only
+    appended): what keeps an order of ``old`` right for ``new``."""
+    count = old.scene.count
+    return (new.scene.count >= count and new.environment == old.environment and bool(new.loaded[old.loaded].all())
+            and np.array_equal(new.rows[:, old.loaded], old.rows[:, old.loaded])
+            and np.array_equal(new.scene.positions[:count], old.scene.positions))
+
+
+class WindowLod:
+    """The level of detail of the scene ``host`` (the Viewer) shows: what to read, the
+    request each frame, the scene swaps as levels arrive or the tint toggles.
+
+    ``choice``: the choice the last frame drew (None: not a streamed SOG, or no sort yet);
+    ``tint``: colour by level is on; ``fallback``: the last sort result of the scene
+    before a swap, drawn until the new scene's first sort is done."""
+
+    def __init__(self, host) -> None:
+        self.host = host
+        self.choice: LodChoice | None = None
+        self.tint = False
+        self.fallback = None
+        self._asked: LodScene | None = None  # the scene whose missing levels are being read
+        host.scenes.fits = self.fits
+
+    @property
+    def lod(self) -> LodScene | None:
+        return None if self.host.loaded is None else self.host.loaded.lod
+
+    @property
+    def reading(self) -> bool:
+        """Whether levels of the scene shown are being read."""
+        loader = self.host.scenes.loader
+        return self.lod is not None and loader.busy and loader.path == self.host.loaded.path
+
+    def fits(self) -> Fits | None:
+        """Whether a scene fits this window's GPU (``render.gl.memory.scene_fits``); None
+        (no limit) when ``RAYGS_GPU_MEMORY`` is not a size, which the panel says."""
+        try:
+            return scene_fits(self.host.ctx)[0]
+        except UserError as exc:
+            self.host.panel.error = f"error: {one_line(exc)}"
+            return None
+
+    # -- scenes ----------------------------------------------------------------------------
+    def installed(self, loaded: LoadedScene, settings: RenderSettings) -> RenderSettings:
+        """A new scene is shown (drawn in its own colours): the settings it starts with."""
+        self.tint, self.fallback, self.choice, self._asked = False, None, None, None
+        return window_settings(settings, self.host.options.settings, loaded)
+
+    def refines(self, loaded: LoadedScene) -> bool:
+        """Whether ``loaded`` is a finer reading of the scene shown."""
+        current = self.host.loaded
+        return (loaded.refines and loaded.lod is not None and current is not None and current.lod is not None
+                and loaded.path == current.path)
+
+    def refine(self, loaded: LoadedScene) -> None:
+        """Shows the levels of ``loaded`` (:meth:`refines`) in the view as it is; a
+        UserError (the GPU's memory) leaves the scene shown."""
+        host, current = self.host, self.host.loaded
+        if loaded.scene is current.scene:  # the load's last word: the hash, what was left unread
+            host.loaded = loaded
+            return
+        if host.scenes.loader.busy and not loaded.lod.loaded[current.lod.loaded].all():
+            return  # a reading that has not yet caught up with the levels shown
+        last = host.sorter.latest() or self.fallback
+        host.swap_scene(self._drawn_scene(loaded.lod))
+        self._keep(last if extends(current.lod, loaded.lod) else None)
+        if host.options.settings.sh_degree is None and host.settings.sh_degree == current.scene.sh_degree:
+            host.settings = replace(host.settings, sh_degree=loaded.scene.sh_degree)
+        host.loaded = loaded
+
+    def set_tint(self, on: bool) -> None:
+        """Colour by level on or off: the renderer gets the tinted copy, or the scene."""
+        if on == self.tint or self.lod is None:
+            return
+        last = self.host.sorter.latest() or self.fallback
+        self.tint = on
+        try:
+            self.host.swap_scene(self._drawn_scene(self.lod))
+        except (UserError, MemoryError, moderngl.Error) as exc:
+            self.tint = not on
+            self.host.panel.error = f"error: colour by level: {one_line(exc)}"
+            return
+        self._keep(last)
+
+    def check_screenshot(self) -> None:
+        """UserError while colour by level is on: a sidecar re-renders the scene's colours."""
+        if self.tint:
+            raise UserError("screenshots save the scene's own colours; turn off colour by level "
+                            "(Level of detail section) first")
+
+    # -- frames ----------------------------------------------------------------------------
+    def request(self) -> LodRequest | None:
+        """The choice to make for a view of the scene shown with the settings now."""
+        lod, settings = self.lod, self.host.settings
+        if lod is None:
+            return None
+        return LodRequest(lod, settings.lod, settings.lod_budget, settings.lod_distance)
+
+    def for_frame(self) -> LodRequest | None:
+        """:meth:`request`, after starting to read the levels the settings want that are
+        not read (once per scene; never over a load under way, nor past the GPU's memory)."""
+        lod, loaded = self.lod, self.host.loaded
+        if lod is not None and not lod.unread and self._asked is not lod and not self.host.scenes.loader.busy:
+            level = self.host.settings.lod
+            wanted = wanted_levels(lod.levels, level)
+            if not lod.loaded[wanted].all():
+                self._asked = lod
+                levels = None if level is None else tuple(sorted(set(np.flatnonzero(lod.loaded).tolist()) | set(wanted)))
+                self.host.scenes.loader.start(loaded.path, loaded.cameras_path, lod_levels=levels, fits=self.fits(),
+                                              refines=True)
+        return self.request()
+
+    def shown(self, result):
+        """The sort result this frame draws: ``result`` (the sorter's newest), else the
+        fallback; notes its choice."""
+        if result is not None:
+            self.fallback = None
+        else:
+            result = self.fallback
+        self.choice = None if result is None else result.lod
+        return result
+
+    def _drawn_scene(self, lod: LodScene) -> Scene:
+        return tinted_scene(lod) if self.tint else lod.scene
+
+    def _keep(self, last) -> None:
+        """Draws ``last`` (a result of the scene before the swap) until the new sorter's
+        first: serial 0, which no request has, so its draw is never taken for a new one's,
+        dated from the swap."""
+        self.fallback = None if last is None else replace(last, serial=0)
+        if last is not None:
+            self.host.stats.request_frames[0] = self.host.frame_index

@@ -1,0 +1,131 @@
+"""The per-view choice of levels (sort/lod_choice.py) on scenes built so that the right
+level of every leaf is known in advance, and the sort restricted to its spans
+(sort/cull.py, sort/depth.py, sort/worker.py)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from lod_kit import random_gaussians, write_streamed_sog
+
+from raygs_viewer.camera.pinhole import look_at
+from raygs_viewer.scene.lod_file import load_lod, span_rows
+from raygs_viewer.sort.cull import span_chunks
+from raygs_viewer.sort.depth import DepthSorter
+from raygs_viewer.sort.lod_choice import LodRequest, choose, level_distances
+from raygs_viewer.sort.worker import BackgroundSorter
+
+LEVELS = 3
+PER_LEAF = (16, 8, 4)  # gaussians of each level in every leaf
+
+
+def tiny_leaves(centres):
+    """A leaf at each centre, its gaussians packed within 0.02 of it (its box's distance is
+    its centre's to 0.02); every leaf's the same pattern, so their boxes are equal."""
+    return [[random_gaussians(PER_LEAF[level], centre=c, spread=0.005, scale=0.001, seed=level)
+             for level in range(LEVELS)] for c in centres]
+
+
+def scene(tmp_path, centres, environment=0, **kwargs):
+    env = random_gaussians(environment, spread=50.0, seed=3) if environment else None
+    return load_lod(write_streamed_sog(tmp_path / "lod", tiny_leaves(centres), environment=env), **kwargs)
+
+
+# The camera at the origin looking down +z; leaves straight ahead at these depths.
+CAMERA = look_at([0.0, 0.0, 0.0], [0.0, 0.0, 1.0], width=64, height=48)
+
+
+def test_each_leaf_takes_the_level_of_its_distance_band(tmp_path):
+    # distance 1: level 1 from 1, level 2 from 2 (2^(l-1) D)
+    depths = [0.5, 1.5, 2.5, 40.0]
+    lod = scene(tmp_path, [(0.0, 0.0, d) for d in depths])
+    assert level_distances(lod, 1.0).tolist() == [1.0, 2.0]
+    choice = choose(lod, CAMERA, distance=1.0)
+    assert choice.wanted.tolist() == [0, 1, 2, 2] and choice.levels.tolist() == [0, 1, 2, 2]
+    assert choice.count == 16 + 8 + 4 + 4
+    rows = span_rows(choice.spans)
+    expected = np.concatenate([np.arange(s, s + n) for s, n in (lod.rows[k, lv] for k, lv in enumerate([0, 1, 2, 2]))])
+    assert np.array_equal(np.sort(rows), np.sort(expected))
+    # Twice the distance: every band twice as far.
+    assert choose(lod, CAMERA, distance=2.0).levels.tolist() == [0, 0, 1, 2]
+
+
+def test_a_fixed_level_everywhere(tmp_path):
+    lod = scene(tmp_path, [(0.0, 0.0, d) for d in (0.5, 30.0)], environment=5)
+    choice = choose(lod, CAMERA, level=1, budget=1)  # a fixed level takes no budget
+    assert choice.levels.tolist() == [1, 1] and choice.count == 5 + 8 + 8
+
+
+def test_a_leaf_waits_on_its_coarser_level_until_the_finer_one_is_read(tmp_path):
+    centres = [(0.0, 0.0, 0.5), (0.0, 0.0, 1.5)]
+    partial = scene(tmp_path, centres, levels=(1, 2))
+    choice = choose(partial, CAMERA, distance=1.0)
+    assert choice.wanted.tolist() == [0, 1] and choice.levels.tolist() == [1, 1]
+    assert choose(partial, CAMERA, level=0).levels.tolist() == [1, 1]
+    coarsest = load_lod(tmp_path / "lod" / "lod-meta.json", levels=(2,))
+    assert choose(coarsest, CAMERA, distance=1.0).levels.tolist() == [2, 2]
+
+
+def test_under_a_budget_what_is_largest_on_screen_is_refined_first(tmp_path):
+    # Every leaf wants level 0 (the distance is far beyond them); sizes on screen 1 : 1/3 : 1/9.
+    lod = scene(tmp_path, [(0.0, 0.0, d) for d in (1.0, 3.0, 9.0)], environment=2)
+    assert choose(lod, CAMERA, distance=100.0, budget=2 + 3 * 16).levels.tolist() == [0, 0, 0]
+    # From the coarsest (2 + 3 * 4 = 14), a step to level 1 costs 4 and to level 0 costs 8;
+    # their priorities s 2^l: leaf 0 to 1 (2), leaf 0 to 0 (1), leaf 1 to 1 (2/3), leaf 1 to 0
+    # (1/3), leaf 2 to 1 (2/9), leaf 2 to 0 (1/9).
+    for budget, expected in [(14, [2, 2, 2]), (18, [1, 2, 2]), (25, [1, 2, 2]), (26, [0, 2, 2]),
+                             (30, [0, 1, 2]), (38, [0, 0, 2]), (42, [0, 0, 1]), (49, [0, 0, 1]),
+                             (50, [0, 0, 0])]:
+        choice = choose(lod, CAMERA, distance=100.0, budget=budget)
+        assert choice.levels.tolist() == expected, budget
+        assert choice.count <= budget and not choice.over_budget
+    squeezed = choose(lod, CAMERA, distance=100.0, budget=5)
+    assert squeezed.levels.tolist() == [2, 2, 2] and squeezed.over_budget and squeezed.count == 14
+
+
+def test_leaves_out_of_view_stay_coarse_and_cost_nothing(tmp_path):
+    lod = scene(tmp_path, [(0.0, 0.0, 1.0), (0.0, 0.0, -1.0), (30.0, 0.0, 1.0)])
+    assert choose(lod, CAMERA, distance=100.0).levels.tolist() == [0, 2, 2]  # behind, and far to the side
+    choice = choose(lod, CAMERA, distance=100.0, budget=16)
+    assert choice.levels.tolist() == [0, 2, 2] and choice.count == 16 + 4 + 4  # the budget counts what is in view
+
+
+def test_span_chunks_cut_spans_at_chunk_rows():
+    chunks = span_chunks(np.array([[0, 5], [7, 8], [10, 23]]), 4)
+    assert chunks.tolist() == [[0, 4], [4, 5], [7, 8], [10, 14], [14, 18], [18, 22], [22, 23]]
+
+
+@pytest.mark.parametrize("workers,chunk_rows", [(1, 1 << 16), (3, 5)])
+@pytest.mark.parametrize("key", ["depth", "distance"])
+def test_a_sort_of_spans_is_the_sort_of_their_rows_alone(tmp_path, workers, chunk_rows, key):
+    lod = scene(tmp_path, [(x, 0.0, 2.0 + x) for x in (-1.0, 0.0, 1.0, 2.0)], environment=4)
+    camera = look_at([0.5, 0.2, -1.0], [0.5, 0.0, 3.0], width=64, height=48)
+    choice = choose(lod, camera, distance=2.5)
+    rows = span_rows(choice.spans)
+    sorter = DepthSorter(lod.scene, workers, chunk_rows=chunk_rows)
+    alone = DepthSorter(lod.subset(choice.spans), 1)
+    for _ in range(3):  # the distance key's turn cache answers the later ones
+        order = sorter.order(camera, 0.01, key=key, spans=choice.spans)
+        assert np.array_equal(order, rows[alone.order(camera, 0.01, key=key)])
+    everything = sorter.order(camera, 0.01, key=key)  # a later whole-scene sort is not filtered by the spans
+    assert everything.size > order.size and np.array_equal(everything, DepthSorter(lod.scene, 1).order(
+        camera, 0.01, key=key))
+    sorter.close()
+
+
+def test_the_sort_thread_chooses_for_each_view(tmp_path):
+    lod = scene(tmp_path, [(0.0, 0.0, d) for d in (0.5, 1.5, 2.5)])
+    sorter = BackgroundSorter(DepthSorter(lod.scene, 1))
+    try:
+        request = LodRequest(lod, budget=None, distance=1.0)
+        serial = sorter.request(CAMERA, 0.01, lod=request)
+        assert sorter.request(CAMERA, 0.01, lod=request) == serial  # the same view and choice: not queued again
+        result = sorter.wait(serial, timeout=30)
+        assert result.lod.levels.tolist() == [0, 1, 2]
+        assert np.isin(result.order, span_rows(result.lod.spans)).all()
+        coarser = sorter.wait(sorter.request(CAMERA, 0.01, lod=LodRequest(lod, level=2)), timeout=30)
+        assert coarser.serial > serial and coarser.lod.levels.tolist() == [2, 2, 2]
+        assert coarser.order.size == 3 * 4
+    finally:
+        sorter.close()
+        sorter.join(10)
