@@ -64,6 +64,8 @@ def test_a_leaf_waits_on_its_coarser_level_until_the_finer_one_is_read(tmp_path)
     assert choose(partial, CAMERA, level=0).levels.tolist() == [1, 1]
     coarsest = load_lod(tmp_path / "lod" / "lod-meta.json", levels=(2,))
     assert choose(coarsest, CAMERA, distance=1.0).levels.tolist() == [2, 2]
+    gap = load_lod(tmp_path / "lod" / "lod-meta.json", levels=(0, 2))  # level 1 unread between two read ones
+    assert choose(gap, CAMERA, distance=1.0).levels.tolist() == [0, 2]  # coarser, never finer than asked
 
 
 def test_under_a_budget_what_is_largest_on_screen_is_refined_first(tmp_path):
