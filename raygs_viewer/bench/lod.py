@@ -22,7 +22,7 @@ level's gaussians plus the environment's. For each case:
   to it (``renderer.sorter.order(..., spans=)``);
 - the time of preprocess+draw (with the order's upload): the GPU timer's
   (``render.gl.timing.GpuTimer``) and the CPU's with the GPU drained on both sides (on
-  a software rasterizer the timer reads a fraction of the work; the drained time is
+  a software rasterizer the timer may read only part of the work; the drained time is
   what it costs there);
 - the ratios of those to the finest level's, medians taken in the same frames;
 - the error of its image against the finest level's at the same camera: PSNR and the
@@ -370,8 +370,8 @@ def run_lod(options: LodOptions, ctx=None, out: TextIO | None = None) -> LodResu
                 runner.release()
     results.seconds, results.notes = common.run_end(
         "lod", started, machine, options.notes,
-        "This is a software OpenGL renderer (on the CPU): its GPU timer reads a fraction of the work (the passes "
-        "run after the query closes), so read the drained GL times and their ratios; a GPU's differ.", say)
+        "This is a software OpenGL renderer (on the CPU): its GPU timer may read only part of the work (the "
+        "passes can run after the query closes), so the drained GL times are the ones to read; a GPU's differ.", say)
     return results
 
 

@@ -65,6 +65,7 @@ from raygs_viewer.camera.path import (
 )
 from raygs_viewer.camera.rotation import is_rotation
 from raygs_viewer.camera.stereo import StereoView
+from raygs_viewer.capture.document_entries import load_settings_entry, load_stereo_entry, stereo_entry
 from raygs_viewer.capture.image_io import check_output_path
 from raygs_viewer.capture.nerfstudio import NerfstudioPath, is_nerfstudio, read_nerfstudio, save_nerfstudio
 from raygs_viewer.capture.screenshot import MAX_SCREENSHOT_SIDE, with_relative_scene_path
@@ -73,10 +74,7 @@ from raygs_viewer.capture.sidecar import (
     ROTATION_TOLERANCE,
     SHA256_HEX,
     document_head,
-    load_settings_entry,
-    load_stereo_entry,
     scene_mismatch_warning,
-    stereo_entry,
 )
 from raygs_viewer.errors import UserError
 from raygs_viewer.files import write_atomically

@@ -13,6 +13,7 @@ Layout (version 1)::
      "scene": {"path": "/abs/scene.ply" or "demo", "sha256": "...", "count": N,
                "sh_degree": d, "filter_fused": false,
                "spz_axes": "rub",                              # a .spz only: the axes it was read in
+               "lod_levels": [1, 2],                           # a streamed SOG chosen per view: the levels read
                "relative_path": "../scene.ply"},               # added when saved, from the sidecar's folder
      "camera": {INRIA cameras.json entry, cx and cy always present},
      "world_to_camera": {"R": 3x3, "t": 3},                    # the exact float64 pose
@@ -62,8 +63,6 @@ import dataclasses
 import functools
 import os
 import re
-import types
-import typing
 from collections.abc import Callable
 from dataclasses import dataclass
 from datetime import datetime, timezone
@@ -72,21 +71,15 @@ from pathlib import Path
 import numpy as np
 
 import raygs_viewer
-from raygs_viewer.camera.lens_model import LensModel
 from raygs_viewer.camera.pinhole import Camera, camera_from_json, camera_to_json
 from raygs_viewer.camera.rotation import is_rotation
-from raygs_viewer.camera.stereo import (
-    LAYOUTS,
-    HeadsetPreset,
-    StereoRig,
-    StereoView,
-    composed_size,
-)
+from raygs_viewer.camera.stereo import StereoView, composed_size
+from raygs_viewer.capture.document_entries import load_settings_entry, load_stereo_entry, stereo_entry
 from raygs_viewer.capture.screenshot import MAX_SCALE
 from raygs_viewer.errors import UserError
-from raygs_viewer.jsonfile import JsonFields, json_key, read_json_file, show_json, typed
+from raygs_viewer.jsonfile import JsonFields, read_json_file, show_json
 from raygs_viewer.render.channel_pictures import ChannelView
-from raygs_viewer.render.settings import RENDER_MODES, RenderSettings
+from raygs_viewer.render.settings import MAX_LOD_LEVELS, RENDER_MODES, RenderSettings
 from raygs_viewer.scene.demo import demo_scene
 from raygs_viewer.scene.content_hash import arrays_sha256, file_sha256
 from raygs_viewer.scene.model import Scene
@@ -170,14 +163,18 @@ def _pose(camera: Camera) -> dict:
 
 def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, settings: RenderSettings,
                   scale: float, window_camera: Camera | None = None, extra: dict | None = None,
-                  stereo: StereoView | None = None, channel_view: ChannelView | None = None) -> dict:
+                  stereo: StereoView | None = None, channel_view: ChannelView | None = None,
+                  lod_levels: tuple[int, ...] | None = None) -> dict:
     """The sidecar of a screenshot rendered at ``camera`` (the window's camera already
     scaled by ``scale``) with ``settings``. ``scene_path`` is the loaded file ("demo"
     for the demo), recorded as an absolute path; ``window_camera`` is the on-screen
     view; ``extra`` holds free-form details of the window (up axis, navigation, GL
     renderer, ...). ``stereo``: the image is that stereo view around ``camera``.
     ``channel_view``: the image is that picture of a channel (its ``depth_range`` the
-    range the picture used); colour (None, or the rgb channel) records nothing."""
+    range the picture used); colour (None, or the rgb channel) records nothing.
+    ``lod_levels``: a streamed SOG's levels read when the levels were chosen per view
+    (the choice depends on them: a screenshot taken while finer levels were still being
+    read, or on a GPU that held fewer, re-renders from those alone)."""
     if scene_path == DEMO:
         recorded_path = DEMO
     else:
@@ -192,7 +189,8 @@ def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, 
         "image": {"width": int(width), "height": int(height), "scale": float(scale)},
         "scene": {"path": recorded_path, "sha256": scene_sha256, "count": int(scene.count),
                   "sh_degree": int(scene.sh_degree), "filter_fused": bool(scene.filter_fused),
-                  **({"spz_axes": axes.assumed} if axes else {})},
+                  **({"spz_axes": axes.assumed} if axes else {}),
+                  **({"lod_levels": sorted(lod_levels)} if lod_levels is not None else {})},
         "camera": _camera_entry(camera),
         "world_to_camera": _pose(camera),
         "settings": dataclasses.asdict(settings),
@@ -206,13 +204,6 @@ def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, 
     if window_camera is not None:
         sidecar["window"] = {"camera": _camera_entry(window_camera), "world_to_camera": _pose(window_camera)}
     return sidecar
-
-
-def stereo_entry(view: StereoView) -> dict:
-    """The "stereo" section: every field of the rig, then the layout, the lens and the headset."""
-    return {**dataclasses.asdict(view.rig), "layout": view.layout,
-            "lens": None if view.lens is None else dataclasses.asdict(view.lens),
-            "headset": None if view.headset is None else dataclasses.asdict(view.headset)}
 
 
 def channel_view_entry(view: ChannelView) -> dict:
@@ -238,7 +229,8 @@ class Sidecar:
     settings' mode (one of RENDER_MODES).
     raw: the parsed JSON, for fields only the window reads. channel_view: the picture
     of a channel the image is (None: colour). spz_axes: the convention a .spz scene was
-    read in ("rub" for other scenes and older sidecars)."""
+    read in ("rub" for other scenes and older sidecars). lod_levels: the levels of a
+    streamed SOG to read (None: every level that fits)."""
 
     path: Path
     scene_path: str
@@ -251,6 +243,7 @@ class Sidecar:
     stereo: StereoView | None = None
     channel_view: ChannelView | None = None
     spz_axes: str = DEFAULT_SPZ_AXES
+    lod_levels: tuple[int, ...] | None = None
 
 
 def load_sidecar(path: str | os.PathLike) -> Sidecar:
@@ -283,6 +276,14 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
         raise UserError(f"{path}: 'scene.spz_axes' {spz_axes} needs sidecar version {RDF_SIDECAR_VERSION}, "
                         f"the file says {version}")
 
+    lod_levels = fields.optional("scene.lod_levels", list)
+    if lod_levels is not None:
+        if not lod_levels or not all(isinstance(v, int) and not isinstance(v, bool) and 0 <= v < MAX_LOD_LEVELS
+                                     for v in lod_levels):
+            raise UserError(f"{path}: 'scene.lod_levels' must list levels from 0 to {MAX_LOD_LEVELS - 1}, "
+                            f"got {show_json(lod_levels)}")
+        lod_levels = tuple(sorted(set(lod_levels)))
+
     camera = _load_camera(fields)
     stereo = load_stereo_entry(fields) if "stereo" in data else None
     if stereo is not None and version < STEREO_SIDECAR_VERSION:
@@ -310,7 +311,8 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
     if channel_view is not None and version < CHANNEL_SIDECAR_VERSION:
         raise UserError(f"{path}: 'channel_view' needs sidecar version {CHANNEL_SIDECAR_VERSION}, "
                         f"the file says {version}")
-    return Sidecar(path, scene_path, sha, camera, settings, scale, render_mode, data, stereo, channel_view, spz_axes)
+    return Sidecar(path, scene_path, sha, camera, settings, scale, render_mode, data, stereo, channel_view, spz_axes,
+                   lod_levels)
 
 
 def load_channel_view_entry(fields: JsonFields) -> ChannelView:
@@ -351,112 +353,6 @@ def _load_camera(fields: JsonFields) -> Camera:
         raise UserError(f"{path}: 'camera' position/rotation and 'world_to_camera' describe different poses "
                         f"(edit both, or remove 'world_to_camera')")
     return Camera(camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy, R, t)
-
-
-def load_stereo_entry(fields: JsonFields, rig_type: type[StereoRig] = StereoRig) -> StereoView:
-    """The "stereo" section: the fields of ``rig_type``, the layout, the lens and the
-    headset. A key the file lacks takes its default (the file was written before the
-    field existed; a headset's fields have none, so they stay required); an unknown key
-    is an error (a newer program's stereo option cannot be honoured)."""
-    path = fields.path
-    entry = fields.get("stereo", dict)
-    view = {declared.name: declared.default for declared in dataclasses.fields(StereoView) if declared.name != "rig"}
-    fields.keys("stereo", entry, (), (*(declared.name for declared in dataclasses.fields(rig_type)), *view))
-    layout = fields.get("stereo.layout", str) if "layout" in entry else view["layout"]
-    if layout not in LAYOUTS:
-        raise UserError(f"{path}: 'stereo.layout' must be one of {', '.join(LAYOUTS)}, got {show_json(layout)}")
-    try:
-        rig = rig_type(**_field_values(fields, "stereo", entry, rig_type))
-        lens, headset = (_nested_entry(fields, f"stereo.{name}", kind)
-                         for name, kind in (("lens", LensModel), ("headset", HeadsetPreset)))
-    except UserError as exc:
-        if str(exc).startswith(str(path)):
-            raise
-        raise UserError(f"{path}: 'stereo': {exc}") from None
-    return StereoView(rig, layout, lens, headset)
-
-
-def _nested_entry(fields: JsonFields, dotted: str, kind: type):
-    """``kind`` from the object at ``dotted``, or None where it is null or absent: a key
-    it lacks takes the field's default where ``kind`` has one, an unknown key is an error."""
-    parent, _, key = dotted.rpartition(".")
-    if fields.get(parent, dict).get(key) is None:
-        return None
-    entry = fields.get(dotted, (dict, type(None)))
-    declared = dataclasses.fields(kind)
-    fields.keys(dotted, entry, tuple(f.name for f in declared if f.default is dataclasses.MISSING),
-                tuple(f.name for f in declared if f.default is not dataclasses.MISSING))
-    return kind(**_field_values(fields, dotted, entry, kind))
-
-
-def _field_values(fields: JsonFields, dotted: str, entry: dict, kind: type) -> dict:
-    """The values ``entry`` (the object at ``dotted``) gives for the fields of the
-    dataclass ``kind``, each checked against its annotated type (:func:`_setting`); the
-    fields it lacks are left out, to take their defaults."""
-    hints = typing.get_type_hints(kind)
-    return {f.name: _setting(entry[f.name], hints[f.name], f"{fields.path}: '{dotted}.{f.name}'")
-            for f in dataclasses.fields(kind) if f.name in entry}
-
-
-def load_settings_entry(fields: JsonFields, render_mode: str | None = None,
-                        settings_type: type[RenderSettings] = RenderSettings) -> RenderSettings:
-    """``settings_type`` from "settings": every key must be a field (a newer program's
-    setting cannot be honoured, so it is an error); missing fields take their defaults
-    (sidecars written before the field existed), except "mode", which older sidecars
-    recorded only as ``render_mode``: a "settings.mode" must equal it."""
-    path = fields.path
-    raw = fields.get("settings", dict)
-    if render_mode is not None:
-        if "mode" not in raw:
-            raw = {**raw, "mode": render_mode}
-        elif raw["mode"] != render_mode:
-            raise UserError(f"{path}: 'settings.mode' {show_json(raw['mode'])} differs from 'render_mode' "
-                            f"{show_json(render_mode)} (they must agree; edit both)")
-    known = {f.name for f in dataclasses.fields(settings_type)}
-    for name in raw:
-        if name not in known:
-            raise UserError(f"{path}: unknown setting 'settings.{json_key(name)}' "
-                            f"(it may come from a newer raygs-viewer)")
-    values = _field_values(fields, "settings", raw, settings_type)
-    try:
-        return settings_type(**values)
-    except UserError as exc:
-        raise UserError(f"{path}: 'settings': {exc}") from None
-    except (TypeError, ValueError) as exc:  # a field type _setting does not know how to check
-        raise UserError(f"{path}: 'settings': {exc}") from None
-
-
-def _setting(value, hint, where: str):
-    """A JSON value converted to a RenderSettings field's annotated type: float, int,
-    bool, str, tuple[...] (from a JSON array) and X | None are checked; other types pass
-    through to RenderSettings' own validation."""
-    origin, args = typing.get_origin(hint), typing.get_args(hint)
-    if origin in (typing.Union, types.UnionType):
-        if value is None and type(None) in args:
-            return None
-        options = [a for a in args if a is not type(None)]
-        errors = []
-        for option in options:
-            try:
-                return _setting(value, option, where)
-            except UserError as exc:
-                errors.append(exc)
-        if len(options) == 1:
-            raise errors[0]
-        raise UserError(f"{where} has the wrong type, got {show_json(value)}")
-    if origin is tuple:
-        if not isinstance(value, list):
-            raise UserError(f"{where} must be a JSON array, got {show_json(value)}")
-        if len(args) == 2 and args[1] is Ellipsis:
-            return tuple(_setting(v, args[0], where) for v in value)
-        if len(value) != len(args):
-            raise UserError(f"{where} must have {len(args)} entries, got {show_json(value)}")
-        return tuple(_setting(v, a, where) for v, a in zip(value, args))
-    if hint in (float, int, bool, str):
-        if hint is int and isinstance(value, bool):
-            raise UserError(f"{where} must be a whole number, got {show_json(value)}")
-        return typed(value, hint, where)
-    return value
 
 
 # --------------------------------------------------------------------------- the scene

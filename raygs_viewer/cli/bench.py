@@ -517,7 +517,8 @@ def _add_lod_parser(kinds) -> None:
                                   f"{lod_bench.QUICK_WIDTH})",
                           f"timed frames per case (default {lod_bench.DEFAULT_REPEAT}, --quick "
                           f"{lod_bench.QUICK_REPEAT})")
-    parser.add_argument("--lod-distance", type=argtypes.real_number(lambda v: 0 < v <= 1e30, "not a distance above 0"), metavar="D",
+    parser.add_argument("--lod-distance", metavar="D",
+                        type=argtypes.real_number(lambda v: 0 < v <= 1e30, "not a distance above 0"),
                         help="the distance (scene units) from which level 1 is chosen, as render's "
                              "--lod-distance (default: automatic, four half-diagonals of the median part)")
     _add_out_options(parser)
@@ -528,7 +529,8 @@ def _lod_scenes() -> tuple[tuple[str, ...], list[str]]:
     folder = shared_scenes_dir()
     found = [] if folder is None else sorted(os.path.relpath(p) for p in folder.rglob(LOD_META_NAME) if p.is_file())
     if not found:
-        where = "no ../shared/scenes folder" if folder is None else f"no {LOD_META_NAME} under {os.path.relpath(folder)}"
+        where = ("no ../shared/scenes folder" if folder is None
+                 else f"no {LOD_META_NAME} under {os.path.relpath(folder)}")
         raise UserError(f"bench lod: {where}; pass --scenes LOD.json ... (a streamed SOG, e.g. one made by "
                         f"docs/lod_real_scene.sh)")
     return tuple(found), []

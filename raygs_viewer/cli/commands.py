@@ -117,7 +117,7 @@ def load_scene_argument(name: str, spz_axes: str | None = None, lod: int | None 
 
 
 def open_scene_argument(name: str, settings: RenderSettings, spz_axes: str | None = None,
-                        ctx=None) -> OpenedScene:
+                        ctx=None, levels: tuple[int, ...] | None = None) -> OpenedScene:
     """The demo, or the scene file ``name`` opened for ``settings`` (a streamed SOG: its
     level or the levels the GPU of ``ctx`` holds, render/lod_view.py); warns about what
     it dropped and what it left unread."""
@@ -126,7 +126,7 @@ def open_scene_argument(name: str, settings: RenderSettings, spz_axes: str | Non
         opened = OpenedScene(demo_scene())
     else:
         fits = None if ctx is None else scene_fits(ctx)[0]
-        opened = open_scene(name, settings, spz_axes=argtypes.spz_axes(spz_axes), fits=fits)
+        opened = open_scene(name, settings, spz_axes=argtypes.spz_axes(spz_axes), fits=fits, levels=levels)
     warn_dropped(opened.scene)
     if opened.note:
         print(f"warning: {opened.note}", file=sys.stderr)
@@ -209,7 +209,7 @@ def command_render(args) -> int:
             scene_name = resolve_scene(shot, args.scene)
             verify_scene_hash(shot, scene_name)
             camera, settings, stereo = shot.camera, shot.settings, shot.stereo
-            opened = open_scene_argument(scene_name, settings, shot.spz_axes, ctx)
+            opened = open_scene_argument(scene_name, settings, shot.spz_axes, ctx, shot.lod_levels)
         else:
             settings = render_settings(args)
             opened, camera = _scene_and_camera(args, settings, ctx)

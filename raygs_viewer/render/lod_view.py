@@ -59,19 +59,22 @@ def refuse_lod_settings(what: str, settings: RenderSettings) -> None:
                         f"appl{'y' if len(given) > 1 else 'ies'} to a lod-meta.json scene")
 
 
-def open_scene(path: str, settings: RenderSettings, *, spz_axes: str = "rub", fits: Fits | None = None
-               ) -> OpenedScene:
+def open_scene(path: str, settings: RenderSettings, *, spz_axes: str = "rub", fits: Fits | None = None,
+               levels: tuple[int, ...] | None = None) -> OpenedScene:
     """The scene file ``path`` for ``settings`` (see the module docstring); ``fits``:
-    whether a scene of (count, SH degree) fits the GPU (``render.gl.memory.scene_fits``)."""
+    whether a scene of (count, SH degree) fits the GPU (``render.gl.memory.scene_fits``);
+    ``levels``: the levels to read for the choice (a sidecar's: those read when it was
+    taken), None for every level that fits."""
     if lod_index_file(path) is None:
         refuse_lod_settings(path, settings)
         return OpenedScene(load_scene(path, spz_axes=spz_axes))
-    return for_settings(load_lod(path, levels=lod_levels(settings), fits=fits), settings)
+    return for_settings(load_lod(path, levels=lod_levels(settings, levels), fits=fits), settings)
 
 
-def lod_levels(settings: RenderSettings) -> tuple[int, ...] | None:
-    """The levels of a streamed SOG that ``settings`` need read (None: all that fit)."""
-    return None if settings.lod is None else (settings.lod,)
+def lod_levels(settings: RenderSettings, recorded: tuple[int, ...] | None = None) -> tuple[int, ...] | None:
+    """The levels of a streamed SOG that ``settings`` need read: the one level they set,
+    else those ``recorded``, else None (all that fit)."""
+    return recorded if settings.lod is None else (settings.lod,)
 
 
 def for_settings(lod: LodScene, settings: RenderSettings) -> OpenedScene:

@@ -42,7 +42,8 @@ from raygs_viewer.capture.path_file import (
     save_path_document,
     scene_mismatch,
 )
-from raygs_viewer.capture.sidecar import demo_sha256, stereo_entry
+from raygs_viewer.capture.document_entries import stereo_entry
+from raygs_viewer.capture.sidecar import demo_sha256
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.settings import RenderSettings
 

@@ -34,6 +34,7 @@ import raygs_viewer.capture.sidecar as sidecar_module
 from raygs_viewer.camera.lens_model import LensModel
 from raygs_viewer.camera.pinhole import Camera, frame_points, look_at
 from raygs_viewer.camera.stereo import PRESETS, Quantity, StereoRig, StereoView, rig_field
+from raygs_viewer.capture.document_entries import load_settings_entry, load_stereo_entry
 from raygs_viewer.capture.image_io import encode_image
 from raygs_viewer.capture.screenshot import render_tiled, save_screenshot, scaled_camera
 from raygs_viewer.capture.sidecar import (
@@ -43,7 +44,6 @@ from raygs_viewer.capture.sidecar import (
     build_sidecar,
     demo_sha256,
     load_sidecar,
-    load_stereo_entry,
     resolve_scene,
     scene_sha256,
     verify_scene_hash,
@@ -152,7 +152,7 @@ def test_settings_fields_flow_in_automatically():
     data = demo_sidecar(settings=Extended(exposure=2.5))
     assert data["settings"]["exposure"] == 2.5
     fields = JsonFields(Path("x.json"), json.loads(json.dumps(data)))
-    loaded = sidecar_module.load_settings_entry(fields, settings_type=Extended)
+    loaded = load_settings_entry(fields, settings_type=Extended)
     assert loaded == Extended(exposure=2.5) and loaded != Extended()
 
 

@@ -116,3 +116,22 @@ def test_bad_level_options_are_one_line(capsys, tmp_path, streamed, argv, fragme
         argv += ["--out", str(tmp_path / "x.png")]
     code, _, err = run_cli(capsys, *argv)
     assert fragment in assert_one_line_error(code, err)
+
+
+def test_a_sidecar_taken_before_the_finer_levels_were_read_renders_from_those_read(capsys, tmp_path, streamed):
+    partial = load_lod(streamed, levels=(1, 2))
+    choice = choose(partial, CAMERA, distance=5.0)
+    assert choice.wanted.min() == 0 and choice.levels.min() == 1  # level 0 wanted, not yet read
+    data = build_sidecar(scene_path=str(streamed), scene_sha256=file_sha256(streamed), scene=partial.scene,
+                         camera=CAMERA, settings=RenderSettings(lod_distance=5.0), scale=1.0, lod_levels=(2, 1))
+    assert data["scene"]["lod_levels"] == [1, 2]
+    sidecar = tmp_path / "early.json"
+    sidecar.write_text(json.dumps(data))
+    out = tmp_path / "early.npy"
+    code, stdout, _ = run_cli(capsys, "render", "--sidecar", sidecar, "--out", out)
+    assert code == 0 and f"{choice.count} of {partial.scene.count} gaussians" in stdout
+    assert_matches(np.load(out), render_reference(partial.subset(choice.spans), CAMERA, RenderSettings()))
+    data["scene"]["lod_levels"] = [1, 40]
+    sidecar.write_text(json.dumps(data))
+    code, _, err = run_cli(capsys, "render", "--sidecar", sidecar, "--out", tmp_path / "bad.npy")
+    assert "'scene.lod_levels' must list levels from 0 to 31" in assert_one_line_error(code, err)
