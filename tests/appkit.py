@@ -14,10 +14,8 @@ from imgui_bundle import imgui  # before glfw (see raygs_viewer.viewer.window)
 
 from raygs_viewer.capture.image_io import to_rgb8
 from raygs_viewer.render.settings import RenderSettings
-from raygs_viewer.scene.loader import load_now
 from raygs_viewer.sort.worker import BackgroundSorter
-from raygs_viewer.viewer.app import Viewer, start_camera
-from raygs_viewer.viewer.lod_window import first_levels
+from raygs_viewer.viewer.app import Viewer, load_start_scene, start_camera
 from raygs_viewer.viewer.state import ScreenshotOptions, ViewerOptions
 
 WIDTH, HEIGHT = 192, 144
@@ -321,10 +319,7 @@ def open_viewer_factory(tmp_path):
         options.setdefault("screenshots", ScreenshotOptions(folder=str(tmp_path / "shots")))
         factories = {name: options.pop(name) for name in ("renderer_factory", "sorter_factory") if name in options}
         viewer_options = ViewerOptions(scene=scene, platform="null", **options)
-        # As run_viewer reads it: a streamed SOG's coarsest level (or --lod N's), the rest in the window.
-        loaded = load_now(scene, spz_axes=viewer_options.spz_axes,
-                          lod_levels=first_levels(scene, viewer_options.settings))
-        viewer = Viewer(viewer_options, loaded, start_camera(viewer_options), **factories)
+        viewer = Viewer(viewer_options, load_start_scene(viewer_options), start_camera(viewer_options), **factories)
         viewers.append(viewer)
         viewer.panel.show_panel = not hide_panel
         return viewer, Driver(viewer, recorder)

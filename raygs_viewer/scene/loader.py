@@ -185,7 +185,7 @@ def load_now(path: str | os.PathLike, cameras: str | os.PathLike | None = None,
             digest = arrays_sha256(scene)
         elif lod_index_file(path) is not None:
             return _read_levels(path, cameras, progress, report, cancel, read_lod,
-                                dict(levels=lod_levels, fits=fits), on_level)
+                                {"levels": lod_levels, "fits": fits}, on_level)
         else:
             scene, digest = _read_and_hash(path, progress, report, cancel, read_scene, spz_axes)
         warnings = dropped_summary(scene)
@@ -312,7 +312,7 @@ class SceneLoader:
         reading of the scene shown (the rest of a streamed SOG's levels). RuntimeError
         after :meth:`close`."""
         job = _Job(os.fspath(path), None if cameras is None else os.fspath(cameras), spz_axes,
-                   dict(lod_levels=lod_levels, fits=fits), refines)
+                   {"lod_levels": lod_levels, "fits": fits}, refines)
         thread = threading.Thread(target=self._run, args=(job,), name="raygs-load", daemon=True)
         with self._cond:
             if self._closed:

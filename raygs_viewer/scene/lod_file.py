@@ -21,6 +21,7 @@ import os
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 
@@ -99,6 +100,21 @@ class LodScene:
     def finest_loaded(self) -> int | None:
         loaded = np.flatnonzero(self.loaded)
         return int(loaded[0]) if loaded.size else None
+
+    @cached_property
+    def leaf_scales(self) -> np.ndarray:
+        """(K,) float64: the largest standard deviation among each leaf's gaussians read
+        (0 for none): how far beyond its box (which holds one standard deviation) they reach."""
+        largest = np.zeros(self.index.leaves)
+        starts, counts = self.rows[:, :, 0].ravel(), self.rows[:, :, 1].ravel()
+        present = np.flatnonzero(counts > 0)
+        if present.size:
+            row_max = np.append(self.scene.scales.max(axis=1), np.float32(0))  # a sentinel for a range at the end
+            bounds = np.stack([starts[present], starts[present] + counts[present]], axis=1)
+            order = np.argsort(bounds[:, 0])
+            maxima = np.maximum.reduceat(row_max, bounds[order].ravel())[::2]
+            np.maximum.at(largest, present[order] // self.levels, maxima)
+        return largest
 
     def spans(self, levels: np.ndarray) -> np.ndarray:
         """(S, 2) int64 ascending, non-overlapping [start, stop) spans of ``scene``: the

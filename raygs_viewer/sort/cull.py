@@ -29,6 +29,9 @@ CHUNK_ROWS = 1 << 16
 #: Rows per matrix product (see ``Cull._camera_space``).
 _MATMUL_ROWS = 1 << 14
 
+#: A chunk's rows: a slice of the scene, or (k,) int64 indices, ascending.
+Rows = slice | np.ndarray
+
 
 @dataclass
 class Piece:
@@ -59,7 +62,7 @@ class CullRequest:
     keys: tuple[str, ...]   # keys whose values the pass computes
     candidates: bool        # distance over every candidate (to be cached), not the visible ones
     centre: np.ndarray | None  # (3,) float32 camera centre: the distance key's C
-    chunks: np.ndarray | None = None  # (C, 2) int64 [start, stop) rows of each chunk; None: the whole scene
+    chunks: list[Rows] | None = None  # each chunk's rows (span_chunks); None: the whole scene in CHUNK_ROWS
 
 
 class Support(NamedTuple):
@@ -125,11 +128,9 @@ class Cull:
         self.support(request.p_min)  # once, before the threads read it
         if self.union is None:
             self.union = np.empty(self.count, bool)
-        if request.chunks is None:
-            count = -(-self.count // self.chunk_rows)
-        else:
-            self.union.fill(False)  # rows outside the spans were not kept: a cached order drops them
-            count = request.chunks.shape[0]
+        # Spans leave the rest of ``union`` stale: only an order cached for the same spans
+        # (sort.turns keys on them) is filtered by it, and it holds none of those rows.
+        count = -(-self.count // self.chunk_rows) if request.chunks is None else len(request.chunks)
         return run(lambda index: self._chunk(index, request), count)
 
     def _scratch(self) -> "_Scratch":
@@ -142,21 +143,21 @@ class Cull:
     def _chunk(self, index: int, request: CullRequest) -> Piece:
         if request.chunks is None:
             start = index * self.chunk_rows
-            stop = min(start + self.chunk_rows, self.count)
+            rows = slice(start, min(start + self.chunk_rows, self.count))
         else:
-            start, stop = (int(v) for v in request.chunks[index])
-        rows, n = slice(start, stop), stop - start
+            rows = request.chunks[index]
+        n = row_count(rows)
         scratch = self._scratch()
         union = scratch.union[:n]
         for number, culling in enumerate(request.cull_cameras):
-            self._may_be_seen(culling, request.p_min, request.dilation, rows, scratch)
+            self._may_be_seen(culling, request.p_min, request.dilation, rows, n, scratch)
             if number == 0:
                 union[:] = scratch.keep[:n]
             else:
                 union |= scratch.keep[:n]
         self.union[rows] = union
         local = np.flatnonzero(union)
-        piece = Piece((local + start).astype(np.uint32))
+        piece = Piece(scene_rows(rows, local))
         if "depth" in request.keys:
             if not request.depth_from_cull:
                 self._camera_space(request.camera, rows, scratch.mu[:, :n])
@@ -171,12 +172,12 @@ class Cull:
             piece.ranges["distance"] = _range(among)
             if request.candidates:
                 piece.values["distance"] = among
-                piece.rows["distance"] = (np.flatnonzero(candidate) + start).astype(np.uint32)
+                piece.rows["distance"] = scene_rows(rows, np.flatnonzero(candidate))
             else:
                 piece.values["distance"], piece.rows["distance"] = distance[local], piece.visible
         return piece
 
-    def _camera_space(self, camera: Camera, rows: slice, out: np.ndarray) -> None:
+    def _camera_space(self, camera: Camera, rows: Rows, out: np.ndarray) -> None:
         """out[:] = (3, n) mu = R p + t of the rows, in float32 (the form the GPU uses),
         one row per axis so that every later pass reads contiguous memory."""
         rotation, positions = camera.R.astype(np.float32), self.positions[rows]
@@ -187,11 +188,10 @@ class Cull:
             np.matmul(rotation, positions[block].T, out=out[:, block])
         out += camera.t.astype(np.float32)[:, None]
 
-    def _may_be_seen(self, camera: Camera, p_min: float, dilation: float | None, rows: slice,
+    def _may_be_seen(self, camera: Camera, p_min: float, dilation: float | None, rows: Rows, n: int,
                      scratch: "_Scratch") -> None:
         """Sets ``scratch.keep[:n]`` to whether each support sphere of ``rows`` (n of
         them) may reach a pixel of ``camera``; leaves their mu in ``scratch.mu[:n]``."""
-        n = rows.stop - rows.start
         mu, radius, product, term, keep, test = (scratch.mu[:, :n], scratch.radius[:n], scratch.product[:n],
                                                  scratch.term[:n], scratch.keep[:n], scratch.test[:n])
         self._camera_space(camera, rows, mu)
@@ -227,15 +227,36 @@ class Cull:
                 keep &= test
 
 
-def span_chunks(spans: np.ndarray, chunk_rows: int) -> np.ndarray:
-    """(C, 2) int64: ``spans`` ((S, 2) ascending [start, stop) rows) cut into chunks of
-    at most ``chunk_rows``, in order."""
+def row_count(rows: Rows) -> int:
+    return rows.stop - rows.start if isinstance(rows, slice) else rows.shape[0]
+
+
+def scene_rows(rows: Rows, local: np.ndarray) -> np.ndarray:
+    """(k,) uint32 scene indices of the chunk-local indices ``local``."""
+    return (local + rows.start if isinstance(rows, slice) else rows[local]).astype(np.uint32)
+
+
+def span_chunks(spans: np.ndarray, chunk_rows: int) -> list[Rows]:
+    """The rows of ``spans`` ((S, 2) ascending [start, stop)), in order, cut into chunks
+    of ``chunk_rows`` (the last one shorter): a chunk within one span is a slice, one
+    that packs several (a level-of-detail choice holds many short spans) their rows as
+    an int64 array, so that the per-chunk work is paid per ``chunk_rows``, not per span."""
     spans = np.asarray(spans, np.int64).reshape(-1, 2)
     lengths = spans[:, 1] - spans[:, 0]
-    pieces = np.maximum(0, -(-lengths // chunk_rows))
-    first = np.repeat(spans[:, 0], pieces) + chunk_rows * (np.arange(int(pieces.sum()))
-                                                           - np.repeat(np.cumsum(pieces) - pieces, pieces))
-    return np.stack([first, np.minimum(first + chunk_rows, np.repeat(spans[:, 1], pieces))], axis=1)
+    ends = np.cumsum(lengths)  # in the chosen rows' own numbering
+    total = int(ends[-1]) if ends.size else 0
+    chunks: list[Rows] = []
+    for begin in range(0, total, chunk_rows):
+        end = min(begin + chunk_rows, total)
+        first, last = np.searchsorted(ends, [begin, end - 1], side="right")
+        offset = spans[first:last + 1, 0] - (ends[first:last + 1] - lengths[first:last + 1])
+        if first == last:
+            chunks.append(slice(int(begin + offset[0]), int(end + offset[0])))
+            continue
+        lows = np.maximum(ends[first:last + 1] - lengths[first:last + 1], begin)
+        highs = np.minimum(ends[first:last + 1], end)
+        chunks.append(np.concatenate([np.arange(lo, hi) + o for lo, hi, o in zip(lows, highs, offset)]))
+    return chunks
 
 
 def _range(values: np.ndarray) -> tuple[float, float]:

@@ -8,20 +8,23 @@ The rule, for a view from camera centre C:
    nearer than ``D``, level 1 from ``D``, level 2 from ``2 D``, level l from
    ``2^(l-1) D``, the coarsest beyond. ``D`` is the setting ``lod_distance``; by
    default (:func:`automatic_distance`) four times the median leaf's half-diagonal.
-2. **Readiness.** A level not read yet (or left unread: the GPU's memory) is replaced by
-   the finest read level coarser than it: a leaf waits on its coarser level, never
-   opening a hole.
-3. **View.** A leaf whose bounding sphere lies outside the view draws its coarsest
-   level: only the tails of its gaussians can reach the image (the box holds their
-   centres and one standard deviation), and the per-gaussian cull drops the rest.
+2. **What is there.** A leaf draws a level only where that level is read and holds
+   gaussians of the leaf; otherwise the nearest coarser such level (a level not read
+   yet, or left unread for the GPU's memory: the leaf waits on its coarser level and no
+   hole opens), else the nearest finer one (splat-transform files a coarse gaussian
+   under the leaf its centre falls in, so a leaf may have none at a coarse level).
+3. **View.** A leaf whose bounding sphere, widened by how far its gaussians reach
+   (sqrt(2 ln(1/p_min)) times the largest standard deviation among them, and two
+   pixels), lies outside the view draws its coarsest level: none of it can reach a
+   pixel, and the per-gaussian cull drops it.
 4. **Budget.** When the wanted levels of the leaves in view, with the environment,
    exceed ``budget`` gaussians (the leaves out of view are not counted), every leaf in
-   view starts at its coarsest level and
-   steps to finer levels are taken in order of priority, ``s_k 2^l`` for the step to
-   level l (``s_k``: the leaf's projected radius in pixels), while the total stays within
-   the budget: what is large on screen is refined first, and every leaf's coarse steps
-   come before anyone's finest at the same size. When the coarsest levels alone exceed
-   the budget, they are drawn, and the choice says so.
+   view starts at its coarsest level and steps to finer levels are taken in order of
+   priority, ``s_k 2^l`` for the step to level l (``s_k``: the leaf's projected radius in
+   pixels), while the total stays within the budget: what is large on screen is refined
+   first, and every leaf's coarse steps come before anyone's finest at the same size.
+   When the coarsest levels alone exceed the budget, they are drawn, and the choice
+   says so.
 
 ``level`` (``--lod N``) instead draws one level everywhere (waiting on coarser ones as
 in 2), with no budget and whatever the view.
@@ -39,6 +42,8 @@ from raygs_viewer.scene.lod_file import LodScene
 
 #: The default distance in leaf sizes: level 1 begins four half-diagonals away.
 AUTOMATIC_DISTANCE_LEAVES = 4.0
+#: The opacity cut-off the view test assumes unless told (render.settings' default).
+DEFAULT_P_MIN = 1.0 / 255.0
 
 
 @dataclass(frozen=True)
@@ -85,89 +90,97 @@ def box_distances(bounds: np.ndarray, centre: np.ndarray) -> np.ndarray:
     return np.linalg.norm(outside, axis=1)
 
 
-def screen_radius(bounds: np.ndarray, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
-    """Each box's bounding sphere seen from ``camera``: (in view, (K,) bool; projected
-    radius in pixels, (K,) float64; a sphere holding the camera is as large as the image)."""
+def screen_radius(bounds: np.ndarray, camera: Camera, reach: np.ndarray | float = 0.0
+                  ) -> tuple[np.ndarray, np.ndarray]:
+    """Each box's bounding sphere seen from ``camera``: (in view, (K,) bool: the sphere
+    widened by ``reach`` (scene units) and two pixels meets the view; projected radius in
+    pixels, (K,) float64; a sphere holding the camera is as large as the image)."""
     centre = 0.5 * (bounds[:, 0] + bounds[:, 1])
     radius = 0.5 * np.linalg.norm(bounds[:, 1] - bounds[:, 0], axis=1)
     mu = centre @ camera.R.T + camera.t
     x, y, z = mu.T
-    in_view = z > -radius
+    distance = np.linalg.norm(mu, axis=1)
+    # Two pixels at the sphere's distance: what a MIP filter or rounding may add.
+    wide = radius + reach + 2.0 * distance / min(camera.fx, camera.fy)
+    in_view = z > -wide
     for coordinate, focal, principal, extent in ((x, camera.fx, camera.cx, camera.width),
                                                  (y, camera.fy, camera.cy, camera.height)):
         for a, b in ((focal, principal), (-focal, extent - principal)):
-            in_view &= (coordinate * a + z * b) / math.hypot(a, b) > -radius
-    distance = np.linalg.norm(mu, axis=1)
+            in_view &= (coordinate * a + z * b) / math.hypot(a, b) > -wide
     size = np.where(distance > radius, camera.fx * radius / np.maximum(distance, 1e-30),
                     float(max(camera.width, camera.height)))
     return in_view, size
 
 
+def usable_levels(lod: LodScene) -> np.ndarray:
+    """(K, L) int64: the level leaf k draws when level l is asked for: l where it is read
+    and holds gaussians of the leaf, else the nearest coarser such level (a leaf waits on
+    its coarser level), else the nearest finer one (a leaf whose coarse gaussians lie in
+    its neighbours' boxes still draws its own); -1 where the leaf has none read."""
+    available = lod.loaded[None, :] & (lod.rows[:, :, 1] > 0)
+    leaves, levels = available.shape
+    coarser, finer = np.full((leaves, levels), -1), np.full((leaves, levels), -1)
+    nearest = np.full(leaves, -1)
+    for level in range(levels - 1, -1, -1):
+        nearest = np.where(available[:, level], level, nearest)
+        coarser[:, level] = nearest
+    nearest = np.full(leaves, -1)
+    for level in range(levels):
+        nearest = np.where(available[:, level], level, nearest)
+        finer[:, level] = nearest
+    return np.where(coarser >= 0, coarser, finer)
+
+
 def choose(lod: LodScene, camera: Camera, *, level: int | None = None, budget: int | None = None,
-           distance: float | None = None) -> LodChoice:
-    """What ``camera`` draws of ``lod`` (see the module docstring for the rule)."""
+           distance: float | None = None, p_min: float = DEFAULT_P_MIN) -> LodChoice:
+    """What ``camera`` draws of ``lod`` (see the module docstring for the rule); ``p_min``
+    sets how far beyond its box a leaf's gaussians reach (the view test)."""
     leaves, levels = lod.index.leaves, lod.levels
-    loaded = np.flatnonzero(lod.loaded)
-    if loaded.size == 0:  # nothing read yet: nothing but the environment
-        empty = np.full(leaves, -1, np.int64)
-        spans = lod.spans(empty)
-        return LodChoice(empty, empty, spans, int((spans[:, 1] - spans[:, 0]).sum()))
-    finest, coarsest = int(loaded[0]), int(loaded[-1])
     if level is not None:
         wanted = np.full(leaves, min(int(level), levels - 1), np.int64)
     else:
         d = box_distances(lod.index.bounds, camera.center)
         wanted = np.searchsorted(level_distances(lod, distance), d, side="right").astype(np.int64)
-    ready = _ready_levels(lod.loaded)
-    target = ready[np.maximum(wanted, finest)]
-    counts = lod.rows[:, :, 1]
+    usable = usable_levels(lod)
+    every = np.arange(leaves)
     over = False
     if level is None:
-        in_view, size = screen_radius(lod.index.bounds, camera)
-        target[~in_view] = coarsest
+        # Support: sqrt(kappa) standard deviations, kappa = 2 ln(opacity / p_min) <= 2 ln(1 / p_min).
+        reach = math.sqrt(2.0 * math.log(1.0 / p_min)) * lod.leaf_scales
+        in_view, size = screen_radius(lod.index.bounds, camera, reach)
+        target = usable[every, np.where(in_view, wanted, levels - 1)]
         if budget is not None:
-            target, over = _within_budget(lod, in_view, size, target, counts, coarsest, int(budget))
+            target, over = _within_budget(lod, usable, in_view, size, target, int(budget))
+    else:
+        target = usable[every, wanted]
     spans = lod.spans(target)
     return LodChoice(target, wanted, spans, int((spans[:, 1] - spans[:, 0]).sum()), over)
 
 
-def _ready_levels(loaded: np.ndarray) -> np.ndarray:
-    """(L,) int64: for each level, the finest read level at or coarser than it (a level
-    coarser than every read one maps to the coarsest read)."""
-    levels = loaded.shape[0]
-    ready = np.empty(levels, np.int64)
-    nearest = int(np.flatnonzero(loaded)[-1])
-    for level in range(levels - 1, -1, -1):
-        if loaded[level]:
-            nearest = level
-        ready[level] = nearest
-    return ready
-
-
-def _within_budget(lod: LodScene, in_view: np.ndarray, size: np.ndarray, target: np.ndarray, counts: np.ndarray,
-                   coarsest: int, budget: int) -> tuple[np.ndarray, bool]:
+def _within_budget(lod: LodScene, usable: np.ndarray, in_view: np.ndarray, size: np.ndarray, target: np.ndarray,
+                   budget: int) -> tuple[np.ndarray, bool]:
     """``target`` coarsened until the leaves in view and the environment fit ``budget``."""
-    leaves = np.arange(target.shape[0])
-    environment = lod.environment[1]
-    wanted_total = environment + int(counts[leaves[in_view], target[in_view]].sum())
-    if wanted_total <= budget:
+    leaves, levels = usable.shape
+    counts = lod.rows[:, :, 1]
+    every = np.arange(leaves)
+
+    def counted(chosen: np.ndarray) -> int:
+        drawn = in_view & (chosen >= 0)
+        return lod.environment[1] + int(counts[every[drawn], chosen[drawn]].sum())
+
+    if counted(target) <= budget:
         return target, False
-    chosen = target.copy()
-    chosen[in_view] = coarsest
-    base = environment + int(counts[leaves[in_view], coarsest].sum())
+    base_level = usable[:, levels - 1]  # each leaf's coarsest level with gaussians
+    chosen = np.where(in_view, base_level, target)
+    base = counted(chosen)
     if base >= budget:
         return chosen, base > budget
-    # Every step of every leaf in view, from the coarsest level to its target: the
-    # step to level l costs the difference of the two levels' counts.
-    ready = np.flatnonzero(lod.loaded)
-    step_leaf, step_level = [], []
-    for level in ready[ready < coarsest]:
-        takes = in_view & (target <= level)
-        step_leaf.append(leaves[takes])
-        step_level.append(np.full(int(takes.sum()), level, np.int64))
-    step_leaf = np.concatenate(step_leaf) if step_leaf else np.zeros(0, np.int64)
-    step_level = np.concatenate(step_level) if step_level else np.zeros(0, np.int64)
-    coarser = _next_coarser(lod.loaded)[step_level]
+    # Every step of every leaf in view, from its coarsest level towards its target: the
+    # step to level l (one the leaf has) costs the difference from the next coarser one.
+    level = np.arange(levels)
+    steps = ((usable == level) & in_view[:, None] & (level >= target[:, None]) & (level < base_level[:, None]))
+    step_leaf, step_level = np.nonzero(steps)
+    coarser = usable[step_leaf, step_level + 1]
     cost = counts[step_leaf, step_level] - counts[step_leaf, coarser]
     priority = size[step_leaf] * 2.0 ** step_level
     # A leaf's steps come coarse to fine (a tie of sizes 0 keeps that by the level).
@@ -177,18 +190,6 @@ def _within_budget(lod: LodScene, in_view: np.ndarray, size: np.ndarray, target:
     accepted = order[:stop]
     np.minimum.at(chosen, step_leaf[accepted], step_level[accepted])
     return chosen, False
-
-
-def _next_coarser(loaded: np.ndarray) -> np.ndarray:
-    """(L,) int64: for each read level, the next coarser read level (itself for the coarsest)."""
-    levels = loaded.shape[0]
-    out = np.arange(levels)
-    nearest = None
-    for level in range(levels - 1, -1, -1):
-        out[level] = level if nearest is None else nearest
-        if loaded[level]:
-            nearest = level
-    return out
 
 
 @dataclass(frozen=True, eq=False)
@@ -202,8 +203,8 @@ class LodRequest:
     budget: int | None = None
     distance: float | None = None
 
-    def choose(self, camera: Camera) -> LodChoice:
-        return choose(self.lod, camera, level=self.level, budget=self.budget, distance=self.distance)
+    def choose(self, camera: Camera, p_min: float = DEFAULT_P_MIN) -> LodChoice:
+        return choose(self.lod, camera, level=self.level, budget=self.budget, distance=self.distance, p_min=p_min)
 
     @property
     def key(self) -> tuple:

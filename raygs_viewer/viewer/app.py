@@ -41,7 +41,7 @@ from raygs_viewer.sort.worker import BackgroundSorter
 from raygs_viewer.viewer.drawing import SceneDrawer, request_sort
 from raygs_viewer.viewer.input import InputHandler
 from raygs_viewer.viewer.loading import SceneOpener, scene_title
-from raygs_viewer.viewer.lod_window import WindowLod, first_levels
+from raygs_viewer.viewer.lod_window import WindowLod, first_levels, window_settings
 from raygs_viewer.viewer.measure import MeasureWidget
 from raygs_viewer.viewer.overlay import draw_split_overlay
 from raygs_viewer.viewer.panel import draw_panel
@@ -154,12 +154,8 @@ class Viewer:
             return self.lod.refine(loaded)
         self.swap_scene(loaded.scene)
         self.loaded = loaded
-        self.settings = self.lod.installed(loaded, self.settings)
-        # The options' sh_degree None: every scene's own; else the panel's, capped at this scene's.
-        degree = loaded.scene.sh_degree
-        if self.options.settings.sh_degree is not None:
-            degree = min(self.settings.sh_degree, degree)
-        self.settings = replace(self.settings, sh_degree=degree)
+        self.lod.installed()
+        self.settings = opened_settings(self.settings, self.options.settings, loaded)
         # A new scene keeps the user's navigation choices.
         choices = self.options.navigation if self.view is None else self.view.choices()
         self.view = ViewControl(loaded, start_camera, choices, self.options.width / self.options.height, self.panel)
@@ -167,8 +163,7 @@ class Viewer:
         self.window.set_title(f"raygs-viewer — {scene_title(loaded.path)}")
 
     def swap_scene(self, scene) -> None:
-        """``scene`` on the GPU with a sorter of its own; nothing drawn is of it yet."""
-        # A UserError (too large for this GPU) leaves everything as it was.
+        """``scene`` on the GPU with its own sorter; a UserError (too large for this GPU) changes nothing."""
         renderer = self.renderer_factory(self.ctx, scene, general=self.options.general)
         if self.renderer is not None:
             self.renderer.release()
@@ -315,14 +310,6 @@ class Viewer:
         if options.window_screenshot is not None and self.window_capture is not None:
             save_image(options.window_screenshot, self.window_capture.astype(np.float32) / 255.0)
 
-    def summary(self) -> str:
-        """One line of frame statistics, printed after a scripted run."""
-        timer, post = self.drawer.timer, self.drawer.post_timer
-        timer.flush()
-        post.flush()
-        return summary(self.stats, self.frame_index, self.camera, self.shown_stereo, timer.history, post.history,
-                       self.loaded.scene.count, self.renderer.general)
-
     def close(self) -> None:
         if self.window is None:
             return
@@ -336,6 +323,25 @@ class Viewer:
         self.drawer.release()
         self.window.close()
         self.window = None
+
+
+def run_summary(viewer: Viewer) -> str:
+    """One line of ``viewer``'s frame statistics, printed after a scripted run."""
+    timer, post = viewer.drawer.timer, viewer.drawer.post_timer
+    timer.flush()
+    post.flush()
+    return summary(viewer.stats, viewer.frame_index, viewer.camera, viewer.shown_stereo, timer.history, post.history,
+                   viewer.loaded.scene.count, viewer.renderer.general)
+
+
+def opened_settings(settings: RenderSettings, start: RenderSettings, loaded: LoadedScene) -> RenderSettings:
+    """``settings`` for a newly opened scene: its SH degree (the command line's None:
+    every scene's own; else the panel's, capped at this scene's), and a streamed SOG's
+    level-of-detail settings (``lod_window.window_settings``)."""
+    degree = loaded.scene.sh_degree
+    if start.sh_degree is not None:
+        degree = min(settings.sh_degree, degree)
+    return window_settings(replace(settings, sh_degree=degree), start, loaded)
 
 
 def panel_sections(viewer: Viewer) -> list[Callable[[], None]]:
@@ -365,6 +371,14 @@ def panel_sections(viewer: Viewer) -> list[Callable[[], None]]:
     ]
 
 
+def load_start_scene(options: ViewerOptions, progress: ProgressCallback | None = None) -> LoadedScene:
+    """The scene the window opens with, read before it opens so that a bad file fails on
+    the command line: a streamed SOG up to its coarsest level (or --lod N's), the window
+    reads the rest."""
+    return load_now(options.scene, options.cameras, progress, spz_axes=options.spz_axes,
+                    lod_levels=first_levels(options.scene, options.settings))
+
+
 def start_camera(options: ViewerOptions) -> Camera | None:
     return None if options.camera is None else load_camera(options.camera, options.camera_index)
 
@@ -384,16 +398,14 @@ def run_viewer(options: ViewerOptions, progress: ProgressCallback | None = None)
         if not options.window_screenshot.lower().endswith(".png"):
             raise UserError(f"{options.window_screenshot}: the window screenshot must be a .png")
         check_output_path(options.window_screenshot)
-    # A streamed SOG: its coarsest level (or --lod N's) now, the rest once the window is up.
-    loaded = load_now(options.scene, options.cameras, progress, spz_axes=options.spz_axes,
-                      lod_levels=first_levels(options.scene, options.settings))
+    loaded = load_start_scene(options, progress)
     for warning in loaded.warnings:
         print(f"warning: {warning}", flush=True)
     viewer = Viewer(options, loaded, start_camera(options))
     try:
         viewer.run()
         if options.frames is not None:
-            print(viewer.summary(), flush=True)
+            print(run_summary(viewer), flush=True)
         if viewer.last_screenshot is not None and options.screenshot is not None:
             for png, sidecar in viewer.last_screenshots:
                 print(f"{png} (+ {sidecar.name})")
@@ -402,4 +414,4 @@ def run_viewer(options: ViewerOptions, progress: ProgressCallback | None = None)
     return 0
 
 
-__all__ = ["Viewer", "run_viewer", "start_camera"]
+__all__ = ["Viewer", "load_start_scene", "run_summary", "run_viewer", "start_camera"]

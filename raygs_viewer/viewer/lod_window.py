@@ -30,8 +30,8 @@ import numpy as np
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.gl.memory import scene_fits
 from raygs_viewer.render.settings import RenderSettings
-from raygs_viewer.scene.lod_file import Fits, LodScene, lod_index_file, merged_spans, read_index, span_rows
 from raygs_viewer.scene.loader import DEMO, LoadedScene
+from raygs_viewer.scene.lod_file import Fits, LodScene, lod_index_file, merged_spans, read_index, span_rows
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.sh import C0
 from raygs_viewer.sort.lod_choice import LodChoice, LodRequest
@@ -65,7 +65,8 @@ def window_settings(settings: RenderSettings, start: RenderSettings, loaded: Loa
     if loaded.lod is None:
         return replace(settings, lod=None, lod_budget=None, lod_distance=None)
     budget = DEFAULT_WINDOW_BUDGET if start.lod_budget is None else start.lod_budget
-    return replace(settings, lod=start.lod, lod_budget=budget, lod_distance=start.lod_distance)
+    level = None if start.lod is None else min(start.lod, loaded.lod.levels - 1)  # another scene may have fewer
+    return replace(settings, lod=level, lod_budget=budget, lod_distance=start.lod_distance)
 
 
 def wanted_levels(levels: int, level: int | None) -> list[int]:
@@ -137,10 +138,9 @@ class WindowLod:
             return None
 
     # -- scenes ----------------------------------------------------------------------------
-    def installed(self, loaded: LoadedScene, settings: RenderSettings) -> RenderSettings:
-        """A new scene is shown (drawn in its own colours): the settings it starts with."""
+    def installed(self) -> None:
+        """A new scene is shown, in its own colours (its settings: :func:`window_settings`)."""
         self.tint, self.fallback, self.choice, self._asked = False, None, None, None
-        return window_settings(settings, self.host.options.settings, loaded)
 
     def refines(self, loaded: LoadedScene) -> bool:
         """Whether ``loaded`` is a finer reading of the scene shown."""
@@ -157,9 +157,7 @@ class WindowLod:
             return
         if host.scenes.loader.busy and not loaded.lod.loaded[current.lod.loaded].all():
             return  # a reading that has not yet caught up with the levels shown
-        last = host.sorter.latest() or self.fallback
-        host.swap_scene(self._drawn_scene(loaded.lod))
-        self._keep(last if extends(current.lod, loaded.lod) else None)
+        self._swap(self._drawn_scene(loaded.lod), keep=extends(current.lod, loaded.lod))
         if host.options.settings.sh_degree is None and host.settings.sh_degree == current.scene.sh_degree:
             host.settings = replace(host.settings, sh_degree=loaded.scene.sh_degree)
         host.loaded = loaded
@@ -168,15 +166,12 @@ class WindowLod:
         """Colour by level on or off: the renderer gets the tinted copy, or the scene."""
         if on == self.tint or self.lod is None:
             return
-        last = self.host.sorter.latest() or self.fallback
         self.tint = on
         try:
-            self.host.swap_scene(self._drawn_scene(self.lod))
+            self._swap(self._drawn_scene(self.lod), keep=True)  # the same rows
         except (UserError, MemoryError, moderngl.Error) as exc:
             self.tint = not on
             self.host.panel.error = f"error: colour by level: {one_line(exc)}"
-            return
-        self._keep(last)
 
     def check_screenshot(self) -> None:
         """UserError while colour by level is on: a sidecar re-renders the scene's colours."""
@@ -201,7 +196,8 @@ class WindowLod:
             wanted = wanted_levels(lod.levels, level)
             if not lod.loaded[wanted].all():
                 self._asked = lod
-                levels = None if level is None else tuple(sorted(set(np.flatnonzero(lod.loaded).tolist()) | set(wanted)))
+                read = set(np.flatnonzero(lod.loaded).tolist())
+                levels = None if level is None else tuple(sorted(read | set(wanted)))
                 self.host.scenes.loader.start(loaded.path, loaded.cameras_path, lod_levels=levels, fits=self.fits(),
                                               refines=True)
         return self.request()
@@ -219,10 +215,13 @@ class WindowLod:
     def _drawn_scene(self, lod: LodScene) -> Scene:
         return tinted_scene(lod) if self.tint else lod.scene
 
-    def _keep(self, last) -> None:
-        """Draws ``last`` (a result of the scene before the swap) until the new sorter's
-        first: serial 0, which no request has, so its draw is never taken for a new one's,
-        dated from the swap."""
-        self.fallback = None if last is None else replace(last, serial=0)
-        if last is not None:
-            self.host.stats.request_frames[0] = self.host.frame_index
+    def _swap(self, scene: Scene, keep: bool) -> None:
+        """``scene`` on the GPU; with ``keep`` (its rows hold the shown scene's where they
+        were), the last result is drawn until the new sorter's first, as serial 0, which
+        no request has (so its draw is never taken for a new one's), as old as it was."""
+        stats, last = self.host.stats, self.host.sorter.latest() or self.fallback
+        asked = None if last is None else stats.request_frames.get(last.serial, self.host.frame_index)
+        self.host.swap_scene(scene)
+        self.fallback = replace(last, serial=0) if keep and last is not None else None
+        if self.fallback is not None:
+            stats.request_frames[0] = asked

@@ -98,7 +98,7 @@ def _take(renderer, loaded: LoadedScene, shown: ShownView, options: ScreenshotOp
                 view: ChannelView | None = shown.view) -> dict:
         return build_sidecar(scene_path=scene_path, scene_sha256=sha256, scene=loaded.scene, camera=camera,
                              settings=settings, scale=scale, window_camera=shown.camera, extra=details, stereo=stereo,
-                             channel_view=view)
+                             channel_view=view, lod_levels=levels_read(loaded, settings))
 
     if shown.stereo is not None:
         shots = [(image, sidecar(shown.settings, {**extra, "stereo_window_layout": shown.stereo.layout}, view), tag)
@@ -121,6 +121,14 @@ def _take(renderer, loaded: LoadedScene, shown: ShownView, options: ScreenshotOp
     if path is not None:
         return save_screenshots(shots, path=Path(path))
     return save_screenshots(shots, folder=Path(options.folder))
+
+
+def levels_read(loaded: LoadedScene, settings: RenderSettings) -> tuple[int, ...] | None:
+    """A streamed SOG's levels read, when its levels are chosen per view: the choice
+    depends on them (while finer ones are still being read, or on a GPU that holds fewer)."""
+    if loaded.lod is None or settings.lod is not None:
+        return None
+    return tuple(np.flatnonzero(loaded.lod.loaded).tolist())
 
 
 def render_shown(renderer, camera: Camera, settings: RenderSettings, view: ChannelView | None) -> np.ndarray:

@@ -12,7 +12,7 @@ from raygs_viewer.camera.pinhole import look_at
 from raygs_viewer.scene.lod_file import load_lod, span_rows
 from raygs_viewer.sort.cull import span_chunks
 from raygs_viewer.sort.depth import DepthSorter
-from raygs_viewer.sort.lod_choice import LodRequest, choose, level_distances
+from raygs_viewer.sort.lod_choice import LodRequest, choose, level_distances, screen_radius
 from raygs_viewer.sort.worker import BackgroundSorter
 
 LEVELS = 3
@@ -92,9 +92,11 @@ def test_leaves_out_of_view_stay_coarse_and_cost_nothing(tmp_path):
     assert choice.levels.tolist() == [0, 2, 2] and choice.count == 16 + 4 + 4  # the budget counts what is in view
 
 
-def test_span_chunks_cut_spans_at_chunk_rows():
+def test_span_chunks_pack_the_spans_rows_into_chunks_of_chunk_rows():
     chunks = span_chunks(np.array([[0, 5], [7, 8], [10, 23]]), 4)
-    assert chunks.tolist() == [[0, 4], [4, 5], [7, 8], [10, 14], [14, 18], [18, 22], [22, 23]]
+    assert len(chunks) == 5 and chunks[1].tolist() == [4, 7, 10, 11]  # three spans in one chunk
+    assert [chunks[i] for i in (0, 2, 3, 4)] == [slice(0, 4), slice(12, 16), slice(16, 20), slice(20, 23)]
+    assert span_chunks(np.zeros((0, 2), np.int64), 4) == []
 
 
 @pytest.mark.parametrize("workers,chunk_rows", [(1, 1 << 16), (3, 5)])
@@ -131,3 +133,29 @@ def test_the_sort_thread_chooses_for_each_view(tmp_path):
     finally:
         sorter.close()
         sorter.join(10)
+
+
+def test_a_leaf_whose_gaussians_reach_into_the_view_is_in_view(tmp_path):
+    """Its box (one standard deviation) lies outside the image, its gaussians' tails
+    (sqrt(2 ln 255) = 3.3 of them) do not: it keeps its level; one far out does not."""
+    wide = [[random_gaussians(PER_LEAF[level], centre=c, spread=0.005, scale=0.3, seed=level)
+             for level in range(LEVELS)] for c in ((0.0, 0.0, 5.0), (6.5, 0.0, 5.0), (30.0, 0.0, 5.0))]
+    lod = load_lod(write_streamed_sog(tmp_path / "wide", wide))
+    box_only, _ = screen_radius(lod.index.bounds, CAMERA)
+    assert box_only.tolist() == [True, False, False]
+    assert choose(lod, CAMERA, distance=100.0).levels.tolist() == [0, 0, 2]
+    # A higher p_min shortens the reach: the box alone decides.
+    assert choose(lod, CAMERA, distance=100.0, p_min=0.9).levels.tolist() == [0, 2, 2]
+
+
+def test_a_leaf_without_gaussians_at_a_level_draws_its_nearest_level_that_has_them(tmp_path):
+    leaves = tiny_leaves([(0.0, 0.0, 1.0), (0.0, 0.0, 3.0), (0.0, 0.0, 9.0)])
+    leaves[1][2] = None   # no coarsest gaussians of its own: its finer level stands in
+    leaves[2][0] = None   # nothing at the finest: its coarser level stands in
+    lod = load_lod(write_streamed_sog(tmp_path / "holes", leaves))
+    assert choose(lod, CAMERA, distance=100.0).levels.tolist() == [0, 0, 1]
+    assert choose(lod, CAMERA, level=2).levels.tolist() == [2, 1, 2]
+    # Under a budget leaf 1 starts at level 1 (8), never at its empty coarsest (0).
+    squeezed = choose(lod, CAMERA, distance=100.0, budget=1)
+    assert squeezed.levels.tolist() == [2, 1, 2] and squeezed.count == 4 + 8 + 4 and squeezed.over_budget
+    assert choose(lod, CAMERA, distance=100.0, budget=4 + 8 + 4 + 12).levels.tolist() == [0, 1, 2]

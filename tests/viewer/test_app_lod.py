@@ -130,7 +130,15 @@ def open_streamed(open_viewer, streamed, **options):
     return viewer, drive
 
 
-def test_coarsest_level_first_then_each_finer_one_keeping_the_view(open_viewer, streamed):
+def rendered_again(viewer, sidecar, out) -> np.ndarray:
+    """``render --sidecar``'s PNG (8-bit RGB); the window's context current again after it."""
+    from raygs_viewer.cli.main import main
+    assert main(["render", "--sidecar", str(sidecar), "--out", str(out)]) == 0
+    viewer.window.make_current()
+    return np.asarray(Image.open(out))
+
+
+def test_coarsest_level_first_then_each_finer_one_keeping_the_view(open_viewer, streamed, tmp_path):
     index, _ = streamed
     release = threading.Event()
     release.set()
@@ -156,6 +164,11 @@ def test_coarsest_level_first_then_each_finer_one_keeping_the_view(open_viewer, 
         assert viewer.lod.choice.levels.tolist() == [2, 2, 2, 2]
         np.testing.assert_allclose(coarse, expected(viewer, lod, distance=DISTANCE), atol=1e-5)
         assert coarse[..., 3].max() > 0.5
+        # A screenshot now records the levels read, and renders again from them alone.
+        png, sidecar = viewer.save_screenshot()
+        assert json.loads(sidecar.read_text())["scene"]["lod_levels"] == [2]
+        np.testing.assert_array_equal(rendered_again(viewer, sidecar, tmp_path / "coarse.png"),
+                                      np.asarray(Image.open(png)))
 
         # Level 1 arrives while the sort is held: the frame draws the last order, not a blank.
         release.clear()
@@ -236,6 +249,7 @@ def test_the_budget_changes_what_is_drawn(open_viewer, streamed):
     assert line(drive, "drawn") == f"drawn {env + 4 * 6} gaussians of a budget of 1"
     assert line(drive, "parts at each level") == "parts at each level: 0: 0, 1: 0, 2: 4"
     assert line(drive, "the budget is below").startswith("the budget is below the coarsest level")
+    drive.frames(1)  # the panel is drawn before the frame notes the order's age
     assert line(drive, "choice") == "choice up to date"
     coarse = viewer.drawer.mono.left.read()
     np.testing.assert_allclose(coarse, drawn_alone(viewer, lod.subset(lod.level_spans(2)), viewer.camera,
@@ -276,7 +290,7 @@ def test_colour_by_level_tints_each_level_and_goes_back(open_viewer, streamed):
 
 
 def test_a_gpu_too_small_for_the_finest_levels_opens_with_the_coarser_ones(open_viewer, streamed, monkeypatch):
-    index, cameras = streamed
+    index, _ = streamed
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
     lod = load_lod(index)
     coarse = lod.environment[1] + int(lod.index.counts[2])
@@ -298,8 +312,7 @@ def test_a_gpu_too_small_for_the_finest_levels_opens_with_the_coarser_ones(open_
 
 def test_a_screenshot_draws_the_choice_for_its_camera_and_renders_again_from_its_sidecar(
         open_viewer, streamed, tmp_path):
-    from raygs_viewer.cli.main import main
-    viewer, drive = open_streamed(open_viewer, streamed, hide_panel=True)
+    viewer, _ = open_streamed(open_viewer, streamed, hide_panel=True)
     drawn = viewer.renderer.spans.copy()
     # A budget the window has not drawn yet: the screenshot makes the choice for itself.
     viewer.settings = replace(viewer.settings, lod_budget=40)
@@ -308,7 +321,7 @@ def test_a_screenshot_draws_the_choice_for_its_camera_and_renders_again_from_its
     np.testing.assert_array_equal(viewer.renderer.spans, drawn)  # the window's choice again
     recorded = json.loads(sidecar.read_text())
     assert recorded["settings"]["lod_budget"] == 40 and recorded["settings"]["lod_distance"] == DISTANCE
-    assert recorded["scene"]["sha256"] == viewer.loaded.sha256
+    assert recorded["scene"]["sha256"] == viewer.loaded.sha256 and recorded["scene"]["lod_levels"] == [0, 1, 2]
     shot = np.asarray(Image.open(png))
     lod = viewer.loaded.lod
     camera = scaled_camera(viewer.camera, 2.0)
@@ -316,6 +329,4 @@ def test_a_screenshot_draws_the_choice_for_its_camera_and_renders_again_from_its
     assert picked.levels.tolist() != [0, 1, 2, 2]  # what the window drew
     alone = drawn_alone(viewer, lod.subset(picked.spans), camera, viewer.settings)
     assert np.abs(shot.astype(int) - to_rgb8(alone).astype(int)).max() <= 1
-    out = tmp_path / "again.png"
-    assert main(["render", "--sidecar", str(sidecar), "--out", str(out)]) == 0
-    np.testing.assert_array_equal(np.asarray(Image.open(out)), shot)
+    np.testing.assert_array_equal(rendered_again(viewer, sidecar, tmp_path / "again.png"), shot)
