@@ -180,7 +180,9 @@ def command_info(args) -> int:
     description = describe(scene)
     description["gpu_bytes"] = gpu_bytes(scene.count, scene.sh_degree)
     if args.scene != DEMO:
-        description["lod"] = lod_summary(args.scene)  # a streamed SOG: its levels (the figures above: level 0's)
+        description["lod"] = lod = lod_summary(args.scene)  # a streamed SOG: its levels (the figures above: level 0's)
+        if lod is not None:  # what the window and a per-view render hold: every level
+            lod["gpu_bytes"] = gpu_bytes(sum(lod["counts"]) + (lod["environment"] or 0), scene.sh_degree)
     if args.json:
         sys.stdout.write(json_text(description))
     else:

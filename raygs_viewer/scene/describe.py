@@ -108,6 +108,9 @@ def format_description(info: dict) -> str:
         environment = "none" if lod["environment"] is None else f"{lod['environment']:,} gaussians"
         lines.append(f"levels:       {lod['levels']} (0 the finest; gaussians per level {counts}); "
                      f"{lod['leaves']} parts in {lod['files']} files; environment {environment}")
+        if lod.get("gpu_bytes") is not None:
+            lines.append(f"every level:  {lod['gpu_bytes'] / (1 << 20):,.1f} MiB of storage buffers, what the window "
+                         f"and a render choosing per view hold")
     if info.get("gpu_bytes") is not None:
         lines.append(f"GPU memory:   {info['gpu_bytes'] / (1 << 20):,.1f} MiB of storage buffers "
                      f"(gaussians, SH, splat records, order)")

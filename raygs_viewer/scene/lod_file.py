@@ -205,9 +205,9 @@ def load_lod(path, *, levels: tuple[int, ...] | None = None, fits: Fits | None =
         files = index.files_of(level)
         count = sum(p.count for p in parts) + int(needed[files].sum())
         if step and fits is not None and not fits(count, _degree(parts)):
-            skipped = [lv for lv in order[step:]]
-            unread = (f"levels {', '.join(map(str, sorted(skipped)))} not read: with them the scene "
-                      f"({count:,} gaussians) would not fit the GPU's memory")
+            skipped = sorted(order[step:])
+            unread = (f"level{'s' if len(skipped) > 1 else ''} {', '.join(map(str, skipped))} not read: with "
+                      f"level {order[step]} the scene ({count:,} gaussians) would not fit the GPU's memory")
             break
         for file in files:
             starts[file] = sum(p.count for p in parts)

@@ -13,6 +13,7 @@ from testkit import assert_matches, assert_one_line_error, run_cli, write_inria_
 
 from raygs_viewer.camera.pinhole import camera_to_json, look_at
 from raygs_viewer.capture.sidecar import build_sidecar
+from raygs_viewer.render.gl.storage import gpu_bytes
 from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.content_hash import file_sha256
@@ -67,8 +68,9 @@ def test_info_lists_the_levels(capsys, streamed):
     assert "levels:       3 (0 the finest; gaussians per level 0: 96, 1: 48, 2: 24); 4 parts in 3 files; " \
            "environment 8 gaussians" in stdout
     code, stdout, _ = run_cli(capsys, "info", streamed, "--json")
-    assert json.loads(stdout)["lod"] == {"levels": 3, "counts": [96, 48, 24], "leaves": 4, "files": 3,
-                                         "environment": 8}
+    lod = json.loads(stdout)["lod"]
+    assert lod.pop("gpu_bytes") == gpu_bytes(8 + 96 + 48 + 24, 0)
+    assert lod == {"levels": 3, "counts": [96, 48, 24], "leaves": 4, "files": 3, "environment": 8}
 
 
 def test_a_budget_renders_the_choice_and_its_sidecar_renders_it_again(capsys, tmp_path, streamed):
