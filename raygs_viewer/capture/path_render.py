@@ -114,7 +114,7 @@ def render_frames(renderer: "GLRenderer", cameras: list[Camera], settings: Rende
     says what it holds."""
     written = 0
     for camera in cameras:
-        restrict_to_view(renderer, lod, camera, settings.p_min)
+        restrict_to_view(renderer, lod, camera)
         if channels is not None:
             sink.write(render_frame_channels(renderer, camera, settings, stereo, channels, normal_space))
         else:

@@ -163,12 +163,12 @@ def _scene_and_camera(args, settings: RenderSettings, ctx) -> tuple[OpenedScene,
     return opened, choose_camera(opened.framed, scene_name, args.camera, args.camera_index, args.width, args.height)
 
 
-def _drawn(opened: OpenedScene, camera: Camera, settings: RenderSettings) -> tuple[Scene, LodChoice | None]:
+def _drawn(opened: OpenedScene, camera: Camera) -> tuple[Scene, LodChoice | None]:
     """What ``camera`` draws of ``opened`` as a Scene of its own (the reference renderer's
     input), and the level-of-detail choice it came from."""
     if opened.lod is None:
         return opened.scene, None
-    choice = opened.lod.choose(camera, settings.p_min)
+    choice = opened.lod.choose(camera)
     return opened.lod.lod.subset(choice.spans), choice
 
 
@@ -271,13 +271,13 @@ def render_image(args, ctx, opened: OpenedScene, camera: Camera, settings: Rende
     what it drew, in words. ``ctx``: the GL context (None with --reference)."""
     geometry = needs_geometry(channels)
     if args.reference:
-        scene, choice = _drawn(opened, camera, settings)
+        scene, choice = _drawn(opened, camera)
         if geometry:
             return reference.render_reference_channels(scene, camera, settings), drawn_words(opened, choice)
         return render_reference(scene, camera, settings), drawn_words(opened, choice)
     renderer = GLRenderer(ctx, opened.scene, general=args.general)
     try:
-        choice = restrict_to_view(renderer, opened.lod, camera, settings.p_min)  # stereo: the eyes' midpoint chooses
+        choice = restrict_to_view(renderer, opened.lod, camera)  # stereo: the eyes' midpoint chooses
         if stereo is not None:
             return render_stereo_view(renderer, camera, settings, stereo)[0], drawn_words(opened, choice)
         # Tiled like the window's screenshots: the same pixels, and sizes beyond
@@ -306,7 +306,7 @@ def command_verify(args) -> int:
     try:
         opened, camera = _scene_and_camera(args, settings, ctx)
         renderer = GLRenderer(ctx, opened.scene, general=args.general)
-        restrict_to_view(renderer, opened.lod, camera, settings.p_min)
+        restrict_to_view(renderer, opened.lod, camera)
         image = renderer.render(camera, settings)  # warm-up: shader compilation, first upload
         gl_times = []
         for _ in range(args.repeat):
@@ -317,7 +317,7 @@ def command_verify(args) -> int:
         device = context_description(ctx)
     finally:
         ctx.release()
-    scene, choice = _drawn(opened, camera, settings)  # the reference draws what the GL renderer was restricted to
+    scene, choice = _drawn(opened, camera)  # the reference draws what the GL renderer was restricted to
     start = time.perf_counter()
     reference = render_reference(scene, camera, settings)
     reference_time = time.perf_counter() - start

@@ -20,7 +20,7 @@ from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.io import load_scene
 from raygs_viewer.scene.lod_file import Fits, LodScene, level_scene, load_lod, lod_index_file
 from raygs_viewer.scene.model import Scene
-from raygs_viewer.sort.lod_choice import DEFAULT_P_MIN, LodChoice, LodRequest
+from raygs_viewer.sort.lod_choice import LodChoice, LodRequest
 
 #: The settings that only a streamed SOG takes.
 LOD_FIELDS = ("lod", "lod_budget", "lod_distance")
@@ -86,13 +86,11 @@ def for_settings(lod: LodScene, settings: RenderSettings) -> OpenedScene:
                        lod.environment[1])
 
 
-def restrict_to_view(renderer, lod: LodRequest | None, camera: Camera, p_min: float = DEFAULT_P_MIN
-                     ) -> LodChoice | None:
-    """Restricts ``renderer`` (a GLRenderer) to what ``camera`` draws of ``lod`` with the
-    opacity cut-off ``p_min``: called once per frame, before its sorts (tiles and both
-    eyes share the frame's choice)."""
+def restrict_to_view(renderer, lod: LodRequest | None, camera: Camera) -> LodChoice | None:
+    """Restricts ``renderer`` (a GLRenderer) to what ``camera`` draws of ``lod``: called
+    once per frame, before its sorts (tiles and both eyes share the frame's choice)."""
     if lod is None:
         return None
-    choice = lod.choose(camera, p_min)
+    choice = lod.choose(camera)
     renderer.restrict(choice.spans)
     return choice

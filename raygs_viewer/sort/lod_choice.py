@@ -14,7 +14,7 @@ The rule, for a view from camera centre C:
    hole opens), else the nearest finer one (splat-transform files a coarse gaussian
    under the leaf its centre falls in, so a leaf may have none at a coarse level).
 3. **View.** A leaf whose bounding sphere, widened by how far its gaussians reach
-   (sqrt(2 ln(1/p_min)) times the largest standard deviation among them, and two
+   (:data:`REACH_SIGMAS` times the largest standard deviation among them, and two
    pixels), lies outside the view draws its coarsest level: none of it can reach a
    pixel, and the per-gaussian cull drops it.
 4. **Budget.** When the wanted levels of the leaves in view, with the environment,
@@ -42,8 +42,11 @@ from raygs_viewer.scene.lod_file import LodScene
 
 #: The default distance in leaf sizes: level 1 begins four half-diagonals away.
 AUTOMATIC_DISTANCE_LEAVES = 4.0
-#: The opacity cut-off the view test assumes unless told (render.settings' default).
-DEFAULT_P_MIN = 1.0 / 255.0
+#: How far a leaf's gaussians reach beyond its box, in standard deviations: their support
+#: at the default opacity cut-off, sqrt(2 ln(1 / p_min)) with p_min = 1/255 (a gaussian of
+#: opacity 1). Fixed rather than the settings' p_min, so that the window, its screenshots
+#: (each split side with its own settings) and their sidecars make one choice.
+REACH_SIGMAS = math.sqrt(2.0 * math.log(255.0))
 
 
 @dataclass(frozen=True)
@@ -132,9 +135,8 @@ def usable_levels(lod: LodScene) -> np.ndarray:
 
 
 def choose(lod: LodScene, camera: Camera, *, level: int | None = None, budget: int | None = None,
-           distance: float | None = None, p_min: float = DEFAULT_P_MIN) -> LodChoice:
-    """What ``camera`` draws of ``lod`` (see the module docstring for the rule); ``p_min``
-    sets how far beyond its box a leaf's gaussians reach (the view test)."""
+           distance: float | None = None) -> LodChoice:
+    """What ``camera`` draws of ``lod`` (see the module docstring for the rule)."""
     leaves, levels = lod.index.leaves, lod.levels
     if level is not None:
         wanted = np.full(leaves, min(int(level), levels - 1), np.int64)
@@ -145,9 +147,7 @@ def choose(lod: LodScene, camera: Camera, *, level: int | None = None, budget: i
     every = np.arange(leaves)
     over = False
     if level is None:
-        # Support: sqrt(kappa) standard deviations, kappa = 2 ln(opacity / p_min) <= 2 ln(1 / p_min).
-        reach = math.sqrt(2.0 * math.log(1.0 / p_min)) * lod.leaf_scales
-        in_view, size = screen_radius(lod.index.bounds, camera, reach)
+        in_view, size = screen_radius(lod.index.bounds, camera, REACH_SIGMAS * lod.leaf_scales)
         target = usable[every, np.where(in_view, wanted, levels - 1)]
         if budget is not None:
             target, over = _within_budget(lod, usable, in_view, size, target, int(budget))
@@ -203,8 +203,8 @@ class LodRequest:
     budget: int | None = None
     distance: float | None = None
 
-    def choose(self, camera: Camera, p_min: float = DEFAULT_P_MIN) -> LodChoice:
-        return choose(self.lod, camera, level=self.level, budget=self.budget, distance=self.distance, p_min=p_min)
+    def choose(self, camera: Camera) -> LodChoice:
+        return choose(self.lod, camera, level=self.level, budget=self.budget, distance=self.distance)
 
     @property
     def key(self) -> tuple:

@@ -250,7 +250,7 @@ class BackgroundSorter(Closable):
                 self.started += 1
             begin = time.perf_counter()
             try:
-                choice = None if request.lod is None else request.lod.choose(request.camera, request.p_min)
+                choice = None if request.lod is None else request.lod.choose(request.camera)
                 spans = {} if choice is None else {"spans": choice.spans}
                 sorted_ = self._sorter.orders(request.camera, request.p_min, dilation=request.dilation,
                                               cull_cameras=request.cull_cameras, keys=request.keys, **spans)

@@ -34,8 +34,9 @@ from raygs_viewer.capture.screenshot import check_screenshot_path
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.gl.context import context_description
 from raygs_viewer.render.gl.renderer import GLRenderer
+from raygs_viewer.render.lod_view import refuse_lod_settings
 from raygs_viewer.render.settings import RenderSettings
-from raygs_viewer.scene.loader import LoadedScene, load_now
+from raygs_viewer.scene.loader import DEMO, LoadedScene, load_now
 from raygs_viewer.scene.progress import ProgressCallback
 from raygs_viewer.sort.worker import BackgroundSorter
 from raygs_viewer.viewer.drawing import SceneDrawer, request_sort
@@ -375,8 +376,11 @@ def load_start_scene(options: ViewerOptions, progress: ProgressCallback | None =
     """The scene the window opens with, read before it opens so that a bad file fails on
     the command line: a streamed SOG up to its coarsest level (or --lod N's), the window
     reads the rest."""
-    return load_now(options.scene, options.cameras, progress, spz_axes=options.spz_axes,
-                    lod_levels=first_levels(options.scene, options.settings))
+    loaded = load_now(options.scene, options.cameras, progress, spz_axes=options.spz_axes,
+                      lod_levels=first_levels(options.scene, options.settings))
+    if loaded.lod is None:  # the options would silently do nothing: say so, as render does
+        refuse_lod_settings("the demo scene" if options.scene == DEMO else options.scene, options.settings)
+    return loaded
 
 
 def start_camera(options: ViewerOptions) -> Camera | None:

@@ -190,16 +190,17 @@ class WindowLod:
     def for_frame(self) -> LodRequest | None:
         """:meth:`request`, after starting to read the levels the settings want that are
         not read (once per scene; never over a load under way, nor past the GPU's memory)."""
-        lod, loaded = self.lod, self.host.loaded
-        if lod is not None and not lod.unread and self._asked is not lod and not self.host.scenes.loader.busy:
+        lod, loaded, loader = self.lod, self.host.loaded, self.host.scenes.loader
+        if self._asked is lod and loader.path != loaded.path:
+            self._asked = None  # another file's load took the loader over (and failed): read again
+        if lod is not None and not lod.unread and self._asked is not lod and not loader.busy:
             level = self.host.settings.lod
             wanted = wanted_levels(lod.levels, level)
             if not lod.loaded[wanted].all():
                 self._asked = lod
                 read = set(np.flatnonzero(lod.loaded).tolist())
                 levels = None if level is None else tuple(sorted(read | set(wanted)))
-                self.host.scenes.loader.start(loaded.path, loaded.cameras_path, lod_levels=levels, fits=self.fits(),
-                                              refines=True)
+                loader.start(loaded.path, loaded.cameras_path, lod_levels=levels, fits=self.fits(), refines=True)
         return self.request()
 
     def shown(self, result):

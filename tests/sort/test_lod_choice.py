@@ -12,7 +12,7 @@ from raygs_viewer.camera.pinhole import look_at
 from raygs_viewer.scene.lod_file import load_lod, span_rows
 from raygs_viewer.sort.cull import span_chunks
 from raygs_viewer.sort.depth import DepthSorter
-from raygs_viewer.sort.lod_choice import LodRequest, choose, level_distances, screen_radius
+from raygs_viewer.sort.lod_choice import REACH_SIGMAS, LodRequest, choose, level_distances, screen_radius
 from raygs_viewer.sort.worker import BackgroundSorter
 
 LEVELS = 3
@@ -138,14 +138,13 @@ def test_the_sort_thread_chooses_for_each_view(tmp_path):
 def test_a_leaf_whose_gaussians_reach_into_the_view_is_in_view(tmp_path):
     """Its box (one standard deviation) lies outside the image, its gaussians' tails
     (sqrt(2 ln 255) = 3.3 of them) do not: it keeps its level; one far out does not."""
+    assert REACH_SIGMAS == pytest.approx(3.33, abs=0.01)
     wide = [[random_gaussians(PER_LEAF[level], centre=c, spread=0.005, scale=0.3, seed=level)
              for level in range(LEVELS)] for c in ((0.0, 0.0, 5.0), (6.5, 0.0, 5.0), (30.0, 0.0, 5.0))]
     lod = load_lod(write_streamed_sog(tmp_path / "wide", wide))
     box_only, _ = screen_radius(lod.index.bounds, CAMERA)
     assert box_only.tolist() == [True, False, False]
     assert choose(lod, CAMERA, distance=100.0).levels.tolist() == [0, 0, 2]
-    # A higher p_min shortens the reach: the box alone decides.
-    assert choose(lod, CAMERA, distance=100.0, p_min=0.9).levels.tolist() == [0, 2, 2]
 
 
 def test_a_leaf_without_gaussians_at_a_level_draws_its_nearest_level_that_has_them(tmp_path):

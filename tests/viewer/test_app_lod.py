@@ -1,7 +1,9 @@
 """The window on a streamed SOG (lod-meta.json): the coarsest level first and the finer
 ones as they are read, keeping the view and never blanking the picture; the budget, the
 fixed level and colour by level in the panel, and what they draw; a GPU too small for
-the finest level; screenshots that ``render --sidecar`` draws again.
+the finest level; levels read again after another file's load cut them short;
+screenshots (mono, mid-read, stereo) that draw the choice for their own camera and that
+``render --sidecar`` draws again.
 
 Loads are stepped through with events (a read_lod that waits after each level) and
 sorts with a gate; nothing waits on time."""
@@ -20,15 +22,18 @@ from lod_kit import random_gaussians, write_streamed_sog
 from PIL import Image
 
 from raygs_viewer.camera.navigation import Pose
+from raygs_viewer.camera.stereo import custom_preset
 from raygs_viewer.capture.image_io import to_rgb8
 from raygs_viewer.capture.screenshot import scaled_camera
 from raygs_viewer.render.gl.renderer import GLRenderer
+from raygs_viewer.render.gl.stereo_frame import render_stereo_view
 from raygs_viewer.render.gl.storage import gpu_bytes
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.lod_file import load_lod, subset_scene
 from raygs_viewer.sort.lod_choice import choose
 from raygs_viewer.sort.worker import BackgroundSorter
 from raygs_viewer.viewer.lod_window import DEFAULT_WINDOW_BUDGET, LEVEL_COLOURS, tinted_scene
+from raygs_viewer.viewer.state import StereoPreview
 
 WIDTH, HEIGHT = 192, 144
 PANEL_WIDTH, PANEL_HEIGHT = 640, 800
@@ -332,3 +337,41 @@ def test_a_screenshot_draws_the_choice_for_its_camera_and_renders_again_from_its
     alone = drawn_alone(viewer, lod.subset(picked.spans), camera, viewer.settings)
     assert np.abs(shot.astype(int) - to_rgb8(alone).astype(int)).max() <= 1
     np.testing.assert_array_equal(rendered_again(viewer, sidecar, tmp_path / "again.png"), shot)
+
+
+def test_a_stereo_screenshot_draws_the_choice_for_its_midpoint(open_viewer, streamed, tmp_path):
+    stereo = StereoPreview.of(custom_preset(96, 72, 90.0, 72.0), on=True)
+    viewer, _ = open_streamed(open_viewer, streamed, hide_panel=True, stereo=stereo)
+    viewer.settings = replace(viewer.settings, lod_budget=40)  # not drawn yet, as above
+    png, sidecar = viewer.save_screenshot()
+    shot = np.asarray(Image.open(png))
+    lod, camera = viewer.loaded.lod, viewer.camera  # the eyes' midpoint
+    picked = choose(lod, camera, budget=40, distance=DISTANCE)
+    assert picked.levels.tolist() != viewer.lod.choice.levels.tolist()
+    renderer = GLRenderer(viewer.ctx, lod.subset(picked.spans))
+    try:
+        pair = render_stereo_view(renderer, camera, viewer.settings, replace(viewer.shown_stereo, layout="sbs"))[0]
+    finally:
+        renderer.release()
+    assert np.abs(shot.astype(int) - to_rgb8(pair).astype(int)).max() <= 1
+    np.testing.assert_array_equal(rendered_again(viewer, sidecar, tmp_path / "again.png"), shot)
+
+
+
+def test_levels_cut_short_by_another_file_are_read_again(open_viewer, streamed, tmp_path):
+    index, cameras = streamed
+    viewer, drive = open_viewer(index, camera=cameras, settings=SETTINGS, hide_panel=True)
+    stepped = SteppedLod(3)
+    viewer.scenes.loader.read_lod = stepped
+    try:
+        drive.frames(1)  # starts reading the finer levels
+        stepped.wait_handed(0)
+        viewer.scenes.open(str(tmp_path / "missing.ply"))  # cancels that reading, then fails
+        stepped.release_all()
+        drive.wait_for_load()
+        assert "missing.ply" in viewer.panel.error and viewer.loaded.path == index
+        drive.frames(1)  # reads the levels again
+        drive.wait_for_load()
+        assert viewer.loaded.lod.loaded.all()
+    finally:
+        stepped.release_all()

@@ -40,11 +40,12 @@ def fixed_range(view: ChannelView | None, used: tuple[float, float] | None) -> C
 
 def stereo_order(renderer, camera: Camera, settings, rig: StereoRig) -> np.ndarray:
     """The one back-to-front order both eyes draw: the settings' key seen from the
-    midpoint, keeping what either eye may see."""
+    midpoint, keeping what either eye may see of the rows the renderer is restricted to
+    (a level-of-detail choice: ``GLRenderer.restrict``)."""
     left, right = eye_cameras(camera, rig)
     # Both eyes share fx and fy, hence the filter's dilation.
     return renderer.sorter.order(camera, settings.p_min, dilation=settings.cull_dilation(left),
-                                 cull_cameras=(left, right), key=settings.sort_key)
+                                 cull_cameras=(left, right), key=settings.sort_key, spans=renderer.spans)
 
 
 def render_stereo(renderer, camera: Camera, settings, rig: StereoRig, *,
