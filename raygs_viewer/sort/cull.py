@@ -237,25 +237,33 @@ def scene_rows(rows: Rows, local: np.ndarray) -> np.ndarray:
 
 
 def span_chunks(spans: np.ndarray, chunk_rows: int) -> list[Rows]:
-    """The rows of ``spans`` ((S, 2) ascending [start, stop)), in order, cut into chunks
-    of ``chunk_rows`` (the last one shorter): a chunk within one span is a slice, one
-    that packs several (a level-of-detail choice holds many short spans) their rows as
-    an int64 array, so that the per-chunk work is paid per ``chunk_rows``, not per span."""
-    spans = np.asarray(spans, np.int64).reshape(-1, 2)
-    lengths = spans[:, 1] - spans[:, 0]
-    ends = np.cumsum(lengths)  # in the chosen rows' own numbering
-    total = int(ends[-1]) if ends.size else 0
+    """The rows of ``spans`` ((S, 2) ascending [start, stop)), in order, as chunks of at
+    most ``chunk_rows``: a span of a quarter chunk or more is cut into slices of its own,
+    and shorter ones are packed together, their rows as one int64 array (a
+    level-of-detail choice holds many short spans), so the fixed work of a chunk is paid
+    per ``chunk_rows`` rows rather than per span, and large spans keep the cheap slices."""
     chunks: list[Rows] = []
-    for begin in range(0, total, chunk_rows):
-        end = min(begin + chunk_rows, total)
-        first, last = np.searchsorted(ends, [begin, end - 1], side="right")
-        offset = spans[first:last + 1, 0] - (ends[first:last + 1] - lengths[first:last + 1])
-        if first == last:
-            chunks.append(slice(int(begin + offset[0]), int(end + offset[0])))
-            continue
-        lows = np.maximum(ends[first:last + 1] - lengths[first:last + 1], begin)
-        highs = np.minimum(ends[first:last + 1], end)
-        chunks.append(np.concatenate([np.arange(lo, hi) + o for lo, hi, o in zip(lows, highs, offset)]))
+    packed: list[tuple[int, int]] = []
+    packed_rows = 0
+
+    def flush() -> None:
+        nonlocal packed, packed_rows
+        if len(packed) == 1:
+            chunks.append(slice(*packed[0]))
+        elif packed:
+            chunks.append(np.concatenate([np.arange(start, stop, dtype=np.int64) for start, stop in packed]))
+        packed, packed_rows = [], 0
+
+    for start, stop in np.asarray(spans, np.int64).reshape(-1, 2).tolist():
+        if stop - start >= chunk_rows // 4:
+            flush()
+            chunks.extend(slice(at, min(at + chunk_rows, stop)) for at in range(start, stop, chunk_rows))
+        elif stop > start:
+            if packed_rows + stop - start > chunk_rows:
+                flush()
+            packed.append((start, stop))
+            packed_rows += stop - start
+    flush()
     return chunks
 
 

@@ -34,9 +34,9 @@ from raygs_viewer.capture.screenshot import check_screenshot_path
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.gl.context import context_description
 from raygs_viewer.render.gl.renderer import GLRenderer
-from raygs_viewer.render.lod_view import refuse_lod_settings
+from raygs_viewer.render.lod_view import lod_settings_given
 from raygs_viewer.render.settings import RenderSettings
-from raygs_viewer.scene.loader import DEMO, LoadedScene, load_now
+from raygs_viewer.scene.loader import LoadedScene, load_now
 from raygs_viewer.scene.progress import ProgressCallback
 from raygs_viewer.sort.worker import BackgroundSorter
 from raygs_viewer.viewer.drawing import SceneDrawer, request_sort
@@ -378,8 +378,10 @@ def load_start_scene(options: ViewerOptions, progress: ProgressCallback | None =
     reads the rest."""
     loaded = load_now(options.scene, options.cameras, progress, spz_axes=options.spz_axes,
                       lod_levels=first_levels(options.scene, options.settings))
-    if loaded.lod is None:  # the options would silently do nothing: say so, as render does
-        refuse_lod_settings("the demo scene" if options.scene == DEMO else options.scene, options.settings)
+    given = lod_settings_given(options.settings)
+    if loaded.lod is None and given:  # start values of the panel: kept for a streamed SOG opened later
+        loaded.warnings.append(f"{', '.join(given)}: not for this scene, which is not a streamed SOG "
+                               "(lod-meta.json); kept for one opened later")
     return loaded
 
 

@@ -127,7 +127,7 @@ class _Log:
 
     def __init__(self, ctx, renderer, invalid_frames=()):
         self.events, self.ctx, self.renderer = [], ctx, renderer
-        self.sorter = renderer.sorter  # stereo_order sorts with it
+        self.sorter, self.spans = renderer.sorter, renderer.spans  # stereo_order sorts with them
         self.invalid_frames, self.frame = set(invalid_frames), 0
 
     # renderer

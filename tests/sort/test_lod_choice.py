@@ -92,14 +92,17 @@ def test_leaves_out_of_view_stay_coarse_and_cost_nothing(tmp_path):
     assert choice.levels.tolist() == [0, 2, 2] and choice.count == 16 + 4 + 4  # the budget counts what is in view
 
 
-def test_span_chunks_pack_the_spans_rows_into_chunks_of_chunk_rows():
-    chunks = span_chunks(np.array([[0, 5], [7, 8], [10, 23]]), 4)
-    assert len(chunks) == 5 and chunks[1].tolist() == [4, 7, 10, 11]  # three spans in one chunk
-    assert [chunks[i] for i in (0, 2, 3, 4)] == [slice(0, 4), slice(12, 16), slice(16, 20), slice(20, 23)]
+def test_span_chunks_slice_long_spans_and_pack_short_ones():
+    spans = np.array([[0, 5], [7, 8], [9, 10], [12, 13], [14, 15], [20, 37]])
+    chunks = span_chunks(spans, 8)  # a quarter chunk: 2 rows
+    assert chunks[0] == slice(0, 5) and chunks[-3:] == [slice(20, 28), slice(28, 36), slice(36, 37)]
+    assert [c.tolist() for c in chunks[1:-3]] == [[7, 9, 12, 14]]
+    assert span_chunks(np.array([[0, 1], [3, 4], [6, 7]]), 8)[0].tolist() == [0, 3, 6]
+    assert span_chunks(np.array([[0, 1], [3, 4], [6, 7]]), 2)[:2] == [slice(0, 1), slice(3, 4)]  # a chunk's worth apart
     assert span_chunks(np.zeros((0, 2), np.int64), 4) == []
 
 
-@pytest.mark.parametrize("workers,chunk_rows", [(1, 1 << 16), (3, 5)])
+@pytest.mark.parametrize("workers,chunk_rows", [(1, 1 << 16), (3, 5), (2, 48)])  # whole; sliced; packed
 @pytest.mark.parametrize("key", ["depth", "distance"])
 def test_a_sort_of_spans_is_the_sort_of_their_rows_alone(tmp_path, workers, chunk_rows, key):
     lod = scene(tmp_path, [(x, 0.0, 2.0 + x) for x in (-1.0, 0.0, 1.0, 2.0)], environment=4)

@@ -33,7 +33,8 @@ from raygs_viewer.scene.lod_file import load_lod, subset_scene
 from raygs_viewer.sort.lod_choice import choose
 from raygs_viewer.sort.worker import BackgroundSorter
 from raygs_viewer.viewer.lod_window import DEFAULT_WINDOW_BUDGET, LEVEL_COLOURS, tinted_scene
-from raygs_viewer.viewer.state import StereoPreview
+from raygs_viewer.viewer.app import load_start_scene
+from raygs_viewer.viewer.state import StereoPreview, ViewerOptions
 
 WIDTH, HEIGHT = 192, 144
 PANEL_WIDTH, PANEL_HEIGHT = 640, 800
@@ -375,3 +376,11 @@ def test_levels_cut_short_by_another_file_are_read_again(open_viewer, streamed, 
         assert viewer.loaded.lod.loaded.all()
     finally:
         stepped.release_all()
+
+
+def test_level_of_detail_options_for_another_scene_are_kept_and_said():
+    loaded = load_start_scene(ViewerOptions(settings=RenderSettings(lod_budget=500, lod_distance=2.0)))
+    assert loaded.lod is None
+    assert loaded.warnings[-1] == ("--lod-budget, --lod-distance: not for this scene, which is not a streamed SOG "
+                                   "(lod-meta.json); kept for one opened later")
+    assert not load_start_scene(ViewerOptions()).warnings
