@@ -29,6 +29,8 @@ import numpy as np
 from sog_kit import encode_sog, write_folder
 from testkit import unit_quaternions
 
+from raygs_viewer.camera.rotation import quaternion_to_matrix
+
 Row = tuple[int, int, int]  # (file index into filenames, offset in that file, count)
 
 
@@ -126,20 +128,11 @@ def level_gaussians(leaves, level: int, file_bin: int = 1 << 30) -> Gaussians | 
     return Gaussians.concat(parts) if parts else None
 
 
-def rotation_matrices(rotations) -> np.ndarray:
-    """(n, 3, 3) rotation matrices of w, x, y, z quaternions of any norm."""
-    q = np.asarray(rotations, np.float64)
-    w, x, y, z = (q / np.linalg.norm(q, axis=1, keepdims=True)).T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], 1)
-
-
 def ellipsoid_boxes(g: Gaussians) -> tuple[np.ndarray, np.ndarray]:
     """Each gaussian's ellipsoid AABB (half extents |R| exp(log scale)): (mins, maxs), (n, 3)."""
-    half = np.abs(rotation_matrices(g.rotations)) @ np.exp(np.asarray(g.log_scales, np.float64))[:, :, None]
+    q = np.asarray(g.rotations, np.float64)
+    half = np.abs(quaternion_to_matrix(q / np.linalg.norm(q, axis=1, keepdims=True))) @ \
+        np.exp(np.asarray(g.log_scales, np.float64))[:, :, None]
     centres = np.asarray(g.positions, np.float64)
     return centres - half[:, :, 0], centres + half[:, :, 0]
 

@@ -12,7 +12,7 @@ from pathlib import Path
 from types import ModuleType
 from typing import Callable
 
-from raygs_viewer.bench import accuracy, accuracy_report, cube, freshness, perf, sort_timing
+from raygs_viewer.bench import accuracy, accuracy_report, freshness, perf
 from raygs_viewer.bench import formats as formats_bench
 from raygs_viewer.bench import lod as lod_bench
 from raygs_viewer.bench import order as order_bench
@@ -29,6 +29,7 @@ from raygs_viewer.bench.common import (
 from raygs_viewer.camera import stereo as camera_stereo
 from raygs_viewer.capture.image_io import check_output_path
 from raygs_viewer.cli import argtypes
+from raygs_viewer.cli.bench_about import ABOUT, SORT_COUNTS
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.lod_meta import LOD_META_NAME
 
@@ -67,66 +68,6 @@ def command(args: argparse.Namespace, ctx=None) -> int:
 
 
 # --- shared ---------------------------------------------------------------------------------------
-
-#: The sizes of a full ``bench sort``, as its help names them.
-_SORT_COUNTS = ", ".join(count_label(n) for n in sort_bench.COUNTS)
-#: bench KIND: its one-line help (in ``bench --help``) and its description (in ``bench KIND --help``).
-ABOUT: dict[str, tuple[str, str]] = {
-    "accuracy": (
-        "GPU time and error against ground truth of every accuracy option",
-        "For every accuracy configuration and every view class (training-like, far at 1/4 "
-        "resolution, very close) of the demo and the shared real scenes: GPU time per frame "
-        "(timer queries, as a ratio to plain RayGS) and the error against the ground truth "
-        "(PSNR, p99, max). Writes a markdown report and a PNG plot."),
-    "stereo": (
-        "what the shared stereo sort and colour cost, and both eyes' time per headset preset",
-        "For the demo and the shared real scenes: the error of the shared stereo images (one sort "
-        "and SH colour from the eyes' midpoint) against per-eye ones, in the training-like and very "
-        "close views at 1 m per unit and with the scene 1 m across, taken apart into sort and "
-        "colour; and the GPU time of both eyes at every headset preset's resolution against each "
-        "refresh rate's frame budget. Prints markdown tables and machine-readable lines."),
-    "perf": (
-        "per-stage frame times and the cost ratios (RayGS/GS, floor, specialisation, sort)",
-        "Times every stage of a moving-view frame (cull, sort, upload, preprocess, draw) for "
-        "generated scenes of 10k, 100k and 1M gaussians, small and large on screen, and the shared "
-        "real scenes, at 1280x720 and 1920x1080; in the same frames EWA splatting, the floor pass "
-        "(the same quads, constant fragment), the general shader variant and a float argsort. "
-        "Prints a line per case and the ratios as 'NAME VALUE' lines."),
-    "order": (
-        "each order mode's time, error against the order of every ray, and popping in motion",
-        "For the demo and the shared real scenes, from the training-like and very close views: "
-        "every order mode (depth, distance, per-pixel with windows K and exact) timed as a ratio to "
-        "the depth order, its error against the per-ray, pixel-integrated ground truth, and along a "
-        "turn in place and a flight forward its error against each frame's per-ray truth and its "
-        "popping (how much that error flickers between frames). Prints a table per view and "
-        "machine-readable lines; --out writes the markdown report."),
-    "sort": (
-        "CPU cull and sort of generated scenes of 100k to 6M gaussians, and the drawn order's "
-        "freshness while turning and flying",
-        f"For generated scenes of {_SORT_COUNTS} gaussians (made in memory), seen whole: the cull, keys, "
-        f"sort and upload times with 1 worker, 2 and every core (medians, interleaved), the "
-        f"speed-up over one worker and 'cull+sort@N' lines; then, with those latencies and the "
-        f"projection to {sort_timing.PROJECTED_CORES} cores, a turn of "
-        f"{cube.TURN_DEGREES_PER_S:g} deg/s and a flight of {cube.FLY_RADII_PER_S:g} "
-        f"scene radii/s at {freshness.FPS:g} fps drawn with the order the window would hold: the "
-        f"error against the up-to-date order for the depth, distance and per-pixel orders."),
-    "formats": (
-        "what .ply, .splat and .spz keep of a scene (per attribute and in renders), and load times",
-        "Each reference scene (the demo, the shared INRIA PLYs, and the shared compressed-PLY and SOG "
-        "samples) is loaded from its own file, then written as .ply, .splat, .spz v3 and v4 and read "
-        "back: size, load time, the per-attribute error and the render PSNR against the scene; then "
-        "the shared .spz sample against its INRIA PLY twin."),
-    "lod": (
-        "what a streamed SOG's level of detail costs and saves at each budget, against its finest level",
-        "For each streamed SOG (lod-meta.json), in a view framing it, a closer and a farther one: its finest "
-        "level drawn everywhere, then the view-dependent choice of levels at budgets of "
-        + ", ".join(f"{f * 100:g} %" for f in lod_bench.FRACTIONS) + " of the finest level's gaussians (plus "
-        "the environment's), side by side: gaussians drawn, CPU time of the choice and of the cull+sort, "
-        "time of preprocess+draw (GPU timer, and drained), their ratios to the finest level, and the image's "
-        "PSNR and largest error against the finest level's. Prints a table per view and machine-readable "
-        "lines; --out writes the markdown report."),
-}
-
 
 #: The options each benchmark's recorded command names, in their order there.
 RECORDED_FLAGS: dict[str, tuple[str, ...]] = {
@@ -253,7 +194,6 @@ def _run_reported(make_options: Callable[[argparse.Namespace], RunOptions], run:
 # --- accuracy ------------------------------------------------------------------------------------
 
 
-
 def _add_accuracy_parser(kinds) -> None:
     parser = _bench_parser(kinds, "accuracy",
                            f"the demo and one small real scene, {accuracy.QUICK_WIDTH} px wide, "
@@ -316,7 +256,6 @@ def _run_accuracy(args: argparse.Namespace, ctx) -> int:
 # --- stereo --------------------------------------------------------------------------------------
 
 
-
 def _add_stereo_parser(kinds) -> None:
     parser = _bench_parser(kinds, "stereo",
                            f"the demo scene only, {stereo_bench.QUICK_REPEAT} timed frames per preset (a few seconds)",
@@ -349,9 +288,7 @@ def stereo_options(args: argparse.Namespace) -> stereo_bench.StereoOptions:
         **_run_fields("stereo", args, notes))
 
 
-
 # --- perf ----------------------------------------------------------------------------------------
-
 
 
 def _add_perf_parser(kinds) -> None:
@@ -407,7 +344,6 @@ def _run_perf(args: argparse.Namespace, ctx) -> int:
 # --- order ---------------------------------------------------------------------------------------
 
 
-
 def _add_order_parser(kinds) -> None:
     parser = _bench_parser(kinds, "order",
                            f"the demo and one small real scene, {order_bench.QUICK_WIDTH} px wide, sweeps of "
@@ -433,9 +369,7 @@ def order_options(args: argparse.Namespace) -> order_bench.OrderOptions:
         **_run_fields("order", args, notes))
 
 
-
 # --- sort ----------------------------------------------------------------------------------------
-
 
 
 def _add_sort_parser(kinds) -> None:
@@ -445,7 +379,7 @@ def _add_sort_parser(kinds) -> None:
                            f"for scenes up to {count_label(sort_bench.QUICK_FRESHNESS_MAX)} gaussians only (under 3 "
                            f"minutes on two CPU cores)")
     parser.add_argument("--counts", nargs="+", type=argtypes.whole_number(1, 100_000_000), metavar="N",
-                        help=f"scene sizes (default {_SORT_COUNTS}; --quick stops at "
+                        help=f"scene sizes (default {SORT_COUNTS}; --quick stops at "
                              f"{count_label(sort_bench.QUICK_COUNTS[-1])})")
     parser.add_argument("--repeat", type=argtypes.whole_number(1, 1000), metavar="N",
                         help=f"timed runs per worker count (default {sort_bench.DEFAULT_REPEAT}, --quick "
@@ -470,9 +404,7 @@ def sort_options(args: argparse.Namespace) -> sort_bench.SortOptions:
         **_run_fields("sort", args, []))
 
 
-
 # --- formats ---------------------------------------------------------------------------------------
-
 
 
 def _add_formats_parser(kinds) -> None:
@@ -501,9 +433,7 @@ def formats_options(args: argparse.Namespace) -> formats_bench.FormatsOptions:
         **_run_fields("formats", args, notes))
 
 
-
 # --- lod -------------------------------------------------------------------------------------------
-
 
 
 def _add_lod_parser(kinds) -> None:

@@ -20,7 +20,7 @@ from __future__ import annotations
 import os
 import threading
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from functools import cached_property
 
 import numpy as np
@@ -214,13 +214,14 @@ def load_lod(path, *, levels: tuple[int, ...] | None = None, fits: Fits | None =
             unit, kept[file] = reader.read(index.files[file], int(needed[file]))
             parts.append(unit)
         loaded[level] = True
-        result = _assemble(parts, index, starts, kept, loaded, environment, shown)
+        result = None  # one Scene of every part is made once, unless each level is handed on
         if on_level is not None:
+            result = _assemble(parts, index, starts, kept, loaded, environment, shown)
             on_level(result)
-    if unread:
-        result = LodScene(result.scene, index, result.rows, result.loaded, environment, unread)
+    if result is None:
+        result = _assemble(parts, index, starts, kept, loaded, environment, shown)
     report(1.0, "done")
-    return result
+    return replace(result, unread=unread) if unread else result
 
 
 def _degree(parts: list[Scene]) -> int:
@@ -233,7 +234,6 @@ class _UnitReader:
     def __init__(self, folder: Folder, shown: str, report: Reporter, chunk_bytes: int, total_rows: int):
         self.folder, self.shown, self.report = folder, shown, report
         self.chunk_bytes, self.total_rows = chunk_bytes, total_rows
-        self.done = 0
 
     def read(self, name: str, needed: int | None):
         """The unit ``name``'s scene; with ``needed`` (rows the index references), also
@@ -249,7 +249,6 @@ class _UnitReader:
             self.report(begin + share * fraction, stage)
 
         scene, dropped = read_sog(target, unit_shown, Reporter(scaled, self.report.cancel), self.chunk_bytes)
-        self.done += needed or 0
         if needed is None:
             return scene
         rows = scene.count if dropped is None else dropped.size

@@ -21,6 +21,7 @@ import spz_reference as ref
 import testkit
 import zstandard
 
+from raygs_viewer.camera.rotation import quaternion_to_matrix
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.io import load_scene
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
@@ -83,19 +84,9 @@ def rdf_scene(n=300, degree=3, seed=1, spread=3.0, w_min=0.0):
                  sh, degree)
 
 
-def rotation_matrices(q):
-    """(n, 4) w x y z -> (n, 3, 3), normalising."""
-    q = np.asarray(q, np.float64)
-    w, x, y, z = (q / np.linalg.norm(q, axis=1, keepdims=True)).T
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1),
-    ], 1)
-
-
 def covariances(rotations_wxyz, scales):
-    r = rotation_matrices(rotations_wxyz) * np.asarray(scales, np.float64)[:, None, :]
+    q = np.asarray(rotations_wxyz, np.float64)
+    r = quaternion_to_matrix(q / np.linalg.norm(q, axis=1, keepdims=True)) * np.asarray(scales, np.float64)[:, None, :]
     return r @ r.transpose(0, 2, 1)
 
 
