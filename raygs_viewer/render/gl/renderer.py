@@ -98,9 +98,7 @@ class GLRenderer:
         self._target: FloatTarget | None = None          # render()'s image, the latest size
         self._samples: FloatTarget | None = None         # supersampling and front to back
         self.geometry = GeometryOutputs(ctx)
-        #: (S, 2) int64 ascending [start, stop) rows that sorting and preprocessing cover
-        #: (a level-of-detail choice: :meth:`restrict`); None: the whole scene.
-        self.spans: np.ndarray | None = None
+        self.spans: np.ndarray | None = None  # what sorting and preprocessing cover: see restrict
 
     def layout_for(self, settings: RenderSettings, geometry: bool = False) -> StorageLayout:
         """The storage layout of ``settings``' records (exact MIP's are larger, and
@@ -122,11 +120,7 @@ class GLRenderer:
         """Sort and preprocess only the rows of ``spans`` ((S, 2) ascending [start, stop);
         None: every row) from now on: a streamed scene's chosen levels
         (``sort.lod_choice``). Orders drawn must hold only those rows."""
-        if spans is not None:
-            spans = np.asarray(spans, np.int64).reshape(-1, 2)
-            if spans.size and (spans[0, 0] < 0 or spans[-1, 1] > self.scene.count):
-                raise ValueError("spans outside the scene")
-        self.spans = spans
+        self.spans = None if spans is None else np.asarray(spans, np.int64).reshape(-1, 2)
 
     # -- per-frame passes ---------------------------------------------------------
     def sort(self, camera: Camera, settings: RenderSettings) -> np.ndarray:
@@ -152,13 +146,7 @@ class GLRenderer:
         self._last_layout = layout
         program = self.variants.preprocess(settings, geometry)
         self.variants.set_features(program, settings)
-        program["u_world_to_camera"].write(camera.R.astype(np.float32).tobytes(order="F"))
-        program["u_translation"].value = tuple(np.asarray(camera.t, np.float64).astype(np.float32))
-        set_uniform(program, "u_color_origin", tuple(origin.astype(np.float32)))  # gone at SH degree 0
-        program["u_log_p_min"].value = math.log(settings.p_min)
-        set_uniform(program, "u_pixel_variance", settings.pixel_variance(camera))
-        set_uniform(program, "u_intrinsics", (camera.fx, camera.fy, camera.cx, camera.cy))
-        set_uniform(program, "u_ray_bounds", gs_ray_bounds(frame or camera))
+        set_view_uniforms(program, camera, settings, frame, origin)
         for chunk in self.storage.preprocess_chunks(layout, self.variants.colors_at_load(settings)):
             program["u_out_offset"].value = chunk.offset
             for first, count in chunk_runs(chunk.start, chunk.count, self.spans):
@@ -186,8 +174,6 @@ class GLRenderer:
         pass of the geometry outputs (render/gl/geometry.py)."""
         if order.size == 0:
             return
-        if order.size > self.scene.count:
-            raise ValueError("order longer than the scene")
         layout = self.layout_for(settings, geometry)
         problem = self.supports(settings, geometry and path is not None)  # the blended geometry needs nothing more
         if problem:
@@ -221,10 +207,9 @@ class GLRenderer:
     def upload_order(self, order: np.ndarray) -> None:
         """Puts ``order`` (M,) in the GPU's order buffer, unless this very array is
         already there (orders are not modified once made: a new view makes a new one)."""
-        if self.storage.upload_order(order):
-            self.counters.uploads += 1
-        else:
-            self.counters.upload_skipped += 1
+        uploaded = self.storage.upload_order(order)  # which refuses an order longer than the scene
+        self.counters.uploads += uploaded
+        self.counters.upload_skipped += not uploaded
 
     def render(self, camera: Camera, settings: RenderSettings = RenderSettings(),
                order: np.ndarray | None = None, frame: Camera | None = None,
@@ -330,6 +315,18 @@ class GLRenderer:
         self.variants.release()
         self.storage.release()
         self.sorter.close()  # its thread pool; a later sort runs on the calling thread
+
+
+def set_view_uniforms(program, camera: Camera, settings: RenderSettings, frame: Camera | None,
+                      origin: np.ndarray) -> None:
+    """The preprocessing pass's uniforms of the view (see ``GLRenderer.preprocess``)."""
+    program["u_world_to_camera"].write(camera.R.astype(np.float32).tobytes(order="F"))
+    program["u_translation"].value = tuple(np.asarray(camera.t, np.float64).astype(np.float32))
+    set_uniform(program, "u_color_origin", tuple(origin.astype(np.float32)))  # gone at SH degree 0
+    program["u_log_p_min"].value = math.log(settings.p_min)
+    set_uniform(program, "u_pixel_variance", settings.pixel_variance(camera))
+    set_uniform(program, "u_intrinsics", (camera.fx, camera.fy, camera.cx, camera.cy))
+    set_uniform(program, "u_ray_bounds", gs_ray_bounds(frame or camera))
 
 
 def chunk_runs(start: int, count: int, spans: np.ndarray | None) -> list[tuple[int, int]]:
