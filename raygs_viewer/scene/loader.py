@@ -20,6 +20,7 @@ import os
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -27,7 +28,7 @@ import numpy as np
 from raygs_viewer.camera.pinhole import Camera, load_cameras
 from raygs_viewer.errors import UserError
 from raygs_viewer.jsonfile import read_json_file
-from raygs_viewer.scene.content_hash import FileHash, arrays_sha256
+from raygs_viewer.scene.content_hash import FileHash, arrays_sha256, file_sha256
 from raygs_viewer.scene.demo import DEMO_VIEW_NAMES, demo_cameras, demo_scene
 from raygs_viewer.scene.io import dropped_summary, load_scene
 from raygs_viewer.scene.lod_file import Fits, LodScene, load_lod, lod_index_file
@@ -112,6 +113,13 @@ class LoadedScene:
     warnings: list[str]
     lod: LodScene | None = None
     refines: bool = False
+
+    @cached_property
+    def content_sha256(self) -> str:
+        """``sha256``, or, while a streamed SOG's files are still being hashed beside its
+        reading, their hash taken now: what a saved document (a screenshot's sidecar, a
+        path or measurements file) must record."""
+        return self.sha256 or file_sha256(self.path)
 
     @property
     def framed(self) -> np.ndarray:

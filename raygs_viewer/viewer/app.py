@@ -293,7 +293,7 @@ class Viewer:
         width, height = (self.camera.width, self.camera.height) if self.camera is not None else self.viewport[2:]
         axes = self.loaded.scene.axes  # a .spz's: render-path reads it in the same axes
         return PathDocument(path, width, height, self.settings, self.shown_stereo,
-                            scene_argument(self.loaded), self.loaded.sha256,
+                            scene_argument(self.loaded), self.loaded.content_sha256,
                             scene_spz_axes=None if axes is None else axes.assumed)
 
     # -- loop ------------------------------------------------------------------------

@@ -146,7 +146,7 @@ class MeasureWidget:
     # -- files -------------------------------------------------------------------------
     def document(self) -> MeasureDocument:
         loaded = self.host.loaded
-        return MeasureDocument(tuple(self.measurements), self.scale, scene_argument(loaded), loaded.sha256)
+        return MeasureDocument(tuple(self.measurements), self.scale, scene_argument(loaded), loaded.content_sha256)
 
     def save(self) -> None:
         self.panel.saved("measurements", lambda: save_measure_document(self.document(), self.file, self.overwrite))
@@ -164,7 +164,7 @@ class MeasureWidget:
         if self.scale is not None:
             self.unit = self.scale.unit
         loaded = self.host.loaded
-        warning = measure_scene_mismatch(document, scene_argument(loaded), loaded.sha256)
+        warning = measure_scene_mismatch(document, scene_argument(loaded), loaded.content_sha256)
         self.panel.message = "; ".join(filter(None, [f"loaded {self.file}: {len(self.measurements)} measurements",
                                                      warning]))
         self.panel.error = ""

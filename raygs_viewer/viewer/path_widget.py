@@ -253,7 +253,7 @@ class PathWidget:
         self.playback.time = 0.0
         self.edit(lambda _: document.path, select=None)
         loaded = self.host.loaded
-        notes = [*document.notes, scene_mismatch(document, scene_argument(loaded), loaded.sha256)]
+        notes = [*document.notes, scene_mismatch(document, scene_argument(loaded), loaded.content_sha256)]
         self.panel.message = "; ".join([f"loaded {self.file}: {len(document.path.keyframes)} keyframes, "
                                         f"{document.path.duration:g} s", *filter(None, notes)])
         self.panel.error = ""

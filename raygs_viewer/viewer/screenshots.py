@@ -35,7 +35,7 @@ from raygs_viewer.capture.screenshot import (
     save_screenshots,
     scaled_camera,
 )
-from raygs_viewer.capture.sidecar import build_sidecar, scene_sha256
+from raygs_viewer.capture.sidecar import build_sidecar
 from raygs_viewer.render.channel_pictures import ChannelView, channel_picture
 from raygs_viewer.render.gl.stereo_frame import render_stereo_view
 from raygs_viewer.render.lod_view import restrict_to_view
@@ -91,8 +91,7 @@ def _take(renderer, loaded: LoadedScene, shown: ShownView, options: ScreenshotOp
           extra: dict, path: str | Path | None, camera: Camera) -> list[Saved]:
     scale = options.scale
     scene_path = loaded.path if loaded.path == "demo" else os.path.abspath(loaded.path)
-    # A streamed SOG shown before its files were all hashed: hashed now, the sidecar needs it.
-    sha256 = loaded.sha256 or scene_sha256(loaded.path)
+    sha256 = loaded.content_sha256
 
     def sidecar(settings: RenderSettings, details: dict, stereo: StereoView | None = None,
                 view: ChannelView | None = shown.view) -> dict:

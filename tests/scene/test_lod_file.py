@@ -257,3 +257,15 @@ def test_a_missing_level_or_a_level_on_another_scene_is_one_line(tmp_path, capsy
     assert_user_error(lambda: load_level(path, 3), path, "has levels 0..2; level 3 does not exist")
     code, _, err = run_cli(capsys, "info", tmp_path / "nothing-here" / "lod-meta.json")
     assert code == 2 and err.startswith("error: ") and err.count("\n") == 1
+
+
+def test_a_scene_shown_before_its_hash_is_done_hashes_when_a_document_needs_it(streamed):
+    from dataclasses import replace
+
+    from raygs_viewer.scene.loader import load_now  # the loader: above this module's readers
+
+    path, _, _ = streamed
+    loaded = load_now(path)
+    assert loaded.sha256 == file_sha256(path)
+    shown_early = replace(loaded, sha256="")  # as a level is handed on while the files are still hashed
+    assert shown_early.content_sha256 == loaded.sha256
