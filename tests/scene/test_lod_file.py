@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import json
 import threading
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -18,6 +19,7 @@ from testkit import assert_user_error, run_cli
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.content_hash import file_sha256
 from raygs_viewer.scene.io import load_scene
+from raygs_viewer.scene.loader import load_now
 from raygs_viewer.scene.lod_file import load_level, load_lod, lod_index_file, merged_spans, span_rows
 
 FIXTURE = Path(__file__).resolve().parents[1] / "fixtures" / "lod-small"
@@ -260,10 +262,6 @@ def test_a_missing_level_or_a_level_on_another_scene_is_one_line(tmp_path, capsy
 
 
 def test_a_scene_shown_before_its_hash_is_done_hashes_when_a_document_needs_it(streamed):
-    from dataclasses import replace
-
-    from raygs_viewer.scene.loader import load_now  # the loader: above this module's readers
-
     path, _, _ = streamed
     loaded = load_now(path)
     assert loaded.sha256 == file_sha256(path)
