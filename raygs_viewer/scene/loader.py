@@ -375,11 +375,16 @@ class SceneLoader:
                 self._job.delivered = True
             return result
 
+    def wait_done(self, timeout: float | None = None) -> bool:
+        """Blocks until the current load finishes, leaving its result for :meth:`poll`;
+        True when it has (or there is none)."""
+        with self._cond:
+            return self._cond.wait_for(lambda: self._job is None or self._job.done, timeout)
+
     def wait(self, timeout: float | None = None) -> LoadedScene | UserError | None:
         """Blocks until the current load finishes, then returns what :meth:`poll` would.
         None when there is no load, its result was already polled, or ``timeout`` passed."""
-        with self._cond:
-            self._cond.wait_for(lambda: self._job is None or self._job.done, timeout)
+        self.wait_done(timeout)
         return self.poll()
 
     def join(self, timeout: float | None = None) -> bool:

@@ -303,6 +303,8 @@ class Viewer:
             last = options.frames is not None and self.frame_index + 1 >= options.frames
             self.capture_window_next |= last and options.window_screenshot is not None
             self.wait_for_sort = last
+            if last:  # a scripted run ends on every level of a streamed SOG its settings want
+                self.lod.read_all()
             self.frame()
             if last:
                 break

@@ -204,6 +204,14 @@ class WindowLod:
                 loader.start(loaded.path, loaded.cameras_path, lod_levels=levels, fits=self.fits(), refines=True)
         return self.request()
 
+    def read_all(self) -> None:
+        """Blocks until the levels the settings want are read (the next frame installs
+        them): a scripted run's last frame and its screenshot show the scene as it ends
+        up, not as far as its reading had come."""
+        self.for_frame()
+        if self.reading:
+            self.host.scenes.loader.wait_done()
+
     def shown(self, result):
         """The sort result this frame draws: ``result`` (the sorter's newest), else the
         fallback; notes its choice."""

@@ -384,3 +384,16 @@ def test_level_of_detail_options_for_another_scene_are_kept_and_said():
     assert loaded.warnings[-1] == ("--lod-budget, --lod-distance: not for this scene, which is not a streamed SOG "
                                    "(lod-meta.json); kept for one opened later")
     assert not load_start_scene(ViewerOptions()).warnings
+
+
+def test_a_scripted_run_ends_on_every_level(restore_gl_ctx, streamed, tmp_path, capsys):
+    """--frames N --screenshot: the last frame waits for the levels still being read, so
+    the screenshot shows the scene as it ends up (and its sidecar says so)."""
+    from raygs_viewer.cli.main import main
+
+    index, cameras = streamed
+    shot = tmp_path / "scripted.png"
+    assert main(["view", str(index), "--frames", "1", "--screenshot", str(shot), "--camera", str(cameras),
+                 "--width", "64", "--height", "48", "--window-platform", "null"]) == 0
+    capsys.readouterr()
+    assert json.loads(shot.with_suffix(".json").read_text())["scene"]["lod_levels"] == [0, 1, 2]
