@@ -308,10 +308,7 @@ class Viewer:
             self.frame()
             if last:
                 break
-        if options.screenshot is not None:
-            self.save_screenshot(options.screenshot)
-        if options.window_screenshot is not None and self.window_capture is not None:
-            save_image(options.window_screenshot, self.window_capture.astype(np.float32) / 255.0)
+        save_scripted_outputs(self)
 
     def close(self) -> None:
         if self.window is None:
@@ -326,6 +323,16 @@ class Viewer:
         self.drawer.release()
         self.window.close()
         self.window = None
+
+
+def save_scripted_outputs(viewer: Viewer) -> None:
+    """What a run writes once its last frame is drawn: ``--screenshot`` (PNG and
+    sidecar) and ``--window-screenshot`` (the window, panel included)."""
+    options = viewer.options
+    if options.screenshot is not None:
+        viewer.save_screenshot(options.screenshot)
+    if options.window_screenshot is not None and viewer.window_capture is not None:
+        save_image(options.window_screenshot, viewer.window_capture.astype(np.float32) / 255.0)
 
 
 def run_summary(viewer: Viewer) -> str:
