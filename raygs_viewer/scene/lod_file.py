@@ -72,7 +72,7 @@ def read_index(path, shown: str) -> LodIndex:
         return parse_lod_meta(shown, f.read(MAX_INDEX_BYTES + 1))
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)  # one reading of a scene is equal to itself alone
 class LodScene:
     """A streamed SOG's gaussians, the levels read so far.
 

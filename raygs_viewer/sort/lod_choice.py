@@ -208,4 +208,6 @@ class LodRequest:
 
     @property
     def key(self) -> tuple:
-        return (id(self.lod), self.level, self.budget, self.distance)
+        # The scene itself, compared by identity: an id() could be reused by the next
+        # reading once this one is freed, and a newly read level would look unchanged.
+        return (self.lod, self.level, self.budget, self.distance)

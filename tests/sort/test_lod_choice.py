@@ -161,3 +161,13 @@ def test_a_leaf_without_gaussians_at_a_level_draws_its_nearest_level_that_has_th
     squeezed = choose(lod, CAMERA, distance=100.0, budget=1)
     assert squeezed.levels.tolist() == [2, 1, 2] and squeezed.count == 4 + 8 + 4 and squeezed.over_budget
     assert choose(lod, CAMERA, distance=100.0, budget=4 + 8 + 4 + 12).levels.tolist() == [0, 1, 2]
+
+
+def test_a_new_reading_of_a_scene_is_another_choice_even_at_the_same_address(tmp_path):
+    """The key holds the scene itself: an id() would be free for the next reading to take
+    once the first is dropped (CPython reuses it at once), and a newly read level would
+    then look like the choice already made."""
+    path = write_streamed_sog(tmp_path / "lod", tiny_leaves([(0.0, 0.0, 1.0)]))
+    first = LodRequest(load_lod(path, levels=(2,))).key
+    second = LodRequest(load_lod(path)).key
+    assert first != second and first[0].loaded.sum() == 1 and second[0].loaded.sum() == 3
