@@ -124,12 +124,8 @@ class LoadedScene:
     @property
     def framed(self) -> np.ndarray:
         """(N, 3) the positions a view that frames the scene should see: a streamed
-        SOG's without its environment, which surrounds the scene from afar."""
-        if self.lod is None:
-            return self.scene.positions
-        start, count = self.lod.environment
-        positions = self.scene.positions
-        return np.concatenate([positions[:start], positions[start + count:]])
+        SOG's without its environment (its first rows), which surrounds the scene from afar."""
+        return self.scene.positions[0 if self.lod is None else self.lod.environment[1]:]
 
 
 def _camera_names(path: Path, count: int) -> list[str]:
