@@ -30,9 +30,10 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.files import write_atomically
 from raygs_viewer.jsonfile import json_text, parse_json
 from raygs_viewer.render.channels import ChannelImage, needs_geometry
-from raygs_viewer.render.gl.stereo_frame import render_stereo_view
-from raygs_viewer.render.lod_view import restrict_to_view
+from raygs_viewer.render.gl.stereo_frame import render_stereo_view, stereo_order
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
+from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.lod_choice import LodRequest
 
 if TYPE_CHECKING:
@@ -78,30 +79,34 @@ def frame_size(width: int, height: int, stereo: StereoView | None) -> tuple[int,
     return (width, height) if stereo is None else composed_size(width, height, stereo.layout)
 
 
-def render_frame(renderer: "GLRenderer", camera: Camera, settings: RenderSettings,
-                 stereo: StereoView | None) -> np.ndarray:
+def render_frame(renderer: "GLRenderer", sorter: DepthSorter, camera: Camera, settings: RenderSettings,
+                 stereo: StereoView | None, levels: LodRequest | None = None) -> np.ndarray:
     """(H, W, 4) float32, top row first: the image ``render`` makes of ``camera``, with
-    an exact sort of its own (a stereo frame composed per ``stereo.layout``)."""
+    an exact sort of its own by ``sorter`` (a stereo frame composed per
+    ``stereo.layout``); ``levels``: a streamed scene's, chosen for ``camera`` (for a
+    stereo frame, the eyes' midpoint)."""
     if stereo is not None:
-        return render_stereo_view(renderer, camera, settings, stereo)[0]
-    return render_tiled(renderer, camera, settings)
+        order = stereo_order(sorter, camera, settings, stereo.rig, levels)
+        return render_stereo_view(renderer, order, camera, settings, stereo)[0]
+    return render_tiled(renderer, sorter, exact_order(sorter, camera, settings, levels=levels), camera, settings)
 
 
-def render_frame_channels(renderer: "GLRenderer", camera: Camera, settings: RenderSettings,
+def render_frame_channels(renderer: "GLRenderer", sorter: DepthSorter, camera: Camera, settings: RenderSettings,
                           stereo: StereoView | None, channels: tuple[str, ...],
-                          normal_space: str = "camera") -> ChannelImage:
+                          normal_space: str = "camera", levels: LodRequest | None = None) -> ChannelImage:
     """The ChannelImage of one frame, normals in ``normal_space`` of ``camera``: the
     geometry render where ``channels`` need it (not with ``stereo``: its layouts compose
     colour), else :func:`render_frame`'s colour."""
     if not needs_geometry(channels):
-        return colour_channels(render_frame(renderer, camera, settings, stereo))
+        return colour_channels(render_frame(renderer, sorter, camera, settings, stereo, levels))
     if stereo is not None:
         raise UserError("--stereo composes colour; its frames cannot carry depth or normals")
-    return render_tiled_channels(renderer, camera, settings,
+    order = exact_order(sorter, camera, settings, levels=levels)
+    return render_tiled_channels(renderer, sorter, order, camera, settings,
                                  median="median_depth" in channels).in_space(normal_space, camera)
 
 
-def render_frames(renderer: "GLRenderer", cameras: list[Camera], settings: RenderSettings,
+def render_frames(renderer: "GLRenderer", sorter: DepthSorter, cameras: list[Camera], settings: RenderSettings,
                   stereo: StereoView | None, sink: FrameSink, progress: Progress | None = None,
                   channels: tuple[str, ...] | None = None, normal_space: str = "camera",
                   lod: LodRequest | None = None) -> int:
@@ -114,11 +119,10 @@ def render_frames(renderer: "GLRenderer", cameras: list[Camera], settings: Rende
     says what it holds."""
     written = 0
     for camera in cameras:
-        restrict_to_view(renderer, lod, camera)
         if channels is not None:
-            sink.write(render_frame_channels(renderer, camera, settings, stereo, channels, normal_space))
+            sink.write(render_frame_channels(renderer, sorter, camera, settings, stereo, channels, normal_space, lod))
         else:
-            sink.write(to_rgb8(render_frame(renderer, camera, settings, stereo)))
+            sink.write(to_rgb8(render_frame(renderer, sorter, camera, settings, stereo, lod)))
         written += 1
         if progress is not None:
             progress.update(sink.frames_written)

@@ -24,6 +24,9 @@ from raygs_viewer.files import write_atomically
 from raygs_viewer.jsonfile import json_text
 from raygs_viewer.render.channels import CHANNEL_WIDTHS, CHANNELS, ChannelImage
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import sort_request
+from raygs_viewer.sort.depth import DepthSorter
+from raygs_viewer.sort.request import Order
 
 if TYPE_CHECKING:
     # Only for the annotations: importing the renderer pulls in moderngl, and the CLI's
@@ -72,41 +75,42 @@ def tile_camera(camera: Camera, x0: int, y0: int, width: int, height: int) -> Ca
     return replace(camera, width=int(width), height=int(height), cx=camera.cx - x0, cy=camera.cy - y0)
 
 
-def render_tiled(renderer: "GLRenderer", camera: Camera, settings: RenderSettings = RenderSettings(),
-                 tile: int = DEFAULT_TILE) -> np.ndarray:
-    """(H, W, 4) float32 image, top row first, like :meth:`GLRenderer.render`, drawn in
-    tiles of at most ``tile`` x ``tile`` pixels so a large screenshot never needs one
-    huge render target.
+def render_tiled(renderer: "GLRenderer", sorter: DepthSorter, order: Order, camera: Camera,
+                 settings: RenderSettings, tile: int = DEFAULT_TILE) -> np.ndarray:
+    """(H, W, 4) float32 image, top row first, like :meth:`GLRenderer.render` of
+    ``order`` (``camera``'s, for ``settings``), drawn in tiles of at most ``tile`` x
+    ``tile`` pixels so a large screenshot never needs one huge render target.
 
-    Every tile composites the whole image's back-to-front order (restricted to the
-    gaussians that can reach the tile), so blending sequences, and hence pixels,
-    match a single render up to the rasterizer's float rounding.
+    Every tile composites the whole image's back-to-front order (restricted by
+    ``sorter`` to the gaussians that can reach the tile, of the rows the order's
+    level-of-detail choice holds), so blending sequences, and hence pixels, match a
+    single render up to the rasterizer's float rounding.
 
     With ``settings.supersample`` k > 1 the renderer draws k x k samples per pixel, so
     tiles are at most ``tile // k`` pixels a side: the GPU target stays within ``tile``.
     GS clamps its rays to the whole image's borders (``frame=camera``), not the tile's.
     """
     if _fits_one_tile(camera, settings, tile):
-        return renderer.render(camera, settings)
+        return renderer.render(camera, settings, order)
     image = _allocate(camera, [(4,)], "float32 RGBA image")[0]
-    for part, order, rows, columns in _tiles(renderer, camera, settings, tile):
-        pixels = renderer.render(part, settings, order, frame=camera)
+    for part, tile_order, rows, columns in _tiles(sorter, order, camera, settings, tile):
+        pixels = renderer.render(part, settings, tile_order, frame=camera)
         image[rows, columns] = pixels[:rows.stop - rows.start, :columns.stop - columns.start]
     return image
 
 
-def render_tiled_channels(renderer: "GLRenderer", camera: Camera, settings: RenderSettings = RenderSettings(),
-                          tile: int = DEFAULT_TILE, median: bool = True) -> ChannelImage:
+def render_tiled_channels(renderer: "GLRenderer", sorter: DepthSorter, order: Order, camera: Camera,
+                          settings: RenderSettings, tile: int = DEFAULT_TILE, median: bool = True) -> ChannelImage:
     """The ChannelImage of :meth:`GLRenderer.render_channels` (camera-space normals),
     drawn in tiles as :func:`render_tiled` draws colour, with the same order per tile.
     ``median`` False leaves the median depth out (None; cheaper in a global order)."""
     if _fits_one_tile(camera, settings, tile):
-        return renderer.render_channels(camera, settings, median=median)
+        return renderer.render_channels(camera, settings, order, median=median)
     # CHANNELS are ChannelImage's per-pixel fields, in its constructor's order.
     shapes = [() if CHANNEL_WIDTHS[name] == 1 else (CHANNEL_WIDTHS[name],) for name in CHANNELS]
     arrays = _allocate(camera, shapes, "set of float32 channels")
-    for part, order, rows, columns in _tiles(renderer, camera, settings, tile):
-        channels = renderer.render_channels(part, settings, order, frame=camera, median=median)
+    for part, tile_order, rows, columns in _tiles(sorter, order, camera, settings, tile):
+        channels = renderer.render_channels(part, settings, tile_order, frame=camera, median=median)
         for name, array in zip(CHANNELS, arrays):
             if getattr(channels, name) is not None:
                 array[rows, columns] = getattr(channels, name)[:rows.stop - rows.start, :columns.stop - columns.start]
@@ -133,13 +137,13 @@ def _allocate(camera: Camera, shapes: list[tuple[int, ...]], what: str) -> list[
         raise UserError(f"not enough memory for a {width}x{height} {what}") from None
 
 
-def _tiles(renderer: "GLRenderer", camera: Camera, settings: RenderSettings, tile: int
-           ) -> Iterator[tuple[Camera, np.ndarray, slice, slice]]:
+def _tiles(sorter: DepthSorter, order: Order, camera: Camera, settings: RenderSettings, tile: int
+           ) -> Iterator[tuple[Camera, Order, slice, slice]]:
     """(tile camera, its order, rows, columns of the image it fills) for each tile;
     the tile's pixels beyond those rows and columns (an edge tile) are to be cropped."""
     tile = max(1, tile // settings.supersample)
     width, height = camera.width, camera.height
-    order = renderer.sort(camera, settings)
+    indices = order.indices
     # Edge tiles are drawn at full tile size and cropped: one render target for all
     # tiles (the renderer reallocates its target whenever the size changes).
     tile_w, tile_h = min(tile, width), min(tile, height)
@@ -148,8 +152,8 @@ def _tiles(renderer: "GLRenderer", camera: Camera, settings: RenderSettings, til
             part = tile_camera(camera, x0, y0, tile_w, tile_h)
             # The sorter's cull is conservative, so dropping what it culls for the tile
             # changes no pixel; the whole image's order keeps the blending sequence.
-            visible = renderer.sort(part, settings)
-            tile_order = order[np.isin(order, visible, assume_unique=True)]
+            visible = sorter.sort(sort_request(part, settings, levels=order.choice)).order.indices
+            tile_order = order.with_indices(indices[np.isin(indices, visible, assume_unique=True)])
             yield part, tile_order, slice(y0, min(y0 + tile_h, height)), slice(x0, min(x0 + tile_w, width))
 
 

@@ -42,12 +42,13 @@ from raygs_viewer.render.channels import DEFAULT_CHANNELS, ChannelImage, needs_g
 from raygs_viewer.render.gl.context import context_description, create_headless_context
 from raygs_viewer.render.gl.memory import scene_fits
 from raygs_viewer.render.gl.renderer import GLRenderer
-from raygs_viewer.render.gl.stereo_frame import render_stereo_view
+from raygs_viewer.render.gl.stereo_frame import render_stereo_view, stereo_order
 from raygs_viewer.render.gl.storage import gpu_bytes
 from raygs_viewer.render.reference import render_reference
-from raygs_viewer.render.lod_view import OpenedScene, open_scene, refuse_lod_settings, restrict_to_view
+from raygs_viewer.render.lod_view import OpenedScene, open_scene, refuse_lod_settings
 from raygs_viewer.render.setting_info import setting_parts
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.scene.demo import demo_camera, demo_scene
 from raygs_viewer.scene.io import (
     SCENE_FILES,
@@ -59,6 +60,7 @@ from raygs_viewer.scene.io import (
 from raygs_viewer.scene.loader import DEMO
 from raygs_viewer.scene.lod_file import lod_summary
 from raygs_viewer.scene.model import Scene
+from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.lod_choice import LodChoice
 
 #: render options that set what --sidecar already fixes, (flag, argparse dest): every
@@ -276,17 +278,21 @@ def render_image(args, ctx, opened: OpenedScene, camera: Camera, settings: Rende
             return reference.render_reference_channels(scene, camera, settings), drawn_words(opened, choice)
         return render_reference(scene, camera, settings), drawn_words(opened, choice)
     renderer = GLRenderer(ctx, opened.scene, general=args.general)
+    sorter = DepthSorter(opened.scene)
     try:
-        choice = restrict_to_view(renderer, opened.lod, camera)  # stereo: the eyes' midpoint chooses
-        if stereo is not None:
-            return render_stereo_view(renderer, camera, settings, stereo)[0], drawn_words(opened, choice)
+        if stereo is not None:  # the eyes' midpoint chooses the levels
+            order = stereo_order(sorter, camera, settings, stereo.rig, opened.lod)
+            return render_stereo_view(renderer, order, camera, settings, stereo)[0], drawn_words(opened, order.choice)
         # Tiled like the window's screenshots: the same pixels, and sizes beyond
         # the GPU's largest render target.
+        order = exact_order(sorter, camera, settings, levels=opened.lod)
         if geometry:
-            return (screenshot.render_tiled_channels(renderer, camera, settings, median="median_depth" in channels),
-                    drawn_words(opened, choice))
-        return screenshot.render_tiled(renderer, camera, settings), drawn_words(opened, choice)
+            return (screenshot.render_tiled_channels(renderer, sorter, order, camera, settings,
+                                                     median="median_depth" in channels),
+                    drawn_words(opened, order.choice))
+        return screenshot.render_tiled(renderer, sorter, order, camera, settings), drawn_words(opened, order.choice)
     finally:
+        sorter.close()
         renderer.release()
 
 
@@ -306,13 +312,16 @@ def command_verify(args) -> int:
     try:
         opened, camera = _scene_and_camera(args, settings, ctx)
         renderer = GLRenderer(ctx, opened.scene, general=args.general)
-        restrict_to_view(renderer, opened.lod, camera)
-        image = renderer.render(camera, settings)  # warm-up: shader compilation, first upload
+        sorter = DepthSorter(opened.scene)
+        levels = None if opened.lod is None else opened.lod.choose(camera)  # one choice, made before the clock
+        # The warm-up: shader compilation, first upload.
+        image = renderer.render(camera, settings, exact_order(sorter, camera, settings, levels=levels))
         gl_times = []
         for _ in range(args.repeat):
             start = time.perf_counter()
-            image = renderer.render(camera, settings)
+            image = renderer.render(camera, settings, exact_order(sorter, camera, settings, levels=levels))
             gl_times.append(time.perf_counter() - start)
+        sorter.close()
         renderer.release()
         device = context_description(ctx)
     finally:

@@ -26,6 +26,7 @@ from raygs_viewer.photos.metrics import open_lpips
 from raygs_viewer.photos.report import WORST_COUNT, check_report_paths, write_contact_sheet, write_report
 from raygs_viewer.render.gl.context import create_headless_context
 from raygs_viewer.render.gl.renderer import GLRenderer
+from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.scene.loader import load_now
 
 NAMES = {"psnr": "PSNR", "ssim": "SSIM", "flip": "FLIP", "lpips": "LPIPS"}
@@ -131,9 +132,10 @@ def write_outputs(paths, result: EvaluationResult, about: dict, dataset, views, 
     if worst:
         by_name = {view.name: view for view in views}
         rows = []
-        for score in worst:
-            view = by_name[score.name]
-            rows.append((f"{score.name}  PSNR {score.psnr:.2f} dB", load_photo(view, dataset.background),
-                         render_view(renderer, view, result.settings)))
+        with DepthSorter(renderer.scene) as sorter:
+            for score in worst:
+                view = by_name[score.name]
+                rows.append((f"{score.name}  PSNR {score.psnr:.2f} dB", load_photo(view, dataset.background),
+                             render_view(renderer, sorter, view, result.settings)))
         write_contact_sheet(sheet, rows, overwrite)
         print(f"{sheet}: written", file=sys.stderr)

@@ -53,6 +53,7 @@ from raygs_viewer.render.lod_view import OpenedScene, for_settings, lod_levels, 
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.io import SCENE_FILES
 from raygs_viewer.scene.loader import DEMO, load_now
+from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.lod_choice import LodRequest
 
 #: The PATH argument that asks for a turntable instead of a path file, and its defaults.
@@ -155,15 +156,17 @@ def _render_scene(ctx, args, document, settings, stereo, path, out, cameras_out)
     entries = frame_camera_entries(path, width, height)
     cameras = cameras_of_entries(entries)  # what render --camera loads from the entries
     renderer = GLRenderer(ctx, scene, general=args.general)
+    sorter = DepthSorter(scene)
     try:
         problem = renderer.supports(settings)
         if problem:
             raise UserError(problem)
         if cameras_out is not None:
             write_cameras_json(entries, cameras_out, args.overwrite)
-        return _render(renderer, cameras, settings, stereo, out, frame_size(width, height, stereo), path.fps,
-                       args, opened.lod)
+        return _render(renderer, sorter, cameras, settings, stereo, out, frame_size(width, height, stereo),
+                       path.fps, args, opened.lod)
     finally:
+        sorter.close()
         renderer.release()
 
 
@@ -196,7 +199,7 @@ def orbit_document(positions: np.ndarray, up: str, width: int, height: int) -> P
     return PathDocument(path, width, height)
 
 
-def _render(renderer, cameras, settings, stereo, out: Path, image_size, fps: float, args,
+def _render(renderer, sorter, cameras, settings, stereo, out: Path, image_size, fps: float, args,
             lod: LodRequest | None) -> int:
     if args.channels is not None:
         sink = ExrFolderSink(out, *image_size, args.channels, args.overwrite, frames=len(cameras))
@@ -208,7 +211,7 @@ def _render(renderer, cameras, settings, stereo, out: Path, image_size, fps: flo
     timed = TimedSink(sink)
     start = time.perf_counter()
     try:
-        render_frames(renderer, cameras, settings, stereo, timed, progress, args.channels,
+        render_frames(renderer, sorter, cameras, settings, stereo, timed, progress, args.channels,
                       check_normal_space(args.channels or (), args.normal_space), lod)
         written = timed.finish()
     except KeyboardInterrupt:

@@ -20,6 +20,8 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.photos.dataset import Dataset, PhotoView, load_photo
 from raygs_viewer.photos.metrics import Lpips, flip, psnr, ssim_3dgs
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
+from raygs_viewer.sort.depth import DepthSorter
 
 #: The metrics every view has, in the order reports list them; LPIPS is optional.
 METRICS = ("psnr", "ssim", "flip", "lpips")
@@ -89,11 +91,12 @@ def evaluation_settings(settings: RenderSettings, dataset: Dataset) -> RenderSet
     return replace(settings, background=tuple(dataset.background))
 
 
-def render_view(renderer, view: PhotoView, settings: RenderSettings) -> np.ndarray:
-    """(H, W, 3) float32 in 0..1: the view's camera rendered (RGB over the background),
-    in tiles as screenshots are, so full-size photos beyond the GPU's largest target
-    still compare."""
-    return np.clip(render_tiled(renderer, view.camera, settings)[..., :3], 0.0, 1.0)
+def render_view(renderer, sorter: DepthSorter, view: PhotoView, settings: RenderSettings) -> np.ndarray:
+    """(H, W, 3) float32 in 0..1: the view's camera rendered (RGB over the background)
+    with an exact sort by ``sorter``, in tiles as screenshots are, so full-size photos
+    beyond the GPU's largest target still compare."""
+    order = exact_order(sorter, view.camera, settings)
+    return np.clip(render_tiled(renderer, sorter, order, view.camera, settings)[..., :3], 0.0, 1.0)
 
 
 def score_view(name: str, photo: np.ndarray, render: np.ndarray, lpips: Lpips | None = None) -> ViewScore:
@@ -112,18 +115,20 @@ def evaluate(dataset: Dataset, views: Sequence[PhotoView], renderer, settings: R
     (KeyboardInterrupt, also from ``progress``) ends it with what is done."""
     settings = evaluation_settings(settings, dataset)
     result = EvaluationResult(settings, len(views), lpips_note=lpips_note)
-    try:
-        for view in views:
-            try:
-                photo = load_photo(view, dataset.background)
-            except UserError as exc:
-                result.skipped.append(SkippedView(view.name, str(exc).splitlines()[0]))
-            else:
-                result.scores.append(score_view(view.name, photo, render_view(renderer, view, settings), lpips))
-            if progress is not None:
-                progress(result.done, result.total, view.name)
-    except KeyboardInterrupt:
-        result.interrupted = True
+    with DepthSorter(renderer.scene) as sorter:
+        try:
+            for view in views:
+                try:
+                    photo = load_photo(view, dataset.background)
+                except UserError as exc:
+                    result.skipped.append(SkippedView(view.name, str(exc).splitlines()[0]))
+                else:
+                    render = render_view(renderer, sorter, view, settings)
+                    result.scores.append(score_view(view.name, photo, render, lpips))
+                if progress is not None:
+                    progress(result.done, result.total, view.name)
+        except KeyboardInterrupt:
+            result.interrupted = True
     return result
 
 

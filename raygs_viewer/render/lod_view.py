@@ -1,6 +1,6 @@
-"""A scene opened for rendering with its level-of-detail settings, and the per-view
-choice applied to a renderer: what ``render``, ``render-path``, ``verify`` and
-``evaluate`` share (the window makes the same choice on its sort thread).
+"""A scene opened for rendering with its level-of-detail settings: what ``render``,
+``render-path``, ``verify`` and ``evaluate`` share. The per-view choice travels in each
+view's sort request (``SortRequest.levels``); the window makes it on its sort thread.
 
 For a streamed SOG, ``settings.lod`` N reads level N alone (and the environment) into
 an ordinary Scene; otherwise every level that fits is read (``lod_file.load_lod``) and
@@ -14,13 +14,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.io import load_scene
 from raygs_viewer.scene.lod_file import Fits, LodScene, level_scene, load_lod, lod_index_file
 from raygs_viewer.scene.model import Scene
-from raygs_viewer.sort.lod_choice import LodChoice, LodRequest
+from raygs_viewer.sort.lod_choice import LodRequest
 
 #: The settings that only a streamed SOG takes.
 LOD_FIELDS = ("lod", "lod_budget", "lod_distance")
@@ -84,13 +83,3 @@ def for_settings(lod: LodScene, settings: RenderSettings) -> OpenedScene:
         return OpenedScene(level_scene(lod, settings.lod), environment=lod.environment[1])
     return OpenedScene(lod.scene, LodRequest(lod, None, settings.lod_budget, settings.lod_distance), lod.unread,
                        lod.environment[1])
-
-
-def restrict_to_view(renderer, lod: LodRequest | None, camera: Camera) -> LodChoice | None:
-    """Restricts ``renderer`` (a GLRenderer) to what ``camera`` draws of ``lod``: called
-    once per frame, before its sorts (tiles and both eyes share the frame's choice)."""
-    if lod is None:
-        return None
-    choice = lod.choose(camera)
-    renderer.restrict(choice.spans)
-    return choice

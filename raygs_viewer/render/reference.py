@@ -39,6 +39,7 @@ from raygs_viewer.render.channels import ChannelImage, finish
 from raygs_viewer.render.ray_order import Fragments, GeometrySums, composite_per_pixel, composite_per_pixel_geometry
 from raygs_viewer.render.reference_models import MODELS, CameraGaussians, peak_z
 from raygs_viewer.render.settings import ALPHA_CLAMP, TRANSMITTANCE_CUTOFF, RenderSettings
+from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.sort.depth import DepthSorter
 
@@ -87,8 +88,8 @@ def render_reference_channels(scene: Scene, camera: Camera, settings: RenderSett
 def global_order(scene: Scene, camera: Camera, settings: RenderSettings) -> np.ndarray:
     """(M,) uint32 back to front: the sorter's order for ``camera`` with the settings'
     key, culled with their filter dilation (what the GL path draws)."""
-    return DepthSorter(scene).order(camera, settings.p_min, dilation=settings.cull_dilation(camera),
-                                    key=settings.sort_key)
+    with DepthSorter(scene) as sorter:
+        return exact_order(sorter, camera, settings).indices
 
 
 def ground_truth(scene: Scene, camera: Camera, settings: RenderSettings = RenderSettings(),

@@ -67,6 +67,10 @@ class LodChoice:
     count: int
     over_budget: bool = False
 
+    def choose(self, camera: Camera) -> "LodChoice":
+        """Itself: a choice already made serves every camera of its frame (its tiles, its eyes)."""
+        return self
+
     def per_level(self, levels: int) -> np.ndarray:
         """(L,) int64: how many leaves draw each level."""
         return np.bincount(self.levels[self.levels >= 0], minlength=levels)

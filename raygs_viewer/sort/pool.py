@@ -1,5 +1,6 @@
 """The threads that take a sorter's chunks in turn: the calling thread and a lazily made
-pool of ``workers - 1`` more (numpy releases the GIL in its loops, so they run at once)."""
+pool of ``workers - 1`` more (numpy releases the GIL in its loops, so they run at once);
+and what every object of the sort that owns a thread shares, :class:`Closable`."""
 
 from __future__ import annotations
 
@@ -7,15 +8,34 @@ import itertools
 from concurrent.futures import ThreadPoolExecutor
 from typing import Callable, TypeVar
 
-from raygs_viewer.sort.closing import Closable
-
 T = TypeVar("T")
+_Self = TypeVar("_Self", bound="Closable")
 #: How a step hands its chunks out: ``run(task, count) -> [task(0), ..., task(count - 1)]``.
 Runner = Callable[[Callable[[int], object], int], list]
 
 #: Numbers the pools, so that each one's threads have a prefix of their own (tests find
 #: a sorter's threads by it).
 _POOL_SERIALS = itertools.count(1)
+
+
+class Closable:
+    """A base for a class whose :meth:`close` sets ``_closed``: ``with`` closes it on
+    the way out, and :attr:`closed` says whether it has been closed."""
+
+    _closed = False
+
+    def close(self) -> None:
+        raise NotImplementedError
+
+    @property
+    def closed(self) -> bool:
+        return self._closed
+
+    def __enter__(self: _Self) -> _Self:
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
 
 
 class ChunkPool(Closable):

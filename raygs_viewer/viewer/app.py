@@ -38,6 +38,7 @@ from raygs_viewer.render.lod_view import lod_settings_given
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.loader import LoadedScene, load_now
 from raygs_viewer.scene.progress import ProgressCallback
+from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.worker import BackgroundSorter
 from raygs_viewer.viewer.drawing import SceneDrawer, request_sort
 from raygs_viewer.viewer.input import InputHandler
@@ -126,6 +127,7 @@ class Viewer:
         self.loaded: LoadedScene | None = None
         self.renderer: GLRenderer | None = None
         self.sorter: BackgroundSorter | None = None
+        self.exact_sorter: DepthSorter | None = None  # what the sort thread runs; screenshots sort with it too
         self.view: ViewControl | None = None
         self.camera: Camera | None = None   # the view of the last frame, viewport-sized
         self.viewport = (0, 0, 1, 1)
@@ -169,8 +171,9 @@ class Viewer:
         if self.renderer is not None:
             self.renderer.release()
         if self.sorter is not None:
-            self.sorter.close()
-        self.renderer, self.sorter = renderer, self.sorter_factory(renderer.sorter)
+            self.sorter.close()  # and, on its thread, the exact sorter it runs
+        self.renderer, self.exact_sorter = renderer, DepthSorter(scene)
+        self.sorter = self.sorter_factory(self.exact_sorter)
         self.stats.request_frames.clear()
         self.drawer.forget()
         self.photo.forget_scene()
@@ -234,8 +237,7 @@ class Viewer:
         orders, serial = self.stats.order_to_draw(result, key, self.frame_index, camera)
         draws = self.stats.draws
         self.drawer.draw(self.renderer, camera, settings, right, stereo, orders, serial, self.stats, self.panel,
-                         *self.view_mode.side_views(self.panel, split=right is not None),
-                         spans=None if result is None or result.lod is None else result.lod.spans)
+                         *self.view_mode.side_views(self.panel, split=right is not None))
         blocked = blocked_reason(stereo is not None, right is not None, self.view_mode.channel)
         if message := self.photo.after_draw(self.view, self.loaded, camera, self.drawer.mono, blocked,
                                             drew=self.stats.draws != draws):
@@ -277,7 +279,7 @@ class Viewer:
                           self.shown_stereo, self.drawer.shown_view, self.drawer.shown_right_view)
         extra = sidecar_extra(self.view.navigator, self.loaded, self.view.training_index,
                               context_description(self.ctx))
-        self.last_screenshots = take_screenshots(self.renderer, self.loaded, shown, self.screenshots,
+        self.last_screenshots = take_screenshots(self.renderer, self.exact_sorter, self.loaded, shown, self.screenshots,
                                                  self.stereo.save_eyes, extra, path, self.lod.request())
         return self.last_screenshot
 

@@ -14,7 +14,7 @@ it (capture/sidecar.py), so ``render --sidecar`` draws the same picture again.
 
 A streamed SOG's screenshot draws the level-of-detail choice for its own camera, as
 ``render --sidecar`` does with the settings the sidecar records (budget, distance, level):
-the renderer is restricted to it for the capture, then to what the window drew.
+every side and eye sorts that one choice's rows.
 """
 
 from __future__ import annotations
@@ -37,11 +37,13 @@ from raygs_viewer.capture.screenshot import (
 )
 from raygs_viewer.capture.sidecar import build_sidecar
 from raygs_viewer.render.channel_pictures import ChannelView, channel_picture
-from raygs_viewer.render.gl.stereo_frame import render_stereo_view
-from raygs_viewer.render.lod_view import restrict_to_view
+from raygs_viewer.render.gl.stereo_frame import render_stereo_view, stereo_order
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.scene.loader import LoadedScene
-from raygs_viewer.sort.lod_choice import LodRequest
+from raygs_viewer.sort.depth import DepthSorter
+from raygs_viewer.sort.lod_choice import LodChoice, LodRequest
+from raygs_viewer.sort.request import Order
 from raygs_viewer.viewer.state import ScreenshotOptions, SplitView
 
 #: (png, sidecar) paths of one saved image.
@@ -72,22 +74,33 @@ def sidecar_extra(navigator: Navigator, loaded: LoadedScene, training_index: int
             "gl": gl}
 
 
-def take_screenshots(renderer, loaded: LoadedScene, shown: ShownView, options: ScreenshotOptions, save_eyes: bool,
-                     extra: dict, path: str | Path | None = None, lod: LodRequest | None = None) -> list[Saved]:
-    """Renders and saves ``shown`` at ``options.scale`` into ``options.folder`` (or at
-    ``path``, tagged names beside it for several images); never overwrites anything.
-    ``lod``: a streamed SOG's choice, made for the screenshot's camera. Returns every
+@dataclass(frozen=True)
+class Offscreen:
+    """What renders a screenshot: the window's renderer, an exact sorter of its scene, and
+    a streamed SOG's level choice for the screenshot's camera (None: the whole scene)."""
+
+    renderer: object
+    sorter: DepthSorter
+    levels: LodChoice | None = None
+
+    def order(self, camera: Camera, settings: RenderSettings) -> Order:
+        return exact_order(self.sorter, camera, settings, levels=self.levels)
+
+
+def take_screenshots(renderer, sorter: DepthSorter, loaded: LoadedScene, shown: ShownView,
+                     options: ScreenshotOptions, save_eyes: bool, extra: dict, path: str | Path | None = None,
+                     lod: LodRequest | None = None) -> list[Saved]:
+    """Renders ``shown`` at ``options.scale`` with exact sorts by ``sorter`` and saves it
+    into ``options.folder`` (or at ``path``, tagged names beside it for several images);
+    never overwrites anything. ``lod``: a streamed SOG's choice, made for the
+    screenshot's camera (both sides, both eyes: the one camera's choice). Returns every
     (png, json) pair written, the left side's or the pair's first."""
     camera = scaled_camera(shown.camera, options.scale)
-    drawn = renderer.spans
-    restrict_to_view(renderer, lod, camera)  # both sides, both eyes: the one camera's choice
-    try:
-        return _take(renderer, loaded, shown, options, save_eyes, extra, path, camera)
-    finally:
-        renderer.restrict(drawn)
+    offscreen = Offscreen(renderer, sorter, None if lod is None else lod.choose(camera))
+    return _take(offscreen, loaded, shown, options, save_eyes, extra, path, camera)
 
 
-def _take(renderer, loaded: LoadedScene, shown: ShownView, options: ScreenshotOptions, save_eyes: bool,
+def _take(offscreen: Offscreen, loaded: LoadedScene, shown: ShownView, options: ScreenshotOptions, save_eyes: bool,
           extra: dict, path: str | Path | None, camera: Camera) -> list[Saved]:
     scale = options.scale
     scene_path = loaded.path if loaded.path == "demo" else os.path.abspath(loaded.path)
@@ -101,13 +114,13 @@ def _take(renderer, loaded: LoadedScene, shown: ShownView, options: ScreenshotOp
 
     if shown.stereo is not None:
         shots = [(image, sidecar(shown.settings, {**extra, "stereo_window_layout": shown.stereo.layout}, view), tag)
-                 for image, view, tag in _stereo_images(renderer, camera, shown.settings, shown.stereo, save_eyes,
+                 for image, view, tag in _stereo_images(offscreen, camera, shown.settings, shown.stereo, save_eyes,
                                                         shown.view)]
     elif shown.split is None:
-        shots = [(render_shown(renderer, camera, shown.settings, shown.view), sidecar(shown.settings, extra), "left")]
+        shots = [(render_shown(offscreen, camera, shown.settings, shown.view), sidecar(shown.settings, extra), "left")]
     else:
         split = shown.split
-        shots = [(render_shown(renderer, camera, settings, view), sidecar(settings, {**extra, "split_view": {
+        shots = [(render_shown(offscreen, camera, settings, view), sidecar(settings, {**extra, "split_view": {
                      "side": side, "preset": split.preset if side == "right" else None, "divider": split.fraction}},
                      view=view), side)
                  for side, settings, view in (("left", shown.settings, shown.view),
@@ -130,23 +143,26 @@ def levels_read(loaded: LoadedScene, settings: RenderSettings) -> tuple[int, ...
     return tuple(np.flatnonzero(loaded.lod.loaded).tolist())
 
 
-def render_shown(renderer, camera: Camera, settings: RenderSettings, view: ChannelView | None) -> np.ndarray:
+def render_shown(offscreen: Offscreen, camera: Camera, settings: RenderSettings, view: ChannelView | None
+                 ) -> np.ndarray:
     """(H, W, 4) float32, top row first: the colour (tiled), or the picture ``view``
     shows (alpha 1)."""
+    renderer, sorter, order = offscreen.renderer, offscreen.sorter, offscreen.order(camera, settings)
     if view is None:
-        return render_tiled(renderer, camera, settings)
-    channels = render_tiled_channels(renderer, camera, settings, median=view.channel == "median_depth")
+        return render_tiled(renderer, sorter, order, camera, settings)
+    channels = render_tiled_channels(renderer, sorter, order, camera, settings, median=view.channel == "median_depth")
     channels = channels.in_space(view.normal_space, camera)
     picture, _ = channel_picture(channels, view)
     return np.concatenate([picture, np.ones(picture.shape[:2] + (1,), np.float32)], axis=-1)
 
 
-def _stereo_images(renderer, camera: Camera, settings: RenderSettings, stereo: StereoView, save_eyes: bool,
-                   view: ChannelView | None) -> list[tuple[np.ndarray, StereoView, str]]:
+def _stereo_images(offscreen: Offscreen, camera: Camera, settings: RenderSettings, stereo: StereoView,
+                   save_eyes: bool, view: ChannelView | None) -> list[tuple[np.ndarray, StereoView, str]]:
     """The side-by-side pair whatever the window's layout (the sidecar notes that
     layout), and each eye when asked, each with the view that reproduces it."""
     pair = replace(stereo, layout="sbs")
-    image, left, right = render_stereo_view(renderer, camera, settings, pair, view)
+    order = stereo_order(offscreen.sorter, camera, settings, stereo.rig, offscreen.levels)
+    image, left, right = render_stereo_view(offscreen.renderer, order, camera, settings, pair, view)
     shots = [(image, pair, "pair")]
     if save_eyes:
         shots += [(left, replace(stereo, layout="left"), "left"), (right, replace(stereo, layout="right"), "right")]

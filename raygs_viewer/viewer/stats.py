@@ -13,9 +13,10 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from raygs_viewer.camera.navigation import MAX_DT
-from raygs_viewer.camera.pinhole import Camera, camera_key
+from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.camera.stereo import StereoView
-from raygs_viewer.render.gl.order_stats import OrderStats
+from raygs_viewer.render.gl.results import OrderStats
+from raygs_viewer.sort.request import Order, SortRequest, SortResult
 
 
 @dataclass
@@ -74,33 +75,31 @@ class FrameStats:
         """Frame ``frame_index`` asked for sort request ``serial``."""
         self.request_frames.setdefault(serial, frame_index)
 
-    def order_to_draw(self, result, asked: tuple, frame_index: int, camera: Camera | None = None,
-                      now: float | None = None) -> tuple[Mapping[str, np.ndarray], int]:
+    def order_to_draw(self, result: SortResult | None, asked: SortRequest, frame_index: int,
+                      camera: Camera | None = None, now: float | None = None) -> tuple[Mapping[str, Order], int]:
         """({sort key: order}, sort request serial) frame ``frame_index`` draws: the
-        newest finished sort ``result`` (a sort.worker result; None: no orders, serial 0),
-        noting its age (frames; and, against this frame's ``camera`` at ``now``, a
-        perf_counter time, milliseconds, degrees turned and distance moved), its time
-        and what it keeps visible. ``asked``: this frame's :func:`sort_key`, which an
-        up-to-date result matches (a result for other sort keys is not up to date)."""
+        newest finished sort ``result`` (None: no orders, serial 0), noting its age
+        (frames; and, against this frame's ``camera`` at ``now``, a perf_counter time,
+        milliseconds, degrees turned and distance moved), its time and what it keeps
+        visible. ``asked``: this frame's request, which an up-to-date result answers."""
         self.order_age_ms = self.order_turned_degrees = self.order_moved = 0.0
         if result is None:
             self.order_age = frame_index - min(self.request_frames.values(), default=frame_index)
             return {}, 0
         for older in [n for n in self.request_frames if n < result.serial]:  # answered or skipped
             del self.request_frames[older]
-        current = sort_key(result.camera, result.p_min, result.dilation, result.cull_cameras,
-                           result.keys, result.lod_key) == asked
+        current = result.request == asked
         self.order_age = 0 if current else frame_index - self.request_frames.get(result.serial, frame_index)
         if not current:
             now = time.perf_counter() if now is None else now
             self.order_age_ms = max(0.0, 1000.0 * (now - result.requested_at))
             if camera is not None:
-                self.order_turned_degrees = turned_degrees(result.camera.R, camera.R)
-                self.order_moved = float(np.linalg.norm(camera.center - result.camera.center))
+                self.order_turned_degrees = turned_degrees(result.request.camera.R, camera.R)
+                self.order_moved = float(np.linalg.norm(camera.center - result.request.camera.center))
         if result.serial != self.drawn_serial:
             self.all_sort_times.append(result.seconds)
         self.sort_seconds = result.seconds
-        self.visible = int(result.order.size)
+        self.visible = result.order.count
         return result.orders, result.serial
 
 
@@ -117,14 +116,6 @@ def order_freshness(stats: FrameStats) -> str:
         return "up to date"
     return (f"{stats.order_age} frames old ({stats.order_age_ms:.0f} ms, turned {stats.order_turned_degrees:.1f}°, "
             f"moved {stats.order_moved:.3g})")
-
-
-def sort_key(camera: Camera, p_min: float, dilation: float | None, cull_cameras,
-             keys: Sequence[str] = ("depth",), lod: tuple | None = None) -> tuple:
-    """What tells sort requests apart: the view, the cull, the cameras culled for, the
-    sort keys ordered by and the level-of-detail choice's key (``LodRequest.key``)."""
-    return (camera_key(camera), p_min, dilation,
-            None if cull_cameras is None else tuple(camera_key(c) for c in cull_cameras), tuple(keys), lod)
 
 
 def order_stats_lines(stats: OrderStats) -> list[str]:

@@ -26,7 +26,7 @@ from imgui_bundle import imgui  # before glfw (see raygs_viewer.viewer.window)
 from testkit import assert_matches
 
 from raygs_viewer.camera.stereo import PRESETS
-from raygs_viewer.render.gl.order_stats import OrderStats
+from raygs_viewer.render.gl.results import OrderStats
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import MAX_ORDER_K, RenderSettings, apply_preset
 from raygs_viewer.viewer.drawing import order_for, sort_keys

@@ -29,10 +29,11 @@ import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.errors import UserError
-from raygs_viewer.render.gl.order_stats import OrderStats
+from raygs_viewer.render.gl.results import OrderStats
 from raygs_viewer.render.gl.shaders import set_uniform
 from raygs_viewer.render.gl.targets import FloatTarget
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.sort.request import Order
 
 #: The pool's default capacity: 4M fragments, 64 MiB.
 DEFAULT_POOL_FRAGMENTS = 1 << 22
@@ -148,7 +149,7 @@ class FragmentLists:
         row_stats.bind_to_storage_buffer(ROW_STATS, size=height * 16)
 
     def render(self, renderer, target: FloatTarget, camera: Camera, settings: RenderSettings,
-               order: np.ndarray, geometry: bool = False) -> OrderStats:
+               order: Order, geometry: bool = False) -> OrderStats:
         """Draws ``order`` (back to front; prepared by the renderer's last preprocess) with
         the per-pixel order into ``target`` (camera-sized, float32): RGB over the
         background, A the accumulated alpha. ``geometry``: ``target`` has three

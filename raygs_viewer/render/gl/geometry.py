@@ -32,7 +32,9 @@ from raygs_viewer.render.channel_pictures import ChannelView, color_table, range
 from raygs_viewer.render.channels import ChannelImage, finish
 from raygs_viewer.render.gl.shaders import set_uniform
 from raygs_viewer.render.gl.targets import FloatTarget, release_all, sized
+from raygs_viewer.render.gl.results import OrderStats, RenderResult
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.sort.request import Order
 
 #: Colour, depth (sum T alpha z, median z or 0, found) and normal (sum T alpha n).
 GEOMETRY_ATTACHMENTS = 3
@@ -47,34 +49,33 @@ def takes_lists(settings: RenderSettings, median: bool) -> bool:
 
 
 class GeometryOutputs:
-    """One renderer's geometry targets (made on first use, one size held) and the depth
-    range of the last view picture it made (``view_range``; None unless a depth view)."""
+    """One renderer's geometry targets (made on first use, one size held)."""
 
     def __init__(self, ctx: moderngl.Context):
         self.ctx = ctx
-        self.view_range: tuple[float, float] | None = None
         self._image: FloatTarget | None = None
         self._samples: FloatTarget | None = None
         self._gathered: FloatTarget | None = None   # an automatic range's depth samples
         self._palette: moderngl.Texture | None = None  # viridis, 256 x 1
 
-    def render(self, renderer, camera: Camera, settings: RenderSettings, order: np.ndarray,
+    def render(self, renderer, camera: Camera, settings: RenderSettings, order: Order,
                frame: Camera | None = None, color_origin: np.ndarray | None = None,
                median: bool = True) -> ChannelImage:
         """Every channel of ``camera``'s image (camera-space normals) as ``renderer``
         (a GLRenderer) draws ``order`` with ``settings``; ``frame``, ``color_origin``:
         see GLRenderer.preprocess. ``median`` False leaves the median out (None), which
         lets a global order blend the rest in its one draw."""
-        image = self.draw(renderer, camera, settings, order, frame, color_origin, median)
+        image, _ = self.draw(renderer, camera, settings, order, frame, color_origin, median)
         color, depth, normal = (image.read(attachment=i) for i in range(GEOMETRY_ATTACHMENTS))
         sums = np.concatenate([depth[..., :1], normal[..., :3]], axis=-1)
         return finish(color, sums, depth[..., 1:3] if median else None)
 
-    def draw(self, renderer, camera: Camera, settings: RenderSettings, order: np.ndarray,
+    def draw(self, renderer, camera: Camera, settings: RenderSettings, order: Order,
              frame: Camera | None = None, color_origin: np.ndarray | None = None,
-             median: bool = True) -> FloatTarget:
+             median: bool = True) -> tuple[FloatTarget, OrderStats | None]:
         """The GPU work of :meth:`render`: the camera-sized target holding colour, depth
-        and normal (its three attachments), not yet read back."""
+        and normal (its three attachments), not yet read back, and what the per-pixel
+        order's passes did (None for a global order)."""
         lists = takes_lists(settings, median)
         problem = renderer.supports(settings, geometry=lists)
         if problem:
@@ -90,39 +91,41 @@ class GeometryOutputs:
         if k > 1:
             self._samples = drawn = sized(self._samples, self.ctx, sampled.width, sampled.height,
                                           attachments=GEOMETRY_ATTACHMENTS)
-        renderer.preprocess(sampled, settings, frame or camera, color_origin, geometry=True)
-        renderer.order_stats = None
+        renderer.preprocess(sampled, settings, frame or camera, color_origin, geometry=True, spans=order.spans)
+        stats = None
         if lists:
             stats = renderer.per_pixel.render(renderer, drawn, sampled, settings, order, geometry=True)
-            renderer.order_stats = stats if settings.per_pixel else None
+            stats = stats if settings.per_pixel else None
         else:
             drawn.clear_each((*settings.background, 0.0), (0.0,) * 4, (0.0,) * 4)
             drawn.use()
             renderer.draw(sampled, settings, order, geometry=True)
         if k > 1:
             renderer.resolve_samples(drawn, image, k, settings, front_to_back=False, geometry=True)
-        return image
+        return image, stats
 
     def render_view(self, renderer, target: FloatTarget, camera: Camera, settings: RenderSettings,
-                    order: np.ndarray, view: ChannelView, frame: Camera | None = None,
-                    color_origin: np.ndarray | None = None) -> None:
+                    order: Order, view: ChannelView, frame: Camera | None = None,
+                    color_origin: np.ndarray | None = None) -> RenderResult:
         """Draws the picture of ``view``'s channel (glsl/channel_picture.frag, the twin of
-        render/channel_pictures.py; alpha 1) into ``target`` (camera-sized) and records
-        the depth range it used. Nothing is read back but an automatic range's samples."""
-        image = self.draw(renderer, camera, settings, order, frame, color_origin,
-                          median=view.channel == "median_depth")
+        render/channel_pictures.py; alpha 1) into ``target`` (camera-sized); returns the
+        ``RenderResult`` (with the depth range it used). Nothing is read back but an
+        automatic range's samples."""
+        image, stats = self.draw(renderer, camera, settings, order, frame, color_origin,
+                                 median=view.channel == "median_depth")
         channel = PICTURE_DEFINES[view.channel]
-        self.view_range = None
+        view_range = None
         if view.channel in ("depth", "median_depth"):
-            self.view_range = view.depth_range or range_of_samples(self._depth_samples(renderer, image, channel))
+            view_range = view.depth_range or range_of_samples(self._depth_samples(renderer, image, channel))
         program, vao = renderer.variants.programs.fullscreen("channel_picture.frag", {"CHANNEL": channel, "SAMPLES": 0})
         to_space = np.asarray(camera.R, np.float32).T if view.normal_space == "world" else np.eye(3, dtype=np.float32)
         set_uniform(program, "u_to_space", to_space.tobytes(order="F"))
-        set_uniform(program, "u_range", self.view_range or (0.0, 1.0))
+        set_uniform(program, "u_range", view_range or (0.0, 1.0))
         self._bind_inputs(program, image)
         target.use()
         self.ctx.disable(moderngl.BLEND)
         vao.render(moderngl.TRIANGLES, vertices=3)
+        return RenderResult(stats, view_range)
 
     def _depth_samples(self, renderer, image: FloatTarget, channel: int) -> np.ndarray:
         """The depths an automatic range is taken from (render/channel_pictures.depth_samples),

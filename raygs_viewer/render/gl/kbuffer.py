@@ -16,10 +16,11 @@ import moderngl
 import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera
-from raygs_viewer.render.gl.order_stats import OrderStats
+from raygs_viewer.render.gl.results import OrderStats
 from raygs_viewer.render.gl.shaders import set_uniform
 from raygs_viewer.render.gl.targets import FloatTarget, check_size
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.sort.request import Order
 
 FRAMEBUFFER_FETCH = "GL_EXT_shader_framebuffer_fetch"
 #: Scene indices travel as float32: exact below this.
@@ -66,7 +67,7 @@ class KBuffer:
         return self._fbo
 
     def render(self, renderer, target: FloatTarget, camera: Camera, settings: RenderSettings,
-               order: np.ndarray) -> OrderStats:
+               order: Order) -> OrderStats:
         """Like :meth:`FragmentLists.render`, for K = ``settings.order_k``."""
         ctx = self.ctx
         width, height, k = camera.width, camera.height, settings.order_k

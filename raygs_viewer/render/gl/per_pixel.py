@@ -17,10 +17,11 @@ from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl import kbuffer
 from raygs_viewer.render.gl.fragment_lists import FragmentLists
-from raygs_viewer.render.gl.order_stats import OrderStats
+from raygs_viewer.render.gl.results import OrderStats
 from raygs_viewer.render.gl.storage import gpu_limit
 from raygs_viewer.render.gl.targets import FloatTarget
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.sort.request import Order
 
 ORDER_PATHS = ("auto", "lists", "fetch")
 
@@ -84,7 +85,7 @@ class PerPixelOrder:
         return storage_block_problem(self.ctx, path, splat_blocks)
 
     def render(self, renderer, target: FloatTarget, camera: Camera, settings: RenderSettings,
-               order: np.ndarray, geometry: bool = False) -> OrderStats:
+               order: Order, geometry: bool = False) -> OrderStats:
         """Draws ``order`` into ``target`` (float32, camera-sized) by the per-pixel order;
         the renderer has preprocessed ``camera``. ``geometry``: ``target`` has the
         geometry attachments (render/gl/fragment_lists.py), in ``settings``' order."""

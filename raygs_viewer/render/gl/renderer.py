@@ -16,8 +16,12 @@ feature by uniforms instead, to measure what specialising saves. Supersampling a
 the transmittance cut-off render into a sample target first; a resolve pass filters
 it down into the caller's target.
 
+The renderer draws the :class:`~raygs_viewer.sort.request.Order` it is handed (it owns
+no sorter); an order of a level-of-detail choice carries the rows it covers, and only
+those are preprocessed. Each render returns what it did (:class:`RenderResult`).
+
 Work that the view has not changed is skipped: :meth:`GLRenderer.preprocess` for the
-view, settings and colour origin it last wrote the records for, and the order's
+view, settings, colour origin and rows it last wrote the records for, and the order's
 upload for the order array it last uploaded (orders are never modified once made).
 """
 
@@ -34,7 +38,7 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.render.channel_pictures import ChannelView
 from raygs_viewer.render.channels import ChannelImage
 from raygs_viewer.render.gl.geometry import GeometryOutputs
-from raygs_viewer.render.gl.order_stats import OrderStats
+from raygs_viewer.render.gl.results import OrderStats, RenderResult
 from raygs_viewer.render.gl.per_pixel import PerPixelOrder
 from raygs_viewer.render.gl.shaders import set_uniform
 from raygs_viewer.render.gl.storage import (
@@ -48,7 +52,7 @@ from raygs_viewer.render.gl.targets import FloatTarget, release_all, sized
 from raygs_viewer.render.gl.variants import ShaderVariants
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.model import Scene
-from raygs_viewer.sort.depth import DepthSorter
+from raygs_viewer.sort.request import Order
 
 GL_DEPTH_CLAMP = 0x864F
 GL_EXT_FRAMEBUFFER_FETCH = "GL_EXT_shader_framebuffer_fetch"
@@ -65,13 +69,18 @@ class WorkCounters:
     upload_skipped: int = 0     # ... skipped: that order was already on the GPU
 
 
+def as_order(order: Order | np.ndarray) -> Order:
+    """``order`` as an :class:`Order`: an index array given by hand (a test's, the
+    reference's ``global_order``) is an order over the whole scene."""
+    return order if isinstance(order, Order) else Order(order)
+
+
 class GLRenderer:
     """Renders one scene; keeps its storage buffers until :meth:`release`.
 
     ``block_limit`` overrides the GPU's per-block storage limit (tests use a tiny one
     to exercise the splitting). ``pool_fragments`` and ``order_path`` ("auto", "lists",
-    "fetch") configure the per-pixel order (render/gl/per_pixel.py); after each
-    :meth:`render_into`, ``order_stats`` says what it did (None for a global order).
+    "fetch") configure the per-pixel order (render/gl/per_pixel.py).
     ``general``: draw with the all-features variant (see the module docstring).
     ``storage`` holds the buffers (render/gl/storage.py),
     ``variants`` the compiled programs (render/gl/variants.py).
@@ -84,7 +93,6 @@ class GLRenderer:
         self.general = bool(general)
         self.counters = WorkCounters()
         self.scene = scene
-        self.sorter = DepthSorter(scene)
         self.storage = SceneBuffers(ctx, scene, block_limit=block_limit, memory_limit=memory_limit)
         self.layout = self.storage.layout
         self.gpu_bytes = self.storage.gpu_bytes
@@ -94,11 +102,9 @@ class GLRenderer:
         #: Off only to demonstrate the near-plane seam that depth clamp prevents.
         self.depth_clamp = True
         self.per_pixel = PerPixelOrder(ctx, scene.count, self.storage.block_limit, pool_fragments, order_path)
-        self.order_stats: OrderStats | None = None
         self._target: FloatTarget | None = None          # render()'s image, the latest size
         self._samples: FloatTarget | None = None         # supersampling and front to back
         self.geometry = GeometryOutputs(ctx)
-        self.spans: np.ndarray | None = None  # what sorting and preprocessing cover: see restrict
 
     def layout_for(self, settings: RenderSettings, geometry: bool = False) -> StorageLayout:
         """The storage layout of ``settings``' records (exact MIP's are larger, and
@@ -116,27 +122,21 @@ class GLRenderer:
                     f"which this GPU's OpenGL driver does not offer")
         return None
 
-    def restrict(self, spans: np.ndarray | None) -> None:
-        """Sort and preprocess only the rows of ``spans`` ((S, 2) ascending [start, stop);
-        None: every row) from now on: a streamed scene's chosen levels
-        (``sort.lod_choice``). Orders drawn must hold only those rows."""
-        self.spans = None if spans is None else np.asarray(spans, np.int64).reshape(-1, 2)
-
     # -- per-frame passes ---------------------------------------------------------
-    def sort(self, camera: Camera, settings: RenderSettings) -> np.ndarray:
-        return self.sorter.order(camera, settings.p_min, dilation=settings.cull_dilation(camera),
-                                 key=settings.sort_key, spans=self.spans)
-
     def preprocess(self, camera: Camera, settings: RenderSettings, frame: Camera | None = None,
-                   color_origin: np.ndarray | None = None, geometry: bool = False) -> None:
+                   color_origin: np.ndarray | None = None, geometry: bool = False,
+                   spans: np.ndarray | None = None) -> None:
         """Writes the per-view splat record of every gaussian for ``camera`` (the camera
         actually rasterized: already supersampled). ``frame``: the whole image's camera
         when ``camera`` renders one tile of it (GS clamps rays to the whole image).
         ``color_origin``: the world point SH colour is seen from (default: the camera's
-        centre; stereo shares the eyes' midpoint). ``geometry``: records with the normal."""
+        centre; stereo shares the eyes' midpoint). ``geometry``: records with the normal.
+        ``spans``: (S, 2) ascending [start, stop) rows to write (the order's level-of-detail
+        choice, ``Order.spans``); None: every row."""
         origin = camera.center if color_origin is None else np.asarray(color_origin, np.float64)
+        spans = None if spans is None else np.asarray(spans, np.int64).reshape(-1, 2)
         key = (camera_key(camera), settings, None if frame is None else camera_key(frame), origin.tobytes(),
-               geometry, None if self.spans is None else self.spans.tobytes())
+               geometry, None if spans is None else spans.tobytes())
         if key == self._preprocessed_key:
             self.counters.preprocess_skipped += 1
             return
@@ -149,7 +149,7 @@ class GLRenderer:
         set_view_uniforms(program, camera, settings, frame, origin)
         for chunk in self.storage.preprocess_chunks(layout, self.variants.colors_at_load(settings)):
             program["u_out_offset"].value = chunk.offset
-            for first, count in chunk_runs(chunk.start, chunk.count, self.spans):
+            for first, count in chunk_runs(chunk.start, chunk.count, spans):
                 set_uniform(program, "u_first", first)  # gone where a negative control breaks the shader
                 program["u_count"].value = count
                 program.run(group_x=-(-count // WORKGROUP))
@@ -163,7 +163,7 @@ class GLRenderer:
         and diagnostics."""
         return self.storage.read_records(self._last_layout)
 
-    def draw(self, camera: Camera, settings: RenderSettings, order: np.ndarray, *, floor: bool = False,
+    def draw(self, camera: Camera, settings: RenderSettings, order: Order, *, floor: bool = False,
              path: str | None = None, uniforms: dict | None = None, geometry: bool = False) -> None:
         """Draws the quads of ``order`` (back to front) into the bound framebuffer, as
         the last :meth:`preprocess` (same camera and settings) prepared them.
@@ -172,7 +172,7 @@ class GLRenderer:
         ``path``, ``uniforms``: a per-pixel order pass (render/gl/per_pixel.py) and its
         uniforms; blending off, the quads drawn front to back. ``geometry``: the lists
         pass of the geometry outputs (render/gl/geometry.py)."""
-        if order.size == 0:
+        if order.count == 0:
             return
         layout = self.layout_for(settings, geometry)
         problem = self.supports(settings, geometry and path is not None)  # the blended geometry needs nothing more
@@ -182,11 +182,11 @@ class GLRenderer:
         for name, value in (uniforms or {}).items():
             set_uniform(program, name, value)
         self.upload_order(order)
-        self.storage.bind_for_draw(layout, int(order.size))
+        self.storage.bind_for_draw(layout, order.count)
         set_uniform(program, "u_projection", camera.gl_projection().astype(np.float32).tobytes(order="F"))
         set_uniform(program, "u_image_size", (camera.width, camera.height))
         set_uniform(program, "u_pixel_variance", settings.pixel_variance(camera))
-        set_uniform(program, "u_order_count", int(order.size))
+        set_uniform(program, "u_order_count", order.count)
         set_uniform(program, "u_p_min", settings.p_min)
         set_uniform(program, "u_intrinsics", (camera.fx, camera.fy, camera.cx, camera.cy))  # GS geometry
         self.variants.set_features(program, settings)
@@ -202,43 +202,39 @@ class GLRenderer:
             ctx.enable_direct(GL_DEPTH_CLAMP)
         else:
             ctx.disable_direct(GL_DEPTH_CLAMP)
-        vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=int(order.size))
+        vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=order.count)
 
-    def upload_order(self, order: np.ndarray) -> None:
-        """Puts ``order`` (M,) in the GPU's order buffer, unless this very array is
-        already there (orders are not modified once made: a new view makes a new one)."""
-        uploaded = self.storage.upload_order(order)  # which refuses an order longer than the scene
+    def upload_order(self, order: Order) -> None:
+        """Puts ``order`` in the GPU's order buffer, unless its very index array is
+        already there (orders are not modified once made: a new view makes a new one).
+        The one door an order takes to the GPU."""
+        uploaded = self.storage.upload_order(order.indices)  # which refuses an order longer than the scene
         self.counters.uploads += uploaded
         self.counters.upload_skipped += not uploaded
 
-    def render(self, camera: Camera, settings: RenderSettings = RenderSettings(),
-               order: np.ndarray | None = None, frame: Camera | None = None,
-               color_origin: np.ndarray | None = None) -> np.ndarray:
+    def render(self, camera: Camera, settings: RenderSettings, order: Order | np.ndarray,
+               frame: Camera | None = None, color_origin: np.ndarray | None = None) -> np.ndarray:
         """(H, W, 4) float32 image, top row first: RGB over the background, and alpha.
         ``frame``, ``color_origin``: see :meth:`preprocess`."""
-        if order is None:
-            order = self.sort(camera, settings)
         self._target = sized(self._target, self.ctx, camera.width, camera.height)
         self.render_into(self._target, camera, settings, order, frame, color_origin)
         return self._target.read()
 
-    def render_channels(self, camera: Camera, settings: RenderSettings = RenderSettings(),
-                        order: np.ndarray | None = None, frame: Camera | None = None,
-                        color_origin: np.ndarray | None = None, median: bool = True) -> ChannelImage:
+    def render_channels(self, camera: Camera, settings: RenderSettings, order: Order | np.ndarray,
+                        frame: Camera | None = None, color_origin: np.ndarray | None = None,
+                        median: bool = True) -> ChannelImage:
         """Colour, alpha and the geometry outputs of ``camera``'s image (camera-space
         normals; render/gl/geometry.py). Arguments as :meth:`render`; ``median`` False
         leaves the median depth out (None): a global order then draws once, blending."""
-        if order is None:
-            order = self.sort(camera, settings)
-        return self.geometry.render(self, camera, settings, order, frame, color_origin, median)
+        return self.geometry.render(self, camera, settings, as_order(order), frame, color_origin, median)
 
     def render_into(self, target: FloatTarget, camera: Camera, settings: RenderSettings,
-                    order: np.ndarray, frame: Camera | None = None, color_origin: np.ndarray | None = None,
-                    view: ChannelView | None = None) -> None:
+                    order: Order | np.ndarray, frame: Camera | None = None,
+                    color_origin: np.ndarray | None = None, view: ChannelView | None = None) -> RenderResult:
         """Clears ``target`` (camera-sized, float colour) and draws the scene into it:
         background-composited colour in RGB and the accumulated alpha in A; or, with a
         ``view`` of another channel than rgb, that channel's picture (alpha 1; the depth
-        range it used is then ``geometry.view_range``).
+        range it used is in the result).
 
         Plain back-to-front rendering draws straight into ``target``, cleared to
         (background, 0). Supersampling (k x k) draws into a k-times larger sample target
@@ -246,20 +242,17 @@ class GLRenderer:
         to back into a target cleared to 0; a resolve pass then averages the samples and
         adds the background."""
         k = settings.supersample
-        self.order_stats = None
-        self.geometry.view_range = None
+        order = as_order(order)
         if view is not None and view.channel != "rgb":
-            self.geometry.render_view(self, target, camera, settings, order, view, frame, color_origin)
-            return
+            return self.geometry.render_view(self, target, camera, settings, order, view, frame, color_origin)
         if settings.per_pixel:
-            self._render_per_pixel(target, camera, settings, order, frame, color_origin)
-            return
+            return RenderResult(self._render_per_pixel(target, camera, settings, order, frame, color_origin))
         if k == 1 and not settings.transmittance_cutoff:
             target.use()
             target.fbo.clear(*settings.background, 0.0)
-            self.preprocess(camera, settings, frame, color_origin)
+            self.preprocess(camera, settings, frame, color_origin, spans=order.spans)
             self.draw(camera, settings, order)
-            return
+            return RenderResult()
         sampled = camera.resized(camera.width * k, camera.height * k) if k > 1 else camera
         self._samples = samples = sized(self._samples, self.ctx, sampled.width, sampled.height)
         samples.use()
@@ -267,15 +260,16 @@ class GLRenderer:
             samples.fbo.clear(0.0, 0.0, 0.0, 0.0)
         else:
             samples.fbo.clear(*settings.background, 0.0)
-        self.preprocess(sampled, settings, frame or camera, color_origin)  # the bounds are scale-invariant
+        self.preprocess(sampled, settings, frame or camera, color_origin, spans=order.spans)  # the bounds are scale-invariant
         self.draw(sampled, settings, order)
         self.resolve_samples(samples, target, k, settings, settings.transmittance_cutoff)
+        return RenderResult()
 
     def _render_per_pixel(self, target: FloatTarget, camera: Camera, settings: RenderSettings,
-                          order: np.ndarray, frame: Camera | None, color_origin: np.ndarray | None) -> None:
+                          order: Order, frame: Camera | None, color_origin: np.ndarray | None) -> OrderStats:
         """render_into for the per-pixel order: its passes write the finished image (over
         the background) into ``target``, or into the sample target that supersampling
-        then averages down."""
+        then averages down. Returns what the passes did."""
         k = settings.supersample
         problem = self.supports(settings)
         if problem:
@@ -284,10 +278,11 @@ class GLRenderer:
         image = target
         if k > 1 or target.dtype != "f4":
             self._samples = image = sized(self._samples, self.ctx, sampled.width, sampled.height)
-        self.preprocess(sampled, settings, frame or camera, color_origin)
-        self.order_stats = self.per_pixel.render(self, image, sampled, settings, order)
+        self.preprocess(sampled, settings, frame or camera, color_origin, spans=order.spans)
+        stats = self.per_pixel.render(self, image, sampled, settings, order)
         if image is not target:
             self.resolve_samples(image, target, k, settings, False)
+        return stats
 
     def resolve_samples(self, samples: FloatTarget, target: FloatTarget, k: int,
                         settings: RenderSettings, front_to_back: bool, geometry: bool = False) -> None:
@@ -314,7 +309,6 @@ class GLRenderer:
         self.per_pixel.release()
         self.variants.release()
         self.storage.release()
-        self.sorter.close()  # its thread pool; a later sort runs on the calling thread
 
 
 def set_view_uniforms(program, camera: Camera, settings: RenderSettings, frame: Camera | None,

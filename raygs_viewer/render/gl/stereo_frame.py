@@ -20,14 +20,14 @@ import numpy as np
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.camera.stereo import StereoRig, StereoView, composed_size, eye_cameras
 from raygs_viewer.render.channel_pictures import ChannelView
+from raygs_viewer.render.gl.results import RenderResult
 from raygs_viewer.render.gl.stereo_passes import StereoPasses
 from raygs_viewer.render.gl.targets import FloatTarget, release_all, sized
-
-
-def view_argument(view: ChannelView | None) -> dict:
-    """render_into's keyword for ``view``: none for the colour (None), so a renderer
-    stand-in that predates channel views still draws colour."""
-    return {} if view is None else {"view": view}
+from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
+from raygs_viewer.sort.depth import DepthSorter
+from raygs_viewer.sort.lod_choice import LodChoice, LodRequest
+from raygs_viewer.sort.request import Order
 
 
 def fixed_range(view: ChannelView | None, used: tuple[float, float] | None) -> ChannelView | None:
@@ -38,17 +38,14 @@ def fixed_range(view: ChannelView | None, used: tuple[float, float] | None) -> C
     return replace(view, depth_range=used)
 
 
-def stereo_order(renderer, camera: Camera, settings, rig: StereoRig) -> np.ndarray:
+def stereo_order(sorter: DepthSorter, camera: Camera, settings: RenderSettings, rig: StereoRig,
+                 levels: LodRequest | LodChoice | None = None) -> Order:
     """The one back-to-front order both eyes draw: the settings' key seen from the
-    midpoint, keeping what either eye may see of the rows the renderer is restricted to
-    (a level-of-detail choice: ``GLRenderer.restrict``)."""
-    left, right = eye_cameras(camera, rig)
-    # Both eyes share fx and fy, hence the filter's dilation.
-    return renderer.sorter.order(camera, settings.p_min, dilation=settings.cull_dilation(left),
-                                 cull_cameras=(left, right), key=settings.sort_key, spans=renderer.spans)
+    midpoint, keeping what either eye may see (of ``levels``' rows)."""
+    return exact_order(sorter, camera, settings, cull_cameras=eye_cameras(camera, rig), levels=levels)
 
 
-def render_stereo(renderer, camera: Camera, settings, rig: StereoRig, *,
+def render_stereo(renderer, sorter: DepthSorter, camera: Camera, settings: RenderSettings, rig: StereoRig, *,
                   shared: bool = True) -> tuple[np.ndarray, np.ndarray]:
     """(left, right) float32 (H, W, 4) images of the eyes around the midpoint ``camera``.
 
@@ -57,22 +54,21 @@ def render_stereo(renderer, camera: Camera, settings, rig: StereoRig, *,
     from it: the per-eye images the shared ones approximate."""
     left, right = eye_cameras(camera, rig)
     if shared:
-        order = stereo_order(renderer, camera, settings, rig)
+        order = stereo_order(sorter, camera, settings, rig)
         return tuple(renderer.render(eye, settings, order, color_origin=camera.center) for eye in (left, right))
-    return tuple(renderer.render(eye, settings) for eye in (left, right))
+    return tuple(renderer.render(eye, settings, exact_order(sorter, eye, settings)) for eye in (left, right))
 
 
-def render_stereo_view(renderer, camera: Camera, settings, view: StereoView, channel_view: ChannelView | None = None
-                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def render_stereo_view(renderer, order: Order, camera: Camera, settings: RenderSettings, view: StereoView,
+                       channel_view: ChannelView | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(image, left, right) float32 (H, W, 4) arrays, top row first: the composed
     stereo image of ``view`` around the midpoint ``camera``, and each eye as it goes
-    into the layout (after the lens preview); ``channel_view``: the eyes show that
-    picture instead of the colour. The same GL passes as the window's, with an exact
-    sort: what screenshots and ``render --stereo`` save."""
+    into the layout (after the lens preview); ``order``: both eyes' (:func:`stereo_order`);
+    ``channel_view``: the eyes show that picture instead of the colour. The same GL
+    passes as the window's: what screenshots and ``render --stereo`` save."""
     frame = StereoFrame(renderer.ctx)
     try:
-        frame.draw_eyes(renderer, camera, settings, view.rig, stereo_order(renderer, camera, settings, view.rig),
-                        channel_view)
+        frame.draw_eyes(renderer, camera, settings, view.rig, order, channel_view)
         frame.finish(view)
         return frame.read_image(), *frame.read_eyes()
     finally:
@@ -86,8 +82,6 @@ class StereoFrame:
         self.ctx = ctx
         self.passes = StereoPasses(ctx)
         self.eyes: tuple[Camera, Camera] | None = None   # the eye cameras of the last draw
-        #: The depth range both eyes' pictures used in the last draw (None: not a depth view).
-        self.view_range: tuple[float, float] | None = None
         self._eye_targets: list[FloatTarget | None] = [None, None]
         self._lens_targets: list[FloatTarget | None] = [None, None]
         self._image: FloatTarget | None = None
@@ -98,19 +92,21 @@ class StereoFrame:
         """The composed target of the last :meth:`finish`."""
         return self._image
 
-    def draw_eyes(self, renderer, camera: Camera, settings, rig: StereoRig, order: np.ndarray,
-                  view: ChannelView | None = None) -> None:
+    def draw_eyes(self, renderer, camera: Camera, settings: RenderSettings, rig: StereoRig, order: Order,
+                  view: ChannelView | None = None) -> tuple[RenderResult, RenderResult]:
         """Draws both eyes around the midpoint ``camera`` with ``order``; SH colour is
         seen from the midpoint (see :mod:`raygs_viewer.camera.stereo`). ``view``: the
-        picture both eyes show instead of the colour (the right eye in the left's range)."""
+        picture both eyes show instead of the colour (the right eye in the left's range,
+        which both results carry). Returns each eye's result."""
         self.eyes = eye_cameras(camera, rig)
-        self.view_range = None
+        results = []
         for side, eye in enumerate(self.eyes):
             target = self._sized(self._eye_targets, side, eye.width, eye.height)
-            shown = fixed_range(view, self.view_range)
-            renderer.render_into(target, eye, settings, order, color_origin=camera.center, **view_argument(shown))
-            if view is not None and side == 0:
-                self.view_range = renderer.geometry.view_range
+            used = results[0].view_range if results else None
+            results.append(renderer.render_into(target, eye, settings, order, color_origin=camera.center,
+                                                view=fixed_range(view, used)))
+        left, right = results
+        return left, replace(right, view_range=left.view_range)
 
     def finish(self, view: StereoView) -> FloatTarget:
         """The lens preview (if on) and the layout, into the composed target."""

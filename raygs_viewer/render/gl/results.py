@@ -1,5 +1,6 @@
-"""What the per-pixel order did in the last frame: the figures the panel and the
-benchmarks report (see :mod:`raygs_viewer.render.settings`, ``order``)."""
+"""What a render returns: what it did, for the panel and the benchmarks (the per-pixel
+order's figures, see :mod:`raygs_viewer.render.settings`, ``order``; the depth range a
+depth picture used)."""
 
 from __future__ import annotations
 
@@ -41,3 +42,15 @@ class OrderStats:
         if not self.pool_fragments:
             return 0.0
         return min(1.0, self.largest_part / self.pool_fragments)
+
+
+@dataclass(frozen=True)
+class RenderResult:
+    """What one render did.
+
+    order_stats: what the per-pixel order's passes did (None for a global order).
+    view_range:  the depth range a depth picture used (None: not a depth picture).
+    """
+
+    order_stats: OrderStats | None = None
+    view_range: tuple[float, float] | None = None
