@@ -14,6 +14,8 @@ from imgui_bundle import imgui  # before glfw (see raygs_viewer.viewer.window)
 
 from raygs_viewer.capture.image_io import to_rgb8
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
+from raygs_viewer.sort.request import SortRequest, SortResult
 from raygs_viewer.sort.worker import BackgroundSorter
 from raygs_viewer.viewer.app import Viewer, load_start_scene, start_camera
 from raygs_viewer.viewer.state import ScreenshotOptions, ViewerOptions
@@ -295,7 +297,11 @@ def click_choice(drive: "Driver", combo: str, entry: str) -> None:
 
 
 def headless(viewer: Viewer, settings: RenderSettings | None = None) -> np.ndarray:
-    return viewer.renderer.render(viewer.camera, settings or viewer.settings)
+    """The viewer's last view rendered offscreen with an exact sort of the levels it drew."""
+    settings = settings or viewer.settings
+    drawn = next(iter(viewer.drawer.orders.values()), None)
+    order = exact_order(viewer.exact_sorter, viewer.camera, settings, levels=None if drawn is None else drawn.choice)
+    return viewer.renderer.render(viewer.camera, settings, order)
 
 
 def project(camera, point) -> np.ndarray:
@@ -343,13 +349,16 @@ class GatedSorter:
         self.release = threading.Event()
         self.inside = threading.Event()
 
-    def orders(self, *args, **kwargs):
+    def sort(self, request: SortRequest) -> SortResult:
         if self.free > 0:
             self.free -= 1
         else:
             self.inside.set()
             assert self.release.wait(timeout=60)
-        return self.sorter.orders(*args, **kwargs)
+        return self.sorter.sort(request)
+
+    def close(self) -> None:
+        self.sorter.close()
 
 
 def gated_viewer(open_viewer, free: int = 0, **options):
@@ -374,8 +383,8 @@ class RecordingSorter(BackgroundSorter):
         self.culled_for: list[tuple | None] = []
         self.keys: list[tuple[str, ...]] = []
 
-    def request(self, camera, p_min, dilation=0.0, cull_cameras=None, keys=("depth",), lod=None):
-        self.asked.append((p_min, dilation))
-        self.culled_for.append(cull_cameras)
-        self.keys.append(tuple(keys))
-        return super().request(camera, p_min, dilation, cull_cameras, keys, lod)
+    def request(self, request: SortRequest) -> int:
+        self.asked.append((request.p_min, request.dilation))
+        self.culled_for.append(request.cull_cameras)
+        self.keys.append(request.keys)
+        return super().request(request)

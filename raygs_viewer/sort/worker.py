@@ -117,7 +117,7 @@ class BackgroundSorter(Closable):
     def close(self) -> None:
         """Stops the worker and drops a queued request. Returns at once even while a
         sort runs: the daemon thread finishes that sort, publishes it, closes the sorter
-        (its ``close()``, if it has one: a :class:`DepthSorter`'s thread pool) and exits;
+        (a :class:`DepthSorter`'s thread pool) and exits;
         :meth:`join` waits for that."""
         with self._cond:
             self._closed = True
@@ -136,9 +136,7 @@ class BackgroundSorter(Closable):
         try:
             self._serve()
         finally:
-            close = getattr(self._sorter, "close", None)
-            if close is not None:
-                close()
+            self._sorter.close()
 
     def _serve(self) -> None:
         while True:

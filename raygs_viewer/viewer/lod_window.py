@@ -11,9 +11,9 @@ gaussians: they are drawn until the new scene's first sort is done, and a level 
 never blanks the picture.
 
 Each frame the sort thread makes the choice (:meth:`WindowLod.request`, from the scene and
-the settings ``lod``, ``lod_budget``, ``lod_distance``); the drawer restricts the renderer
-to the drawn result's rows. Screenshots restrict it to the choice for their own camera,
-as ``render --sidecar`` does, so the sidecar's settings reproduce them.
+the settings ``lod``, ``lod_budget``, ``lod_distance``); the drawn result's orders carry
+its rows. Screenshots make the choice for their own camera, as ``render --sidecar`` does,
+so the sidecar's settings reproduce them.
 
 Colour by level draws a copy of the scene whose colours say each gaussian's level
 (:data:`LEVEL_COLOURS`; the environment grey): the same rows, so orders and choices carry
@@ -219,7 +219,7 @@ class WindowLod:
             self.fallback = None
         else:
             result = self.fallback
-        self.choice = None if result is None else result.lod
+        self.choice = None if result is None else result.choice
         return result
 
     def _drawn_scene(self, lod: LodScene) -> Scene:

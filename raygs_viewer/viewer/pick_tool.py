@@ -26,9 +26,11 @@ from raygs_viewer.capture.measure_file import MeasureScale
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
+from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.viewer.drawing import SceneDrawer
 from raygs_viewer.viewer.measure import MeasureWidget, format_distance
-from raygs_viewer.viewer.picking import Picked, mono_pixel, pick, stereo_pixel
+from raygs_viewer.viewer.picking import Picked, mono_pixel, pick, pixel_camera, stereo_pixel
 from raygs_viewer.viewer.state import PanelState, SplitView, StereoPreview
 from raygs_viewer.viewer.view_control import ViewControl
 
@@ -41,6 +43,7 @@ class PickHost(Protocol):
     """The window as the pick tool sees it: the last frame's view and how it was drawn."""
 
     renderer: GLRenderer
+    exact_sorter: DepthSorter
     view: ViewControl
     camera: Camera | None
     viewport: tuple[int, int, int, int]
@@ -86,7 +89,12 @@ class PickTool:
             right = host.right_settings()
             settings = right if right is not None and u >= host.split.column(camera.width) else host.settings
         try:
-            return pick(host.renderer, eye, u, v, settings, host.drawer.orders.get(settings.sort_key), origin)
+            order = host.drawer.orders.get(settings.sort_key)
+            if order is None:  # none drawn in this key yet: the pixel's own, of the levels drawn
+                drawn = next(iter(host.drawer.orders.values()), None)
+                order = exact_order(host.exact_sorter, pixel_camera(eye, u, v), settings,
+                                    levels=None if drawn is None else drawn.choice)
+            return pick(host.renderer, eye, u, v, settings, order, origin)
         except UserError as exc:  # settings this GPU cannot render (the frame says so too)
             host.panel.error = f"error: nothing picked: {one_line(exc)}"
             return False

@@ -26,6 +26,7 @@ from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.camera.stereo import StereoView, eye_cameras
 from raygs_viewer.render.gl.mono_frame import Viewport
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.sort.request import Order
 
 #: The stereo layouts whose composed image is two eyes side by side, and which eye is on the left.
 _SIDE_BY_SIDE = {"sbs": (0, 1), "cross": (1, 0)}
@@ -58,10 +59,10 @@ def unproject(camera: Camera, u: float, v: float, depth: float) -> np.ndarray:
     return camera.R.T @ (local - camera.t)
 
 
-def pick(renderer, camera: Camera, u: int, v: int, settings: RenderSettings, order: np.ndarray | None = None,
+def pick(renderer, camera: Camera, u: int, v: int, settings: RenderSettings, order: Order,
          color_origin: np.ndarray | None = None) -> Picked | None:
-    """The point under pixel (u, v) of ``camera`` drawn with ``settings`` and ``order``
-    (None: the renderer sorts); None where the pixel has no median depth."""
+    """The point under pixel (u, v) of ``camera`` drawn with ``settings`` and ``order``;
+    None where the pixel has no median depth."""
     channels = renderer.render_channels(pixel_camera(camera, u, v), settings, order, frame=camera,
                                         color_origin=color_origin)
     depth = float(channels.median_depth[0, 0])

@@ -323,7 +323,7 @@ def test_the_sort_is_asked_with_the_cull_of_what_is_shown(open_viewer):
     drive.frames(1)
     assert asked[-1] == (1 / 255, None)
     drive.settle()
-    assert viewer.sorter.latest().dilation is None  # the drawn order was culled that way
+    assert viewer.sorter.latest().request.dilation is None  # the drawn order was culled that way
     # The split view sorts once for both sides, with the more conservative cull of the two.
     viewer.settings, viewer.split.on = replace(viewer.settings, mode="raygs", p_min=0.01), True
     viewer.split.preset = "RayGS p_min 1e-3"  # no MIP: dilation 0

@@ -9,7 +9,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from appkit import PANEL_HEIGHT, click_choice, right_image, window_image
+from appkit import PANEL_HEIGHT, click_choice, headless, right_image, window_image
 from PIL import Image
 
 from raygs_viewer.camera.stereo import StereoRig, custom_preset, eye_cameras
@@ -17,6 +17,7 @@ from raygs_viewer.capture.image_io import to_rgb8
 from raygs_viewer.capture.sidecar import load_sidecar
 from raygs_viewer.render.channel_pictures import ChannelView, channel_picture
 from raygs_viewer.render.gl.stereo_frame import stereo_order
+from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.viewer.state import StereoPreview
 
 W, H = 64, 48
@@ -36,8 +37,10 @@ def small(open_viewer, **options):
 
 def expected_picture(viewer, view: ChannelView, camera=None, settings=None, order=None, color_origin=None):
     """(picture, range used): channel_picture of render_channels of the view."""
-    camera = camera or viewer.camera
-    channels = viewer.renderer.render_channels(camera, settings or viewer.settings, order, color_origin=color_origin)
+    camera, settings = camera or viewer.camera, settings or viewer.settings
+    if order is None:
+        order = exact_order(viewer.exact_sorter, camera, settings)
+    channels = viewer.renderer.render_channels(camera, settings, order, color_origin=color_origin)
     return channel_picture(channels.in_space(view.normal_space, camera), view)
 
 
@@ -147,7 +150,7 @@ def test_one_side_of_the_split_view_shows_it_and_the_other_the_colour(open_viewe
     depth_side, colour_side = (window_image, right_image) if side == "left" else (right_image, window_image)
     assert_picture(depth_side(viewer), picture)
     colour_settings = viewer.right_settings() if side == "left" else viewer.settings
-    np.testing.assert_allclose(colour_side(viewer), viewer.renderer.render(viewer.camera, colour_settings), atol=1e-6)
+    np.testing.assert_allclose(colour_side(viewer), headless(viewer, colour_settings), atol=1e-6)
     assert viewer.drawer.view_range == pytest.approx(used, rel=1e-4)
     # Each side's screenshot is what it shows, and its sidecar says so.
     viewer.save_screenshot()
@@ -162,7 +165,7 @@ def test_both_stereo_eyes_show_it(open_viewer):
     viewer.view_mode.channel = "depth"
     drive.settle()
     camera, rig = viewer.camera, viewer.stereo.view().rig
-    order = stereo_order(viewer.renderer, camera, viewer.settings, rig)
+    order = stereo_order(viewer.exact_sorter, camera, viewer.settings, rig)
     left_eye, right_eye = eye_cameras(camera, rig)
     left, used = expected_picture(viewer, ChannelView("depth"), left_eye, order=order, color_origin=camera.center)
     right, _ = expected_picture(viewer, ChannelView("depth", used), right_eye, order=order,

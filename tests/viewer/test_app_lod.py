@@ -26,10 +26,12 @@ from raygs_viewer.camera.stereo import custom_preset
 from raygs_viewer.capture.image_io import to_rgb8
 from raygs_viewer.capture.screenshot import scaled_camera
 from raygs_viewer.render.gl.renderer import GLRenderer
-from raygs_viewer.render.gl.stereo_frame import render_stereo_view
+from raygs_viewer.render.gl.stereo_frame import render_stereo_view, stereo_order
 from raygs_viewer.render.gl.storage import gpu_bytes
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.scene.lod_file import load_lod, subset_scene
+from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.lod_choice import choose
 from raygs_viewer.sort.worker import BackgroundSorter
 from raygs_viewer.viewer.lod_window import DEFAULT_WINDOW_BUDGET, LEVEL_COLOURS, tinted_scene
@@ -102,7 +104,8 @@ def drawn_alone(viewer, scene, camera, settings) -> np.ndarray:
     """``scene`` rendered by a renderer of its own, on the window's context."""
     renderer = GLRenderer(viewer.ctx, scene)
     try:
-        return renderer.render(camera, settings)
+        with DepthSorter(scene) as sorter:
+            return renderer.render(camera, settings, exact_order(sorter, camera, settings))
     finally:
         renderer.release()
 
@@ -249,7 +252,8 @@ def test_the_budget_changes_what_is_drawn(open_viewer, streamed):
     assert line(drive, "drawn") == f"drawn {wanted} gaussians of a budget of {DEFAULT_WINDOW_BUDGET:,}"
     assert line(drive, "parts at each level") == "parts at each level: 0: 1, 1: 1, 2: 2"
     np.testing.assert_allclose(full, expected(viewer, lod, distance=DISTANCE), atol=1e-5)
-    np.testing.assert_array_equal(viewer.renderer.spans, viewer.lod.choice.spans)  # preprocessing only those
+    drawn = viewer.drawer.orders[viewer.settings.sort_key]
+    np.testing.assert_array_equal(drawn.spans, viewer.lod.choice.spans)  # preprocessing only those
     assert not any(text.startswith("the budget is below") for text in texts(drive))
 
     drive.click_left_end("##budget")  # a budget of 1: below even the coarsest level
@@ -264,7 +268,7 @@ def test_the_budget_changes_what_is_drawn(open_viewer, streamed):
     np.testing.assert_allclose(coarse, drawn_alone(viewer, lod.subset(lod.level_spans(2)), viewer.camera,
                                                    viewer.settings), atol=1e-5)
     assert np.abs(coarse - full).max() > 0.1
-    np.testing.assert_array_equal(viewer.renderer.spans, lod.level_spans(2))
+    np.testing.assert_array_equal(viewer.drawer.orders[viewer.settings.sort_key].spans, lod.level_spans(2))
 
 
 def test_colour_by_level_tints_each_level_and_goes_back(open_viewer, streamed):
@@ -321,12 +325,12 @@ def test_a_gpu_too_small_for_the_finest_levels_opens_with_the_coarser_ones(open_
 def test_a_screenshot_draws_the_choice_for_its_camera_and_renders_again_from_its_sidecar(
         open_viewer, streamed, tmp_path):
     viewer, _ = open_streamed(open_viewer, streamed, hide_panel=True)
-    drawn = viewer.renderer.spans.copy()
+    drawn = viewer.drawer.orders[viewer.settings.sort_key]
     # A budget the window has not drawn yet: the screenshot makes the choice for itself.
     viewer.settings = replace(viewer.settings, lod_budget=40)
     viewer.screenshots.scale = 2.0
     png, sidecar = viewer.save_screenshot()
-    np.testing.assert_array_equal(viewer.renderer.spans, drawn)  # the window's choice again
+    assert viewer.drawer.orders[viewer.settings.sort_key] is drawn  # the window's own order stands
     recorded = json.loads(sidecar.read_text())
     assert recorded["settings"]["lod_budget"] == 40 and recorded["settings"]["lod_distance"] == DISTANCE
     assert recorded["scene"]["sha256"] == viewer.loaded.sha256 and recorded["scene"]["lod_levels"] == [0, 1, 2]
@@ -349,9 +353,13 @@ def test_a_stereo_screenshot_draws_the_choice_for_its_midpoint(open_viewer, stre
     lod, camera = viewer.loaded.lod, viewer.camera  # the eyes' midpoint
     picked = choose(lod, camera, budget=40, distance=DISTANCE)
     assert picked.levels.tolist() != viewer.lod.choice.levels.tolist()
-    renderer = GLRenderer(viewer.ctx, lod.subset(picked.spans))
+    subset = lod.subset(picked.spans)
+    renderer = GLRenderer(viewer.ctx, subset)
     try:
-        pair = render_stereo_view(renderer, camera, viewer.settings, replace(viewer.shown_stereo, layout="sbs"))[0]
+        with DepthSorter(subset) as sorter:
+            order = stereo_order(sorter, camera, viewer.settings, viewer.shown_stereo.rig)
+        pair = render_stereo_view(renderer, order, camera, viewer.settings,
+                                  replace(viewer.shown_stereo, layout="sbs"))[0]
     finally:
         renderer.release()
     assert np.abs(shot.astype(int) - to_rgb8(pair).astype(int)).max() <= 1

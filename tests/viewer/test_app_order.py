@@ -29,7 +29,9 @@ from raygs_viewer.camera.stereo import PRESETS
 from raygs_viewer.render.gl.results import OrderStats
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import MAX_ORDER_K, RenderSettings, apply_preset
-from raygs_viewer.viewer.drawing import order_for, sort_keys
+from raygs_viewer.render.sorting import sort_request
+from raygs_viewer.sort.request import Order, SortRequest
+from raygs_viewer.viewer.drawing import order_for
 from raygs_viewer.viewer.panel.order import gs_fallback_note, with_mode
 from raygs_viewer.viewer.state import StereoPreview
 from raygs_viewer.viewer.stats import FrameStats, order_stats_lines, summary
@@ -46,15 +48,19 @@ class RecordingRenderer(GLRenderer):
     def __init__(self, *args, **kwargs):
         super().__init__(*args, **kwargs)
         self.drawn: list = []
-        self.order_stats = None
 
     def render_into(self, target, camera, settings, order, *args, **kwargs):
-        super().render_into(target, camera, settings, order, *args, **kwargs)
+        result = super().render_into(target, camera, settings, order, *args, **kwargs)
         self.drawn.append((target, settings, order))
-        self.order_stats = replace(LISTS, width=settings.order_k) if settings.per_pixel else None
+        return replace(result, order_stats=replace(LISTS, width=settings.order_k) if settings.per_pixel else None)
 
 
-def drawn_into(viewer, target) -> tuple[RenderSettings, np.ndarray]:
+def sorted_now(viewer, p_min: float, key: str) -> np.ndarray:
+    """The indices of the exact sort of the viewer's view by ``key``."""
+    return viewer.exact_sorter.sort(SortRequest(viewer.camera, p_min, keys=(key,))).order.indices
+
+
+def drawn_into(viewer, target) -> tuple[RenderSettings, Order]:
     """The settings and the order of the last draw into ``target``."""
     for drawn_target, settings, order in reversed(viewer.renderer.drawn):
         if drawn_target is target:
@@ -79,9 +85,8 @@ def test_the_panel_sets_the_order_and_k_and_the_next_draw_uses_them(open_viewer)
     assert viewer.sorter.keys[-1] == ("distance",)
     settings, order = drawn_into(viewer, viewer.drawer.mono.left)
     assert settings.order == "distance"
-    expected = viewer.renderer.sorter.order(viewer.camera, settings.p_min, key="distance")
-    np.testing.assert_array_equal(order, expected)
-    assert not np.array_equal(order, viewer.renderer.sorter.order(viewer.camera, settings.p_min, key="depth"))
+    np.testing.assert_array_equal(order.indices, sorted_now(viewer, settings.p_min, "distance"))
+    assert not np.array_equal(order.indices, sorted_now(viewer, settings.p_min, "depth"))
     assert_matches(window_image(viewer), headless(viewer))
     assert viewer.stats.order_stats == (None, None)
 
@@ -92,7 +97,7 @@ def test_the_panel_sets_the_order_and_k_and_the_next_draw_uses_them(open_viewer)
     assert viewer.sorter.keys[-1] == (key,)
     settings, order = drawn_into(viewer, viewer.drawer.mono.left)
     assert settings.per_pixel and settings.order_k == 0
-    np.testing.assert_array_equal(order, viewer.renderer.sorter.order(viewer.camera, settings.p_min, key=key))
+    np.testing.assert_array_equal(order.indices, sorted_now(viewer, settings.p_min, key))
     assert viewer.stats.order_stats == (replace(LISTS, width=0), None)
     drive.frames(1)
     assert "K (window)" in drive.panel
@@ -161,7 +166,7 @@ def test_the_split_view_sorts_each_key_once_and_each_side_draws_its_own(open_vie
     drive.settle()
     a, b = viewer.settings, viewer.right_settings()
     assert b == apply_preset(a, preset)
-    assert sort_keys(a, b) == keys and viewer.sorter.keys[-1] == keys
+    assert sort_request(viewer.camera, a, b).keys == keys and viewer.sorter.keys[-1] == keys
     result = viewer.sorter.latest()
     assert result.keys == keys
     left_settings, left_order = drawn_into(viewer, viewer.drawer.mono.left)
@@ -169,8 +174,8 @@ def test_the_split_view_sorts_each_key_once_and_each_side_draws_its_own(open_vie
     assert (left_settings, right_settings) == (a, b)
     assert left_order is result.order_for(a.sort_key) and right_order is result.order_for(b.sort_key)
     if len(keys) == 2:
-        assert not np.array_equal(left_order, right_order)
-        assert sorted(left_order.tolist()) == sorted(right_order.tolist())  # one cull
+        assert not np.array_equal(left_order.indices, right_order.indices)
+        assert sorted(left_order.indices.tolist()) == sorted(right_order.indices.tolist())  # one cull
     assert_matches(window_image(viewer), headless(viewer, a))
     assert_matches(right_image(viewer), headless(viewer, b))
     # The statistics of each per-pixel side (the fake tells the sides apart by K).
@@ -193,10 +198,11 @@ def test_the_split_view_panel_shows_each_per_pixel_side(open_viewer):
 
 
 def test_a_newly_chosen_key_draws_the_old_order_until_its_sort_is_done():
-    depth = np.array([2, 0, 1], np.uint32)
+    depth = Order(np.array([2, 0, 1], np.uint32))
     assert order_for({"depth": depth}, "distance") is depth
-    assert order_for({"depth": depth, "distance": depth[::-1]}, "distance").tolist() == [1, 0, 2]
-    assert order_for({}, "depth").size == 0 and order_for({}, "depth").dtype == np.uint32
+    distance = Order(depth.indices[::-1], "distance")
+    assert order_for({"depth": depth, "distance": distance}, "distance") is distance
+    assert order_for({}, "depth").count == 0 and order_for({}, "depth").indices.dtype == np.uint32
 
 
 # -- stereo -------------------------------------------------------------------------------------

@@ -20,6 +20,7 @@ from raygs_viewer.camera.pinhole import look_at
 from raygs_viewer.camera.stereo import StereoRig, custom_preset, eye_cameras
 from raygs_viewer.capture.image_io import to_rgb8
 from raygs_viewer.capture.measure_file import Measurement, load_measure_document
+from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.viewer.path_overlay import screen_segments
 from raygs_viewer.viewer.path_widget import OVERLAY_NEAR
 from raygs_viewer.viewer.pick_tool import NOTHING_THERE
@@ -39,9 +40,12 @@ def small(open_viewer, mode="fly", **options):
     return viewer, drive
 
 
-def medians(viewer, camera=None, **kwargs) -> np.ndarray:
-    """(H, W) median depth of the whole view, rendered headlessly."""
-    return viewer.renderer.render_channels(camera or viewer.camera, viewer.settings, **kwargs).median_depth
+def medians(viewer, camera=None, order=None, **kwargs) -> np.ndarray:
+    """(H, W) median depth of the whole view, rendered headlessly (with an exact sort of
+    its own unless an ``order`` is given)."""
+    camera = camera or viewer.camera
+    order = order or exact_order(viewer.exact_sorter, camera, viewer.settings)
+    return viewer.renderer.render_channels(camera, viewer.settings, order, **kwargs).median_depth
 
 
 def surface_pixel(median: np.ndarray, near: tuple[int, int] | None = None) -> tuple[int, int]:

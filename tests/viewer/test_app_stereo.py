@@ -14,6 +14,7 @@ from appkit import (
     PANEL_WIDTH,
     RecordingSorter,
     click_choice,
+    headless,
     presented,
     window_image,
 )
@@ -50,7 +51,7 @@ def stereo_viewer(open_viewer, layout="sbs", width=None, height=None, rig=Stereo
 def headless_eyes(viewer) -> tuple[np.ndarray, np.ndarray]:
     """Both eyes rendered headlessly with the shared order and colour, for the viewer's
     midpoint camera and rig."""
-    return render_stereo(viewer.renderer, viewer.camera, viewer.settings, viewer.stereo.view().rig)
+    return render_stereo(viewer.renderer, viewer.exact_sorter, viewer.camera, viewer.settings, viewer.stereo.view().rig)
 
 
 def composed(viewer) -> np.ndarray:
@@ -118,8 +119,8 @@ def test_the_sort_is_culled_for_both_eyes_from_the_midpoint(open_viewer):
     for got, want in zip(eyes, expected):
         assert (got.cx, got.width) == (want.cx, want.width)
         np.testing.assert_array_equal(got.t, want.t)
-    np.testing.assert_array_equal(viewer.sorter.latest().order,
-                                  stereo_order(viewer.renderer, viewer.camera, viewer.settings, rig))
+    np.testing.assert_array_equal(viewer.sorter.latest().order.indices,
+                                  stereo_order(viewer.exact_sorter, viewer.camera, viewer.settings, rig).indices)
     # A new IPD is another cull: the drawn order catches up with it.
     viewer.stereo.rig = replace(viewer.stereo.rig, ipd=0.2)
     drive.settle()
@@ -136,7 +137,7 @@ def test_rig_changes_from_the_panel_redraw_the_eyes(open_viewer):
     after = composed(viewer)
     assert_differs(after, before)
     # IPD 0: both halves are the mono view of the midpoint camera.
-    mono = viewer.renderer.render(viewer.camera, viewer.settings)
+    mono = headless(viewer)
     assert_matches(after[:, :EYE.width], mono)
     assert_matches(after[:, EYE.width:], mono)
 
@@ -192,7 +193,7 @@ def test_panel_toggles_stereo_picks_a_layout_and_a_headset(open_viewer):
     drive.settle()
     assert not viewer.stereo.on and viewer.shown_stereo is None
     assert viewer.camera.width == PANEL_WIDTH
-    assert_matches(window_image(viewer), viewer.renderer.render(viewer.camera, viewer.settings))
+    assert_matches(window_image(viewer), headless(viewer))
 
 
 def test_a_custom_headset_out_of_range_is_a_panel_error_and_the_preview_stays(open_viewer):
@@ -274,7 +275,7 @@ def test_stereo_screenshot_at_scale_and_with_the_lens(open_viewer, tmp_path):
     scaled = replace(viewer.camera, width=2 * EYE.width, height=2 * EYE.height, fx=2 * viewer.camera.fx,
                      fy=2 * viewer.camera.fy, cx=2 * viewer.camera.cx, cy=2 * viewer.camera.cy)
     rig = viewer.stereo.view().rig
-    left, right = render_stereo(viewer.renderer, scaled, viewer.settings, rig)
+    left, right = render_stereo(viewer.renderer, viewer.exact_sorter, scaled, viewer.settings, rig)
     eyes = eye_cameras(scaled, rig)
     expected = compose(lens_warp_reference(left, eyes[0]), lens_warp_reference(right, eyes[1]), "sbs")
     assert np.abs(np.asarray(Image.open(png)).astype(int) - to_rgb8(expected).astype(int)).max() <= 2

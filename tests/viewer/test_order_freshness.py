@@ -4,7 +4,6 @@ far the camera has turned and moved since the view it was sorted for."""
 from __future__ import annotations
 
 from dataclasses import replace
-from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -14,18 +13,22 @@ from testkit import assert_matches
 
 from raygs_viewer.bench.views import turned
 from raygs_viewer.camera.pinhole import look_at
+from raygs_viewer.sort.request import Order, SortRequest, SortResult
 from raygs_viewer.viewer.stats import (
     FrameStats,
     order_freshness,
-    sort_key,
     turned_degrees,
 )
 
 
-def _result(camera, requested_at):
-    return SimpleNamespace(camera=camera, p_min=0.01, dilation=0.0, cull_cameras=None, keys=("depth",), serial=1,
-                           seconds=0.01, order=np.arange(5, dtype=np.uint32), orders={"depth": np.arange(5)},
-                           requested_at=requested_at, lod_key=None)
+def _request(camera) -> SortRequest:
+    return SortRequest(camera, 0.01, 0.0)
+
+
+def _result(camera, requested_at) -> SortResult:
+    request = _request(camera)
+    return SortResult(request, {"depth": Order(np.arange(5), "depth", request)}, times={"sort": 0.01}, serial=1,
+                      requested_at=requested_at)
 
 
 def test_turned_degrees_is_the_rotation_angle():
@@ -41,12 +44,12 @@ def test_a_stale_order_reports_its_age_turn_and_move():
     stats = FrameStats()
     stats.asked(1, 3)
     result = _result(sorted_for, requested_at=100.0)
-    stats.order_to_draw(result, sort_key(now, 0.01, 0.0, None), 7, now, now=100.25)
+    stats.order_to_draw(result, _request(now), 7, now, now=100.25)
     assert stats.order_age == 4 and stats.order_age_ms == pytest.approx(250.0)
     assert stats.order_turned_degrees == pytest.approx(12.0) and stats.order_moved == pytest.approx(0.5)
     assert order_freshness(stats) == "4 frames old (250 ms, turned 12.0°, moved 0.5)"
     # Up to date: the same view asked again.
-    stats.order_to_draw(result, sort_key(sorted_for, 0.01, 0.0, None), 8, sorted_for, now=101.0)
+    stats.order_to_draw(result, _request(sorted_for), 8, sorted_for, now=101.0)
     assert (stats.order_age, stats.order_age_ms, stats.order_turned_degrees, stats.order_moved) == (0, 0, 0, 0)
     assert order_freshness(stats) == "up to date"
 
@@ -54,7 +57,7 @@ def test_a_stale_order_reports_its_age_turn_and_move():
 def test_the_window_measures_how_far_the_camera_went_while_a_sort_ran(open_viewer):
     viewer, drive, gate = gated_viewer(open_viewer, free=1, hide_panel=True)  # the first view sorts at once
     drive.settle()
-    sorted_for = viewer.sorter.latest().camera
+    sorted_for = viewer.sorter.latest().request.camera
     drive.key(imgui.Key.w, True)
     drive.frames(6)
     drive.key(imgui.Key.w, False)
