@@ -29,10 +29,10 @@ import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.errors import UserError
+from raygs_viewer.render.gl.plan import Passes, RenderPlan
 from raygs_viewer.render.gl.results import OrderStats
 from raygs_viewer.render.gl.shaders import set_uniform
 from raygs_viewer.render.gl.targets import FloatTarget
-from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.sort.request import Order
 
 #: The pool's default capacity: 4M fragments, 64 MiB.
@@ -148,13 +148,14 @@ class FragmentLists:
         self._status.bind_to_storage_buffer(STATUS)
         row_stats.bind_to_storage_buffer(ROW_STATS, size=height * 16)
 
-    def render(self, renderer, target: FloatTarget, camera: Camera, settings: RenderSettings,
-               order: Order, geometry: bool = False) -> OrderStats:
-        """Draws ``order`` (back to front; prepared by the renderer's last preprocess) with
-        the per-pixel order into ``target`` (camera-sized, float32): RGB over the
-        background, A the accumulated alpha. ``geometry``: ``target`` has three
+    def render(self, passes: Passes, target: FloatTarget, camera: Camera, plan: RenderPlan,
+               order: Order) -> OrderStats:
+        """Draws ``order`` (back to front; prepared by the last preprocess of ``passes``)
+        with the per-pixel order into ``target`` (camera-sized, float32): RGB over the
+        background, A the accumulated alpha. With ``plan.geometry``, ``target`` has three
         attachments and receives the geometry sums and median in the second and third
-        (glsl/lists_resolve.comp), in ``settings``' order: per-pixel, or the global one."""
+        (glsl/lists_resolve.comp), in the settings' order: per-pixel, or the global one."""
+        settings = plan.settings
         ctx = self.ctx
         width, height = camera.width, camera.height
         self._hold(width, height)
@@ -162,16 +163,14 @@ class FragmentLists:
         counts.clear(size=width * height * 4)
         self._status.clear()
         self._bind(width, height)
-        defines = renderer.variants.order_defines(settings, renderer.layout_for(settings, geometry), "lists",
-                                                  geometry=geometry)
-        programs = renderer.variants.programs
+        defines = plan.pass_defines()
+        programs = passes.programs
 
         # 1. count
         target.use()
         _write_mask(target, False)
         try:
-            renderer.draw(camera, settings, order, path="lists", geometry=geometry,
-                          uniforms={"u_pass": 0, "u_width": width, "u_part": (0, 0, width, height)})
+            passes.draw(camera, plan, order, uniforms={"u_pass": 0, "u_width": width, "u_part": (0, 0, width, height)})
             ctx.memory_barrier()
             # 2. scan and plan
             scan = programs.compute("lists_scan.comp", defines)
@@ -196,7 +195,7 @@ class FragmentLists:
             set_uniform(resolve, "u_window", settings.order_k if settings.per_pixel else -1)
             for unit, texture in enumerate(target.textures):
                 texture.bind_to_image(unit, read=False, write=True)
-            if geometry:
+            if plan.geometry:
                 set_uniform(resolve, "u_intrinsics", (camera.fx, camera.fy, camera.cx, camera.cy))
                 set_uniform(resolve, "u_height", height)
             for part in parts:
@@ -208,8 +207,7 @@ class FragmentLists:
                 if part.fragments:
                     target.use()
                     target.fbo.scissor = (rect[0], rect[1], rect[2] - rect[0], rect[3] - rect[1])
-                    renderer.draw(camera, settings, order, path="lists", geometry=geometry,
-                                  uniforms={"u_pass": 1, "u_width": width, "u_part": rect})
+                    passes.draw(camera, plan, order, uniforms={"u_pass": 1, "u_width": width, "u_part": rect})
                     target.fbo.scissor = None
                     ctx.memory_barrier()
                 set_uniform(resolve, "u_part", rect)

@@ -15,8 +15,9 @@ T alpha n, -)):
   order blending composites in), and one resolve pass writes colour and geometry.
 
 Records gain the gaussian's shortest axis (``GEOMETRY``), so a frame that asks for no
-geometry runs the variants without it and pays nothing. Supersampling averages every
-attachment in its resolve pass; :func:`raygs_viewer.render.channels.finish` divides the
+geometry runs the variants without it and pays nothing. The renderer draws into
+:meth:`GeometryOutputs.image` by the render's plan (supersampling averages every
+attachment in its resolve pass); :func:`raygs_viewer.render.channels.finish` divides the
 sums out on the host. The window's view pictures are drawn from the target on the GPU
 (glsl/channel_picture.frag), with only an automatic range's samples read back.
 """
@@ -27,14 +28,11 @@ import moderngl
 import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera
-from raygs_viewer.errors import UserError
 from raygs_viewer.render.channel_pictures import ChannelView, color_table, range_of_samples, sample_step
 from raygs_viewer.render.channels import ChannelImage, finish
-from raygs_viewer.render.gl.shaders import set_uniform
+from raygs_viewer.render.gl.shaders import Programs, set_uniform
 from raygs_viewer.render.gl.targets import FloatTarget, release_all, sized
-from raygs_viewer.render.gl.results import OrderStats, RenderResult
 from raygs_viewer.render.settings import RenderSettings
-from raygs_viewer.sort.request import Order
 
 #: Colour, depth (sum T alpha z, median z or 0, found) and normal (sum T alpha n).
 GEOMETRY_ATTACHMENTS = 3
@@ -49,75 +47,38 @@ def takes_lists(settings: RenderSettings, median: bool) -> bool:
 
 
 class GeometryOutputs:
-    """One renderer's geometry targets (made on first use, one size held)."""
+    """One renderer's geometry targets (made on first use, one size held) and the
+    pictures of their channels."""
 
     def __init__(self, ctx: moderngl.Context):
         self.ctx = ctx
         self._image: FloatTarget | None = None
-        self._samples: FloatTarget | None = None
         self._gathered: FloatTarget | None = None   # an automatic range's depth samples
         self._palette: moderngl.Texture | None = None  # viridis, 256 x 1
 
-    def render(self, renderer, camera: Camera, settings: RenderSettings, order: Order,
-               frame: Camera | None = None, color_origin: np.ndarray | None = None,
-               median: bool = True) -> ChannelImage:
-        """Every channel of ``camera``'s image (camera-space normals) as ``renderer``
-        (a GLRenderer) draws ``order`` with ``settings``; ``frame``, ``color_origin``:
-        see GLRenderer.preprocess. ``median`` False leaves the median out (None), which
-        lets a global order blend the rest in its one draw."""
-        image, _ = self.draw(renderer, camera, settings, order, frame, color_origin, median)
+    def image(self, camera: Camera) -> FloatTarget:
+        """The camera-sized target of colour, depth and normal (its three attachments)."""
+        self._image = sized(self._image, self.ctx, camera.width, camera.height, attachments=GEOMETRY_ATTACHMENTS)
+        return self._image
+
+    @staticmethod
+    def read(image: FloatTarget, median: bool) -> ChannelImage:
+        """Every channel of a drawn :meth:`image`, finished (``median`` False: without the median)."""
         color, depth, normal = (image.read(attachment=i) for i in range(GEOMETRY_ATTACHMENTS))
         sums = np.concatenate([depth[..., :1], normal[..., :3]], axis=-1)
         return finish(color, sums, depth[..., 1:3] if median else None)
 
-    def draw(self, renderer, camera: Camera, settings: RenderSettings, order: Order,
-             frame: Camera | None = None, color_origin: np.ndarray | None = None,
-             median: bool = True) -> tuple[FloatTarget, OrderStats | None]:
-        """The GPU work of :meth:`render`: the camera-sized target holding colour, depth
-        and normal (its three attachments), not yet read back, and what the per-pixel
-        order's passes did (None for a global order)."""
-        lists = takes_lists(settings, median)
-        problem = renderer.supports(settings, geometry=lists)
-        if problem:
-            raise UserError(problem)
-        k = settings.supersample
-        sampled = camera.resized(camera.width * k, camera.height * k) if k > 1 else camera
-        self._image = image = sized(self._image, self.ctx, camera.width, camera.height,
-                                    attachments=GEOMETRY_ATTACHMENTS)
-        # The blend starts colour at (background, 0), as the colour draw does, and the
-        # sums at 0; the lists' resolve writes finished colour. Either way a resolve pass
-        # only averages samples.
-        drawn = image
-        if k > 1:
-            self._samples = drawn = sized(self._samples, self.ctx, sampled.width, sampled.height,
-                                          attachments=GEOMETRY_ATTACHMENTS)
-        renderer.preprocess(sampled, settings, frame or camera, color_origin, geometry=True, spans=order.spans)
-        stats = None
-        if lists:
-            stats = renderer.per_pixel.render(renderer, drawn, sampled, settings, order, geometry=True)
-            stats = stats if settings.per_pixel else None
-        else:
-            drawn.clear_each((*settings.background, 0.0), (0.0,) * 4, (0.0,) * 4)
-            drawn.use()
-            renderer.draw(sampled, settings, order, geometry=True)
-        if k > 1:
-            renderer.resolve_samples(drawn, image, k, settings, front_to_back=False, geometry=True)
-        return image, stats
-
-    def render_view(self, renderer, target: FloatTarget, camera: Camera, settings: RenderSettings,
-                    order: Order, view: ChannelView, frame: Camera | None = None,
-                    color_origin: np.ndarray | None = None) -> RenderResult:
-        """Draws the picture of ``view``'s channel (glsl/channel_picture.frag, the twin of
-        render/channel_pictures.py; alpha 1) into ``target`` (camera-sized); returns the
-        ``RenderResult`` (with the depth range it used). Nothing is read back but an
-        automatic range's samples."""
-        image, stats = self.draw(renderer, camera, settings, order, frame, color_origin,
-                                 median=view.channel == "median_depth")
+    def picture(self, programs: Programs, target: FloatTarget, image: FloatTarget, camera: Camera,
+                view: ChannelView) -> tuple[float, float] | None:
+        """Draws the picture of ``view``'s channel of a drawn ``image`` (glsl/channel_picture.frag,
+        the twin of render/channel_pictures.py; alpha 1) into ``target`` (camera-sized);
+        returns the depth range it used (None: not a depth picture). Nothing is read
+        back but an automatic range's samples."""
         channel = PICTURE_DEFINES[view.channel]
         view_range = None
         if view.channel in ("depth", "median_depth"):
-            view_range = view.depth_range or range_of_samples(self._depth_samples(renderer, image, channel))
-        program, vao = renderer.variants.programs.fullscreen("channel_picture.frag", {"CHANNEL": channel, "SAMPLES": 0})
+            view_range = view.depth_range or range_of_samples(self._depth_samples(programs, image, channel))
+        program, vao = programs.fullscreen("channel_picture.frag", {"CHANNEL": channel, "SAMPLES": 0})
         to_space = np.asarray(camera.R, np.float32).T if view.normal_space == "world" else np.eye(3, dtype=np.float32)
         set_uniform(program, "u_to_space", to_space.tobytes(order="F"))
         set_uniform(program, "u_range", view_range or (0.0, 1.0))
@@ -125,16 +86,16 @@ class GeometryOutputs:
         target.use()
         self.ctx.disable(moderngl.BLEND)
         vao.render(moderngl.TRIANGLES, vertices=3)
-        return RenderResult(stats, view_range)
+        return view_range
 
-    def _depth_samples(self, renderer, image: FloatTarget, channel: int) -> np.ndarray:
+    def _depth_samples(self, programs: Programs, image: FloatTarget, channel: int) -> np.ndarray:
         """The depths an automatic range is taken from (render/channel_pictures.depth_samples),
         gathered on the GPU into a small target and read back."""
         height, width = image.size[1], image.size[0]
         step = sample_step(height, width)
         columns, rows = -(-width // step), -(-height // step)
         self._gathered = gathered = sized(self._gathered, self.ctx, columns, rows)
-        program, vao = renderer.variants.programs.fullscreen("channel_picture.frag", {"CHANNEL": channel, "SAMPLES": 1})
+        program, vao = programs.fullscreen("channel_picture.frag", {"CHANNEL": channel, "SAMPLES": 1})
         set_uniform(program, "u_step", step)
         set_uniform(program, "u_samples", (columns, rows))
         self._bind_inputs(program, image)
@@ -155,8 +116,8 @@ class GeometryOutputs:
         set_uniform(program, "u_palette", 3)
 
     def release(self) -> None:
-        release_all(self._image, self._samples, self._gathered)
-        self._image = self._samples = self._gathered = None
+        release_all(self._image, self._gathered)
+        self._image = self._gathered = None
         if self._palette is not None:
             self._palette.release()
             self._palette = None

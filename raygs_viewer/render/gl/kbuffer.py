@@ -16,6 +16,7 @@ import moderngl
 import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera
+from raygs_viewer.render.gl.plan import Passes, RenderPlan
 from raygs_viewer.render.gl.results import OrderStats
 from raygs_viewer.render.gl.shaders import set_uniform
 from raygs_viewer.render.gl.targets import FloatTarget, check_size
@@ -66,19 +67,17 @@ class KBuffer:
             self._key = (width, height, k)
         return self._fbo
 
-    def render(self, renderer, target: FloatTarget, camera: Camera, settings: RenderSettings,
+    def render(self, passes: Passes, target: FloatTarget, camera: Camera, plan: RenderPlan,
                order: Order) -> OrderStats:
-        """Like :meth:`FragmentLists.render`, for K = ``settings.order_k``."""
-        ctx = self.ctx
-        width, height, k = camera.width, camera.height, settings.order_k
+        """Like :meth:`FragmentLists.render`, for K = ``plan.window``."""
+        ctx, settings = self.ctx, plan.settings
+        width, height, k = camera.width, camera.height, plan.window
         fbo = self._hold(width, height, k)
         fbo.use()
         fbo.clear(0.0, 0.0, 0.0, 0.0)
-        renderer.draw(camera, settings, order, path="fetch")
+        passes.draw(camera, plan, order)
         ctx.memory_barrier()
-        program = renderer.variants.programs.compute(
-            "kbuffer_resolve.comp", renderer.variants.order_defines(settings, renderer.layout_for(settings),
-                                                                    "fetch", k))
+        program = passes.programs.compute("kbuffer_resolve.comp", plan.pass_defines())
         for unit, texture in enumerate(self._textures):
             texture.use(unit)
         set_uniform(program, "u_state", 0)

@@ -17,6 +17,7 @@ from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl import kbuffer
 from raygs_viewer.render.gl.fragment_lists import FragmentLists
+from raygs_viewer.render.gl.plan import Passes, RenderPlan
 from raygs_viewer.render.gl.results import OrderStats
 from raygs_viewer.render.gl.storage import gpu_limit
 from raygs_viewer.render.gl.targets import FloatTarget
@@ -62,11 +63,12 @@ class PerPixelOrder:
         self.lists = FragmentLists(ctx, block_limit, pool_fragments)
         self._kbuffer: kbuffer.KBuffer | None = None
 
-    def path_for(self, settings: RenderSettings, geometry: bool = False) -> str:
-        """"lists" or "fetch" for ``settings`` (UserError: forced "fetch" cannot run).
-        The geometry outputs always take the lists: the k-buffer's attachments are full."""
+    def path_for(self, settings: RenderSettings, lists_only: bool = False) -> str:
+        """"lists" or "fetch" for ``settings`` (UserError: forced "fetch" cannot run);
+        ``lists_only``: the geometry outputs, which only the lists give (the k-buffer's
+        attachments are full)."""
         problem = kbuffer.why_not(self.ctx, settings, self.scene_count)
-        if geometry:
+        if lists_only:
             problem = problem or "the geometry outputs need the fragment lists"
         if self.order_path == "fetch" and problem:
             raise UserError(problem)
@@ -74,26 +76,16 @@ class PerPixelOrder:
             return "lists"
         return "fetch"
 
-    def problem(self, settings: RenderSettings, splat_blocks: int = 1, geometry: bool = False) -> str | None:
-        """None when ``settings``' per-pixel order (or, with ``geometry``, the geometry
-        outputs in ``settings``' order) can be rendered with records in ``splat_blocks``
-        storage blocks, else why not (one line)."""
-        try:
-            path = self.path_for(settings, geometry)
-        except UserError as error:
-            return str(error)
-        return storage_block_problem(self.ctx, path, splat_blocks)
-
-    def render(self, renderer, target: FloatTarget, camera: Camera, settings: RenderSettings,
-               order: Order, geometry: bool = False) -> OrderStats:
-        """Draws ``order`` into ``target`` (float32, camera-sized) by the per-pixel order;
-        the renderer has preprocessed ``camera``. ``geometry``: ``target`` has the
-        geometry attachments (render/gl/fragment_lists.py), in ``settings``' order."""
-        if self.path_for(settings, geometry) == "lists":
-            return self.lists.render(renderer, target, camera, settings, order, geometry)
+    def render(self, passes: Passes, target: FloatTarget, camera: Camera, plan: RenderPlan,
+               order: Order) -> OrderStats:
+        """Draws ``order`` into ``target`` (float32, camera-sized) by ``plan``'s per-pixel
+        path; ``passes`` has preprocessed ``camera``. With ``plan.geometry`` the target has
+        the geometry attachments (render/gl/fragment_lists.py)."""
+        if plan.path == "lists":
+            return self.lists.render(passes, target, camera, plan, order)
         if self._kbuffer is None:
             self._kbuffer = kbuffer.KBuffer(self.ctx)
-        return self._kbuffer.render(renderer, target, camera, settings, order)
+        return self._kbuffer.render(passes, target, camera, plan, order)
 
     def release(self) -> None:
         self.lists.release()

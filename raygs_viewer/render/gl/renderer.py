@@ -1,27 +1,26 @@
 """The RayGS renderer on OpenGL 4.3: storage buffers, the preprocessing pass, instanced quads.
 
-Per frame: the CPU sort gives the visible gaussians back to front; the compute
-pass turns every gaussian into a per-view :file:`splat.glsl` record (colour,
-opacity, c^2, quad axes); the vertex stage draws one quad per sorted index and
-the fragment stage evaluates Eq. 16, blending premultiplied colour back to front
-into a float32 target with depth clamp on (no near-plane clipping).
+Per frame: the sort gives the visible gaussians back to front (an
+:class:`~raygs_viewer.sort.request.Order`, which the renderer is handed: it owns no
+sorter); the compute pass turns every gaussian into a per-view :file:`splat.glsl`
+record (colour, opacity, c^2, quad axes); the vertex stage draws one quad per sorted
+index and the fragment stage evaluates Eq. 16, blending premultiplied colour back to
+front into a float32 target with depth clamp on (no near-plane clipping). An order of
+a level-of-detail choice carries the rows it covers, and only those are preprocessed.
 
-The scene's storage buffers, and how they are cut into ranges a GPU can bind, are
-:mod:`raygs_viewer.render.gl.storage`. The accuracy options of :class:`RenderSettings`
-and the scene select shader variants by ``#define``
-(:mod:`raygs_viewer.render.gl.variants`: EWA splatting, the two MIP filters, the parity
-switches, the SH degree), so a frame pays only for what is on; at SH degree 0 the
-colours are computed once, at load. ``general=True`` forces the one variant that switches every
-feature by uniforms instead, to measure what specialising saves. Supersampling and
-the transmittance cut-off render into a sample target first; a resolve pass filters
-it down into the caller's target.
+Each render is planned once (:meth:`GLRenderer.plan`, :mod:`raygs_viewer.render.gl.plan`):
+the variant of every pass, its storage layout and whether this GPU can draw it. The
+scene's storage buffers, and how they are cut into ranges a GPU can bind, are
+:mod:`raygs_viewer.render.gl.storage`; at SH degree 0 the colours are computed once, at
+load. Supersampling, the transmittance cut-off and the per-pixel passes on a target
+they cannot write draw into a sample target first; a resolve pass filters it down into
+the caller's target (:meth:`GLRenderer.draw_planned`, the one home of that). Each
+render returns what it did (:class:`~raygs_viewer.render.gl.results.RenderResult`).
 
-The renderer draws the :class:`~raygs_viewer.sort.request.Order` it is handed (it owns
-no sorter); an order of a level-of-detail choice carries the rows it covers, and only
-those are preprocessed. Each render returns what it did (:class:`RenderResult`).
-
-Work that the view has not changed is skipped: :meth:`GLRenderer.preprocess` for the
-view, settings, colour origin and rows it last wrote the records for, and the order's
+Work that the view has not changed is skipped: :meth:`GLRenderer.preprocess` when
+everything the pass reads (its variant, its uniforms, the rows) is what it last wrote
+the records for, so a change that only the draw or the picture sees (the background, a
+level-of-detail budget that chooses the same rows) costs no pass; and the order's
 upload for the order array it last uploaded (orders are never modified once made).
 """
 
@@ -33,23 +32,22 @@ from dataclasses import dataclass
 import moderngl
 import numpy as np
 
-from raygs_viewer.camera.pinhole import Camera, camera_key
+from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.channel_pictures import ChannelView
 from raygs_viewer.render.channels import ChannelImage
-from raygs_viewer.render.gl.geometry import GeometryOutputs
+from raygs_viewer.render.gl.geometry import GeometryOutputs, takes_lists
+from raygs_viewer.render.gl.per_pixel import PerPixelOrder, storage_block_problem
+from raygs_viewer.render.gl.plan import RenderPlan
 from raygs_viewer.render.gl.results import OrderStats, RenderResult
-from raygs_viewer.render.gl.per_pixel import PerPixelOrder
-from raygs_viewer.render.gl.shaders import set_uniform
+from raygs_viewer.render.gl.shaders import Programs, set_uniform
 from raygs_viewer.render.gl.storage import (
     EXACT_MIP_SPLAT_BYTES,
     GEOMETRY_BYTES,
     SPLAT_BYTES,
     SceneBuffers,
-    StorageLayout,
 )
 from raygs_viewer.render.gl.targets import FloatTarget, release_all, sized
-from raygs_viewer.render.gl.variants import ShaderVariants
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.sort.request import Order
@@ -81,9 +79,8 @@ class GLRenderer:
     ``block_limit`` overrides the GPU's per-block storage limit (tests use a tiny one
     to exercise the splitting). ``pool_fragments`` and ``order_path`` ("auto", "lists",
     "fetch") configure the per-pixel order (render/gl/per_pixel.py).
-    ``general``: draw with the all-features variant (see the module docstring).
-    ``storage`` holds the buffers (render/gl/storage.py),
-    ``variants`` the compiled programs (render/gl/variants.py).
+    ``general``: draw with the all-features variant (:mod:`raygs_viewer.render.gl.plan`).
+    ``storage`` holds the buffers (render/gl/storage.py), ``programs`` the compiled ones.
     """
 
     def __init__(self, ctx: moderngl.Context, scene: Scene, *, block_limit: int | None = None,
@@ -96,58 +93,64 @@ class GLRenderer:
         self.storage = SceneBuffers(ctx, scene, block_limit=block_limit, memory_limit=memory_limit)
         self.layout = self.storage.layout
         self.gpu_bytes = self.storage.gpu_bytes
-        self.variants = ShaderVariants(ctx, scene.sh_degree, self.general)
+        self.programs = Programs(ctx)
         self._last_layout = self.layout
         self._preprocessed_key: tuple | None = None  # what the records in storage.splats were made for
         #: Off only to demonstrate the near-plane seam that depth clamp prevents.
         self.depth_clamp = True
         self.per_pixel = PerPixelOrder(ctx, scene.count, self.storage.block_limit, pool_fragments, order_path)
-        self._target: FloatTarget | None = None          # render()'s image, the latest size
-        self._samples: FloatTarget | None = None         # supersampling and front to back
+        self._target: FloatTarget | None = None  # render()'s image, the latest size
+        self._samples: dict[int, FloatTarget] = {}  # sample targets, by attachments
         self.geometry = GeometryOutputs(ctx)
 
-    def layout_for(self, settings: RenderSettings, geometry: bool = False) -> StorageLayout:
-        """The storage layout of ``settings``' records (exact MIP's are larger, and
-        ``geometry``'s hold the normal too)."""
-        splat_bytes = EXACT_MIP_SPLAT_BYTES if settings.mode == "raygs-exact-mip" else SPLAT_BYTES
-        return self.storage.layout_for(splat_bytes + (GEOMETRY_BYTES if geometry else 0))
+    def plan(self, settings: RenderSettings, geometry: bool = False, median: bool = False) -> RenderPlan:
+        """The plan of a render of ``settings``: colour, or with ``geometry`` the geometry
+        outputs too (``median``: with the median depth, which only the fragment lists give)."""
+        lists_geometry = geometry and takes_lists(settings, median)
+        record = EXACT_MIP_SPLAT_BYTES if settings.mode == "raygs-exact-mip" else SPLAT_BYTES
+        layout = self.storage.layout_for(record + (GEOMETRY_BYTES if geometry else 0))
+        path, problem = None, None
+        if settings.per_pixel or lists_geometry:  # composites in its own passes, the cut-off included
+            try:
+                path = self.per_pixel.path_for(settings, lists_geometry)
+                problem = storage_block_problem(self.ctx, path, layout.splat_blocks)
+            except UserError as error:  # a forced k-buffer that cannot run
+                path, problem = "fetch", str(error)
+        elif settings.transmittance_cutoff and GL_EXT_FRAMEBUFFER_FETCH not in self.ctx.extensions:
+            problem = (f"the transmittance cut-off needs {GL_EXT_FRAMEBUFFER_FETCH}, "
+                       f"which this GPU's OpenGL driver does not offer")
+        return RenderPlan(settings, layout, geometry, path, self.scene.sh_degree, self.general, problem)
 
-    def supports(self, settings: RenderSettings, geometry: bool = False) -> str | None:
-        """None when this GPU can render ``settings`` (with the geometry outputs), else
-        why not (one line)."""
-        if settings.per_pixel or geometry:  # composites in its own passes, the cut-off included
-            return self.per_pixel.problem(settings, self.layout_for(settings, geometry).splat_blocks, geometry)
-        if settings.transmittance_cutoff and GL_EXT_FRAMEBUFFER_FETCH not in self.ctx.extensions:
-            return (f"the transmittance cut-off needs {GL_EXT_FRAMEBUFFER_FETCH}, "
-                    f"which this GPU's OpenGL driver does not offer")
-        return None
+    def supports(self, settings: RenderSettings) -> str | None:
+        """None when this GPU can render ``settings``' colour, else why not (one line)."""
+        return self.plan(settings).problem
 
     # -- per-frame passes ---------------------------------------------------------
-    def preprocess(self, camera: Camera, settings: RenderSettings, frame: Camera | None = None,
-                   color_origin: np.ndarray | None = None, geometry: bool = False,
-                   spans: np.ndarray | None = None) -> None:
+    def preprocess(self, camera: Camera, plan: RenderPlan, frame: Camera | None = None,
+                   color_origin: np.ndarray | None = None, spans: np.ndarray | None = None) -> None:
         """Writes the per-view splat record of every gaussian for ``camera`` (the camera
-        actually rasterized: already supersampled). ``frame``: the whole image's camera
-        when ``camera`` renders one tile of it (GS clamps rays to the whole image).
-        ``color_origin``: the world point SH colour is seen from (default: the camera's
-        centre; stereo shares the eyes' midpoint). ``geometry``: records with the normal.
-        ``spans``: (S, 2) ascending [start, stop) rows to write (the order's level-of-detail
-        choice, ``Order.spans``); None: every row."""
+        actually rasterized: already supersampled) in ``plan``'s variant. ``frame``: the
+        whole image's camera when ``camera`` renders one tile of it (GS clamps rays to the
+        whole image). ``color_origin``: the world point SH colour is seen from (default:
+        the camera's centre; stereo shares the eyes' midpoint). ``spans``: (S, 2)
+        ascending [start, stop) rows to write (an order's level-of-detail choice,
+        ``Order.spans``); None: every row."""
         origin = camera.center if color_origin is None else np.asarray(color_origin, np.float64)
         spans = None if spans is None else np.asarray(spans, np.int64).reshape(-1, 2)
-        key = (camera_key(camera), settings, None if frame is None else camera_key(frame), origin.tobytes(),
-               geometry, None if spans is None else spans.tobytes())
+        defines = plan.preprocess_defines()
+        uniforms = {**view_uniforms(camera, plan.settings, frame, origin), **plan.feature_uniforms()}
+        key = (tuple(defines.items()), tuple(uniforms.items()), plan.layout, plan.colors_at_load,
+               None if spans is None else spans.tobytes())
         if key == self._preprocessed_key:
             self.counters.preprocess_skipped += 1
             return
         self._preprocessed_key = None  # until this pass has written every record
-        layout = self.layout_for(settings, geometry)
-        self.storage.hold_records(layout, settings.mode)
-        self._last_layout = layout
-        program = self.variants.preprocess(settings, geometry)
-        self.variants.set_features(program, settings)
-        set_view_uniforms(program, camera, settings, frame, origin)
-        for chunk in self.storage.preprocess_chunks(layout, self.variants.colors_at_load(settings)):
+        self.storage.hold_records(plan.layout, plan.settings.mode)
+        self._last_layout = plan.layout
+        program = self.programs.compute("preprocess.comp", defines)
+        for name, value in uniforms.items():
+            set_uniform(program, name, value)
+        for chunk in self.storage.preprocess_chunks(plan.layout, plan.colors_at_load):
             program["u_out_offset"].value = chunk.offset
             for first, count in chunk_runs(chunk.start, chunk.count, spans):
                 set_uniform(program, "u_first", first)  # gone where a negative control breaks the shader
@@ -163,37 +166,35 @@ class GLRenderer:
         and diagnostics."""
         return self.storage.read_records(self._last_layout)
 
-    def draw(self, camera: Camera, settings: RenderSettings, order: Order, *, floor: bool = False,
-             path: str | None = None, uniforms: dict | None = None, geometry: bool = False) -> None:
+    def draw(self, camera: Camera, plan: RenderPlan, order: Order, *, floor: bool = False,
+             uniforms: dict | None = None) -> None:
         """Draws the quads of ``order`` (back to front) into the bound framebuffer, as
-        the last :meth:`preprocess` (same camera and settings) prepared them.
-        ``floor``: the same quads with a constant, never discarded fragment instead
-        (glsl/quads.*): the least this rasterizer can spend on them (bench perf).
-        ``path``, ``uniforms``: a per-pixel order pass (render/gl/per_pixel.py) and its
-        uniforms; blending off, the quads drawn front to back. ``geometry``: the lists
-        pass of the geometry outputs (render/gl/geometry.py)."""
+        the last :meth:`preprocess` (same camera and plan) prepared them. ``floor``: the
+        same quads with a constant, never discarded fragment instead (glsl/quads.*): the
+        least this rasterizer can spend on them (bench perf). ``uniforms``: a per-pixel
+        pass's own (render/gl/per_pixel.py); with a per-pixel path or the cut-off,
+        blending is off and the fragment stage composites or stores."""
         if order.count == 0:
             return
-        layout = self.layout_for(settings, geometry)
-        problem = self.supports(settings, geometry and path is not None)  # the blended geometry needs nothing more
-        if problem:
-            raise UserError(problem)
-        program, vao = self.variants.draw(settings, layout, floor, path, geometry)
-        for name, value in (uniforms or {}).items():
+        if plan.problem:
+            raise UserError(plan.problem)
+        vertex, fragment, defines = plan.draw_stages(floor)
+        program, vao = self.programs.draw(vertex, fragment, defines)
+        for name, value in {**(uniforms or {}), **plan.feature_uniforms()}.items():
             set_uniform(program, name, value)
         self.upload_order(order)
-        self.storage.bind_for_draw(layout, order.count)
+        self.storage.bind_for_draw(plan.layout, order.count)
+        settings = plan.settings
         set_uniform(program, "u_projection", camera.gl_projection().astype(np.float32).tobytes(order="F"))
         set_uniform(program, "u_image_size", (camera.width, camera.height))
         set_uniform(program, "u_pixel_variance", settings.pixel_variance(camera))
         set_uniform(program, "u_order_count", order.count)
         set_uniform(program, "u_p_min", settings.p_min)
         set_uniform(program, "u_intrinsics", (camera.fx, camera.fy, camera.cx, camera.cy))  # GS geometry
-        self.variants.set_features(program, settings)
         ctx = self.ctx
         ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
-        if settings.transmittance_cutoff or path is not None:
-            ctx.disable(moderngl.BLEND)  # the fragment stage composites (framebuffer fetch) or stores
+        if settings.transmittance_cutoff or plan.path is not None:
+            ctx.disable(moderngl.BLEND)
         else:
             ctx.enable(moderngl.BLEND)
             ctx.blend_func = moderngl.ONE, moderngl.ONE_MINUS_SRC_ALPHA
@@ -212,6 +213,50 @@ class GLRenderer:
         self.counters.uploads += uploaded
         self.counters.upload_skipped += not uploaded
 
+    def draw_planned(self, target: FloatTarget, camera: Camera, plan: RenderPlan, order: Order,
+                     frame: Camera | None = None, color_origin: np.ndarray | None = None) -> OrderStats | None:
+        """Draws ``order`` by ``plan`` into ``target`` (camera-sized, with the plan's
+        attachments): the preprocessing pass, then the blended draw or the per-pixel
+        passes, into a k x k sample target first where supersampling, front-to-back
+        compositing or a target the per-pixel passes cannot write call for one, then
+        resolved down. Returns what the per-pixel order's passes did (None otherwise)."""
+        if plan.problem:
+            raise UserError(plan.problem)
+        settings, k = plan.settings, plan.settings.supersample
+        sampled = camera.resized(camera.width * k, camera.height * k) if k > 1 else camera
+        drawn = target
+        if k > 1 or plan.front_to_back or (plan.path is not None and target.dtype != "f4"):
+            drawn = self._sample_target(sampled, target.attachments)
+        self.preprocess(sampled, plan, frame or camera, color_origin, order.spans)  # the bounds are scale-invariant
+        stats = None
+        if plan.path is not None:  # its passes write every pixel, over the background
+            stats = self.per_pixel.render(self, drawn, sampled, plan, order)
+        else:
+            if plan.geometry:  # colour from (background, 0), as the colour draw does; the sums from 0
+                drawn.clear_each((*settings.background, 0.0), (0.0,) * 4, (0.0,) * 4)
+                drawn.use()
+            else:
+                drawn.use()
+                drawn.fbo.clear(*((0.0,) * 3 if plan.front_to_back else settings.background), 0.0)
+            self.draw(sampled, plan, order)
+        if drawn is not target:
+            self.resolve_samples(drawn, target, plan)
+        return stats if settings.per_pixel else None
+
+    def resolve_samples(self, samples: FloatTarget, target: FloatTarget, plan: RenderPlan) -> None:
+        """Averages ``samples``' k x k blocks into ``target`` (resolve.frag), every
+        attachment the plan has; after front-to-back compositing, adds the background."""
+        program, vao = self.programs.fullscreen("resolve.frag", plan.resolve_defines())
+        target.use()
+        self.ctx.disable(moderngl.BLEND)
+        for unit, name in enumerate(("u_samples", "u_depth", "u_normal")[:samples.attachments]):
+            samples.textures[unit].use(unit)
+            set_uniform(program, name, unit)
+        program["u_factor"].value = plan.settings.supersample
+        set_uniform(program, "u_background", plan.settings.background)
+        vao.render(moderngl.TRIANGLES, vertices=3)
+
+    # -- whole renders ------------------------------------------------------------------
     def render(self, camera: Camera, settings: RenderSettings, order: Order | np.ndarray,
                frame: Camera | None = None, color_origin: np.ndarray | None = None) -> np.ndarray:
         """(H, W, 4) float32 image, top row first: RGB over the background, and alpha.
@@ -226,7 +271,9 @@ class GLRenderer:
         """Colour, alpha and the geometry outputs of ``camera``'s image (camera-space
         normals; render/gl/geometry.py). Arguments as :meth:`render`; ``median`` False
         leaves the median depth out (None): a global order then draws once, blending."""
-        return self.geometry.render(self, camera, settings, as_order(order), frame, color_origin, median)
+        image = self.geometry.image(camera)
+        self.draw_planned(image, camera, self.plan(settings, True, median), as_order(order), frame, color_origin)
+        return self.geometry.read(image, median)
 
     def render_into(self, target: FloatTarget, camera: Camera, settings: RenderSettings,
                     order: Order | np.ndarray, frame: Camera | None = None,
@@ -234,93 +281,39 @@ class GLRenderer:
         """Clears ``target`` (camera-sized, float colour) and draws the scene into it:
         background-composited colour in RGB and the accumulated alpha in A; or, with a
         ``view`` of another channel than rgb, that channel's picture (alpha 1; the depth
-        range it used is in the result).
-
-        Plain back-to-front rendering draws straight into ``target``, cleared to
-        (background, 0). Supersampling (k x k) draws into a k-times larger sample target
-        with the camera scaled to match, and the transmittance cut-off composites front
-        to back into a target cleared to 0; a resolve pass then averages the samples and
-        adds the background."""
-        k = settings.supersample
+        range it used is in the result)."""
         order = as_order(order)
-        if view is not None and view.channel != "rgb":
-            return self.geometry.render_view(self, target, camera, settings, order, view, frame, color_origin)
-        if settings.per_pixel:
-            return RenderResult(self._render_per_pixel(target, camera, settings, order, frame, color_origin))
-        if k == 1 and not settings.transmittance_cutoff:
-            target.use()
-            target.fbo.clear(*settings.background, 0.0)
-            self.preprocess(camera, settings, frame, color_origin, spans=order.spans)
-            self.draw(camera, settings, order)
-            return RenderResult()
-        sampled = camera.resized(camera.width * k, camera.height * k) if k > 1 else camera
-        self._samples = samples = sized(self._samples, self.ctx, sampled.width, sampled.height)
-        samples.use()
-        if settings.transmittance_cutoff:
-            samples.fbo.clear(0.0, 0.0, 0.0, 0.0)
-        else:
-            samples.fbo.clear(*settings.background, 0.0)
-        self.preprocess(sampled, settings, frame or camera, color_origin, spans=order.spans)  # the bounds are scale-invariant
-        self.draw(sampled, settings, order)
-        self.resolve_samples(samples, target, k, settings, settings.transmittance_cutoff)
-        return RenderResult()
+        if view is None or view.channel == "rgb":
+            return RenderResult(self.draw_planned(target, camera, self.plan(settings), order, frame, color_origin))
+        image = self.geometry.image(camera)
+        plan = self.plan(settings, True, view.channel == "median_depth")
+        stats = self.draw_planned(image, camera, plan, order, frame, color_origin)
+        return RenderResult(stats, self.geometry.picture(self.programs, target, image, camera, view))
 
-    def _render_per_pixel(self, target: FloatTarget, camera: Camera, settings: RenderSettings,
-                          order: Order, frame: Camera | None, color_origin: np.ndarray | None) -> OrderStats:
-        """render_into for the per-pixel order: its passes write the finished image (over
-        the background) into ``target``, or into the sample target that supersampling
-        then averages down. Returns what the passes did."""
-        k = settings.supersample
-        problem = self.supports(settings)
-        if problem:
-            raise UserError(problem)
-        sampled = camera.resized(camera.width * k, camera.height * k) if k > 1 else camera
-        image = target
-        if k > 1 or target.dtype != "f4":
-            self._samples = image = sized(self._samples, self.ctx, sampled.width, sampled.height)
-        self.preprocess(sampled, settings, frame or camera, color_origin, spans=order.spans)
-        stats = self.per_pixel.render(self, image, sampled, settings, order)
-        if image is not target:
-            self.resolve_samples(image, target, k, settings, False)
-        return stats
-
-    def resolve_samples(self, samples: FloatTarget, target: FloatTarget, k: int,
-                        settings: RenderSettings, front_to_back: bool, geometry: bool = False) -> None:
-        """Averages ``samples``' k x k blocks into ``target`` (resolve.frag); after
-        front-to-back compositing, adds the background. ``geometry``: both have the
-        geometry attachments, averaged too."""
-        program, vao = self.variants.resolve(front_to_back, geometry)
-        target.use()
-        self.ctx.disable(moderngl.BLEND)
-        samples.texture.use(0)
-        program["u_samples"].value = 0
-        if geometry:
-            for unit, name in ((1, "u_depth"), (2, "u_normal")):
-                samples.textures[unit].use(unit)
-                program[name].value = unit
-        program["u_factor"].value = k
-        set_uniform(program, "u_background", settings.background)
-        vao.render(moderngl.TRIANGLES, vertices=3)
+    def _sample_target(self, camera: Camera, attachments: int) -> FloatTarget:
+        self._samples[attachments] = sized(self._samples.get(attachments), self.ctx, camera.width, camera.height,
+                                           attachments=attachments)
+        return self._samples[attachments]
 
     def release(self) -> None:
-        release_all(self._target, self._samples)
-        self._target = self._samples = None
+        release_all(self._target, *self._samples.values())
+        self._target, self._samples = None, {}
         self.geometry.release()
         self.per_pixel.release()
-        self.variants.release()
+        self.programs.release()
         self.storage.release()
 
 
-def set_view_uniforms(program, camera: Camera, settings: RenderSettings, frame: Camera | None,
-                      origin: np.ndarray) -> None:
-    """The preprocessing pass's uniforms of the view (see ``GLRenderer.preprocess``)."""
-    program["u_world_to_camera"].write(camera.R.astype(np.float32).tobytes(order="F"))
-    program["u_translation"].value = tuple(np.asarray(camera.t, np.float64).astype(np.float32))
-    set_uniform(program, "u_color_origin", tuple(origin.astype(np.float32)))  # gone at SH degree 0
-    program["u_log_p_min"].value = math.log(settings.p_min)
-    set_uniform(program, "u_pixel_variance", settings.pixel_variance(camera))
-    set_uniform(program, "u_intrinsics", (camera.fx, camera.fy, camera.cx, camera.cy))
-    set_uniform(program, "u_ray_bounds", gs_ray_bounds(frame or camera))
+def view_uniforms(camera: Camera, settings: RenderSettings, frame: Camera | None, origin: np.ndarray) -> dict:
+    """The preprocessing pass's uniforms of the view (see ``GLRenderer.preprocess``), by
+    name: everything it reads of the camera and the settings."""
+    return {"u_world_to_camera": camera.R.astype(np.float32).tobytes(order="F"),
+            "u_translation": tuple(np.asarray(camera.t, np.float64).astype(np.float32).tolist()),
+            "u_color_origin": tuple(origin.astype(np.float32).tolist()),  # gone at SH degree 0
+            "u_log_p_min": math.log(settings.p_min),
+            "u_pixel_variance": settings.pixel_variance(camera),
+            "u_intrinsics": (camera.fx, camera.fy, camera.cx, camera.cy),
+            "u_ray_bounds": gs_ray_bounds(frame or camera)}
 
 
 def chunk_runs(start: int, count: int, spans: np.ndarray | None) -> list[tuple[int, int]]:

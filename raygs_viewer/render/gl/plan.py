@@ -1,0 +1,166 @@
+"""The plan of one render: which variant each pass runs, decided once from the render
+settings and what is asked for (colour, or the geometry outputs with or without the
+median), before any pass runs.
+
+A :class:`RenderPlan` carries everything a pass needs to know about its variant: the
+mode, exact MIP, whether the records and targets carry the geometry outputs, the
+per-pixel path (none: blending; "lists"; "fetch"), front to back, the storage layout of
+the records, and, where this GPU cannot draw it, the one-line reason. Every pass takes
+the plan, so none works its variant out again.
+
+The accuracy options and the scene's SH degree become ``#define`` literals, so a frame
+pays only for what is on; the all-features build (``general``) switches the same
+features by uniforms instead. :data:`FEATURES` is the one table of those switches: it
+gives both the literals and the uniforms.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable, NamedTuple, Protocol
+
+from raygs_viewer.camera.pinhole import Camera
+from raygs_viewer.render.gl.shaders import Programs
+from raygs_viewer.render.gl.storage import StorageLayout
+from raygs_viewer.render.settings import (
+    ALPHA_CLAMP,
+    GS_DILATION,
+    GS_NEAR,
+    MAX_ORDER_K,
+    TRANSMITTANCE_CUTOFF,
+    RenderSettings,
+)
+from raygs_viewer.sort.request import Order
+
+#: The draw's PER_PIXEL define for each per-pixel path (render/gl/per_pixel.py): none,
+#: fragment lists (glsl/fragment_lists.glsl), a k-buffer (glsl/kbuffer.glsl).
+PER_PIXEL_PATHS = {None: 0, "lists": 1, "fetch": 2}
+
+
+class Feature(NamedTuple):
+    """One switch of glsl/features.glsl: its literal's name, its uniform's name, and its
+    value for some settings and the scene's stored SH degree."""
+
+    define: str
+    uniform: str
+    value: Callable[[RenderSettings, int], object]
+
+
+FEATURES = (
+    Feature("SH_DEGREE", "u_sh_degree", lambda s, degree: s.effective_sh_degree(degree)),
+    Feature("MIP", "u_mip", lambda s, _: bool(s.mode == "raygs" and s.mip)),
+    Feature("MIP_MODULATION", "u_mip_modulation", lambda s, _: bool(s.mip_modulation)),
+    Feature("GS_COMPENSATION", "u_gs_compensation", lambda s, _: bool(s.mode == "gs" and s.gs_compensation)),
+    Feature("ALPHA_CLAMP", "u_alpha_clamp", lambda s, _: bool(s.alpha_clamp)),
+)
+
+
+def glsl_literal(value: object) -> object:
+    """A define's value as GLSL reads it: booleans as ``true``/``false``, floats exactly."""
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, float):
+        return repr(value)
+    return value
+
+
+@dataclass(frozen=True)
+class RenderPlan:
+    """One render's variant (see the module docstring).
+
+    settings:  the render settings.
+    layout:    the storage layout of the records (exact MIP's are larger, and the
+               geometry outputs' hold the normal too).
+    geometry:  the records and targets carry the geometry outputs.
+    path:      the per-pixel passes that composite (None: blending, or with the cut-off
+               the fragment stage composites front to back; "lists"; "fetch").
+    sh_degree: the scene's stored SH degree.
+    general:   the all-features build (uniforms instead of literals).
+    problem:   why this GPU cannot draw the plan (one line), None when it can.
+    """
+
+    settings: RenderSettings
+    layout: StorageLayout
+    geometry: bool = False
+    path: str | None = None
+    sh_degree: int = 0
+    general: bool = False
+    problem: str | None = None
+
+    @property
+    def mode_gs(self) -> bool:
+        return self.settings.mode == "gs"
+
+    @property
+    def exact_mip(self) -> bool:
+        return self.settings.mode == "raygs-exact-mip"
+
+    @property
+    def front_to_back(self) -> bool:
+        """The fragment stage composites front to back (the cut-off without a per-pixel path)."""
+        return bool(self.settings.transmittance_cutoff) and self.path is None
+
+    @property
+    def window(self) -> int:
+        """The k-buffer's K (0 elsewhere)."""
+        return self.settings.order_k if self.path == "fetch" else 0
+
+    @property
+    def colors_at_load(self) -> bool:
+        """Whether the preprocessing pass reads the colours computed at load instead of
+        evaluating SH (a specialised variant at SH degree 0)."""
+        return not self.general and self.settings.effective_sh_degree(self.sh_degree) == 0
+
+    def feature_defines(self) -> dict[str, object]:
+        """features.glsl's switches: literals, or GENERAL (then :meth:`feature_uniforms`)."""
+        if self.general:
+            return {"GENERAL": 1}
+        return {"GENERAL": 0, **{f.define: glsl_literal(f.value(self.settings, self.sh_degree)) for f in FEATURES}}
+
+    def feature_uniforms(self) -> dict[str, object]:
+        """The all-features build's uniforms; none for a specialised variant."""
+        if not self.general:
+            return {}
+        return {f.uniform: f.value(self.settings, self.sh_degree) for f in FEATURES}
+
+    def preprocess_defines(self) -> dict[str, object]:
+        """preprocess.comp's."""
+        defines = {"SH_STORED_DEGREE": self.sh_degree, "MODE_GS": int(self.mode_gs), "GEOMETRY": int(self.geometry),
+                   "GS_DILATION": glsl_literal(GS_DILATION), "GS_NEAR": glsl_literal(GS_NEAR),
+                   "EXACT_MIP": int(self.exact_mip), **self.feature_defines()}
+        if not self.general:
+            defines["COLOR_AT_LOAD"] = glsl_literal(self.colors_at_load)
+        return defines
+
+    def pass_defines(self) -> dict[str, object]:
+        """What the per-pixel passes share with the draw: the splat blocks, the record's
+        layout, the cut-off, the path (PER_PIXEL) and the k-buffer's window."""
+        return {"SPLAT_BLOCKS": self.layout.splat_blocks, "SPLATS_PER_BLOCK": self.layout.splats_per_block,
+                "EXACT_MIP": int(self.exact_mip), "GEOMETRY": int(self.geometry), "MODE_GS": int(self.mode_gs),
+                "MIN_TRANSMITTANCE": glsl_literal(TRANSMITTANCE_CUTOFF), "PER_PIXEL": PER_PIXEL_PATHS[self.path],
+                "CUTOFF": glsl_literal(bool(self.settings.transmittance_cutoff)),
+                "FRONT_TO_BACK": int(self.front_to_back), "MAX_ORDER_K": MAX_ORDER_K, "ORDER_K": max(1, self.window)}
+
+    def draw_stages(self, floor: bool = False) -> tuple[str, str, dict[str, object]]:
+        """(vertex shader, fragment shader, defines) of the quads; ``floor``: glsl/quads.*,
+        the same quads with a constant fragment (bench perf)."""
+        if floor and self.mode_gs:
+            raise ValueError("the floor pass draws RayGS quads; EWA's records are not quads in space")
+        stage = "quads" if floor else "gs" if self.mode_gs else "raygs"
+        defines = {"ALPHA_MAX": glsl_literal(ALPHA_CLAMP), **self.pass_defines(), **self.feature_defines()}
+        return f"{stage}.vert", f"{stage}.frag", defines
+
+    def resolve_defines(self) -> dict[str, object]:
+        """resolve.frag's: averaging a sample target down, adding the background after
+        front-to-back compositing, the geometry attachments too."""
+        return {"FRONT_TO_BACK": int(self.front_to_back), "GEOMETRY": int(self.geometry)}
+
+
+class Passes(Protocol):
+    """What the per-pixel passes need of a renderer: the programs, and the quads' draw of
+    a plan with a pass's own uniforms (``GLRenderer.draw``)."""
+
+    programs: Programs
+
+    def draw(self, camera: Camera, plan: RenderPlan, order: Order, *, floor: bool = False,
+             uniforms: dict | None = None) -> None: ...
