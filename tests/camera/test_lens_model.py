@@ -1,5 +1,5 @@
 """The stereo preview's lens model (camera/lens_model): its bounds. The warp itself,
-float64 reference and GL pass side by side, is tested in tests/render/test_stereo_passes.py."""
+float64 reference and GL pass side by side, is tested in tests/render/test_stereo_frame_passes.py."""
 
 import pytest
 

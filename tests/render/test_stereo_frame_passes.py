@@ -1,4 +1,4 @@
-"""The stereo preview's post passes on the GPU (render/gl/stereo_passes): the lens warp,
+"""The stereo preview's post passes on the GPU (render/gl/stereo_frame): the lens warp,
 checked together with its float64 reference, and the layout pass."""
 
 import math
@@ -15,7 +15,7 @@ from raygs_viewer.camera.lens_model import (
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.camera.stereo import LAYOUTS, compose, composed_size
 from raygs_viewer.errors import UserError
-from raygs_viewer.render.gl.stereo_passes import StereoPasses
+from raygs_viewer.render.gl.stereo_frame import StereoPasses
 
 IDENTITY = LensModel(k1=0.0, k2=0.0, chroma_red=1.0, chroma_blue=1.0)
 STRONG = LensModel(k1=0.5, k2=0.0, chroma_red=0.98, chroma_blue=1.03)
