@@ -30,9 +30,12 @@ def gl_ctx(gl_session_ctx):
 
 @pytest.fixture(scope="session")
 def gl_render(gl_session_ctx):
-    """render(scene, camera, settings=..., **renderer_options) -> float32 (H, W, 4)."""
+    """render(scene, camera, settings=..., order=None, **renderer_options) -> float32
+    (H, W, 4); ``order`` None: the exact order for ``settings``, sorted now."""
     from raygs_viewer.render.gl.renderer import GLRenderer
     from raygs_viewer.render.settings import RenderSettings
+    from raygs_viewer.render.sorting import exact_order
+    from raygs_viewer.sort.depth import DepthSorter
 
     def render(scene, camera, settings=RenderSettings(), order=None, depth_clamp=True, **options):
         # Current again: a test before may have made another context current (the CLI's,
@@ -42,6 +45,9 @@ def gl_render(gl_session_ctx):
         renderer = GLRenderer(gl_session_ctx, scene, **options)
         renderer.depth_clamp = depth_clamp
         try:
+            if order is None:
+                with DepthSorter(scene) as sorter:
+                    order = exact_order(sorter, camera, settings)
             return renderer.render(camera, settings, order)
         finally:
             renderer.release()

@@ -14,8 +14,12 @@ from raygs_viewer.capture.sidecar import build_sidecar, demo_sha256
 from raygs_viewer.cli.main import main
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.scene.demo import demo_scene
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
+from raygs_viewer.sort.depth import DepthSorter
+from raygs_viewer.sort.lod_choice import LodChoice
+from raygs_viewer.sort.request import SortRequest
 
 SHARED_SCENES = Path(__file__).resolve().parents[2] / "shared" / "scenes"
 
@@ -82,6 +86,57 @@ def random_scene(n=300, seed=0, degree=3, spread=1.0, log_scale=(-4.0, -1.5), an
         rng.uniform(0.05, 1.0, n).astype(np.float32),
         sh, degree,
     )
+
+
+# ------------------------------------------------ sorting for a render, as the tools do
+
+
+def sorted_render(renderer, camera, settings=RenderSettings(), *, levels=None, cull_cameras=None, **options):
+    """``renderer.render`` of ``camera``'s exact order for ``settings``, sorted now by a
+    DepthSorter of the renderer's scene (what ``render``, screenshots and render-path
+    draw). ``levels``, ``cull_cameras``: see ``render.sorting.exact_order``; ``options``:
+    ``render``'s (frame, color_origin)."""
+    with DepthSorter(renderer.scene) as sorter:
+        order = exact_order(sorter, camera, settings, cull_cameras=cull_cameras, levels=levels)
+    return renderer.render(camera, settings, order, **options)
+
+
+def sorted_channels(renderer, camera, settings=RenderSettings(), *, levels=None, **options):
+    """``renderer.render_channels`` of the exact order, as :func:`sorted_render`."""
+    with DepthSorter(renderer.scene) as sorter:
+        order = exact_order(sorter, camera, settings, levels=levels)
+    return renderer.render_channels(camera, settings, order, **options)
+
+
+def rendered(renderer, camera, settings=RenderSettings(), order=None, *, levels=None, **options):
+    """(image, RenderResult): ``renderer.render_into`` a float target of ``camera``'s size,
+    read back as ``render`` reads it; ``order`` None: the exact order, sorted now (see
+    :func:`sorted_render`); ``options``: ``render_into``'s (frame, color_origin, view)."""
+    from raygs_viewer.render.gl.targets import FloatTarget  # late: only the GL tests need it
+
+    if order is None:
+        with DepthSorter(renderer.scene) as sorter:
+            order = exact_order(sorter, camera, settings, levels=levels)
+    target = FloatTarget(renderer.ctx, camera.width, camera.height)
+    try:
+        result = renderer.render_into(target, camera, settings, order, **options)
+        return target.read(), result
+    finally:
+        target.release()
+
+
+def sort_indices(sorter, camera, p_min=1 / 255, method="auto", *, key="depth", **request):
+    """(M,) uint32: ``sorter``'s order by ``key`` for ``SortRequest(camera, p_min, ...)``
+    (``request``: its dilation, cull_cameras, levels)."""
+    return sorter.sort(SortRequest(camera, p_min, keys=(key,), method=method, **request)).order.indices
+
+
+def spans_choice(spans, leaves=0):
+    """A level-of-detail choice of exactly ``spans`` ((S, 2) ascending [start, stop)
+    rows), for orders and sorts limited to given rows without a LodScene."""
+    spans = np.asarray(spans, np.int64).reshape(-1, 2)
+    levels = np.zeros(leaves, np.int64)
+    return LodChoice(levels, levels.copy(), spans, int((spans[:, 1] - spans[:, 0]).sum()))
 
 
 def compare(image, reference):

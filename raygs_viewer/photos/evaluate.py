@@ -25,8 +25,6 @@ from raygs_viewer.sort.depth import DepthSorter
 
 #: The metrics every view has, in the order reports list them; LPIPS is optional.
 METRICS = ("psnr", "ssim", "flip", "lpips")
-#: Whether a higher value is better, per metric (the worst views sort by PSNR).
-HIGHER_IS_BETTER = {"psnr": True, "ssim": True, "flip": False, "lpips": False}
 
 #: progress(done, total, name): after each view, scored or skipped.
 Progress = Callable[[int, int, str], None]

@@ -21,7 +21,6 @@ PINHOLE_MODELS = ("OPENCV", "PINHOLE", "SIMPLE_PINHOLE")
 DISTORTION = ("k1", "k2", "k3", "k4", "p1", "p2")
 #: As for cameras.json: the files are written with a few digits, re-orthonormalised on reading.
 ROTATION_TOLERANCE = 1e-3
-INTRINSICS = ("fl_x", "fl_y", "cx", "cy", "w", "h")
 
 
 def read_transforms(path: Path, photo_size) -> list[tuple[str, Camera]]:

@@ -115,7 +115,10 @@ class Order:
     choice: LodChoice | None = None
 
     def __post_init__(self) -> None:
-        object.__setattr__(self, "indices", np.asarray(self.indices, np.uint32).reshape(-1))
+        indices = np.asarray(self.indices, np.uint32)
+        if indices.ndim != 1:  # a (M,) array stays the very array: the renderer skips re-uploading it
+            indices = indices.reshape(-1)
+        object.__setattr__(self, "indices", indices)
 
     @property
     def count(self) -> int:

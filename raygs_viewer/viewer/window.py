@@ -10,7 +10,6 @@ from __future__ import annotations
 import ctypes
 import os
 import sys
-from collections import deque
 
 from imgui_bundle import imgui  # before glfw, see above
 
@@ -58,22 +57,6 @@ class _GlfwLoader:
         pass
 
 
-def _context_from_current(window) -> moderngl.Context:
-    # moderngl.create_context(detect) only knows GLX on Linux; build the context from
-    # the loader instead, like moderngl.init_context but without making it the default.
-    ctx = moderngl.Context.__new__(moderngl.Context)
-    ctx.mglo, ctx.version_code = moderngl.mgl.create_context(context=_GlfwLoader(window))
-    ctx._info = None
-    ctx._extensions = None
-    ctx.extra = None
-    ctx._gc_mode = None
-    ctx._objects = deque()
-    ctx._screen = ctx.detect_framebuffer(0)
-    ctx.fbo = ctx.detect_framebuffer()
-    ctx.mglo.fbo = ctx.fbo.mglo
-    return ctx
-
-
 class Window:
     """One window with a moderngl context and an imgui context, both current.
 
@@ -95,7 +78,9 @@ class Window:
             raise
         glfw.make_context_current(self.handle)
         self.vsync = vsync
-        self.ctx = _context_from_current(self.handle)
+        # moderngl's own detection knows only GLX on Linux: the loader gives it the
+        # window's context whatever API GLFW created it with.
+        self.ctx = moderngl.create_context(context=_GlfwLoader(self.handle))
         if self.ctx.version_code < 430:
             self.close()
             raise UserError(f"OpenGL 4.3 is needed; this driver gives {self.ctx.version_code // 100}."

@@ -32,7 +32,9 @@ from raygs_viewer.capture.progress import FrameProgress, Progress, RenderDone, R
 from raygs_viewer.capture.screenshot import render_tiled
 from raygs_viewer.capture.video import open_sink
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.scene.demo import demo_cameras
+from raygs_viewer.sort.depth import DepthSorter
 
 WIDTH, HEIGHT = 64, 48
 FRAMES = 5
@@ -73,13 +75,20 @@ class Interrupting:
         return self.renderer.render(*args, **kwargs)
 
 
-def render_path(renderer, out, cameras, progress=None, stereo=None, overwrite=False):
+def tiled(renderer, camera, settings=SETTINGS, levels=None):
+    """render_tiled of ``camera``'s exact order (what a screenshot of it saves)."""
+    with DepthSorter(renderer.scene) as sorter:
+        order = exact_order(sorter, camera, settings, levels=levels)
+        return render_tiled(renderer, sorter, order, camera, settings)
+
+
+def render_path(renderer, out, cameras, progress=None, stereo=None, overwrite=False, lod=None):
     """What render-path does with a sink: render, finish; on Ctrl-C abort and report."""
     width, height = frame_size(cameras[0].width, cameras[0].height, stereo)
     sink = open_sink(out, width, height, 30, overwrite=overwrite, frames=len(cameras))
-    with renderer.ctx:
+    with renderer.ctx, DepthSorter(renderer.scene) as sorter:
         try:
-            render_frames(renderer, cameras, SETTINGS, stereo, sink, progress)
+            render_frames(renderer, sorter, cameras, SETTINGS, stereo, sink, progress, lod=lod)
         except KeyboardInterrupt:
             kept = sink.abort()
             if progress is not None:
@@ -154,8 +163,9 @@ def test_each_frame_has_its_own_exact_sort(tmp_path, demo_renderer):
     matters on this flight, so the frames above prove it is redone each frame."""
     cameras = frame_cameras(demo_path(), WIDTH, HEIGHT)
     with demo_renderer.ctx:
-        exact = [to_rgb8(render_tiled(demo_renderer, c, SETTINGS)) for c in cameras]
-        stale_order = demo_renderer.sort(cameras[0], SETTINGS)
+        exact = [to_rgb8(tiled(demo_renderer, c)) for c in cameras]
+        with DepthSorter(demo_renderer.scene) as sorter:
+            stale_order = exact_order(sorter, cameras[0], SETTINGS)
         stale = [to_rgb8(demo_renderer.render(c, SETTINGS, stale_order)) for c in cameras]
     render_path(demo_renderer, tmp_path / "frames", cameras)
     written = [read_png(p) for p in sorted((tmp_path / "frames").iterdir())]
@@ -210,7 +220,7 @@ def test_an_interrupt_leaves_a_playable_truncated_mp4_or_nothing(tmp_path, demo_
     decoded = decoded_frames(kept)
     assert len(decoded) == at
     with demo_renderer.ctx:
-        expected = [to_rgb8(render_tiled(demo_renderer, c, SETTINGS)) for c in cameras[:at]]
+        expected = [to_rgb8(tiled(demo_renderer, c)) for c in cameras[:at]]
     for got, want in zip(decoded, expected):
         error = np.mean((got.astype(float) - want) ** 2)
         assert 10 * np.log10(255 ** 2 / error) > 23.0  # the bound of test_video.py
@@ -223,7 +233,7 @@ def test_an_interrupt_keeps_the_png_frames_written(tmp_path, demo_renderer):
     assert sorted(p.name for p in kept.iterdir()) == ["frame_00000.png", "frame_00001.png"]
     with demo_renderer.ctx:
         np.testing.assert_array_equal(read_png(kept / "frame_00001.png"),
-                                      to_rgb8(render_tiled(demo_renderer, cameras[1], SETTINGS)))
+                                      to_rgb8(tiled(demo_renderer, cameras[1])))
 
 
 def test_a_finished_render_reports_json_progress(tmp_path, demo_renderer):
@@ -266,3 +276,42 @@ def test_nothing_is_rendered_when_the_output_is_refused(tmp_path, demo_renderer)
     for out in (tmp_path / "fly.gif", tmp_path / "missing" / "fly.mp4"):
         assert_user_error(lambda: render_path(calls, out, cameras), out)
     assert calls.calls == 0 and list(tmp_path.iterdir()) == []
+
+
+# --------------------------------------------------------------------------- level of detail
+
+
+def test_each_frame_of_a_streamed_scene_draws_the_levels_chosen_for_its_camera(tmp_path, gl_ctx):
+    """A flight towards a streamed SOG: every frame is the screenshot of its camera with
+    the levels chosen for that camera, bit for bit; the first frame's choice kept for
+    the whole flight, or no choice at all, would give other frames."""
+    from lod_kit import random_gaussians, write_streamed_sog
+
+    from raygs_viewer.camera.pinhole import look_at
+    from raygs_viewer.render.gl.renderer import GLRenderer
+    from raygs_viewer.scene.lod_file import load_lod
+    from raygs_viewer.sort.lod_choice import LodRequest
+
+    leaves = [[random_gaussians(24 >> level, centre=(1.2 * (k % 3) - 1.2, 0.8 * (k // 3) - 0.4, 2.0),
+                                spread=0.3, scale=0.05 * 1.6 ** level, seed=7 * k + level) for level in range(3)]
+              for k in range(6)]
+    lod = load_lod(write_streamed_sog(tmp_path / "lod", leaves))
+    request = LodRequest(lod, distance=1.5)
+    cameras = [look_at([0.2, 0.1, 2.0 - distance], [0.0, 0.0, 2.0], width=WIDTH, height=HEIGHT)
+               for distance in (9.0, 5.0, 3.0, 1.8)]
+    choices = [request.choose(camera) for camera in cameras]
+    assert len({choice.spans.tobytes() for choice in choices}) >= 3  # the flight takes every level
+    renderer = GLRenderer(gl_ctx, lod.scene)
+    try:
+        render_path(renderer, tmp_path / "frames", cameras, lod=request)
+        written = [read_png(p) for p in sorted((tmp_path / "frames").iterdir())]
+        assert len(written) == len(cameras)
+        with gl_ctx:
+            for k, camera in enumerate(cameras):
+                np.testing.assert_array_equal(written[k], to_rgb8(tiled(renderer, camera, levels=choices[k])))
+            first_choice = [to_rgb8(tiled(renderer, camera, levels=choices[0])) for camera in cameras]
+            whole = [to_rgb8(tiled(renderer, camera)) for camera in cameras]
+    finally:
+        renderer.release()
+    assert sum(not np.array_equal(w, f) for w, f in zip(written[1:], first_choice[1:])) >= 2
+    assert all(not np.array_equal(w, a) for w, a in zip(written, whole))

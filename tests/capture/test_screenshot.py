@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PIL import Image
-from testkit import assert_differs, assert_matches, assert_user_error
+from testkit import assert_differs, assert_matches, assert_user_error, sort_indices, sorted_channels, sorted_render
 
 import raygs_viewer.capture.screenshot as screenshot
 from raygs_viewer.camera.pinhole import Camera, look_at
@@ -31,6 +31,8 @@ from raygs_viewer.capture.screenshot import (
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.channels import CHANNELS
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
+from raygs_viewer.sort.depth import DepthSorter
 
 NOW = datetime(2025, 3, 4, 5, 6, 7)
 STEM = "raygs-20250304-050607"
@@ -113,6 +115,20 @@ def test_scaled_camera_limits_the_size():
 # --------------------------------------------------------------------------- tiled rendering
 
 
+def tiled_render(renderer, camera, settings=RenderSettings(), **options):
+    """render_tiled of ``camera``'s exact order, with a DepthSorter of the renderer's
+    scene (what screenshots and ``render`` do); ``options``: its ``tile``."""
+    with DepthSorter(renderer.scene) as sorter:
+        return render_tiled(renderer, sorter, exact_order(sorter, camera, settings), camera, settings, **options)
+
+
+def tiled_channels(renderer, camera, settings=RenderSettings(), **options):
+    """render_tiled_channels as :func:`tiled_render`."""
+    with DepthSorter(renderer.scene) as sorter:
+        return render_tiled_channels(renderer, sorter, exact_order(sorter, camera, settings), camera, settings,
+                                     **options)
+
+
 def _count_render_sizes(renderer, monkeypatch) -> list[tuple[int, int]]:
     """The list the (width, height) of every ``renderer.render`` call is appended to."""
     sizes = []
@@ -132,10 +148,10 @@ def _count_render_sizes(renderer, monkeypatch) -> list[tuple[int, int]]:
                          ids=["default", "custom"])
 def test_render_tiled_equals_one_whole_render(renderer, tile, settings, monkeypatch):
     camera = off_centre_camera()
-    whole = renderer.render(camera, settings)
+    whole = sorted_render(renderer, camera, settings)
 
     sizes = _count_render_sizes(renderer, monkeypatch)
-    tiled = render_tiled(renderer, camera, settings, tile=tile)
+    tiled = tiled_render(renderer, camera, settings, tile=tile)
     monkeypatch.undo()
     assert len(sizes) == -(-64 // tile) * -(-48 // tile) and set(sizes) == {(tile, tile)}  # really tiled
     assert tiled.dtype == np.float32 and tiled.shape == (48, 64, 4)
@@ -156,10 +172,10 @@ def test_supersampled_tiles_keep_the_gpu_target_within_the_tile(renderer, settin
     """k x k supersampling renders tiles of tile // k pixels (k times that on the GPU),
     and the tiles still make up the whole supersampled render."""
     camera = off_centre_camera()
-    whole = renderer.render(camera, settings)
-    assert_differs(whole, renderer.render(camera, replace(settings, supersample=1)))  # supersampling shows
+    whole = sorted_render(renderer, camera, settings)
+    assert_differs(whole, sorted_render(renderer, camera, replace(settings, supersample=1)))  # supersampling shows
     sizes = _count_render_sizes(renderer, monkeypatch)
-    tiled = render_tiled(renderer, camera, settings, tile=48)
+    tiled = tiled_render(renderer, camera, settings, tile=48)
     monkeypatch.undo()
     side = 48 // settings.supersample
     assert set(sizes) == {(side, side)} and len(sizes) == -(-64 // side) * -(-48 // side)
@@ -171,7 +187,7 @@ def test_gs_tiles_equal_one_whole_render(renderer, supersample):
     """GS clamps its rays to the whole image's borders, not each tile's."""
     camera = off_centre_camera()
     settings = RenderSettings(mode="gs", supersample=supersample)
-    assert_matches(render_tiled(renderer, camera, settings, tile=16), renderer.render(camera, settings),
+    assert_matches(tiled_render(renderer, camera, settings, tile=16), sorted_render(renderer, camera, settings),
                    max_error=2 * settings.p_min, pixel_fraction=0.002, p999=1e-4)
 
 
@@ -179,7 +195,7 @@ def test_render_tiled_negative_control_wrong_offset(renderer):
     """Tiles whose principal point is not shifted by the tile offset (each tile would
     show the image's top-left corner) are caught by the comparison above."""
     camera = off_centre_camera()
-    whole = renderer.render(camera)
+    whole = sorted_render(renderer, camera)
     wrong = np.empty_like(whole)
     for y0 in range(0, 48, 16):
         for x0 in range(0, 64, 16):
@@ -187,7 +203,7 @@ def test_render_tiled_negative_control_wrong_offset(renderer):
             shifted = screenshot.tile_camera(camera, x0 + 1, y0, 16, 16)  # off by one in x
             np.testing.assert_array_equal(part.R, camera.R)
             assert (part.cx, part.cy) == (camera.cx - x0, camera.cy - y0)
-            wrong[y0:y0 + 16, x0:x0 + 16] = renderer.render(shifted)
+            wrong[y0:y0 + 16, x0:x0 + 16] = sorted_render(renderer, shifted)
     assert_differs(wrong, whole)
 
 
@@ -206,13 +222,13 @@ def test_render_tiled_keeps_the_whole_images_blending_order(gl_render, gl_ctx):
                        colors=[[1, 0, 0], [0, 1, 0], [0, 0, 1], [1, 1, 1]])
     camera = Camera(64, 48, 64.0, 64.0, 32.0, 24.0, np.eye(3), np.zeros(3))
     sorter = DepthSorter(scene)
-    assert sorter.order(camera, 1 / 255).tolist() == [2, 0, 1, 3]  # premise: a tie, scene order
-    assert sorter.order(screenshot.tile_camera(camera, 0, 0, 32, 32), 1 / 255).tolist() == [1, 0]
+    assert sort_indices(sorter, camera, 1 / 255).tolist() == [2, 0, 1, 3]  # premise: a tie, scene order
+    assert sort_indices(sorter, screenshot.tile_camera(camera, 0, 0, 32, 32), 1 / 255).tolist() == [1, 0]
     with gl_ctx:
         whole = gl_render(scene, camera)
         renderer = GLRenderer(gl_ctx, scene)
         try:
-            tiled = render_tiled(renderer, camera, tile=32)
+            tiled = tiled_render(renderer, camera, tile=32)
         finally:
             renderer.release()
     assert whole[24, 16, 1] > 0.8 and whole[24, 16, 0] < 0.2  # green on top
@@ -222,13 +238,13 @@ def test_render_tiled_keeps_the_whole_images_blending_order(gl_render, gl_ctx):
 def test_render_tiled_refuses_oversized_images(renderer):
     camera = off_centre_camera(MAX_SCREENSHOT_SIDE + 1, 48)
     with pytest.raises(UserError, match=f"{MAX_SCREENSHOT_SIDE + 1}x48"):
-        render_tiled(renderer, camera)
+        tiled_render(renderer, camera)
 
 
 def test_render_tiled_with_one_tile_is_the_plain_render(renderer):
     camera = off_centre_camera(40, 30)
-    np.testing.assert_array_equal(render_tiled(renderer, camera, tile=40), renderer.render(camera))
-    np.testing.assert_array_equal(render_tiled(renderer, camera), renderer.render(camera))
+    np.testing.assert_array_equal(tiled_render(renderer, camera, tile=40), sorted_render(renderer, camera))
+    np.testing.assert_array_equal(tiled_render(renderer, camera), sorted_render(renderer, camera))
 
 
 # --------------------------------------------------------------------------- names
@@ -473,8 +489,10 @@ def test_render_tiled_draws_every_tile_in_the_settings_key(renderer, monkeypatch
     (``RenderSettings.sort_key``), restricted to what the tile may see."""
     camera = off_centre_camera()
     settings = RenderSettings(order=order, order_k=2 if order == "per-pixel" else 0)
-    whole = renderer.sorter.order(camera, settings.p_min, dilation=settings.cull_dilation(camera),
-                                  key=settings.sort_key)
+    with DepthSorter(renderer.scene) as sorter:
+        exact = exact_order(sorter, camera, settings)
+    whole = exact.indices
+    assert exact.key == settings.sort_key and exact.request.dilation == settings.cull_dilation(camera)
     drawn = []
     render = renderer.render
 
@@ -483,13 +501,17 @@ def test_render_tiled_draws_every_tile_in_the_settings_key(renderer, monkeypatch
         return render(part, settings_, tile_order, **kwargs)
 
     monkeypatch.setattr(renderer, "render", recording)
-    render_tiled(renderer, camera, settings, tile=32)
+    with DepthSorter(renderer.scene) as sorter:
+        render_tiled(renderer, sorter, exact, camera, settings, tile=32)
     monkeypatch.undo()
     assert len(drawn) == 4 and all(s == settings for s, _ in drawn)
     for _, tile_order in drawn:
-        np.testing.assert_array_equal(tile_order, whole[np.isin(whole, tile_order)])  # a subsequence
+        assert tile_order.key == settings.sort_key and tile_order.request == exact.request
+        np.testing.assert_array_equal(tile_order.indices, whole[np.isin(whole, tile_order.indices)])  # a subsequence
+        assert 0 < tile_order.count < exact.count
     if order == "distance":  # the premise: the two keys order this view differently
-        depth = renderer.sorter.order(camera, settings.p_min, key="depth")
+        with DepthSorter(renderer.scene) as sorter:
+            depth = sort_indices(sorter, camera, settings.p_min, key="depth")
         assert not np.array_equal(whole, depth)
 
 
@@ -502,12 +524,12 @@ def test_render_tiled_channels_equal_one_whole_render(renderer, settings, monkey
     """Every channel of a tiled render (edge tiles cropped) is the whole render's: the
     tiles' normals stay in the whole camera's space, their depths its z."""
     camera = off_centre_camera()
-    whole = renderer.render_channels(camera, settings)
+    whole = sorted_channels(renderer, camera, settings)
     sizes = []
     render_channels = renderer.render_channels
     monkeypatch.setattr(renderer, "render_channels", lambda part, *args, **kwargs: sizes.append(
         (part.width, part.height)) or render_channels(part, *args, **kwargs))
-    tiled = render_tiled_channels(renderer, camera, settings, tile=40)
+    tiled = tiled_channels(renderer, camera, settings, tile=40)
     monkeypatch.undo()
     side = 40 // settings.supersample
     assert set(sizes) == {(side, side)} and len(sizes) == -(-64 // side) * -(-48 // side)  # really tiled
@@ -526,8 +548,8 @@ def test_render_tiled_channels_equal_one_whole_render(renderer, settings, monkey
 
 def test_render_tiled_channels_with_one_tile_is_the_plain_render(renderer):
     camera = off_centre_camera(40, 30)
-    tiled, whole = render_tiled_channels(renderer, camera), renderer.render_channels(camera)
+    tiled, whole = tiled_channels(renderer, camera), sorted_channels(renderer, camera)
     for name in CHANNELS:
         np.testing.assert_array_equal(getattr(tiled, name), getattr(whole, name))
     with pytest.raises(UserError, match=f"{MAX_SCREENSHOT_SIDE + 1}x48"):
-        render_tiled_channels(renderer, off_centre_camera(MAX_SCREENSHOT_SIDE + 1, 48))
+        tiled_channels(renderer, off_centre_camera(MAX_SCREENSHOT_SIDE + 1, 48))

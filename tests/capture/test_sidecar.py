@@ -54,15 +54,17 @@ from raygs_viewer.render.channel_pictures import ChannelView
 from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.setting_info import Setting, setting
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.scene.demo import demo_scene
 from raygs_viewer.scene.io import load_scene
+from raygs_viewer.sort.depth import DepthSorter
 
 
 def tiled(renderer, camera, settings):
     """render_tiled in the renderer's context: the CLI makes its own context current
     and releases it, after which GL calls on the session context would go nowhere."""
-    with renderer.ctx:
-        return render_tiled(renderer, camera, settings)
+    with renderer.ctx, DepthSorter(renderer.scene) as sorter:
+        return render_tiled(renderer, sorter, exact_order(sorter, camera, settings), camera, settings)
 
 
 

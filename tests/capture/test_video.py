@@ -29,6 +29,7 @@ from raygs_viewer.capture.path_render import frame_cameras, render_frame
 from raygs_viewer.capture.video import check_video_output, even_size, open_sink
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.demo import demo_cameras
+from raygs_viewer.sort.depth import DepthSorter
 
 #: Bounds of the MP4 against its source frames (module docstring for the measurements).
 MIN_RGB_PSNR = 23.0
@@ -42,9 +43,9 @@ def demo_frames(demo_renderer):
     path = path_through_cameras(demo_cameras()[:3], duration=1.0, fps=FRAMES)
     assert path.frame_count == FRAMES
     frames = {}
-    with demo_renderer.ctx:
+    with demo_renderer.ctx, DepthSorter(demo_renderer.scene) as sorter:
         for size in ((64, 48), (65, 49)):
-            frames[size] = [to_rgb8(render_frame(demo_renderer, camera, RenderSettings(), None))
+            frames[size] = [to_rgb8(render_frame(demo_renderer, sorter, camera, RenderSettings(), None))
                             for camera in frame_cameras(path, *size)]
     return frames
 
@@ -267,8 +268,8 @@ def test_png_folder_holds_the_exact_frames(tmp_path, demo_frames, demo_renderer)
         np.testing.assert_array_equal(read_png(out / name), frame)
     # Encoded as `render --out x.png` encodes a float image.
     path = path_through_cameras(demo_cameras()[:3], duration=1.0, fps=FRAMES)
-    with demo_renderer.ctx:
-        image = render_frame(demo_renderer, frame_cameras(path, 64, 48)[2], RenderSettings(), None)
+    with demo_renderer.ctx, DepthSorter(demo_renderer.scene) as sorter:
+        image = render_frame(demo_renderer, sorter, frame_cameras(path, 64, 48)[2], RenderSettings(), None)
     assert (out / names[2]).read_bytes() == encode_image(image, ".png")
 
 

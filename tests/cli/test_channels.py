@@ -11,7 +11,7 @@ import numpy as np
 import OpenEXR
 import pytest
 from PIL import Image
-from testkit import assert_one_line_error, listing, run_cli, write_inria_ply
+from testkit import assert_one_line_error, listing, run_cli, sorted_channels, write_inria_ply
 
 import raygs_viewer.capture.screenshot as screenshot
 from raygs_viewer.camera.pinhole import Camera, camera_to_json, look_at
@@ -54,7 +54,7 @@ def gl_channels(gl_ctx, scene_path, camera, settings=RenderSettings()) -> Channe
     with gl_ctx:
         renderer = GLRenderer(gl_ctx, load_scene(scene_path))
         try:
-            return renderer.render_channels(camera, settings)
+            return sorted_channels(renderer, camera, settings)
         finally:
             renderer.release()
 
@@ -83,7 +83,7 @@ def test_the_contract_command_writes_float32_hxwx6_in_order(capsys, tmp_path, ti
     alpha,depth,median_depth,normal --out G.npy: alpha, depth, median depth, normal x, y, z."""
     scene, cameras = tiny
     tiled = []
-    monkeypatch.setattr(screenshot, "render_tiled_channels", lambda *args, **kwargs: tiled.append(args[1:])
+    monkeypatch.setattr(screenshot, "render_tiled_channels", lambda *args, **kwargs: tiled.append(args[3:])
                         or render_tiled_channels(*args, **kwargs))
     out = tmp_path / "G.npy"
     stdout = render(capsys, scene, "--camera", cameras, "--camera-index", "1", "--order", "per-pixel",

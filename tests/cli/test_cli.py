@@ -10,7 +10,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from PIL import Image
-from testkit import assert_one_line_error, listing, run_cli, write_inria_ply
+from testkit import assert_one_line_error, listing, run_cli, sorted_render, write_inria_ply
 
 from raygs_viewer.bench.loading import write_generated_ply
 from raygs_viewer.camera.pinhole import Camera, camera_to_json, look_at
@@ -20,6 +20,7 @@ from raygs_viewer.render.gl.storage import SceneBuffers
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.demo import demo_camera, demo_scene
 from raygs_viewer.scene.io import load_scene
+from raygs_viewer.sort.depth import DepthSorter
 
 SMALL = ["--width", "64"]  # demo camera 640x480 -> 64x48
 
@@ -40,7 +41,7 @@ def gl_render(gl_ctx, scene, camera, settings=RenderSettings()):
 
     renderer = GLRenderer(gl_ctx, scene)
     try:
-        return renderer.render(camera, settings)
+        return sorted_render(renderer, camera, settings)
     finally:
         renderer.release()
 
@@ -512,8 +513,8 @@ def test_render_with_accuracy_options_is_the_gl_render_of_those_settings(capsys,
 
     used = []
     render_tiled = screenshot.render_tiled
-    monkeypatch.setattr(screenshot, "render_tiled", lambda renderer, camera, settings: used.append(settings)
-                        or render_tiled(renderer, camera, settings))
+    monkeypatch.setattr(screenshot, "render_tiled", lambda renderer, sorter, order, camera, settings: used.append(
+        settings) or render_tiled(renderer, sorter, order, camera, settings))
     out = tmp_path / "gs.npy"
     code, _, err = run_cli(capsys, "render", *SMALL, "--mode", "gs", "--supersample", "2", "--out", out)
     assert code == 0, err
@@ -557,8 +558,8 @@ def test_render_and_its_sidecar_take_the_order(capsys, tmp_path, gl_ctx, demo, m
 
     used = []
     render_tiled = screenshot.render_tiled
-    monkeypatch.setattr(screenshot, "render_tiled", lambda renderer, camera, settings: used.append(settings)
-                        or render_tiled(renderer, camera, settings))
+    monkeypatch.setattr(screenshot, "render_tiled", lambda renderer, sorter, order, camera, settings: used.append(
+        settings) or render_tiled(renderer, sorter, order, camera, settings))
     camera = demo_camera().resized(64, 48)
     for argv, settings in ((["--order", "distance"], RenderSettings(order="distance")),
                            (["--order-k", "3"], RenderSettings(order="per-pixel", order_k=3))):
@@ -825,7 +826,8 @@ def test_render_stereo_writes_the_eyes_in_the_chosen_layout(capsys, tmp_path, gl
     with gl_ctx:
         renderer = GLRenderer(gl_ctx, demo)
         try:
-            left, right = render_stereo(renderer, camera, RenderSettings(), rig)
+            with DepthSorter(demo) as sorter:
+                left, right = render_stereo(renderer, sorter, camera, RenderSettings(), rig)
         finally:
             renderer.release()
     assert outputs[None].shape == (48, 128, 4)  # side by side by default, each eye the camera's size
@@ -933,7 +935,8 @@ def test_render_stereo_lens_preview_and_sidecar(capsys, tmp_path, gl_ctx, demo):
     with gl_ctx:
         renderer = GLRenderer(gl_ctx, demo)
         try:
-            left, right = render_stereo(renderer, camera, RenderSettings(), StereoRig())
+            with DepthSorter(demo) as sorter:
+                left, right = render_stereo(renderer, sorter, camera, RenderSettings(), StereoRig())
         finally:
             renderer.release()
     eyes = eye_cameras(camera, StereoRig())

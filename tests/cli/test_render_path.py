@@ -160,8 +160,8 @@ def test_a_nerfstudio_camera_path_renders_the_same_frames(tmp_path, path_file):
 
 
 def test_ctrl_c_leaves_a_playable_truncated_video(tmp_path, path_file, monkeypatch, capsys):
-    def interrupted_after_two(renderer, cameras, *args, **kwargs):
-        path_render.render_frames(renderer, cameras[:2], *args, **kwargs)
+    def interrupted_after_two(renderer, sorter, cameras, *args, **kwargs):
+        path_render.render_frames(renderer, sorter, cameras[:2], *args, **kwargs)
         raise KeyboardInterrupt
 
     monkeypatch.setattr(path_command, "render_frames", interrupted_after_two)

@@ -16,6 +16,8 @@ from testkit import (
     make_scene,
     patched_glsl,
     random_scene,
+    sorted_channels,
+    sorted_render,
 )
 
 from raygs_viewer.camera.pinhole import frame_points, look_at
@@ -27,6 +29,8 @@ from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.gl.targets import FloatTarget
 from raygs_viewer.render.reference import render_reference, render_reference_channels
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
+from raygs_viewer.sort.depth import DepthSorter
 
 CAMERA = look_at((0.4, -0.3, -3.2), (0.0, 0.0, 0.0), width=64, height=48)
 SETTINGS = {
@@ -66,9 +70,9 @@ def test_every_output_matches_the_reference(renderer, scene, name):
     settings = SETTINGS[name]
     reference = render_reference_channels(scene, CAMERA, settings)
     assert (reference.median_depth > 0).mean() > 0.2, "the view must hold pixels with a median"
-    assert_channels_match(renderer.render_channels(CAMERA, settings), reference)
+    assert_channels_match(sorted_channels(renderer, CAMERA, settings), reference)
     # Without the median, a global order without the cut-off blends beside colour instead.
-    blended = renderer.render_channels(CAMERA, settings, median=False)
+    blended = sorted_channels(renderer, CAMERA, settings, median=False)
     assert blended.median_depth is None
     assert takes_lists(settings, median=False) == (settings.per_pixel or settings.transmittance_cutoff)
     assert_channels_match(blended, reference)
@@ -82,8 +86,8 @@ def test_the_cut_off_fires_in_the_scene(scene):
 
 def test_colour_and_alpha_agree_with_the_colour_render(renderer):
     for settings in (SETTINGS["raygs"], SETTINGS["per-pixel"], SETTINGS["gs"]):
-        image = renderer.render(CAMERA, settings)
-        channels = renderer.render_channels(CAMERA, settings)
+        image = sorted_render(renderer, CAMERA, settings)
+        channels = sorted_channels(renderer, CAMERA, settings)
         # The geometry pass composites front to back through the lists, colour alone blends
         # back to front: the same sums in another float32 order.
         np.testing.assert_allclose(channels.rgb, image[..., :3], atol=2e-6)
@@ -93,26 +97,31 @@ def test_colour_and_alpha_agree_with_the_colour_render(renderer):
 def test_stereo_eyes_match_the_reference(renderer, scene):
     rig = StereoRig(ipd=0.3, convergence=3.0, scene_scale=1.0)
     for eye in eye_cameras(CAMERA, rig):
-        assert_channels_match(renderer.render_channels(eye, RenderSettings()),
+        assert_channels_match(sorted_channels(renderer, eye, RenderSettings()),
                               render_reference_channels(scene, eye, RenderSettings()))
 
 
 def test_view_pictures_show_the_channels(renderer, gl_session_ctx):
+    """render_into draws a channel's picture and returns the depth range it used (the
+    range given, or the one found in the image)."""
+    with DepthSorter(renderer.scene) as sorter:
+        order = exact_order(sorter, CAMERA, RenderSettings())
     target = FloatTarget(gl_session_ctx, CAMERA.width, CAMERA.height)
     try:
         for view in (ChannelView("depth"), ChannelView("median_depth", (2.0, 4.0)),
                      ChannelView("normal", normal_space="world"), ChannelView("alpha")):
-            renderer.render_into(target, CAMERA, RenderSettings(), renderer.sort(CAMERA, RenderSettings()),
-                                 view=view)
+            result = renderer.render_into(target, CAMERA, RenderSettings(), order, view=view)
             # The view asks for the median only where it shows it (the blend serves the rest).
-            channels = renderer.render_channels(CAMERA, RenderSettings(), median=view.channel == "median_depth")
+            channels = renderer.render_channels(CAMERA, RenderSettings(), order, median=view.channel == "median_depth")
             expected, used = channel_picture(channels.in_space(view.normal_space, CAMERA), view)
             np.testing.assert_allclose(target.read()[..., :3], expected, atol=1e-6)
-            assert renderer.geometry.view_range == used
+            assert result.view_range == used and result.order_stats is None
             assert (used is not None) == (view.channel in ("depth", "median_depth"))
-        renderer.render_into(target, CAMERA, RenderSettings(), renderer.sort(CAMERA, RenderSettings()))
-        assert renderer.geometry.view_range is None
-        np.testing.assert_array_equal(target.read(), renderer.render(CAMERA, RenderSettings()))
+            if view.depth_range is not None:
+                assert used == view.depth_range
+        result = renderer.render_into(target, CAMERA, RenderSettings(), order)
+        assert result.view_range is None and result.order_stats is None
+        np.testing.assert_array_equal(target.read(), renderer.render(CAMERA, RenderSettings(), order))
     finally:
         target.release()
 
@@ -136,7 +145,7 @@ def test_hard_cases_stay_finite_and_match(gl_session_ctx):
                          RenderSettings(mode="gs")):
             reference = render_reference_channels(scene, camera, settings)
             assert reference.alpha.max() > 0.5
-            assert_channels_match(renderer.render_channels(camera, settings), reference)
+            assert_channels_match(sorted_channels(renderer, camera, settings), reference)
     finally:
         renderer.release()
 
@@ -174,7 +183,7 @@ def test_a_broken_output_fails_the_comparison(monkeypatch, gl_session_ctx, scene
     patched_glsl(monkeypatch, shader, old, new)
     renderer = GLRenderer(gl_session_ctx, scene)
     try:
-        assert_channels_differ(renderer.render_channels(CAMERA, settings, median=median), reference)
+        assert_channels_differ(sorted_channels(renderer, CAMERA, settings, median=median), reference)
     finally:
         renderer.release()
 
@@ -183,7 +192,7 @@ def test_forcing_the_k_buffer_with_geometry_is_a_clear_error(gl_session_ctx, sce
     renderer = GLRenderer(gl_session_ctx, scene, order_path="fetch")
     try:
         with pytest.raises(UserError, match="geometry outputs need the fragment lists"):
-            renderer.render_channels(CAMERA, RenderSettings(order="per-pixel", order_k=2))
+            sorted_channels(renderer, CAMERA, RenderSettings(order="per-pixel", order_k=2))
     finally:
         renderer.release()
 
@@ -215,6 +224,6 @@ def test_shared_scenes_match_the_reference(gl_session_ctx, name):
         for settings in (RenderSettings(order=order) for order in orders):
             reference = render_reference_channels(scene, camera, settings)
             assert reference.alpha.max() > 0.01, "the view must show the scene"
-            assert_channels_match(renderer.render_channels(camera, settings), reference)
+            assert_channels_match(sorted_channels(renderer, camera, settings), reference)
     finally:
         renderer.release()

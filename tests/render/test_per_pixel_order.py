@@ -18,6 +18,8 @@ from testkit import (
     make_scene,
     random_rotation,
     random_scene,
+    rendered,
+    sorted_render,
 )
 
 from raygs_viewer.camera.pinhole import frame_points, look_at
@@ -30,6 +32,8 @@ from raygs_viewer.render.gl.per_pixel import storage_block_problem
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
+from raygs_viewer.sort.depth import DepthSorter
 
 EXACT = RenderSettings(order="per-pixel", background=(0.1, 0.2, 0.3))
 CAMERA = look_at([0.3, -0.2, -3.0], [0, 0, 0], width=64, height=48, fov_y_degrees=40)
@@ -99,13 +103,14 @@ def test_lists_match_the_per_pixel_reference_where_global_orders_fail(renderers,
     settings = replace(EXACT, order_k=k)
     reference = render_reference(renderer.scene, CAMERA, settings)
     assert reference[..., 3].max() > 0.5
-    assert_matches(renderer.render(CAMERA, settings), reference)
-    assert renderer.order_stats.path == "lists"
+    image, result = rendered(renderer, CAMERA, settings)
+    assert_matches(image, reference)
+    assert result.order_stats.path == "lists"
     if k == 0:  # the negative controls: either global order, drawn as today
         for order in ("depth", "distance"):  # even with the allowance for near-ties of t*
-            assert_differs(renderer.render(CAMERA, replace(EXACT, order=order)), reference,
-                           max_error=PER_RAY_TIE_ERROR)
-            assert renderer.order_stats is None
+            image, result = rendered(renderer, CAMERA, replace(EXACT, order=order))
+            assert_differs(image, reference, max_error=PER_RAY_TIE_ERROR)
+            assert result.order_stats is None
 
 
 @pytest.mark.parametrize("k", [1, 3, 4])
@@ -115,8 +120,8 @@ def test_both_paths_match_the_window_reference(renderers, gl_session_ctx, path, 
         pytest.skip("this GPU's colour attachments hold a smaller window")
     renderer = renderers("sheets", order_path=path)
     settings = replace(EXACT, order_k=k, transmittance_cutoff=k == 3)
-    image = renderer.render(CAMERA, settings)
-    assert renderer.order_stats.path == path
+    image, result = rendered(renderer, CAMERA, settings)
+    assert result.order_stats.path == path
     assert_matches(image, render_reference(renderer.scene, CAMERA, settings))
     if k == 1:  # a window of one is not the exact order on these sheets
         assert_differs(image, render_reference(renderer.scene, CAMERA, EXACT))
@@ -124,14 +129,13 @@ def test_both_paths_match_the_window_reference(renderers, gl_session_ctx, path, 
 
 def test_paths_agree_and_auto_takes_fetch_where_it_can(renderers, gl_session_ctx):
     settings = replace(EXACT, order_k=4)
-    lists = renderers("needles", order_path="lists").render(CAMERA, settings)
+    lists = sorted_render(renderers("needles", order_path="lists"), CAMERA, settings)
     auto = renderers("needles")
-    fetched = auto.render(CAMERA, settings)
+    fetched, result = rendered(auto, CAMERA, settings)
     can_fetch = "GL_EXT_shader_framebuffer_fetch" in gl_session_ctx.extensions
-    assert auto.order_stats.path == ("fetch" if can_fetch else "lists")
+    assert result.order_stats.path == ("fetch" if can_fetch else "lists")
     np.testing.assert_array_equal(lists, fetched)  # the same arithmetic, in the same order
-    auto.render(CAMERA, EXACT)
-    assert auto.order_stats.path == "lists"  # the exact order always takes the lists
+    assert rendered(auto, CAMERA, EXACT)[1].order_stats.path == "lists"  # the exact order always takes the lists
 
 
 def test_forcing_fetch_where_it_cannot_run_is_a_one_line_error(renderers, gl_session_ctx):
@@ -139,7 +143,7 @@ def test_forcing_fetch_where_it_cannot_run_is_a_one_line_error(renderers, gl_ses
     for settings in (EXACT, replace(EXACT, order_k=max_window(gl_session_ctx) + 1)):
         assert renderer.supports(settings)
         with pytest.raises(UserError) as info:
-            renderer.render(CAMERA, settings)
+            sorted_render(renderer, CAMERA, settings)
         assert "\n" not in str(info.value)
     with pytest.raises(UserError):
         GLRenderer(gl_session_ctx, SCENES["needles"](), order_path="sideways")
@@ -163,7 +167,7 @@ def test_per_pixel_composes_with_every_option(renderers, name, k):
     settings = replace(COMBINATIONS[name], order="per-pixel", order_k=k, background=(0.1, 0.2, 0.3))
     for scene in ("sheets", "needles"):
         renderer = renderers(scene)
-        assert_matches(renderer.render(CAMERA, settings), render_reference(renderer.scene, CAMERA, settings))
+        assert_matches(sorted_render(renderer, CAMERA, settings), render_reference(renderer.scene, CAMERA, settings))
 
 
 def test_stereo_eyes_and_tiles(renderers):
@@ -171,9 +175,10 @@ def test_stereo_eyes_and_tiles(renderers):
     for k in (0, 4):
         settings = replace(EXACT, order_k=k)
         for eye in eye_cameras(CAMERA, StereoRig()):
-            assert_matches(renderer.render(eye, settings), render_reference(renderer.scene, eye, settings))
-        whole = renderer.render(CAMERA, settings)
-        tiled = render_tiled(renderer, CAMERA, settings, tile=20)
+            assert_matches(sorted_render(renderer, eye, settings), render_reference(renderer.scene, eye, settings))
+        whole = sorted_render(renderer, CAMERA, settings)
+        with DepthSorter(renderer.scene) as sorter:
+            tiled = render_tiled(renderer, sorter, exact_order(sorter, CAMERA, settings), CAMERA, settings, tile=20)
         np.testing.assert_allclose(tiled, whole, atol=2e-5)
 
 
@@ -181,7 +186,7 @@ def _lists_image(ctx, scene):
     """The exact per-pixel image of ``scene`` through the lists, with the shaders as patched."""
     renderer = GLRenderer(ctx, scene, order_path="lists")
     try:
-        return renderer.render(CAMERA, EXACT)
+        return sorted_render(renderer, CAMERA, EXACT)
     finally:
         renderer.release()
 
@@ -212,25 +217,27 @@ def test_a_dropped_fragment_is_reported_and_would_fail(gl_session_ctx, monkeypat
 def test_a_tiny_pool_draws_in_parts_bit_for_bit(renderers, k):
     settings = replace(EXACT, order_k=k, transmittance_cutoff=True)
     whole = renderers("sheets", order_path="lists")
-    one = whole.render(CAMERA, settings)
-    assert whole.order_stats.parts == 1
-    most = whole.order_stats.max_per_pixel
+    one, result = rendered(whole, CAMERA, settings)
+    assert result.order_stats.parts == 1
+    most = result.order_stats.max_per_pixel
     # Smaller than a row's fragments: rows are cut into spans too.
     tiny = renderers("sheets", order_path="lists", pool_fragments=most + 3)
-    parts = tiny.render(CAMERA, settings)
-    stats = tiny.order_stats
+    parts, tiny_result = rendered(tiny, CAMERA, settings)
+    stats = tiny_result.order_stats
     assert stats.parts > CAMERA.height and stats.pool_fragments == most + 3
-    assert 0 < stats.pool_use <= 1 and stats.fragments == whole.order_stats.fragments
+    assert 0 < stats.pool_use <= 1 and stats.fragments == result.order_stats.fragments
     np.testing.assert_array_equal(parts, one)
-    banded = renderers("sheets", order_path="lists", pool_fragments=whole.order_stats.fragments // 5)
-    np.testing.assert_array_equal(banded.render(CAMERA, settings), one)
-    assert 5 <= banded.order_stats.parts < CAMERA.height
+    banded = renderers("sheets", order_path="lists", pool_fragments=result.order_stats.fragments // 5)
+    banded_image, banded_result = rendered(banded, CAMERA, settings)
+    np.testing.assert_array_equal(banded_image, one)
+    assert 5 <= banded_result.order_stats.parts < CAMERA.height
+    np.testing.assert_array_equal(sorted_render(banded, CAMERA, settings), one)  # render() draws the same
 
 
 def test_a_pixel_over_the_pool_is_a_one_line_error(renderers):
     renderer = renderers("sheets", order_path="lists", pool_fragments=2)
     with pytest.raises(UserError, match="more than the per-pixel order's pool of 2") as info:
-        renderer.render(CAMERA, EXACT)
+        sorted_render(renderer, CAMERA, EXACT)
     assert "\n" not in str(info.value)
 
 
@@ -251,8 +258,7 @@ def test_order_stats_count_what_was_drawn(renderers):
     camera = look_at([0, 0, -3.0], [0, 0, 0], width=32, height=24, fov_y_degrees=30)
     for path, k in (("lists", 0), ("fetch", 2)):
         renderer = renderers(scene, order_path=path)
-        renderer.render(camera, replace(EXACT, order_k=k))
-        stats = renderer.order_stats
+        stats = rendered(renderer, camera, replace(EXACT, order_k=k))[1].order_stats
         assert (stats.path, stats.width, stats.height) == (path, 32, 24)
         assert (stats.fragments, stats.max_per_pixel, stats.covered_pixels) == (3 * 32 * 24, 3, 32 * 24)
         assert stats.mean_per_covered_pixel == 3.0

@@ -18,7 +18,7 @@ import threading
 import moderngl
 import numpy as np
 import pytest
-from testkit import assert_matches, random_scene
+from testkit import assert_matches, random_scene, sorted_render
 
 from raygs_viewer.camera.pinhole import Camera, look_at
 from raygs_viewer.camera.stereo import StereoRig, eye_cameras
@@ -27,9 +27,13 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.renderer import GL_EXT_FRAMEBUFFER_FETCH, GLRenderer
 from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order, sort_request
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.sh import C0 as SH_C0
+from raygs_viewer.sort.cull import Cull
 from raygs_viewer.sort.depth import DepthSorter
+from raygs_viewer.sort.keys import key_values, sort_back_to_front
+from raygs_viewer.sort.request import Order, SortRequest
 
 S = RenderSettings
 FRONT = look_at([0.3, -0.2, -3.0], [0, 0, 0], width=80, height=60)
@@ -55,13 +59,22 @@ def scene_of(degree: int) -> Scene:
 
 def render(ctx, scene, camera, settings=S(), order=None, *, frame=None, color_origin=None,
            **options) -> np.ndarray:
-    """One image from a fresh renderer (``options``: GLRenderer's, e.g. general=True)."""
+    """One image from a fresh renderer (``options``: GLRenderer's, e.g. general=True);
+    ``order`` None: the exact order, sorted now."""
     ctx.__enter__()
     renderer = GLRenderer(ctx, scene, **options)
     try:
+        if order is None:
+            order = exact(scene, camera, settings)
         return renderer.render(camera, settings, order, frame=frame, color_origin=color_origin)
     finally:
         renderer.release()
+
+
+def exact(scene, camera, settings=S(), **options) -> Order:
+    """``camera``'s exact order for ``settings`` (``options``: exact_order's)."""
+    with DepthSorter(scene) as sorter:
+        return exact_order(sorter, camera, settings, **options)
 
 
 @pytest.fixture
@@ -149,7 +162,7 @@ def test_one_general_renderer_switches_features_between_frames(gl_ctx, make_rend
                 S(mip=True, mip_sigma2=0.5, mip_modulation=False), S(mode="gs", gs_compensation=True),
                 S(mode="gs"), S(mode="raygs-exact-mip", mip_sigma2=0.5, mip_modulation=False), S()]
     for settings in sequence:
-        image = renderer.render(FRONT, settings)
+        image = sorted_render(renderer, FRONT, settings)
         expected = render(gl_ctx, scene, FRONT, settings)
         assert np.abs(image - expected).max() <= GENERAL_TOLERANCE, settings
 
@@ -185,7 +198,7 @@ def test_colours_at_load_replace_the_harmonics(gl_ctx, make_renderer, degree, se
     clean = render(gl_ctx, scene, FRONT, settings, general=general)
     renderer = make_renderer(scene, general=general)
     _spoil_harmonics(renderer)
-    spoiled = renderer.render(FRONT, settings)
+    spoiled = sorted_render(renderer, FRONT, settings)
     if uses_harmonics:
         assert np.abs(spoiled - clean).max() > 0.05
     else:
@@ -195,9 +208,9 @@ def test_colours_at_load_replace_the_harmonics(gl_ctx, make_renderer, degree, se
 def test_colour_buffer_is_computed_once(gl_ctx, make_renderer, monkeypatch):
     scene = scene_of(3)
     renderer = make_renderer(scene)
-    renderer.render(FRONT, S())
+    sorted_render(renderer, FRONT, S())
     assert renderer.storage.colors is None  # SH degree 3 evaluates SH: no colours needed
-    renderer.render(FRONT, S(sh_degree=0))
+    sorted_render(renderer, FRONT, S(sh_degree=0))
     colors = renderer.storage.colors
     assert colors is not None
     expected = np.maximum(SH_C0 * scene.sh[:, 0, :].astype(np.float64) + 0.5, 0.0).astype(np.float32)
@@ -209,12 +222,12 @@ def test_colour_buffer_is_computed_once(gl_ctx, make_renderer, monkeypatch):
     monkeypatch.setattr(moderngl.Context, "buffer", lambda self, *a, **k: made.append(k) or original(self, *a, **k))
     for camera, settings in ((INSIDE, S(sh_degree=0)), (FRONT, S()), (FRONT, S(sh_degree=0, mode="gs")),
                              (INSIDE, S(sh_degree=0, supersample=2))):
-        renderer.render(camera, settings)
+        sorted_render(renderer, camera, settings)
         assert renderer.storage.colors is colors
     assert made == []
     # The general variant never reads them.
     general = make_renderer(scene, general=True)
-    general.render(FRONT, S(sh_degree=0))
+    sorted_render(general, FRONT, S(sh_degree=0))
     assert general.storage.colors is None
 
 
@@ -232,8 +245,8 @@ def _records(gl_ctx, scene, camera, settings, frame=None, color_origin=None) -> 
 
 def test_same_view_twice_preprocesses_once(make_renderer):
     renderer = make_renderer(scene_of(3))
-    first = renderer.render(FRONT, S())
-    second = renderer.render(FRONT, S())
+    first = sorted_render(renderer, FRONT, S())
+    second = sorted_render(renderer, FRONT, S())
     assert (renderer.counters.preprocessed, renderer.counters.preprocess_skipped) == (1, 1)
     np.testing.assert_array_equal(first, second)
     # An equal camera made anew is the same view.
@@ -289,7 +302,7 @@ def test_frame_reaches_the_image(gl_ctx, make_renderer):
     a fresh renderer's."""
     scene, settings = scene_of(3), S(mode="gs")
     renderer = make_renderer(scene)
-    order = renderer.sort(TILE, settings)
+    order = exact(scene, TILE, settings)
     alone = renderer.render(TILE, settings, order)
     framed = renderer.render(TILE, settings, order, frame=FRONT)
     assert np.abs(alone - framed).max() > 1e-3
@@ -305,7 +318,7 @@ def test_alternating_stereo_eyes_are_never_stale(gl_ctx, make_renderer, settings
     scene = scene_of(3)
     rig = StereoRig(ipd=0.3, scene_scale=1.0)
     eyes = eye_cameras(FRONT, rig)
-    order = DepthSorter(scene).order(FRONT, settings.p_min, dilation=settings.cull_dilation(FRONT), cull_cameras=eyes)
+    order = exact(scene, FRONT, settings, cull_cameras=eyes)
     fresh = [render(gl_ctx, scene, eye, settings, order, color_origin=FRONT.center) for eye in eyes]
     assert np.abs(fresh[0] - fresh[1]).max() > 0.05
     renderer = make_renderer(scene)
@@ -341,7 +354,7 @@ def test_a_pass_cut_short_leaves_no_stale_records(gl_ctx, make_renderer, monkeyp
     renderer = make_renderer(scene, block_limit=4096)  # 19 chunks of 16 gaussians
     assert renderer.layout.chunk < scene.count // 4
     other = look_at([2.5, 0.5, 1.0], [0, 0, 0], width=80, height=60)
-    image = renderer.render(FRONT, S())
+    image = sorted_render(renderer, FRONT, S())
     original = renderer.variants.preprocess
     monkeypatch.setattr(renderer.variants, "preprocess", lambda settings, geometry=False: _FailingProgram(
         original(settings), runs=3))
@@ -349,7 +362,7 @@ def test_a_pass_cut_short_leaves_no_stale_records(gl_ctx, make_renderer, monkeyp
         renderer.preprocess(other, S())
     monkeypatch.undo()
     assert not np.array_equal(renderer.read_splats(), _records(gl_ctx, scene, FRONT, S()))  # partly overwritten
-    np.testing.assert_array_equal(renderer.render(FRONT, S()), image)
+    np.testing.assert_array_equal(sorted_render(renderer, FRONT, S()), image)
     assert (renderer.counters.preprocessed, renderer.counters.preprocess_skipped) == (2, 0)
 
 
@@ -359,13 +372,14 @@ def test_a_pass_refused_with_user_error_leaves_the_renderer_usable(gl_ctx, make_
     the right image."""
     scene = scene_of(3)
     renderer = make_renderer(scene, block_limit=4096)
-    image = renderer.render(FRONT, S())
+    image = sorted_render(renderer, FRONT, S())
     with pytest.raises(UserError, match="storage blocks") as info:
-        renderer.render(FRONT, S(mode="raygs-exact-mip"))
+        sorted_render(renderer, FRONT, S(mode="raygs-exact-mip"))
     assert "\n" not in str(info.value)
-    np.testing.assert_array_equal(renderer.render(FRONT, S()), image)
+    np.testing.assert_array_equal(sorted_render(renderer, FRONT, S()), image)
     other = look_at([2.5, 0.5, 1.0], [0, 0, 0], width=80, height=60)
-    np.testing.assert_array_equal(renderer.render(other, S()), render(gl_ctx, scene, other, S(), block_limit=4096))
+    np.testing.assert_array_equal(sorted_render(renderer, other, S()),
+                                  render(gl_ctx, scene, other, S(), block_limit=4096))
 
 
 # ------------------------------------------------------------------ 4. upload skipping
@@ -375,20 +389,24 @@ def _uploaded(renderer: GLRenderer, size: int) -> np.ndarray:
 
 def test_same_order_array_is_uploaded_once(make_renderer):
     renderer = make_renderer(scene_of(3))
-    order = renderer.sort(FRONT, S())
+    order = exact(renderer.scene, FRONT)
     counters = renderer.counters
     renderer.upload_order(order)
     renderer.upload_order(order)
     assert (counters.uploads, counters.upload_skipped) == (1, 1)
-    equal = order.copy()  # equal content, another array: uploaded (identity is the contract)
+    renderer.upload_order(order.with_indices(order.indices))  # another order of the very array: not again
+    assert (counters.uploads, counters.upload_skipped) == (1, 2)
+    equal = Order(order.indices.copy())  # equal content, another array: uploaded (identity is the contract)
     renderer.upload_order(equal)
-    assert (counters.uploads, counters.upload_skipped) == (2, 1)
+    assert (counters.uploads, counters.upload_skipped) == (2, 2)
     renderer.upload_order(order)  # not the last one uploaded any more
-    assert (counters.uploads, counters.upload_skipped) == (3, 1)
+    assert (counters.uploads, counters.upload_skipped) == (3, 2)
     renderer.render(FRONT, S(), order)  # draw() goes through upload_order
     renderer.render(FRONT, S(), order)
-    assert (counters.uploads, counters.upload_skipped) == (3, 3)
-    np.testing.assert_array_equal(_uploaded(renderer, order.size), order)
+    assert (counters.uploads, counters.upload_skipped) == (3, 4)
+    renderer.render(FRONT, S(), order.indices)  # the very array, given by hand
+    assert (counters.uploads, counters.upload_skipped) == (3, 5)
+    np.testing.assert_array_equal(_uploaded(renderer, order.count), order.indices)
 
 
 def test_a_new_order_is_drawn(gl_ctx, make_renderer):
@@ -396,7 +414,7 @@ def test_a_new_order_is_drawn(gl_ctx, make_renderer):
     image is a fresh renderer's image of that order."""
     scene = scene_of(3)
     renderer = make_renderer(scene)
-    order = renderer.sort(FRONT, S())
+    order = exact(scene, FRONT).indices
     orders = [order, order[::-1].copy(), order[order.size // 2:].copy(), np.roll(order, 7), order]
     images = []
     for drawn in orders:
@@ -526,38 +544,50 @@ SORT_CALLS = [
 ]
 
 
-def _call(sorter: DepthSorter, index: int, p_min: float, dilation, stereo, split: bool = False) -> np.ndarray:
-    """sorter.order for SORT_CALLS' entry; ``split``: cull, then sort, as two calls."""
+def _request(index: int, p_min: float, dilation, stereo) -> SortRequest:
+    """The request of SORT_CALLS' entry."""
     camera = SORT_CAMERAS[index]
     cull = eye_cameras(camera, StereoRig(ipd=1.0, scene_scale=1.0)) if stereo else None
+    return SortRequest(camera, p_min, dilation, cull)
+
+
+def _depth_sorted(request: SortRequest, visible: np.ndarray) -> np.ndarray:
+    """(M,) uint32: ``visible`` back to front by their depth keys (the keys' own range)."""
+    depths = key_values(SORT_SCENE.positions[visible], request.camera, "depth", Cull(SORT_SCENE).coordinate_scale)
+    return visible[sort_back_to_front(depths)].astype(np.uint32)
+
+
+def _call(sorter: DepthSorter, index: int, p_min: float, dilation, stereo, split: bool = False) -> np.ndarray:
+    """The order of SORT_CALLS' entry; ``split``: cull, then sort the kept rows by their
+    keys, as two steps."""
+    request = _request(index, p_min, dilation, stereo)
     if split:
-        return sorter.sort(camera, sorter.cull(camera, p_min, dilation=dilation, cull_cameras=cull))
-    return sorter.order(camera, p_min, dilation=dilation, cull_cameras=cull)
+        return _depth_sorted(request, sorter.cull(request))
+    return sorter.sort(request).order.indices
 
 
 def test_cull_then_sort_is_order():
     sorter = DepthSorter(SORT_SCENE)
-    for index, p_min, dilation, stereo in SORT_CALLS:
-        camera = SORT_CAMERAS[index]
-        cull = eye_cameras(camera, StereoRig(ipd=1.0, scene_scale=1.0)) if stereo else None
-        visible = sorter.cull(camera, p_min, dilation=dilation, cull_cameras=cull)
+    for call in SORT_CALLS:
+        request = _request(*call)
+        visible = sorter.cull(request)
         assert visible.dtype == np.int64 and np.all(np.diff(visible) > 0)
         assert 0 < visible.size < SORT_SCENE.count
-        order = sorter.sort(camera, visible)
+        order = _depth_sorted(request, visible)
         assert order.dtype == np.uint32
-        np.testing.assert_array_equal(order, sorter.order(camera, p_min, dilation=dilation, cull_cameras=cull))
+        np.testing.assert_array_equal(order, sorter.sort(request).order.indices)
         np.testing.assert_array_equal(np.sort(order), visible)
 
 
 def test_reused_sorter_gives_what_a_fresh_one_gives():
     """Scratch arrays and the p_min cache carried from call to call never leak into
     the next result."""
-    shared = DepthSorter(SORT_SCENE)
+    shared, shared_cull = DepthSorter(SORT_SCENE), Cull(SORT_SCENE)
     previous = None
     for call in SORT_CALLS:
         order = _call(shared, *call)
         np.testing.assert_array_equal(order, _call(DepthSorter(SORT_SCENE), *call), err_msg=str(call))
-        np.testing.assert_array_equal(shared.support_radius(call[1]), DepthSorter(SORT_SCENE).support_radius(call[1]))
+        np.testing.assert_array_equal(shared_cull.support(call[1]).radius, Cull(SORT_SCENE).support(call[1]).radius)
         if previous is not None:  # each step changes the answer: a stale one would show
             assert not np.array_equal(order, previous), call
         previous = order

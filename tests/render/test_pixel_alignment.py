@@ -2,7 +2,7 @@
 gaussian on exactly its pixel (moved from the camera tests: its subject is the renderer)."""
 
 import numpy as np
-from testkit import make_scene, point_on_pixel_ray
+from testkit import make_scene, point_on_pixel_ray, sorted_render
 
 from raygs_viewer.camera.pinhole import Camera, look_at
 from raygs_viewer.render.gl.renderer import GLRenderer
@@ -20,7 +20,7 @@ def test_gl_render_puts_a_tiny_gaussian_on_its_pixel(gl_ctx):
         scene = make_scene(point_on_pixel_ray(camera, u, v, depth), 0.002, opacities=1.0, colors=(1.0, 1.0, 1.0))
         renderer = GLRenderer(gl_ctx, scene)
         try:
-            image = renderer.render(camera)
+            image = sorted_render(renderer, camera)
         finally:
             renderer.release()
         assert image.shape == (h, w, 4)

@@ -15,7 +15,8 @@ from raygs_viewer.render.ray_order import Fragments, composite_per_pixel
 from raygs_viewer.render.reference import ground_truth, render_reference
 from raygs_viewer.render.settings import TRANSMITTANCE_CUTOFF, RenderSettings
 from raygs_viewer.scene.sh import sh_to_rgb
-from raygs_viewer.sort.depth import DepthSorter
+from raygs_viewer.sort.cull import Cull
+from raygs_viewer.sort.keys import key_values, sort_back_to_front
 
 
 def _quaternion(rotation):
@@ -176,11 +177,14 @@ def test_distance_is_invariant_when_the_camera_turns_in_place_and_depth_is_not()
     turned = replace(camera, R=random_rotation(np.random.default_rng(1)) @ camera.R)
     turned = replace(turned, t=-turned.R @ camera.center)
     np.testing.assert_allclose(turned.center, camera.center, atol=1e-12)
-    sorter = DepthSorter(scene)
-    everything = np.arange(scene.count)
-    same = [sorter.sort(view, everything, "float", key="distance") for view in (camera, turned)]
+    scale = Cull(scene).coordinate_scale
+
+    def back_to_front(view, key):
+        return sort_back_to_front(key_values(scene.positions, view, key, scale), "float")
+
+    same = [back_to_front(view, "distance") for view in (camera, turned)]
     np.testing.assert_array_equal(same[0], same[1])
-    depth = [sorter.sort(view, everything, "float", key="depth") for view in (camera, turned)]
+    depth = [back_to_front(view, "depth") for view in (camera, turned)]
     assert not np.array_equal(depth[0], depth[1])
     distance = np.linalg.norm(scene.positions[same[0]] - camera.center, axis=1)
     assert np.all(np.diff(distance) <= 1e-5)  # back to front: farthest first

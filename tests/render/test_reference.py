@@ -19,6 +19,7 @@ from raygs_viewer.render.settings import (
     RenderSettings,
     apply_preset,
 )
+from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.scene.demo import demo_camera
 from raygs_viewer.sort.depth import DepthSorter
 
@@ -417,7 +418,7 @@ def test_supersampling_is_the_block_mean_of_a_larger_render(settings):
     camera = replace(CAMERA, width=24, height=18, cx=11.3, cy=9.6)
     k = settings.supersample
     image = render_reference(scene, camera, settings)
-    order = DepthSorter(scene).order(camera, settings.p_min, dilation=settings.cull_dilation(camera))
+    order = exact_order(DepthSorter(scene), camera, settings).indices
     fine = render_reference(scene, camera.resized(k * camera.width, k * camera.height),
                             replace(settings, supersample=1), order=order)
     blocks = fine.reshape(camera.height, k, camera.width, k, 4).mean(axis=(1, 3))

@@ -1,6 +1,8 @@
 """The GL renderer against the float64 reference, with negative controls showing that
 each comparison would catch the fault it names."""
 
+import threading
+
 import numpy as np
 import pytest
 from testkit import (
@@ -15,6 +17,7 @@ from raygs_viewer.camera.pinhole import Camera, frame_points, look_at
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.sort.depth import DepthSorter
 
 
@@ -63,8 +66,8 @@ def test_negative_controls_for_axes_and_order(gl_render):
     assert_matches(image, reference)
     assert_differs(image[:, ::-1], reference)          # x axis flipped
     assert_differs(image[::-1], reference)             # y axis flipped
-    order = DepthSorter(scene).order(camera, RenderSettings().p_min)
-    assert_differs(gl_render(scene, camera, order=order[::-1]), reference)  # front to back
+    order = exact_order(DepthSorter(scene), camera, RenderSettings())
+    assert_differs(gl_render(scene, camera, order=order.indices[::-1]), reference)  # front to back
     assert_differs(gl_render(scene, camera, RenderSettings(p_min=0.5 / 255)), reference)
     assert_differs(gl_render(scene, camera, RenderSettings(p_min=2 / 255)), reference)
 
@@ -222,9 +225,21 @@ def test_osmesa_renders_the_same_image_as_egl(tmp_path):
     np.testing.assert_array_equal(images["osmesa"], images["egl"])
 
 
-def test_release_closes_the_sorters_thread_pool(gl_ctx):
+def test_the_renderer_owns_no_sorter_and_its_release_leaves_the_caller_s_open(gl_ctx):
+    """The sorter is the caller's: it outlives the renderer, and closing it (``with``)
+    ends its thread pool."""
     scene = random_scene(50, seed=2)
+    camera = frame_points(scene.positions, 64, 48)
     renderer = GLRenderer(gl_ctx, scene)
-    renderer.sort(frame_points(scene.positions, 64, 48), RenderSettings())
-    renderer.release()
-    assert renderer.sorter.closed
+    assert not hasattr(renderer, "sorter")
+    with DepthSorter(scene, workers=2, chunk_rows=8) as sorter:
+        order = exact_order(sorter, camera, RenderSettings())
+        renderer.render(camera, RenderSettings(), order)
+        renderer.release()
+        assert not sorter.closed and len(threads_of(sorter)) == 1
+        np.testing.assert_array_equal(exact_order(sorter, camera, RenderSettings()).indices, order.indices)
+    assert sorter.closed and threads_of(sorter) == []
+
+
+def threads_of(sorter):
+    return [t for t in threading.enumerate() if t.name.startswith(sorter.thread_prefix)]

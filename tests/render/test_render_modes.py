@@ -6,7 +6,7 @@ splatting departs from RayGS near the camera."""
 
 import numpy as np
 import pytest
-from testkit import assert_differs, assert_matches, make_scene, random_scene
+from testkit import assert_differs, assert_matches, make_scene, random_scene, sort_indices
 
 from raygs_viewer.camera.pinhole import Camera, look_at
 from raygs_viewer.render.reference import ground_truth, render_reference
@@ -202,8 +202,8 @@ def test_culling_keeps_what_a_filter_spreads_into_view(gl_render, settings):
     positions = np.column_stack([rng.uniform(-2.2, 2.2, n), rng.uniform(-1.7, 1.7, n), rng.uniform(-0.3, 0.3, n)])
     scene = make_scene(positions, 0.002, opacities=0.9, colors=rng.uniform(0.2, 1.0, (n, 3)))
     camera = look_at([0, 0, -4.0], [0, 0, 0], width=64, height=48, fov_y_degrees=30)
-    everything = DepthSorter(scene).order(camera, settings.p_min, dilation=None)
-    culled = DepthSorter(scene).order(camera, settings.p_min, dilation=settings.cull_dilation(camera))
+    everything = sort_indices(DepthSorter(scene), camera, settings.p_min, dilation=None)
+    culled = sort_indices(DepthSorter(scene), camera, settings.p_min, dilation=settings.cull_dilation(camera))
     if settings.mode != "gs":
         assert culled.size < everything.size  # the test exercises the cull
     assert_matches(gl_render(scene, camera, settings), render_reference(scene, camera, settings, order=everything))

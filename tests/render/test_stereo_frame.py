@@ -3,16 +3,25 @@ that eye, disparity, the shared sort and colour of the midpoint."""
 
 import numpy as np
 import pytest
-from testkit import assert_matches, independent_eye, make_scene, random_scene
+from testkit import assert_matches, independent_eye, make_scene, random_scene, rendered, sorted_render
 
 from raygs_viewer.camera.pinhole import Camera, look_at
 from raygs_viewer.camera.stereo import StereoRig, custom_preset, eye_cameras
+from raygs_viewer.render.channel_pictures import ChannelView
 from raygs_viewer.render.gl.renderer import GLRenderer
-from raygs_viewer.render.gl.stereo_frame import render_stereo, stereo_order
+from raygs_viewer.render.gl.stereo_frame import StereoFrame, render_stereo, stereo_order
 from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
+from raygs_viewer.sort.depth import DepthSorter
 
 MID = look_at([0.2, -0.3, -3.0], [0, 0, 0], width=80, height=60, fov_y_degrees=50)
+
+
+def stereo(renderer, camera, settings, rig, shared=True):
+    """render_stereo with a DepthSorter of the renderer's scene."""
+    with DepthSorter(renderer.scene) as sorter:
+        return render_stereo(renderer, sorter, camera, settings, rig, shared=shared)
 
 
 @pytest.fixture
@@ -23,18 +32,18 @@ def renderer(gl_ctx):
 
 
 def test_ipd_zero_gives_the_mono_image_in_both_eyes(renderer):
-    mono = renderer.render(MID)
-    for eye in render_stereo(renderer, MID, RenderSettings(), StereoRig(ipd=0.0)):
+    mono = sorted_render(renderer, MID)
+    for eye in stereo(renderer, MID, RenderSettings(), StereoRig(ipd=0.0)):
         np.testing.assert_array_equal(eye, mono)
 
 
 @pytest.mark.parametrize("rig", [StereoRig(), StereoRig(ipd=0.07, convergence=1.5, scene_scale=0.25)],
                          ids=["default", "small-scene"])
 def test_each_eye_is_a_mono_render_from_that_eye(renderer, rig):
-    left, right = render_stereo(renderer, MID, RenderSettings(), rig, shared=False)
+    left, right = stereo(renderer, MID, RenderSettings(), rig, shared=False)
     for image, side in ((left, -1.0), (right, +1.0)):
         camera = independent_eye(MID, rig, side)
-        np.testing.assert_allclose(image, renderer.render(camera), atol=1e-6)
+        np.testing.assert_allclose(image, sorted_render(renderer, camera), atol=1e-6)
     # and the eyes differ from each other and from the midpoint's view
     assert np.abs(left - right).max() > 0.05
 
@@ -54,7 +63,7 @@ def test_disparity_has_the_right_sign_and_size(gl_ctx, depth):
     scene = make_scene([[0.0, 0.0, depth]], 0.004 * depth, opacities=0.9)
     renderer = GLRenderer(gl_ctx, scene)
     try:
-        left, right = render_stereo(renderer, camera, RenderSettings(p_min=1e-3), rig)
+        left, right = stereo(renderer, camera, RenderSettings(p_min=1e-3), rig)
     finally:
         renderer.release()
     disparity = _alpha_centroid_u(left) - _alpha_centroid_u(right)
@@ -75,8 +84,8 @@ def test_shared_sort_and_colour_stay_close_to_per_eye(demo_renderer, gl_ctx):
     camera = demo_camera().resized(160, 120)
     settings = RenderSettings()
     for rig, bound in ((StereoRig(), 0.02), (StereoRig(scene_scale=0.01), None)):
-        shared = render_stereo(demo_renderer, camera, settings, rig)
-        own = render_stereo(demo_renderer, camera, settings, rig, shared=False)
+        shared = stereo(demo_renderer, camera, settings, rig)
+        own = stereo(demo_renderer, camera, settings, rig, shared=False)
         error = max(np.abs(a[..., :3] - b[..., :3]).max() for a, b in zip(shared, own))
         if bound is None:
             assert error > 0.1, error
@@ -92,10 +101,11 @@ def test_shared_images_match_the_reference_with_the_shared_order(renderer):
     renderer = GLRenderer(renderer.ctx, scene)
     try:
         rig = StereoRig(scene_scale=0.2)
-        order = stereo_order(renderer, MID, RenderSettings(), rig)
-        left, right = render_stereo(renderer, MID, RenderSettings(), rig)
+        with DepthSorter(scene) as sorter:
+            order = stereo_order(sorter, MID, RenderSettings(), rig)
+        left, right = stereo(renderer, MID, RenderSettings(), rig)
         for image, eye in zip((left, right), eye_cameras(MID, rig)):
-            assert_matches(image, render_reference(scene, eye, order=order))
+            assert_matches(image, render_reference(scene, eye, order=order.indices))
     finally:
         renderer.release()
 
@@ -109,17 +119,18 @@ def test_the_shared_order_keeps_what_either_eye_sees(gl_ctx):
     rig = StereoRig(ipd=0.5, convergence=0.5)  # strong convergence: the eyes' views differ a lot
     renderer = GLRenderer(gl_ctx, scene)
     try:
-        order = set(stereo_order(renderer, camera, RenderSettings(), rig).tolist())
-        for eye in eye_cameras(camera, rig):
-            assert set(renderer.sort(eye, RenderSettings()).tolist()) <= order
-        assert len(order) > len(renderer.sort(camera, RenderSettings()))
+        with DepthSorter(scene) as sorter:
+            order = set(stereo_order(sorter, camera, RenderSettings(), rig).indices.tolist())
+            for eye in eye_cameras(camera, rig):
+                assert set(exact_order(sorter, eye, RenderSettings()).indices.tolist()) <= order
+            assert len(order) > exact_order(sorter, camera, RenderSettings()).count
     finally:
         renderer.release()
 
 
 def test_a_preset_camera_renders_at_that_size(renderer):
     preset = custom_preset(96, 64, 100.0, 80.0)
-    left, right = render_stereo(renderer, preset.camera(MID), RenderSettings(), StereoRig())
+    left, right = stereo(renderer, preset.camera(MID), RenderSettings(), StereoRig())
     assert left.shape == right.shape == (64, 96, 4)
 
 
@@ -135,9 +146,9 @@ def test_shared_colour_is_the_midpoints(gl_ctx):
     rig = StereoRig(ipd=0.8, convergence=2.0)
     renderer = GLRenderer(gl_ctx, scene)
     try:
-        mono = renderer.render(camera)
-        shared = render_stereo(renderer, camera, RenderSettings(), rig)
-        own = render_stereo(renderer, camera, RenderSettings(), rig, shared=False)
+        mono = sorted_render(renderer, camera)
+        shared = stereo(renderer, camera, RenderSettings(), rig)
+        own = stereo(renderer, camera, RenderSettings(), rig, shared=False)
     finally:
         renderer.release()
     # Zero disparity at the convergence distance: the gaussian's centre pixel is the same.
@@ -145,3 +156,26 @@ def test_shared_colour_is_the_midpoints(gl_ctx):
     for eye in shared:
         np.testing.assert_allclose(eye[centre][:3], mono[centre][:3], atol=2e-3)
     assert np.abs(own[0][centre][:3] - own[1][centre][:3]).max() > 0.1
+
+
+def test_draw_eyes_returns_each_eye_s_result_in_the_left_eye_s_depth_range(renderer):
+    """A depth picture's automatic range is the left eye's, fixed for the right eye, so
+    both results carry it; each eye is the mono render of that eye with its range."""
+    rig = StereoRig(scene_scale=0.2)
+    settings = RenderSettings()
+    with DepthSorter(renderer.scene) as sorter:
+        order = stereo_order(sorter, MID, settings, rig)
+    left_eye, right_eye = eye_cameras(MID, rig)
+    frame = StereoFrame(renderer.ctx)
+    try:
+        left, right = frame.draw_eyes(renderer, MID, settings, rig, order, ChannelView("depth"))
+        own_left = rendered(renderer, left_eye, settings, order, color_origin=MID.center, view=ChannelView("depth"))
+        own_right = rendered(renderer, right_eye, settings, order, color_origin=MID.center, view=ChannelView("depth"))
+        assert left.view_range is not None and left.view_range == own_left[1].view_range
+        assert right.view_range == left.view_range != own_right[1].view_range  # the right eye's own would differ
+        colour = frame.draw_eyes(renderer, MID, settings, rig, order)
+        assert all(result.view_range is None and result.order_stats is None for result in colour)
+        per_pixel = frame.draw_eyes(renderer, MID, RenderSettings(order="per-pixel"), rig, order)
+        assert [result.order_stats.width for result in per_pixel] == [left_eye.width, right_eye.width]
+    finally:
+        frame.release()

@@ -7,12 +7,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from lod_kit import random_gaussians, write_streamed_sog
+from testkit import sort_indices
 
 from raygs_viewer.camera.pinhole import look_at
 from raygs_viewer.scene.lod_file import load_lod, span_rows
 from raygs_viewer.sort.cull import span_chunks
 from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.lod_choice import REACH_SIGMAS, LodRequest, choose, level_distances, screen_radius
+from raygs_viewer.sort.request import SortRequest
 from raygs_viewer.sort.worker import BackgroundSorter
 
 LEVELS = 3
@@ -112,11 +114,11 @@ def test_a_sort_of_spans_is_the_sort_of_their_rows_alone(tmp_path, workers, chun
     sorter = DepthSorter(lod.scene, workers, chunk_rows=chunk_rows)
     alone = DepthSorter(lod.subset(choice.spans), 1)
     for _ in range(3):  # the distance key's turn cache answers the later ones
-        order = sorter.order(camera, 0.01, key=key, spans=choice.spans)
-        assert np.array_equal(order, rows[alone.order(camera, 0.01, key=key)])
-    everything = sorter.order(camera, 0.01, key=key)  # a later whole-scene sort is not filtered by the spans
-    assert everything.size > order.size and np.array_equal(everything, DepthSorter(lod.scene, 1).order(
-        camera, 0.01, key=key))
+        order = sort_indices(sorter, camera, 0.01, key=key, levels=choice)
+        assert np.array_equal(order, rows[sort_indices(alone, camera, 0.01, key=key)])
+    everything = sort_indices(sorter, camera, 0.01, key=key)  # a later whole-scene sort is not filtered by the spans
+    assert everything.size > order.size
+    assert np.array_equal(everything, sort_indices(DepthSorter(lod.scene, 1), camera, 0.01, key=key))
     sorter.close()
 
 
@@ -125,14 +127,16 @@ def test_the_sort_thread_chooses_for_each_view(tmp_path):
     sorter = BackgroundSorter(DepthSorter(lod.scene, 1))
     try:
         request = LodRequest(lod, budget=None, distance=1.0)
-        serial = sorter.request(CAMERA, 0.01, lod=request)
-        assert sorter.request(CAMERA, 0.01, lod=request) == serial  # the same view and choice: not queued again
+        serial = sorter.request(SortRequest(CAMERA, 0.01, levels=request))
+        # the same view and choice: not queued again
+        assert sorter.request(SortRequest(CAMERA, 0.01, levels=request)) == serial
         result = sorter.wait(serial, timeout=30)
-        assert result.lod.levels.tolist() == [0, 1, 2]
-        assert np.isin(result.order, span_rows(result.lod.spans)).all()
-        coarser = sorter.wait(sorter.request(CAMERA, 0.01, lod=LodRequest(lod, level=2)), timeout=30)
-        assert coarser.serial > serial and coarser.lod.levels.tolist() == [2, 2, 2]
-        assert coarser.order.size == 3 * 4
+        assert result.choice.levels.tolist() == [0, 1, 2]
+        assert result.order.choice is result.choice and np.array_equal(result.order.spans, result.choice.spans)
+        assert np.isin(result.order.indices, span_rows(result.choice.spans)).all()
+        coarser = sorter.wait(sorter.request(SortRequest(CAMERA, 0.01, levels=LodRequest(lod, level=2))), timeout=30)
+        assert coarser.serial > serial and coarser.choice.levels.tolist() == [2, 2, 2]
+        assert coarser.order.count == 3 * 4
     finally:
         sorter.close()
         sorter.join(10)

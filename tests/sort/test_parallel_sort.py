@@ -16,12 +16,15 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from testkit import gaussian_columns, make_scene, random_scene, write_ply
+from testkit import gaussian_columns, make_scene, random_scene, sort_indices, write_ply
 
 from raygs_viewer.camera.pinhole import Camera, look_at
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.sort import ordering
+from raygs_viewer.sort.cull import Cull
 from raygs_viewer.sort.depth import DepthSorter
+from raygs_viewer.sort.keys import key_values, sort_back_to_front
+from raygs_viewer.sort.request import SortRequest
 from raygs_viewer.sort.worker import BackgroundSorter
 
 P_MIN = 1 / 255
@@ -44,6 +47,11 @@ def camera_for(yaw: float, width: int = 40, height: int = 30):
     return look_at(eye, [0.1, -0.1, 0.2], width=width, height=height, fov_y_degrees=55)
 
 
+def orders_of(sorter: DepthSorter, request: SortRequest) -> dict[str, np.ndarray]:
+    """{key: (M,) uint32 indices} of ``sorter``'s answer to ``request``."""
+    return {key: order.indices for key, order in sorter.sort(request).orders.items()}
+
+
 def threads_of(sorter: DepthSorter) -> list[threading.Thread]:
     return [t for t in threading.enumerate() if t.name.startswith(sorter.thread_prefix)]
 
@@ -60,13 +68,13 @@ def test_every_worker_count_gives_the_one_worker_order(seed, workers, chunk_rows
                                          log_scale=(-3.0, -1.0)), rng)
     camera = camera_for(yaw)
     cull_cameras = (replace(camera, cx=camera.cx - 8), replace(camera, cx=camera.cx + 8)) if stereo else None
-    kwargs = dict(dilation=dilation, cull_cameras=cull_cameras, keys=("depth", "distance"))
-    reference = DepthSorter(scene, workers=1).orders(camera, P_MIN, method, **kwargs)
+    request = SortRequest(camera, P_MIN, dilation, cull_cameras, ("depth", "distance"), method=method)
+    reference = orders_of(DepthSorter(scene, workers=1), request)
     with pytest.MonkeyPatch.context() as patch, DepthSorter(scene, workers, chunk_rows=chunk_rows) as sorter:
         patch.setattr(ordering, "BUCKET_KEYS", bucket_keys)
         patch.setattr(ordering, "PARALLEL_SORT_MIN", 0)
-        parallel = sorter.orders(camera, P_MIN, method, **kwargs)
-        one_worker = DepthSorter(scene, workers=1, chunk_rows=chunk_rows).orders(camera, P_MIN, method, **kwargs)
+        parallel = orders_of(sorter, request)
+        one_worker = orders_of(DepthSorter(scene, workers=1, chunk_rows=chunk_rows), request)
     for key in ("depth", "distance"):
         assert parallel[key].dtype == np.uint32
         np.testing.assert_array_equal(parallel[key], reference[key])
@@ -74,8 +82,7 @@ def test_every_worker_count_gives_the_one_worker_order(seed, workers, chunk_rows
     # The cull is the one every key sorts, and DepthSorter.cull's.
     np.testing.assert_array_equal(np.sort(parallel["distance"]), np.sort(parallel["depth"]))
     np.testing.assert_array_equal(np.sort(parallel["depth"]),
-                                  DepthSorter(scene, 1).cull(camera, P_MIN, dilation=dilation,
-                                                             cull_cameras=cull_cameras))
+                                  DepthSorter(scene, 1).cull(request))
 
 
 def test_ties_across_chunks_and_buckets_keep_scene_order(monkeypatch):
@@ -90,7 +97,7 @@ def test_ties_across_chunks_and_buckets_keep_scene_order(monkeypatch):
     camera = look_at([0, 0, -2.0], [0, 0, 1.0], width=64, height=48, fov_y_degrees=90)
     for key in ("depth", "distance"):
         with DepthSorter(scene, workers=3, chunk_rows=37) as sorter:
-            order = sorter.order(camera, P_MIN, key=key)
+            order = sort_indices(sorter, camera, P_MIN, key=key)
         values = (scene.positions @ camera.R.T + camera.t)[:, 2] if key == "depth" else \
             np.linalg.norm(scene.positions - camera.center, axis=1)
         np.testing.assert_array_equal(order, np.lexsort((np.arange(scene.count), -values)))
@@ -102,14 +109,15 @@ def test_empty_one_and_fully_culled_scenes(workers):
     for count in (0, 1):
         scene = random_scene(n=count, seed=1, degree=0)
         with DepthSorter(scene, workers, chunk_rows=1) as sorter:
-            orders = sorter.orders(camera, P_MIN, keys=("depth", "distance"))
-            assert {key: order.tolist() for key, order in orders.items()} == \
+            result = sorter.sort(SortRequest(camera, P_MIN, keys=("depth", "distance")))
+            assert {key: order.indices.tolist() for key, order in result.orders.items()} == \
                 {"depth": list(range(count)), "distance": list(range(count))}
-            assert sorter.cull(camera, P_MIN).dtype == np.int64
+            assert all(order.indices.dtype == np.uint32 for order in result.orders.values())
+            assert sorter.cull(SortRequest(camera, P_MIN)).dtype == np.int64
     behind = look_at([0, 0, -3.0], [0, 0, -6.0], width=32, height=24)  # the scene is behind it
     with DepthSorter(random_scene(n=50, seed=2, degree=0, log_scale=(-4, -3)), workers, chunk_rows=8) as sorter:
         for key in ("depth", "distance"):
-            assert sorter.order(behind, P_MIN, key=key).size == 0
+            assert sort_indices(sorter, behind, P_MIN, key=key).size == 0
 
 
 def test_equal_depths_fall_back_to_scene_order():
@@ -118,7 +126,7 @@ def test_equal_depths_fall_back_to_scene_order():
     camera = look_at([0, 0, 0], [0, 0, 1.0], width=32, height=24)
     for method in ("auto", "radix", "float"):
         with DepthSorter(scene, workers=2, chunk_rows=3) as sorter:
-            assert sorter.order(camera, P_MIN, method).tolist() == list(range(40))
+            assert sort_indices(sorter, camera, P_MIN, method).tolist() == list(range(40))
 
 
 # -- the distance order of a turn in place ------------------------------------------------------
@@ -159,8 +167,9 @@ def test_a_turn_in_place_reuses_the_distance_order_and_equals_a_fresh_sort(worke
     with DepthSorter(scene, workers, chunk_rows=50) as sorter:
         sizes = set()
         for number, view in enumerate(views):
-            orders = sorter.orders(view, P_MIN, method, keys=("distance", "depth"))
-            fresh = DepthSorter(scene, 1).orders(view, P_MIN, method, keys=("distance", "depth"))
+            request = SortRequest(view, P_MIN, keys=("distance", "depth"), method=method)
+            orders = orders_of(sorter, request)
+            fresh = orders_of(DepthSorter(scene, 1), request)
             for key in fresh:
                 np.testing.assert_array_equal(orders[key], fresh[key])
             sizes.add(orders["distance"].size)
@@ -171,10 +180,10 @@ def test_a_turn_in_place_reuses_the_distance_order_and_equals_a_fresh_sort(worke
         assert len(sizes) > 2  # the turns cull differently: the filter is not a no-op
         # A new centre or another p_min sorts afresh (and the cache stays valid only for its own).
         moved = replace(camera, t=camera.t + [0.0, 0.0, 0.3])
-        np.testing.assert_array_equal(sorter.order(moved, P_MIN, method, key="distance"),
-                                      DepthSorter(scene, 1).order(moved, P_MIN, method, key="distance"))
-        np.testing.assert_array_equal(sorter.order(views[2], 0.05, method, key="distance"),
-                                      DepthSorter(scene, 1).order(views[2], 0.05, method, key="distance"))
+        np.testing.assert_array_equal(sort_indices(sorter, moved, P_MIN, method, key="distance"),
+                                      sort_indices(DepthSorter(scene, 1), moved, P_MIN, method, key="distance"))
+        np.testing.assert_array_equal(sort_indices(sorter, views[2], 0.05, method, key="distance"),
+                                      sort_indices(DepthSorter(scene, 1), views[2], 0.05, method, key="distance"))
         assert sorter.reused == len(views) - 2
 
 
@@ -192,8 +201,8 @@ def test_turns_whose_centres_round_to_either_sign_of_zero_reuse():
         assert views[-1].center[0] == x
     with DepthSorter(scene, workers=2, chunk_rows=64) as sorter:
         for view in views:
-            np.testing.assert_array_equal(sorter.order(view, P_MIN, key="distance"),
-                                          DepthSorter(scene, 1).order(view, P_MIN, key="distance"))
+            np.testing.assert_array_equal(sort_indices(sorter, view, P_MIN, key="distance"),
+                                          sort_indices(DepthSorter(scene, 1), view, P_MIN, key="distance"))
         # The second view keeps the candidates sorted for the first's centre; the third reuses them.
         assert (sorter.sorted, sorter.reused) == (2, 1)
 
@@ -202,35 +211,35 @@ def test_the_distance_key_does_not_change_with_the_rotation():
     """|p - C| in float32: bit for bit the same after any turn, which the reuse relies on."""
     scene = random_scene(n=300, seed=9, degree=0, spread=3.0)
     camera = look_at([0.3, -0.2, -1.0], [0, 0, 1.0], width=32, height=24)
-    sorter = DepthSorter(scene, workers=1)
-    everything = np.arange(scene.count)
-    first = sorter.sort(camera, everything, "float", key="distance")
+    scale = Cull(scene).coordinate_scale
+    first = key_values(scene.positions, camera, "distance", scale)
     for degrees in (17.0, 90.0, 181.0):
-        np.testing.assert_array_equal(sorter.sort(turned(camera, degrees, (1, 2, 3)), everything, "float",
-                                                  key="distance"), first)
+        values = key_values(scene.positions, turned(camera, degrees, (1, 2, 3)), "distance", scale)
+        np.testing.assert_array_equal(values, first)
+        np.testing.assert_array_equal(sort_back_to_front(values, "float"), sort_back_to_front(first, "float"))
 
 
 # -- the pool -------------------------------------------------------------------------------
 def test_close_leaves_no_thread_and_orders_still_work():
     scene = random_scene(n=300, seed=3, degree=0)
     camera = camera_for(0.3)
-    expected = DepthSorter(scene, 1).order(camera, P_MIN)
+    expected = sort_indices(DepthSorter(scene, 1), camera, P_MIN)
     sorter = DepthSorter(scene, workers=3, chunk_rows=16)
     assert threads_of(sorter) == []  # made lazily
-    np.testing.assert_array_equal(sorter.order(camera, P_MIN), expected)
+    np.testing.assert_array_equal(sort_indices(sorter, camera, P_MIN), expected)
     # The calling thread is the third worker (the pool starts a thread only when none is idle).
     assert 1 <= len(threads_of(sorter)) <= 2
     sorter.close()
     assert threads_of(sorter) == [] and sorter.closed
     sorter.close()  # idempotent
-    np.testing.assert_array_equal(sorter.order(camera, P_MIN), expected)  # on the calling thread
+    np.testing.assert_array_equal(sort_indices(sorter, camera, P_MIN), expected)  # on the calling thread
     assert threads_of(sorter) == []
     with DepthSorter(scene, workers=2, chunk_rows=16) as other:
-        other.order(camera, P_MIN)
+        sort_indices(other, camera, P_MIN)
         assert len(threads_of(other)) == 1
     assert threads_of(other) == []
     single = DepthSorter(scene, workers=1, chunk_rows=16)
-    single.order(camera, P_MIN)
+    sort_indices(single, camera, P_MIN)
     assert threads_of(single) == []  # one worker: no pool at all
 
 
@@ -238,19 +247,22 @@ def test_a_closed_background_sorter_closes_its_depth_sorter():
     scene = random_scene(n=300, seed=3, degree=0)
     sorter = DepthSorter(scene, workers=2, chunk_rows=16)
     worker = BackgroundSorter(sorter)
-    assert worker.wait(worker.request(camera_for(0.1), P_MIN), timeout=DEADLOCK) is not None
+    assert worker.wait(worker.request(SortRequest(camera_for(0.1), P_MIN)), timeout=DEADLOCK) is not None
     assert len(threads_of(sorter)) == 1
     worker.close()
     assert worker.join(DEADLOCK)
     assert sorter.closed and threads_of(sorter) == []
 
 
-def test_the_viewer_closes_the_pool_on_scene_change_and_exit(open_viewer, tmp_path):
+def test_the_viewer_closes_the_pool_on_scene_change_and_exit(open_viewer, tmp_path, monkeypatch):
     made: list[tuple[DepthSorter, BackgroundSorter]] = []
+    # The demo scene is one chunk by default: every DepthSorter made here (the viewer's)
+    # makes it many, on two workers.
+    monkeypatch.setattr(DepthSorter.__init__, "__defaults__", (2,))
+    monkeypatch.setattr(DepthSorter.__init__, "__kwdefaults__", {"chunk_rows": 64})
 
     def factory(depth_sorter: DepthSorter) -> BackgroundSorter:
-        # The demo scene is one chunk by default: make it many, on two workers.
-        depth_sorter.workers, depth_sorter.chunk_rows = 2, 64
+        assert (depth_sorter.workers, depth_sorter.chunk_rows) == (2, 64)
         made.append((depth_sorter, BackgroundSorter(depth_sorter)))
         return made[-1][1]
 

@@ -4,18 +4,20 @@ import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from testkit import make_scene, random_scene
+from testkit import make_scene, random_scene, sort_indices
 
 from raygs_viewer.camera.pinhole import look_at
 from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.settings import RenderSettings
-from raygs_viewer.sort.depth import DepthSorter, sort_back_to_front
+from raygs_viewer.sort.depth import DepthSorter
+from raygs_viewer.sort.keys import sort_back_to_front
+from raygs_viewer.sort.request import SortRequest
 
 
 def test_order_is_back_to_front():
     scene = random_scene(n=500, seed=2)
     camera = look_at([0.5, -0.4, -3.0], [0, 0, 0])
-    order = DepthSorter(scene).order(camera, 1 / 255, method="float")
+    order = sort_indices(DepthSorter(scene), camera, 1 / 255, "float")
     depth = (scene.positions.astype(np.float64) @ camera.R.T + camera.t)[order, 2]
     assert order.dtype == np.uint32
     assert np.all(np.diff(depth) <= 1e-6)
@@ -50,7 +52,7 @@ def test_culling_drops_what_cannot_be_seen():
         scales=[[0.1, 0.1, 0.1]] * 4, opacities=[0.9, 0.9, 0.9, 0.5 / 255],
     )
     camera = look_at([0, 0, 0], [0, 0, 1], width=64, height=48)
-    assert DepthSorter(scene).order(camera, 1 / 255).tolist() == [0]
+    assert sort_indices(DepthSorter(scene), camera, 1 / 255).tolist() == [0]
 
 
 @pytest.mark.parametrize("width, height", [(64, 48), (48, 48)])
@@ -60,14 +62,14 @@ def test_culling_uses_each_axis_for_its_own_planes(width, height):
     scene = make_scene(positions=[[0.0, 0.0, 5.0], [0.0, -50.0, 5.0], [50.0, 0.0, 5.0]],
                        scales=[[0.1, 0.1, 0.1]] * 3, opacities=0.9)
     camera = look_at([0, 0, 0], [0, 0, 1], width=width, height=height)
-    assert DepthSorter(scene).order(camera, 1 / 255).tolist() == [0]
+    assert sort_indices(DepthSorter(scene), camera, 1 / 255).tolist() == [0]
 
 
 def test_culling_keeps_a_gaussian_whose_support_reaches_the_view():
     """Centre behind the camera or beside the frustum, yet the support reaches in."""
     scene = make_scene(positions=[[0, 0, -0.5], [1.2, 0, 1.0]], scales=[[0.3, 0.3, 0.3]] * 2, opacities=1.0)
     camera = look_at([0, 0, 0], [0, 0, 1], width=64, height=48, fov_y_degrees=60)
-    assert sorted(DepthSorter(scene).order(camera, 1 / 255).tolist()) == [0, 1]
+    assert sorted(sort_indices(DepthSorter(scene), camera, 1 / 255).tolist()) == [0, 1]
 
 
 @settings(max_examples=40, deadline=None)
@@ -80,7 +82,7 @@ def test_culling_is_conservative(seed, yaw, pitch, distance, p_min, size):
     eye = distance * np.array([np.cos(pitch) * np.sin(yaw), np.sin(pitch), -np.cos(pitch) * np.cos(yaw)])
     camera = look_at(eye, [0.1, 0.2, 0.3], width=size[0], height=size[1], fov_y_degrees=70)
     settings_ = RenderSettings(p_min=p_min)
-    kept = DepthSorter(scene).order(camera, p_min, method="float")
+    kept = sort_indices(DepthSorter(scene), camera, p_min, "float")
     depth = (scene.positions.astype(np.float64) @ camera.R.T + camera.t)[:, 2]
     everything = np.argsort(-depth, kind="stable")
     kept = everything[np.isin(everything, kept)]  # same relative order: only culling differs
@@ -98,7 +100,7 @@ def _camera_space(scene, camera) -> np.ndarray:
 def test_distance_order_is_descending_distance_from_the_camera(method):
     scene = random_scene(n=400, seed=5, degree=0)
     camera = look_at([0.3, -0.2, -3.0], [0, 0, 0], width=64, height=48, fov_y_degrees=90)
-    order = DepthSorter(scene).order(camera, 1 / 255, method, dilation=None, key="distance")
+    order = sort_indices(DepthSorter(scene), camera, 1 / 255, method, dilation=None, key="distance")
     assert order.dtype == np.uint32 and order.size == scene.count  # all in front: nothing culled
     distance = np.linalg.norm(_camera_space(scene, camera), axis=1)
     # radix: keys within range/65535 share a bucket, kept in scene order
@@ -116,8 +118,8 @@ def test_distance_ties_keep_scene_order_where_depth_differs():
     camera = look_at([0, 0, 0], [0, 0, 1], width=64, height=48, fov_y_degrees=120)
     sorter = DepthSorter(scene)
     for method in ("float", "radix"):
-        assert sorter.order(camera, 1 / 255, method, dilation=None, key="distance").tolist() == [0, 1, 2, 3]
-        assert sorter.order(camera, 1 / 255, method, dilation=None, key="depth").tolist() == [2, 0, 1, 3]
+        assert sort_indices(sorter, camera, 1 / 255, method, dilation=None, key="distance").tolist() == [0, 1, 2, 3]
+        assert sort_indices(sorter, camera, 1 / 255, method, dilation=None, key="depth").tolist() == [2, 0, 1, 3]
 
 
 def _turned(camera, degrees: float, axis):
@@ -151,13 +153,13 @@ def test_distance_needs_no_new_sort_when_the_camera_turns_in_place_and_depth_doe
                                np.linalg.norm(_camera_space(scene, camera), axis=1), rtol=1e-12)
     sorter = DepthSorter(scene)
     for method in ("float", "radix"):
-        before = sorter.order(camera, 1 / 255, method, dilation=None, key="distance")
-        after = sorter.order(turned, 1 / 255, method, dilation=None, key="distance")
+        before = sort_indices(sorter, camera, 1 / 255, method, dilation=None, key="distance")
+        after = sort_indices(sorter, turned, 1 / 255, method, dilation=None, key="distance")
         assert before.size == n
         np.testing.assert_array_equal(after, before)
         np.testing.assert_array_equal(before, np.argsort(-radii, kind="stable"))
-        depth_before = sorter.order(camera, 1 / 255, method, dilation=None, key="depth")
-        depth_after = sorter.order(turned, 1 / 255, method, dilation=None, key="depth")
+        depth_before = sort_indices(sorter, camera, 1 / 255, method, dilation=None, key="depth")
+        depth_after = sort_indices(sorter, turned, 1 / 255, method, dilation=None, key="depth")
         assert depth_before.size == depth_after.size == n
         assert not np.array_equal(depth_after, depth_before)
 
@@ -166,10 +168,13 @@ def test_orders_culls_once_and_sorts_each_key():
     scene = random_scene(n=300, seed=8, degree=0)
     camera = look_at([0.5, 0.2, -2.0], [0, 0, 0], width=48, height=32)
     sorter = DepthSorter(scene)
-    orders = sorter.orders(camera, 1 / 255, keys=("distance", "depth", "distance"))
-    assert list(orders) == ["distance", "depth"]
-    for key, order in orders.items():
-        np.testing.assert_array_equal(order, sorter.order(camera, 1 / 255, key=key))
-    assert sorted(orders["depth"].tolist()) == sorted(orders["distance"].tolist())
+    request = SortRequest(camera, 1 / 255, keys=("distance", "depth", "distance"))
+    result = sorter.sort(request)
+    assert list(result.orders) == ["distance", "depth"] and result.keys == ("distance", "depth")
+    for key, order in result.orders.items():
+        assert order.key == key and order.request == request and order.answers(request)
+        np.testing.assert_array_equal(order.indices, sort_indices(sorter, camera, 1 / 255, key=key))
+    assert result.order is result.orders["distance"]  # the request's first key
+    assert sorted(result.orders["depth"].indices.tolist()) == sorted(result.orders["distance"].indices.tolist())
     with pytest.raises(ValueError, match="sort key"):
-        sorter.orders(camera, 1 / 255, keys=("nearest",))
+        SortRequest(camera, 1 / 255, keys=("nearest",))
