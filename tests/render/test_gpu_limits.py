@@ -29,7 +29,7 @@ def test_an_artificially_small_block_limit_changes_no_bit(gl_ctx, settings):
     for limit in (None, 8192):
         renderer = GLRenderer(gl_ctx, scene, block_limit=limit)
         try:
-            layout = renderer.layout_for(settings)
+            layout = renderer.plan(settings).layout
             images[limit] = sorted_render(renderer, CAMERA, settings)
         finally:
             renderer.release()

@@ -232,12 +232,17 @@ def test_colour_buffer_is_computed_once(gl_ctx, make_renderer, monkeypatch):
 
 
 # -------------------------------------------------------------- 3. preprocess skipping
+def preprocess(renderer, camera, settings, frame=None, color_origin=None) -> None:
+    """The renderer's preprocessing pass for ``settings``' plan."""
+    renderer.preprocess(camera, renderer.plan(settings), frame, color_origin)
+
+
 def _records(gl_ctx, scene, camera, settings, frame=None, color_origin=None) -> np.ndarray:
     """The splat records a fresh renderer's preprocessing pass writes."""
     gl_ctx.__enter__()
     renderer = GLRenderer(gl_ctx, scene)
     try:
-        renderer.preprocess(camera, settings, frame, color_origin)
+        preprocess(renderer, camera, settings, frame, color_origin)
         return renderer.read_splats()
     finally:
         renderer.release()
@@ -251,7 +256,7 @@ def test_same_view_twice_preprocesses_once(make_renderer):
     np.testing.assert_array_equal(first, second)
     # An equal camera made anew is the same view.
     again = Camera(FRONT.width, FRONT.height, FRONT.fx, FRONT.fy, FRONT.cx, FRONT.cy, FRONT.R.copy(), FRONT.t.copy())
-    renderer.preprocess(again, S(), None, FRONT.center.copy())
+    preprocess(renderer, again, S(), None, FRONT.center.copy())
     assert (renderer.counters.preprocessed, renderer.counters.preprocess_skipped) == (1, 2)
 
 
@@ -278,21 +283,50 @@ CHANGES = {
 }
 
 
+#: Settings that only the draw or the picture sees, or that choose what is drawn: the
+#: records stay the view's.
+UNSEEN = {
+    "background": S(background=(0.2, 0.4, 0.6)),
+    "level-of-detail budget and distance": S(lod_budget=1000, lod_distance=2.0),
+    "order": S(order="distance"),
+    "per-pixel order": S(order="per-pixel", order_k=4),
+}
+
+
+@pytest.mark.parametrize("name", list(UNSEEN))
+def test_what_the_pass_does_not_read_does_not_run_it_again(make_renderer, name):
+    renderer = make_renderer(scene_of(3))
+    preprocess(renderer, FRONT, S())
+    before = renderer.read_splats()
+    preprocess(renderer, FRONT, UNSEEN[name])
+    assert (renderer.counters.preprocessed, renderer.counters.preprocess_skipped) == (1, 1)
+    np.testing.assert_array_equal(renderer.read_splats(), before)
+
+
+def test_dragging_the_background_redraws_without_the_pass(make_renderer):
+    renderer = make_renderer(scene_of(3))
+    first = sorted_render(renderer, FRONT, S())
+    grey = sorted_render(renderer, FRONT, S(background=(0.5, 0.5, 0.5)))
+    assert (renderer.counters.preprocessed, renderer.counters.preprocess_skipped) == (1, 1)
+    assert not np.array_equal(first, grey)
+    np.testing.assert_array_equal(grey, sorted_render(make_renderer(scene_of(3)), FRONT, S(background=(0.5,) * 3)))
+
+
 @pytest.mark.parametrize("name", list(CHANGES))
 def test_every_change_of_view_preprocesses_again(gl_ctx, make_renderer, name):
     base, changed = CHANGES[name]
     scene = scene_of(3)
     renderer = make_renderer(scene)
-    renderer.preprocess(*base)
+    preprocess(renderer, *base)
     before = renderer.read_splats()
-    renderer.preprocess(*changed)
+    preprocess(renderer, *changed)
     assert (renderer.counters.preprocessed, renderer.counters.preprocess_skipped) == (2, 0)
     after = renderer.read_splats()
     if after.shape == before.shape:
         assert not np.array_equal(after, before), "the change must change the records"
     np.testing.assert_array_equal(after, _records(gl_ctx, scene, *changed))
     # ... and back: the first view again is not the last one either.
-    renderer.preprocess(*base)
+    preprocess(renderer, *base)
     assert renderer.counters.preprocessed == 3
     np.testing.assert_array_equal(renderer.read_splats(), before)
 
@@ -355,11 +389,11 @@ def test_a_pass_cut_short_leaves_no_stale_records(gl_ctx, make_renderer, monkeyp
     assert renderer.layout.chunk < scene.count // 4
     other = look_at([2.5, 0.5, 1.0], [0, 0, 0], width=80, height=60)
     image = sorted_render(renderer, FRONT, S())
-    original = renderer.variants.preprocess
-    monkeypatch.setattr(renderer.variants, "preprocess", lambda settings, geometry=False: _FailingProgram(
-        original(settings), runs=3))
+    original = renderer.programs.compute
+    monkeypatch.setattr(renderer.programs, "compute", lambda name, defines=None: _FailingProgram(
+        original(name, defines), runs=3) if name == "preprocess.comp" else original(name, defines))
     with pytest.raises(RuntimeError, match="simulated"):
-        renderer.preprocess(other, S())
+        preprocess(renderer, other, S())
     monkeypatch.undo()
     assert not np.array_equal(renderer.read_splats(), _records(gl_ctx, scene, FRONT, S()))  # partly overwritten
     np.testing.assert_array_equal(sorted_render(renderer, FRONT, S()), image)

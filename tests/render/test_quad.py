@@ -93,7 +93,7 @@ def test_gl_quads_contain_the_support(gl_ctx):
     settings_ = RenderSettings()
     renderer = GLRenderer(gl_ctx, scene)
     try:
-        renderer.preprocess(camera, settings_)
+        renderer.preprocess(camera, renderer.plan(settings_))
         splats = renderer.read_splats().astype(np.float64)
     finally:
         renderer.release()

@@ -18,8 +18,8 @@ from raygs_viewer.render.gl.shaders import (
     name_locations,
     shader_source,
 )
+from raygs_viewer.render.gl.plan import RenderPlan
 from raygs_viewer.render.gl.storage import StorageLayout
-from raygs_viewer.render.gl.variants import ShaderVariants
 from raygs_viewer.render.settings import RenderSettings
 
 REPO_GLSL = Path(__file__).resolve().parents[2] / "glsl"
@@ -88,21 +88,24 @@ def _broken(monkeypatch, name: str, old: str, new: str) -> int:
     return text[:text.index(old)].count("\n") + 1
 
 
+def _plan(settings, path=None) -> RenderPlan:
+    return RenderPlan(settings, StorageLayout.plan(1000, 48 * 4, 1 << 27), path=path, sh_degree=3)
+
+
 def _settings_draw(ctx, settings, path=None):
-    variants = ShaderVariants(ctx, 3)
+    programs = Programs(ctx)
     try:
-        variants.draw(settings, StorageLayout.plan(1000, 48 * 4, 1 << 27), path=path)
+        programs.draw(*_plan(settings, path).draw_stages())
     finally:
-        variants.release()
+        programs.release()
 
 
 def _kbuffer_resolve(ctx, settings):
-    variants = ShaderVariants(ctx, 3)
+    programs = Programs(ctx)
     try:
-        layout = StorageLayout.plan(1000, 48 * 4, 1 << 27)
-        variants.programs.compute("kbuffer_resolve.comp", variants.order_defines(settings, layout, "fetch", 2))
+        programs.compute("kbuffer_resolve.comp", _plan(settings, "fetch").pass_defines())
     finally:
-        variants.release()
+        programs.release()
 
 
 # (file broken, its line, replacement, the program that includes it). Semantic errors:
@@ -146,7 +149,7 @@ def test_a_compile_error_names_the_program_and_its_defines(gl_ctx, monkeypatch):
 
 
 def test_more_splat_blocks_than_declared_bindings_stop_the_compile(gl_ctx):
-    defines = ShaderVariants(gl_ctx, 0).order_defines(RenderSettings(), StorageLayout.plan(1000, 48, 1 << 27))
+    defines = RenderPlan(RenderSettings(), StorageLayout.plan(1000, 48, 1 << 27)).pass_defines()
     programs = Programs(gl_ctx)
     try:
         for blocks in (1, 8):
