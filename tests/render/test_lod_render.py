@@ -15,6 +15,7 @@ from raygs_viewer.render.lod_view import open_scene, restrict_to_view
 from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.lod_file import load_lod
+from raygs_viewer.scene.source import SceneSource
 from raygs_viewer.sort.lod_choice import choose
 
 CAMERA = look_at([0.0, -0.3, -2.0], [1.5, 0.0, 3.0], width=48, height=36)
@@ -79,16 +80,16 @@ def test_chunk_runs_are_the_spans_within_a_chunk():
 
 def test_open_scene_reads_a_level_or_every_level_for_the_choice(streamed):
     path, lod = streamed
-    level = open_scene(str(path), RenderSettings(lod=2))
+    level = open_scene(SceneSource(path), RenderSettings(lod=2))
     assert level.lod is None and level.scene.count == 12 + 6 * 10
-    chosen = open_scene(str(path), RenderSettings(lod_budget=70, lod_distance=3.5))
+    chosen = open_scene(SceneSource(path), RenderSettings(lod_budget=70, lod_distance=3.5))
     assert chosen.lod.budget == 70 and chosen.scene.count == lod.scene.count
     assert chosen.framed.shape[0] == lod.scene.count - 12  # framing leaves the environment out
 
 
 def test_restrict_to_view_chooses_per_camera(gl_ctx, streamed):
     path, lod = streamed
-    opened = open_scene(str(path), RenderSettings(lod_distance=3.5))
+    opened = open_scene(SceneSource(path), RenderSettings(lod_distance=3.5))
     renderer = GLRenderer(gl_ctx, opened.scene)
     try:
         near = restrict_to_view(renderer, opened.lod, CAMERA)
