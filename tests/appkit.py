@@ -15,6 +15,7 @@ from imgui_bundle import imgui  # before glfw (see raygs_viewer.viewer.window)
 from raygs_viewer.capture.image_io import to_rgb8
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.render.sorting import exact_order
+from raygs_viewer.scene.source import SceneSource
 from raygs_viewer.sort.request import SortRequest, SortResult
 from raygs_viewer.sort.worker import BackgroundSorter
 from raygs_viewer.viewer.app import Viewer, load_start_scene, start_camera
@@ -312,19 +313,20 @@ def project(camera, point) -> np.ndarray:
 
 
 def open_viewer_factory(tmp_path):
-    """(open_, close_all): open_(scene, hide_panel, **ViewerOptions fields and the Viewer's
+    """(open_, close_all): open_(scene (a path or a SceneSource), hide_panel, **ViewerOptions fields and the Viewer's
     renderer_factory / sorter_factory) -> (viewer, driver). Each driver records its
     viewer's panel; close_all also takes the recording wrappers off imgui."""
     viewers = []
     recorder, patches = PanelRecorder(), pytest.MonkeyPatch()
     recorder.install(patches)
 
-    def open_(scene="demo", hide_panel=False, **options):
+    def open_(scene: str | SceneSource = "demo", hide_panel=False, **options):
         options.setdefault("width", WIDTH)
         options.setdefault("height", HEIGHT)
         options.setdefault("screenshots", ScreenshotOptions(folder=str(tmp_path / "shots")))
         factories = {name: options.pop(name) for name in ("renderer_factory", "sorter_factory") if name in options}
-        viewer_options = ViewerOptions(scene=scene, platform="null", **options)
+        source = scene if isinstance(scene, SceneSource) else SceneSource(scene)
+        viewer_options = ViewerOptions(source=source, platform="null", **options)
         viewer = Viewer(viewer_options, load_start_scene(viewer_options), start_camera(viewer_options), **factories)
         viewers.append(viewer)
         viewer.panel.show_panel = not hide_panel

@@ -21,7 +21,8 @@ from raygs_viewer.camera.pinhole import Camera, frame_points
 from raygs_viewer.errors import UserError
 from raygs_viewer.files import write_atomically
 from raygs_viewer.render.gl.context import create_headless_context
-from raygs_viewer.scene.loader import DEMO, load_now
+from raygs_viewer.scene.loader import load_now
+from raygs_viewer.scene.source import DEMO, SceneSource
 from raygs_viewer.scene.model import Scene
 
 
@@ -76,26 +77,27 @@ def load_scenes(specs: tuple[str, ...]) -> list[BenchScene]:
     """Every scene of ``specs`` ("demo" or a file; all checked to exist before the first
     loads), named after its file (made unique), with its first camera or one framing it."""
     loaded, names = [], set()
-    for spec in specs:
-        if spec != DEMO and not os.path.exists(spec):  # a folder may be an unbundled SOG scene: the load decides
-            raise UserError(f"{spec}: no such file")
-    for spec in specs:
-        result = load_now(spec)
+    sources = [SceneSource(spec) for spec in specs]
+    for source in sources:
+        if not source.is_demo and not os.path.exists(source.path):  # a folder may be an unbundled SOG scene
+            raise UserError(f"{source.path}: no such file")
+    for spec, source in zip(specs, sources):
+        result = load_now(source)
         for warning in result.warnings:
             print(f"warning: {warning}", file=sys.stderr)
         scene = result.scene
         if result.cameras:
-            camera, origin = result.cameras[0], ("its first view" if spec == DEMO
+            camera, origin = result.cameras[0], ("its first view" if source.is_demo
                                                  else f"the first camera of {result.cameras_path}")
         else:
             camera, origin = frame_points(scene.positions), "a camera framing its gaussians (no cameras.json)"
-        name = DEMO if spec == DEMO else Path(spec).stem
+        name = DEMO if source.is_demo else Path(spec).stem
         base, n = name, 2
         while name in names:
             name, n = f"{base}-{n}", n + 1
         names.add(name)
         description = f"{scene.count:,} gaussians, SH degree {scene.sh_degree}; training-like view: {origin}"
-        loaded.append(BenchScene(name, scene, camera, description, None if spec == DEMO else spec))
+        loaded.append(BenchScene(name, scene, camera, description, None if source.is_demo else spec))
     return loaded
 
 

@@ -1,6 +1,9 @@
 """The entries that screenshot sidecars and path files share, written from their types
-and read back checked: "settings" (every ``RenderSettings`` field) and "stereo" (the rig,
-layout, lens and headset). A key the file lacks takes its default (the file was written
+and read back checked: "settings" (every ``RenderSettings`` field), "stereo" (the rig,
+layout, lens and headset), and what "scene" records of how the scene was read: for a
+``.spz``, ``"spz_axes": "rub" or "rdf"``, the axes it was read in (older files: absent,
+"rub"); for a streamed SOG whose levels were chosen per view, ``"lod_levels": [1, 2]``,
+the levels read (a sidecar's only). A key the file lacks takes its default (the file was written
 before the field existed); an unknown key is refused (a newer program's option cannot be
 honoured). :mod:`~raygs_viewer.capture.sidecar` and :mod:`~raygs_viewer.capture.path_file`
 read and write them through here.
@@ -16,7 +19,40 @@ from raygs_viewer.camera.lens_model import LensModel
 from raygs_viewer.camera.stereo import LAYOUTS, HeadsetPreset, StereoRig, StereoView
 from raygs_viewer.errors import UserError
 from raygs_viewer.jsonfile import JsonFields, json_key, show_json, typed
-from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.settings import MAX_LOD_LEVELS, RenderSettings
+from raygs_viewer.scene.model import FileAxes
+from raygs_viewer.scene.spz_format import SPZ_AXES
+
+#: The key of "scene" that records the axes its .spz was read in, and its dotted name
+#: (messages name it).
+AXES_KEY = "spz_axes"
+AXES_FIELD = f"scene.{AXES_KEY}"
+
+
+def reading_entry(axes: FileAxes | None, levels: tuple[int, ...] | None = None) -> dict:
+    """The keys of "scene" that say how it was read (module docstring): ``axes`` a .spz's
+    (None: another format), ``levels`` a streamed SOG's read (None: not chosen per view)."""
+    return {**({} if axes is None else {AXES_KEY: axes.assumed}),
+            **({} if levels is None else {"lod_levels": sorted(levels)})}
+
+
+def load_axes_entry(fields: JsonFields) -> FileAxes | None:
+    """The axes "scene" says its .spz was read in; None where it records none."""
+    if fields.get("scene", dict).get(AXES_KEY) is None:
+        return None
+    return FileAxes(fields.choice(AXES_FIELD, SPZ_AXES, ""))
+
+
+def load_levels_entry(fields: JsonFields) -> tuple[int, ...] | None:
+    """The levels of a streamed SOG "scene" says were read, sorted; None where it records none."""
+    levels = fields.optional("scene.lod_levels", list)
+    if levels is None:
+        return None
+    if not levels or not all(isinstance(v, int) and not isinstance(v, bool) and 0 <= v < MAX_LOD_LEVELS
+                             for v in levels):
+        raise UserError(f"{fields.path}: 'scene.lod_levels' must list levels from 0 to {MAX_LOD_LEVELS - 1}, "
+                        f"got {show_json(levels)}")
+    return tuple(sorted(set(levels)))
 
 
 def stereo_entry(view: StereoView) -> dict:

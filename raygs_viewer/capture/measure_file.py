@@ -34,10 +34,11 @@ import numpy as np
 
 from raygs_viewer.camera.pinhole import MAX_COORDINATE
 from raygs_viewer.capture.image_io import check_output_path
-from raygs_viewer.capture.sidecar import DEMO, SHA256_HEX, document_head, scene_mismatch_warning
+from raygs_viewer.capture.sidecar import SHA256_HEX, document_head, scene_mismatch_warning
 from raygs_viewer.errors import UserError
 from raygs_viewer.files import write_atomically
 from raygs_viewer.jsonfile import JsonFields, json_text, parse_json, read_json_file, show_json
+from raygs_viewer.scene.source import SceneSource, is_demo
 
 MEASURE_FORMAT = "raygs-viewer measurements"
 MEASURE_VERSION = 1
@@ -136,7 +137,7 @@ class MeasureDocument:
 def measure_document_json(doc: MeasureDocument) -> dict:
     scene = None
     if doc.scene_path is not None:
-        scene = {"path": DEMO if doc.scene_path == DEMO else os.path.abspath(doc.scene_path),
+        scene = {"path": SceneSource(doc.scene_path).recorded_path,
                  "sha256": doc.scene_sha256}
     scale = None if doc.scale is None else {"factor": doc.scale.factor, "unit": doc.scale.unit,
                                             "reference": doc.scale.reference}
@@ -199,7 +200,7 @@ def _load_scene(fields: JsonFields) -> tuple[str | None, str | None]:
         return None, None
     fields.keys("scene", fields.get("scene", dict), ("path", "sha256"))
     path = fields.get("scene.path", str)
-    if path != DEMO and not os.path.isabs(path):
+    if not is_demo(path) and not os.path.isabs(path):
         raise UserError(f"{fields.path}: 'scene.path' must be \"demo\" or an absolute path, got {show_json(path)}")
     sha = fields.optional("scene.sha256", str)
     if sha is not None and not SHA256_HEX.fullmatch(sha):

@@ -14,7 +14,7 @@ Layout (version 1)::
      "scene": {"path": "/abs/scene.ply" or "demo",                # or null: unknown
                "sha256": "<64 hex digits>" or null,
                "count": N or null, "sh_degree": d or null,
-               "spz_axes": "rub" or "rdf",                        # a .spz only: the axes it was read in
+               ...,                                               # how it was read: document_entries.reading_entry
                "relative_path": "../scene.ply"},                  # added when saved, from the file's folder
      "image": {"width": W, "height": H},                          # each frame's camera (each eye's in stereo)
      "settings": {every RenderSettings field} or null,            # null: the reader's defaults
@@ -65,12 +65,18 @@ from raygs_viewer.camera.path import (
 )
 from raygs_viewer.camera.rotation import is_rotation
 from raygs_viewer.camera.stereo import StereoView
-from raygs_viewer.capture.document_entries import load_settings_entry, load_stereo_entry, stereo_entry
+from raygs_viewer.capture.document_entries import (
+    AXES_KEY,
+    load_axes_entry,
+    load_settings_entry,
+    load_stereo_entry,
+    reading_entry,
+    stereo_entry,
+)
 from raygs_viewer.capture.image_io import check_output_path
 from raygs_viewer.capture.nerfstudio import NerfstudioPath, is_nerfstudio, read_nerfstudio, save_nerfstudio
 from raygs_viewer.capture.screenshot import MAX_SCREENSHOT_SIDE, with_relative_scene_path
 from raygs_viewer.capture.sidecar import (
-    DEMO,
     ROTATION_TOLERANCE,
     SHA256_HEX,
     document_head,
@@ -80,7 +86,8 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.files import write_atomically
 from raygs_viewer.jsonfile import JsonFields, json_text, parse_json, read_json_file, show_json
 from raygs_viewer.render.settings import RenderSettings
-from raygs_viewer.scene.spz_format import SPZ_AXES
+from raygs_viewer.scene.model import FileAxes
+from raygs_viewer.scene.source import SceneSource, is_demo
 
 #: The formats a document is read from.
 RAYGS, NERFSTUDIO = "raygs", "nerfstudio"
@@ -106,9 +113,9 @@ class PathDocument:
     settings: None for the reader's defaults (a nerfstudio file has none). stereo: None
     for mono. scene_path: "demo" or an absolute path, None when unknown (nerfstudio);
     scene_sha256: its hex digest (None: unknown, never checked); scene_count,
-    scene_sh_degree: the scene's gaussian count and SH degree, when known. scene_spz_axes:
-    the convention ("rub", "rdf") a .spz scene was read in (None: another format, or
-    not recorded; render-path then reads it as its --spz-axes says). source: the
+    scene_sh_degree: the scene's gaussian count and SH degree, when known. scene_axes:
+    the axes a .spz scene was read in (None: another format, or not recorded;
+    render-path then reads it as its options say). source: the
     file it was read from. kind: the format it was read from (one of KINDS). extra:
     free-form details of the window (the file's "extra"). notes: one-line remarks about
     what the reader could not honour (e.g. a nerfstudio crop box), for the caller to show."""
@@ -126,7 +133,7 @@ class PathDocument:
     scene_sh_degree: int | None = None
     extra: dict = field(default_factory=dict)
     notes: tuple[str, ...] = ()
-    scene_spz_axes: str | None = None
+    scene_axes: FileAxes | None = None
 
 
 # --------------------------------------------------------------------------- writing
@@ -139,11 +146,11 @@ def path_document_json(doc: PathDocument, extra: dict | None = None) -> dict:
     interpolation = path.interpolation
     scene = None
     if doc.scene_path is not None:
-        scene = {"path": DEMO if doc.scene_path == DEMO else os.path.abspath(doc.scene_path),
+        scene = {"path": SceneSource(doc.scene_path).recorded_path,
                  "sha256": doc.scene_sha256,
                  "count": None if doc.scene_count is None else int(doc.scene_count),
                  "sh_degree": None if doc.scene_sh_degree is None else int(doc.scene_sh_degree),
-                 **({} if doc.scene_spz_axes is None else {"spz_axes": doc.scene_spz_axes})}
+                 **reading_entry(doc.scene_axes)}
     return {
         **document_head(PATH_FORMAT, PATH_VERSION),
         "scene": scene,
@@ -229,7 +236,7 @@ def read_path_json(data, file: Path) -> PathDocument:
     return PathDocument(path, width, height, settings, stereo, scene.get("path"), scene.get("sha256"),
                         source=file, kind=RAYGS, scene_count=scene.get("count"),
                         scene_sh_degree=scene.get("sh_degree"), extra=dict(extra),
-                        scene_spz_axes=scene.get("spz_axes"))
+                        scene_axes=scene.get("axes"))
 
 
 def _check_program(fields: JsonFields) -> None:
@@ -242,14 +249,14 @@ def _check_program(fields: JsonFields) -> None:
 
 
 def _load_scene(fields: JsonFields) -> dict:
-    """The "scene" record as {path, sha256, count, sh_degree, spz_axes} ({} when null or absent)."""
+    """The "scene" record as {path, sha256, count, sh_degree, axes} ({} when null or absent)."""
     file = fields.path
     if fields.data.get("scene") is None:
         return {}
     scene = fields.get("scene", dict)
-    fields.keys("scene", scene, ("path", "sha256"), ("count", "sh_degree", "spz_axes", "relative_path"))
+    fields.keys("scene", scene, ("path", "sha256"), ("count", "sh_degree", AXES_KEY, "relative_path"))
     path = fields.get("scene.path", str)
-    if path != DEMO and not os.path.isabs(path):
+    if not is_demo(path) and not os.path.isabs(path):
         raise UserError(f"{file}: 'scene.path' must be \"demo\" or an absolute path, got {show_json(path)}")
     sha = None
     if scene["sha256"] is not None:
@@ -257,7 +264,7 @@ def _load_scene(fields: JsonFields) -> dict:
         if not SHA256_HEX.fullmatch(sha):
             raise UserError(f"{file}: 'scene.sha256' must be 64 lowercase hex digits or null, got {show_json(sha)}")
     record = {"path": path, "sha256": sha, "count": None, "sh_degree": None,
-              "spz_axes": None if scene.get("spz_axes") is None else fields.choice("scene.spz_axes", SPZ_AXES, "")}
+              "axes": load_axes_entry(fields)}
     if scene.get("count") is not None:
         record["count"] = fields.get("scene.count", int)
         if record["count"] < 0:

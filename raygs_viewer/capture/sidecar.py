@@ -12,8 +12,7 @@ Layout (version 1)::
      "image": {"width": W, "height": H, "scale": K},           # the screenshot's size
      "scene": {"path": "/abs/scene.ply" or "demo", "sha256": "...", "count": N,
                "sh_degree": d, "filter_fused": false,
-               "spz_axes": "rub",                              # a .spz only: the axes it was read in
-               "lod_levels": [1, 2],                           # a streamed SOG chosen per view: the levels read
+               ...,                                            # how it was read: document_entries.reading_entry
                "relative_path": "../scene.ply"},               # added when saved, from the sidecar's folder
      "camera": {INRIA cameras.json entry, cx and cy always present},
      "world_to_camera": {"R": 3x3, "t": 3},                    # the exact float64 pose
@@ -38,8 +37,8 @@ A picture of another channel than colour (version 3; docs/geometry.md) adds::
 
 so that ``render --sidecar`` draws the same picture (a colour screenshot has none).
 
-A ``.spz`` scene's "spz_axes" (``SPZ_AXES``; older sidecars: "rub") is read in again;
-"rdf" makes version 4, which a reader that would show it upside down (as "rub") refuses.
+A ``.spz`` scene is read again in the axes it was read in (``SPZ_AXES``; older
+sidecars: "rub"); "rdf" makes version 4, which a reader that would show it upside down (as "rub") refuses.
 
 Its "camera" is the midpoint between the eyes (each eye has that size) and "image" is
 the composed size (twice the width side by side). As in "settings", a key that a file
@@ -74,23 +73,31 @@ import raygs_viewer
 from raygs_viewer.camera.pinhole import Camera, camera_from_json, camera_to_json
 from raygs_viewer.camera.rotation import is_rotation
 from raygs_viewer.camera.stereo import StereoView, composed_size
-from raygs_viewer.capture.document_entries import load_settings_entry, load_stereo_entry, stereo_entry
+from raygs_viewer.capture.document_entries import (
+    AXES_FIELD,
+    load_axes_entry,
+    load_levels_entry,
+    load_settings_entry,
+    load_stereo_entry,
+    reading_entry,
+    stereo_entry,
+)
 from raygs_viewer.capture.screenshot import MAX_SCALE
 from raygs_viewer.errors import UserError
 from raygs_viewer.jsonfile import JsonFields, read_json_file, show_json
 from raygs_viewer.render.channel_pictures import ChannelView
-from raygs_viewer.render.settings import MAX_LOD_LEVELS, RENDER_MODES, RenderSettings
+from raygs_viewer.render.settings import RENDER_MODES, RenderSettings
 from raygs_viewer.scene.demo import demo_scene
 from raygs_viewer.scene.content_hash import arrays_sha256, file_sha256
-from raygs_viewer.scene.model import Scene
-from raygs_viewer.scene.spz_format import DEFAULT_SPZ_AXES, SPZ_AXES
+from raygs_viewer.scene.model import FileAxes, Scene
+from raygs_viewer.scene.source import DEMO, SceneSource, is_demo
+from raygs_viewer.scene.spz_format import DEFAULT_SPZ_AXES
 
 SIDECAR_FORMAT = "raygs-viewer screenshot"
 SIDECAR_VERSION = 4          # the newest this program reads and writes
 STEREO_SIDECAR_VERSION = 2   # the first with "stereo"
 CHANNEL_SIDECAR_VERSION = 3  # the first with "channel_view"
 RDF_SIDECAR_VERSION = 4      # the first with a .spz read in "rdf"
-DEMO = "demo"
 
 SHA256_HEX = re.compile(r"[0-9a-f]{64}")
 # A pose written by this program is orthonormal to ~1e-15; anything far off is an
@@ -135,14 +142,14 @@ def scene_mismatch_warning(*, document: str, recorded_path: str | None, recorded
     if recorded_sha256 is None:
         return None
     if actual_sha256 is None:
-        actual_sha256 = demo_sha256() if scene_name == DEMO else scene_sha256(scene_name)
+        actual_sha256 = demo_sha256() if is_demo(scene_name) else scene_sha256(scene_name)
     if actual_sha256 == recorded_sha256:
         return None
     hashes = f"sha256 {recorded_sha256[:12]}… recorded, {actual_sha256[:12]}… now"
-    if scene_name == DEMO and recorded_path == DEMO:
+    if is_demo(scene_name) and is_demo(recorded_path):
         return f"{document} was {verb} on another version of the demo scene ({hashes}); {consequence}"
-    recorded = "the demo scene" if recorded_path == DEMO else (recorded_path or "another scene")
-    scene = "the demo scene" if scene_name == DEMO else scene_name
+    recorded = "the demo scene" if is_demo(recorded_path) else (recorded_path or "another scene")
+    scene = "the demo scene" if is_demo(scene_name) else scene_name
     return f"{document} was {verb} on {recorded}, not on {scene} ({hashes}); {consequence}"
 
 
@@ -164,7 +171,7 @@ def _pose(camera: Camera) -> dict:
 def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, settings: RenderSettings,
                   scale: float, window_camera: Camera | None = None, extra: dict | None = None,
                   stereo: StereoView | None = None, channel_view: ChannelView | None = None,
-                  lod_levels: tuple[int, ...] | None = None) -> dict:
+                  levels: tuple[int, ...] | None = None) -> dict:
     """The sidecar of a screenshot rendered at ``camera`` (the window's camera already
     scaled by ``scale``) with ``settings``. ``scene_path`` is the loaded file ("demo"
     for the demo), recorded as an absolute path; ``window_camera`` is the on-screen
@@ -172,13 +179,10 @@ def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, 
     renderer, ...). ``stereo``: the image is that stereo view around ``camera``.
     ``channel_view``: the image is that picture of a channel (its ``depth_range`` the
     range the picture used); colour (None, or the rgb channel) records nothing.
-    ``lod_levels``: a streamed SOG's levels read when the levels were chosen per view
+    ``levels``: a streamed SOG's levels read when the levels were chosen per view
     (the choice depends on them: a screenshot taken while finer levels were still being
     read, or on a GPU that held fewer, re-renders from those alone)."""
-    if scene_path == DEMO:
-        recorded_path = DEMO
-    else:
-        recorded_path = os.path.abspath(os.fspath(scene_path))
+    recorded_path = SceneSource(scene_path).recorded_path
     width, height = (camera.width, camera.height) if stereo is None else \
         composed_size(camera.width, camera.height, stereo.layout)
     axes = scene.axes  # a .spz's (scene.model.FileAxes)
@@ -189,8 +193,7 @@ def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, 
         "image": {"width": int(width), "height": int(height), "scale": float(scale)},
         "scene": {"path": recorded_path, "sha256": scene_sha256, "count": int(scene.count),
                   "sh_degree": int(scene.sh_degree), "filter_fused": bool(scene.filter_fused),
-                  **({"spz_axes": axes.assumed} if axes else {}),
-                  **({"lod_levels": sorted(lod_levels)} if lod_levels is not None else {})},
+                  **reading_entry(axes, levels)},
         "camera": _camera_entry(camera),
         "world_to_camera": _pose(camera),
         "settings": dataclasses.asdict(settings),
@@ -228,9 +231,9 @@ class Sidecar:
     (informational: camera already has the screenshot's size). render_mode: the
     settings' mode (one of RENDER_MODES).
     raw: the parsed JSON, for fields only the window reads. channel_view: the picture
-    of a channel the image is (None: colour). spz_axes: the convention a .spz scene was
-    read in ("rub" for other scenes and older sidecars). lod_levels: the levels of a
-    streamed SOG to read (None: every level that fits)."""
+    of a channel the image is (None: colour). axes: the axes a .spz scene was read in
+    (None: another format, or an older sidecar: read it as the default). levels: the
+    levels of a streamed SOG to read (None: every level that fits)."""
 
     path: Path
     scene_path: str
@@ -242,8 +245,12 @@ class Sidecar:
     raw: dict
     stereo: StereoView | None = None
     channel_view: ChannelView | None = None
-    spz_axes: str = DEFAULT_SPZ_AXES
-    lod_levels: tuple[int, ...] | None = None
+    axes: FileAxes | None = None
+    levels: tuple[int, ...] | None = None
+
+    def source(self, scene_path: str) -> SceneSource:
+        """The scene ``scene_path`` (:func:`resolve_scene`'s) read as the screenshot's was."""
+        return SceneSource(scene_path, levels=self.levels).with_axes(self.axes)
 
 
 def load_sidecar(path: str | os.PathLike) -> Sidecar:
@@ -271,18 +278,11 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
         raise UserError(f"{path}: 'scene.sha256' must be 64 lowercase hex digits, got {show_json(sha)}")
     if "relative_path" in scene:
         fields.get("scene.relative_path", str)
-    spz_axes = fields.choice("scene.spz_axes", SPZ_AXES, DEFAULT_SPZ_AXES)
-    if spz_axes != DEFAULT_SPZ_AXES and version < RDF_SIDECAR_VERSION:
-        raise UserError(f"{path}: 'scene.spz_axes' {spz_axes} needs sidecar version {RDF_SIDECAR_VERSION}, "
+    axes = load_axes_entry(fields)
+    if axes is not None and axes.assumed != DEFAULT_SPZ_AXES and version < RDF_SIDECAR_VERSION:
+        raise UserError(f"{path}: '{AXES_FIELD}' {axes.assumed} needs sidecar version {RDF_SIDECAR_VERSION}, "
                         f"the file says {version}")
-
-    lod_levels = fields.optional("scene.lod_levels", list)
-    if lod_levels is not None:
-        if not lod_levels or not all(isinstance(v, int) and not isinstance(v, bool) and 0 <= v < MAX_LOD_LEVELS
-                                     for v in lod_levels):
-            raise UserError(f"{path}: 'scene.lod_levels' must list levels from 0 to {MAX_LOD_LEVELS - 1}, "
-                            f"got {show_json(lod_levels)}")
-        lod_levels = tuple(sorted(set(lod_levels)))
+    levels = load_levels_entry(fields)
 
     camera = _load_camera(fields)
     stereo = load_stereo_entry(fields) if "stereo" in data else None
@@ -311,8 +311,8 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
     if channel_view is not None and version < CHANNEL_SIDECAR_VERSION:
         raise UserError(f"{path}: 'channel_view' needs sidecar version {CHANNEL_SIDECAR_VERSION}, "
                         f"the file says {version}")
-    return Sidecar(path, scene_path, sha, camera, settings, scale, render_mode, data, stereo, channel_view, spz_axes,
-                   lod_levels)
+    return Sidecar(path, scene_path, sha, camera, settings, scale, render_mode, data, stereo, channel_view, axes,
+                   levels)
 
 
 def load_channel_view_entry(fields: JsonFields) -> ChannelView:
@@ -366,7 +366,7 @@ def resolve_scene(sidecar: Sidecar, override: str | None = None) -> str:
     if override is not None:
         return override
     recorded = sidecar.scene_path
-    if recorded == DEMO:
+    if is_demo(recorded):
         return DEMO
     candidates = [Path(recorded)]
     relative = sidecar.raw.get("scene", {}).get("relative_path")
@@ -383,7 +383,7 @@ def resolve_scene(sidecar: Sidecar, override: str | None = None) -> str:
 
 def verify_scene_hash(sidecar: Sidecar, scene_path: str) -> None:
     """UserError unless ``scene_path`` ("demo" or a file) hashes to the sidecar's sha256."""
-    if scene_path == DEMO:
+    if is_demo(scene_path):
         actual = demo_sha256()
         what = "the built-in demo scene differs from the one the screenshot was taken with (another demo " \
                "generator)"

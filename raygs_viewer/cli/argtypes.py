@@ -17,7 +17,9 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.render.channels import parse_channels
 from raygs_viewer.render.setting_info import SettingField, or_list, setting_field
 from raygs_viewer.render.settings import RenderSettings
-from raygs_viewer.scene.spz_format import DEFAULT_SPZ_AXES, SPZ_AXES
+from raygs_viewer.scene.model import FileAxes
+from raygs_viewer.scene.source import SceneSource
+from raygs_viewer.scene.spz_format import SPZ_AXES
 
 #: The longest side of an image the benchmarks accept, in pixels.
 MAX_SIDE = 16384
@@ -165,17 +167,34 @@ def add_backend_option(parser: argparse.ArgumentParser) -> None:
                         help="headless OpenGL (default: $RAYGS_GL_BACKEND or auto: EGL, else OSMesa)")
 
 
-def add_spz_axes_option(parser: argparse.ArgumentParser, flag: str = "--spz-axes",
-                        what: str = "the axes a .spz scene that declares none is read in") -> argparse.Action:
-    """``--spz-axes rub|rdf``. Its default is None, so that a command can tell it was not
-    given (render --sidecar, render-path take the recorded one); :func:`spz_axes` applies
-    the default."""
+# The scene-reading options: what a command's SceneSource takes from its command line.
+
+def add_source_options(parser: argparse.ArgumentParser,
+                       what: str = "the axes a .spz scene that declares none is read in") -> None:
+    """The options of how a scene is read (``--spz-axes``); :func:`scene_source` reads them."""
+    add_axes_option(parser, "--spz-axes", what)
+
+
+def add_axes_option(parser: argparse.ArgumentParser, flag: str, what: str) -> argparse.Action:
+    """``FLAG rub|rdf``, a .spz's axes. Its default is None, so that a command can tell it
+    was not given (render --sidecar, render-path take the recorded one)."""
     return parser.add_argument(flag, choices=SPZ_AXES, default=None,
                                help=f"{what}: rub, the .spz specification's (Niantic's spz, Scaniverse; the "
                                     f"default), or rdf, the PLY's own (PlayCanvas splat-transform, SuperSplat)")
 
 
-def spz_axes(value: str | None, recorded: str | None = None) -> str:
-    """The .spz convention to use: the option's ``value`` if given, else ``recorded`` (a
-    sidecar's or a path file's), else the specification's."""
-    return value or recorded or DEFAULT_SPZ_AXES
+def scene_source(args: argparse.Namespace, path: str, *, recorded: FileAxes | None = None,
+                 cameras: str | None = None, levels: tuple[int, ...] | None = None) -> SceneSource:
+    """The scene ``path`` (or the demo) as the options of :func:`add_source_options` read
+    it: their axes if given, else those ``recorded`` (a path file's), else the default."""
+    return SceneSource(path, cameras, levels=levels).with_axes(recorded).with_axes(args.spz_axes)
+
+
+def source_options_given(args: argparse.Namespace) -> list[str]:
+    """The scene-reading options given, as flags (a sidecar records its own)."""
+    return ["--spz-axes"] if args.spz_axes is not None else []
+
+
+def written_axes(args: argparse.Namespace, read: SceneSource) -> str:
+    """convert's ``--out-spz-axes``: the axes OUT is written in, by default those IN was read in."""
+    return args.out_spz_axes or read.spz_axes

@@ -45,7 +45,7 @@ from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.gl.stereo_frame import render_stereo_view, stereo_order
 from raygs_viewer.render.gl.storage import gpu_bytes
 from raygs_viewer.render.reference import render_reference
-from raygs_viewer.render.lod_view import OpenedScene, open_scene, refuse_lod_settings
+from raygs_viewer.render.lod_view import OpenedScene, open_scene
 from raygs_viewer.render.setting_info import setting_parts
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.render.sorting import exact_order
@@ -57,7 +57,7 @@ from raygs_viewer.scene.io import (
     format_description,
     load_scene,
 )
-from raygs_viewer.scene.loader import DEMO
+from raygs_viewer.scene.source import DEMO, SceneSource
 from raygs_viewer.scene.lod_file import lod_summary
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.sort.depth import DepthSorter
@@ -74,7 +74,7 @@ def add_parsers(commands) -> None:
     info = commands.add_parser("info", help="describe a scene file")
     info.add_argument("scene", help=f"a scene file ({SCENE_FILES}), or '{DEMO}'")
     info.add_argument("--json", action="store_true", help="print JSON instead of text")
-    argtypes.add_spz_axes_option(info)
+    argtypes.add_source_options(info)
     info.set_defaults(run=command_info)
 
     render = commands.add_parser("render", help="render one image headlessly")
@@ -88,7 +88,7 @@ def add_parsers(commands) -> None:
                              "HxWx4 (RGB over background, alpha) or HxWxC of --channels; .exr: float32 named "
                              "channels (R, G, B, A unless --channels says otherwise)")
     render.add_argument("--overwrite", action="store_true", help="replace OUT if it exists")
-    argtypes.add_spz_axes_option(render, what="the axes a .spz scene that declares none is read in (with "
+    argtypes.add_source_options(render, what="the axes a .spz scene that declares none is read in (with "
                                               "--sidecar: the sidecar's)")
     render.set_defaults(run=command_render)
     render.add_argument("--reference", action="store_true", help="use the float64 CPU reference renderer")
@@ -101,7 +101,7 @@ def add_parsers(commands) -> None:
                                                 "print their difference and timings")
     verify.set_defaults(run=command_verify)
     add_view_options(verify)
-    argtypes.add_spz_axes_option(verify)
+    argtypes.add_source_options(verify)
     argtypes.add_general_option(verify)
     argtypes.add_backend_option(verify)
     verify.add_argument("--repeat", type=argtypes.positive_int, default=5, metavar="N",
@@ -110,25 +110,20 @@ def add_parsers(commands) -> None:
 
 # --- scenes and cameras ---------------------------------------------------------------------------
 
-def load_scene_argument(name: str, spz_axes: str | None = None, lod: int | None = None) -> Scene:
-    """The demo, or the scene file ``name`` (a .spz in ``spz_axes``, default "rub"; a
-    streamed SOG's level ``lod``, default its finest)."""
-    if name == DEMO:
+def load_scene_argument(source: SceneSource, lod: int | None = None) -> Scene:
+    """The demo, or the scene file of ``source`` (a streamed SOG's level ``lod``, default
+    its finest)."""
+    if source.is_demo:
         return demo_scene()
-    return load_scene(name, spz_axes=argtypes.spz_axes(spz_axes), lod=lod)
+    return load_scene(source, lod=lod)
 
 
-def open_scene_argument(name: str, settings: RenderSettings, spz_axes: str | None = None,
-                        ctx=None, levels: tuple[int, ...] | None = None) -> OpenedScene:
-    """The demo, or the scene file ``name`` opened for ``settings`` (a streamed SOG: its
-    level or the levels the GPU of ``ctx`` holds, render/lod_view.py); warns about what
-    it dropped and what it left unread."""
-    if name == DEMO:
-        refuse_lod_settings("the demo scene", settings)
-        opened = OpenedScene(demo_scene())
-    else:
-        fits = None if ctx is None else scene_fits(ctx)[0]
-        opened = open_scene(name, settings, spz_axes=argtypes.spz_axes(spz_axes), fits=fits, levels=levels)
+def open_scene_argument(source: SceneSource, settings: RenderSettings, ctx=None) -> OpenedScene:
+    """The demo, or the scene file of ``source`` opened for ``settings`` (a streamed SOG:
+    its level or the levels the GPU of ``ctx`` holds, render/lod_view.py); warns about
+    what it dropped and what it left unread."""
+    fits = None if ctx is None or source.is_demo else scene_fits(ctx)[0]
+    opened = open_scene(source, settings, fits=fits)
     warn_dropped(opened.scene)
     if opened.note:
         print(f"warning: {opened.note}", file=sys.stderr)
@@ -140,14 +135,14 @@ def warn_dropped(scene: Scene) -> None:
         print(f"warning: {line}", file=sys.stderr)
 
 
-def choose_camera(positions: np.ndarray, scene_name: str, camera_file: str | None, index: int | None,
+def choose_camera(positions: np.ndarray, source: SceneSource, camera_file: str | None, index: int | None,
                   width: int | None, height: int | None) -> Camera:
     """The camera of ``--camera``/``--camera-index``, else the demo's or one framing the
     scene's ``positions``; resized when --width/--height are given (one alone keeps the
     aspect ratio)."""
     if camera_file is not None:
         camera = load_camera(camera_file, index or 0)
-    elif scene_name == DEMO:
+    elif source.is_demo:
         camera = demo_camera()
     else:
         camera = frame_points(positions)
@@ -160,9 +155,9 @@ def choose_camera(positions: np.ndarray, scene_name: str, camera_file: str | Non
 
 def _scene_and_camera(args, settings: RenderSettings, ctx) -> tuple[OpenedScene, Camera]:
     """The scene of render's or verify's options and its camera."""
-    scene_name = args.scene or DEMO
-    opened = open_scene_argument(scene_name, settings, args.spz_axes, ctx)
-    return opened, choose_camera(opened.framed, scene_name, args.camera, args.camera_index, args.width, args.height)
+    source = argtypes.scene_source(args, args.scene or DEMO)
+    opened = open_scene_argument(source, settings, ctx)
+    return opened, choose_camera(opened.framed, source, args.camera, args.camera_index, args.width, args.height)
 
 
 def _drawn(opened: OpenedScene, camera: Camera) -> tuple[Scene, LodChoice | None]:
@@ -177,11 +172,12 @@ def _drawn(opened: OpenedScene, camera: Camera) -> tuple[Scene, LodChoice | None
 # --- the commands ---------------------------------------------------------------------------------
 
 def command_info(args) -> int:
-    scene = load_scene_argument(args.scene, args.spz_axes)
+    source = argtypes.scene_source(args, args.scene)
+    scene = load_scene_argument(source)
     warn_dropped(scene)
     description = describe(scene)
     description["gpu_bytes"] = gpu_bytes(scene.count, scene.sh_degree)
-    if args.scene != DEMO:
+    if not source.is_demo:
         description["lod"] = lod = lod_summary(args.scene)  # a streamed SOG: its levels (the figures above: level 0's)
         if lod is not None:  # what the window and a per-view render hold: every level
             lod["gpu_bytes"] = gpu_bytes(sum(lod["counts"]) + (lod["environment"] or 0), scene.sh_degree)
@@ -197,7 +193,7 @@ def command_render(args) -> int:
         given = [flag for flag, dest in SIDECAR_CONFLICTS if getattr(args, dest) is not None]
         if given:
             raise UserError(f"--sidecar already sets the view; drop {', '.join(given)}")
-        if args.spz_axes is not None:
+        if argtypes.source_options_given(args):
             raise UserError("--sidecar records the axes its .spz scene was read in; drop --spz-axes")
     stereo = stereo_view(args)
     out = check_output_path(args.out, args.overwrite, CHANNEL_SUFFIXES)  # fail before any slow work
@@ -213,7 +209,7 @@ def command_render(args) -> int:
             scene_name = resolve_scene(shot, args.scene)
             verify_scene_hash(shot, scene_name)
             camera, settings, stereo = shot.camera, shot.settings, shot.stereo
-            opened = open_scene_argument(scene_name, settings, shot.spz_axes, ctx, shot.lod_levels)
+            opened = open_scene_argument(shot.source(scene_name), settings, ctx)
         else:
             settings = render_settings(args)
             opened, camera = _scene_and_camera(args, settings, ctx)

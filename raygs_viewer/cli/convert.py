@@ -20,7 +20,7 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.render.settings import MAX_LOD_LEVELS
 from raygs_viewer.scene.compare import attribute_errors, format_errors
 from raygs_viewer.scene.io import SCENE_FILES, load_scene
-from raygs_viewer.scene.loader import DEMO
+from raygs_viewer.scene.source import DEMO
 from raygs_viewer.scene.model import FileAxes
 from raygs_viewer.scene.writing import SPZ_VERSIONS, WRITE_SUFFIXES, write_scene, writing_notes
 
@@ -44,26 +44,25 @@ def add_parsers(commands) -> None:
     convert.add_argument("--lod", type=argtypes.whole_number(0, MAX_LOD_LEVELS - 1), metavar="N",
                          help="IN a streamed SOG (lod-meta.json): write its level N (0 the finest, the default) "
                               "with its environment")
-    argtypes.add_spz_axes_option(convert, what="the axes IN, when a .spz that declares none, is read in")
-    argtypes.add_spz_axes_option(convert, "--out-spz-axes", "the axes OUT, when a .spz, is written in (default: "
+    argtypes.add_source_options(convert, what="the axes IN, when a .spz that declares none, is read in")
+    argtypes.add_axes_option(convert, "--out-spz-axes", "the axes OUT, when a .spz, is written in (default: "
                                                             "--spz-axes; rub and rdf re-label a file for the "
                                                             "other convention's tools)")
 
 
 def command_convert(args) -> int:
-    source, target = args.input, Path(args.output)
-    if source != DEMO and _same_file(source, target):
+    source, target = argtypes.scene_source(args, args.input), Path(args.output)
+    if not source.is_demo and _same_file(source.path, target):
         raise UserError(f"{target}: is the input too; write to another file")
     check_output_path(target, args.overwrite, WRITE_SUFFIXES)  # before any slow work
-    in_axes = argtypes.spz_axes(args.spz_axes)
-    out_axes = argtypes.spz_axes(args.out_spz_axes, in_axes)
-    scene = load_scene_argument(source, in_axes, args.lod)
+    out_axes = argtypes.written_axes(args, source)
+    scene = load_scene_argument(source, args.lod)
     warn_dropped(scene)
-    print(f"read {source}: {scene.format or 'built-in'}{_axes(scene.axes)}, {scene.count:,} gaussians, "
+    print(f"read {source.path}: {scene.format or 'built-in'}{_axes(scene.axes)}, {scene.count:,} gaussians, "
           f"SH degree {scene.sh_degree}")
     write_scene(scene, target, args.overwrite, args.spz_version, out_axes)
     print(f"wrote {target}: {os.path.getsize(target):,} bytes")
-    back = load_scene(target, spz_axes=out_axes)
+    back = load_scene(source.at(target).with_axes(out_axes))
     print(f"read back {target}: {back.format}{_axes(back.axes)}, {back.count:,} gaussians, "
           f"SH degree {back.sh_degree}")
     for note in writing_notes(scene, target.suffix):

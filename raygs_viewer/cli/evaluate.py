@@ -57,7 +57,7 @@ def add_parsers(commands) -> None:
     add_settings_options(parser, None, None)
     parser.add_argument("--overwrite", action="store_true", help="replace the report and contact sheet if they exist")
     argtypes.add_backend_option(parser)
-    argtypes.add_spz_axes_option(parser, what="the axes a .spz --scene that declares none is read in")
+    argtypes.add_source_options(parser, what="the axes a .spz --scene that declares none is read in")
     parser.set_defaults(run=command_evaluate)
 
 
@@ -79,7 +79,7 @@ def command_evaluate(args: argparse.Namespace) -> int:
         print(f"note: {lpips_note}", file=sys.stderr)
 
     with TerminalProgress(str(scene_path)) as loading:
-        scene = load_now(scene_path, progress=loading, spz_axes=argtypes.spz_axes(args.spz_axes)).scene
+        scene = load_now(argtypes.scene_source(args, scene_path), progress=loading).scene
     warn_dropped(scene)
     ctx = create_headless_context(args.gl_backend)
     try:

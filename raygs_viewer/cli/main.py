@@ -27,7 +27,7 @@ from raygs_viewer.cli.argtypes import Parser
 from raygs_viewer.cli.view import join_up_axis
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.io import SCENE_SUFFIXES
-from raygs_viewer.scene.loader import DEMO
+from raygs_viewer.scene.source import is_demo
 
 #: The modules of the commands, in the order --help lists them: each one's
 #: ``add_parsers`` adds its commands, and each command's parser names the function that
@@ -63,7 +63,7 @@ def route(argv: list[str]) -> list[str]:
     first = argv[0]
     if first in COMMANDS or first in TOP_LEVEL_OPTIONS:
         return argv
-    if first.startswith("-") or first == DEMO or os.path.exists(first) \
+    if first.startswith("-") or is_demo(first) or os.path.exists(first) \
             or Path(first).suffix.lower() in SCENE_SUFFIXES:
         return ["view", *argv]
     raise UserError(f"'{first}' is neither a command ({', '.join(COMMANDS)}) nor a scene file "

@@ -22,7 +22,7 @@ from raygs_viewer.render.channels import CHANNELS, DEFAULT_CHANNELS, NORMAL_SPAC
 from raygs_viewer.render.setting_info import SettingField, settings_table
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.io import SCENE_FILES
-from raygs_viewer.scene.loader import DEMO
+from raygs_viewer.scene.source import DEMO
 
 
 def option_flag(name: str) -> str:

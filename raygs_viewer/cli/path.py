@@ -49,10 +49,11 @@ from raygs_viewer.render.gl.context import create_headless_context
 from raygs_viewer.render.channels import needs_geometry
 from raygs_viewer.render.gl.memory import scene_fits
 from raygs_viewer.render.gl.renderer import GLRenderer
-from raygs_viewer.render.lod_view import OpenedScene, for_settings, lod_levels, refuse_lod_settings
+from raygs_viewer.render.lod_view import OpenedScene, for_settings, levels_to_read, refuse_lod_settings
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.io import SCENE_FILES
-from raygs_viewer.scene.loader import DEMO, load_now
+from raygs_viewer.scene.loader import load_now
+from raygs_viewer.scene.source import DEMO
 from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.lod_choice import LodRequest
 
@@ -92,7 +93,7 @@ def add_parsers(commands) -> None:
     add_stereo_options(parser)
     add_channel_options(parser, picture=False)
     parser.add_argument("--overwrite", action="store_true", help="replace OUT (and --cameras-out) if it exists")
-    argtypes.add_spz_axes_option(parser, what="the axes a .spz scene that declares none is read in (default: what "
+    argtypes.add_source_options(parser, what="the axes a .spz scene that declares none is read in (default: what "
                                               "the path file recorded, else rub)")
     parser.add_argument("--cameras-out", metavar="CAMERAS.json",
                         help="also write every frame's camera as an INRIA cameras.json (render --camera CAMERAS.json "
@@ -134,12 +135,12 @@ def command_render_path(args: argparse.Namespace) -> int:
 def _render_scene(ctx, args, document, settings, stereo, path, out, cameras_out) -> int:
     """render-path once its options are checked: the scene read (a streamed SOG: the
     levels the GPU of ``ctx`` holds, chosen for each frame), the frames rendered."""
+    source = argtypes.scene_source(args, args.scene, recorded=document and document.scene_axes,
+                                   levels=levels_to_read(settings))
     with TerminalProgress(args.scene) as loading:  # the scene's hash is taken while it is read
-        loaded = load_now(args.scene, progress=loading,
-                          spz_axes=argtypes.spz_axes(args.spz_axes, document and document.scene_spz_axes),
-                          lod_levels=lod_levels(settings), fits=scene_fits(ctx)[0])
+        loaded = load_now(source, progress=loading, fits=scene_fits(ctx)[0])
     if loaded.lod is None:
-        refuse_lod_settings("the demo scene" if args.scene == DEMO else args.scene, settings)
+        refuse_lod_settings("the demo scene" if source.is_demo else args.scene, settings)
     opened = OpenedScene(loaded.scene) if loaded.lod is None else for_settings(loaded.lod, settings)
     scene = opened.scene
     warn_dropped(scene)

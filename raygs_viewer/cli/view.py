@@ -24,7 +24,7 @@ from raygs_viewer.cli.progress_line import TerminalProgress
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.settings import DEFAULT_BACKGROUND, DEFAULT_P_MIN
 from raygs_viewer.scene.io import SCENE_FILES
-from raygs_viewer.scene.loader import DEMO
+from raygs_viewer.scene.source import DEMO
 from raygs_viewer.viewer.state import (
     NavigationChoices,
     ScreenshotOptions,
@@ -41,7 +41,7 @@ def add_parsers(commands) -> None:
     parser = commands.add_parser("view", help="open the interactive window (the default command)")
     parser.set_defaults(run=command_view)
     parser.add_argument("scene", nargs="?", default=DEMO, help=f"a scene file ({SCENE_FILES}), or '{DEMO}' (default)")
-    argtypes.add_spz_axes_option(parser, what="the axes a .spz scene that declares none is read in (the panel "
+    argtypes.add_source_options(parser, what="the axes a .spz scene that declares none is read in (the panel "
                                               "switches them)")
     parser.add_argument("--cameras", metavar="CAMERAS.json",
                         help="the scene's training cameras (default: a cameras.json found next to the scene)")
@@ -121,13 +121,14 @@ def command_view(args) -> int:
     if args.screenshot is not None:
         check_screenshot_path(args.screenshot)  # before the window opens and the scene loads
     options = ViewerOptions(
-        scene=args.scene, cameras=args.cameras, camera=args.camera, camera_index=args.camera_index,
+        source=argtypes.scene_source(args, args.scene, cameras=args.cameras), camera=args.camera,
+        camera_index=args.camera_index,
         width=args.width, height=args.height, settings=render_settings(args), frames=args.frames,
         screenshot=args.screenshot, window_screenshot=args.window_screenshot,
         screenshots=ScreenshotOptions(folder=args.screenshot_dir, scale=args.screenshot_scale),
         vsync=not args.no_vsync, platform=args.window_platform, general=args.general,
         navigation=NavigationChoices(mode="orbit" if args.orbit else "fly", up_axis=args.up_axis,
                                      turntable=args.turntable),
-        stereo=_viewer_stereo_options(args), images=args.images, spz_axes=argtypes.spz_axes(args.spz_axes))
-    with TerminalProgress(options.scene) as progress:  # a multi-GB scene takes seconds before the window
+        stereo=_viewer_stereo_options(args), images=args.images)
+    with TerminalProgress(options.source.path) as progress:  # a multi-GB scene takes seconds before the window
         return run_viewer(options, progress)

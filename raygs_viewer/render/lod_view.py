@@ -16,9 +16,11 @@ import numpy as np
 
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.scene.demo import demo_scene
 from raygs_viewer.scene.io import load_scene
 from raygs_viewer.scene.lod_file import Fits, LodScene, level_scene, load_lod, lod_index_file
 from raygs_viewer.scene.model import Scene
+from raygs_viewer.scene.source import SceneSource
 from raygs_viewer.sort.lod_choice import LodRequest
 
 #: The settings that only a streamed SOG takes.
@@ -58,26 +60,28 @@ def refuse_lod_settings(what: str, settings: RenderSettings) -> None:
                         f"appl{'y' if len(given) > 1 else 'ies'} to a lod-meta.json scene")
 
 
-def open_scene(path: str, settings: RenderSettings, *, spz_axes: str = "rub", fits: Fits | None = None,
-               levels: tuple[int, ...] | None = None) -> OpenedScene:
-    """The scene file ``path`` for ``settings`` (see the module docstring); ``fits``:
-    whether a scene of (count, SH degree) fits the GPU (``render.gl.memory.scene_fits``);
-    ``levels``: the levels to read for the choice (a sidecar's: those read when it was
-    taken), None for every level that fits."""
-    if lod_index_file(path) is None:
-        refuse_lod_settings(path, settings)
-        return OpenedScene(load_scene(path, spz_axes=spz_axes))
-    return for_settings(load_lod(path, levels=lod_levels(settings, levels), fits=fits), settings)
+def open_scene(source: SceneSource, settings: RenderSettings, *, fits: Fits | None = None) -> OpenedScene:
+    """The demo or the scene file of ``source`` for ``settings`` (see the module
+    docstring); ``fits``: whether a scene of (count, SH degree) fits the GPU
+    (``render.gl.memory.scene_fits``); ``source.levels``: the levels to read for the
+    choice (a sidecar's: those read when it was taken), None for every level that fits."""
+    if source.is_demo:
+        refuse_lod_settings("the demo scene", settings)
+        return OpenedScene(demo_scene())
+    if lod_index_file(source.path) is None:
+        refuse_lod_settings(source.path, settings)
+        return OpenedScene(load_scene(source))
+    return for_settings(load_lod(source.path, levels=levels_to_read(settings, source.levels), fits=fits), settings)
 
 
-def lod_levels(settings: RenderSettings, recorded: tuple[int, ...] | None = None) -> tuple[int, ...] | None:
+def levels_to_read(settings: RenderSettings, recorded: tuple[int, ...] | None = None) -> tuple[int, ...] | None:
     """The levels of a streamed SOG that ``settings`` need read: the one level they set,
     else those ``recorded``, else None (all that fit)."""
     return recorded if settings.lod is None else (settings.lod,)
 
 
 def for_settings(lod: LodScene, settings: RenderSettings) -> OpenedScene:
-    """A streamed SOG read with :func:`lod_levels` opened for ``settings``: level
+    """A streamed SOG read with :func:`levels_to_read` opened for ``settings``: level
     ``settings.lod`` as a scene of its own, or every level read with the choice to make."""
     if settings.lod is not None:
         return OpenedScene(level_scene(lod, settings.lod), environment=lod.environment[1])

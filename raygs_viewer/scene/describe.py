@@ -5,6 +5,7 @@ from __future__ import annotations
 import numpy as np
 
 from raygs_viewer.scene.model import Scene
+from raygs_viewer.scene.spz_format import axes_description, axes_words
 
 
 def dropped_summary(scene: Scene) -> list[str]:
@@ -28,9 +29,9 @@ def _stats(values: np.ndarray, *names: str) -> dict[str, float] | None:
 def describe(scene: Scene) -> dict:
     """JSON-serialisable statistics of a scene (for ``raygs-viewer info``).
 
-    Keys: source, format (Scene.format), axes (for a .spz, {stored: "RUB", "RDF", ...;
-    declared: whether the file said so, else it was assumed; spz_axes: the convention
-    it was read with}; None for other formats), count, sh_degree, filter_fused, bbox ({min, max} of positions,
+    Keys: source, format (Scene.format), axes (for a .spz,
+    :func:`~raygs_viewer.scene.spz_format.axes_description`; None for other formats),
+    count, sh_degree, filter_fused, bbox ({min, max} of positions,
     or None when empty), opacity ({min, median, mean, max} or None), scale
     ({min, median, max} over all axes, plus median_anisotropy = median of each
     gaussian's max/min scale ratio; None when empty), dropped ({total, by_reason}).
@@ -48,8 +49,7 @@ def describe(scene: Scene) -> dict:
     return {
         "source": scene.source,
         "format": scene.format,
-        "axes": None if scene.axes is None else {"stored": scene.axes.stored, "declared": bool(scene.axes.declared),
-                                                 "spz_axes": scene.axes.assumed},
+        "axes": None if scene.axes is None else axes_description(scene.axes),
         "count": n,
         "sh_degree": scene.sh_degree,
         "filter_fused": bool(scene.filter_fused),
@@ -59,15 +59,6 @@ def describe(scene: Scene) -> dict:
         "dropped": {"total": int(sum(scene.dropped.values())),
                     "by_reason": {k: int(v) for k, v in scene.dropped.items()}},
     }
-
-
-def axes_words(axes: dict) -> str:
-    """How a .spz's axes were taken, in words, from :func:`describe`'s "axes"."""
-    if axes["declared"]:
-        return f"{axes['stored']} declared by the file (--spz-axes does not apply)"
-    if axes["spz_axes"] == "rdf":
-        return "RDF assumed (--spz-axes rdf: splat-transform's, the PLY's own axes)"
-    return "RUB assumed (the .spz specification's; --spz-axes rdf for files splat-transform wrote)"
 
 
 def format_description(info: dict) -> str:

@@ -8,7 +8,8 @@ public entry points:
 - :func:`dropped_summary` turns ``scene.dropped`` into one line per reason.
 - :func:`describe` / :func:`format_description` give the ``info`` statistics.
 
-Each format has its reader module (``load_<format>(path, shown, report, chunk_bytes)``),
+Each format has its reader module (``load_<format>(source, report, chunk_bytes)``, the
+:class:`~raygs_viewer.scene.source.SceneSource` read),
 and :data:`FORMATS` says which names and first bytes choose it: a new format is a reader
 module and a row there. The readers: :mod:`~raygs_viewer.scene.ply_file` (INRIA PLY,
 handing PlayCanvas's compressed layout to :mod:`~raygs_viewer.scene.compressed_ply`;
@@ -44,14 +45,12 @@ Decisions (the maths page leaves these open):
 
 from __future__ import annotations
 
-import functools
 import os
 import threading
 from collections.abc import Callable
 from pathlib import Path
 from typing import NamedTuple
 
-from raygs_viewer.errors import UserError
 from raygs_viewer.scene.describe import describe, dropped_summary, format_description
 from raygs_viewer.scene.lod_file import load_level, lod_index_file
 from raygs_viewer.scene.model import Scene
@@ -61,8 +60,8 @@ from raygs_viewer.scene.reading import DROP_REASONS, file_error
 from raygs_viewer.scene.sog_file import load_sog
 from raygs_viewer.scene.sog_source import is_sog_folder
 from raygs_viewer.scene.splat_file import SPLAT_ROW_BYTES, load_splat
+from raygs_viewer.scene.source import SCENE_FILES, SceneSource
 from raygs_viewer.scene.spz_file import load_spz
-from raygs_viewer.scene.spz_format import DEFAULT_SPZ_AXES, spz_axes_system
 
 #: The first bytes that name a format whatever the file's name: gzip (.spz versions 2
 #: and 3), an uncompressed .spz (version 4's header), a zip (a bundled .sog).
@@ -70,17 +69,14 @@ GZIP_MAGIC = b"\x1f\x8b"
 SPZ_MAGIC = b"NGSP"
 ZIP_MAGIC = b"PK\x03\x04"
 
-#: The files :func:`load_scene` reads, in words (help texts and errors); a .ply is INRIA's
-#: layout or PlayCanvas's compressed one.
-SCENE_FILES = ".ply, .splat, .spz, .sog, a SOG meta.json or a streamed SOG's lod-meta.json"
-
-#: ``read(path, shown, report, chunk_bytes)``: one format's reader; ``shown`` is the path
-#: as messages name it, ``chunk_bytes`` how much is read between progress points.
-FormatReader = Callable[[str | os.PathLike, str, Reporter, int], Scene]
+#: ``read(source, report, chunk_bytes)``: one format's reader of ``source.path`` (named
+#: so in messages), with the source's options; ``chunk_bytes`` how much is read between
+#: progress points.
+FormatReader = Callable[[SceneSource, Reporter, int], Scene]
 
 
 class SceneFormat(NamedTuple):
-    """A file format :func:`load_scene` reads: ``read(path, shown, report, chunk_bytes)``
+    """A file format :func:`load_scene` reads: ``read(source, report, chunk_bytes)``
     reads it; a name ending in one of ``suffixes`` chooses it whatever the bytes say (a
     .ply that is a zip is a broken PLY, not a SOG); for other names, ``magic(first four
     bytes)`` does."""
@@ -117,10 +113,11 @@ __all__ = [
 ]
 
 
-def load_scene(path: str | os.PathLike, *, progress: ProgressCallback | None = None,
+def load_scene(source: SceneSource | str | os.PathLike, *, progress: ProgressCallback | None = None,
                cancel: threading.Event | None = None, chunk_bytes: int | None = None,
-               spz_axes: str = DEFAULT_SPZ_AXES, lod: int | None = None) -> Scene:
-    """Read a scene file (:data:`SCENE_FILES`) into an activated :class:`Scene`.
+               lod: int | None = None) -> Scene:
+    """Read a scene file (:data:`SCENE_FILES`), ``source`` (a path: read with the default
+    options), into an activated :class:`Scene`.
 
     The format is chosen by the extension (``.splat``, ``.spz``, ``.sog``, ``.json``;
     a ``.ply`` is INRIA's or PlayCanvas's compressed layout by its header), and for
@@ -141,29 +138,28 @@ def load_scene(path: str | os.PathLike, *, progress: ProgressCallback | None = N
     (:func:`~raygs_viewer.scene.lod_file.load_level`); the view-dependent choice between
     levels needs all of them, :func:`~raygs_viewer.scene.lod_file.load_lod`.
 
-    ``spz_axes`` ("rub" or "rdf", :data:`~raygs_viewer.scene.spz_format.SPZ_AXES`): the
-    axes a ``.spz`` that declares none is taken to store; other formats ignore it. A bad
-    value is a UserError whatever the file.
+    The source's options reach every reader (a ``.spz`` takes its axes from it; the
+    source checked them when it was made).
     """
-    spz_axes_system(spz_axes)
+    if not isinstance(source, SceneSource):
+        source = SceneSource(source)
+    path = source.path
     if lod_index_file(path) is not None:
         try:
             return load_level(path, 0 if lod is None else lod, progress=progress, cancel=cancel,
                               chunk_bytes=READ_CHUNK_BYTES if chunk_bytes is None else chunk_bytes)
-        except OSError as exc:
-            raise _os_error(os.fspath(path), exc) from None
-        except MemoryError:
-            raise file_error(os.fspath(path), "not enough memory to load this scene") from None
+        except (OSError, MemoryError) as exc:
+            raise source.read_error(exc) from None
     if lod is not None:
-        raise file_error(os.fspath(path), "not a streamed SOG: a level (--lod) applies to a lod-meta.json scene")
+        raise file_error(path, "not a streamed SOG: a level (--lod) applies to a lod-meta.json scene")
     report = Reporter(progress, cancel)
-    scene = _load(path, report, READ_CHUNK_BYTES if chunk_bytes is None else chunk_bytes, spz_axes)
+    scene = _load(source, report, READ_CHUNK_BYTES if chunk_bytes is None else chunk_bytes)
     report(1.0, "done")
     return scene
 
 
-def _load(path: str | os.PathLike, report: Reporter, chunk_bytes: int, spz_axes: str) -> Scene:
-    shown = os.fspath(path)
+def _load(source: SceneSource, report: Reporter, chunk_bytes: int) -> Scene:
+    path = shown = source.path
     report(0.0, "reading")
     if not os.path.exists(path):
         raise file_error(shown, "no such file")
@@ -174,13 +170,9 @@ def _load(path: str | os.PathLike, report: Reporter, chunk_bytes: int, spz_axes:
         raise file_error(shown, "not a regular file")
     try:
         read = load_sog if sog_folder else _reader(path, shown)
-        if read is load_spz:  # the one reader with an option of its own
-            read = functools.partial(load_spz, spz_axes=spz_axes)
-        return read(path, shown, report, chunk_bytes)
-    except OSError as exc:
-        raise _os_error(shown, exc) from None
-    except MemoryError:
-        raise file_error(shown, "not enough memory to load this scene") from None
+        return read(source, report, chunk_bytes)
+    except (OSError, MemoryError) as exc:
+        raise source.read_error(exc) from None
 
 
 def _reader(path: str | os.PathLike, shown: str) -> FormatReader:
@@ -196,12 +188,3 @@ def _reader(path: str | os.PathLike, shown: str) -> FormatReader:
             return scene_format.read
     raise file_error(shown, f"unrecognised file format: expected a scene file ({SCENE_FILES})")
 
-
-def _os_error(path, exc: OSError) -> UserError:
-    if isinstance(exc, FileNotFoundError):
-        return file_error(path, "no such file")
-    if isinstance(exc, IsADirectoryError):
-        return file_error(path, f"is a directory, expected a scene file ({SCENE_FILES})")
-    if isinstance(exc, PermissionError):
-        return file_error(path, "permission denied")
-    return file_error(path, f"cannot read: {exc.strerror or exc}")

@@ -34,9 +34,9 @@ from raygs_viewer.scene.io import dropped_summary, load_scene
 from raygs_viewer.scene.lod_file import Fits, LodScene, load_lod, lod_index_file
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.progress import ProgressCallback, Reporter
-from raygs_viewer.scene.spz_format import DEFAULT_SPZ_AXES, spz_axes_system
+from raygs_viewer.scene.source import SceneSource
 
-#: ``read_scene(path, *, progress, cancel, spz_axes) -> Scene``: what reads the scene
+#: ``read_scene(source, *, progress, cancel) -> Scene``: what reads the scene
 #: file (:func:`~raygs_viewer.scene.io.load_scene`; tests hand in a steered one).
 SceneReader = Callable[..., Scene]
 #: ``read_lod(path, *, levels, fits, progress, cancel, on_level) -> LodScene``: what reads
@@ -44,7 +44,6 @@ SceneReader = Callable[..., Scene]
 LodReader = Callable[..., LodScene]
 
 __all__ = [
-    "DEMO",
     "LoadedScene",
     "LodReader",
     "SceneLoader",
@@ -52,9 +51,6 @@ __all__ = [
     "find_training_cameras",
     "load_now",
 ]
-
-#: The scene "path" that means the built-in demo scene.
-DEMO = "demo"
 
 # Shares of the whole job in load_now's progress: reading and activating the scene
 # dominates; the hash runs beside it, and what is left of it once the scene is read
@@ -89,7 +85,7 @@ class LoadedScene:
     """A loaded scene and what the window shows about it.
 
     scene:        the gaussians (see :class:`raygs_viewer.scene.model.Scene`).
-    path:         the scene path as given, or "demo".
+    source:       what was read (its ``path`` as given, or "demo").
     sha256:       hex SHA-256 of the file's bytes; for the demo, :func:`arrays_sha256`.
     cameras:      training cameras (the demo: ``demo_cameras()``), [] if none.
     cameras_path: the cameras.json they came from (None for none, and for the demo's own).
@@ -105,7 +101,7 @@ class LoadedScene:
     """
 
     scene: Scene
-    path: str
+    source: SceneSource
     sha256: str
     cameras: list[Camera]
     cameras_path: str | None
@@ -113,6 +109,11 @@ class LoadedScene:
     warnings: list[str]
     lod: LodScene | None = None
     refines: bool = False
+
+    @property
+    def path(self) -> str:
+        """The scene path as given, or "demo"."""
+        return self.source.path
 
     @cached_property
     def content_sha256(self) -> str:
@@ -154,86 +155,76 @@ def _scaled(progress: ProgressCallback | None, start: float, end: float,
     return lambda fraction, stage: progress(start + (end - start) * fraction, then if stage == "done" else stage)
 
 
-def load_now(path: str | os.PathLike, cameras: str | os.PathLike | None = None,
-             progress: ProgressCallback | None = None, *,
+def load_now(source: SceneSource, progress: ProgressCallback | None = None, *,
              cancel: threading.Event | None = None, read_scene: SceneReader = load_scene,
-             spz_axes: str = DEFAULT_SPZ_AXES, lod_levels: tuple[int, ...] | None = None, fits: Fits | None = None,
-             on_level: Callable[[LoadedScene], None] | None = None,
+             fits: Fits | None = None, on_level: Callable[[LoadedScene], None] | None = None,
              read_lod: LodReader = load_lod) -> LoadedScene:
-    """Loads a scene (a scene file path, or "demo") with its training cameras, synchronously.
+    """Loads ``source`` (a scene file, or the demo) with its training cameras, synchronously.
 
-    ``cameras``: an explicit cameras.json; a bad one is a UserError. Without it the
-    file found by :func:`find_training_cameras` is used, and a bad one only adds a
+    ``source.cameras``: an explicit cameras.json; a bad one is a UserError. Without it
+    the file found by :func:`find_training_cameras` is used, and a bad one only adds a
     warning (the scene still loads, with no cameras). For the demo, ``cameras``
     replaces its built-in views.
 
     ``progress(fraction, stage)``: non-decreasing fractions in [0, 1], ending with
     ``(1.0, "done")``. ``cancel``: when set, stops at the next progress point with
     ``UserError("loading cancelled")``. Every failure is a one-line UserError.
-    ``read_scene`` reads the scene file (:func:`load_scene`); ``spz_axes`` is its
-    convention for a ``.spz`` that declares no axes ("rub" or "rdf").
+    ``read_scene`` reads the scene file (:func:`load_scene`), with the source's options.
 
-    A streamed SOG is read by ``read_lod`` (:func:`load_lod`): ``lod_levels`` (None:
+    A streamed SOG is read by ``read_lod`` (:func:`load_lod`): ``source.levels`` (None:
     every level) while they ``fit``; ``on_level`` gets the scene so far after each level
     (from this thread, its ``sha256`` "" until the hash is done), and the result holds
     every level read (``LoadedScene.lod``).
     """
-    spz_axes_system(spz_axes)  # a bad value fails even for the demo
-    shown = os.fspath(path)
     report = Reporter(progress, cancel)
     try:
-        if shown == DEMO:
+        if source.is_demo:
             report(0.0, "building")
             scene = demo_scene()
             report(_SCENE_END, "hashing")
             digest = arrays_sha256(scene)
-        elif lod_index_file(path) is not None:
-            return _read_levels(path, cameras, progress, report, cancel, read_lod,
-                                {"levels": lod_levels, "fits": fits}, on_level)
+        elif lod_index_file(source.path) is not None:
+            return _read_levels(source, progress, report, cancel, read_lod, fits, on_level)
         else:
-            scene, digest = _read_and_hash(path, progress, report, cancel, read_scene, spz_axes)
+            scene, digest = _read_and_hash(source, progress, report, cancel, read_scene)
         warnings = dropped_summary(scene)
         report(_HASH_END, "cameras")
-        found, names, cameras_path = _training_cameras(shown, cameras, warnings)
+        found, names, cameras_path = _training_cameras(source, warnings)
         report(1.0, "done")
-    except MemoryError:
-        raise UserError(f"{shown}: not enough memory to load this scene") from None
-    except OSError as exc:
-        raise UserError(f"{shown}: cannot read: {exc.strerror or exc}") from None
-    return LoadedScene(scene, shown, digest, found, cameras_path, names, warnings)
+    except (OSError, MemoryError) as exc:
+        raise source.read_error(exc) from None
+    return LoadedScene(scene, source, digest, found, cameras_path, names, warnings)
 
 
-def _read_and_hash(path: str | os.PathLike, progress: ProgressCallback | None, report: Reporter,
-                   cancel: threading.Event | None, read_scene: SceneReader, spz_axes: str) -> tuple[Scene, str]:
+def _read_and_hash(source: SceneSource, progress: ProgressCallback | None, report: Reporter,
+                   cancel: threading.Event | None, read_scene: SceneReader) -> tuple[Scene, str]:
     """The scene file read and hashed side by side; a failed read stops the hash."""
-    hashing = FileHash(path, cancel)
+    hashing = FileHash(source.path, cancel)
     try:
-        scene = read_scene(path, progress=_scaled(progress, 0.0, _SCENE_END, "hashing"), cancel=cancel,
-                           spz_axes=spz_axes)
+        scene = read_scene(source, progress=_scaled(progress, 0.0, _SCENE_END, "hashing"), cancel=cancel)
         digest = hashing.result(lambda f: report(_SCENE_END + (_HASH_END - _SCENE_END) * f, "hashing"))
     finally:
         hashing.stop.set()  # a failed or cancelled load leaves no hash running
     return scene, digest
 
 
-def _read_levels(path: str | os.PathLike, cameras: str | os.PathLike | None, progress: ProgressCallback | None,
-                 report: Reporter, cancel: threading.Event | None, read_lod: LodReader, which: dict,
+def _read_levels(source: SceneSource, progress: ProgressCallback | None, report: Reporter,
+                 cancel: threading.Event | None, read_lod: LodReader, fits: Fits | None,
                  on_level: Callable[[LoadedScene], None] | None) -> LoadedScene:
-    """A streamed SOG read and hashed side by side (``which``: read_lod's ``levels`` and
-    ``fits``). The cameras come first: the coarsest level is shown with them."""
-    shown = os.fspath(path)
+    """A streamed SOG read and hashed side by side (``source.levels`` while they ``fit``).
+    The cameras come first: the coarsest level is shown with them."""
     camera_warnings: list[str] = []
-    found, names, cameras_path = _training_cameras(shown, cameras, camera_warnings)
+    found, names, cameras_path = _training_cameras(source, camera_warnings)
 
     def loaded(lod: LodScene, digest: str) -> LoadedScene:
-        return LoadedScene(lod.scene, shown, digest, found, cameras_path, names,
+        return LoadedScene(lod.scene, source, digest, found, cameras_path, names,
                            dropped_summary(lod.scene) + camera_warnings, lod)
 
-    hashing = FileHash(path, cancel)
+    hashing = FileHash(source.path, cancel)
     try:
-        lod = read_lod(path, progress=_scaled(progress, 0.0, _SCENE_END, "hashing"), cancel=cancel,
+        lod = read_lod(source.path, progress=_scaled(progress, 0.0, _SCENE_END, "hashing"), cancel=cancel,
                        on_level=None if on_level is None else lambda lod: on_level(loaded(lod, hashing.digest or "")),
-                       **which)
+                       levels=source.levels, fits=fits)
         digest = hashing.result(lambda f: report(_SCENE_END + (_HASH_END - _SCENE_END) * f, "hashing"))
     finally:
         hashing.stop.set()
@@ -241,18 +232,18 @@ def _read_levels(path: str | os.PathLike, cameras: str | os.PathLike | None, pro
     return loaded(lod, digest)
 
 
-def _training_cameras(shown: str, cameras: str | os.PathLike | None,
-                      warnings: list[str]) -> tuple[list[Camera], list[str], str | None]:
-    """(cameras, their names, the cameras.json they came from) shown with the scene
-    ``shown``: the explicit ``cameras`` file (a bad one is a UserError); else the demo's
+def _training_cameras(source: SceneSource, warnings: list[str]) -> tuple[list[Camera], list[str], str | None]:
+    """(cameras, their names, the cameras.json they came from) shown with ``source``'s
+    scene: its explicit ``cameras`` file (a bad one is a UserError); else the demo's
     own views, or the cameras.json found beside a scene file (a bad one is skipped
     with a line added to ``warnings``)."""
+    cameras = source.cameras
     if cameras is not None:
         found = load_cameras(cameras)
-        return found, _camera_names(Path(cameras), len(found)), os.fspath(cameras)
-    if shown == DEMO:
+        return found, _camera_names(Path(cameras), len(found)), cameras
+    if source.is_demo:
         return demo_cameras(), list(DEMO_VIEW_NAMES), None
-    discovered = find_training_cameras(shown)
+    discovered = find_training_cameras(source.path)
     if discovered is None:
         return [], [], None
     try:
@@ -266,11 +257,9 @@ def _training_cameras(shown: str, cameras: str | os.PathLike | None,
 class _Job:
     """One load on its own thread; its fields are written by that thread only."""
 
-    def __init__(self, path: str, cameras: str | None, spz_axes: str, lod: dict, refines: bool) -> None:
-        self.path = path
-        self.cameras = cameras
-        self.spz_axes = spz_axes
-        self.lod = lod          # load_now's lod_levels and fits
+    def __init__(self, source: SceneSource, fits: Fits | None, refines: bool) -> None:
+        self.source = source
+        self.fits = fits        # load_now's
         self.refines = refines  # every result refines the scene shown
         self.delivered = False  # a result of this job has been polled
         self.cancel = threading.Event()
@@ -308,15 +297,13 @@ class SceneLoader:
         self.delivered = 0
         self.discarded = 0
 
-    def start(self, path: str, cameras: str | None = None, spz_axes: str = DEFAULT_SPZ_AXES, *,
-              lod_levels: tuple[int, ...] | None = None, fits: Fits | None = None, refines: bool = False) -> None:
-        """Cancels a load in progress (its result is discarded) and starts this one
-        (``spz_axes``, ``lod_levels``, ``fits``: as for :func:`load_now`); a finished result
+    def start(self, source: SceneSource, *, fits: Fits | None = None, refines: bool = False) -> None:
+        """Cancels a load in progress (its result is discarded) and starts reading
+        ``source`` (``fits``: as for :func:`load_now`); a finished result
         not yet polled is dropped too. ``refines``: every result, the first too, is a finer
         reading of the scene shown (the rest of a streamed SOG's levels). RuntimeError
         after :meth:`close`."""
-        job = _Job(os.fspath(path), None if cameras is None else os.fspath(cameras), spz_axes,
-                   {"lod_levels": lod_levels, "fits": fits}, refines)
+        job = _Job(source, fits, refines)
         thread = threading.Thread(target=self._run, args=(job,), name="raygs-load", daemon=True)
         with self._cond:
             if self._closed:
@@ -350,7 +337,7 @@ class SceneLoader:
     def path(self) -> str:
         """The path of the current load as given ("" with none)."""
         job = self._job
-        return job.path if job is not None else ""
+        return job.source.path if job is not None else ""
 
     @property
     def busy(self) -> bool:
@@ -424,14 +411,15 @@ class SceneLoader:
                     self._cond.notify_all()
 
         try:
-            result: LoadedScene | UserError = load_now(job.path, job.cameras, progress, cancel=job.cancel,
-                                                       read_scene=self.read_scene, spz_axes=job.spz_axes,
-                                                       on_level=level, read_lod=self.read_lod, **job.lod)
+            result: LoadedScene | UserError = load_now(job.source, progress, cancel=job.cancel,
+                                                       read_scene=self.read_scene, fits=job.fits,
+                                                       on_level=level, read_lod=self.read_lod)
         except UserError as exc:
             result = exc
         except Exception as exc:  # a bug or an odd OS failure: still one line for the panel
             detail = " ".join(str(exc).split())
-            result = UserError(f"{job.path}: loading failed ({type(exc).__name__}{': ' + detail if detail else ''})")
+            what = type(exc).__name__ + (f": {detail}" if detail else "")
+            result = UserError(f"{job.source.path}: loading failed ({what})")
         with self._cond:
             job.done = True
             if job is self._job:

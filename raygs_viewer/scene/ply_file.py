@@ -23,6 +23,7 @@ from raygs_viewer.scene.model import SH_DEGREE_OF_REST_COUNT, Scene, sh_coeffici
 from raygs_viewer.scene.ply_header import PLY_TYPES, parse_header
 from raygs_viewer.scene.progress import Reporter
 from raygs_viewer.scene.reading import DropTally, build_scene, file_error, scene_arrays, shown_token
+from raygs_viewer.scene.source import SceneSource
 
 _REQUIRED = ("x", "y", "z", "f_dc_0", "f_dc_1", "f_dc_2", "opacity",
              "scale_0", "scale_1", "scale_2", "rot_0", "rot_1", "rot_2", "rot_3")
@@ -31,9 +32,10 @@ _F_REST = re.compile(r"f_rest_(0|[1-9][0-9]*)")
 PLY_FORMAT = "INRIA PLY"
 
 
-def load_ply(path, shown: str, report: Reporter, chunk_bytes: int) -> Scene:
+def load_ply(source: SceneSource, report: Reporter, chunk_bytes: int) -> Scene:
     """The Scene of a PLY file, validated from its header before anything the size of
     its count is allocated; ``chunk_bytes`` of rows are read between progress reports."""
+    path = shown = source.path
     header_bytes, elements, refusal = parse_header(path, shown)
     if any(e.name == "chunk" for e in elements):  # PlayCanvas's packed layout, not INRIA's
         return load_compressed_ply(path, shown, report, chunk_bytes, header_bytes, elements, refusal)

@@ -65,6 +65,7 @@ from raygs_viewer.scene.model import Scene, sh_coefficient_count
 from raygs_viewer.scene.progress import Reporter
 from raygs_viewer.scene.reading import DropTally, build_scene, scene_arrays
 from raygs_viewer.scene.sog_meta import MAX_PALETTE, SogMeta, parse_meta
+from raygs_viewer.scene.source import SceneSource
 from raygs_viewer.scene.sog_source import Folder, SogSource, is_bundle, is_sog_folder, meta_file, open_source
 from raygs_viewer.scene.webp_image import decode_webp
 
@@ -85,9 +86,9 @@ _OTHERS = np.array([[1, 2, 3], [0, 2, 3], [0, 1, 3], [0, 1, 2]])
 _QUAT_COMPONENT = (np.arange(256) / 255.0 - 0.5) * math.sqrt(2.0)
 
 
-def load_sog(path, shown: str, report: Reporter, chunk_bytes: int) -> Scene:
-    """``path``: a bundled .sog file, an unbundled scene's meta.json, or its folder."""
-    return read_sog(path, shown, report, chunk_bytes)[0]
+def load_sog(source: SceneSource, report: Reporter, chunk_bytes: int) -> Scene:
+    """``source.path``: a bundled .sog file, an unbundled scene's meta.json, or its folder."""
+    return read_sog(source.path, source.path, report, chunk_bytes)[0]
 
 
 def read_sog(path, shown: str, report: Reporter, chunk_bytes: int) -> tuple[Scene, np.ndarray | None]:

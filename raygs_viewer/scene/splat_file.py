@@ -10,6 +10,7 @@ from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.progress import Reporter
 from raygs_viewer.scene.reading import DropTally, SceneArrays, build_scene, file_error
 from raygs_viewer.scene.sh import C0
+from raygs_viewer.scene.source import SceneSource
 
 #: The 32-byte ``.splat`` row.
 SPLAT_ROW_BYTES = 32
@@ -18,11 +19,12 @@ _SPLAT_DTYPE = np.dtype([("position", "<f4", (3,)), ("scale", "<f4", (3,)),
                          ("rgba", "u1", (4,)), ("rotation", "u1", (4,))])
 
 
-def load_splat(path, shown: str, report: Reporter, chunk_bytes: int) -> Scene:
+def load_splat(source: SceneSource, report: Reporter, chunk_bytes: int) -> Scene:
     """The 32-byte ``.splat`` rows: float32 position xyz, float32 *linear* scale xyz,
     RGBA uint8 (colour -> SH DC via (c/255 - 0.5)/C0, opacity a/255), quaternion
     as 4 uint8 ``q*128+128`` in order w, x, y, z (normalised here). SH degree 0.
     Read ``chunk_bytes`` at a time, with a progress point after each."""
+    path = shown = source.path
     size = os.path.getsize(path)
     if size % SPLAT_ROW_BYTES:
         raise file_error(shown, f"not a .splat file: size {size} bytes is not a multiple of {SPLAT_ROW_BYTES}")

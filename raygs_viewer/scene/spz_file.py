@@ -16,6 +16,7 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.scene.model import FileAxes, Scene, sh_coefficient_count
 from raygs_viewer.scene.progress import Reporter
 from raygs_viewer.scene.reading import DropTally, build_scene, scene_arrays
+from raygs_viewer.scene.source import SceneSource
 from raygs_viewer.scene.spz_format import (
     COORDINATE_SYSTEMS,
     DEFAULT_SPZ_AXES,
@@ -47,15 +48,15 @@ _SMALLEST_THREE_SLOTS = np.array([[i for i in range(3, -1, -1) if i != largest] 
 SPZ_FORMATS = {1: "spz v1", 2: "spz v2", 3: "spz v3", 4: "spz v4"}
 
 
-def load_spz(path, shown: str, report: Reporter, chunk_bytes: int, *, spz_axes: str = DEFAULT_SPZ_AXES) -> Scene:
+def load_spz(source: SceneSource, report: Reporter, chunk_bytes: int) -> Scene:
     """Read a ``.spz`` file (any version 1-4) into an activated Scene in RDF axes. A file
-    that declares no coordinate system is taken to be in ``spz_axes`` ("rub" or "rdf");
-    ``Scene.axes`` says which was used."""
-    assumed = spz_axes_system(spz_axes)
+    that declares no coordinate system is taken to be in ``source.spz_axes`` ("rub" or
+    "rdf"); ``Scene.axes`` says which was used."""
+    path = shown = source.path
     chunk = max(1, int(chunk_bytes))
     layout, data, declared = read_spz_file(path, shown, report, chunk)
-    scene = _decode(data, layout, declared or assumed, shown, report, chunk)
-    return replace(scene, axes=FileAxes(spz_axes, COORDINATE_SYSTEMS[declared - 1] if declared else ""))
+    scene = _decode(data, layout, declared or spz_axes_system(source.spz_axes), shown, report, chunk)
+    return replace(scene, axes=FileAxes(source.spz_axes, COORDINATE_SYSTEMS[declared - 1] if declared else ""))
 
 
 def _decode(data: np.ndarray, layout: Layout, system: int, shown: str, report: Reporter, chunk: int) -> Scene:

@@ -84,7 +84,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from raygs_viewer.errors import UserError
-from raygs_viewer.scene.model import sh_coefficient_count
+from raygs_viewer.scene.model import FileAxes, sh_coefficient_count
 
 SPZ_MAGIC = 0x5053474E
 LATEST_VERSION = 4
@@ -145,6 +145,21 @@ def spz_axes_system(spz_axes: str) -> int:
     if spz_axes not in SPZ_AXES:
         raise UserError(f"unknown .spz axes convention {spz_axes!r} (expected {' or '.join(SPZ_AXES)})")
     return COORDINATE_SYSTEMS.index(spz_axes.upper()) + 1
+
+
+def axes_description(axes: FileAxes) -> dict:
+    """``info``'s "axes" of a .spz: {stored: "RUB", "RDF", ...; declared: whether the file
+    said so, else it was assumed; spz_axes: the convention it was read with}."""
+    return {"stored": axes.stored, "declared": bool(axes.declared), "spz_axes": axes.assumed}
+
+
+def axes_words(axes: dict) -> str:
+    """How a .spz's axes were taken, in words, from :func:`axes_description`."""
+    if axes["declared"]:
+        return f"{axes['stored']} declared by the file (--spz-axes does not apply)"
+    if axes["spz_axes"] == "rdf":
+        return "RDF assumed (--spz-axes rdf: splat-transform's, the PLY's own axes)"
+    return "RUB assumed (the .spz specification's; --spz-axes rdf for files splat-transform wrote)"
 
 
 def axis_flips(source: int, target: int) -> np.ndarray:

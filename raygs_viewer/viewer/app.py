@@ -106,7 +106,7 @@ class Viewer:
         self.view_mode = ViewMode()
         self.panel = PanelState()
         self.stats = FrameStats()
-        self.scenes = SceneOpener(self.panel, options.spz_axes)
+        self.scenes = SceneOpener(self.panel, options.source)
         self.window.set_drop_callback(self.scenes.drop)
         self.lod = WindowLod(self)
         self.drawer = SceneDrawer(self.ctx)
@@ -293,10 +293,9 @@ class Viewer:
         stereo, the headset's per eye), the render settings (the left side's), the
         stereo view when the preview is on, the scene."""
         width, height = (self.camera.width, self.camera.height) if self.camera is not None else self.viewport[2:]
-        axes = self.loaded.scene.axes  # a .spz's: render-path reads it in the same axes
         return PathDocument(path, width, height, self.settings, self.shown_stereo,
                             scene_argument(self.loaded), self.loaded.content_sha256,
-                            scene_spz_axes=None if axes is None else axes.assumed)
+                            scene_axes=self.loaded.scene.axes)  # a .spz's: render-path reads it in the same axes
 
     # -- loop ------------------------------------------------------------------------
     def run(self) -> None:
@@ -363,7 +362,7 @@ def panel_sections(viewer: Viewer) -> list[Callable[[], None]]:
     return [
         lambda: draw_statistics(stats, loaded.scene.count, viewer.sorter, renderer.counters, renderer.general),
         lambda: draw_scene_section(loaded, viewer.panel, viewer.scenes.open, viewer.scenes.loader,
-                                   lambda axes: viewer.scenes.switch_spz_axes(loaded, axes)),
+                                   lambda axes: viewer.scenes.switch_axes(loaded, axes)),
         lambda: draw_lod_section(viewer.lod, viewer.settings, viewer.set_settings, stats, viewer.scenes.loader),
         lambda: draw_render_section(viewer.settings, viewer.set_settings, loaded.scene.sh_degree, renderer.supports,
                                     viewer.window, viewer.stereo, viewer.split, viewer.panel.note),
@@ -387,8 +386,8 @@ def load_start_scene(options: ViewerOptions, progress: ProgressCallback | None =
     """The scene the window opens with, read before it opens so that a bad file fails on
     the command line: a streamed SOG up to its coarsest level (or --lod N's), the window
     reads the rest."""
-    loaded = load_now(options.scene, options.cameras, progress, spz_axes=options.spz_axes,
-                      lod_levels=first_levels(options.scene, options.settings))
+    source = options.source
+    loaded = load_now(source.with_levels(first_levels(source, options.settings)), progress)
     given = lod_settings_given(options.settings)
     if loaded.lod is None and given:  # start values of the panel: kept for a streamed SOG opened later
         loaded.warnings.append(f"{', '.join(given)}: not for this scene, which is not a streamed SOG "

@@ -1,7 +1,7 @@
 """Opening scenes while the window runs: a path from the panel or files dropped on the
 window load in the background; the current scene stays until the new one is on the
-GPU, and the panel's lines say how it went. A ``.spz`` opens in the axes the opener's
-``spz_axes`` names; switching them reads the current one again."""
+GPU, and the panel's lines say how it went. A ``.spz`` opens in the axes of the opener's
+``reading`` (a SceneSource); switching them reads the current one again."""
 
 from __future__ import annotations
 
@@ -13,23 +13,23 @@ import moderngl
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.scene.loader import LoadedScene, SceneLoader
 from raygs_viewer.scene.lod_file import Fits
-from raygs_viewer.scene.spz_format import DEFAULT_SPZ_AXES
+from raygs_viewer.scene.source import SceneSource, is_demo
 from raygs_viewer.viewer.state import PanelState
 
 
 def scene_title(path: str) -> str:
-    return "demo scene" if path == "demo" else Path(path).name
+    return "demo scene" if is_demo(path) else Path(path).name
 
 
 class SceneOpener:
     """``loader`` does the loading; ``panel`` gets the message and error lines;
-    ``spz_axes`` ("rub" or "rdf") is how a .spz that declares no axes is read; ``fits()``
-    says what fits the GPU, for a streamed SOG's levels (None: no limit)."""
+    ``reading``: how a scene opened later is read (its .spz axes); ``fits()`` says what
+    fits the GPU, for a streamed SOG's levels (None: no limit)."""
 
-    def __init__(self, panel: PanelState, spz_axes: str = DEFAULT_SPZ_AXES):
+    def __init__(self, panel: PanelState, reading: SceneSource = SceneSource.demo()):
         self.panel = panel
         self.loader = SceneLoader()
-        self.spz_axes = spz_axes
+        self.reading = reading
         self.fits: Callable[[], Fits | None] = lambda: None
 
     def open(self, path: str, cameras: str | None = None) -> None:
@@ -41,15 +41,15 @@ class SceneOpener:
             return
         self.panel.error = ""
         self.panel.message = f"loading {path} ..."
-        self.loader.start(path, cameras, self.spz_axes, fits=self.fits())
+        self.loader.start(self.reading.at(path, cameras), fits=self.fits())
 
-    def switch_spz_axes(self, loaded: LoadedScene, spz_axes: str) -> None:
-        """Reads ``loaded`` again in ``spz_axes`` when it is a .spz (with the cameras it
-        has), and opens later ones so."""
-        self.spz_axes = spz_axes
+    def switch_axes(self, loaded: LoadedScene, axes: str) -> None:
+        """Reads ``loaded`` again in the .spz axes ``axes`` when it is a .spz (with the
+        cameras it has), and opens later ones so."""
+        self.reading = self.reading.with_axes(axes)
         if loaded.scene.axes is not None:
             self.open(loaded.path, loaded.cameras_path)
-            self.panel.message = f"reading {scene_title(loaded.path)} again in {spz_axes.upper()} axes ..."
+            self.panel.message = f"reading {scene_title(loaded.path)} again in {axes.upper()} axes ..."
 
     def drop(self, paths: list[str]) -> None:
         """Files dropped on the window: the first is opened."""

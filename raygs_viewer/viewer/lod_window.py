@@ -30,7 +30,8 @@ import numpy as np
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.gl.memory import scene_fits
 from raygs_viewer.render.settings import RenderSettings
-from raygs_viewer.scene.loader import DEMO, LoadedScene
+from raygs_viewer.scene.loader import LoadedScene
+from raygs_viewer.scene.source import SceneSource
 from raygs_viewer.scene.lod_file import Fits, LodScene, lod_index_file, merged_spans, read_index, span_rows
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.sh import C0
@@ -48,14 +49,14 @@ LEVEL_COLOURS = ((0.9, 0.15, 0.1), (0.15, 0.8, 0.2), (0.15, 0.35, 0.95), (0.95, 
 ENVIRONMENT_COLOUR = (0.5, 0.5, 0.5)
 
 
-def first_levels(scene: str, settings: RenderSettings) -> tuple[int, ...] | None:
-    """The levels of ``scene`` read before the window opens: ``settings.lod``'s, else the
-    coarsest; None when ``scene`` is not a streamed SOG (read it whole)."""
-    if scene == DEMO or lod_index_file(scene) is None:
+def first_levels(source: SceneSource, settings: RenderSettings) -> tuple[int, ...] | None:
+    """The levels of ``source``'s scene read before the window opens: ``settings.lod``'s,
+    else the coarsest; None when it is not a streamed SOG (read it whole)."""
+    if source.is_demo or lod_index_file(source.path) is None:
         return None
     if settings.lod is not None:
         return (settings.lod,)
-    return (read_index(scene, scene).levels - 1,)
+    return (read_index(source.path, source.path).levels - 1,)
 
 
 def window_settings(settings: RenderSettings, start: RenderSettings, loaded: LoadedScene) -> RenderSettings:
@@ -201,7 +202,8 @@ class WindowLod:
                 self._asked = lod
                 read = set(np.flatnonzero(lod.loaded).tolist())
                 levels = None if level is None else tuple(sorted(read | set(wanted)))
-                loader.start(loaded.path, loaded.cameras_path, lod_levels=levels, fits=self.fits(), refines=True)
+                loader.start(SceneSource(loaded.path, loaded.cameras_path, levels=levels), fits=self.fits(),
+                             refines=True)
         return self.request()
 
     def read_all(self) -> None:

@@ -285,7 +285,7 @@ class PathWidget:
 def scene_argument(loaded: LoadedScene) -> str:
     """The loaded scene as render-path's SCENE argument and a path file's scene: "demo",
     or the file's absolute path (the window's working folder is not render-path's)."""
-    return loaded.path if loaded.path == "demo" else str(Path(loaded.path).absolute())
+    return loaded.path if loaded.source.is_demo else str(Path(loaded.path).absolute())
 
 
 def current_keyframe(view: ViewControl) -> Keyframe:

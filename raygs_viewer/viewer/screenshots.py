@@ -19,7 +19,6 @@ every side and eye sorts that one choice's rows.
 
 from __future__ import annotations
 
-import os
 from dataclasses import dataclass, replace
 from pathlib import Path
 
@@ -103,14 +102,14 @@ def take_screenshots(renderer, sorter: DepthSorter, loaded: LoadedScene, shown: 
 def _take(offscreen: Offscreen, loaded: LoadedScene, shown: ShownView, options: ScreenshotOptions, save_eyes: bool,
           extra: dict, path: str | Path | None, camera: Camera) -> list[Saved]:
     scale = options.scale
-    scene_path = loaded.path if loaded.path == "demo" else os.path.abspath(loaded.path)
+    scene_path = loaded.source.recorded_path
     sha256 = loaded.content_sha256
 
     def sidecar(settings: RenderSettings, details: dict, stereo: StereoView | None = None,
                 view: ChannelView | None = shown.view) -> dict:
         return build_sidecar(scene_path=scene_path, scene_sha256=sha256, scene=loaded.scene, camera=camera,
                              settings=settings, scale=scale, window_camera=shown.camera, extra=details, stereo=stereo,
-                             channel_view=view, lod_levels=levels_read(loaded, settings))
+                             channel_view=view, levels=levels_read(loaded, settings))
 
     if shown.stereo is not None:
         shots = [(image, sidecar(shown.settings, {**extra, "stereo_window_layout": shown.stereo.layout}, view), tag)

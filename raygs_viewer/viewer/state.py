@@ -27,7 +27,7 @@ from raygs_viewer.camera.stereo import (
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.channel_pictures import ChannelView
 from raygs_viewer.render.settings import RenderSettings, apply_preset
-from raygs_viewer.scene.spz_format import DEFAULT_SPZ_AXES
+from raygs_viewer.scene.source import SceneSource
 
 #: The right side's preset when the split view is first switched on.
 DEFAULT_SPLIT_PRESET = "GS"
@@ -222,8 +222,10 @@ class PanelState:
 class ViewerOptions:
     """Everything ``raygs-viewer view`` takes from the command line.
 
-    scene: a scene file path or "demo". cameras: training cameras.json (None: look
-    next to the scene). camera/camera_index: the start view (a cameras.json and an
+    source: the scene to open (a file or the demo), its training cameras.json (None:
+    look next to the scene) and the axes a .spz that declares none is read in (the
+    panel's Scene section switches them; loading.SceneOpener holds the current
+    choice). camera/camera_index: the start view (a cameras.json and an
     index into it). width, height: window size in screen coordinates. settings: the
     start render settings (sh_degree None: each scene's own). frames: quit after that
     many frames (None: run until closed). screenshot: save the last frame there (PNG,
@@ -233,13 +235,10 @@ class ViewerOptions:
     null without a display). general: the all-features shader variant
     (GLRenderer(general=)), to compare. stereo: the stereo preview's start value.
     images: the training photos' folder for the Photo view (None: the one the model
-    folder's cfg_args names). spz_axes: the axes a .spz that declares none is read in
-    ("rub" or "rdf"); the panel's Scene section switches them (loading.SceneOpener
-    holds the current choice).
+    folder's cfg_args names).
     """
 
-    scene: str = "demo"
-    cameras: str | None = None
+    source: SceneSource = SceneSource.demo()
     camera: str | None = None
     camera_index: int = 0
     width: int = 1280
@@ -255,4 +254,3 @@ class ViewerOptions:
     general: bool = False
     stereo: StereoPreview = field(default_factory=StereoPreview)
     images: str | None = None
-    spz_axes: str = DEFAULT_SPZ_AXES

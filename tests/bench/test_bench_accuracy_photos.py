@@ -21,6 +21,7 @@ from raygs_viewer.photos.metrics import psnr, ssim_3dgs
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import DEFAULT_P_MIN, RenderSettings, apply_preset
 from raygs_viewer.scene.loader import load_now
+from raygs_viewer.scene.source import SceneSource
 
 CONFIGS = ("RayGS", "RayGS + MIP")
 
@@ -101,4 +102,4 @@ def test_report_puts_the_photo_columns_beside_the_truth(photo_run):
 
 
 def open_scene(dataset):
-    return load_now(dataset.scene_path).scene
+    return load_now(SceneSource(dataset.scene_path)).scene

@@ -46,6 +46,7 @@ from raygs_viewer.capture.document_entries import stereo_entry
 from raygs_viewer.capture.sidecar import demo_sha256
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.scene.model import FileAxes
 
 STEREO = StereoView(StereoRig(0.07, 3.5, 0.25), "sbs", LensModel(0.3, 0.1, 0.99, 1.02), PRESETS["index"])
 SHA = hashlib.sha256(b"a scene").hexdigest()
@@ -84,7 +85,7 @@ def assert_same_path(a: CameraPath, b: CameraPath):
 def assert_same_document(a: PathDocument, b: PathDocument):
     assert_same_path(a.path, b.path)
     for name in ("width", "height", "settings", "stereo", "scene_path", "scene_sha256", "scene_count",
-                 "scene_sh_degree", "scene_spz_axes", "kind"):
+                 "scene_sh_degree", "scene_axes", "kind"):
         assert getattr(a, name) == getattr(b, name), name
 
 
@@ -99,8 +100,8 @@ def assert_same_document(a: PathDocument, b: PathDocument):
     {"path": make_path(loop=True)},
     {"path": make_path(count=1)},
     {"scene_sha256": None, "scene_count": None},
-    {"scene_path": "/scenes/st.spz", "scene_spz_axes": "rdf"},
-    {"scene_path": "/scenes/niantic.spz", "scene_spz_axes": "rub"},
+    {"scene_path": "/scenes/st.spz", "scene_axes": FileAxes("rdf")},
+    {"scene_path": "/scenes/niantic.spz", "scene_axes": FileAxes("rub")},
 ], ids=["mono", "stereo", "anaglyph_gs", "no_scene_no_settings", "loop", "one_keyframe", "unknown_hash", "spz_rdf",
         "spz_rub"])
 def test_round_trip_is_bit_identical(tmp_path, changes):
@@ -140,8 +141,8 @@ def test_the_files_fields(tmp_path):
     assert abs((datetime.now(timezone.utc) - created).total_seconds()) < 3600  # UTC, not local time
     assert data["scene"] == {"path": "demo", "sha256": SHA, "count": 1234, "sh_degree": 3}  # no relative path
     # A .spz's axes only where they were recorded: older readers refuse the key (strict keys).
-    assert path_document_json(make_doc(scene_spz_axes="rdf"))["scene"]["spz_axes"] == "rdf"
-    assert load_path_document(file).scene_spz_axes is None
+    assert path_document_json(make_doc(scene_axes=FileAxes("rdf")))["scene"]["spz_axes"] == "rdf"
+    assert load_path_document(file).scene_axes is None
     assert data["image"] == {"width": 64, "height": 48}  # each eye's: the frames are composed
     assert data["settings"] == json.loads(json.dumps(dataclasses.asdict(SETTINGS)))
     assert data["stereo"] == stereo_entry(STEREO)

@@ -57,6 +57,8 @@ from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.scene.demo import demo_scene
 from raygs_viewer.scene.io import load_scene
+from raygs_viewer.scene.model import FileAxes
+from raygs_viewer.scene.source import SceneSource
 from raygs_viewer.sort.depth import DepthSorter
 
 
@@ -754,19 +756,20 @@ def spz_scene_file(tmp_path, spz_axes="rdf"):
 def test_a_spz_scene_records_the_axes_it_was_read_in(tmp_path):
     spz = spz_scene_file(tmp_path)
     for axes, version in (("rub", 1), ("rdf", 4)):
-        scene = load_scene(spz, spz_axes=axes)
+        scene = load_scene(SceneSource(spz, spz_axes=axes))
         data = build_sidecar(scene_path=str(spz), scene_sha256=scene_sha256(spz), scene=scene,
                              camera=window_camera(40, 30), settings=RenderSettings(), scale=1.0)
         # "rdf" needs version 4: a reader without the key would show the scene upside down.
         assert data["scene"]["spz_axes"] == axes and data["version"] == version
-        assert load_sidecar(write_json(tmp_path / f"{axes}.json", data)).spz_axes == axes
+        assert load_sidecar(write_json(tmp_path / f"{axes}.json", data)).axes == FileAxes(axes)
     ply = load_scene(tmp_path / "source.ply")
     data = build_sidecar(scene_path=str(tmp_path / "source.ply"), scene_sha256="0" * 64, scene=ply,
                          camera=window_camera(40, 30), settings=RenderSettings(), scale=1.0)
     assert "spz_axes" not in data["scene"]
     # Older sidecars, and other scenes, read as the specification's axes.
-    assert load_sidecar(write_json(tmp_path / "ply.json", data)).spz_axes == "rub"
-    assert load_sidecar(write_json(tmp_path / "d.json", demo_sidecar())).spz_axes == "rub"
+    for older in (write_json(tmp_path / "ply.json", data), write_json(tmp_path / "d.json", demo_sidecar())):
+        shot = load_sidecar(older)
+        assert shot.axes is None and shot.source(shot.scene_path).spz_axes == "rub"
 
 
 @pytest.mark.parametrize("change,fragment", [
@@ -784,7 +787,7 @@ def test_a_bad_spz_axes_entry_is_one_line(tmp_path, change, fragment):
 
 def test_render_sidecar_reads_the_spz_in_its_recorded_axes(capsys, tmp_path):
     spz = spz_scene_file(tmp_path)
-    rdf, rub = load_scene(spz, spz_axes="rdf"), load_scene(spz)
+    rdf, rub = load_scene(SceneSource(spz, spz_axes="rdf")), load_scene(spz)
     camera = frame_points(rdf.positions, 48, 36)
     data = build_sidecar(scene_path=str(spz), scene_sha256=scene_sha256(spz), scene=rdf, camera=camera,
                          settings=RenderSettings(), scale=1.0)

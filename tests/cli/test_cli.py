@@ -20,6 +20,7 @@ from raygs_viewer.render.gl.storage import SceneBuffers
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.demo import demo_camera, demo_scene
 from raygs_viewer.scene.io import load_scene
+from raygs_viewer.scene.source import SceneSource
 from raygs_viewer.sort.depth import DepthSorter
 
 SMALL = ["--width", "64"]  # demo camera 640x480 -> 64x48
@@ -686,7 +687,7 @@ def test_scene_first_means_view(capsys, viewer, tmp_path):
                            ([scene, "--frames", "3"], str(scene))):
         code, _, err = run_cli(capsys, *argv)
         assert code == 0, err
-        assert viewer.pop().scene == expected
+        assert viewer.pop().source == SceneSource(expected)
     assert run_cli(capsys, "--frames", "3")[0] == 0
     assert viewer.pop().frames == 3 and viewer == []
 
@@ -706,7 +707,7 @@ def test_every_view_option(capsys, viewer, tmp_path):
                            "--window-platform", "null")
     assert code == 0, err
     assert viewer == [ViewerOptions(
-        scene="scene.ply", cameras="train.json", camera="start.json", camera_index=4, width=800, height=600,
+        source=SceneSource("scene.ply", "train.json"), camera="start.json", camera_index=4, width=800, height=600,
         settings=RenderSettings(p_min=0.05, background=(0.5, 0.25, 1.0), sh_degree=2), frames=10,
         screenshot=str(tmp_path / "last.png"),
         screenshots=ScreenshotOptions(folder=str(tmp_path / "shots"), scale=2.5), vsync=False,
@@ -759,7 +760,7 @@ def test_view_user_errors_are_one_line(capsys, monkeypatch):
     from raygs_viewer.errors import UserError
 
     def fail(options, progress=None):
-        raise UserError(f"{options.scene}: no such file")
+        raise UserError(f"{options.source.path}: no such file")
 
     monkeypatch.setattr(app, "run_viewer", fail)
     code, _, err = run_cli(capsys, "missing.ply")

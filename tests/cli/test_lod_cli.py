@@ -125,7 +125,7 @@ def test_a_sidecar_taken_before_the_finer_levels_were_read_renders_from_those_re
     choice = choose(partial, CAMERA, distance=5.0)
     assert choice.wanted.min() == 0 and choice.levels.min() == 1  # level 0 wanted, not yet read
     data = build_sidecar(scene_path=str(streamed), scene_sha256=file_sha256(streamed), scene=partial.scene,
-                         camera=CAMERA, settings=RenderSettings(lod_distance=5.0), scale=1.0, lod_levels=(2, 1))
+                         camera=CAMERA, settings=RenderSettings(lod_distance=5.0), scale=1.0, levels=(2, 1))
     assert data["scene"]["lod_levels"] == [1, 2]
     sidecar = tmp_path / "early.json"
     sidecar.write_text(json.dumps(data))

@@ -12,6 +12,7 @@ from testkit import gaussian_columns, run_cli, write_ply
 from raygs_viewer.cli.progress_line import TerminalProgress
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.loader import load_now
+from raygs_viewer.scene.source import SceneSource
 
 
 class FakeTerminal(io.StringIO):
@@ -41,11 +42,11 @@ def test_terminal_progress_is_silent_off_a_terminal_and_for_quick_loads(tmp_path
     scene = write_ply(tmp_path / "scene.ply", gaussian_columns(5, 1))
     piped = io.StringIO()
     with TerminalProgress("scene.ply", piped, delay=0.0, interval=0.0) as progress:
-        load_now(scene, progress=progress)
+        load_now(SceneSource(scene), progress=progress)
     assert piped.getvalue() == ""
     quick = FakeTerminal()
     with TerminalProgress("scene.ply", quick, clock=lambda: 0.0) as progress:  # within the default delay
-        load_now(scene, progress=progress)
+        load_now(SceneSource(scene), progress=progress)
     assert quick.getvalue() == ""
 
 
@@ -54,7 +55,7 @@ def test_a_failed_load_leaves_a_clean_line_for_its_error(tmp_path):
     with pytest.raises(UserError):
         with TerminalProgress("gone.ply", stream, delay=0.0, interval=0.0) as progress:
             progress(0.2, "reading")
-            load_now(tmp_path / "gone.ply", progress=progress)
+            load_now(SceneSource(tmp_path / "gone.ply"), progress=progress)
     assert stream.getvalue().endswith("\r" + " " * len("loading gone.ply: reading  20%") + "\r")
 
 
@@ -66,4 +67,4 @@ def test_view_shows_its_scene_load_on_the_terminal(capsys, monkeypatch):
     monkeypatch.setattr(app, "run_viewer", lambda options, progress=None: handed.append((options, progress)) or 0)
     assert run_cli(capsys, "view", "demo")[0] == 0
     (options, progress), = handed
-    assert isinstance(progress, TerminalProgress) and progress.name == options.scene == "demo"
+    assert isinstance(progress, TerminalProgress) and progress.name == options.source.path == "demo"

@@ -18,6 +18,8 @@ from raygs_viewer.camera.pinhole import frame_points, look_at
 from raygs_viewer.capture.path_file import PathDocument, save_path_document
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.io import load_scene
+from raygs_viewer.scene.model import FileAxes
+from raygs_viewer.scene.source import SceneSource
 from raygs_viewer.scene.writing import write_scene
 
 F = np.array([1.0, -1.0, -1.0])
@@ -37,7 +39,7 @@ def st_spz(tmp_path, scene):
 def stored_positions(path) -> np.ndarray:
     """The coordinates as the file stores them: read as RDF, the reader converts nothing
     (tests/scene/test_spz_axes.py checks that against the plain codec)."""
-    return load_scene(path, spz_axes="rdf").positions
+    return load_scene(SceneSource(path, spz_axes="rdf")).positions
 
 
 # --------------------------------------------------------------------------- info
@@ -102,13 +104,14 @@ def test_convert_writes_in_the_input_axes_unless_told(capsys, tmp_path, scene, s
 def test_render_path_reads_the_spz_in_the_axes_its_path_file_recorded(tmp_path, st_spz):
     from raygs_viewer.cli.main import main
 
-    rdf = load_scene(st_spz, spz_axes="rdf")
+    rdf = load_scene(SceneSource(st_spz, spz_axes="rdf"))
     camera = frame_points(rdf.positions, 32, 24)
     other = look_at(camera.center * 1.1 + [0.1, 0.0, 0.0], rdf.positions.mean(axis=0), width=32, height=24)
     path = path_through_cameras([camera, other], duration=0.5, fps=4)
     runs = {}
     for recorded, option in ((None, None), ("rdf", None), ("rdf", "rdf"), ("rdf", "rub")):
-        doc = PathDocument(path, 32, 24, RenderSettings(), None, str(st_spz), None, scene_spz_axes=recorded)
+        doc = PathDocument(path, 32, 24, RenderSettings(), None, str(st_spz), None,
+                           scene_axes=None if recorded is None else FileAxes(recorded))
         file = save_path_document(doc, tmp_path / f"fly-{recorded}-{option}.json")
         frames = tmp_path / f"frames-{recorded}-{option}"
         argv = ["render-path", str(st_spz), str(file), "--out", str(frames), "--progress", "none"]

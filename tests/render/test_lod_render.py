@@ -16,6 +16,7 @@ from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.scene.lod_file import load_lod, span_rows
+from raygs_viewer.scene.source import SceneSource
 from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.lod_choice import choose
 from raygs_viewer.sort.request import Order
@@ -112,9 +113,9 @@ def test_chunk_runs_are_the_spans_within_a_chunk():
 
 def test_open_scene_reads_a_level_or_every_level_for_the_choice(streamed):
     path, lod = streamed
-    level = open_scene(str(path), RenderSettings(lod=2))
+    level = open_scene(SceneSource(path), RenderSettings(lod=2))
     assert level.lod is None and level.scene.count == 12 + 6 * 10
-    chosen = open_scene(str(path), RenderSettings(lod_budget=70, lod_distance=3.5))
+    chosen = open_scene(SceneSource(path), RenderSettings(lod_budget=70, lod_distance=3.5))
     assert chosen.lod.budget == 70 and chosen.scene.count == lod.scene.count
     assert chosen.framed.shape[0] == lod.scene.count - 12  # framing leaves the environment out
 
@@ -122,7 +123,7 @@ def test_open_scene_reads_a_level_or_every_level_for_the_choice(streamed):
 def test_the_opened_scene_s_levels_are_chosen_per_camera(streamed):
     path, lod = streamed
     settings = RenderSettings(lod_distance=3.5)
-    opened = open_scene(str(path), settings)
+    opened = open_scene(SceneSource(path), settings)
     far_camera = look_at([0.0, -0.3, -30.0], [1.5, 0.0, 3.0], width=48, height=36)
     with DepthSorter(opened.scene) as sorter:
         near = exact_order(sorter, CAMERA, settings, levels=opened.lod)

@@ -29,6 +29,7 @@ from raygs_viewer.scene.demo import (
 from raygs_viewer.scene.io import load_scene
 from raygs_viewer.scene.content_hash import arrays_sha256, file_sha256
 from raygs_viewer.scene.loader import LoadedScene, SceneLoader, find_training_cameras, load_now
+from raygs_viewer.scene.source import SceneSource
 
 DEADLOCK = 30.0
 
@@ -92,7 +93,7 @@ def test_discovered_cameras_are_loaded_with_their_names(tmp_path):
     model = tmp_path / "model"
     scene = small_ply(model / "point_cloud" / "iteration_7000" / "point_cloud.ply")
     cameras_json = write_cameras(model / "cameras.json", demo_cameras_json())
-    loaded = load_now(scene)
+    loaded = load_now(SceneSource(scene))
     assert isinstance(loaded, LoadedScene)
     assert loaded.path == str(scene) and loaded.scene.count == 5
     assert loaded.cameras_path == str(cameras_json)
@@ -111,9 +112,9 @@ def test_camera_names_fall_back_to_numbers(tmp_path):
     entries[2]["img_name"] = "IMG_0002\n.jpg"  # kept on one line
     scene = small_ply(tmp_path / "scene.ply")
     write_cameras(tmp_path / "cameras.json", entries)
-    assert load_now(scene).camera_names == ["camera 0", "camera 1", "IMG_0002 .jpg"]
+    assert load_now(SceneSource(scene)).camera_names == ["camera 0", "camera 1", "IMG_0002 .jpg"]
     write_cameras(tmp_path / "cameras.json", demo_cameras_json()[4])  # one object, not a list
-    assert load_now(scene).camera_names == ["sphere-close-up"]
+    assert load_now(SceneSource(scene)).camera_names == ["sphere-close-up"]
 
 
 BAD_CAMERAS = {
@@ -128,7 +129,7 @@ BAD_CAMERAS = {
 def test_a_bad_discovered_cameras_json_is_only_a_warning(tmp_path, case):
     scene = small_ply(tmp_path / "scene.ply")
     (tmp_path / "cameras.json").write_text(BAD_CAMERAS[case], encoding="utf-8")
-    loaded = load_now(scene)
+    loaded = load_now(SceneSource(scene))
     assert loaded.scene.count == 5
     assert loaded.cameras == [] and loaded.camera_names == [] and loaded.cameras_path is None
     assert len(loaded.warnings) == 1
@@ -142,8 +143,8 @@ def test_a_bad_explicit_cameras_json_is_an_error(tmp_path, case, scene_loader):
     scene = small_ply(tmp_path / "scene.ply")
     explicit = tmp_path / "mine.json"
     explicit.write_text(BAD_CAMERAS[case], encoding="utf-8")
-    testkit.assert_user_error(lambda: load_now(scene, explicit), explicit)
-    scene_loader.start(str(scene), str(explicit))
+    testkit.assert_user_error(lambda: load_now(SceneSource(scene, explicit)), explicit)
+    scene_loader.start(SceneSource(str(scene), str(explicit)))
     error = scene_loader.wait(DEADLOCK)
     assert isinstance(error, UserError)
     testkit.assert_user_error(lambda: _raise(error), explicit)
@@ -151,14 +152,14 @@ def test_a_bad_explicit_cameras_json_is_an_error(tmp_path, case, scene_loader):
 
 def test_a_missing_explicit_cameras_json_is_an_error(tmp_path):
     scene = small_ply(tmp_path / "scene.ply")
-    testkit.assert_user_error(lambda: load_now(scene, tmp_path / "gone.json"), "gone.json", "no such file")
+    testkit.assert_user_error(lambda: load_now(SceneSource(scene, tmp_path / "gone.json")), "gone.json", "no such file")
 
 
 def test_explicit_cameras_replace_the_discovered_ones(tmp_path):
     scene = small_ply(tmp_path / "scene.ply")
     write_cameras(tmp_path / "cameras.json", demo_cameras_json())
     explicit = write_cameras(tmp_path / "two.json", demo_cameras_json()[2:4])
-    loaded = load_now(scene, str(explicit))
+    loaded = load_now(SceneSource(scene, str(explicit)))
     assert loaded.cameras_path == str(explicit)
     assert loaded.camera_names == ["through-the-sheets", "high-behind"] and len(loaded.cameras) == 2
 
@@ -166,7 +167,7 @@ def test_explicit_cameras_replace_the_discovered_ones(tmp_path):
 def test_dropped_gaussians_are_warnings(tmp_path):
     cols = gaussian_columns(4, 1)
     cols["x"][1] = np.nan
-    loaded = load_now(write_ply(tmp_path / "nan.ply", cols))
+    loaded = load_now(SceneSource(write_ply(tmp_path / "nan.ply", cols)))
     assert loaded.scene.count == 3
     assert loaded.warnings == ["dropped 1 gaussian: nan"]
 
@@ -174,7 +175,7 @@ def test_dropped_gaussians_are_warnings(tmp_path):
 def test_sha256_is_the_files(tmp_path):
     scene = small_ply(tmp_path / "scene.ply", n=40)
     expected = hashlib.sha256(scene.read_bytes()).hexdigest()
-    assert load_now(scene).sha256 == expected
+    assert load_now(SceneSource(scene)).sha256 == expected
     calls = []
     assert file_sha256(scene, lambda f, s: calls.append((f, s)), chunk_bytes=100) == expected  # many reads, one buffer
     size = scene.stat().st_size
@@ -182,7 +183,7 @@ def test_sha256_is_the_files(tmp_path):
     assert [f for f, _ in calls] == sorted(f for f, _ in calls)
     splat = tmp_path / "scene.splat"
     splat.write_bytes(bytes(range(64)))
-    assert load_now(splat).sha256 == hashlib.sha256(bytes(range(64))).hexdigest()
+    assert load_now(SceneSource(splat)).sha256 == hashlib.sha256(bytes(range(64))).hexdigest()
 
 
 def test_hash_read_failure_is_a_user_error(tmp_path):
@@ -193,7 +194,8 @@ def test_progress_is_monotone_and_ends_at_done(tmp_path, monkeypatch):
     scene = small_ply(tmp_path / "scene.ply", n=30)
     monkeypatch.setattr(content_hash, "HASH_CHUNK_BYTES", 500)
     calls = []
-    load_now(scene, progress=lambda f, s: calls.append((f, s)), read_scene=functools.partial(load_scene, chunk_bytes=200))
+    load_now(SceneSource(scene), progress=lambda f, s: calls.append((f, s)),
+             read_scene=functools.partial(load_scene, chunk_bytes=200))
     fractions = [f for f, _ in calls]
     assert fractions == sorted(fractions) and 0.0 <= fractions[0] and fractions[-1] == 1.0
     assert calls[-1] == (1.0, "done") and [s for _, s in calls].count("done") == 1
@@ -231,7 +233,7 @@ def test_the_hash_runs_beside_the_read(tmp_path, monkeypatch):
         assert hashing.started.wait(DEADLOCK), "the hash did not start before the scene was read"
         return load_scene(path, **kwargs)
 
-    loaded = load_now(scene, read_scene=read_scene)
+    loaded = load_now(SceneSource(scene), read_scene=read_scene)
     assert loaded.sha256 == hashlib.sha256(scene.read_bytes()).hexdigest()
 
 
@@ -246,7 +248,7 @@ def test_a_hash_still_running_after_the_read_reports_its_progress(tmp_path, monk
         if [s for _, s in calls].count("hashing") == 4:  # the read is done; the hash still waits
             hashing.gate.set()
 
-    loaded = load_now(scene, progress=progress)
+    loaded = load_now(SceneSource(scene), progress=progress)
     assert loaded.sha256 == hashlib.sha256(scene.read_bytes()).hexdigest()
     hashed = [f for f, s in calls if s == "hashing"]
     assert len(hashed) >= 4 and 0.85 < hashed[1] < hashed[-1] <= 0.98, calls  # 0.85 + 0.13 * 0.5, then 1
@@ -270,7 +272,7 @@ def test_a_failed_or_cancelled_load_stops_its_hash(tmp_path, monkeypatch, how):
             cancel.set()
 
     with pytest.raises(UserError, match="broken" if how == "read fails" else "^loading cancelled$"):
-        load_now(scene, progress=progress, cancel=cancel, read_scene=read_scene)
+        load_now(SceneSource(scene), progress=progress, cancel=cancel, read_scene=read_scene)
     assert hashing.stopped.wait(DEADLOCK), "the hash kept running"
 
 
@@ -281,7 +283,7 @@ def test_a_hash_that_fails_after_a_good_read_is_the_error(tmp_path, monkeypatch)
         raise UserError(f"{path}: cannot read: Input/output error")
 
     monkeypatch.setattr(content_hash, "file_sha256", failing_hash)
-    testkit.assert_user_error(lambda: load_now(scene), scene, "Input/output error")
+    testkit.assert_user_error(lambda: load_now(SceneSource(scene)), scene, "Input/output error")
 
 
 def test_cancel_stops_load_now(tmp_path):
@@ -289,16 +291,16 @@ def test_cancel_stops_load_now(tmp_path):
     cancel = threading.Event()
     cancel.set()
     with pytest.raises(UserError, match="^loading cancelled$"):
-        load_now(scene, cancel=cancel)
+        load_now(SceneSource(scene), cancel=cancel)
     with pytest.raises(UserError, match="^loading cancelled$"):
-        load_now("demo", cancel=cancel)
+        load_now(SceneSource.demo(), cancel=cancel)
 
 
 # --------------------------------------------------------------------------- the demo
 
 
 def test_the_demo_loads_with_its_six_cameras():
-    loaded = load_now("demo")
+    loaded = load_now(SceneSource.demo())
     assert loaded.path == "demo" and loaded.scene.source == "demo"
     assert len(loaded.cameras) == 6 and loaded.camera_names == list(DEMO_VIEW_NAMES)
     assert loaded.cameras_path is None and loaded.warnings == []
@@ -322,7 +324,7 @@ def test_arrays_sha256_covers_every_array():
 
 def test_explicit_cameras_replace_the_demo_views(tmp_path):
     explicit = write_cameras(tmp_path / "one.json", demo_cameras_json()[5])
-    loaded = load_now("demo", explicit)
+    loaded = load_now(SceneSource.demo(explicit))
     assert loaded.camera_names == ["grazing-floor"] and loaded.cameras_path == str(explicit)
 
 
@@ -336,7 +338,7 @@ def _raise(error: BaseException):
 def test_background_load_delivers_once_with_progress_at_one(tmp_path, scene_loader):
     scene = small_ply(tmp_path / "scene.ply")
     assert not scene_loader.busy and scene_loader.poll() is None and scene_loader.wait() is None
-    scene_loader.start(str(scene))
+    scene_loader.start(SceneSource(str(scene)))
     loaded = scene_loader.wait(DEADLOCK)
     assert isinstance(loaded, LoadedScene) and loaded.scene.count == 5
     assert scene_loader.progress == 1.0 and scene_loader.stage == "done" and not scene_loader.busy
@@ -345,7 +347,7 @@ def test_background_load_delivers_once_with_progress_at_one(tmp_path, scene_load
 
 
 def test_the_demo_loads_in_the_background(scene_loader):
-    scene_loader.start("demo")
+    scene_loader.start(SceneSource.demo())
     loaded = scene_loader.wait(DEADLOCK)
     assert isinstance(loaded, LoadedScene) and len(loaded.cameras) == 6
 
@@ -357,7 +359,7 @@ def test_a_corrupt_ply_is_a_one_line_error_from_poll(tmp_path, scene_loader, dam
         path.write_bytes(b"ply\nformat binary_little_endian 1.0\n\xff\xfe garbage")
     else:
         path.write_bytes(small_ply(tmp_path / "whole.ply").read_bytes()[:-9])
-    scene_loader.start(str(path))
+    scene_loader.start(SceneSource(str(path)))
     assert scene_loader.join(DEADLOCK)
     error = scene_loader.poll()
     assert isinstance(error, UserError) and not scene_loader.busy
@@ -377,9 +379,9 @@ class SteeredLoad:
         self.gate = threading.Event()
         self.saw_cancel = threading.Event()
 
-    def __call__(self, path, *, progress=None, cancel=None, **options):
-        if Path(path).name != "slow.ply":
-            return self.real(path, progress=progress, cancel=cancel, **options)
+    def __call__(self, source, *, progress=None, cancel=None, **options):
+        if Path(source.path).name != "slow.ply":
+            return self.real(source, progress=progress, cancel=cancel, **options)
         progress(0.5, "reading")
         self.entered.set()
         if self.honour_cancel:
@@ -388,7 +390,7 @@ class SteeredLoad:
             raise UserError("loading cancelled")
         assert self.gate.wait(DEADLOCK), "the test never released the slow load"
         progress(0.9, "activating")  # a stale load must not move the new one's progress
-        return self.real(path, progress=progress, cancel=None, **options)
+        return self.real(source, progress=progress, cancel=None, **options)
 
 
 @pytest.fixture
@@ -403,11 +405,11 @@ def steered(scene_loader):
 def test_a_new_start_cancels_and_discards_the_load_in_progress(tmp_path, steered, scene_loader):
     fake = steered(honour_cancel=True)
     slow, good = small_ply(tmp_path / "slow.ply", n=3), small_ply(tmp_path / "good.ply", n=7)
-    scene_loader.start(str(slow))
+    scene_loader.start(SceneSource(str(slow)))
     assert fake.entered.wait(DEADLOCK)
     assert scene_loader.busy and scene_loader.stage == "reading"
     assert 0.0 < scene_loader.progress < 1.0
-    scene_loader.start(str(good))
+    scene_loader.start(SceneSource(str(good)))
     loaded = scene_loader.wait(DEADLOCK)
     assert fake.saw_cancel.wait(DEADLOCK)  # the old thread was told to stop
     assert isinstance(loaded, LoadedScene) and loaded.path == str(good) and loaded.scene.count == 7
@@ -419,9 +421,9 @@ def test_a_new_start_cancels_and_discards_the_load_in_progress(tmp_path, steered
 def test_a_replaced_load_that_finishes_late_is_never_delivered(tmp_path, steered, scene_loader):
     fake = steered(honour_cancel=False)
     slow, good = small_ply(tmp_path / "slow.ply", n=3), small_ply(tmp_path / "good.ply", n=7)
-    scene_loader.start(str(slow))
+    scene_loader.start(SceneSource(str(slow)))
     assert fake.entered.wait(DEADLOCK)
-    scene_loader.start(str(good))
+    scene_loader.start(SceneSource(str(good)))
     loaded = scene_loader.wait(DEADLOCK)
     assert loaded.path == str(good)
     fake.gate.set()  # the old load now completes successfully...
@@ -434,15 +436,15 @@ def test_a_replaced_load_that_finishes_late_is_never_delivered(tmp_path, steered
 def test_cancel_and_close_do_not_wait_for_the_load(tmp_path, steered, scene_loader):
     fake = steered(honour_cancel=False)
     slow = small_ply(tmp_path / "slow.ply")
-    scene_loader.start(str(slow))
+    scene_loader.start(SceneSource(str(slow)))
     assert fake.entered.wait(DEADLOCK)
     scene_loader.cancel()
     assert not scene_loader.busy and scene_loader.wait(DEADLOCK) is None
-    scene_loader.start(str(slow))
+    scene_loader.start(SceneSource(str(slow)))
     scene_loader.close()  # returns with both slow loads still blocked
     assert not fake.gate.is_set()
     with pytest.raises(RuntimeError):
-        scene_loader.start(str(slow))
+        scene_loader.start(SceneSource(str(slow)))
     fake.gate.set()
     assert scene_loader.join(DEADLOCK)
     assert scene_loader.poll() is None and scene_loader.discarded == 2
@@ -459,7 +461,7 @@ def test_unexpected_exceptions_become_one_line_errors(tmp_path, scene_loader, ex
 
     scene_loader.read_scene = failing_load
     path = small_ply(tmp_path / "scene.ply")
-    scene_loader.start(str(path))
+    scene_loader.start(SceneSource(str(path)))
     error = scene_loader.wait(DEADLOCK)
     assert isinstance(error, UserError)
     testkit.assert_user_error(lambda: _raise(error), path, fragment)
@@ -468,9 +470,9 @@ def test_unexpected_exceptions_become_one_line_errors(tmp_path, scene_loader, ex
 def test_a_finished_result_not_yet_polled_is_dropped_by_a_new_start(tmp_path, steered, scene_loader):
     fake = steered(honour_cancel=True)
     good, slow = small_ply(tmp_path / "good.ply"), small_ply(tmp_path / "slow.ply")
-    scene_loader.start(str(good))
+    scene_loader.start(SceneSource(str(good)))
     assert scene_loader.join(DEADLOCK) and not scene_loader.busy  # finished, not polled
-    scene_loader.start(str(slow))
+    scene_loader.start(SceneSource(str(slow)))
     assert fake.entered.wait(DEADLOCK)
     assert scene_loader.poll() is None  # the good scene is not shown over the newer request
     assert scene_loader.discarded == 1

@@ -21,6 +21,7 @@ from raygs_viewer.scene.content_hash import file_sha256
 from raygs_viewer.scene.io import load_scene
 from raygs_viewer.scene.loader import load_now
 from raygs_viewer.scene.lod_file import load_level, load_lod, lod_index_file, merged_spans, span_rows
+from raygs_viewer.scene.source import SceneSource
 
 FIXTURE = Path(__file__).resolve().parents[1] / "fixtures" / "lod-small"
 
@@ -263,7 +264,7 @@ def test_a_missing_level_or_a_level_on_another_scene_is_one_line(tmp_path, capsy
 
 def test_a_scene_shown_before_its_hash_is_done_hashes_when_a_document_needs_it(streamed):
     path, _, _ = streamed
-    loaded = load_now(path)
+    loaded = load_now(SceneSource(path))
     assert loaded.sha256 == file_sha256(path)
     shown_early = replace(loaded, sha256="")  # as a level is handed on while the files are still hashed
     assert shown_early.content_sha256 == loaded.sha256

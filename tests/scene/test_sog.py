@@ -146,15 +146,16 @@ def test_encoded_scenes_decode_within_the_quantisation_error(tmp_path, degree, l
 def test_a_folder_loads_as_its_meta_json(tmp_path):
     from raygs_viewer.scene.progress import Reporter
     from raygs_viewer.scene.sog_file import load_sog
+    from raygs_viewer.scene.source import SceneSource
 
     meta, images, _ = encode_sog(*gaussians(n=20))
     path = write_folder(tmp_path / "scene", meta, images)
     by_file = load_scene(path)
-    by_folder = load_sog(tmp_path / "scene", "scene", Reporter(None, None), 1 << 20)
+    by_folder = load_sog(SceneSource(tmp_path / "scene"), Reporter(None, None), 1 << 20)
     assert np.array_equal(by_file.positions, by_folder.positions)
     assert np.array_equal(by_file.sh, by_folder.sh)
     with pytest.raises(UserError, match="folder has no meta.json"):
-        load_sog(tmp_path, "empty", Reporter(None, None), 1 << 20)
+        load_sog(SceneSource(tmp_path), Reporter(None, None), 1 << 20)
 
 
 def test_an_unbundled_scene_opens_from_its_folder_and_hashes_every_image(tmp_path):

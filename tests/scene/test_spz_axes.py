@@ -37,6 +37,7 @@ from raygs_viewer.scene.describe import describe, format_description
 from raygs_viewer.scene.io import load_scene
 from raygs_viewer.scene.model import FileAxes, Scene
 from raygs_viewer.scene.sh import sh_basis
+from raygs_viewer.scene.source import SceneSource
 from raygs_viewer.scene.spz_file import spz_bytes
 from raygs_viewer.scene.writing import write_scene
 
@@ -80,10 +81,10 @@ def test_a_file_written_in_rdf_reads_back_in_rdf_and_flipped_in_rub(tmp_path, ve
     path = write(tmp_path, spz_bytes(scene, version, spz_axes="rdf"))
     raw = ref.unpack(path.read_bytes())  # no axes at all: the bytes as stored
     assert np.abs(np.asarray(raw["positions"]) - scene.positions).max() <= POSITION_BOUND + 2.0 ** -22
-    rdf = load_scene(path, spz_axes="rdf")
+    rdf = load_scene(SceneSource(path, spz_axes="rdf"))
     assert rdf.axes == FileAxes("rdf") and rdf.axes.stored == "RDF"
     assert_within_quantisation(rdf, scene, version)
-    rub = load_scene(path, spz_axes="rub")
+    rub = load_scene(SceneSource(path, spz_axes="rub"))
     assert rub.axes == FileAxes("rub") and rub.axes.stored == "RUB"
     assert_flipped(rub, rdf)
     assert (np.abs(rub.positions[:, 1:] - scene.positions[:, 1:]) > 0.1).any()  # the flip is no small change
@@ -98,7 +99,7 @@ def test_rub_and_rdf_files_hold_the_same_scene_in_mirrored_bytes(tmp_path):
     rub = ref.unpack(spz_bytes(scene, 3))
     rdf = ref.unpack(spz_bytes(scene, 3, spz_axes="rdf"))
     np.testing.assert_array_equal(np.asarray(rub["positions"]), np.asarray(rdf["positions"]) * F)
-    both = [load_scene(write(tmp_path, spz_bytes(scene, 3, spz_axes=axes), f"{axes}.spz"), spz_axes=axes)
+    both = [load_scene(SceneSource(write(tmp_path, spz_bytes(scene, 3, spz_axes=axes), f"{axes}.spz"), spz_axes=axes))
             for axes in ("rub", "rdf")]
     for back in both:
         assert_within_quantisation(back, scene, 3)
@@ -112,25 +113,26 @@ def test_a_declared_coordinate_system_wins_over_the_option(tmp_path, declared, n
     stored = np.asarray(ref.unpack(ref.pack(g, 4))["positions"], np.float32)
     flips = {4: F, 6: np.ones(3), 2: np.array([1.0, 1.0, -1.0])}[declared].astype(np.float32)
     for option in ("rub", "rdf"):
-        scene = load_scene(path, spz_axes=option)
+        scene = load_scene(SceneSource(path, spz_axes=option))
         np.testing.assert_array_equal(scene.positions, stored * flips)
         assert scene.axes == FileAxes(option, name) and scene.axes.stored == name
 
 
 def test_an_unknown_convention_is_a_one_line_error_before_reading(tmp_path):
     path = write(tmp_path, spz_bytes(rdf_scene(n=3, degree=0)))
-    testkit.assert_user_error(lambda: load_scene(path, spz_axes="RDF"), "RDF", "rub or rdf")
-    testkit.assert_user_error(lambda: load_scene(tmp_path / "absent.ply", spz_axes="up"), "up", "rub or rdf")
+    # The source refuses it when it is made, before any file is opened.
+    testkit.assert_user_error(lambda: load_scene(SceneSource(path, spz_axes="RDF")), "RDF", "rub or rdf")
+    testkit.assert_user_error(lambda: SceneSource(tmp_path / "absent.ply", spz_axes="up"), "up", "rub or rdf")
     testkit.assert_user_error(lambda: spz_bytes(rdf_scene(n=3, degree=0), 3, spz_axes="luf"), "luf", "rub or rdf")
 
 
 def test_other_formats_have_no_axes_and_info_names_the_convention(tmp_path):
     scene = rdf_scene(n=20, degree=1, seed=2)
-    assert load_scene(write_scene(scene, tmp_path / "s.ply"), spz_axes="rdf").axes is None
+    assert load_scene(SceneSource(write_scene(scene, tmp_path / "s.ply"), spz_axes="rdf")).axes is None
     path = write(tmp_path, spz_bytes(scene, 4, spz_axes="rdf"))
     lines = {}
     for option in ("rub", "rdf"):
-        info = describe(load_scene(path, spz_axes=option))
+        info = describe(load_scene(SceneSource(path, spz_axes=option)))
         assert info["axes"] == {"stored": option.upper(), "declared": False, "spz_axes": option}
         lines[option] = [line for line in format_description(info).splitlines() if line.startswith("axes:")]
     assert len(lines["rub"]) == 1 and "RUB assumed" in lines["rub"][0] and "--spz-axes rdf" in lines["rub"][0]
@@ -158,7 +160,7 @@ def test_the_splat_transform_fixture_is_a_small_unmarked_v4_file():
 @pytest.mark.skipif(not SHARED_PLY.exists(), reason="shared scenes folder absent")
 def test_splat_transforms_file_matches_its_ply_in_rdf_and_opens_flipped_by_default():
     ply = load_scene(SHARED_PLY)
-    rdf = load_scene(SPLAT_TRANSFORM_SPZ, spz_axes="rdf")
+    rdf = load_scene(SceneSource(SPLAT_TRANSFORM_SPZ, spz_axes="rdf"))
     assert_within_quantisation(rdf, ply, 4)
     rub = load_scene(SPLAT_TRANSFORM_SPZ)
     assert_flipped(rub, rdf)

@@ -32,6 +32,7 @@ from testkit import assert_differs, assert_matches
 from raygs_viewer.capture.image_io import to_rgb8
 from raygs_viewer.render.settings import RenderSettings, apply_preset
 from raygs_viewer.scene.loader import load_now
+from raygs_viewer.scene.source import SceneSource
 from raygs_viewer.viewer.app import Viewer
 from raygs_viewer.viewer.state import NavigationChoices, ViewerOptions
 
@@ -303,7 +304,7 @@ def test_start_settings_are_checked_before_the_window_opens(restore_gl_ctx):
 
     with pytest.raises(UserError, match="framebuffer fetch"):
         Viewer(ViewerOptions(width=64, height=48, platform="null", settings=RenderSettings(transmittance_cutoff=True)),
-               load_now("demo"), renderer_factory=WithoutFramebufferFetch)
+               load_now(SceneSource.demo()), renderer_factory=WithoutFramebufferFetch)
     assert not glfw.get_current_context()  # the window was closed again
 
 
@@ -789,5 +790,6 @@ def test_a_scene_too_large_for_the_gpu_fails_before_the_loop_and_closes_the_wind
         raise UserError("scene of 3914 gaussians needs 9 storage blocks")
 
     with pytest.raises(UserError, match="storage blocks"):
-        Viewer(ViewerOptions(width=64, height=48, platform="null"), load_now("demo"), renderer_factory=refuse)
+        Viewer(ViewerOptions(width=64, height=48, platform="null"), load_now(SceneSource.demo()),
+               renderer_factory=refuse)
     assert not glfw.get_current_context()  # the window and GLFW were shut down

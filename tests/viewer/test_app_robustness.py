@@ -668,11 +668,11 @@ class _Gate:
         self.release = threading.Event()
         real = loader.read_scene
 
-        def gated(path, *args, **kwargs):
-            if Path(path).name.startswith("slow"):
+        def gated(source, *args, **kwargs):
+            if Path(source.path).name.startswith("slow"):
                 self.entered.set()
                 self.release.wait(60)
-            return real(path, *args, **kwargs)
+            return real(source, *args, **kwargs)
 
         loader.read_scene = gated
 

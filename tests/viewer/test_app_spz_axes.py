@@ -16,6 +16,7 @@ from testkit import assert_matches, random_scene, write_inria_ply
 
 from raygs_viewer.scene.io import load_scene
 from raygs_viewer.scene.model import FileAxes
+from raygs_viewer.scene.source import SceneSource
 from raygs_viewer.scene.spz_file import spz_bytes
 from raygs_viewer.scene.writing import write_scene
 
@@ -41,14 +42,14 @@ def test_the_switch_reads_the_scene_again_flipped(open_viewer, st_spz):
     drive.click(SWITCH)
     drive.wait_for_load()
     after = viewer.loaded.scene
-    assert viewer.panel.error == "" and after.axes == FileAxes("rdf") and viewer.scenes.spz_axes == "rdf"
+    assert viewer.panel.error == "" and after.axes == FileAxes("rdf") and viewer.scenes.reading.spz_axes == "rdf"
     assert after is not before and viewer.loaded.path == str(st_spz)
     # Exactly the gaussians read before, seen through diag(1, -1, -1).
     np.testing.assert_array_equal(after.positions, before.positions * np.float32([1, -1, -1]))
     np.testing.assert_array_equal(after.rotations, before.rotations * np.float32([1, 1, -1, -1]))
     np.testing.assert_array_equal(after.sh[:, 0], before.sh[:, 0])
     np.testing.assert_array_equal(after.sh[:, 1], -before.sh[:, 1])  # the SH function in y
-    np.testing.assert_array_equal(after.positions, load_scene(st_spz, spz_axes="rdf").positions)
+    np.testing.assert_array_equal(after.positions, load_scene(SceneSource(st_spz, spz_axes="rdf")).positions)
     drive.settle()
     assert_matches(window_image(viewer), headless(viewer))  # the window shows the scene read again
     # And back.
@@ -62,7 +63,7 @@ def test_the_switch_reads_the_scene_again_flipped(open_viewer, st_spz):
 def test_screenshots_and_paths_record_the_axes_and_render_again_from_them(open_viewer, st_spz, tmp_path):
     from raygs_viewer.cli.main import main
 
-    viewer, drive = open_viewer(str(st_spz), hide_panel=True, spz_axes="rdf")
+    viewer, drive = open_viewer(SceneSource(st_spz, spz_axes="rdf"), hide_panel=True)
     assert viewer.loaded.scene.axes == FileAxes("rdf")
     drive.settle()
     drive.tap(imgui.Key.f12)
@@ -79,7 +80,7 @@ def test_screenshots_and_paths_record_the_axes_and_render_again_from_them(open_v
     assert main(["render", "--sidecar", str(flipped), "--out", str(tmp_path / "rub.png")]) == 0
     assert np.abs(np.asarray(Image.open(tmp_path / "rub.png")).astype(int) - np.asarray(Image.open(png))).max() > 50
     viewer.camera_path.add_view()
-    assert viewer.camera_path.document().scene_spz_axes == "rdf"  # render-path reads it so
+    assert viewer.camera_path.document().scene_axes == FileAxes("rdf")  # render-path reads it so
 
 
 def test_no_switch_for_a_ply_nor_a_file_that_declares_its_axes(open_viewer, tmp_path):

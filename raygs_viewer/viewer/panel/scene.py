@@ -18,12 +18,12 @@ from raygs_viewer.viewer.state import PanelState
 def draw_scene_section(loaded: LoadedScene, panel: PanelState, open_scene: Callable[[str], None],
                        loader: SceneLoader, switch_axes: Callable[[str], None]) -> None:
     """``panel``: its path field; ``open_scene``: what Open (or Enter) does with it;
-    ``loader``: the background load whose progress is shown; ``switch_axes(spz_axes)``:
-    reads the .spz again in the other convention."""
+    ``loader``: the background load whose progress is shown; ``switch_axes(axes)``:
+    reads the .spz again in the other convention ("rub" or "rdf")."""
     if not header("Scene"):
         return
     scene = loaded.scene
-    imgui.text_wrapped("built-in demo scene" if loaded.path == "demo" else loaded.path)
+    imgui.text_wrapped("built-in demo scene" if loaded.source.is_demo else loaded.path)
     if scene.format:
         imgui.text(scene.format)
     imgui.text(f"{scene.count:,} gaussians, SH degree {scene.sh_degree}, "
