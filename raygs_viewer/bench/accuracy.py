@@ -52,6 +52,7 @@ from raygs_viewer.bench.common import (
     median,
     printer,
     run_date,
+    scene_renderer,
     shared_scene_paths,
 )
 from raygs_viewer.bench.views import VIEW_CLASSES, VIEW_TITLES, view_cameras
@@ -60,7 +61,6 @@ from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.photos.dataset import PhotoView, load_photo, open_dataset, select_split
 from raygs_viewer.photos.metrics import psnr, ssim_3dgs
 from raygs_viewer.render import reference
-from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.gl.targets import FloatTarget
 from raygs_viewer.render.gl.timing import GpuTimer
 from raygs_viewer.render.settings import (
@@ -69,6 +69,8 @@ from raygs_viewer.render.settings import (
     RenderSettings,
     apply_preset,
 )
+from raygs_viewer.render.sorting import exact_order
+from raygs_viewer.sort.depth import DepthSorter
 
 #: Every configuration, in the order of the presets; ratios are taken against BASELINE.
 CONFIGS = tuple(ACCURACY_PRESETS)
@@ -163,17 +165,17 @@ def default_scenes(quick: bool) -> tuple[tuple[str, ...], list[str]]:
     return (DEMO, *found), notes
 
 
-def measure(ctx, renderer, camera: Camera, settings: dict[str, RenderSettings], repeat: int
+def measure(ctx, renderer, sorter: DepthSorter, camera: Camera, settings: dict[str, RenderSettings], repeat: int
             ) -> tuple[dict[str, list[float]], dict[str, np.ndarray]]:
     """GPU times (ms, ``repeat`` per configuration) and the image of every configuration.
 
-    Each configuration is sorted once and rendered once untimed (compiling its shaders;
+    Each configuration is sorted once (by ``sorter``) and rendered once untimed (compiling its shaders;
     that image is the one compared against the ground truth); then the timed renders
     go round-robin over the configurations ``repeat`` times."""
     target = FloatTarget(ctx, camera.width, camera.height)
     timer = GpuTimer(ctx)
     try:
-        orders = {name: renderer.sort(camera, s) for name, s in settings.items()}
+        orders = {name: exact_order(sorter, camera, s) for name, s in settings.items()}
         images = {}
         for name, s in settings.items():
             timer.time_ms(lambda: renderer.render_into(target, camera, s, orders[name]))  # primes the query
@@ -212,8 +214,7 @@ def run_accuracy(options: AccuracyOptions, ctx=None, out: TextIO | None = None,
             f"configurations, {options.repeat} timed frames each, on {renderer_name}")
         for item in scenes:
             say(f"[{item.name}] {item.description}")
-            renderer = GLRenderer(ctx, item.scene)
-            try:
+            with scene_renderer(ctx, item.scene) as (renderer, sorter):
                 cameras = view_cameras(item.scene, item.camera, options.width, base.p_min)
                 for view in VIEW_CLASSES:
                     camera = cameras[view]
@@ -224,13 +225,11 @@ def run_accuracy(options: AccuracyOptions, ctx=None, out: TextIO | None = None,
                     gt_seconds = time.perf_counter() - clock
                     say(f"[{item.name} / {view}] ground truth in {gt_seconds:.1f} s; timing "
                         f"{len(settings)} configurations x {options.repeat} ...")
-                    times, images = measure(ctx, renderer, camera, settings, options.repeat)
+                    times, images = measure(ctx, renderer, sorter, camera, settings, options.repeat)
                     case = CaseResult(item.name, view, camera.width, camera.height, samples[view], gt_seconds,
                                       compare(times, images, truth))
                     cases.append(case)
                     say_case(case, say)
-            finally:
-                renderer.release()
         photos = ""
         if options.photos is not None:
             photo_results, photos = photo_cases(ctx, options, base, ground_truth, say)
@@ -272,8 +271,7 @@ def photo_cases(ctx, options: AccuracyOptions, base: RenderSettings, ground_trut
     truth_settings = replace(over, p_min=options.gt_p_min, order="per-pixel")
     cases, skipped = [], 0
     say(f"[photos] {item.name}: {len(views)} test view(s) of {dataset.root} against their photos")
-    renderer = GLRenderer(ctx, item.scene)
-    try:
+    with scene_renderer(ctx, item.scene) as (renderer, sorter):
         for view in views:
             camera = photo_camera(view.camera, options.width)
             try:
@@ -285,7 +283,7 @@ def photo_cases(ctx, options: AccuracyOptions, base: RenderSettings, ground_trut
             clock = time.perf_counter()
             truth = ground_truth(item.scene, camera, truth_settings, options.gt_samples)
             gt_seconds = time.perf_counter() - clock
-            times, images = measure(ctx, renderer, camera, settings, options.repeat)
+            times, images = measure(ctx, renderer, sorter, camera, settings, options.repeat)
             rows = compare(times, images, truth)
             for name, row in rows.items():
                 shown = np.clip(images[name][..., :3], 0.0, 1.0)
@@ -294,8 +292,6 @@ def photo_cases(ctx, options: AccuracyOptions, base: RenderSettings, ground_trut
                               rows, photo=view.name)
             cases.append(case)
             say_case(case, say)
-    finally:
-        renderer.release()
     described = (f"{len(cases)} test view(s) of {dataset.root} ({dataset.layout}), scene {item.name}, "
                  f"background {dataset.background}" + (f"; {skipped} skipped" if skipped else ""))
     return cases, described

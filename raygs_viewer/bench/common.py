@@ -21,9 +21,11 @@ from raygs_viewer.camera.pinhole import Camera, frame_points
 from raygs_viewer.errors import UserError
 from raygs_viewer.files import write_atomically
 from raygs_viewer.render.gl.context import create_headless_context
+from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.scene.loader import load_now
 from raygs_viewer.scene.source import DEMO, SceneSource
 from raygs_viewer.scene.model import Scene
+from raygs_viewer.sort.depth import DepthSorter
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -114,6 +116,18 @@ def gl_context(ctx=None, backend: str | None = None) -> Iterator:
         yield ctx
     finally:
         ctx.release()
+
+
+@contextlib.contextmanager
+def scene_renderer(ctx, scene: Scene) -> Iterator[tuple[GLRenderer, DepthSorter]]:
+    """A renderer of ``scene`` and a sorter for the orders it draws (the renderer owns
+    none), both released on leaving."""
+    renderer = GLRenderer(ctx, scene)
+    try:
+        with DepthSorter(scene) as sorter:
+            yield renderer, sorter
+    finally:
+        renderer.release()
 
 
 def printer(out: TextIO | None = None) -> Callable[..., None]:

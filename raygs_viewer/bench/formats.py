@@ -31,13 +31,14 @@ from raygs_viewer.bench.common import (
     printer,
     report_head,
     run_date,
+    scene_renderer,
     shared_scenes_dir,
 )
 from raygs_viewer.bench.views import training_view
 from raygs_viewer.camera.pinhole import Camera, frame_points
 from raygs_viewer.render.gl.context import context_description
-from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.scene.compare import AttributeErrors, attribute_errors
 from raygs_viewer.scene.io import load_scene
 from raygs_viewer.scene.model import Scene
@@ -143,11 +144,9 @@ def _row(ctx, label: str, path: Path, reference: Scene | None, truth: np.ndarray
 
 
 def _render(ctx, scene: Scene, camera: Camera) -> np.ndarray:
-    renderer = GLRenderer(ctx, scene)
-    try:
-        return renderer.render(camera, RenderSettings())
-    finally:
-        renderer.release()
+    settings = RenderSettings()
+    with scene_renderer(ctx, scene) as (renderer, sorter):
+        return renderer.render(camera, settings, exact_order(sorter, camera, settings))
 
 
 def format_report(results: FormatsResults) -> str:

@@ -30,7 +30,10 @@ from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.gl.targets import FloatTarget
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.scene.model import Scene
+from raygs_viewer.sort.depth import DepthSorter
+from raygs_viewer.sort.request import Order
 
 RENDER_SIZE = (160, 120)
 FPS = 60.0
@@ -103,16 +106,16 @@ class Frames:
     """Orders and images of one scene at RENDER_SIZE along one motion, cached by (mode,
     view time, draw time)."""
 
-    def __init__(self, ctx, renderer: GLRenderer, start: Camera, sweep: str):
-        self.ctx, self.renderer, self.start, self.sweep = ctx, renderer, start, sweep
+    def __init__(self, ctx, renderer: GLRenderer, sorter: DepthSorter, start: Camera, sweep: str):
+        self.ctx, self.renderer, self.sorter, self.start, self.sweep = ctx, renderer, sorter, start, sweep
         self.target = FloatTarget(ctx, start.width, start.height)
-        self._orders: dict[tuple[str, float], np.ndarray] = {}
+        self._orders: dict[tuple[str, float], Order] = {}
         self._images: dict[tuple[str, float, float], np.ndarray] = {}
 
-    def order(self, mode: str, view_time: float) -> np.ndarray:
+    def order(self, mode: str, view_time: float) -> Order:
         key = (MODES[mode].sort_key, view_time)
         if key not in self._orders:
-            self._orders[key] = self.renderer.sort(moved(self.start, self.sweep, view_time), MODES[mode])
+            self._orders[key] = exact_order(self.sorter, moved(self.start, self.sweep, view_time), MODES[mode])
         return self._orders[key]
 
     def image(self, mode: str, view_time: float, draw_time: float) -> np.ndarray:
@@ -166,15 +169,14 @@ def latencies(times: SceneTimes, mode: str, sweep: str, ladder_frames: tuple[int
 def measure_scene(ctx, scene: Scene, times: SceneTimes, sample_times: tuple[float, ...],
                   ladder_frames: tuple[int, ...], say: Callable[..., None]) -> list[Freshness]:
     """Every motion, order and latency of ``scene``, each row printed as it is measured."""
-    renderer = GLRenderer(ctx, scene)
     start = view_camera(*RENDER_SIZE, FRESHNESS_DISTANCE)
     rows = []
-    try:
-        seen = renderer.sort(start, MODES["depth"]).size / max(scene.count, 1)
+    with common.scene_renderer(ctx, scene) as (renderer, sorter):
+        seen = exact_order(sorter, start, MODES["depth"]).count / max(scene.count, 1)
         say(f"  freshness view: {FRESHNESS_DISTANCE:g} units from the cube's centre (0.5 in front of its face), "
             f"{RENDER_SIZE[0]}x{RENDER_SIZE[1]}: {seen:.0%} of the gaussians in view, the cube filling it")
         for sweep in SWEEPS:
-            frames = Frames(ctx, renderer, start, sweep)
+            frames = Frames(ctx, renderer, sorter, start, sweep)
             try:
                 for mode in MODES:
                     for cores, latency in latencies(times, mode, sweep, ladder_frames):
@@ -182,9 +184,6 @@ def measure_scene(ctx, scene: Scene, times: SceneTimes, sample_times: tuple[floa
                         say(freshness_line(rows[-1]))
             finally:
                 frames.release()
-    finally:
-        renderer.sorter.close()
-        renderer.release()
     return rows
 
 

@@ -16,11 +16,12 @@ from typing import Callable
 
 import numpy as np
 
+from raygs_viewer.bench.common import scene_renderer
 from raygs_viewer.camera.pinhole import Camera, look_at
 from raygs_viewer.render.gl.context import context_description, create_headless_context
-from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.settings import DEFAULT_P_MIN, RenderSettings
+from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
 
 WIDTH, HEIGHT = 96, 72
@@ -285,13 +286,10 @@ MODES: dict[str, RenderSettings] = {
 
 def render_gl(ctx, case: HardCase, settings: RenderSettings) -> tuple[np.ndarray, np.ndarray]:
     """(the GL image of ``case`` in ``settings``, (N,) bool: which gaussians GL drew)."""
-    renderer = GLRenderer(ctx, case.scene)
-    try:
-        image = renderer.render(case.camera, settings)
+    with scene_renderer(ctx, case.scene) as (renderer, sorter):
+        image = renderer.render(case.camera, settings, exact_order(sorter, case.camera, settings))
         # A record's c^2 (its fourth float; glsl/splat.glsl) is 0 when it is not drawn.
         drawn = renderer.read_splats()[:, 3] != 0 if settings.mode != "gs" else np.ones(case.scene.count, bool)
-    finally:
-        renderer.release()
     return image, drawn
 
 

@@ -19,7 +19,7 @@ level's gaussians plus the environment's. For each case:
   ``counted``: those the budget counts (the environment and the leaves in view),
   ``drawn``: those the cull keeps (the order's length), and the leaves at each level;
 - CPU times (medians over ``repeat`` frames): the choice, and the cull+sort restricted
-  to it (``renderer.sorter.order(..., spans=)``);
+  to it (``DepthSorter.sort`` of a ``SortRequest`` whose ``levels`` are the choice);
 - the time of preprocess+draw (with the order's upload): the GPU timer's
   (``render.gl.timing.GpuTimer``) and the CPU's with the GPU drained on both sides (on
   a software rasterizer the timer may read only part of the work; the drained time is
@@ -55,8 +55,11 @@ from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.gl.targets import FloatTarget
 from raygs_viewer.render.gl.timing import GpuTimer
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.scene.lod_file import LodScene, load_lod, lod_index_file, merged_spans
+from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.lod_choice import LodChoice, automatic_distance, choose, screen_radius
+from raygs_viewer.sort.request import Order
 
 #: The budgets measured, as fractions of the finest level's gaussians (the environment's added).
 FRACTIONS = (1.0, 0.5, 0.25, 0.1)
@@ -240,18 +243,18 @@ class _Case:
 
 
 class _Runner:
-    """The renderer of one scene, its target and clocks."""
+    """The renderer and the sorter of one scene, its target and clocks."""
 
     def __init__(self, ctx, lod: LodScene, settings: RenderSettings):
         self.ctx, self.lod, self.settings = ctx, lod, settings
         self.renderer = GLRenderer(ctx, lod.scene)
+        self.sorter = DepthSorter(lod.scene)
         self.timer = GpuTimer(ctx)
         self.target: FloatTarget | None = None
 
-    def order(self, camera: Camera, choice: LodChoice) -> np.ndarray:
-        s = self.settings
-        return self.renderer.sorter.order(camera, s.p_min, dilation=s.cull_dilation(camera), key=s.sort_key,
-                                          spans=choice.spans)
+    def order(self, camera: Camera, choice: LodChoice) -> Order:
+        """The order of ``choice``'s rows (the choice made already: the sort only culls and sorts)."""
+        return exact_order(self.sorter, camera, self.settings, levels=choice)
 
     def _sized(self, camera: Camera) -> FloatTarget:
         if self.target is None or self.target.size != (camera.width, camera.height):
@@ -265,15 +268,15 @@ class _Runner:
         cleared target, under the GPU timer and the drained CPU clock."""
         choice_ms, choice = _cpu_ms(lambda: case.choose(self.lod, camera))
         sort_ms, order = _cpu_ms(lambda: self.order(camera, choice))
-        self.renderer.restrict(choice.spans)
         target = self._sized(camera)
         settings = self.settings
+        plan = self.renderer.plan(settings)
 
         def work() -> None:
-            self.renderer.preprocess(camera, settings)
+            self.renderer.preprocess(camera, plan, spans=order.spans)
             target.use()
             target.fbo.clear(*settings.background, 0.0)
-            self.renderer.draw(camera, settings, order)
+            self.renderer.draw(camera, plan, order)
 
         gpu: list[float] = []
         self.ctx.finish()
@@ -285,11 +288,10 @@ class _Runner:
             for key, value in (("choice", choice_ms), ("sort", sort_ms), ("gpu", gpu[0]), ("gl", gl_ms)):
                 case.times[key].append(value)
 
-    def image(self, case: _Case, camera: Camera) -> tuple[LodChoice, np.ndarray, np.ndarray]:
+    def image(self, case: _Case, camera: Camera) -> tuple[LodChoice, Order, np.ndarray]:
         """The choice, order and (H, W, 4) image of ``case`` at ``camera``."""
         choice = case.choose(self.lod, camera)
         order = self.order(camera, choice)
-        self.renderer.restrict(choice.spans)
         target = self._sized(camera)
         self.renderer.render_into(target, camera, self.settings, order)
         return choice, order, target.read()
@@ -297,6 +299,7 @@ class _Runner:
     def release(self) -> None:
         if self.target is not None:
             self.target.release()
+        self.sorter.close()
         self.renderer.release()
 
 
@@ -318,7 +321,7 @@ def measure_view(runner: _Runner, cases: list[_Case], camera: Camera, repeat: in
     for case in cases:
         choice, order, image = shots[case.name]
         errors = common.error_metrics(image, reference)
-        rows.append(CaseRow(case.name, case.budget, choice.count, counted(lod, choice, camera), int(order.size),
+        rows.append(CaseRow(case.name, case.budget, choice.count, counted(lod, choice, camera), order.count,
                             tuple(int(n) for n in choice.per_level(lod.levels)), choice.over_budget,
                             *(common.median(case.times[key]) for key in ("choice", "sort", "gpu", "gl")),
                             errors["psnr"], errors["max"]))

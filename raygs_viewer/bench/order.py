@@ -23,6 +23,7 @@ how "the window K that comes within 1 dB of exact" is found.
 
 from __future__ import annotations
 
+import contextlib
 import math
 import os
 import time
@@ -39,9 +40,12 @@ from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.render import reference
 from raygs_viewer.render.gl.context import context_description
 from raygs_viewer.render.gl.renderer import GLRenderer
+from raygs_viewer.render.gl.results import RenderResult
 from raygs_viewer.render.gl.targets import FloatTarget
 from raygs_viewer.render.gl.timing import GpuTimer
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
+from raygs_viewer.sort.depth import DepthSorter
 
 #: The windows measured for the bounded per-pixel order.
 WINDOWS = (1, 2, 4, 8, 16)
@@ -142,22 +146,26 @@ def mode_settings(base: RenderSettings) -> dict[str, RenderSettings]:
 
 
 class _Renders:
-    """Renders every mode of one scene into one target."""
+    """Renders every mode of one scene into one target, each with its exact order."""
 
-    def __init__(self, ctx, renderer: GLRenderer):
-        self.ctx, self.renderer = ctx, renderer
+    def __init__(self, ctx, renderer: GLRenderer, sorter: DepthSorter):
+        self.ctx, self.renderer, self.sorter = ctx, renderer, sorter
         self.target: FloatTarget | None = None
 
     def image(self, camera: Camera, settings: RenderSettings) -> np.ndarray:
+        return self.rendered(camera, settings)[0]
+
+    def rendered(self, camera: Camera, settings: RenderSettings) -> tuple[np.ndarray, RenderResult]:
+        """The image, and what the render did."""
         self._sized(camera)
-        self.renderer.render_into(self.target, camera, settings, self.renderer.sort(camera, settings))
-        return self.target.read().astype(np.float64)
+        result = self.renderer.render_into(self.target, camera, settings, exact_order(self.sorter, camera, settings))
+        return self.target.read().astype(np.float64), result
 
     def times(self, camera: Camera, modes: dict[str, RenderSettings], repeat: int) -> dict[str, list[float]]:
         """GPU ms per mode, ``repeat`` each, interleaved round-robin (one untimed first)."""
         self._sized(camera)
         timer = GpuTimer(self.ctx)
-        orders = {name: self.renderer.sort(camera, s) for name, s in modes.items()}
+        orders = {name: exact_order(self.sorter, camera, s) for name, s in modes.items()}
         times: dict[str, list[float]] = {name: [] for name in modes}
         for run in range(repeat + 1):
             for name, s in modes.items():
@@ -172,7 +180,7 @@ class _Renders:
                 self.target.release()
             self.target = FloatTarget(self.ctx, camera.width, camera.height)
 
-    def release(self) -> None:
+    def close(self) -> None:
         if self.target is not None:
             self.target.release()
 
@@ -182,8 +190,8 @@ def measure_view(renders: _Renders, item: common.BenchScene, view: str, start: C
     """Every mode of one start view: time, integrated error, and both sweeps."""
     modes = mode_settings(RenderSettings())
     _, radius = scene_bounds(item.scene.positions)
-    exact = renders.image(start, modes[EXACT])
-    stats = renders.renderer.order_stats
+    exact, rendered = renders.rendered(start, modes[EXACT])
+    stats = rendered.order_stats
     check = common.error_metrics(exact, reference.render_reference(item.scene, start, modes[EXACT]))["psnr"]
     truth = reference.ground_truth(item.scene, start, RenderSettings(), options.gt_samples, order="per-pixel")
     times = renders.times(start, modes, options.repeat)
@@ -225,9 +233,8 @@ def run_order(options: OrderOptions, ctx=None, out: TextIO | None = None) -> Ord
             f"{options.frames} frames, {options.repeat} timed frames each, on {machine}")
         for item in scenes:
             say(f"[{item.name}] {item.description}")
-            renderer = GLRenderer(ctx, item.scene)
-            renders = _Renders(ctx, renderer)
-            try:
+            with common.scene_renderer(ctx, item.scene) as (renderer, sorter), \
+                    contextlib.closing(_Renders(ctx, renderer, sorter)) as renders:
                 training = training_view(item.camera, options.width)
                 starts = {"training": training, "close": close_view(training, item.scene)}
                 for view in VIEWS:
@@ -236,9 +243,6 @@ def run_order(options: OrderOptions, ctx=None, out: TextIO | None = None) -> Ord
                     views.append(result)
                     for line in view_lines(result):
                         say(line)
-            finally:
-                renders.release()
-                renderer.release()
     seconds, notes = common.run_end(
         "order", started, machine, options.notes,
         "This is a software OpenGL renderer (on the CPU): time ratios rank the modes on this machine; a GPU's "

@@ -4,12 +4,14 @@ savings are worth, measured side by side in one run.
 Each case (generated gaussians, small or large on screen, or a real scene, at one
 resolution) renders ``frames`` frames of a moving view: the camera alternates between
 two views 0.1 degree apart, so that culling, the sort, the upload and the
-preprocessing all run every frame, as they do while the user flies. Every stage is
-timed on the CPU with the GPU drained before and after it (``ctx.finish``), and the
-preprocessing and draw also with GPU timer queries. The stages:
+preprocessing all run every frame, as they do while the user flies. The cull and the
+sort are one :meth:`DepthSorter.sort`, split by its own clock (``SortResult.times``);
+every GL stage is timed on the CPU with the GPU drained before and after it
+(``ctx.finish``), and the preprocessing and draw also with GPU timer queries. The stages:
 
-- cull: :meth:`DepthSorter.cull` (conservative: nothing whose support reaches the view is dropped);
-- sort: :meth:`DepthSorter.sort` (uint16 keys, numpy's radix sort);
+- cull: the cull of :meth:`DepthSorter.sort` (conservative: nothing whose support reaches
+  the view is dropped) with the depth keys of what it keeps, its ``times["cull"]``;
+- sort: the sort of those keys (uint16 keys, numpy's radix sort), its ``times["sort"]``;
 - upload: the order into its storage buffer;
 - preprocess: the compute pass writing every gaussian's per-view record;
 - draw: the instanced quads into a float32 target.
@@ -66,8 +68,10 @@ from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.gl.targets import FloatTarget
 from raygs_viewer.render.gl.timing import GpuTimer
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order, sort_request
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
-from raygs_viewer.sort.depth import sort_back_to_front
+from raygs_viewer.sort.depth import DepthSorter
+from raygs_viewer.sort.keys import sort_back_to_front
 
 STAGES = ("cull", "sort", "upload", "preprocess", "draw")
 RATIOS = ("RayGS/GS", "RayGS/quads", "specialised/general", "radix/argsort", "fragments-kept", "geometry/colour",
@@ -223,47 +227,51 @@ def measure_case(ctx, case: PerfCase, frames: int, settings: RenderSettings = Re
         target.use()
         target.fbo.clear(*settings.background, 0.0)
 
+    sorter = DepthSorter(case.scene)
     try:
         general = renderer_type(ctx, case.scene, general=True)
-        sorter = renderer.sorter
+        plan, gs_plan, general_plan = renderer.plan(settings), renderer.plan(gs_settings), general.plan(settings)
+        blended_geometry, lists_geometry = renderer.plan(settings, True), renderer.plan(settings, True, median=True)
         for frame in range(frames + 1):
             camera = views[frame % 2]
             timed = frame > 0
-            dilation = settings.cull_dilation(camera)
-            box: dict[str, np.ndarray] = {}
-            cull = clock.cpu(lambda: box.update(visible=sorter.cull(camera, settings.p_min, dilation=dilation)))
-            sort = clock.cpu(lambda: box.update(order=sorter.sort(camera, box["visible"])))
-            order = box["order"]
+            # One sort, split by its own clock: "cull" is the cull with the depth keys of
+            # what it keeps, "sort" the sort of those keys. The GPU is idle: the last
+            # stage of the frame before drained it.
+            sorted_ = sorter.sort(sort_request(camera, settings))
+            cull, sort = 1e3 * sorted_.times["cull"], 1e3 * sorted_.times["sort"]
+            order = sorted_.order
+            visible = np.sort(order.indices)  # what the cull kept, in scene order: the radix/argsort input
             upload = clock.cpu(lambda: renderer.upload_order(order))
-            preprocess, preprocess_gpu = clock.both(lambda: renderer.preprocess(camera, settings))
+            preprocess, preprocess_gpu = clock.both(lambda: renderer.preprocess(camera, plan))
             clear()
-            draw, draw_gpu = clock.both(lambda: renderer.draw(camera, settings, order))
+            draw, draw_gpu = clock.both(lambda: renderer.draw(camera, plan, order))
             clear()
-            quads = clock.cpu(lambda: renderer.draw(camera, settings, order, floor=True))
-            geometry = clock.cpu(lambda: renderer.geometry.draw(renderer, camera, settings, order, median=False))
-            with_median = clock.cpu(lambda: renderer.geometry.draw(renderer, camera, settings, order))
+            quads = clock.cpu(lambda: renderer.draw(camera, plan, order, floor=True))
+            geometry = clock.cpu(lambda: renderer.draw_planned(renderer.geometry.image(camera), camera, blended_geometry, order))
+            with_median = clock.cpu(lambda: renderer.draw_planned(renderer.geometry.image(camera), camera, lists_geometry, order))
             depth_view = clock.cpu(lambda: renderer.render_into(target, camera, settings, order, view=DEPTH_VIEW))
             if frame == 0:  # fragments: counted once, untimed
-                result.visible = int(order.size)
+                result.visible = order.count
                 clear()
                 with samples:
-                    renderer.draw(camera, settings, order)
+                    renderer.draw(camera, plan, order)
                 kept = samples.samples
                 clear()
                 with samples:
-                    renderer.draw(camera, settings, order, floor=True)
+                    renderer.draw(camera, plan, order, floor=True)
                 rasterized = samples.samples
                 result.ratios["fragments-kept"] = kept / rasterized if rasterized else math.nan
-            gs_order = renderer.sort(camera, gs_settings)  # its own cull: EWA's footprint has no bounding sphere
+            gs_order = exact_order(sorter, camera, gs_settings)  # its own cull: EWA's footprint has no bounding sphere
             renderer.upload_order(gs_order)
-            gs_pre = clock.cpu(lambda: renderer.preprocess(camera, gs_settings))
+            gs_pre = clock.cpu(lambda: renderer.preprocess(camera, gs_plan))
             clear()
-            gs_draw = clock.cpu(lambda: renderer.draw(camera, gs_settings, gs_order))
+            gs_draw = clock.cpu(lambda: renderer.draw(camera, gs_plan, gs_order))
             general.upload_order(order)
-            general_pre = clock.cpu(lambda: general.preprocess(camera, settings))
+            general_pre = clock.cpu(lambda: general.preprocess(camera, general_plan))
             clear()
-            general_draw = clock.cpu(lambda: general.draw(camera, settings, order))
-            depth = case.scene.positions[box["visible"]] @ camera.R.astype(np.float32)[2] + np.float32(camera.t[2])
+            general_draw = clock.cpu(lambda: general.draw(camera, general_plan, order))
+            depth = case.scene.positions[visible] @ camera.R.astype(np.float32)[2] + np.float32(camera.t[2])
             radix = _cpu(lambda: sort_back_to_front(depth, "radix"))
             argsort = _cpu(lambda: sort_back_to_front(depth, "float"))
             if not timed:
@@ -275,6 +283,7 @@ def measure_case(ctx, case: PerfCase, frames: int, settings: RenderSettings = Re
                                 ("geometry", geometry), ("median", with_median), ("depth view", depth_view)):
                 record(name, value)
     finally:
+        sorter.close()
         renderer.release()
         if general is not None:
             general.release()

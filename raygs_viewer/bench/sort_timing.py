@@ -3,9 +3,11 @@ sizes, for 1 worker (the single-threaded path), 2 and every core, and projected 
 PROJECTED_CORES cores (maths page, section 9).
 
 Times, medians over ``repeat`` runs with the worker counts interleaved (one untimed run
-first): the cull alone, the keys (what the cull with keys adds), the sort, their sum
-(cull+sort, one ``DepthSorter.orders``), the distance key's cull+sort from a new centre
-and on a turn in place (reused, no sort), and the upload of the order into a GL buffer.
+first): the cull alone (``DepthSorter.cull``), the keys (what the cull with keys adds:
+``SortResult.times["cull"]`` less the cull alone), the sort (``times["sort"]``), their
+sum (cull+sort: one ``DepthSorter.sort``, timed around the call), the distance key's
+cull+sort from a new centre and on a turn in place (reused, no sort), and the upload of
+the order into a GL buffer.
 """
 
 from __future__ import annotations
@@ -23,6 +25,7 @@ from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.sort.depth import DepthSorter
+from raygs_viewer.sort.request import SortRequest
 
 TIMING_SIZE = (1280, 720)
 PROJECTED_CORES = 16
@@ -88,24 +91,26 @@ def measure_sorting(scene: Scene, camera: Camera, repeat: int,
                                                                      "distance", "distance_turn")}
                                                   for w in workers}
     # Centres a hair apart: each distance order is a fresh sort; turns about one centre reuse.
-    nudges = [replace(camera, t=camera.t + [0.0, 0.0, 1e-3 * (run + 1)]) for run in range(repeat + 1)]
-    turns = [moved(camera, "turn", 0.01 * (run % 2 + 1)) for run in range(repeat + 3)]
+    # The requests are made before the clocks start (a request copies its camera).
+    nudges = [_distance(replace(camera, t=camera.t + [0.0, 0.0, 1e-3 * (run + 1)])) for run in range(repeat + 1)]
+    turns = [_distance(moved(camera, "turn", 0.01 * (run % 2 + 1))) for run in range(repeat + 3)]
+    depth = SortRequest(camera, P_MIN)
     order = np.zeros(0, np.uint32)
     try:
         for sorter in sorters.values():  # the cache of two turns, before any timing
             for turn in turns[:2]:
-                sorter.order(turn, P_MIN, key="distance")
+                sorter.sort(turn)
         for run in range(repeat + 1):
             for w, sorter in sorters.items():
                 took = samples[w]
                 began = time.perf_counter()
-                order = sorter.order(camera, P_MIN)
+                result = sorter.sort(depth)
                 total = time.perf_counter() - began
-                split = dict(sorter.last_seconds)
-                cull = _seconds(lambda: sorter.cull(camera, P_MIN))
-                distance = _seconds(lambda: sorter.order(nudges[run], P_MIN, key="distance"))
+                order, split = result.order.indices, result.times
+                cull = _seconds(lambda: sorter.cull(depth))
+                distance = _seconds(lambda: sorter.sort(nudges[run]))
                 reused = sorter.reused
-                turn = _seconds(lambda: sorter.order(turns[run + 2], P_MIN, key="distance"))
+                turn = _seconds(lambda: sorter.sort(turns[run + 2]))
                 if sorter.reused != reused + 1:
                     raise RuntimeError("bench sort: a turn in place was sorted again instead of reused")
                 if run:
@@ -118,6 +123,10 @@ def measure_sorting(scene: Scene, camera: Camera, repeat: int,
     timings = {w: Timing(w, **{k: float(np.median(v)) for k, v in samples[w].items()}, visible=order.size)
                for w in workers}
     return timings, order
+
+
+def _distance(camera: Camera) -> SortRequest:
+    return SortRequest(camera, P_MIN, keys=("distance",))
 
 
 def _seconds(work: Callable[[], object]) -> float:

@@ -44,10 +44,11 @@ from raygs_viewer.camera import stereo
 from raygs_viewer.camera.navigation import scene_bounds
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.render.gl.context import context_description
-from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.gl.stereo_frame import StereoFrame, render_stereo, stereo_order
 from raygs_viewer.render.gl.timing import GpuTimer
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
+from raygs_viewer.sort.depth import DepthSorter
 
 #: The views of ``bench`` measured here: where sharing costs least and where it costs most.
 VIEWS = ("training", "close")
@@ -76,26 +77,27 @@ def _pair(images) -> np.ndarray:
     return np.concatenate(list(images), axis=1)
 
 
-def sharing_errors(renderer, camera: Camera, settings: RenderSettings,
+def sharing_errors(renderer, sorter: DepthSorter, camera: Camera, settings: RenderSettings,
                    rig: stereo.StereoRig) -> dict[str, dict[str, float]]:
     """{part: error_metrics} over both eyes (side by side) of the shared images against:
     "whole": per-eye ones (own sort, own colour); "sort-only": each eye's own sort with the
-    midpoint's colour; "colour-only": the shared order with each eye's own colour."""
+    midpoint's colour; "colour-only": the shared order with each eye's own colour.
+    ``sorter`` sorts every order."""
     eyes = stereo.eye_cameras(camera, rig)
-    shared = _pair(render_stereo(renderer, camera, settings, rig, shared=True))
-    own = _pair(render_stereo(renderer, camera, settings, rig, shared=False))
-    sort_only = _pair(renderer.render(eye, settings, renderer.sort(eye, settings), color_origin=camera.center)
+    shared = _pair(render_stereo(renderer, sorter, camera, settings, rig, shared=True))
+    own = _pair(render_stereo(renderer, sorter, camera, settings, rig, shared=False))
+    sort_only = _pair(renderer.render(eye, settings, exact_order(sorter, eye, settings), color_origin=camera.center)
                       for eye in eyes)
-    order = stereo_order(renderer, camera, settings, rig)
+    order = stereo_order(sorter, camera, settings, rig)
     colour_only = _pair(renderer.render(eye, settings, order) for eye in eyes)
     return {"whole": common.error_metrics(shared, own), "sort-only": common.error_metrics(shared, sort_only),
             "colour-only": common.error_metrics(shared, colour_only)}
 
 
-def time_both_eyes(ctx, renderer, camera: Camera, settings: RenderSettings, rig: stereo.StereoRig,
-                   repeat: int) -> tuple[list[float], list[float]]:
-    """(GPU ms, sort CPU ms), ``repeat`` of each: per frame the stereo sort (timed on the
-    CPU), then both eyes drawn with it as the window draws them
+def time_both_eyes(ctx, renderer, sorter: DepthSorter, camera: Camera, settings: RenderSettings,
+                   rig: stereo.StereoRig, repeat: int) -> tuple[list[float], list[float]]:
+    """(GPU ms, sort CPU ms), ``repeat`` of each: per frame the stereo sort by ``sorter``
+    (timed on the CPU), then both eyes drawn with it as the window draws them
     (``StereoFrame.draw_eyes``), under one timer query: what the window's frame-budget
     meter reads. One untimed frame first compiles the shaders and primes the query. An
     elapsed time the driver marks invalid is NaN."""
@@ -105,7 +107,7 @@ def time_both_eyes(ctx, renderer, camera: Camera, settings: RenderSettings, rig:
     try:
         for index in range(repeat + 1):
             clock = time.perf_counter()
-            order = stereo_order(renderer, camera, settings, rig)
+            order = stereo_order(sorter, camera, settings, rig)
             sorted_in = time.perf_counter() - clock
             elapsed = timer.time_ms(lambda: frame.draw_eyes(renderer, camera, settings, rig, order))
             if index:
@@ -201,7 +203,8 @@ def _describe(item: common.BenchScene) -> str:
     return item.description
 
 
-def _error_rows(renderer, item: common.BenchScene, options: StereoOptions, settings: RenderSettings):
+def _error_rows(renderer, sorter: DepthSorter, item: common.BenchScene, options: StereoOptions,
+                settings: RenderSettings):
     """Yields the sharing error of ``item`` in every view at every scene scale, one row at
     a time (each is printed as it comes)."""
     training = training_view(item.camera, options.width)
@@ -212,7 +215,7 @@ def _error_rows(renderer, item: common.BenchScene, options: StereoOptions, setti
         for scale, scene_scale in ((UNIT_SCALE, 1.0), (ACROSS_SCALE, across)):
             rig = replace(options.rig, scene_scale=scene_scale)
             yield ErrorRow(item.name, view, scale, scene_scale, camera.width, camera.height,
-                           sharing_errors(renderer, camera, settings, rig))
+                           sharing_errors(renderer, sorter, camera, settings, rig))
 
 
 def run_stereo(options: StereoOptions, ctx=None, out: TextIO | None = None) -> StereoResults:
@@ -233,9 +236,8 @@ def run_stereo(options: StereoOptions, ctx=None, out: TextIO | None = None) -> S
             f"on {machine}")
         for item in scenes:
             say(f"[{item.name}] {_describe(item)}")
-            renderer = GLRenderer(ctx, item.scene)
-            try:
-                for row in _error_rows(renderer, item, options, settings):
+            with common.scene_renderer(ctx, item.scene) as (renderer, sorter):
+                for row in _error_rows(renderer, sorter, item, options, settings):
                     errors.append(row)
                     for line in error_lines(row):
                         say(line)
@@ -243,14 +245,12 @@ def run_stereo(options: StereoOptions, ctx=None, out: TextIO | None = None) -> S
                     camera = preset.camera(item.camera)
                     say(f"[{item.name} / {preset.name}] {camera.width}x{camera.height} per eye: "
                         f"timing {options.repeat} frames ...")
-                    gpu, sort = time_both_eyes(ctx, renderer, camera, settings, options.rig, options.repeat)
+                    gpu, sort = time_both_eyes(ctx, renderer, sorter, camera, settings, options.rig, options.repeat)
                     row = BudgetRow(item.name, preset.name, preset.label, camera.width, camera.height,
                                     common.median(gpu), common.median(sort), gpu, sort)
                     budgets.append(row)
                     for line in budget_lines(row):
                         say(line)
-            finally:
-                renderer.release()
     seconds, notes = common.run_end(
         "stereo", started, machine, options.notes,
         "This is a software OpenGL renderer (on the CPU): its times rank the presets and scenes on this "

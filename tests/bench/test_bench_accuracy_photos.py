@@ -18,7 +18,6 @@ from raygs_viewer.camera.pinhole import look_at
 from raygs_viewer.cli import bench as bench_cli
 from raygs_viewer.photos.dataset import load_photo, open_dataset, select_split
 from raygs_viewer.photos.metrics import psnr, ssim_3dgs
-from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import DEFAULT_P_MIN, RenderSettings, apply_preset
 from raygs_viewer.scene.loader import load_now
 from raygs_viewer.scene.source import SceneSource
@@ -33,7 +32,7 @@ def parse(*argv) -> argparse.Namespace:
 
 
 @pytest.fixture(scope="module")
-def photo_run(tmp_path_factory, gl_session_ctx):
+def photo_run(tmp_path_factory, gl_session_ctx, gl_render):
     """A model of 9 views (test views: 0 and 8) at 32x24, photos the renders plus noise of
     0.05, measured at 16 px wide: (model, results, stdout, report)."""
     gl_session_ctx.__enter__()
@@ -41,13 +40,8 @@ def photo_run(tmp_path_factory, gl_session_ctx):
     scene = random_scene(n=60, seed=5, degree=0)
     cameras = [look_at((4 * math.sin(a), -0.5, -4 * math.cos(a)), (0, 0, 0), width=32, height=24, fov_y_degrees=50)
                for a in np.linspace(-0.6, 0.6, 9)]
-    renderer = GLRenderer(gl_session_ctx, scene)
     rng = np.random.default_rng(1)
-    try:
-        photos = [np.clip(renderer.render(c, RenderSettings())[..., :3] + rng.normal(0, 0.05, (24, 32, 3)), 0, 1)
-                  for c in cameras]
-    finally:
-        renderer.release()
+    photos = [np.clip(gl_render(scene, c)[..., :3] + rng.normal(0, 0.05, (24, 32, 3)), 0, 1) for c in cameras]
     model = write_dataset(folder / "data", "inria", cameras, photos, scene=scene)
     args = parse("--scenes", "demo", "--width", "16", "--repeat", "2", "--gt-samples", "1", "--photos", model,
                  "--photos-views", "2", "--report", folder / "acc.md", "--plot", folder / "acc.png")

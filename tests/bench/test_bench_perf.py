@@ -21,6 +21,7 @@ from raygs_viewer.cli import bench as bench_cli
 from raygs_viewer.cli.main import build_parser, main
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order, sort_request
 from raygs_viewer.sort.depth import DepthSorter
 
 
@@ -38,7 +39,8 @@ def test_generated_gaussians_are_all_in_view_at_their_size(size, resolution):
     scene = bench_perf.generated_scene(3000, size, seed=1)
     camera = bench_perf.generated_camera(*resolution)
     settings = RenderSettings()
-    visible = DepthSorter(scene).cull(camera, settings.p_min, dilation=settings.cull_dilation(camera))
+    with DepthSorter(scene) as sorter:
+        visible = sorter.cull(sort_request(camera, settings))
     assert visible.size == scene.count
     # Their mean standard deviation on screen, at 720 rows, is the size's.
     depth = scene.positions @ camera.R[2].astype(np.float32) + np.float32(camera.t[2])
@@ -80,7 +82,8 @@ def _raygs_and_floor(ctx, scene, camera):
     floor pass, with one order."""
     renderer = GLRenderer(ctx, scene)
     settings = RenderSettings()
-    order = renderer.sort(camera, settings)
+    with DepthSorter(scene) as sorter:
+        order = exact_order(sorter, camera, settings)
     try:
         return (*_samples(ctx, renderer, camera, settings, order, floor=False),
                 *_samples(ctx, renderer, camera, settings, order, floor=True))
@@ -94,9 +97,10 @@ def _samples(ctx, renderer, camera, settings, order, floor):
     try:
         target.use()
         target.clear()
-        renderer.preprocess(camera, settings)
+        plan = renderer.plan(settings)
+        renderer.preprocess(camera, plan)
         with query:
-            renderer.draw(camera, settings, order, floor=floor)
+            renderer.draw(camera, plan, order, floor=floor)
         alpha = np.frombuffer(target.read(components=4, dtype="f4"), np.float32).reshape(-1, 4)[:, 3]
         return query.samples, alpha
     finally:
@@ -131,9 +135,10 @@ def test_there_is_no_floor_pass_for_ewa_splatting(gl_ctx):
     camera = look_at((0.0, 0.0, 0.0), (0.0, 0.0, 5.0), width=32, height=32)
     renderer = GLRenderer(gl_ctx, scene)
     settings = RenderSettings(mode="gs")
-    renderer.preprocess(camera, settings)
-    with pytest.raises(ValueError, match="floor"):
-        renderer.draw(camera, settings, renderer.sort(camera, settings), floor=True)
+    plan = renderer.plan(settings)
+    renderer.preprocess(camera, plan)
+    with DepthSorter(scene) as sorter, pytest.raises(ValueError, match="floor"):
+        renderer.draw(camera, plan, exact_order(sorter, camera, settings), floor=True)
     renderer.release()
 
 

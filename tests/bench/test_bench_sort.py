@@ -14,6 +14,8 @@ from raygs_viewer.bench import cube, freshness, sort_timing
 from raygs_viewer.bench import sort as bench_sort
 from raygs_viewer.cli import bench as bench_cli
 from raygs_viewer.cli.main import build_parser
+from raygs_viewer.sort.depth import DepthSorter
+from raygs_viewer.sort.request import SortRequest
 
 FRAME = 1 / 60
 
@@ -60,11 +62,11 @@ def test_the_motions_turn_in_place_and_fly_forward():
 
 
 def test_the_view_sees_the_whole_generated_scene():
-    from raygs_viewer.sort.depth import DepthSorter
     scene = cube.generated_scene(2000, seed=1)
     assert scene.count == 2000 and scene.sh_degree == 0
     assert 0.1 <= scene.opacities.min() and scene.opacities.max() <= 0.9
-    visible = DepthSorter(scene, 1).cull(cube.view_camera(64, 36), sort_timing.P_MIN)
+    with DepthSorter(scene, 1) as sorter:
+        visible = sorter.cull(SortRequest(cube.view_camera(64, 36), sort_timing.P_MIN))
     assert visible.size == scene.count
 
 

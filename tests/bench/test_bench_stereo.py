@@ -30,9 +30,10 @@ from raygs_viewer.camera.navigation import scene_bounds
 from raygs_viewer.cli import bench as bench_cli
 from raygs_viewer.cli.main import build_parser, main
 from raygs_viewer.render.gl import stereo_frame
-from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.gl.timing import INVALID_ELAPSED
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.sort.depth import DepthSorter
+from raygs_viewer.sort.request import SortRequest, SortResult
 
 #: Headset presets small enough for llvmpipe to time in milliseconds; their names are
 #: the lines' PRESET tokens.
@@ -54,6 +55,13 @@ def tiny_presets(monkeypatch):
     monkeypatch.setattr(stereo, "PRESETS", dict(TINY_PRESETS))
 
 
+@pytest.fixture(scope="module")
+def demo_sorter(demo):
+    """A sorter of the demo, beside the session's ``demo_renderer``."""
+    with DepthSorter(demo) as sorter:
+        yield sorter
+
+
 def demo_view(width=96):
     from raygs_viewer.scene.demo import demo_cameras
     return bench_views.training_view(demo_cameras()[0], width)
@@ -61,8 +69,9 @@ def demo_view(width=96):
 
 # --- the sharing error --------------------------------------------------------------------------
 
-def test_demo_sharing_error_at_metre_scale_is_small_and_all_colour(demo_renderer, gl_ctx):
-    errors = bench_stereo.sharing_errors(demo_renderer, demo_view(), RenderSettings(), stereo.StereoRig())
+def test_demo_sharing_error_at_metre_scale_is_small_and_all_colour(demo_renderer, demo_sorter, gl_ctx):
+    errors = bench_stereo.sharing_errors(demo_renderer, demo_sorter, demo_view(), RenderSettings(),
+                                         stereo.StereoRig())
     whole, sort_only, colour_only = errors["whole"], errors["sort-only"], errors["colour-only"]
     # The demo has strong view-dependent colour: 63 dB at 320 px; never identical, never large.
     assert 0.0 < whole["max"] < 0.02 and 45.0 < whole["psnr"] < math.inf
@@ -73,16 +82,18 @@ def test_demo_sharing_error_at_metre_scale_is_small_and_all_colour(demo_renderer
     assert colour_only["max"] == pytest.approx(whole["max"], abs=1e-5)
 
 
-def test_sharing_error_grows_with_the_baseline(demo_renderer, gl_ctx):
+def test_sharing_error_grows_with_the_baseline(demo_renderer, demo_sorter, gl_ctx):
     camera, settings = demo_view(64), RenderSettings()
-    near = bench_stereo.sharing_errors(demo_renderer, camera, settings, stereo.StereoRig())
-    small = bench_stereo.sharing_errors(demo_renderer, camera, settings, stereo.StereoRig(scene_scale=0.05))
+    near = bench_stereo.sharing_errors(demo_renderer, demo_sorter, camera, settings, stereo.StereoRig())
+    small = bench_stereo.sharing_errors(demo_renderer, demo_sorter, camera, settings,
+                                        stereo.StereoRig(scene_scale=0.05))
     assert small["whole"]["psnr"] < near["whole"]["psnr"] - 10.0
     assert small["colour-only"]["max"] > 5 * near["colour-only"]["max"]
 
 
-def test_no_baseline_is_identical(demo_renderer, gl_ctx):
-    errors = bench_stereo.sharing_errors(demo_renderer, demo_view(64), RenderSettings(), stereo.StereoRig(ipd=0.0))
+def test_no_baseline_is_identical(demo_renderer, demo_sorter, gl_ctx):
+    errors = bench_stereo.sharing_errors(demo_renderer, demo_sorter, demo_view(64), RenderSettings(),
+                                         stereo.StereoRig(ipd=0.0))
     for part in bench_stereo.PARTS:
         assert errors[part] == {"psnr": math.inf, "p99": 0.0, "max": 0.0}, part
 
@@ -92,11 +103,9 @@ def test_colour_only_is_zero_exactly_when_colour_ignores_the_view(gl_ctx, degree
     from raygs_viewer.camera.pinhole import look_at
     scene = random_scene(n=120, seed=4, degree=degree, spread=0.5)
     camera = look_at((0.0, 0.0, -1.6), (0.0, 0.0, 0.0), width=48, height=36)
-    renderer = GLRenderer(gl_ctx, scene)
-    try:  # a large baseline, so view-dependent colour shows
-        errors = bench_stereo.sharing_errors(renderer, camera, RenderSettings(), stereo.StereoRig(scene_scale=0.1))
-    finally:
-        renderer.release()
+    with bench_common.scene_renderer(gl_ctx, scene) as (renderer, sorter):  # a large baseline: colour shows
+        errors = bench_stereo.sharing_errors(renderer, sorter, camera, RenderSettings(),
+                                             stereo.StereoRig(scene_scale=0.1))
     if degree == 0:
         assert errors["colour-only"] == {"psnr": math.inf, "p99": 0.0, "max": 0.0}
     else:
@@ -123,17 +132,25 @@ def test_budget_text():
 
 
 class _Log:
-    """Stand-ins that record, in one list, the timer query's span and every eye drawn."""
+    """Stand-ins for the context, the renderer and the sorter that record, in one list,
+    every sort, the timer query's span and every eye drawn."""
 
-    def __init__(self, ctx, renderer, invalid_frames=()):
-        self.events, self.ctx, self.renderer = [], ctx, renderer
-        self.sorter, self.spans = renderer.sorter, renderer.spans  # stereo_order sorts with them
+    def __init__(self, ctx, renderer, sorter, invalid_frames=()):
+        self.events, self.ctx, self.renderer, self.sorter = [], ctx, renderer, sorter
         self.invalid_frames, self.frame = set(invalid_frames), 0
 
+    # sorter
+    def sort(self, request: SortRequest) -> SortResult:
+        self.events.append(("sort", request))
+        return self.sorter.sort(request)
+
+    def close(self) -> None:
+        pass  # the sorter is the test's
+
     # renderer
-    def render_into(self, target, camera, settings, order, frame=None, color_origin=None):
+    def render_into(self, target, camera, settings, order, frame=None, color_origin=None, view=None):
         self.events.append(("eye", target.size, camera, order, color_origin))
-        self.renderer.render_into(target, camera, settings, order, frame, color_origin)
+        return self.renderer.render_into(target, camera, settings, order, frame, color_origin, view)
 
     # context
     def framebuffer(self, *args, **kwargs):
@@ -172,25 +189,27 @@ def _same_camera(a, b) -> bool:
         and np.array_equal(a.R, b.R) and np.array_equal(a.t, b.t)
 
 
-def test_both_eyes_are_drawn_with_one_order_under_one_query(demo_renderer, gl_ctx):
+def test_both_eyes_are_drawn_with_one_order_under_one_query(demo_renderer, demo_sorter, gl_ctx):
     camera = TINY_PRESETS["tiny"].camera(demo_view())
     rig = stereo.StereoRig()
-    log = _Log(gl_ctx, demo_renderer, invalid_frames={2})
-    gpu, sort = bench_stereo.time_both_eyes(log, log, camera, RenderSettings(), rig, repeat=3)
+    log = _Log(gl_ctx, demo_renderer, demo_sorter, invalid_frames={2})
+    gpu, sort = bench_stereo.time_both_eyes(log, log, log, camera, RenderSettings(), rig, repeat=3)
     assert len(gpu) == len(sort) == 3  # the warm-up frame is not kept
     assert math.isnan(gpu[1]) and all(t > 0 for i, t in enumerate(gpu) if i != 1)  # frame 2: the invalid one
     assert all(t > 0 for t in sort)
     left, right = stereo.eye_cameras(camera, rig)
-    frames = [log.events[i:i + 4] for i in range(0, len(log.events), 4)]
-    assert len(frames) == 4 and len(log.events) == 16
-    for begin, first, second, end in frames:
-        assert begin == ("begin",) and end == ("end",)
+    frames = [log.events[i:i + 5] for i in range(0, len(log.events), 5)]
+    assert len(frames) == 4 and len(log.events) == 20
+    for sorted_, begin, first, second, end in frames:  # the sort before the query, untimed by it
+        assert sorted_[0] == "sort" and begin == ("begin",) and end == ("end",)
+        assert _same_camera(sorted_[1].camera, camera) and first[3].answers(sorted_[1])
         assert _same_camera(first[2], left) and _same_camera(second[2], right)
         assert first[1] == second[1] == (24, 20)  # eye-sized targets ...
         assert first[3] is second[3]  # ... one order for both eyes ...
         for eye in (first, second):  # ... colour from the midpoint
             assert np.array_equal(eye[4], camera.center)
-    assert np.array_equal(frames[0][1][3], stereo_frame.stereo_order(demo_renderer, camera, RenderSettings(), rig))
+    expected = stereo_frame.stereo_order(demo_sorter, camera, RenderSettings(), rig)
+    assert np.array_equal(frames[0][2][3].indices, expected.indices)
 
 
 # --- the whole benchmark, tiny ------------------------------------------------------------------

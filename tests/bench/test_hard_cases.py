@@ -52,7 +52,7 @@ def test_every_splat_record_is_finite(gl_ctx, mode):
         case = factory()
         renderer = GLRenderer(gl_ctx, case.scene)
         try:
-            renderer.preprocess(case.camera, MODES[mode])
+            renderer.preprocess(case.camera, renderer.plan(MODES[mode]))
             records = renderer.read_splats()
         finally:
             renderer.release()
@@ -90,7 +90,7 @@ def test_near_kappa_quads_stay_finite_and_capped(gl_ctx):
         case = _just_above(epsilon)
         renderer = GLRenderer(gl_ctx, case.scene)
         try:
-            renderer.preprocess(case.camera, case.settings)
+            renderer.preprocess(case.camera, renderer.plan(case.settings))
             records = renderer.read_splats()
         finally:
             renderer.release()
@@ -118,7 +118,7 @@ def test_the_far_camera_formulation_keeps_the_object_sharp(gl_ctx):
     assert stats["max"] < 1e-4
 
 
-def test_unnormalised_and_tiny_quaternions_load_as_rotations(tmp_path, gl_ctx):
+def test_unnormalised_and_tiny_quaternions_load_as_rotations(tmp_path, gl_render):
     """The loader normalises in float64: quaternions scaled by 1e-30 .. 1e30 give the
     same rotation as the unit one, a zero quaternion is dropped and counted, and the
     scene renders like the reference."""
@@ -142,9 +142,5 @@ def test_unnormalised_and_tiny_quaternions_load_as_rotations(tmp_path, gl_ctx):
     for row in scene.rotations:
         np.testing.assert_allclose(row, expected, atol=2e-7)
     camera = look_at([0, 0, 0], [0, 0, 1], width=96, height=72)
-    renderer = GLRenderer(gl_ctx, scene)
-    try:
-        image = renderer.render(camera, RenderSettings())
-    finally:
-        renderer.release()
+    image = gl_render(scene, camera)
     assert_matches(image, render_reference(scene, camera, RenderSettings()))
