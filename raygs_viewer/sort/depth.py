@@ -114,7 +114,7 @@ class DepthSorter(Closable):
             orders = {key: Order(np.zeros(0, np.uint32), key, request, choice) for key in request.keys}
             return SortResult(request, orders, choice, {"choice": chosen - begin, "cull": 0.0, "sort": 0.0})
         with self._lock:
-            chosen = time.perf_counter()
+            locked = time.perf_counter()  # after another thread's sort on this sorter, if one ran
             keys, method = request.keys, request.method
             centre = snapped_centre(request.camera, self._cull.coordinate_scale)
             turn = _turn_of(centre, request.p_min, method, spans)
@@ -138,7 +138,8 @@ class DepthSorter(Closable):
                         if keep:
                             indices = self._visible(indices)
                 orders[key] = Order(indices, key, request, choice)
-            times = {"choice": chosen - begin, "cull": culled - chosen, "sort": time.perf_counter() - culled}
+            times = {"choice": chosen - begin, "wait": locked - chosen, "cull": culled - locked,
+                     "sort": time.perf_counter() - culled}
             return SortResult(request, orders, choice, times)
 
     def cull(self, request: SortRequest) -> np.ndarray:

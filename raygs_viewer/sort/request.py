@@ -145,8 +145,9 @@ class SortResult:
     request: what was asked.
     orders:  {key: Order} for every key of the request, one cull for all.
     choice:  the level-of-detail choice made for the request (None: the whole scene).
-    times:   {"choice", "cull", "sort"} wall times in seconds (``time.perf_counter``): the
-             level choice (where one was made), the cull with the keys, the sort.
+    times:   {"choice", "wait", "cull", "sort"} wall times in seconds (``time.perf_counter``):
+             the level choice (where one was made), the wait for another thread's sort on
+             the same sorter, the cull with the keys, the sort.
     serial, requested_at, finished_at: the sort thread's serial of the request and the
              ``perf_counter`` times it was queued and finished (0 for a sort run in place):
              the drawn order's age is ``perf_counter() - requested_at``.

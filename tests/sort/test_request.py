@@ -125,6 +125,6 @@ def test_a_result_s_order_is_its_first_key_s():
     # What a sorter returns: an order per key, each answering the request, with its times.
     with DepthSorter(random_scene(n=200, seed=1, degree=0)) as sorter:
         real = sorter.sort(SortRequest(camera(), P_MIN, keys=("depth", "distance")))
-    assert real.order is real.orders["depth"] and set(real.times) == {"choice", "cull", "sort"}
+    assert real.order is real.orders["depth"] and set(real.times) == {"choice", "wait", "cull", "sort"}
     assert all(order.answers(real.request) and order.key == key for key, order in real.orders.items())
     assert real.choice is None and real.order.spans is None and real.seconds >= 0
