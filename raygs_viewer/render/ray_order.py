@@ -54,14 +54,14 @@ class Fragments:
     normal: np.ndarray | None = None
 
     @classmethod
-    def concatenate(cls, parts: list[tuple], geometry: bool = False) -> "Fragments":
-        """Fragments from (pixel, key, index, rank, alpha, color) tuples of arrays, with
-        (z, normal) after them when ``geometry``."""
+    def concatenate(cls, parts: list[tuple]) -> "Fragments":
+        """Fragments from (pixel, key, index, rank, alpha, color) tuples of arrays, each
+        with (z, normal) after them for the geometry outputs. None at all: no fragment
+        to composite, whatever the outputs."""
         if not parts:
             empty = np.zeros(0)
-            geometry_columns = (empty, np.zeros((0, 3))) if geometry else ()
             return cls(empty.astype(np.int64), empty, empty.astype(np.int64), empty.astype(np.int64), empty,
-                       np.zeros((0, 3)), *geometry_columns)
+                       np.zeros((0, 3)))
         columns = list(zip(*parts))
         return cls(*(np.concatenate(column) for column in columns))
 
@@ -112,15 +112,15 @@ class GeometrySums:
 
 class FrontToBack:
     """Front-to-back accumulation over ``pixels`` samples: colour so far, transmittance,
-    (with ``cutoff``) which pixels INRIA's rule has ended, and (with ``geometry``) the
-    geometry sums."""
+    (with ``cutoff``) which pixels INRIA's rule has ended, and the geometry ``sums`` of
+    those pixels (None: colour alone)."""
 
-    def __init__(self, pixels: int, cutoff: float | None, geometry: bool = False):
+    def __init__(self, pixels: int, cutoff: float | None, sums: GeometrySums | None = None):
         self.color = np.zeros((pixels, 3))
         self.transmittance = np.ones(pixels)
         self.cutoff = cutoff
         self.done = np.zeros(pixels, dtype=bool)
-        self.geometry = GeometrySums((pixels,)) if geometry else None
+        self.geometry = sums
 
     def add(self, pixels: np.ndarray, alpha: np.ndarray, color: np.ndarray,
             z: np.ndarray | None = None, normal: np.ndarray | None = None) -> None:
@@ -154,7 +154,7 @@ def composite_per_pixel(fragments: Fragments, pixels: int, background, *, window
     its fragments composited per pixel: exactly by (t*, index) with ``window`` 0, else
     through a k-buffer of ``window`` entries (module docstring). ``cutoff``: the
     transmittance cut-off, or None."""
-    return _accumulate(fragments, pixels, window, cutoff).image(background)
+    return _accumulate(fragments, pixels, window, cutoff, None).image(background)
 
 
 def composite_per_pixel_geometry(fragments: Fragments, pixels: int, background, *, window: int = 0,
@@ -162,12 +162,13 @@ def composite_per_pixel_geometry(fragments: Fragments, pixels: int, background, 
     """(pixels, 10) float64: :func:`composite_per_pixel`'s RGBA, then the geometry sums
     (:meth:`GeometrySums.stacked`) accumulated in the order the fragments composite;
     ``fragments`` must carry geometry."""
-    accumulator = _accumulate(fragments, pixels, window, cutoff)
+    accumulator = _accumulate(fragments, pixels, window, cutoff, GeometrySums((pixels,)))
     return np.concatenate((accumulator.image(background), accumulator.geometry.stacked()), axis=-1)
 
 
-def _accumulate(fragments: Fragments, pixels: int, window: int, cutoff: float | None) -> FrontToBack:
-    accumulator = FrontToBack(pixels, cutoff, geometry=fragments.has_geometry)
+def _accumulate(fragments: Fragments, pixels: int, window: int, cutoff: float | None,
+                sums: GeometrySums | None) -> FrontToBack:
+    accumulator = FrontToBack(pixels, cutoff, sums)
     if window == 0:
         # By pixel, then t*, then index: each pixel's fragments in the order they composite.
         order = np.lexsort((fragments.index, fragments.key, fragments.pixel))

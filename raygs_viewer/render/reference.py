@@ -30,7 +30,7 @@ Memory: the image is rendered in horizontal bands of about BAND_SAMPLES samples
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -118,11 +118,27 @@ def _settings_and_order(scene: Scene, camera: Camera, settings: RenderSettings, 
 
 # --- the render loop shared by every mode ------------------------------------------------
 
+@dataclass(frozen=True)
+class _Pass:
+    """One reference render, decided once: the model of the settings' mode over the
+    rendered (supersampled) camera, the gaussians in camera space, each ordered
+    gaussian's index in the scene (per-pixel ties), and whether the geometry sums are
+    composited beside colour."""
+
+    model: object
+    gaussians: CameraGaussians
+    camera: Camera
+    settings: RenderSettings
+    scene_index: np.ndarray
+    geometry: bool
+
+
 def _render(scene: Scene, camera: Camera, settings: RenderSettings, order, samples: int,
             band_samples: int, geometry: bool = False) -> np.ndarray:
     """(H, W, COLOR_VALUES) or, with ``geometry``, (H, W, GEOMETRY_VALUES): ``render_reference``
     with an explicit sample count per axis (``settings.supersample`` is ignored), so ground
-    truth can go past the settings' limit, in bands of about ``band_samples`` samples."""
+    truth can go past the settings' limit, in bands of about ``band_samples`` samples.
+    Where the render's :class:`_Pass` is made."""
     order = np.asarray(order, dtype=np.int64)
     scene = scene.with_sh_degree(settings.effective_sh_degree(scene.sh_degree))
     height, width = camera.height, camera.width
@@ -137,7 +153,8 @@ def _render(scene: Scene, camera: Camera, settings: RenderSettings, order, sampl
     # dilation and clamping) refers to this rendered camera.
     rendered = camera if samples == 1 else camera.resized(samples * width, samples * height)
     gaussians = CameraGaussians.of(scene, order, camera)
-    model = MODELS[settings.mode](gaussians, rendered, settings)
+    render = _Pass(MODELS[settings.mode](gaussians, rendered, settings), gaussians, rendered, settings, order,
+                   geometry)
 
     # Bands of whole output rows, so each band's block mean is complete. Per-pixel order
     # and geometry hold every fragment of a band at once: smaller bands.
@@ -146,7 +163,7 @@ def _render(scene: Scene, camera: Camera, settings: RenderSettings, order, sampl
     rows_per_band = max(1, band_samples // (samples * samples * width))
     for top in range(0, height, rows_per_band):
         bottom = min(height, top + rows_per_band)
-        band = _composite(model, gaussians, rendered, settings, top * samples, bottom * samples, order, geometry)
+        band = _composite(render, top * samples, bottom * samples)
         if samples > 1:
             # Every accumulator, geometry's included, is averaged over the block.
             band = band.reshape(bottom - top, samples, width, samples, values).mean(axis=(1, 3))
@@ -172,18 +189,18 @@ def _facing(normal: np.ndarray, rays: np.ndarray) -> np.ndarray:
     return np.where((rays @ normal > 0)[..., None], -normal, normal)
 
 
-def _composite(model, gaussians: CameraGaussians, camera: Camera, settings: RenderSettings,
-               top: int, bottom: int, scene_index: np.ndarray, geometry: bool) -> np.ndarray:
-    """(bottom - top, W, COLOR_VALUES or GEOMETRY_VALUES) of rows top..bottom-1 of ``camera``'s
-    image; ``scene_index``: each ordered gaussian's index in the scene (per-pixel ties)."""
+def _composite(render: _Pass, top: int, bottom: int) -> np.ndarray:
+    """(bottom - top, W, COLOR_VALUES or GEOMETRY_VALUES) of rows top..bottom-1 of the
+    rendered camera's image."""
+    model, gaussians, camera, settings, geometry = (render.model, render.gaussians, render.camera, render.settings,
+                                                    render.geometry)
     rays = _band_rays(camera, top, bottom)
     # Only gaussians whose pixel box meets the band.
     boxes = model.boxes
     meets = np.flatnonzero((boxes[:, 0] < bottom) & (boxes[:, 1] > top)
                            & (boxes[:, 0] < boxes[:, 1]) & (boxes[:, 2] < boxes[:, 3]))
     if settings.per_pixel:
-        return _composite_per_pixel(model, gaussians, rays, boxes, meets, settings, top, bottom, scene_index,
-                                    geometry)
+        return _composite_per_pixel(render, rays, meets, top, bottom)
 
     def fragments(sequence):
         """(index, rows, cols, alpha, z) per gaussian box, rows relative to the band;
@@ -253,11 +270,12 @@ def _with_geometry(band: np.ndarray, sums: GeometrySums | None) -> np.ndarray:
     return band if sums is None else np.concatenate((band, sums.stacked()), axis=-1)
 
 
-def _composite_per_pixel(model, gaussians: CameraGaussians, rays: np.ndarray, boxes: np.ndarray,
-                         meets: np.ndarray, settings: RenderSettings, top: int, bottom: int,
-                         scene_index: np.ndarray, geometry: bool) -> np.ndarray:
+def _composite_per_pixel(render: _Pass, rays: np.ndarray, meets: np.ndarray, top: int, bottom: int) -> np.ndarray:
     """(bottom - top, W, COLOR_VALUES or GEOMETRY_VALUES): the band composited per pixel by
-    t* (exactly, or through the settings' window), from every fragment with alpha > 0."""
+    t* (exactly, or through the settings' window), from every fragment with alpha > 0 of
+    the gaussians ``meets``."""
+    model, gaussians, settings, scene_index = render.model, render.gaussians, render.settings, render.scene_index
+    boxes, geometry = model.boxes, render.geometry
     height, width = bottom - top, rays.shape[1]
     columns = np.arange(width)
     parts = []
@@ -282,6 +300,6 @@ def _composite_per_pixel(model, gaussians: CameraGaussians, rays: np.ndarray, bo
         parts.append(part)
     cutoff = TRANSMITTANCE_CUTOFF if settings.transmittance_cutoff else None
     composite = composite_per_pixel_geometry if geometry else composite_per_pixel
-    image = composite(Fragments.concatenate(parts, geometry), height * width, settings.background,
+    image = composite(Fragments.concatenate(parts), height * width, settings.background,
                       window=settings.order_k, cutoff=cutoff)
     return image.reshape(height, width, -1)
