@@ -161,11 +161,11 @@ def load_scene(source: SceneSource | str | os.PathLike, *, progress: ProgressCal
 def _load(source: SceneSource, report: Reporter, chunk_bytes: int) -> Scene:
     path = shown = source.path
     report(0.0, "reading")
-    if not os.path.exists(path):
-        raise file_error(shown, "no such file")
+    if not os.path.exists(path):  # found before a reader opens it: the same words as its OSError's
+        raise source.read_error(FileNotFoundError(path))
     sog_folder = is_sog_folder(path)
     if os.path.isdir(path) and not sog_folder:
-        raise file_error(shown, f"is a directory, expected a scene file ({SCENE_FILES})")
+        raise source.read_error(IsADirectoryError(path))
     if not os.path.isfile(path) and not sog_folder:
         raise file_error(shown, "not a regular file")
     try:
