@@ -218,7 +218,7 @@ class Driver:
         """Frames until the drawn order is the one for the current view."""
         for _ in range(50):
             self.frames(1)
-            self.viewer.sorter.wait(self.viewer.sorter.requested, timeout=30)
+            self.viewer.scene.sorter.wait(self.viewer.scene.sorter.requested, timeout=30)
             self.frames(1)
             if self.viewer.stats.order_age == 0:
                 return
@@ -301,8 +301,8 @@ def headless(viewer: Viewer, settings: RenderSettings | None = None) -> np.ndarr
     """The viewer's last view rendered offscreen with an exact sort of the levels it drew."""
     settings = settings or viewer.settings
     drawn = next(iter(viewer.drawer.orders.values()), None)
-    order = exact_order(viewer.exact_sorter, viewer.camera, settings, levels=None if drawn is None else drawn.choice)
-    return viewer.renderer.render(viewer.camera, settings, order)
+    order = exact_order(viewer.scene.exact_sorter, viewer.camera, settings, levels=None if drawn is None else drawn.choice)
+    return viewer.scene.renderer.render(viewer.camera, settings, order)
 
 
 def project(camera, point) -> np.ndarray:

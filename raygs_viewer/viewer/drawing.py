@@ -5,17 +5,18 @@ GPU timers the panel and the summary read.
 Each side draws the order of its settings' sort key (``RenderSettings.sort_key``:
 depth or distance; per-pixel order is fed in the depth order). One sort serves every
 side shown: the window asks the background sorter for one cull (the more
-conservative of the two sides') and an order per distinct key (``render.sorting.sort_request``).
+conservative of the two sides') and an order per distinct key: the frame's ``sort``
+(``frame.Frame``, made with ``render.sorting.sort_request``).
 In the split view both sides render the whole viewport, each with its key's order;
 the present pass shows each on its side of the divider. In the stereo preview both
-eyes are drawn offscreen with one order sorted from their midpoint, then the lens
-preview and the layout compose one image.
+eyes (the frame's ``eyes``) are drawn offscreen with one order sorted from their
+midpoint, then the lens preview and the layout compose one image.
 
 Each render returns what the per-pixel pass did (fragments, pool, parts); the frame
 statistics keep it, per side.
 
 A streamed SOG's level-of-detail choice is made on the sort thread with the order
-(``request_sort``'s ``lod``); every side and eye draws the one result, whose orders
+(the frame's ``lod``); every side and eye draws the one result, whose orders
 carry the choice's rows.
 
 A channel view (the panel's view mode: depth, median depth, normal or alpha) is drawn
@@ -25,22 +26,19 @@ fixed for the other, so that one colour is one depth across the divider.
 
 from __future__ import annotations
 
-from typing import Mapping
+from typing import Mapping, Sequence
 
 import moderngl
 import numpy as np
 
-from raygs_viewer.camera.pinhole import Camera, camera_key
-from raygs_viewer.camera.stereo import StereoView
+from raygs_viewer.camera.pinhole import camera_key
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.gl.mono_frame import MonoFrame
 from raygs_viewer.render.channel_pictures import ChannelView
 from raygs_viewer.render.gl.stereo_frame import StereoFrame, fixed_range
 from raygs_viewer.render.gl.timing import GpuTimer
-from raygs_viewer.render.settings import RenderSettings
-from raygs_viewer.render.sorting import sort_request
-from raygs_viewer.sort.lod_choice import LodRequest
-from raygs_viewer.sort.request import Order, SortRequest, SortResult
+from raygs_viewer.sort.request import Order, SortResult
+from raygs_viewer.viewer.frame import Frame
 from raygs_viewer.viewer.state import PanelState
 from raygs_viewer.viewer.stats import FrameStats
 
@@ -48,22 +46,19 @@ from raygs_viewer.viewer.stats import FrameStats
 EMPTY_ORDER = Order(np.zeros(0, np.uint32))
 
 
-def request_sort(sorter, stats: FrameStats, camera: Camera, settings: RenderSettings, right: RenderSettings | None,
-                 cull_cameras, frame_index: int, wait: bool = False, lod: LodRequest | None = None
-                 ) -> tuple[SortResult | None, SortRequest]:
-    """Asks ``sorter`` (a BackgroundSorter) for this frame's view: one cull for every side
-    shown, an order per key, of the levels ``lod`` chooses for the view (a streamed SOG);
-    ``wait``: until that sort is done (a scripted run's last frame). Returns (its newest
-    finished result, this frame's request: stats.order_to_draw takes both)."""
-    request = sort_request(camera, settings, right, cull_cameras=cull_cameras, levels=lod)
-    serial = sorter.request(request)
-    stats.asked(serial, frame_index)
+def request_sort(sorter, stats: FrameStats, frame: Frame, wait: bool = False) -> SortResult | None:
+    """Asks ``sorter`` (a BackgroundSorter) for ``frame``'s sort (one cull for every side
+    shown, an order per key, of the levels its ``lod`` chooses for the view: a streamed
+    SOG); ``wait``: until that sort is done (a scripted run's last frame). Returns its
+    newest finished result."""
+    serial = sorter.request(frame.sort)
+    stats.asked(serial, frame.index)
     if wait:
         sorter.wait(serial, timeout=120)
     result = sorter.latest()
     if sorter.started > sorter.finished:
         stats.frames_with_sort_running += 1
-    return result, request
+    return result
 
 
 def order_for(orders: Mapping[str, Order], key: str) -> Order:
@@ -95,20 +90,18 @@ class SceneDrawer:
         self.view_range: tuple[float, float] | None = None
         self.orders: dict[str, Order] = {}
 
-    def draw(self, renderer, camera: Camera, settings: RenderSettings, right: RenderSettings | None,
-             stereo: StereoView | None, orders: Mapping[str, Order], serial: int, stats: FrameStats,
-             panel: PanelState, view: ChannelView | None = None, right_view: ChannelView | None = None) -> None:
-        """Draws each side with its key's order from ``orders`` ({sort key: order} of
-        sort request ``serial``) unless the frame already holds this view, these settings
-        and these orders, and notes the draw, its GPU times and the per-pixel order's
-        statistics in ``stats``. ``view``: the picture shown instead of the colour (the
-        left side's in the split view; ``right_view`` the right side's). The orders carry
-        the rows of their level-of-detail choice, which a pick draws too.
-        Settings this GPU cannot render (the panel greys those out) are a standing error
-        in ``panel``; the frame is then drawn again next time."""
-        self.orders, self.view, self.right_view = dict(orders), view, right_view
+    def draw(self, renderer, frame: Frame, orders: Mapping[str, Order], serial: int, stats: FrameStats,
+             panel: PanelState) -> None:
+        """Draws each side of ``frame`` with its key's order from ``orders`` ({sort key:
+        order} of sort request ``serial``) unless the frame already holds this view, these
+        settings and these orders, and notes the draw, its GPU times and the per-pixel
+        order's statistics in ``stats``. The orders carry the rows of their
+        level-of-detail choice, which a pick draws too. Settings this GPU cannot render
+        (the panel greys those out) are a standing error in ``panel``; the frame is then
+        drawn again next time."""
+        self.orders, self.view, self.right_view = dict(orders), frame.view, frame.right_view
         try:
-            drew = self._draw(renderer, camera, settings, right, stereo, orders, serial, stats, view, right_view)
+            drew = self._draw(renderer, frame, orders, serial, stats)
         except UserError as exc:
             panel.stand("draw", f"error: {one_line(exc)}")
             return
@@ -117,10 +110,9 @@ class SceneDrawer:
             stats.drawn_serial, stats.draws = serial, stats.draws + 1
         stats.gpu_seconds, stats.post_seconds = self.timer.seconds, self.post_timer.seconds
 
-    def _draw(self, renderer, camera: Camera, settings: RenderSettings, right: RenderSettings | None,
-              stereo: StereoView | None, orders: Mapping[str, Order], serial: int, stats: FrameStats,
-              view: ChannelView | None, right_view: ChannelView | None) -> bool:
-        key = (camera_key(camera), settings, right, stereo, view, right_view, serial)
+    def _draw(self, renderer, frame: Frame, orders: Mapping[str, Order], serial: int, stats: FrameStats) -> bool:
+        camera, settings, right, stereo = frame.camera, frame.settings, frame.right, frame.stereo
+        key = (camera_key(camera), settings, right, stereo, frame.view, frame.right_view, serial)
         if stereo is None:
             left_target, right_target = self.mono.targets(camera.width, camera.height, split=right is not None)
         elif self.stereo is None:
@@ -136,26 +128,33 @@ class SceneDrawer:
         order = order_for(orders, settings.sort_key)
         if stereo is None:
             with self.timer.measure():  # the whole frame's GPU time, both sides in the split view
-                left = renderer.render_into(left_target, camera, settings, order, view=view)
+                left = renderer.render_into(left_target, camera, settings, order, view=frame.view)
                 self.view_range = left.view_range
                 right_result = None
                 if right is not None:
                     # One depth range for both sides where both show depths: one colour, one depth.
                     right_result = renderer.render_into(right_target, camera, right, order_for(orders, right.sort_key),
-                                                        view=fixed_range(right_view, self.view_range))
+                                                        view=fixed_range(frame.right_view, self.view_range))
                     if self.view_range is None:
                         self.view_range = right_result.view_range
             stats.order_stats = (left.order_stats, None if right_result is None else right_result.order_stats)
             self.mono.drawn(key)
         else:
             with self.timer.measure():  # both eyes: what the frame-budget meter compares
-                _, last_eye = self.stereo.draw_eyes(renderer, camera, settings, stereo.rig, order, view)
+                _, last_eye = self.stereo.draw_eyes(renderer, camera, settings, frame.eyes, order, frame.view)
                 self.view_range = last_eye.view_range
             stats.order_stats = (last_eye.order_stats, None)  # the last eye's (the right)
             with self.post_timer.measure():
                 self.stereo.finish(stereo)
             self.mono.drawn(key, self.stereo.image)
         return True
+
+    def gpu_times(self) -> tuple[Sequence[float], Sequence[float]]:
+        """Every draw's GPU seconds so far, the last one's included: the scene's (both sides,
+        both eyes) and the stereo lens preview and layout's."""
+        self.timer.flush()
+        self.post_timer.flush()
+        return self.timer.history, self.post_timer.history
 
     @property
     def shown_view(self) -> ChannelView | None:

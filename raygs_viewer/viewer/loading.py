@@ -26,11 +26,12 @@ class SceneOpener:
     ``reading``: how a scene opened later is read (its .spz axes); ``fits()`` says what
     fits the GPU, for a streamed SOG's levels (None: no limit)."""
 
-    def __init__(self, panel: PanelState, reading: SceneSource = SceneSource.demo()):
+    def __init__(self, panel: PanelState, reading: SceneSource = SceneSource.demo(),
+                 fits: Callable[[], Fits | None] = lambda: None):
         self.panel = panel
         self.loader = SceneLoader()
         self.reading = reading
-        self.fits: Callable[[], Fits | None] = lambda: None
+        self.fits = fits
 
     def open(self, path: str, cameras: str | None = None) -> None:
         """Starts loading ``path`` in the background (with ``cameras``, a cameras.json,
@@ -42,6 +43,11 @@ class SceneOpener:
         self.panel.error = ""
         self.panel.message = f"loading {path} ..."
         self.loader.start(self.reading.at(path, cameras), fits=self.fits())
+
+    def read_levels(self, source: SceneSource) -> None:
+        """Starts reading more levels of the streamed SOG shown (``source``), each a finer
+        reading of it (``LoadedScene.refines``)."""
+        self.loader.start(source, fits=self.fits(), refines=True)
 
     def switch_axes(self, loaded: LoadedScene, axes: str) -> None:
         """Reads ``loaded`` again in the .spz axes ``axes`` when it is a .spz (with the

@@ -7,10 +7,10 @@ settings want in the background (:meth:`WindowLod.for_frame`), coarsest first, a
 scene opened from the panel is read. Each level read replaces the renderer's scene and
 keeps the view (:meth:`WindowLod.refine`). A level only adds rows after those read
 before (``scene.lod_file``), so the last order and its choice still name the right
-gaussians: they are drawn until the new scene's first sort is done, and a level arriving
-never blanks the picture.
+gaussians: they are drawn until the new scene's first sort is done
+(``shown_scene.ShownScene``), and a level arriving never blanks the picture.
 
-Each frame the sort thread makes the choice (:meth:`WindowLod.request`, from the scene and
+Each frame the sort thread makes the choice (:func:`lod_request`, from the scene and
 the settings ``lod``, ``lod_budget``, ``lod_distance``); the drawn result's orders carry
 its rows. Screenshots make the choice for their own camera, as ``render --sidecar`` does,
 so the sidecar's settings reproduce them.
@@ -18,11 +18,16 @@ so the sidecar's settings reproduce them.
 Colour by level draws a copy of the scene whose colours say each gaussian's level
 (:data:`LEVEL_COLOURS`; the environment grey): the same rows, so orders and choices carry
 over, and no shader knows of it.
+
+:class:`WindowLod` holds none of the window: each call is handed the scene shown, the
+settings and the loader's state, and returns what to do as a value (:class:`LodFrame`,
+:class:`Refined`, :class:`Swap`), which the window applies.
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
+from typing import Callable, Protocol
 
 import moderngl
 import numpy as np
@@ -36,6 +41,8 @@ from raygs_viewer.scene.lod_file import Fits, LodScene, lod_index_file, merged_s
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.sh import C0
 from raygs_viewer.sort.lod_choice import LodChoice, LodRequest
+from raygs_viewer.sort.request import SortResult
+from raygs_viewer.viewer.state import PanelState
 
 #: The window's budget of gaussians when the command line gives none (``render`` has no
 #: limit): the cull and sort of 4,000,000 took 66-72 ms on 16 cores in docs/lod.md, so
@@ -104,76 +111,117 @@ def extends(old: LodScene, new: LodScene) -> bool:
             and np.array_equal(new.scene.positions[:count], old.scene.positions))
 
 
+class LoaderState(Protocol):
+    """What the level of detail reads of the window's loader (``scene.loader.SceneLoader``)."""
+
+    @property
+    def busy(self) -> bool:
+        """A load is in progress."""
+
+    @property
+    def path(self) -> str:
+        """The path of the current load ("" with none)."""
+
+
+@dataclass(frozen=True)
+class Swap:
+    """Put ``scene`` on the GPU; ``keep``: its rows hold the shown scene's where they were,
+    so the last order is drawn until its first sort (``shown_scene.ShownScene``)."""
+
+    scene: Scene
+    keep: bool
+
+
+@dataclass(frozen=True)
+class Refined:
+    """What a finer reading of the scene shown asks of the window: ``swap`` (None: the
+    scene on the GPU stays; the load's last word: the hash, what was left unread), then
+    ``loaded`` and ``settings`` are the window's."""
+
+    loaded: LoadedScene
+    settings: RenderSettings
+    swap: Swap | None = None
+
+
+@dataclass(frozen=True)
+class LodFrame:
+    """A frame's level of detail: the request the sort thread makes the choice by (None:
+    not a streamed SOG), and the levels to start reading (None: nothing to read)."""
+
+    request: LodRequest | None
+    read: SceneSource | None = None
+
+
+def refines(current: LoadedScene | None, loaded: LoadedScene) -> bool:
+    """Whether ``loaded`` is a finer reading of the scene shown (``current``)."""
+    return (loaded.refines and loaded.lod is not None and current is not None and current.lod is not None
+            and loaded.path == current.path)
+
+
+def reading(loaded: LoadedScene, loader: LoaderState) -> bool:
+    """Whether levels of the scene shown (``loaded``) are being read."""
+    return loaded.lod is not None and loader.busy and loader.path == loaded.path
+
+
+def lod_request(loaded: LoadedScene, settings: RenderSettings) -> LodRequest | None:
+    """The choice to make for a view of the scene shown with ``settings``."""
+    lod = loaded.lod
+    if lod is None:
+        return None
+    return LodRequest(lod, settings.lod, settings.lod_budget, settings.lod_distance)
+
+
+def window_fits(ctx: moderngl.Context, panel: PanelState) -> Callable[[], Fits | None]:
+    """What says whether a scene fits this window's GPU (``render.gl.memory.scene_fits``):
+    None (no limit) when ``RAYGS_GPU_MEMORY`` is not a size, which ``panel`` says."""
+    def fits() -> Fits | None:
+        try:
+            return scene_fits(ctx)[0]
+        except UserError as exc:
+            panel.error = f"error: {one_line(exc)}"
+            return None
+    return fits
+
+
 class WindowLod:
-    """The level of detail of the scene ``host`` (the Viewer) shows: what to read, the
-    request each frame, the scene swaps as levels arrive or the tint toggles.
+    """The level of detail of the scene the window shows: it is handed the scene, the
+    settings and the loader's state at each call and returns what the window is to do
+    (:class:`LodFrame`, :class:`Refined`, :class:`Swap`), which the window applies.
 
     ``choice``: the choice the last frame drew (None: not a streamed SOG, or no sort yet);
-    ``tint``: colour by level is on; ``fallback``: the last sort result of the scene
-    before a swap, drawn until the new scene's first sort is done."""
+    ``tint``: colour by level is on (the window sets it once the tinted scene is shown)."""
 
-    def __init__(self, host) -> None:
-        self.host = host
+    def __init__(self) -> None:
         self.choice: LodChoice | None = None
         self.tint = False
-        self.fallback = None
         self._asked: LodScene | None = None  # the scene whose missing levels are being read
-        host.scenes.fits = self.fits
-
-    @property
-    def lod(self) -> LodScene | None:
-        return None if self.host.loaded is None else self.host.loaded.lod
-
-    @property
-    def reading(self) -> bool:
-        """Whether levels of the scene shown are being read."""
-        loader = self.host.scenes.loader
-        return self.lod is not None and loader.busy and loader.path == self.host.loaded.path
-
-    def fits(self) -> Fits | None:
-        """Whether a scene fits this window's GPU (``render.gl.memory.scene_fits``); None
-        (no limit) when ``RAYGS_GPU_MEMORY`` is not a size, which the panel says."""
-        try:
-            return scene_fits(self.host.ctx)[0]
-        except UserError as exc:
-            self.host.panel.error = f"error: {one_line(exc)}"
-            return None
 
     # -- scenes ----------------------------------------------------------------------------
     def installed(self) -> None:
         """A new scene is shown, in its own colours (its settings: :func:`window_settings`)."""
-        self.tint, self.fallback, self.choice, self._asked = False, None, None, None
+        self.tint, self.choice, self._asked = False, None, None
 
-    def refines(self, loaded: LoadedScene) -> bool:
-        """Whether ``loaded`` is a finer reading of the scene shown."""
-        current = self.host.loaded
-        return (loaded.refines and loaded.lod is not None and current is not None and current.lod is not None
-                and loaded.path == current.path)
-
-    def refine(self, loaded: LoadedScene) -> None:
-        """Shows the levels of ``loaded`` (:meth:`refines`) in the view as it is; a
-        UserError (the GPU's memory) leaves the scene shown."""
-        host, current = self.host, self.host.loaded
+    def refine(self, current: LoadedScene, loaded: LoadedScene, settings: RenderSettings, start: RenderSettings,
+               loader: LoaderState) -> Refined | None:
+        """How to show the levels of ``loaded`` (:func:`refines` ``current``) in the view as
+        it is: the scene drawn (tinted while colour by level is on), the SH degree
+        followed when it is each scene's own (``start``: the command line's settings);
+        None while a reading has not yet caught up with the levels shown."""
         if loaded.scene is current.scene:  # the load's last word: the hash, what was left unread
-            host.loaded = loaded
-            return
-        if host.scenes.loader.busy and not loaded.lod.loaded[current.lod.loaded].all():
-            return  # a reading that has not yet caught up with the levels shown
-        self._swap(self._drawn_scene(loaded.lod), keep=extends(current.lod, loaded.lod))
-        if host.options.settings.sh_degree is None and host.settings.sh_degree == current.scene.sh_degree:
-            host.settings = replace(host.settings, sh_degree=loaded.scene.sh_degree)
-        host.loaded = loaded
+            return Refined(loaded, settings)
+        if loader.busy and not loaded.lod.loaded[current.lod.loaded].all():
+            return None
+        swap = Swap(self._drawn_scene(loaded.lod), keep=extends(current.lod, loaded.lod))
+        if start.sh_degree is None and settings.sh_degree == current.scene.sh_degree:
+            settings = replace(settings, sh_degree=loaded.scene.sh_degree)
+        return Refined(loaded, settings, swap)
 
-    def set_tint(self, on: bool) -> None:
-        """Colour by level on or off: the renderer gets the tinted copy, or the scene."""
-        if on == self.tint or self.lod is None:
-            return
-        self.tint = on
-        try:
-            self._swap(self._drawn_scene(self.lod), keep=True)  # the same rows
-        except (UserError, MemoryError, moderngl.Error) as exc:
-            self.tint = not on
-            self.host.panel.error = f"error: colour by level: {one_line(exc)}"
+    def tint_swap(self, on: bool, lod: LodScene | None) -> Swap | None:
+        """The swap that turns colour by level on or off (the same rows), None when there
+        is nothing to do; the window sets :attr:`tint` once it is shown."""
+        if on == self.tint or lod is None:
+            return None
+        return Swap(tinted_scene(lod) if on else lod.scene, keep=True)
 
     def check_screenshot(self) -> None:
         """UserError while colour by level is on: a sidecar re-renders the scene's colours."""
@@ -182,58 +230,27 @@ class WindowLod:
                             "(Level of detail section) first")
 
     # -- frames ----------------------------------------------------------------------------
-    def request(self) -> LodRequest | None:
-        """The choice to make for a view of the scene shown with the settings now."""
-        lod, settings = self.lod, self.host.settings
-        if lod is None:
-            return None
-        return LodRequest(lod, settings.lod, settings.lod_budget, settings.lod_distance)
-
-    def for_frame(self) -> LodRequest | None:
-        """:meth:`request`, after starting to read the levels the settings want that are
-        not read (once per scene; never over a load under way, nor past the GPU's memory)."""
-        lod, loaded, loader = self.lod, self.host.loaded, self.host.scenes.loader
+    def for_frame(self, loaded: LoadedScene, settings: RenderSettings, loader: LoaderState) -> LodFrame:
+        """The frame's request (:func:`lod_request`), and the levels to start reading: those
+        the settings want that are not read (once per scene; never over a load under way,
+        nor past the GPU's memory, which the reading is told)."""
+        lod = loaded.lod
         if self._asked is lod and loader.path != loaded.path:
             self._asked = None  # another file's load took the loader over (and failed): read again
+        read = None
         if lod is not None and not lod.unread and self._asked is not lod and not loader.busy:
-            level = self.host.settings.lod
+            level = settings.lod
             wanted = wanted_levels(lod.levels, level)
             if not lod.loaded[wanted].all():
                 self._asked = lod
-                read = set(np.flatnonzero(lod.loaded).tolist())
-                levels = None if level is None else tuple(sorted(read | set(wanted)))
-                loader.start(SceneSource(loaded.path, loaded.cameras_path, levels=levels), fits=self.fits(),
-                             refines=True)
-        return self.request()
+                done = set(np.flatnonzero(lod.loaded).tolist())
+                levels = None if level is None else tuple(sorted(done | set(wanted)))
+                read = SceneSource(loaded.path, loaded.cameras_path, levels=levels)
+        return LodFrame(lod_request(loaded, settings), read)
 
-    def read_all(self) -> None:
-        """Blocks until the levels the settings want are read (the next frame installs
-        them): a scripted run's last frame and its screenshot show the scene as it ends
-        up, not as far as its reading had come."""
-        self.for_frame()
-        if self.reading:
-            self.host.scenes.loader.wait_done()
-
-    def shown(self, result):
-        """The sort result this frame draws: ``result`` (the sorter's newest), else the
-        fallback; notes its choice."""
-        if result is not None:
-            self.fallback = None
-        else:
-            result = self.fallback
+    def shown(self, result: SortResult | None) -> None:
+        """Notes the choice of the sort result the frame draws."""
         self.choice = None if result is None else result.choice
-        return result
 
     def _drawn_scene(self, lod: LodScene) -> Scene:
         return tinted_scene(lod) if self.tint else lod.scene
-
-    def _swap(self, scene: Scene, keep: bool) -> None:
-        """``scene`` on the GPU; with ``keep`` (its rows hold the shown scene's where they
-        were), the last result is drawn until the new sorter's first, as serial 0, which
-        no request has (so its draw is never taken for a new one's), as old as it was."""
-        stats, last = self.host.stats, self.host.sorter.latest() or self.fallback
-        asked = None if last is None else stats.request_frames.get(last.serial, self.host.frame_index)
-        self.host.swap_scene(scene)
-        self.fallback = replace(last, serial=0) if keep and last is not None else None
-        if self.fallback is not None:
-            stats.request_frames[0] = asked

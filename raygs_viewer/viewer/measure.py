@@ -32,6 +32,7 @@ from raygs_viewer.capture.measure_file import (
 )
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.scene.loader import LoadedScene
+from raygs_viewer.viewer.frame import Frame
 from raygs_viewer.viewer.path_overlay import project_points, screen_segments, viewport_rect
 from raygs_viewer.viewer.path_widget import OVERLAY_NEAR, scene_argument
 from raygs_viewer.viewer.picking import Picked
@@ -170,13 +171,13 @@ class MeasureWidget:
         self.panel.error = ""
 
     # -- the overlay -------------------------------------------------------------------
-    def draw_overlay(self, camera: Camera, viewport: tuple[int, int, int, int], radius: float, stereo: bool) -> None:
-        """The measurements over the view, each labelled with its distance; not in the
-        stereo preview, whose image shows two eyes rather than ``camera``'s view."""
-        if stereo or not (self.measurements or self.pending):
+    def draw_overlay(self, frame: Frame, radius: float) -> None:
+        """The measurements over ``frame``'s view, each labelled with its distance; not in
+        the stereo preview, whose image shows two eyes rather than the frame's camera's view."""
+        if frame.stereo is not None or not (self.measurements or self.pending):
             self.drawn = DrawnMeasure()
             return
-        self.drawn = draw_measure_overlay(self, camera, viewport, OVERLAY_NEAR * radius)
+        self.drawn = draw_measure_overlay(self, frame.camera, frame.viewport, OVERLAY_NEAR * radius)
 
 
 def draw_measure_overlay(widget: MeasureWidget, camera: Camera, viewport: tuple[int, int, int, int],

@@ -34,7 +34,6 @@ from raygs_viewer.camera.path import (
     orbit_path,
     path_through_cameras,
 )
-from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.capture.path_file import (
     PathDocument,
     export_nerfstudio,
@@ -43,7 +42,9 @@ from raygs_viewer.capture.path_file import (
     scene_mismatch,
 )
 from raygs_viewer.errors import UserError, checked_number, one_line
+from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.loader import LoadedScene
+from raygs_viewer.viewer.frame import NO_VIEWPORT, Frame
 from raygs_viewer.viewer.path_overlay import DrawnPath, draw_path_overlay
 from raygs_viewer.viewer.path_playback import MAX_PLAY_DT, Playback
 from raygs_viewer.viewer.state import PanelState
@@ -60,16 +61,13 @@ OVERLAY_NEAR = 1e-3
 
 class PathHost(Protocol):
     """The window as the path widget sees it (the viewer): the camera's controls and the
-    scene, both replaced when a scene loads, so read at each action."""
+    scene, both replaced when a scene loads, the render settings (the left side's), and
+    the last frame (None before the first), read at each action."""
 
     view: ViewControl
     loaded: LoadedScene
-
-    def view_aspect(self) -> float:
-        """The viewport's width / height."""
-
-    def path_document(self, path: CameraPath) -> PathDocument:
-        """``path`` with what renders it as the window shows it (size, settings, stereo, scene)."""
+    settings: RenderSettings
+    shown: Frame | None
 
 
 class PathWidget:
@@ -103,15 +101,26 @@ class PathWidget:
         elif result is not None:
             self.panel.message, self.panel.error = result.message, ""
 
-    def draw_overlay(self, camera: Camera, viewport: tuple[int, int, int, int], radius: float, stereo: bool) -> None:
-        """The path over the view, when shown; not in the stereo preview, whose image
-        shows two eyes rather than ``camera``'s view."""
-        self.drawn = DrawnPath() if not self.show or stereo else draw_path_overlay(
-            self.path, camera, viewport, self.selected, FRUSTUM_SIZE * radius, OVERLAY_NEAR * radius)
+    def draw_overlay(self, frame: Frame, radius: float) -> None:
+        """The path over ``frame``'s view, when shown; not in the stereo preview, whose
+        image shows two eyes rather than the frame's camera's view."""
+        self.drawn = DrawnPath() if not self.show or frame.stereo is not None else draw_path_overlay(
+            self.path, frame.camera, frame.viewport, self.selected, FRUSTUM_SIZE * radius, OVERLAY_NEAR * radius)
 
     def document(self) -> PathDocument:
-        """The path with what renders it as the window shows it."""
-        return self.host.path_document(self.path)
+        """The path with what renders it as the window shows it: the view's size (in
+        stereo, the headset's per eye), the render settings (the left side's), the
+        stereo view when the preview is on, the scene."""
+        frame, loaded = self.host.shown, self.host.loaded
+        width, height = NO_VIEWPORT[2:] if frame is None else (frame.camera.width, frame.camera.height)
+        return PathDocument(self.path, width, height, self.host.settings, None if frame is None else frame.stereo,
+                            scene_argument(loaded), loaded.content_sha256,
+                            scene_axes=loaded.scene.axes)  # a .spz's: render-path reads it in the same axes
+
+    def view_aspect(self) -> float:
+        """The viewport's width / height."""
+        _, _, width, height = NO_VIEWPORT if self.host.shown is None else self.host.shown.viewport
+        return width / height
 
     # -- the one way an edit happens ----------------------------------------------------
     def edit(self, change: Callable[[CameraPath], CameraPath], select: int | None = -1) -> bool:
@@ -204,7 +213,7 @@ class PathWidget:
 
     def orbit(self) -> bool:
         """Replaces the path by a turntable lap around the scene, from the current view."""
-        return self.edit(lambda path: orbit_around_scene(self.host.view, self.host.view_aspect(), path), select=None)
+        return self.edit(lambda path: orbit_around_scene(self.host.view, self.view_aspect(), path), select=None)
 
     def dolly(self) -> bool:
         """Replaces the path by a straight move of ``dolly_distance`` from the current view."""

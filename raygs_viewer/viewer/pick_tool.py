@@ -20,15 +20,14 @@ from typing import Protocol
 
 from imgui_bundle import imgui
 
-from raygs_viewer.camera.pinhole import Camera
-from raygs_viewer.camera.stereo import StereoView, rig_quantities
+from raygs_viewer.camera.stereo import rig_quantities
 from raygs_viewer.capture.measure_file import MeasureScale
 from raygs_viewer.errors import UserError, one_line
-from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.render.sorting import exact_order
-from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.viewer.drawing import SceneDrawer
+from raygs_viewer.viewer.frame import Frame
+from raygs_viewer.viewer.shown_scene import ShownScene
 from raygs_viewer.viewer.measure import MeasureWidget, format_distance
 from raygs_viewer.viewer.picking import Picked, mono_pixel, pick, pixel_camera, stereo_pixel
 from raygs_viewer.viewer.state import PanelState, SplitView, StereoPreview
@@ -40,14 +39,12 @@ CONVERGENCE = rig_quantities()["convergence"]
 
 
 class PickHost(Protocol):
-    """The window as the pick tool sees it: the last frame's view and how it was drawn."""
+    """The window as the pick tool sees it: the last frame (None before the first) and how
+    it was drawn, the settings now."""
 
-    renderer: GLRenderer
-    exact_sorter: DepthSorter
+    scene: ShownScene
     view: ViewControl
-    camera: Camera | None
-    viewport: tuple[int, int, int, int]
-    shown_stereo: StereoView | None
+    shown: Frame | None
     settings: RenderSettings
     split: SplitView
     stereo: StereoPreview
@@ -68,21 +65,21 @@ class PickTool:
     def point_at(self, x: float, y: float) -> Picked | None | bool:
         """The point under screen position (x, y) in the last frame's view: False outside
         the image (or before the first frame), None where the pixel has no median depth."""
-        host = self.host
-        camera = host.camera
-        if camera is None:
+        host, frame = self.host, self.host.shown
+        if frame is None:
             return False
+        camera = frame.camera
         scale = imgui.get_io().display_framebuffer_scale
         scale = (scale.x or 1.0, scale.y or 1.0)
         origin = None
-        if host.shown_stereo is not None:
-            found = stereo_pixel(x, y, host.viewport, scale, camera, host.shown_stereo)
+        if frame.stereo is not None:
+            found = stereo_pixel(x, y, frame.viewport, scale, camera, frame.eyes, frame.stereo.layout)
             if found is None:
                 return False
             eye, u, v = found
             settings, origin = host.settings, camera.center  # the eyes' colour is the midpoint's
         else:
-            pixel = mono_pixel(x, y, host.viewport, scale, camera)
+            pixel = mono_pixel(x, y, frame.viewport, scale, camera)
             if pixel is None:
                 return False
             (u, v), eye = pixel, camera
@@ -92,9 +89,9 @@ class PickTool:
             order = host.drawer.orders.get(settings.sort_key)
             if order is None:  # none drawn in this key yet: the pixel's own, of the levels drawn
                 drawn = next(iter(host.drawer.orders.values()), None)
-                order = exact_order(host.exact_sorter, pixel_camera(eye, u, v), settings,
+                order = exact_order(host.scene.exact_sorter, pixel_camera(eye, u, v), settings,
                                     levels=None if drawn is None else drawn.choice)
-            return pick(host.renderer, eye, u, v, settings, order, origin)
+            return pick(host.scene.renderer, eye, u, v, settings, order, origin)
         except UserError as exc:  # settings this GPU cannot render (the frame says so too)
             host.panel.error = f"error: nothing picked: {one_line(exc)}"
             return False
@@ -111,7 +108,7 @@ class PickTool:
             return
         self.last = picked
         stereo = self.host.stereo
-        if self.host.shown_stereo is not None and stereo.converge_on_pick:
+        if self.host.shown.stereo is not None and stereo.converge_on_pick:
             rig = stereo.rig
             stereo.rig = replace(rig, convergence=CONVERGENCE.clamp(picked.depth * rig.scene_scale))
             panel.message = (f"convergence set to {stereo.rig.convergence:.4g} m "

@@ -23,7 +23,6 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera
-from raygs_viewer.camera.stereo import StereoView, eye_cameras
 from raygs_viewer.render.gl.mono_frame import Viewport
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.sort.request import Order
@@ -94,19 +93,19 @@ def mono_pixel(x: float, y: float, viewport: Viewport, scale: tuple[float, float
 
 
 def stereo_pixel(x: float, y: float, viewport: Viewport, scale: tuple[float, float], camera: Camera,
-                 stereo: StereoView) -> tuple[Camera, int, int] | None:
-    """(eye camera, u, v) under screen position (x, y) of the stereo preview around the
-    midpoint ``camera``: the eye whose image is there (side by side), the one shown
-    (one eye), or the midpoint (anaglyph, where both overlap). The lens preview's warp
-    is not undone: a pick with it on lands near, not exactly on, the pixel shown."""
-    eyes = eye_cameras(camera, stereo.rig)
-    halves = 2 if stereo.layout in _SIDE_BY_SIDE else 1
+                 eyes: tuple[Camera, Camera], layout: str) -> tuple[Camera, int, int] | None:
+    """(eye camera, u, v) under screen position (x, y) of the stereo preview of ``eyes``
+    around the midpoint ``camera`` in ``layout``: the eye whose image is there (side by
+    side), the one shown (one eye), or the midpoint (anaglyph, where both overlap). The
+    lens preview's warp is not undone: a pick with it on lands near, not exactly on, the
+    pixel shown."""
+    halves = 2 if layout in _SIDE_BY_SIDE else 1
     position = screen_pixel(x, y, viewport, scale, halves * camera.width, camera.height)
     if position is None:
         return None
     column, row = int(position[0]), int(position[1])
     if halves == 2:
-        eye = eyes[_SIDE_BY_SIDE[stereo.layout][column // camera.width]]
+        eye = eyes[_SIDE_BY_SIDE[layout][column // camera.width]]
         return eye, column % camera.width, row
-    shown = _SINGLE.get(stereo.layout)
+    shown = _SINGLE.get(layout)
     return (camera if shown is None else eyes[shown]), column, row

@@ -19,9 +19,11 @@ every side and eye sorts that one choice's rows.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import Callable
 
+import moderngl
 import numpy as np
 
 from raygs_viewer.camera.navigation import Navigator
@@ -35,6 +37,7 @@ from raygs_viewer.capture.screenshot import (
     scaled_camera,
 )
 from raygs_viewer.capture.sidecar import build_sidecar
+from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.channel_pictures import ChannelView, channel_picture
 from raygs_viewer.render.gl.stereo_frame import render_stereo_view, stereo_order
 from raygs_viewer.render.settings import RenderSettings
@@ -43,7 +46,7 @@ from raygs_viewer.scene.loader import LoadedScene
 from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.lod_choice import LodChoice, LodRequest
 from raygs_viewer.sort.request import Order
-from raygs_viewer.viewer.state import ScreenshotOptions, SplitView
+from raygs_viewer.viewer.state import PanelState, ScreenshotOptions, SplitView
 
 #: (png, sidecar) paths of one saved image.
 Saved = tuple[Path, Path]
@@ -86,22 +89,34 @@ class Offscreen:
         return exact_order(self.sorter, camera, settings, levels=self.levels)
 
 
-def take_screenshots(renderer, sorter: DepthSorter, loaded: LoadedScene, shown: ShownView,
-                     options: ScreenshotOptions, save_eyes: bool, extra: dict, path: str | Path | None = None,
-                     lod: LodRequest | None = None) -> list[Saved]:
-    """Renders ``shown`` at ``options.scale`` with exact sorts by ``sorter`` and saves it
+@dataclass(frozen=True)
+class Shot:
+    """A screenshot to take: the view ``shown``, the scene as ``loaded``, a streamed SOG's
+    level-of-detail request (made for the screenshot's camera: both sides, both eyes take
+    the one camera's choice; None: the whole scene), whether the stereo eyes are saved
+    besides the pair, and what every sidecar records besides the view (:func:`sidecar_extra`)."""
+
+    shown: ShownView
+    loaded: LoadedScene
+    lod: LodRequest | None = None
+    save_eyes: bool = False
+    extra: dict = field(default_factory=dict)
+
+
+def take_screenshots(renderer, sorter: DepthSorter, shot: Shot, options: ScreenshotOptions,
+                     path: str | Path | None = None) -> list[Saved]:
+    """Renders ``shot`` at ``options.scale`` with exact sorts by ``sorter`` and saves it
     into ``options.folder`` (or at ``path``, tagged names beside it for several images);
-    never overwrites anything. ``lod``: a streamed SOG's choice, made for the
-    screenshot's camera (both sides, both eyes: the one camera's choice). Returns every
-    (png, json) pair written, the left side's or the pair's first."""
-    camera = scaled_camera(shown.camera, options.scale)
-    offscreen = Offscreen(renderer, sorter, None if lod is None else lod.choose(camera))
-    return _take(offscreen, loaded, shown, options, save_eyes, extra, path, camera)
+    never overwrites anything. Returns every (png, json) pair written, the left side's or
+    the pair's first."""
+    camera = scaled_camera(shot.shown.camera, options.scale)
+    offscreen = Offscreen(renderer, sorter, None if shot.lod is None else shot.lod.choose(camera))
+    return _take(offscreen, shot, options, path, camera)
 
 
-def _take(offscreen: Offscreen, loaded: LoadedScene, shown: ShownView, options: ScreenshotOptions, save_eyes: bool,
-          extra: dict, path: str | Path | None, camera: Camera) -> list[Saved]:
-    scale = options.scale
+def _take(offscreen: Offscreen, shot: Shot, options: ScreenshotOptions, path: str | Path | None,
+          camera: Camera) -> list[Saved]:
+    loaded, shown, extra, scale = shot.loaded, shot.shown, shot.extra, options.scale
     scene_path = loaded.source.recorded_path
     sha256 = loaded.content_sha256
 
@@ -113,7 +128,7 @@ def _take(offscreen: Offscreen, loaded: LoadedScene, shown: ShownView, options: 
 
     if shown.stereo is not None:
         shots = [(image, sidecar(shown.settings, {**extra, "stereo_window_layout": shown.stereo.layout}, view), tag)
-                 for image, view, tag in _stereo_images(offscreen, camera, shown.settings, shown.stereo, save_eyes,
+                 for image, view, tag in _stereo_images(offscreen, camera, shown.settings, shown.stereo, shot.save_eyes,
                                                         shown.view)]
     elif shown.split is None:
         shots = [(render_shown(offscreen, camera, shown.settings, shown.view), sidecar(shown.settings, extra), "left")]
@@ -166,6 +181,53 @@ def _stereo_images(offscreen: Offscreen, camera: Camera, settings: RenderSetting
     if save_eyes:
         shots += [(left, replace(stereo, layout="left"), "left"), (right, replace(stereo, layout="right"), "right")]
     return shots
+
+
+class Captures:
+    """What the window saves of itself: screenshots (``options``: the folder and the
+    scale, which the panel edits; ``requested``: one at the end of the next frame;
+    ``saved``: every (png, json) pair of the last, the left side's or the stereo pair's
+    first) and its own image (``keep_window``: keep the next frame's, in ``window``:
+    (H, W, 3) uint8, the panel included)."""
+
+    def __init__(self, options: ScreenshotOptions):
+        self.options = options
+        self.requested = False
+        self.saved: list[Saved] = []
+        self.keep_window = False
+        self.window: np.ndarray | None = None
+
+    @property
+    def last(self) -> Saved | None:
+        """The (png, json) pair of the last screenshot (the left side's, or the stereo pair's)."""
+        return self.saved[0] if self.saved else None
+
+    def request(self) -> None:
+        """A screenshot at the end of the next frame."""
+        self.requested = True
+
+    def take(self, renderer, sorter: DepthSorter, shot: Shot, path: str | Path | None = None) -> Saved:
+        """Saves ``shot`` (:func:`take_screenshots`); returns :attr:`last`."""
+        self.saved = take_screenshots(renderer, sorter, shot, self.options, path)
+        return self.last
+
+    def frame_shown(self, image: Callable[[], np.ndarray]) -> None:
+        """The frame is in the window: its ``image()`` is kept when asked for."""
+        if self.keep_window:
+            self.keep_window = False
+            self.window = image()
+
+    def frame_done(self, save: Callable[[], object], panel: PanelState) -> None:
+        """The frame is over: the screenshot requested is saved by ``save``; ``panel``'s
+        lines say what was written, or why nothing was."""
+        if not self.requested:
+            return
+        self.requested = False
+        try:
+            save()
+            panel.message, panel.error = saved_message(self.saved), ""
+        except (UserError, MemoryError, moderngl.Error) as exc:
+            panel.error = f"error: screenshot not saved: {one_line(exc)}"
 
 
 def saved_message(saved: list[Saved]) -> str:

@@ -16,7 +16,8 @@ from raygs_viewer.camera.navigation import MAX_DT
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.camera.stereo import StereoView
 from raygs_viewer.render.gl.results import OrderStats
-from raygs_viewer.sort.request import Order, SortRequest, SortResult
+from raygs_viewer.sort.request import Order, SortResult
+from raygs_viewer.viewer.frame import Frame
 
 
 @dataclass
@@ -75,27 +76,36 @@ class FrameStats:
         """Frame ``frame_index`` asked for sort request ``serial``."""
         self.request_frames.setdefault(serial, frame_index)
 
-    def order_to_draw(self, result: SortResult | None, asked: SortRequest, frame_index: int,
-                      camera: Camera | None = None, now: float | None = None) -> tuple[Mapping[str, Order], int]:
-        """({sort key: order}, sort request serial) frame ``frame_index`` draws: the
-        newest finished sort ``result`` (None: no orders, serial 0), noting its age
-        (frames; and, against this frame's ``camera`` at ``now``, a perf_counter time,
-        milliseconds, degrees turned and distance moved), its time and what it keeps
-        visible. ``asked``: this frame's request, which an up-to-date result answers."""
+    def new_sorter(self, kept: SortResult | None, frame_index: int) -> None:
+        """A new scene's sorter: the requests asked of the old one are gone; ``kept``, the
+        old one's result drawn until the new one's first (as serial 0), stays as old as it
+        was (frame ``frame_index`` asked for it if no request is known)."""
+        asked = None if kept is None else self.request_frames.get(kept.serial, frame_index)
+        self.request_frames.clear()
+        if kept is not None:
+            self.request_frames[0] = asked
+
+    def order_to_draw(self, result: SortResult | None, frame: Frame, now: float | None = None
+                      ) -> tuple[Mapping[str, Order], int]:
+        """({sort key: order}, sort request serial) ``frame`` draws: the newest finished
+        sort ``result`` (None: no orders, serial 0), noting its age (frames; and, against
+        the frame's camera at ``now``, a perf_counter time, milliseconds, degrees turned
+        and distance moved), its time and what it keeps visible. An up-to-date result
+        answers the frame's own sort request."""
+        frame_index, camera = frame.index, frame.camera
         self.order_age_ms = self.order_turned_degrees = self.order_moved = 0.0
         if result is None:
             self.order_age = frame_index - min(self.request_frames.values(), default=frame_index)
             return {}, 0
         for older in [n for n in self.request_frames if n < result.serial]:  # answered or skipped
             del self.request_frames[older]
-        current = result.request == asked
+        current = result.request == frame.sort
         self.order_age = 0 if current else frame_index - self.request_frames.get(result.serial, frame_index)
         if not current:
             now = time.perf_counter() if now is None else now
             self.order_age_ms = max(0.0, 1000.0 * (now - result.requested_at))
-            if camera is not None:
-                self.order_turned_degrees = turned_degrees(result.request.camera.R, camera.R)
-                self.order_moved = float(np.linalg.norm(camera.center - result.request.camera.center))
+            self.order_turned_degrees = turned_degrees(result.request.camera.R, camera.R)
+            self.order_moved = float(np.linalg.norm(camera.center - result.request.camera.center))
         if result.serial != self.drawn_serial:
             self.all_sort_times.append(result.seconds)
         self.sort_seconds = result.seconds

@@ -11,6 +11,7 @@ from raygs_viewer.camera.navigation import LOOK_RADIANS_PER_PIXEL, Navigator, Po
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.camera.stereo import StereoView, composed_size, eye_cameras
 from raygs_viewer.scene.loader import LoadedScene
+from raygs_viewer.viewer.frame import Framing
 from raygs_viewer.viewer.state import NavigationChoices, PanelState
 
 
@@ -26,6 +27,7 @@ class ViewControl:
         a window of ``aspect`` (width / height)."""
         self.cameras = loaded.cameras
         self.panel = panel
+        self.aspect = aspect
         self.center, self.radius = scene_bounds(loaded.framed)
         self.training_index: int | None = None
         if start_camera is not None:
@@ -67,30 +69,36 @@ class ViewControl:
         self.training_index = None
         self.lens = self.lens.with_fov(fov_y_degrees)
 
-    def reset(self, aspect: float, stereo: StereoView | None) -> None:
+    def reset(self, window: tuple[int, int], stereo: StereoView | None) -> None:
         """Frames the scene again with a free lens of the same field of view, for a
-        window of ``aspect``, or for the eyes of ``stereo``'s headset."""
+        ``window`` of that (width, height) (none yet: of the aspect the view was made
+        for), or for the eyes of ``stereo``'s headset."""
         self.set_fov(self.lens.fov_y_degrees)
-        fov = self.lens.fov_y_degrees
+        fov, (width, height) = self.lens.fov_y_degrees, window
+        aspect = width / height if width > 0 and height > 0 else self.aspect
         if stereo is not None:  # frame the scene for the eyes, not the window
             fov, aspect = stereo.headset.fov_y, stereo.headset.width / stereo.headset.height
         self.navigator.reset(framing_pose(self.center, self.radius, self.navigator.up, fov, aspect))
 
-    def turn(self, degrees: float) -> None:
-        """Turntable: orbit the target by a fixed angle per frame (not per second), so a
-        scripted run draws the same views on any machine."""
+    def advance(self, dt: float, turntable: float = 0.0) -> None:
+        """Moves the view on by a frame of ``dt`` seconds (a flight, the keys held), and with
+        ``turntable`` orbits the target by that many degrees per frame (not per second),
+        so a scripted run draws the same views on any machine."""
+        self.navigator.advance(dt)
+        if not turntable:
+            return
         if self.navigator.mode != "orbit":
             self.navigator.set_mode("orbit")
-        self.navigator.rotate(math.radians(degrees) / LOOK_RADIANS_PER_PIXEL, 0.0)
+        self.navigator.rotate(math.radians(turntable) / LOOK_RADIANS_PER_PIXEL, 0.0)
 
-    def camera(self, width: int, height: int, stereo: StereoView | None
-               ) -> tuple[Camera, tuple[int, int, int, int], tuple[Camera, Camera] | None]:
-        """(camera, viewport, eye cameras) for a width x height framebuffer: the
-        viewport-sized camera, or in stereo the midpoint between the eyes at the
-        headset's per-eye size and field of view, its composed image letterboxed."""
+    def camera(self, width: int, height: int, stereo: StereoView | None) -> Framing:
+        """Where a width x height framebuffer's frame looks from: the viewport-sized
+        camera, or in stereo the midpoint between the eyes at the headset's per-eye size
+        and field of view, its composed image letterboxed, and the eye cameras (made here
+        only: the frame's sort culls for them and the stereo frame draws them)."""
         camera = self.lens.camera(self.navigator.pose, width, height)
         if stereo is None:
-            return camera, self.lens.viewport(width, height), None
+            return Framing(camera, self.lens.viewport(width, height), None)
         camera = stereo.headset.camera(camera)
         shown_width, shown_height = composed_size(camera.width, camera.height, stereo.layout)
-        return camera, letterbox(width, height, shown_width / shown_height), eye_cameras(camera, stereo.rig)
+        return Framing(camera, letterbox(width, height, shown_width / shown_height), eye_cameras(camera, stereo.rig))

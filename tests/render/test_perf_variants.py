@@ -482,7 +482,7 @@ def _count_gl_objects(monkeypatch) -> list[str]:
 
 
 def _work(viewer) -> dict:
-    return dataclasses.asdict(viewer.renderer.counters)
+    return dataclasses.asdict(viewer.scene.renderer.counters)
 
 
 def test_still_window_runs_no_passes(open_viewer):
@@ -502,10 +502,10 @@ def test_new_order_for_the_drawn_view_uploads_without_preprocessing(open_viewer)
     assert gate.inside.wait(timeout=30)  # the first sort runs, held at the gate
     drive.frames(2)
     work = _work(viewer)
-    assert viewer.sorter.finished == 0 and viewer.stats.visible == 0
+    assert viewer.scene.sorter.finished == 0 and viewer.stats.visible == 0
     assert work["preprocessed"] == 1 and work["uploads"] == 0  # the view drawn, with no order yet
     gate.release.set()
-    result = viewer.sorter.wait(viewer.sorter.requested, timeout=30)
+    result = viewer.scene.sorter.wait(viewer.scene.sorter.requested, timeout=30)
     assert result is not None
     drive.frames(1)
     assert viewer.stats.drawn_serial == result.serial and viewer.stats.order_age == 0
@@ -534,12 +534,12 @@ def test_turning_camera_makes_no_gl_objects_per_frame(open_viewer, monkeypatch, 
         assert viewer.right_settings() is not None
     for _ in range(4):  # warm-up: targets, shader variants, the first orders
         drive.frames(1)
-        viewer.sorter.wait(viewer.sorter.requested, timeout=30)
+        viewer.scene.sorter.wait(viewer.scene.sorter.requested, timeout=30)
     before = _work(viewer)
     made = _count_gl_objects(monkeypatch)
     for _ in range(10):
         drive.frames(1)
-        viewer.sorter.wait(viewer.sorter.requested, timeout=30)  # a new order for the next frame
+        viewer.scene.sorter.wait(viewer.scene.sorter.requested, timeout=30)  # a new order for the next frame
     monkeypatch.undo()
     after = _work(viewer)
     passes = {"mono": 1, "stereo": 2, "split": 2}[view]  # each pass draws the frame's one order

@@ -165,17 +165,36 @@ def test_draw_eyes_returns_each_eye_s_result_in_the_left_eye_s_depth_range(rende
     settings = RenderSettings()
     with DepthSorter(renderer.scene) as sorter:
         order = stereo_order(sorter, MID, settings, rig)
-    left_eye, right_eye = eye_cameras(MID, rig)
+    eyes = left_eye, right_eye = eye_cameras(MID, rig)
     frame = StereoFrame(renderer.ctx)
     try:
-        left, right = frame.draw_eyes(renderer, MID, settings, rig, order, ChannelView("depth"))
+        left, right = frame.draw_eyes(renderer, MID, settings, eyes, order, ChannelView("depth"))
         own_left = rendered(renderer, left_eye, settings, order, color_origin=MID.center, view=ChannelView("depth"))
         own_right = rendered(renderer, right_eye, settings, order, color_origin=MID.center, view=ChannelView("depth"))
         assert left.view_range is not None and left.view_range == own_left[1].view_range
         assert right.view_range == left.view_range != own_right[1].view_range  # the right eye's own would differ
-        colour = frame.draw_eyes(renderer, MID, settings, rig, order)
+        colour = frame.draw_eyes(renderer, MID, settings, eyes, order)
         assert all(result.view_range is None and result.order_stats is None for result in colour)
-        per_pixel = frame.draw_eyes(renderer, MID, RenderSettings(order="per-pixel"), rig, order)
+        per_pixel = frame.draw_eyes(renderer, MID, RenderSettings(order="per-pixel"), eyes, order)
         assert [result.order_stats.width for result in per_pixel] == [left_eye.width, right_eye.width]
+    finally:
+        frame.release()
+
+
+def test_draw_eyes_draws_the_eyes_it_is_handed(renderer, monkeypatch):
+    """The eyes are the caller's (the window makes them once a frame, with the frame's
+    sort): the stereo frame derives none of its own, whatever they are."""
+    settings = RenderSettings()
+    with DepthSorter(renderer.scene) as sorter:
+        order = stereo_order(sorter, MID, settings, StereoRig())
+    eyes = eye_cameras(MID, StereoRig(ipd=0.3, scene_scale=0.5))  # not what StereoRig() would make
+    drawn = []
+    render_into = renderer.render_into
+    monkeypatch.setattr(renderer, "render_into", lambda target, eye, *args, **kwargs: (
+        drawn.append(eye), render_into(target, eye, *args, **kwargs))[1])
+    frame = StereoFrame(renderer.ctx)
+    try:
+        frame.draw_eyes(renderer, MID, settings, eyes, order)
+        assert len(drawn) == 2 and all(made is eye for made, eye in zip(drawn, eyes)) and frame.eyes is eyes
     finally:
         frame.release()

@@ -242,7 +242,7 @@ def test_panel_accuracy_controls_change_the_settings_and_the_image(open_viewer):
     drive.click("alpha clamp 0.99")
     expected = replace(expected, alpha_clamp=True)
     check()
-    if viewer.renderer.supports(RenderSettings(transmittance_cutoff=True)) is None:
+    if viewer.scene.renderer.supports(RenderSettings(transmittance_cutoff=True)) is None:
         drive.click("transmittance cut-off 1e-4")
         expected = replace(expected, transmittance_cutoff=True)
         check()
@@ -250,7 +250,7 @@ def test_panel_accuracy_controls_change_the_settings_and_the_image(open_viewer):
 
 def test_controls_this_gpu_cannot_render_are_greyed_out(open_viewer, monkeypatch):
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
-    monkeypatch.setattr(viewer.renderer, "supports",
+    monkeypatch.setattr(viewer.scene.renderer, "supports",
                         lambda settings, geometry=False: "no framebuffer fetch" if settings.transmittance_cutoff else None)
     drive.frames(2)
     drive.click("transmittance cut-off 1e-4")
@@ -260,14 +260,14 @@ def test_controls_this_gpu_cannot_render_are_greyed_out(open_viewer, monkeypatch
 def test_settings_the_renderer_refuses_show_an_error_and_keep_running(open_viewer, monkeypatch):
     from raygs_viewer.errors import UserError
     viewer, drive = open_viewer(hide_panel=True)
-    render_into = viewer.renderer.render_into
+    render_into = viewer.scene.renderer.render_into
 
     def refusing(target, camera, settings, order, *args, **kwargs):
         if settings.transmittance_cutoff:
             raise UserError("the transmittance cut-off needs GL_EXT_shader_framebuffer_fetch")
         return render_into(target, camera, settings, order, *args, **kwargs)
 
-    monkeypatch.setattr(viewer.renderer, "render_into", refusing)
+    monkeypatch.setattr(viewer.scene.renderer, "render_into", refusing)
     drive.settle()
     viewer.settings = replace(viewer.settings, transmittance_cutoff=True)
     drive.frames(2)
@@ -311,7 +311,7 @@ def test_start_settings_are_checked_before_the_window_opens(restore_gl_ctx):
 def test_the_sort_is_asked_with_the_cull_of_what_is_shown(open_viewer):
     viewer, drive = open_viewer(hide_panel=True, sorter_factory=RecordingSorter)
     drive.frames(1)
-    asked = viewer.sorter.asked
+    asked = viewer.scene.sorter.asked
     assert asked[-1] == (1 / 255, 0.0)
     viewer.settings = replace(viewer.settings, mip=True)
     drive.frames(1)
@@ -324,7 +324,7 @@ def test_the_sort_is_asked_with_the_cull_of_what_is_shown(open_viewer):
     drive.frames(1)
     assert asked[-1] == (1 / 255, None)
     drive.settle()
-    assert viewer.sorter.latest().request.dilation is None  # the drawn order was culled that way
+    assert viewer.scene.sorter.latest().request.dilation is None  # the drawn order was culled that way
     # The split view sorts once for both sides, with the more conservative cull of the two.
     viewer.settings, viewer.split.on = replace(viewer.settings, mode="raygs", p_min=0.01), True
     viewer.split.preset = "RayGS p_min 1e-3"  # no MIP: dilation 0
@@ -367,9 +367,9 @@ def test_split_view_shows_a_left_and_b_right(open_viewer, preset):
     for c in (column - 1, column):  # a boundary one column off would show
         assert np.abs(rgb_a[:, c] - rgb_b[:, c]).max() > 2
     # The window as shown: the same, apart from the divider line and the side labels.
-    viewer.capture_window_next = True
+    viewer.captures.keep_window = True
     drive.frames(1)
-    window = viewer.window_capture[y:y + h, x:x + w].astype(int)
+    window = viewer.captures.window[y:y + h, x:x + w].astype(int)
     covered = np.zeros((h, w), bool)
     for name in ("divider", "left label", "right label"):
         x0, y0, x1, y1 = viewer.overlay_rects[name]
@@ -453,9 +453,9 @@ def test_split_view_screenshot_saves_each_side_with_its_sidecar(open_viewer, tmp
     expected = {"left": to_rgb8(headless(viewer, a)).astype(int), "right": to_rgb8(headless(viewer, b)).astype(int)}
     drive.tap(imgui.Key.f12)
     assert viewer.panel.error == ""
-    saved = viewer.last_screenshots
+    saved = viewer.captures.saved
     assert [png.stem.rsplit("-", 1)[1] for png, _ in saved] == ["left", "right"]
-    assert viewer.last_screenshot == saved[0]
+    assert viewer.captures.last == saved[0]
     folder = tmp_path / "shots"
     assert sorted(p.name for p in folder.iterdir()) == sorted(p.name for pair in saved for p in pair)
     for png, sidecar in saved:
@@ -471,7 +471,7 @@ def test_split_view_screenshot_saves_each_side_with_its_sidecar(open_viewer, tmp
     # A second capture never overwrites the first.
     first = [png.read_bytes() for png, _ in saved]
     drive.tap(imgui.Key.f12)
-    second = viewer.last_screenshots
+    second = viewer.captures.saved
     assert len(second) == 2 and not {p for pair in second for p in pair} & {p for pair in saved for p in pair}
     assert [png.read_bytes() for png, _ in saved] == first
     # Each side reproduces headlessly from its own sidecar.
@@ -489,7 +489,7 @@ def test_f12_screenshot_with_sidecar_reproduces_headlessly(open_viewer, tmp_path
     drive.move_mouse(PANEL_WIDTH - 5, PANEL_HEIGHT - 5)
     drive.settle()
     drive.tap(imgui.Key.f12)
-    png, sidecar = viewer.last_screenshot
+    png, sidecar = viewer.captures.last
     assert png.parent == tmp_path / "shots" and sidecar == png.with_suffix(".json")
     shot = np.asarray(Image.open(png))
     assert shot.shape == (PANEL_HEIGHT, PANEL_WIDTH, 3)
@@ -508,16 +508,16 @@ def test_f12_screenshot_with_sidecar_reproduces_headlessly(open_viewer, tmp_path
     # A second capture never overwrites the first.
     first = png.read_bytes()
     drive.tap(imgui.Key.f12)
-    second, _ = viewer.last_screenshot
+    second, _ = viewer.captures.last
     assert second != png and png.read_bytes() == first
 
 
 def test_panel_button_saves_at_the_chosen_scale(open_viewer):
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
     drive.frames(2)
-    viewer.screenshots.scale = 2.0
+    viewer.captures.options.scale = 2.0
     drive.click("Save screenshot (F12)")
-    png, sidecar = viewer.last_screenshot
+    png, sidecar = viewer.captures.last
     assert Image.open(png).size == (2 * PANEL_WIDTH, 2 * PANEL_HEIGHT)
     assert json.loads(sidecar.read_text())["image"]["scale"] == 2.0
 
@@ -526,7 +526,7 @@ def test_unwritable_screenshot_folder_reports_and_keeps_running(open_viewer, tmp
     viewer, drive = open_viewer(hide_panel=True)
     blocker = tmp_path / "not-a-folder"
     blocker.write_text("x")
-    viewer.screenshots.folder = str(blocker / "shots")
+    viewer.captures.options.folder = str(blocker / "shots")
     drive.frames(1)
     drive.tap(imgui.Key.f12)
     assert viewer.panel.error.startswith("error: ") and "\n" not in viewer.panel.error
@@ -581,13 +581,13 @@ def test_frames_never_wait_for_the_sort(open_viewer):
     drive.key(imgui.Key.w, False)
     drive.frames(1)
     # Twelve frames completed while the only sort ever started was still blocked.
-    assert viewer.sorter.started == 1 and viewer.sorter.finished == 0
+    assert viewer.scene.sorter.started == 1 and viewer.scene.sorter.finished == 0
     assert viewer.stats.frames_with_sort_running >= 11
     assert viewer.stats.order_age >= 11 and viewer.stats.visible == 0
-    assert viewer.sorter.superseded >= 9  # views that went by were never sorted
+    assert viewer.scene.sorter.superseded >= 9  # views that went by were never sorted
     gate.release.set()
     drive.settle()
-    assert viewer.stats.drawn_serial == viewer.sorter.latest().serial
+    assert viewer.stats.drawn_serial == viewer.scene.sorter.latest().serial
     assert_matches(window_image(viewer), headless(viewer))
 
 
@@ -711,9 +711,9 @@ def test_window_shows_the_image_letterboxed_and_the_panel_on_top(open_viewer, tm
     viewer, drive = open_viewer(camera=str(path), width=PANEL_WIDTH, height=PANEL_HEIGHT)
     viewer.panel.show_panel = False
     drive.settle()
-    viewer.capture_window_next = True
+    viewer.captures.keep_window = True
     drive.frames(1)
-    window = viewer.window_capture.astype(int)
+    window = viewer.captures.window.astype(int)
     x, y, w, h = viewer.viewport
     if width < height:  # bars left and right
         assert (w, h) == (PANEL_HEIGHT // 2, PANEL_HEIGHT) and (x, y) == ((PANEL_WIDTH - w) // 2, 0)
@@ -732,18 +732,18 @@ def test_window_shows_the_image_letterboxed_and_the_panel_on_top(open_viewer, tm
     assert outside.any() and np.abs(window[outside] - grey).max() <= 1
 
     viewer.panel.show_panel = True
-    viewer.capture_window_next = True
+    viewer.captures.keep_window = True
     drive.frames(2)
-    viewer.capture_window_next = True
+    viewer.captures.keep_window = True
     drive.frames(1)
-    with_panel = viewer.window_capture.astype(int)
+    with_panel = viewer.captures.window.astype(int)
     x0, y0, x1, y1 = (int(v) for v in drive.panel.rect("Reset view (R)"))
     assert np.abs(with_panel[y0:y1, x0:x1] - window[y0:y1, x0:x1]).max() > 50  # the panel is drawn
     right = 400  # the panel is 360 wide, at x = 10
     assert np.abs(with_panel[:, right:] - window[:, right:]).max() <= 1  # and not over the rest
     # A screenshot shows the scene alone.
     drive.tap(imgui.Key.f12)
-    shot = np.asarray(Image.open(viewer.last_screenshot[0])).astype(int)
+    shot = np.asarray(Image.open(viewer.captures.last[0])).astype(int)
     assert np.abs(shot - scene).max() <= 1
 
 

@@ -39,8 +39,8 @@ def expected_picture(viewer, view: ChannelView, camera=None, settings=None, orde
     """(picture, range used): channel_picture of render_channels of the view."""
     camera, settings = camera or viewer.camera, settings or viewer.settings
     if order is None:
-        order = exact_order(viewer.exact_sorter, camera, settings)
-    channels = viewer.renderer.render_channels(camera, settings, order, color_origin=color_origin)
+        order = exact_order(viewer.scene.exact_sorter, camera, settings)
+    channels = viewer.scene.renderer.render_channels(camera, settings, order, color_origin=color_origin)
     return channel_picture(channels.in_space(view.normal_space, camera), view)
 
 
@@ -154,7 +154,7 @@ def test_one_side_of_the_split_view_shows_it_and_the_other_the_colour(open_viewe
     assert viewer.drawer.view_range == pytest.approx(used, rel=1e-4)
     # Each side's screenshot is what it shows, and its sidecar says so.
     viewer.save_screenshot()
-    views = {png.stem.rsplit("-", 1)[1]: load_sidecar(sidecar).channel_view for png, sidecar in viewer.last_screenshots}
+    views = {png.stem.rsplit("-", 1)[1]: load_sidecar(sidecar).channel_view for png, sidecar in viewer.captures.saved}
     assert views[side] == ChannelView("depth", viewer.drawer.view_range)
     assert views["left" if side == "right" else "right"] is None
 
@@ -165,7 +165,7 @@ def test_both_stereo_eyes_show_it(open_viewer):
     viewer.view_mode.channel = "depth"
     drive.settle()
     camera, rig = viewer.camera, viewer.stereo.view().rig
-    order = stereo_order(viewer.exact_sorter, camera, viewer.settings, rig)
+    order = stereo_order(viewer.scene.exact_sorter, camera, viewer.settings, rig)
     left_eye, right_eye = eye_cameras(camera, rig)
     left, used = expected_picture(viewer, ChannelView("depth"), left_eye, order=order, color_origin=camera.center)
     right, _ = expected_picture(viewer, ChannelView("depth", used), right_eye, order=order,
@@ -196,7 +196,7 @@ def test_a_split_screenshot_saves_each_side_in_the_range_shown(open_viewer):
     viewer.split.on = True
     viewer.view_mode.channel = "median_depth"
     drive.settle()
-    saved = viewer.save_screenshot() and viewer.last_screenshots
+    saved = viewer.save_screenshot() and viewer.captures.saved
     assert [png.stem.rsplit("-", 1)[1] for png, _ in saved] == ["left", "right"]
     for (png, sidecar), shown in zip(saved, (window_image(viewer), right_image(viewer))):
         image = np.asarray(Image.open(png).convert("RGB")).astype(int)
@@ -208,13 +208,13 @@ def test_the_colour_view_draws_without_a_view_argument(open_viewer, monkeypatch)
     """Colour is the renderer's plain path: no channel view reaches render_into."""
     viewer, drive = small(open_viewer)
     calls = []
-    render_into = viewer.renderer.render_into
+    render_into = viewer.scene.renderer.render_into
 
     def recording(*args, **kwargs):
         calls.append(kwargs.get("view"))
         return render_into(*args, **kwargs)
 
-    monkeypatch.setattr(viewer.renderer, "render_into", recording)
+    monkeypatch.setattr(viewer.scene.renderer, "render_into", recording)
     viewer.settings = replace(viewer.settings, p_min=viewer.settings.p_min * 1.01)  # something to draw
     drive.frames(2)
     viewer.view_mode.channel = "alpha"

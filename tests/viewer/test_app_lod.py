@@ -170,7 +170,7 @@ def test_coarsest_level_first_then_each_finer_one_keeping_the_view(open_viewer, 
         assert line(drive, "levels read") == "levels read: 2 of 0..2 (0 the finest)"
         assert any(label.startswith("reading finer levels") for label in drive.panel.labels("progress_bar"))
         coarse = viewer.drawer.mono.left.read()
-        assert viewer.lod.choice.levels.tolist() == [2, 2, 2, 2]
+        assert viewer.scene.lod.choice.levels.tolist() == [2, 2, 2, 2]
         np.testing.assert_allclose(coarse, expected(viewer, lod, distance=DISTANCE), atol=1e-5)
         assert coarse[..., 3].max() > 0.5
         # A screenshot now records the levels read, and renders again from them alone.
@@ -192,7 +192,7 @@ def test_coarsest_level_first_then_each_finer_one_keeping_the_view(open_viewer, 
         np.testing.assert_array_equal(viewer.drawer.mono.left.read(), coarse)
         release.set()
         drive.settle()
-        assert viewer.lod.choice.levels.tolist() == [1, 1, 2, 2]
+        assert viewer.scene.lod.choice.levels.tolist() == [1, 1, 2, 2]
         middle = viewer.drawer.mono.left.read()
         np.testing.assert_allclose(middle, expected(viewer, viewer.loaded.lod, distance=DISTANCE), atol=1e-5)
         assert np.abs(middle - coarse).max() > 0.1
@@ -203,7 +203,7 @@ def test_coarsest_level_first_then_each_finer_one_keeping_the_view(open_viewer, 
         assert viewer.loaded.lod.loaded.all() and viewer.loaded.sha256
         assert viewer.view.navigator.pose.position.tolist() == [0.0, 0.0, 0.0]
         drive.settle()
-        assert viewer.lod.choice.levels.tolist() == [0, 1, 2, 2]
+        assert viewer.scene.lod.choice.levels.tolist() == [0, 1, 2, 2]
         assert line(drive, "levels read") == "levels read: 2, 1, 0 of 0..2 (0 the finest)"
         np.testing.assert_allclose(viewer.drawer.mono.left.read(),
                                    expected(viewer, viewer.loaded.lod, distance=DISTANCE), atol=1e-5)
@@ -222,7 +222,7 @@ def test_the_command_line_scene_shows_its_coarsest_level_then_reads_the_rest(ope
     assert viewer.loaded.lod.loaded.all()
     assert viewer.view.navigator.pose.position.tolist() == pose.position.tolist()
     drive.settle()
-    assert viewer.lod.choice.levels.tolist() == [0, 1, 2, 2]
+    assert viewer.scene.lod.choice.levels.tolist() == [0, 1, 2, 2]
 
 
 def test_a_fixed_level_reads_that_level_alone_and_per_view_reads_the_rest(open_viewer, streamed):
@@ -231,7 +231,7 @@ def test_a_fixed_level_reads_that_level_alone_and_per_view_reads_the_rest(open_v
     drive.frames(3)
     assert viewer.loaded.lod.loaded.tolist() == [False, True, False] and not viewer.scenes.loader.busy
     drive.settle()
-    assert viewer.lod.choice.levels.tolist() == [1, 1, 1, 1]
+    assert viewer.scene.lod.choice.levels.tolist() == [1, 1, 1, 1]
     np.testing.assert_allclose(viewer.drawer.mono.left.read(), expected(viewer, viewer.loaded.lod, level=1),
                                atol=1e-5)
     click_choice(drive, "level", "per view")
@@ -240,7 +240,7 @@ def test_a_fixed_level_reads_that_level_alone_and_per_view_reads_the_rest(open_v
     drive.wait_for_load()
     assert viewer.loaded.lod.loaded.all()
     drive.settle()
-    assert viewer.lod.choice.levels.tolist() == [0, 1, 2, 2]
+    assert viewer.scene.lod.choice.levels.tolist() == [0, 1, 2, 2]
 
 
 def test_the_budget_changes_what_is_drawn(open_viewer, streamed):
@@ -253,7 +253,7 @@ def test_the_budget_changes_what_is_drawn(open_viewer, streamed):
     assert line(drive, "parts at each level") == "parts at each level: 0: 1, 1: 1, 2: 2"
     np.testing.assert_allclose(full, expected(viewer, lod, distance=DISTANCE), atol=1e-5)
     drawn = viewer.drawer.orders[viewer.settings.sort_key]
-    np.testing.assert_array_equal(drawn.spans, viewer.lod.choice.spans)  # preprocessing only those
+    np.testing.assert_array_equal(drawn.spans, viewer.scene.lod.choice.spans)  # preprocessing only those
     assert not any(text.startswith("the budget is below") for text in texts(drive))
 
     drive.click_left_end("##budget")  # a budget of 1: below even the coarsest level
@@ -276,7 +276,7 @@ def test_colour_by_level_tints_each_level_and_goes_back(open_viewer, streamed):
     lod = viewer.loaded.lod
     own = viewer.drawer.mono.left.read()
     drive.click("colour by level")
-    assert viewer.lod.tint
+    assert viewer.scene.lod.tint
     drive.settle()
     tinted = viewer.drawer.mono.left.read()
     picked = choose(lod, viewer.camera, budget=DEFAULT_WINDOW_BUDGET, distance=DISTANCE)
@@ -285,7 +285,7 @@ def test_colour_by_level_tints_each_level_and_goes_back(open_viewer, streamed):
     assert np.abs(tinted - own).max() > 0.1
     # A screenshot would not show the scene's own colours: refused, and said so.
     drive.tap(imgui.Key.f12)
-    assert "colour by level" in viewer.panel.error and viewer.last_screenshot is None
+    assert "colour by level" in viewer.panel.error and viewer.captures.last is None
 
     # One level everywhere: the picture is that level's colour.
     for level, entry in ((0, "level 0 (finest)"), (2, "level 2 (coarsest)")):
@@ -297,7 +297,7 @@ def test_colour_by_level_tints_each_level_and_goes_back(open_viewer, streamed):
         assert int(np.argmax(colour)) == int(np.argmax(LEVEL_COLOURS[level])), (level, colour)
     click_choice(drive, "level", "per view")
     drive.click("colour by level")
-    assert not viewer.lod.tint
+    assert not viewer.scene.lod.tint
     drive.settle()
     np.testing.assert_array_equal(viewer.drawer.mono.left.read(), own)
 
@@ -328,7 +328,7 @@ def test_a_screenshot_draws_the_choice_for_its_camera_and_renders_again_from_its
     drawn = viewer.drawer.orders[viewer.settings.sort_key]
     # A budget the window has not drawn yet: the screenshot makes the choice for itself.
     viewer.settings = replace(viewer.settings, lod_budget=40)
-    viewer.screenshots.scale = 2.0
+    viewer.captures.options.scale = 2.0
     png, sidecar = viewer.save_screenshot()
     assert viewer.drawer.orders[viewer.settings.sort_key] is drawn  # the window's own order stands
     recorded = json.loads(sidecar.read_text())
@@ -352,7 +352,7 @@ def test_a_stereo_screenshot_draws_the_choice_for_its_midpoint(open_viewer, stre
     shot = np.asarray(Image.open(png))
     lod, camera = viewer.loaded.lod, viewer.camera  # the eyes' midpoint
     picked = choose(lod, camera, budget=40, distance=DISTANCE)
-    assert picked.levels.tolist() != viewer.lod.choice.levels.tolist()
+    assert picked.levels.tolist() != viewer.scene.lod.choice.levels.tolist()
     subset = lod.subset(picked.spans)
     renderer = GLRenderer(viewer.ctx, subset)
     try:

@@ -57,12 +57,12 @@ class RecordingRenderer(GLRenderer):
 
 def sorted_now(viewer, p_min: float, key: str) -> np.ndarray:
     """The indices of the exact sort of the viewer's view by ``key``."""
-    return viewer.exact_sorter.sort(SortRequest(viewer.camera, p_min, keys=(key,))).order.indices
+    return viewer.scene.exact_sorter.sort(SortRequest(viewer.camera, p_min, keys=(key,))).order.indices
 
 
 def drawn_into(viewer, target) -> tuple[RenderSettings, Order]:
     """The settings and the order of the last draw into ``target``."""
-    for drawn_target, settings, order in reversed(viewer.renderer.drawn):
+    for drawn_target, settings, order in reversed(viewer.scene.renderer.drawn):
         if drawn_target is target:
             return settings, order
     raise AssertionError("nothing drawn into that target")
@@ -76,13 +76,13 @@ def open_recording(open_viewer, **options):
 def test_the_panel_sets_the_order_and_k_and_the_next_draw_uses_them(open_viewer):
     viewer, drive = open_recording(open_viewer, width=PANEL_WIDTH, height=PANEL_HEIGHT)
     drive.settle()
-    assert viewer.settings.order == "depth" and viewer.sorter.keys[-1] == ("depth",)
+    assert viewer.settings.order == "depth" and viewer.scene.sorter.keys[-1] == ("depth",)
     assert "K (window)" not in drive.panel  # K is shown for per pixel only
 
     click_choice(drive, "order", "distance")
     assert viewer.settings == RenderSettings(sh_degree=3, order="distance")
     drive.settle()
-    assert viewer.sorter.keys[-1] == ("distance",)
+    assert viewer.scene.sorter.keys[-1] == ("distance",)
     settings, order = drawn_into(viewer, viewer.drawer.mono.left)
     assert settings.order == "distance"
     np.testing.assert_array_equal(order.indices, sorted_now(viewer, settings.p_min, "distance"))
@@ -94,7 +94,7 @@ def test_the_panel_sets_the_order_and_k_and_the_next_draw_uses_them(open_viewer)
     assert viewer.settings.order == "per-pixel" and viewer.settings.order_k == 0
     drive.settle()
     key = viewer.settings.sort_key  # the global order per pixel is fed in
-    assert viewer.sorter.keys[-1] == (key,)
+    assert viewer.scene.sorter.keys[-1] == (key,)
     settings, order = drawn_into(viewer, viewer.drawer.mono.left)
     assert settings.per_pixel and settings.order_k == 0
     np.testing.assert_array_equal(order.indices, sorted_now(viewer, settings.p_min, key))
@@ -115,7 +115,7 @@ def test_the_panel_sets_the_order_and_k_and_the_next_draw_uses_them(open_viewer)
 
     click_choice(drive, "order", "depth")
     drive.settle()
-    assert viewer.sorter.keys[-1] == ("depth",) and viewer.stats.order_stats == (None, None)
+    assert viewer.scene.sorter.keys[-1] == ("depth",) and viewer.stats.order_stats == (None, None)
     assert viewer.panel.error == ""
 
 
@@ -166,8 +166,8 @@ def test_the_split_view_sorts_each_key_once_and_each_side_draws_its_own(open_vie
     drive.settle()
     a, b = viewer.settings, viewer.right_settings()
     assert b == apply_preset(a, preset)
-    assert sort_request(viewer.camera, a, b).keys == keys and viewer.sorter.keys[-1] == keys
-    result = viewer.sorter.latest()
+    assert sort_request(viewer.camera, a, b).keys == keys and viewer.scene.sorter.keys[-1] == keys
+    result = viewer.scene.sorter.latest()
     assert result.keys == keys
     left_settings, left_order = drawn_into(viewer, viewer.drawer.mono.left)
     right_settings, right_order = drawn_into(viewer, viewer.drawer.mono.right)
@@ -212,16 +212,16 @@ def test_stereo_sorts_both_eyes_by_the_settings_key(open_viewer):
     viewer, drive = open_recording(open_viewer, hide_panel=True, width=128, height=48, stereo=stereo,
                                    settings=RenderSettings(order="per-pixel"))
     drive.settle()
-    assert viewer.sorter.keys[-1] == ("depth",)
-    result = viewer.sorter.latest()
-    eye_orders = [order for _, settings, order in viewer.renderer.drawn[-2:]]
+    assert viewer.scene.sorter.keys[-1] == ("depth",)
+    result = viewer.scene.sorter.latest()
+    eye_orders = [order for _, settings, order in viewer.scene.renderer.drawn[-2:]]
     assert all(order is result.order_for("depth") for order in eye_orders)
     assert viewer.stats.order_stats == (replace(LISTS, width=0), None)
     viewer.settings = replace(viewer.settings, order="distance")
     drive.settle()
-    assert viewer.sorter.keys[-1] == ("distance",) and viewer.stats.order_stats == (None, None)
-    assert all(order is viewer.sorter.latest().order_for("distance")
-               for order in [order for _, settings, order in viewer.renderer.drawn[-2:]])
+    assert viewer.scene.sorter.keys[-1] == ("distance",) and viewer.stats.order_stats == (None, None)
+    assert all(order is viewer.scene.sorter.latest().order_for("distance")
+               for order in [order for _, settings, order in viewer.scene.renderer.drawn[-2:]])
 
 
 # -- the statistics' words -------------------------------------------------------------------------
@@ -245,10 +245,10 @@ def test_keys_reach_the_sorter_even_without_the_panel(open_viewer):
     drive.settle()
     viewer.settings = replace(viewer.settings, order="distance")
     drive.frames(1)
-    assert viewer.sorter.keys[-1] == ("distance",)
+    assert viewer.scene.sorter.keys[-1] == ("distance",)
     drive.settle()  # a result for the old key is not up to date: settle waits for the new one
-    assert viewer.sorter.latest().keys == ("distance",) and viewer.stats.order_age == 0
-    assert drawn_into(viewer, viewer.drawer.mono.left)[1] is viewer.sorter.latest().order_for("distance")
+    assert viewer.scene.sorter.latest().keys == ("distance",) and viewer.stats.order_age == 0
+    assert drawn_into(viewer, viewer.drawer.mono.left)[1] is viewer.scene.sorter.latest().order_for("distance")
 
 
 # -- screenshots ---------------------------------------------------------------------------------
@@ -263,7 +263,7 @@ def test_split_view_screenshots_record_each_sides_order_and_reproduce(open_viewe
     drive.settle()
     drive.tap(imgui.Key.f12)
     assert viewer.panel.error == ""
-    saved = viewer.last_screenshots
+    saved = viewer.captures.saved
     sides = [load_sidecar(sidecar).settings for _, sidecar in saved]
     assert sides == [viewer.settings, viewer.right_settings()]
     assert [(s.order, s.order_k) for s in sides] == [("per-pixel", 2), ("distance", 0)]
@@ -293,7 +293,7 @@ def test_the_window_draws_per_pixel_order_as_an_offscreen_render_does(open_viewe
         stats = viewer.stats.order_stats[0]
         assert stats is not None and stats.path == path and stats.fragments > 0
         shown = viewer.drawer.mono.left.read()
-        offscreen = viewer.renderer.render(viewer.camera, viewer.settings, viewer.sorter.latest().order_for("depth"))
+        offscreen = viewer.scene.renderer.render(viewer.camera, viewer.settings, viewer.scene.sorter.latest().order_for("depth"))
         np.testing.assert_array_equal(shown, offscreen)
         centres.append(viewer.camera.center)
     assert np.linalg.norm(centres[2] - centres[0]) > 0  # the camera moved between the draws

@@ -114,10 +114,10 @@ def test_missing_photo_is_one_line_and_screenshots_refuse_the_photo(open_viewer,
     at_camera(drive)
     viewer.photo.choose("photo")
     drive.frames(1)
-    viewer.request_screenshot()
+    viewer.captures.request()
     drive.frames(1)
     assert "screenshots save renders" in viewer.panel.error and "\n" not in viewer.panel.error
-    assert viewer.last_screenshot is None
+    assert viewer.captures.last is None
     at_camera(drive)
     assert viewer.photo.at == 1 and not viewer.photo.showing
     assert "view_001" in viewer.photo.status and "\n" not in viewer.photo.status

@@ -9,7 +9,6 @@ imgui's timing has recognised it, so no test waits on real time; single clicks a
 
 from __future__ import annotations
 
-from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -44,8 +43,8 @@ def medians(viewer, camera=None, order=None, **kwargs) -> np.ndarray:
     """(H, W) median depth of the whole view, rendered headlessly (with an exact sort of
     its own unless an ``order`` is given)."""
     camera = camera or viewer.camera
-    order = order or exact_order(viewer.exact_sorter, camera, viewer.settings)
-    return viewer.renderer.render_channels(camera, viewer.settings, order, **kwargs).median_depth
+    order = order or exact_order(viewer.scene.exact_sorter, camera, viewer.settings)
+    return viewer.scene.renderer.render_channels(camera, viewer.settings, order, **kwargs).median_depth
 
 
 def surface_pixel(median: np.ndarray, near: tuple[int, int] | None = None) -> tuple[int, int]:
@@ -93,11 +92,11 @@ def test_screen_positions_map_to_pixels_and_stereo_eyes():
     view = StereoPreview.of(EYE, on=True, layout="sbs", rig=StereoRig(ipd=0.2)).view()
     left, right = eye_cameras(camera, view.rig)
     sbs = (0, 0, 80, 30)
-    eye, u, v = stereo_pixel(45.5, 3.5, sbs, (1.0, 1.0), camera, view)
-    assert (u, v) == (5, 3) and np.array_equal(eye.t, right.t) and eye.cx == right.cx
-    eye, u, v = stereo_pixel(45.5, 3.5, sbs, (1.0, 1.0), camera, replace(view, layout="cross"))
-    assert (u, v) == (5, 3) and eye.cx == left.cx
-    eye, u, v = stereo_pixel(5.5, 3.5, (0, 0, 40, 30), (1.0, 1.0), camera, replace(view, layout="anaglyph"))
+    eye, u, v = stereo_pixel(45.5, 3.5, sbs, (1.0, 1.0), camera, (left, right), "sbs")
+    assert (u, v) == (5, 3) and eye is right
+    eye, u, v = stereo_pixel(45.5, 3.5, sbs, (1.0, 1.0), camera, (left, right), "cross")
+    assert (u, v) == (5, 3) and eye is left
+    eye, u, v = stereo_pixel(5.5, 3.5, (0, 0, 40, 30), (1.0, 1.0), camera, (left, right), "anaglyph")
     assert (u, v) == (5, 3) and eye is camera
 
 

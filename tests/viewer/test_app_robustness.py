@@ -63,13 +63,13 @@ class Shown:
 
     def __init__(self, viewer):
         self.loaded = viewer.loaded
-        self.renderer = viewer.renderer
+        self.renderer = viewer.scene.renderer
         self.R, self.t = viewer.camera.R.copy(), viewer.camera.t.copy()
         self.image = window_image(viewer).copy()
         self.window = presented(viewer)
 
     def assert_still_shown(self, viewer) -> None:
-        assert viewer.loaded is self.loaded and viewer.renderer is self.renderer
+        assert viewer.loaded is self.loaded and viewer.scene.renderer is self.renderer
         np.testing.assert_array_equal(viewer.camera.R, self.R)
         np.testing.assert_array_equal(viewer.camera.t, self.t)
         np.testing.assert_array_equal(window_image(viewer), self.image)
@@ -285,10 +285,10 @@ def _files(root: Path) -> dict[str, bytes]:
 
 
 def _assert_later_screenshots_work(viewer, drive, folder: Path) -> None:
-    viewer.screenshots.folder = str(folder)
+    viewer.captures.options.folder = str(folder)
     drive.tap(imgui.Key.f12)
     assert viewer.panel.error == ""
-    png, sidecar = viewer.last_screenshot
+    png, sidecar = viewer.captures.last
     assert png.parent == folder and png.is_file() and sidecar.is_file()
     assert Image.open(png).size == (viewer.camera.width, viewer.camera.height)
 
@@ -300,11 +300,11 @@ def test_a_screenshot_folder_that_cannot_be_made_reports_and_keeps_running(open_
     blocker = tmp_path / "blocker"
     blocker.write_bytes(b"precious")
     folder = blocker / "shots" if kind == "folder under a regular file" else blocker
-    viewer.screenshots.folder = str(folder)
+    viewer.captures.options.folder = str(folder)
     before = _files(tmp_path)
     drive.tap(imgui.Key.f12)
     assert_one_line_error(viewer, "screenshot not saved", str(folder))
-    assert viewer.last_screenshot is None
+    assert viewer.captures.last is None
     assert _files(tmp_path) == before  # nothing written, nothing replaced
     run_checked(drive, 3)
     _assert_later_screenshots_work(viewer, drive, tmp_path / "good")
@@ -366,7 +366,7 @@ def test_a_full_disk_during_a_screenshot_leaves_no_partial_files(open_viewer, tm
     # The name this second's capture would take is already someone's file.
     (folder / "raygs-20300102-030405.png").write_bytes(b"an older screenshot")
     (folder / "notes.txt").write_text("keep me")
-    viewer.screenshots.folder = str(folder)
+    viewer.captures.options.folder = str(folder)
     before = _files(folder)
     disk = _FullDisk(fail_on=1 if failing == "png" else 2)
     monkeypatch.setattr(raygs_viewer.files, "os", disk)
@@ -374,11 +374,11 @@ def test_a_full_disk_during_a_screenshot_leaves_no_partial_files(open_viewer, tm
     assert disk.opened == (1 if failing == "png" else 2)  # the failure did happen where meant
     monkeypatch.setattr(raygs_viewer.files, "os", os)
     assert_one_line_error(viewer, "screenshot not saved", os.strerror(errno.ENOSPC), "raygs-20300102-030405-2.")
-    assert viewer.last_screenshot is None
+    assert viewer.captures.last is None
     assert _files(folder) == before  # no half PNG, no PNG without sidecar, no temp file, nothing replaced
     run_checked(drive, 3)
     _assert_later_screenshots_work(viewer, drive, folder)
-    assert viewer.last_screenshot[0].name == "raygs-20300102-030405-2.png"
+    assert viewer.captures.last[0].name == "raygs-20300102-030405-2.png"
     assert (folder / "raygs-20300102-030405.png").read_bytes() == b"an older screenshot"
 
 
@@ -638,22 +638,22 @@ def test_resizing_to_one_pixel_and_minimising_and_back(open_viewer, tmp_path):
     glfw.set_window_size(viewer.window.handle, 1, 1)
     drive.settle()
     drive.tap(imgui.Key.f12)
-    assert viewer.panel.error == "" and Image.open(viewer.last_screenshot[0]).size == (1, 1)
+    assert viewer.panel.error == "" and Image.open(viewer.captures.last[0]).size == (1, 1)
     # Minimised with W held and F12 pressed: nothing moves or draws until it is back, and
     # the screenshot then saves the restored view.
     glfw.set_window_size(viewer.window.handle, WIDTH, HEIGHT)
     drive.settle()
-    pose, draws, shots = viewer.camera, viewer.stats.draws, viewer.last_screenshot
+    pose, draws, shots = viewer.camera, viewer.stats.draws, viewer.captures.last
     glfw.set_window_size(viewer.window.handle, 0, 0)
-    viewer.screenshot_requested = True
+    viewer.captures.requested = True
     drive.key(imgui.Key.w, True)
     drive.frames(3)
-    assert viewer.stats.draws == draws and viewer.camera is pose and viewer.last_screenshot == shots
+    assert viewer.stats.draws == draws and viewer.camera is pose and viewer.captures.last == shots
     drive.key(imgui.Key.w, False)
     glfw.set_window_size(viewer.window.handle, WIDTH, HEIGHT)
     drive.frames(1)
-    assert viewer.last_screenshot != shots and viewer.panel.error == ""
-    assert Image.open(viewer.last_screenshot[0]).size == (WIDTH, HEIGHT)
+    assert viewer.captures.last != shots and viewer.panel.error == ""
+    assert Image.open(viewer.captures.last[0]).size == (WIDTH, HEIGHT)
     drive.settle()
     assert_sane(viewer)
     assert_matches(window_image(viewer), headless(viewer))

@@ -67,7 +67,7 @@ def test_screenshots_and_paths_record_the_axes_and_render_again_from_them(open_v
     assert viewer.loaded.scene.axes == FileAxes("rdf")
     drive.settle()
     drive.tap(imgui.Key.f12)
-    png, sidecar = viewer.last_screenshot
+    png, sidecar = viewer.captures.last
     data = json.loads(sidecar.read_text())
     assert data["scene"]["spz_axes"] == "rdf" and data["version"] == 4
     out = tmp_path / "again.png"

@@ -51,7 +51,7 @@ def stereo_viewer(open_viewer, layout="sbs", width=None, height=None, rig=Stereo
 def headless_eyes(viewer) -> tuple[np.ndarray, np.ndarray]:
     """Both eyes rendered headlessly with the shared order and colour, for the viewer's
     midpoint camera and rig."""
-    return render_stereo(viewer.renderer, viewer.exact_sorter, viewer.camera, viewer.settings, viewer.stereo.view().rig)
+    return render_stereo(viewer.scene.renderer, viewer.scene.exact_sorter, viewer.camera, viewer.settings, viewer.stereo.view().rig)
 
 
 def composed(viewer) -> np.ndarray:
@@ -113,18 +113,18 @@ def test_the_sort_is_culled_for_both_eyes_from_the_midpoint(open_viewer):
     viewer, drive = stereo_viewer(open_viewer, sorter_factory=RecordingSorter)
     drive.settle()
     rig = viewer.stereo.view().rig
-    eyes = viewer.sorter.culled_for[-1]
+    eyes = viewer.scene.sorter.culled_for[-1]
     expected = eye_cameras(viewer.camera, rig)
     assert len(eyes) == 2
     for got, want in zip(eyes, expected):
         assert (got.cx, got.width) == (want.cx, want.width)
         np.testing.assert_array_equal(got.t, want.t)
-    np.testing.assert_array_equal(viewer.sorter.latest().order.indices,
-                                  stereo_order(viewer.exact_sorter, viewer.camera, viewer.settings, rig).indices)
+    np.testing.assert_array_equal(viewer.scene.sorter.latest().order.indices,
+                                  stereo_order(viewer.scene.exact_sorter, viewer.camera, viewer.settings, rig).indices)
     # A new IPD is another cull: the drawn order catches up with it.
     viewer.stereo.rig = replace(viewer.stereo.rig, ipd=0.2)
     drive.settle()
-    assert viewer.sorter.culled_for[-1][0].t[0] != eyes[0].t[0]
+    assert viewer.scene.sorter.culled_for[-1][0].t[0] != eyes[0].t[0]
 
 
 def test_rig_changes_from_the_panel_redraw_the_eyes(open_viewer):
@@ -237,7 +237,7 @@ def test_stereo_screenshot_saves_the_pair_and_each_eye_reproducibly(open_viewer,
     left, right = headless_eyes(viewer)
     drive.tap(imgui.Key.f12)
     assert viewer.panel.error == ""
-    saved = viewer.last_screenshots
+    saved = viewer.captures.saved
     assert [png.stem.rsplit("-", 1)[1] for png, _ in saved] == ["pair", "left", "right"]
     expected = {"pair": compose(left, right, "sbs"), "left": left, "right": right}
     for png, sidecar in saved:
@@ -258,7 +258,7 @@ def test_stereo_screenshot_saves_the_pair_and_each_eye_reproducibly(open_viewer,
     viewer.stereo.save_eyes = False
     first = saved[0][0].read_bytes()
     drive.tap(imgui.Key.f12)
-    (png, _), = viewer.last_screenshots
+    (png, _), = viewer.captures.saved
     assert png not in [p for p, _ in saved] and saved[0][0].read_bytes() == first
     assert Image.open(png).size == (2 * EYE.width, EYE.height)
 
@@ -268,14 +268,14 @@ def test_stereo_screenshot_at_scale_and_with_the_lens(open_viewer, tmp_path):
 
     from raygs_viewer.cli.main import main
     viewer, drive = stereo_viewer(open_viewer, "sbs", lens_preview=True)
-    viewer.screenshots.scale = 2.0
+    viewer.captures.options.scale = 2.0
     drive.settle()
     png, sidecar = viewer.save_screenshot()
     assert Image.open(png).size == (4 * EYE.width, 2 * EYE.height)
     scaled = replace(viewer.camera, width=2 * EYE.width, height=2 * EYE.height, fx=2 * viewer.camera.fx,
                      fy=2 * viewer.camera.fy, cx=2 * viewer.camera.cx, cy=2 * viewer.camera.cy)
     rig = viewer.stereo.view().rig
-    left, right = render_stereo(viewer.renderer, viewer.exact_sorter, scaled, viewer.settings, rig)
+    left, right = render_stereo(viewer.scene.renderer, viewer.scene.exact_sorter, scaled, viewer.settings, rig)
     eyes = eye_cameras(scaled, rig)
     expected = compose(lens_warp_reference(left, eyes[0]), lens_warp_reference(right, eyes[1]), "sbs")
     assert np.abs(np.asarray(Image.open(png)).astype(int) - to_rgb8(expected).astype(int)).max() <= 2

@@ -13,7 +13,9 @@ from testkit import assert_matches
 
 from raygs_viewer.bench.views import turned
 from raygs_viewer.camera.pinhole import look_at
-from raygs_viewer.sort.request import Order, SortRequest, SortResult
+from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.sort.request import Order, SortResult
+from raygs_viewer.viewer.frame import Frame, Framing
 from raygs_viewer.viewer.stats import (
     FrameStats,
     order_freshness,
@@ -21,12 +23,13 @@ from raygs_viewer.viewer.stats import (
 )
 
 
-def _request(camera) -> SortRequest:
-    return SortRequest(camera, 0.01, 0.0)
+def _frame(index, camera) -> Frame:
+    return Frame.make(index, Framing(camera, (0, 0, camera.width, camera.height), None), None, RenderSettings(),
+                      None, None)
 
 
 def _result(camera, requested_at) -> SortResult:
-    request = _request(camera)
+    request = _frame(1, camera).sort
     return SortResult(request, {"depth": Order(np.arange(5), "depth", request)}, times={"sort": 0.01}, serial=1,
                       requested_at=requested_at)
 
@@ -44,12 +47,12 @@ def test_a_stale_order_reports_its_age_turn_and_move():
     stats = FrameStats()
     stats.asked(1, 3)
     result = _result(sorted_for, requested_at=100.0)
-    stats.order_to_draw(result, _request(now), 7, now, now=100.25)
+    stats.order_to_draw(result, _frame(7, now), now=100.25)
     assert stats.order_age == 4 and stats.order_age_ms == pytest.approx(250.0)
     assert stats.order_turned_degrees == pytest.approx(12.0) and stats.order_moved == pytest.approx(0.5)
     assert order_freshness(stats) == "4 frames old (250 ms, turned 12.0°, moved 0.5)"
     # Up to date: the same view asked again.
-    stats.order_to_draw(result, _request(sorted_for), 8, sorted_for, now=101.0)
+    stats.order_to_draw(result, _frame(8, sorted_for), now=101.0)
     assert (stats.order_age, stats.order_age_ms, stats.order_turned_degrees, stats.order_moved) == (0, 0, 0, 0)
     assert order_freshness(stats) == "up to date"
 
@@ -57,7 +60,7 @@ def test_a_stale_order_reports_its_age_turn_and_move():
 def test_the_window_measures_how_far_the_camera_went_while_a_sort_ran(open_viewer):
     viewer, drive, gate = gated_viewer(open_viewer, free=1, hide_panel=True)  # the first view sorts at once
     drive.settle()
-    sorted_for = viewer.sorter.latest().request.camera
+    sorted_for = viewer.scene.sorter.latest().request.camera
     drive.key(imgui.Key.w, True)
     drive.frames(6)
     drive.key(imgui.Key.w, False)

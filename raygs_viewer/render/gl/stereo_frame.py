@@ -75,7 +75,7 @@ def render_stereo_view(renderer, order: Order, camera: Camera, settings: RenderS
     passes as the window's: what screenshots and ``render --stereo`` save."""
     frame = StereoFrame(renderer.ctx)
     try:
-        frame.draw_eyes(renderer, camera, settings, view.rig, order, channel_view)
+        frame.draw_eyes(renderer, camera, settings, eye_cameras(camera, view.rig), order, channel_view)
         frame.finish(view)
         return frame.read_image(), *frame.read_eyes()
     finally:
@@ -99,13 +99,14 @@ class StereoFrame:
         """The composed target of the last :meth:`finish`."""
         return self._image
 
-    def draw_eyes(self, renderer, camera: Camera, settings: RenderSettings, rig: StereoRig, order: Order,
-                  view: ChannelView | None = None) -> tuple[RenderResult, RenderResult]:
-        """Draws both eyes around the midpoint ``camera`` with ``order``; SH colour is
-        seen from the midpoint (see :mod:`raygs_viewer.camera.stereo`). ``view``: the
-        picture both eyes show instead of the colour (the right eye in the left's range,
-        which both results carry). Returns each eye's result."""
-        self.eyes = eye_cameras(camera, rig)
+    def draw_eyes(self, renderer, camera: Camera, settings: RenderSettings, eyes: tuple[Camera, Camera],
+                  order: Order, view: ChannelView | None = None) -> tuple[RenderResult, RenderResult]:
+        """Draws both ``eyes`` (``camera.stereo.eye_cameras`` around the midpoint
+        ``camera``) with ``order``; SH colour is seen from the midpoint (see
+        :mod:`raygs_viewer.camera.stereo`). ``view``: the picture both eyes show instead of
+        the colour (the right eye in the left's range, which both results carry). Returns
+        each eye's result."""
+        self.eyes = eyes
         results = []
         for side, eye in enumerate(self.eyes):
             target = self._sized(self._eye_targets, side, eye.width, eye.height)

@@ -14,10 +14,10 @@ import numpy as np
 from imgui_bundle import imgui
 
 from raygs_viewer.render.settings import RenderSettings
-from raygs_viewer.scene.loader import SceneLoader
+from raygs_viewer.scene.loader import LoadedScene, SceneLoader
 from raygs_viewer.scene.lod_file import LodScene
 from raygs_viewer.sort.lod_choice import LodChoice, automatic_distance, level_distances
-from raygs_viewer.viewer.lod_window import DEFAULT_WINDOW_BUDGET, LEVEL_COLOURS, WindowLod
+from raygs_viewer.viewer.lod_window import DEFAULT_WINDOW_BUDGET, LEVEL_COLOURS, WindowLod, reading
 from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, slider, tooltip
 from raygs_viewer.viewer.stats import FrameStats, order_freshness
 
@@ -37,15 +37,17 @@ TINT_HELP = ("each gaussian in its level's colour (the environment grey), to see
              "screenshots need the scene's own colours")
 
 
-def draw_lod_section(window: WindowLod, settings: RenderSettings, set_settings: Callable[[RenderSettings], None],
-                     stats: FrameStats, loader: SceneLoader) -> None:
-    """``window``: the scene's levels, the drawn choice and colour by level;
-    ``set_settings`` receives the edited settings; ``stats``: the order's age;
-    ``loader``: the reading of levels under way."""
-    lod = window.lod
+def draw_lod_section(window: WindowLod, loaded: LoadedScene, loader: SceneLoader, settings: RenderSettings,
+                     set_settings: Callable[[RenderSettings], None], set_tint: Callable[[bool], None],
+                     stats: FrameStats) -> None:
+    """``window``: the drawn choice and colour by level of the scene ``loaded`` (its
+    levels), whose reading ``loader`` may be under way; ``set_settings`` receives the
+    edited settings, ``set_tint`` colour by level turned on or off; ``stats``: the
+    order's age."""
+    lod = loaded.lod
     if lod is None or not header("Level of detail"):
         return
-    _draw_reading(lod, window.reading, loader)
+    _draw_reading(lod, reading(loaded, loader), loader)
     edited = _edit_level(lod, settings)
     imgui.begin_disabled(edited.lod is not None)  # one level everywhere: no budget, no distances
     edited = _edit_budget(lod, _edit_distance(lod, edited))
@@ -54,7 +56,7 @@ def draw_lod_section(window: WindowLod, settings: RenderSettings, set_settings: 
         set_settings(edited)
     tint = checkbox("colour by level", window.tint, help_text=TINT_HELP)
     if tint != window.tint:
-        window.set_tint(tint)
+        set_tint(tint)
     if window.tint:
         _draw_legend(lod.levels)
     _draw_choice(window.choice, lod, edited, stats)

@@ -1,0 +1,91 @@
+"""One frame of the window as a value: what it draws and from where.
+
+``Viewer.frame`` makes one :class:`Frame` after the input has moved the camera and
+hands it to everything that works on the frame: the sort request
+(``drawing.request_sort``), the drawn order's age (``stats.FrameStats.order_to_draw``),
+the drawer (``drawing.SceneDrawer.draw``), the overlays; the viewer keeps the last one
+(``Viewer.shown``), which the picker, screenshots and the panel read. Nothing in it is
+derived twice: the eye cameras come from ``view_control.ViewControl.camera`` and are
+the ones the stereo frame draws; the sort request is made here from the rest.
+
+The channel views are the one input read after the panel has drawn (:meth:`Frame.with_views`),
+so that an edit of the view mode shows in the frame it is made in; everything else is
+read before it, so the panel's edits of the settings, the split view and the stereo
+preview show from the next frame on.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, replace
+from typing import NamedTuple
+
+from raygs_viewer.camera.pinhole import Camera
+from raygs_viewer.camera.stereo import StereoView
+from raygs_viewer.render.channel_pictures import ChannelView
+from raygs_viewer.render.gl.mono_frame import Viewport
+from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import sort_request
+from raygs_viewer.sort.lod_choice import LodRequest
+from raygs_viewer.sort.request import SortRequest
+
+#: The viewport before the first frame.
+NO_VIEWPORT: Viewport = (0, 0, 1, 1)
+
+
+class Framing(NamedTuple):
+    """Where a frame looks from (``ViewControl.camera``): the camera (viewport-sized, or
+    in stereo the midpoint between the eyes at the headset's size), where its image is
+    shown, and the eye cameras (None: mono)."""
+
+    camera: Camera
+    viewport: Viewport
+    eyes: tuple[Camera, Camera] | None
+
+
+@dataclass(frozen=True, eq=False)
+class Frame:
+    """One frame's inputs.
+
+    index:      the frame's number (``Viewer.frame_index``).
+    camera:     the view drawn: viewport-sized, or in stereo the midpoint between the eyes
+                at the headset's per-eye size (its order is sorted from there).
+    viewport:   where the image is shown in the window.
+    eyes:       the eye cameras drawn in stereo (None: mono), made once with ``camera``.
+    stereo:     the stereo view (None: the preview is off).
+    settings:   the render settings (the left side's in the split view).
+    right:      the split view's right side (None: no split view).
+    lod:        a streamed SOG's level-of-detail request (None: the whole scene).
+    sort:       the sort this frame asks for: one cull for every side and eye, an order per key.
+    view, right_view: the pictures shown instead of the colour (left and right side;
+                both the same outside the split view); None: the colour.
+    """
+
+    index: int
+    camera: Camera
+    viewport: Viewport
+    eyes: tuple[Camera, Camera] | None
+    stereo: StereoView | None
+    settings: RenderSettings
+    right: RenderSettings | None
+    lod: LodRequest | None
+    sort: SortRequest
+    view: ChannelView | None = None
+    right_view: ChannelView | None = None
+
+    @classmethod
+    def make(cls, index: int, framing: Framing, stereo: StereoView | None, settings: RenderSettings,
+             right: RenderSettings | None, lod: LodRequest | None) -> Frame:
+        """The frame of ``framing`` with these settings, and the one sort that serves it
+        (``render.sorting.sort_request``: culled for both eyes in stereo)."""
+        camera, viewport, eyes = framing
+        return cls(index, camera, viewport, eyes, stereo, settings, right, lod,
+                   sort_request(camera, settings, right, cull_cameras=eyes, levels=lod))
+
+    @property
+    def split(self) -> bool:
+        """Whether the split view is shown."""
+        return self.right is not None
+
+    def with_views(self, view: ChannelView | None, right_view: ChannelView | None) -> Frame:
+        """This frame showing these channel views (``state.ViewMode.side_views``)."""
+        return replace(self, view=view, right_view=right_view)

@@ -1,0 +1,133 @@
+"""The scene the window shows: as read, on the GPU with its sorters, and its level of detail.
+
+A scene opened replaces the renderer and the sorters whole. A streamed SOG's next level
+and colour by level replace them too, keeping the rows (a level only adds rows after
+those read before; the tinted copy has the same rows), so the last sort result still
+names the right gaussians: it is drawn until the new sorter's first, and a level
+arriving never blanks the picture.
+
+What to do about the levels (which to read, which scene to show, whether the last
+order stays right) is ``lod_window.WindowLod``'s decision, made from what it is handed
+and returned as a value; :class:`ShownScene` carries out what it says of the GPU and
+the reading, and the window takes the scene as read and the settings from it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Callable
+
+import moderngl
+
+from raygs_viewer.render.gl.renderer import GLRenderer
+from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.scene.loader import LoadedScene
+from raygs_viewer.scene.lod_file import LodScene
+from raygs_viewer.scene.model import Scene
+from raygs_viewer.sort.depth import DepthSorter
+from raygs_viewer.sort.lod_choice import LodRequest
+from raygs_viewer.sort.request import SortResult
+from raygs_viewer.sort.worker import BackgroundSorter
+from raygs_viewer.viewer.loading import SceneOpener
+from raygs_viewer.viewer.lod_window import Refined, WindowLod, reading
+
+
+class ShownScene:
+    """``renderer`` (made by ``renderer_factory(ctx, scene, general=)``) draws the scene
+    (None before :meth:`open`); ``sorter`` (made by
+    ``sorter_factory(exact_sorter)``) sorts the window's requests on its thread with
+    ``exact_sorter``, a DepthSorter of it, which screenshots and picks sort with too.
+    ``fallback``: the last result of the scene before a swap that kept the rows, drawn
+    until the new sorter's first (:meth:`shown`). ``lod``: its level of detail.
+
+    ``opener`` reads a streamed SOG's levels; ``forget(kept)`` is called after each swap:
+    what the window keeps of the scene before is stale (``kept``: the result drawn on
+    until the new sorter's first, as it was; None: none)."""
+
+    def __init__(self, ctx: moderngl.Context, general: bool, renderer_factory: Callable[..., GLRenderer],
+                 sorter_factory: Callable[..., BackgroundSorter], opener: SceneOpener,
+                 forget: Callable[[SortResult | None], None]):
+        self.ctx, self.general = ctx, general
+        self.renderer_factory, self.sorter_factory = renderer_factory, sorter_factory
+        self.opener, self.forget = opener, forget
+        self.renderer: GLRenderer | None = None
+        self.sorter: BackgroundSorter | None = None
+        self.exact_sorter: DepthSorter | None = None
+        self.fallback: SortResult | None = None
+        self.lod = WindowLod()
+
+    # -- scenes ----------------------------------------------------------------------------
+    def open(self, scene: Scene) -> None:
+        """Shows a scene opened (not a finer reading of the one shown: :meth:`refine`), in
+        its own colours; a UserError (too large for this GPU) changes nothing."""
+        self._swap(scene, keep=False)
+        self.lod.installed()
+
+    def refine(self, current: LoadedScene, loaded: LoadedScene, settings: RenderSettings,
+               start: RenderSettings) -> Refined | None:
+        """Shows the levels of ``loaded``, a finer reading of the scene shown (``current``;
+        ``lod_window.refines``), in the view as it is (``WindowLod.refine``); returns the
+        scene as read and the settings now (``start``: the command line's), None when
+        nothing changes. A UserError (the GPU's memory) leaves the scene shown."""
+        refined = self.lod.refine(current, loaded, settings, start, self.opener.loader)
+        if refined is not None and refined.swap is not None:
+            self._swap(refined.swap.scene, refined.swap.keep)
+        return refined
+
+    def set_tint(self, on: bool, lod: LodScene | None) -> None:
+        """Colour by level on or off for the levels ``lod``: the renderer gets the tinted
+        copy, or the scene. A UserError, MemoryError or moderngl.Error leaves it as it was."""
+        swap = self.lod.tint_swap(on, lod)
+        if swap is not None:
+            self._swap(swap.scene, swap.keep)
+            self.lod.tint = on
+
+    # -- frames ----------------------------------------------------------------------------
+    def lod_for_frame(self, loaded: LoadedScene, settings: RenderSettings) -> LodRequest | None:
+        """A frame's level-of-detail request of the scene shown (``loaded``), after
+        starting to read the levels ``settings`` want that are not read
+        (``WindowLod.for_frame``)."""
+        lod = self.lod.for_frame(loaded, settings, self.opener.loader)
+        if lod.read is not None:
+            self.opener.read_levels(lod.read)
+        return lod.request
+
+    def read_all(self, loaded: LoadedScene, settings: RenderSettings) -> None:
+        """Blocks until the levels of the scene shown (``loaded``) that ``settings`` want
+        are read (the next frame shows them): a scripted run's last frame and its
+        screenshot show the scene as it ends up, not as far as its reading had come."""
+        self.lod_for_frame(loaded, settings)
+        if reading(loaded, self.opener.loader):
+            self.opener.loader.wait_done()
+
+    def shown(self, result: SortResult | None) -> SortResult | None:
+        """The result a frame draws: ``result`` (the sorter's newest), else the fallback,
+        which the new sorter's first result ends; its choice is the one drawn."""
+        if result is not None:
+            self.fallback = None
+        else:
+            result = self.fallback
+        self.lod.shown(result)
+        return result
+
+    def close(self) -> None:
+        """Releases the renderer and closes the sorter (and, on its thread, the exact sorter it runs)."""
+        if self.renderer is not None:
+            self.renderer.release()
+        if self.sorter is not None:
+            self.sorter.close()
+
+    def _swap(self, scene: Scene, keep: bool) -> None:
+        """``scene`` on the GPU with its own sorters; a UserError (too large for this GPU)
+        changes nothing. ``keep``: ``scene`` holds the rows of the scene shown where they
+        were, so the last result (the sorter's newest, else the fallback) becomes the
+        fallback, as serial 0, which no request has (so its draw is never taken for a new
+        one's)."""
+        last = (None if self.sorter is None else self.sorter.latest()) or self.fallback
+        renderer = self.renderer_factory(self.ctx, scene, general=self.general)
+        self.close()
+        self.renderer, self.exact_sorter = renderer, DepthSorter(scene)
+        self.sorter = self.sorter_factory(self.exact_sorter)
+        kept = last if keep else None
+        self.fallback = None if kept is None else replace(kept, serial=0)
+        self.forget(kept)
