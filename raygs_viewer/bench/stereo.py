@@ -103,13 +103,14 @@ def time_both_eyes(ctx, renderer, sorter: DepthSorter, camera: Camera, settings:
     elapsed time the driver marks invalid is NaN."""
     frame = StereoFrame(ctx)
     timer = GpuTimer(ctx)
+    eyes = stereo.eye_cameras(camera, rig)
     gpu_ms, sort_ms = [], []
     try:
         for index in range(repeat + 1):
             clock = time.perf_counter()
             order = stereo_order(sorter, camera, settings, rig)
             sorted_in = time.perf_counter() - clock
-            elapsed = timer.time_ms(lambda: frame.draw_eyes(renderer, camera, settings, rig, order))
+            elapsed = timer.time_ms(lambda: frame.draw_eyes(renderer, camera, settings, eyes, order))
             if index:
                 gpu_ms.append(elapsed)
                 sort_ms.append(sorted_in * 1e3)
