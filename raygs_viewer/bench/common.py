@@ -23,8 +23,8 @@ from raygs_viewer.files import write_atomically
 from raygs_viewer.render.gl.context import create_headless_context
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.scene.loader import load_now
-from raygs_viewer.scene.source import DEMO, SceneSource
 from raygs_viewer.scene.model import Scene
+from raygs_viewer.scene.source import DEMO, SceneSource
 from raygs_viewer.sort.depth import DepthSorter
 
 

@@ -59,8 +59,8 @@ from raygs_viewer.scene.progress import READ_CHUNK_BYTES, ProgressCallback, Repo
 from raygs_viewer.scene.reading import DROP_REASONS, file_error
 from raygs_viewer.scene.sog_file import load_sog
 from raygs_viewer.scene.sog_source import is_sog_folder
-from raygs_viewer.scene.splat_file import SPLAT_ROW_BYTES, load_splat
 from raygs_viewer.scene.source import SCENE_FILES, SceneSource
+from raygs_viewer.scene.splat_file import SPLAT_ROW_BYTES, load_splat
 from raygs_viewer.scene.spz_file import load_spz
 
 #: The first bytes that name a format whatever the file's name: gzip (.spz versions 2

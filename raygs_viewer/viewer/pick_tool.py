@@ -27,9 +27,9 @@ from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.viewer.drawing import SceneDrawer
 from raygs_viewer.viewer.frame import Frame
-from raygs_viewer.viewer.shown_scene import ShownScene
 from raygs_viewer.viewer.measure import MeasureWidget, format_distance
 from raygs_viewer.viewer.picking import Picked, mono_pixel, pick, pixel_camera, stereo_pixel
+from raygs_viewer.viewer.shown_scene import ShownScene
 from raygs_viewer.viewer.state import PanelState, SplitView, StereoPreview
 from raygs_viewer.viewer.view_control import ViewControl
 

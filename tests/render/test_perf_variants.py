@@ -27,7 +27,7 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.renderer import GL_EXT_FRAMEBUFFER_FETCH, GLRenderer
 from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.settings import RenderSettings
-from raygs_viewer.render.sorting import exact_order, sort_request
+from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.sh import C0 as SH_C0
 from raygs_viewer.sort.cull import Cull

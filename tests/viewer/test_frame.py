@@ -7,7 +7,6 @@ from __future__ import annotations
 
 from dataclasses import replace
 
-
 from raygs_viewer.camera.pinhole import camera_key
 from raygs_viewer.camera.stereo import StereoRig, custom_preset, eye_cameras
 from raygs_viewer.render.gl import stereo_frame

@@ -11,7 +11,6 @@ run and lists elsewhere; forcing a path that cannot run is a UserError.
 from __future__ import annotations
 
 import moderngl
-import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.errors import UserError
