@@ -248,8 +248,9 @@ def measure_case(ctx, case: PerfCase, frames: int, settings: RenderSettings = Re
             draw, draw_gpu = clock.both(lambda: renderer.draw(camera, plan, order))
             clear()
             quads = clock.cpu(lambda: renderer.draw(camera, plan, order, floor=True))
-            geometry = clock.cpu(lambda: renderer.draw_planned(renderer.geometry.image(camera), camera, blended_geometry, order))
-            with_median = clock.cpu(lambda: renderer.draw_planned(renderer.geometry.image(camera), camera, lists_geometry, order))
+            channels = renderer.geometry.image(camera)
+            geometry = clock.cpu(lambda: renderer.draw_planned(channels, camera, blended_geometry, order))
+            with_median = clock.cpu(lambda: renderer.draw_planned(channels, camera, lists_geometry, order))
             depth_view = clock.cpu(lambda: renderer.render_into(target, camera, settings, order, view=DEPTH_VIEW))
             if frame == 0:  # fragments: counted once, untimed
                 result.visible = order.count

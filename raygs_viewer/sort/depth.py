@@ -112,7 +112,8 @@ class DepthSorter(Closable):
         chosen = time.perf_counter()
         if self._cull.count == 0:
             orders = {key: Order(np.zeros(0, np.uint32), key, request, choice) for key in request.keys}
-            return SortResult(request, orders, choice, {"choice": chosen - begin, "cull": 0.0, "sort": 0.0})
+            times = {"choice": chosen - begin, "wait": 0.0, "cull": 0.0, "sort": 0.0}
+            return SortResult(request, orders, choice, times)
         with self._lock:
             locked = time.perf_counter()  # after another thread's sort on this sorter, if one ran
             keys, method = request.keys, request.method
