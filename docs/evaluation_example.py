@@ -24,7 +24,9 @@ from raygs_viewer.jsonfile import json_text
 from raygs_viewer.render.gl.context import create_headless_context
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.scene.io import load_scene
+from raygs_viewer.sort.depth import DepthSorter
 
 SCENE = Path(__file__).resolve().parents[2] / "shared" / "scenes" / "ss-fruit_drops_minimal.ply"
 VIEWS, WIDTH, HEIGHT, FOV_Y = 16, 320, 240, 40.0
@@ -40,11 +42,12 @@ def main(out: Path, scene_path: Path) -> None:
     (out / "images").mkdir(parents=True, exist_ok=False)
     frames = []
     ctx = create_headless_context()
-    renderer = GLRenderer(ctx, scene)
+    renderer, sorter = GLRenderer(ctx, scene), DepthSorter(scene)
+    settings = RenderSettings(mode="gs")
     for i, angle in enumerate(np.linspace(0.0, 2 * np.pi, VIEWS, endpoint=False)):
         eye = center + distance * np.array([np.sin(angle), -0.4, -np.cos(angle)]) / np.hypot(1.0, 0.4)
         camera = look_at(eye, center, width=WIDTH, height=HEIGHT, fov_y_degrees=FOV_Y)
-        render = renderer.render(camera, RenderSettings(mode="gs"))[..., :3]
+        render = renderer.render(camera, settings, exact_order(sorter, camera, settings))[..., :3]
         photo = np.clip(render + rng.normal(0.0, NOISE, render.shape), 0.0, 1.0)
         name = f"images/frame_{i:03d}.png"
         write_atomically(out / name, encode_png(to_rgb8(photo)))
@@ -52,6 +55,7 @@ def main(out: Path, scene_path: Path) -> None:
         c2w[:3, :3] = np.asarray(camera.R).T @ OPENGL_AXES
         c2w[:3, 3] = camera.center
         frames.append({"file_path": name, "transform_matrix": c2w.tolist()})
+    sorter.close()
     renderer.release()
     ctx.release()
     document = {"camera_model": "OPENCV", "fl_x": camera.fx, "fl_y": camera.fy, "cx": camera.cx, "cy": camera.cy,

@@ -13,7 +13,7 @@ each panel with the command line, exactly as a user would:
 
 (N: the fraction of the finest level's gaussians, plus the environment's), and labels it
 with what the command printed it drew. The second renders the same choices through the
-package's API (``lod_choice.choose`` and ``GLRenderer.restrict``, as ``render`` does) after
+package's API (``lod_choice.choose`` and an exact order of the choice's rows, as ``render`` does) after
 replacing every gaussian's colour by its level's tint (80 %) and its own grey (20 %).
 """
 import re
@@ -30,7 +30,9 @@ from raygs_viewer.camera.pinhole import frame_points
 from raygs_viewer.render.gl.context import create_headless_context
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.scene.lod_file import load_lod, lod_summary
+from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.lod_choice import choose
 
 WIDTH, HEIGHT = 480, 360
@@ -117,18 +119,19 @@ def level_panels(path: str, budgets: list[tuple[str, int | None]]) -> list[tuple
     positions = np.concatenate([lod.scene.positions[:start], lod.scene.positions[start + count:]])
     camera = frame_points(positions).resized(WIDTH, HEIGHT)  # render's camera for a scene without cameras
     ctx = create_headless_context("auto")
-    renderer = GLRenderer(ctx, colours.scene)
+    renderer, sorter = GLRenderer(ctx, colours.scene), DepthSorter(colours.scene)
     panels = []
     try:
         for title, budget in budgets:
             choice = choose(colours, camera, level=0) if budget is None else choose(colours, camera, budget=budget)
-            renderer.restrict(choice.spans)
-            image = renderer.render(camera, RenderSettings())
+            order = exact_order(sorter, camera, RenderSettings(), levels=choice)
+            image = renderer.render(camera, RenderSettings(), order)
             per_level = ", ".join(f"{n} at level {level}" for level, n in enumerate(choice.per_level(lod.levels))
                                   if n)
             over = " (the coarsest level alone is over)" if choice.over_budget else ""
             panels.append((to_uint8(image), title, f"{choice.count:,} gaussians drawn; leaves: {per_level}{over}"))
     finally:
+        sorter.close()
         renderer.release()
         ctx.release()
     return panels

@@ -129,7 +129,7 @@ class Cull:
         if self.union is None:
             self.union = np.empty(self.count, bool)
         # Spans leave the rest of ``union`` stale: only an order cached for the same spans
-        # (sort.turns keys on them) is filtered by it, and it holds none of those rows.
+        # (the turn cache keys on them) is filtered by it, and it holds none of those rows.
         count = -(-self.count // self.chunk_rows) if request.chunks is None else len(request.chunks)
         return run(lambda index: self._chunk(index, request), count)
 
