@@ -77,12 +77,6 @@ class SortRequest:
     def __hash__(self) -> int:
         return hash(self.identity)
 
-    def seen_from(self, camera: Camera, levels: LodChoice | None) -> "SortRequest":
-        """This request for another ``camera`` (a tile of the frame), culled for that
-        camera alone, of the rows ``levels`` the frame chose."""
-        return replace(self, camera=camera, cull_cameras=None, levels=levels)
-
-
 def _levels_identity(levels: LodRequest | LodChoice | None):
     if isinstance(levels, LodChoice):
         return levels.spans.tobytes()

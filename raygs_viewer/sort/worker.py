@@ -91,11 +91,6 @@ class BackgroundSorter(Closable):
             self._cond.notify_all()
             return self.requested
 
-    @property
-    def last_request(self) -> SortRequest | None:
-        """The request last queued: what a fresh order answers."""
-        return self._last
-
     def latest(self) -> SortResult | None:
         """Non-blocking: the newest finished result (None before the first)."""
         return self._latest  # one reference read: atomic, no lock needed

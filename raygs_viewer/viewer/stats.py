@@ -99,7 +99,7 @@ class FrameStats:
             return {}, 0
         for older in [n for n in self.request_frames if n < result.serial]:  # answered or skipped
             del self.request_frames[older]
-        current = result.request == frame.sort
+        current = result.order.answers(frame.sort)
         self.order_age = 0 if current else frame_index - self.request_frames.get(result.serial, frame_index)
         if not current:
             now = time.perf_counter() if now is None else now

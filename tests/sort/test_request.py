@@ -91,14 +91,6 @@ def test_levels_a_request_to_choose_and_a_choice_made(tmp_path):
     assert made_result.choice is choice and made_result.order.spans is choice.spans
 
 
-def test_seen_from_is_the_request_for_a_tile_culled_for_it_alone():
-    request = SortRequest(camera(), P_MIN, 0.1, (camera(-0.1), camera(0.1)), ("distance",), method="radix")
-    tile = camera().resized(24, 16)
-    choice = spans_choice([[0, 10]])
-    seen = request.seen_from(tile, choice)
-    assert seen == SortRequest(tile, P_MIN, 0.1, None, ("distance",), choice, "radix")
-
-
 def test_an_order_answers_only_its_request():
     request = SortRequest(camera(), P_MIN)
     order = Order([3, 1, 2], "depth", request)
