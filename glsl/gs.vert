@@ -25,7 +25,7 @@ flat out uint v_rank;
 void main() {
 #if PER_PIXEL
     v_index = this_instance_index();
-    v_rank = uint(gl_InstanceID);
+    v_rank = draw_slot();
     Splat s = fetch_splat(v_index);
 #else
     Splat s = this_instance_splat();

@@ -8,6 +8,8 @@
 // Feature switches (features.glsl): SH_DEGREE, MIP, MIP_MODULATION, GS_COMPENSATION;
 // COLOR_AT_LOAD: binding 1 holds each gaussian's RGB (and a pad), computed once at load
 // (SH degree 0 is view-independent), instead of SH coefficients.
+// RECORDS_IN_DRAW_ORDER: the pass runs over places in the order instead of gaussians, and
+// writes each record at its place (render/gl/plan.py, RECORDS); culled gaussians cost nothing.
 layout(local_size_x = 128) in;
 
 #include "features.glsl"
@@ -27,6 +29,16 @@ uniform uint u_first;        // first gaussian of this dispatch within the chunk
                              // choice preprocesses only the spans it draws)
 uniform uint u_count;        // gaussians in this dispatch
 uniform uint u_out_offset;   // first output slot of this chunk within the bound range
+#if RECORDS_IN_DRAW_ORDER
+// This dispatch's places are u_first .. u_first + u_count - 1, or, u_ranked, the places
+// u_ranks holds there: those whose gaussian is in the bound chunk of the scene (from row
+// u_chunk_start) and whose record is in the bound splat block (from place u_block_start).
+layout(std430, binding = 3) readonly buffer Order { uint order[]; };
+layout(std430, binding = 4) readonly buffer Ranks { uint ranks[]; };
+uniform bool u_ranked;
+uniform uint u_chunk_start;
+uniform uint u_block_start;
+#endif
 uniform mat3 u_world_to_camera;
 uniform vec3 u_translation;   // t of the world-to-camera transform: mu = R p + t
 uniform vec3 u_color_origin;  // where SH colour is seen from: the camera, or (stereo) the eyes' midpoint
@@ -93,7 +105,15 @@ void project_ewa(inout Splat s, vec3 mu, mat3 to_camera, vec3 scale, float opaci
 
 void main() {
     if (gl_GlobalInvocationID.x >= u_count) return;
+#if RECORDS_IN_DRAW_ORDER
+    uint place = u_first + gl_GlobalInvocationID.x;
+    if (u_ranked) place = ranks[place];
+    uint i = order[place] - u_chunk_start;
+    uint slot = place - u_block_start;
+#else
     uint i = u_first + gl_GlobalInvocationID.x;
+    uint slot = u_out_offset + i;
+#endif
     g_index = i;
     Gaussian g = gaussians[i];
     vec3 scale = g.scale.xyz;
@@ -187,5 +207,5 @@ void main() {
 #endif
     }
 #endif
-    splats[u_out_offset + i] = s;
+    splats[slot] = s;
 }

@@ -1,4 +1,4 @@
-// One instanced quad per visible gaussian, in sorted order (maths page, section 4).
+// One quad per visible gaussian, in sorted order (maths page, section 4).
 #include "splat_blocks.glsl"
 
 uniform mat4 u_projection;  // OpenCV camera space -> clip space
@@ -29,7 +29,7 @@ flat out vec3 v_scale;
 void main() {
 #if PER_PIXEL
     v_index = this_instance_index();
-    v_rank = uint(gl_InstanceID);
+    v_rank = draw_slot();
     Splat s = fetch_splat(v_index);
 #else
     Splat s = this_instance_splat();

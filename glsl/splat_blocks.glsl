@@ -63,22 +63,54 @@ Splat fetch_splat(uint index) {
 }
 
 #ifndef SPLATS_ONLY  // the vertex stages'; fragment and compute stages read records by index only
-// The order is back to front; the transmittance cut-off and the per-pixel order
-// draw it front to back (so gl_InstanceID is the rank in the front-to-back order).
-uint this_instance_index() {
-#if FRONT_TO_BACK || PER_PIXEL
-    return order[u_order_count - 1u - uint(gl_InstanceID)];
+// DRAW_VERTICES (render/gl/plan.py): 0, one instance of a 4-vertex strip per quad; 1, an
+// index buffer of 6 indices over vertices 4q .. 4q + 3 per quad; 2, 6 vertices per quad
+// and no buffer. The two triangles are the strip's own, (0, 1, 2) and (2, 1, 3), so every
+// layout rasterizes the same triangles in the same order.
+uint draw_slot() {
+#if DRAW_VERTICES == 1
+    return uint(gl_VertexID) >> 2;
+#elif DRAW_VERTICES == 2
+    return uint(gl_VertexID) / 6u;
 #else
-    return order[gl_InstanceID];
+    return uint(gl_InstanceID);
 #endif
 }
 
-Splat this_instance_splat() {
-    return fetch_splat(this_instance_index());
+// The order is back to front; the transmittance cut-off and the per-pixel order
+// draw it front to back (so the draw slot is the rank in the front-to-back order).
+uint draw_place() {
+#if FRONT_TO_BACK || PER_PIXEL
+    return u_order_count - 1u - draw_slot();
+#else
+    return draw_slot();
+#endif
 }
 
-// Triangle-strip corners (-,-), (+,-), (-,+), (+,+).
+uint this_instance_index() {
+    return order[draw_place()];
+}
+
+// RECORDS_IN_DRAW_ORDER: the preprocessing pass wrote each record at its place in the
+// order, so the draw reads them in sequence.
+Splat this_instance_splat() {
+#if RECORDS_IN_DRAW_ORDER
+    return fetch_splat(draw_place());
+#else
+    return fetch_splat(this_instance_index());
+#endif
+}
+
+// Corners (-,-), (+,-), (-,+), (+,+), in the triangle strip's order.
 vec2 quad_corner() {
-    return vec2((gl_VertexID & 1) != 0 ? 1.0 : -1.0, (gl_VertexID & 2) != 0 ? 1.0 : -1.0);
+#if DRAW_VERTICES == 1
+    int corner = gl_VertexID & 3;
+#elif DRAW_VERTICES == 2
+    const int strip_corner[6] = int[6](0, 1, 2, 2, 1, 3);
+    int corner = strip_corner[gl_VertexID % 6];
+#else
+    int corner = gl_VertexID;
+#endif
+    return vec2((corner & 1) != 0 ? 1.0 : -1.0, (corner & 2) != 0 ? 1.0 : -1.0);
 }
 #endif

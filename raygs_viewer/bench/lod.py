@@ -273,7 +273,7 @@ class _Runner:
         plan = self.renderer.plan(settings)
 
         def work() -> None:
-            self.renderer.preprocess(camera, plan, spans=order.spans)
+            self.renderer.preprocess(camera, plan, order)
             target.use()
             target.fbo.clear(*settings.background, 0.0)
             self.renderer.draw(camera, plan, order)

@@ -14,12 +14,12 @@ import math
 from dataclasses import dataclass, field
 from typing import Sequence
 
-#: Colours of the series, in order: Okabe-Ito's colour-blind-safe eight, then five more of
+#: Colours of the series, in order: Okabe-Ito's colour-blind-safe eight, then seven more of
 #: other lightness, so that neighbours differ in grey too.
 COLORS = ("#0072B2", "#D55E00", "#000000", "#009E73", "#E69F00", "#56B4E9", "#CC79A7", "#F0E442",
-          "#7F7F7F", "#8C2D04", "#6A3D9A", "#9E9A2F", "#B2182B")
+          "#7F7F7F", "#8C2D04", "#6A3D9A", "#9E9A2F", "#B2182B", "#1B7837", "#4D4D9F")
 #: Marker shapes of the series, in order (all fillable, so that the groups' fills show).
-MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*", "<", "p", ">", "h", "d")
+MARKERS = ("o", "s", "^", "D", "v", "P", "X", "*", "<", "p", ">", "h", "d", "H", "8")
 #: Fills of the groups, in order (matplotlib fill styles).
 FILLS = ("full", "none", "left", "bottom", "right", "top")
 

@@ -14,6 +14,7 @@ from typing import Callable
 
 from raygs_viewer.bench import accuracy, accuracy_report, freshness, perf
 from raygs_viewer.bench import formats as formats_bench
+from raygs_viewer.bench import gpu as gpu_bench
 from raygs_viewer.bench import lod as lod_bench
 from raygs_viewer.bench import order as order_bench
 from raygs_viewer.bench import sort as sort_bench
@@ -49,6 +50,7 @@ def add_parsers(commands) -> None:
     _add_sort_parser(kinds)
     _add_formats_parser(kinds)
     _add_lod_parser(kinds)
+    _add_gpu_parser(kinds)
 
 
 def command(args: argparse.Namespace, ctx=None) -> int:
@@ -58,7 +60,8 @@ def command(args: argparse.Namespace, ctx=None) -> int:
                 "order": (order_options, order_bench.run_order, order_bench.format_report),
                 "sort": (sort_options, sort_bench.run_sort, sort_bench.format_report),
                 "formats": (formats_options, formats_bench.run_formats, formats_bench.format_report),
-                "lod": (lod_options, lod_bench.run_lod, lod_bench.format_report)}
+                "lod": (lod_options, lod_bench.run_lod, lod_bench.format_report),
+                "gpu": (gpu_options, gpu_bench.run_gpu, gpu_bench.format_report)}
     runs = {"accuracy": _run_accuracy, "perf": _run_perf}
     if args.bench in reported:
         return _run_reported(*reported[args.bench], args, ctx)
@@ -81,6 +84,7 @@ RECORDED_FLAGS: dict[str, tuple[str, ...]] = {
     "sort": ("--quick", "--counts", "--repeat", "--no-freshness", "--no-load", "--out", "--gl-backend", "--overwrite"),
     "formats": ("--quick", "--scenes", "--no-samples", "--width", "--repeat", "--out", "--gl-backend", "--overwrite"),
     "lod": ("--quick", "--scenes", "--width", "--repeat", "--lod-distance", "--out", "--gl-backend", "--overwrite"),
+    "gpu": ("--quick", "--counts", "--scenes", "--frames", "--out", "--gl-backend", "--overwrite"),
 }
 #: Options a recorded command leaves out at these values (by argparse dest).
 RECORDED_DEFAULTS: dict[str, dict[str, object]] = {"perf": {"frames": perf.DEFAULT_FRAMES}}
@@ -473,3 +477,46 @@ def lod_options(args: argparse.Namespace) -> lod_bench.LodOptions:
         scenes=scenes, **_quick_or_default(args, lod_bench, ("width", "repeat")), distance=args.lod_distance,
         out=_report_path(args.out, args.overwrite), overwrite=args.overwrite,
         **_run_fields("lod", args, notes))
+
+
+# --- gpu -------------------------------------------------------------------------------------------
+
+
+def _add_gpu_parser(kinds) -> None:
+    parser = _bench_parser(kinds, "gpu",
+                           f"one generated scene of {count_label(gpu_bench.QUICK_COUNTS[0])} gaussians, "
+                           f"{gpu_bench.QUICK_MONO[0]}x{gpu_bench.QUICK_MONO[1]} and a stereo pair at 1/"
+                           f"{gpu_bench.QUICK_EYE_SHRINK} of the headset's size, {gpu_bench.QUICK_FRAMES} timed "
+                           f"frames: a smoke test (under 2 minutes on llvmpipe and two CPU cores)")
+    parser.add_argument("--counts", nargs="*", type=argtypes.whole_number(1, 100_000_000), metavar="N",
+                        help="sizes of the generated scenes (default "
+                             + ", ".join(count_label(n) for n in gpu_bench.COUNTS) + "; none: real scenes only)")
+    parser.add_argument("--scenes", nargs="*", metavar="SCENE",
+                        help="scene files (or 'demo') instead of the shared real scenes (none: generated only)")
+    parser.add_argument("--frames", type=argtypes.whole_number(1, 1000), metavar="N",
+                        help=f"timed frames per case (default {gpu_bench.DEFAULT_FRAMES}, --quick "
+                             f"{gpu_bench.QUICK_FRAMES})")
+    _add_out_options(parser)
+
+
+def gpu_options(args: argparse.Namespace) -> gpu_bench.GpuOptions:
+    quick = args.quick
+    if args.scenes is not None:
+        scenes, notes = tuple(args.scenes), []
+    elif quick:
+        scenes, notes = gpu_bench.QUICK_REAL_SCENES, []
+    else:
+        scenes, notes = shared_scene_paths(gpu_bench.REAL_SCENES)
+    counts = args.counts if args.counts is not None else (gpu_bench.QUICK_COUNTS if quick else gpu_bench.COUNTS)
+    if not counts and not scenes:
+        raise UserError("bench gpu: nothing to measure (no --counts and no scenes)")
+    for scene in scenes:  # before any work
+        if scene != DEMO and not os.path.exists(scene):
+            raise UserError(f"{scene}: no such file")
+    return gpu_bench.GpuOptions(
+        counts=tuple(dict.fromkeys(counts)), scenes=scenes,
+        mono=gpu_bench.QUICK_MONO if quick else gpu_bench.MONO,
+        eye_shrink=gpu_bench.QUICK_EYE_SHRINK if quick else 1,
+        frames=args.frames or (gpu_bench.QUICK_FRAMES if quick else gpu_bench.DEFAULT_FRAMES),
+        out=_report_path(args.out, args.overwrite), overwrite=args.overwrite,
+        **_run_fields("gpu", args, notes))

@@ -5,6 +5,7 @@ parsers from them)."""
 from __future__ import annotations
 
 from raygs_viewer.bench import cube, freshness, sort_timing
+from raygs_viewer.bench import gpu as gpu_bench
 from raygs_viewer.bench import lod as lod_bench
 from raygs_viewer.bench import sort as sort_bench
 from raygs_viewer.bench.common import count_label
@@ -66,4 +67,15 @@ ABOUT: dict[str, tuple[str, str]] = {
         "time of preprocess+draw (GPU timer, and drained), their ratios to the finest level, and the image's "
         "PSNR and largest error against the finest level's. Prints a table per view and machine-readable "
         "lines; --out writes the markdown report."),
+    "gpu": (
+        "a frame on the GPU: preprocess and draw times, fragments and fill rate, and each fill option's "
+        "ratio to today's path",
+        "For generated outdoor-like scenes of "
+        + ", ".join(count_label(n) for n in gpu_bench.COUNTS) + " gaussians (SH degree 3, made in memory) and "
+        "the shared real scenes, at 1920x1080 and as a " + gpu_bench.HEADSET.label + " stereo pair: the GPU "
+        "timer of the preprocessing pass and of the draw, fragments rasterized and kept (samples-passed "
+        "queries), fragments per second, RayGS against GS and against the floor pass, the CPU cull+sort, "
+        "the VR budget of both eyes at 72/90/120 Hz, and each blend precision and draw layout as a ratio "
+        "to today's path, measured side by side in the same frames. Prints a line per case and the "
+        "markdown report; --out writes it."),
 }

@@ -39,6 +39,14 @@ ORDER_LABELS = {"depth": "depth", "distance": "distance", "per-pixel": "per pixe
 #: Largest re-ordering window (k-buffer entries per pixel) of the bounded per-pixel order.
 MAX_ORDER_K = 16
 
+#: What the blended colour accumulates in (docs/performance.md, "On a GPU"): float32
+#: (exact to float32 rounding), float16 (RGBA16F, as nvpro's viewer and Unity's blend) or
+#: 8bit (RGBA8, as vkgs and vkraygs blend: every blend step rounds to 1/255 and clamps
+#: to 0..1). Narrower pixels cost less fill. The per-pixel order and the transmittance
+#: cut-off composite in their own passes and keep float32.
+PRECISIONS = ("float32", "float16", "8bit")
+PRECISION_LABELS = {"float32": "float32", "float16": "float16", "8bit": "8-bit"}
+
 #: Variance (px^2) added to every projected 2D covariance in GS mode, as INRIA training does.
 GS_DILATION = 0.3
 #: GS skips gaussians whose centre is nearer than this (camera-space z, scene units):
@@ -139,6 +147,11 @@ class RenderSettings:
         "pixel (a k-buffer), for speed; implies --order per-pixel", "K", limits=(0, MAX_ORDER_K),
         words={0: "exact"}, what="order K", needs="per_pixel", implies=("order", "per-pixel"),
         line=Shown(" (K={})", worded=" ({})", joined=True)))
+    precision: str = setting("float32", Setting(
+        "what the blended colour accumulates in: float32 (exact, the default), float16 or 8bit (less fill on a "
+        "GPU, at the error bench accuracy states); the per-pixel order and the cut-off keep float32",
+        choices=PRECISIONS, words=PRECISION_LABELS, line=Shown("blend {}", worded="blend {}"),
+        label=Shown("{}", worded="{} blend")))
     lod: int | None = setting(None, Setting(
         "a streamed SOG (lod-meta.json): draw level N everywhere, 0 the finest (default: choose each part's "
         "level per view)", "N", limits=(0, MAX_LOD_LEVELS - 1), what="level of detail", accuracy=False,
@@ -218,6 +231,8 @@ ACCURACY_PRESETS: dict[str, dict[str, object]] = {
     "RayGS, per-pixel order": {"order": "per-pixel"},
     "RayGS, per-pixel order K=4": {"order": "per-pixel", "order_k": 4},
     "RayGS + MIP, per-pixel order": {"mip": True, "mip_modulation": True, "order": "per-pixel"},
+    "RayGS, float16 blend": {"precision": "float16"},
+    "RayGS, 8-bit blend": {"precision": "8bit"},
 }
 
 

@@ -126,7 +126,7 @@ def test_slug():
 
 
 def test_every_configuration_has_a_colour_and_a_marker_of_its_own():
-    """Thirteen configurations share one plot: no two may look alike, in colour or (for a
+    """Fifteen configurations share one plot: no two may look alike, in colour or (for a
     greyscale print) in shape; the scenes differ by fill."""
     from raygs_viewer.bench.plot import group_fills, series_styles
     styles = series_styles(list(ACCURACY_PRESETS))

@@ -197,7 +197,7 @@ def test_round_trip_through_save_screenshot(tmp_path):
 #: options and a streamed SOG's level of detail.
 ACCURACY = dict(mode="raygs-exact-mip", mip=True, mip_sigma2=0.37, mip_modulation=False, gs_compensation=True,
                 supersample=3, alpha_clamp=True, transmittance_cutoff=True, order="per-pixel", order_k=5,
-                lod=2, lod_budget=123456, lod_distance=7.5)
+                precision="float16", lod=2, lod_budget=123456, lod_distance=7.5)
 
 
 def test_every_accuracy_setting_round_trips(tmp_path):

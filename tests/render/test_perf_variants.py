@@ -234,7 +234,7 @@ def test_colour_buffer_is_computed_once(gl_ctx, make_renderer, monkeypatch):
 # -------------------------------------------------------------- 3. preprocess skipping
 def preprocess(renderer, camera, settings, frame=None, color_origin=None) -> None:
     """The renderer's preprocessing pass for ``settings``' plan."""
-    renderer.preprocess(camera, renderer.plan(settings), frame, color_origin)
+    renderer.preprocess(camera, renderer.plan(settings), frame=frame, color_origin=color_origin)
 
 
 def _records(gl_ctx, scene, camera, settings, frame=None, color_origin=None) -> np.ndarray:

@@ -28,7 +28,9 @@ SWITCHES = {
     "exact MIP 2x2": RenderSettings(mode="raygs-exact-mip", supersample=2),
     "GS + compensation, grey": RenderSettings(mode="gs", gs_compensation=True, background=(0.5, 0.5, 0.5)),
 }
-CASES = {**{name: apply_preset(RenderSettings(), name) for name in ACCURACY_PRESETS}, **SWITCHES}
+# The narrow blend presets have their own, stated error: test_precision.py.
+CASES = {**{name: apply_preset(RenderSettings(), name) for name in ACCURACY_PRESETS
+            if apply_preset(RenderSettings(), name).precision == "float32"}, **SWITCHES}
 
 
 @pytest.fixture(scope="module")

@@ -46,58 +46,58 @@ def test_a_preset_resets_every_accuracy_option_it_does_not_name(name):
 #: deriving the describers from the settings' table changes none of them.
 DESCRIPTIONS = [
     ({}, "RayGS",
-     "mode raygs, MIP off, supersample 1x1, alpha clamp off, transmittance cut-off off, order depth"),
+     "mode raygs, MIP off, supersample 1x1, alpha clamp off, transmittance cut-off off, order depth, blend float32"),
     ({"mode": "gs"}, "GS (EWA)",
-     "mode gs, compensation off, supersample 1x1, alpha clamp off, transmittance cut-off off, order depth"),
+     "mode gs, compensation off, supersample 1x1, alpha clamp off, transmittance cut-off off, order depth, blend float32"),
     ({"mode": "gs", "gs_compensation": True}, "GS (EWA) + comp.",
-     "mode gs, compensation on, supersample 1x1, alpha clamp off, transmittance cut-off off, order depth"),
+     "mode gs, compensation on, supersample 1x1, alpha clamp off, transmittance cut-off off, order depth, blend float32"),
     ({"mode": "gs", "mip": True, "mip_modulation": False}, "GS (EWA)",
-     "mode gs, compensation off, supersample 1x1, alpha clamp off, transmittance cut-off off, order depth"),
+     "mode gs, compensation off, supersample 1x1, alpha clamp off, transmittance cut-off off, order depth, blend float32"),
     ({"mode": "raygs-exact-mip"}, "RayGS exact MIP + MIP 0.1 px²",
      "mode raygs-exact-mip, sigma^2 0.1 px^2, modulation on, supersample 1x1, alpha clamp off, "
-     "transmittance cut-off off, order depth"),
+     "transmittance cut-off off, order depth, blend float32"),
     ({"mode": "raygs-exact-mip", "mip_sigma2": 0.37, "mip_modulation": False}, "RayGS exact MIP + MIP 0.37 px² no mod.",
      "mode raygs-exact-mip, sigma^2 0.37 px^2, modulation off, supersample 1x1, alpha clamp off, "
-     "transmittance cut-off off, order depth"),
+     "transmittance cut-off off, order depth, blend float32"),
     ({"mip": True}, "RayGS + MIP 0.1 px²",
      "mode raygs, MIP on, sigma^2 0.1 px^2, modulation on, supersample 1x1, alpha clamp off, "
-     "transmittance cut-off off, order depth"),
+     "transmittance cut-off off, order depth, blend float32"),
     ({"mip": True, "mip_modulation": False, "mip_sigma2": 0.25}, "RayGS + MIP 0.25 px² no mod.",
      "mode raygs, MIP on, sigma^2 0.25 px^2, modulation off, supersample 1x1, alpha clamp off, "
-     "transmittance cut-off off, order depth"),
+     "transmittance cut-off off, order depth, blend float32"),
     ({"mip_modulation": False, "mip_sigma2": 2.0}, "RayGS",
-     "mode raygs, MIP off, supersample 1x1, alpha clamp off, transmittance cut-off off, order depth"),
+     "mode raygs, MIP off, supersample 1x1, alpha clamp off, transmittance cut-off off, order depth, blend float32"),
     ({"gs_compensation": True}, "RayGS",
-     "mode raygs, MIP off, supersample 1x1, alpha clamp off, transmittance cut-off off, order depth"),
+     "mode raygs, MIP off, supersample 1x1, alpha clamp off, transmittance cut-off off, order depth, blend float32"),
     ({"supersample": 2}, "RayGS + 2×2",
-     "mode raygs, MIP off, supersample 2x2, alpha clamp off, transmittance cut-off off, order depth"),
+     "mode raygs, MIP off, supersample 2x2, alpha clamp off, transmittance cut-off off, order depth, blend float32"),
     ({"supersample": 4, "alpha_clamp": True}, "RayGS + 4×4, alpha clamp",
-     "mode raygs, MIP off, supersample 4x4, alpha clamp on, transmittance cut-off off, order depth"),
+     "mode raygs, MIP off, supersample 4x4, alpha clamp on, transmittance cut-off off, order depth, blend float32"),
     ({"transmittance_cutoff": True}, "RayGS + T cut-off",
-     "mode raygs, MIP off, supersample 1x1, alpha clamp off, transmittance cut-off on, order depth"),
+     "mode raygs, MIP off, supersample 1x1, alpha clamp off, transmittance cut-off on, order depth, blend float32"),
     ({"mode": "gs", "gs_compensation": True, "supersample": 3, "alpha_clamp": True, "transmittance_cutoff": True},
      "GS (EWA) + comp., 3×3, alpha clamp, T cut-off",
-     "mode gs, compensation on, supersample 3x3, alpha clamp on, transmittance cut-off on, order depth"),
+     "mode gs, compensation on, supersample 3x3, alpha clamp on, transmittance cut-off on, order depth, blend float32"),
     ({"p_min": 0.02}, "RayGS + p_min 0.02",
-     "mode raygs, MIP off, supersample 1x1, alpha clamp off, transmittance cut-off off, order depth"),
+     "mode raygs, MIP off, supersample 1x1, alpha clamp off, transmittance cut-off off, order depth, blend float32"),
     ({"p_min": math.exp(-4.0), "mip": True}, "RayGS + MIP 0.1 px², p_min 0.0183",
      "mode raygs, MIP on, sigma^2 0.1 px^2, modulation on, supersample 1x1, alpha clamp off, "
-     "transmittance cut-off off, order depth"),
+     "transmittance cut-off off, order depth, blend float32"),
     ({"order": "distance"}, "RayGS",
-     "mode raygs, MIP off, supersample 1x1, alpha clamp off, transmittance cut-off off, order distance"),
+     "mode raygs, MIP off, supersample 1x1, alpha clamp off, transmittance cut-off off, order distance, blend float32"),
     ({"order": "per-pixel"}, "RayGS",
-     "mode raygs, MIP off, supersample 1x1, alpha clamp off, transmittance cut-off off, order per-pixel (exact)"),
+     "mode raygs, MIP off, supersample 1x1, alpha clamp off, transmittance cut-off off, order per-pixel (exact), blend float32"),
     ({"order": "per-pixel", "order_k": 4}, "RayGS",
-     "mode raygs, MIP off, supersample 1x1, alpha clamp off, transmittance cut-off off, order per-pixel (K=4)"),
+     "mode raygs, MIP off, supersample 1x1, alpha clamp off, transmittance cut-off off, order per-pixel (K=4), blend float32"),
     ({"order": "distance", "order_k": 3}, "RayGS",
-     "mode raygs, MIP off, supersample 1x1, alpha clamp off, transmittance cut-off off, order distance"),
+     "mode raygs, MIP off, supersample 1x1, alpha clamp off, transmittance cut-off off, order distance, blend float32"),
     ({"mode": "raygs-exact-mip", "mip_sigma2": 100.0, "supersample": 2, "alpha_clamp": True,
       "transmittance_cutoff": True, "order": "per-pixel", "order_k": 16, "p_min": 1e-3},
      "RayGS exact MIP + MIP 100 px², 2×2, alpha clamp, T cut-off, p_min 0.001",
      "mode raygs-exact-mip, sigma^2 100 px^2, modulation on, supersample 2x2, alpha clamp on, "
-     "transmittance cut-off on, order per-pixel (K=16)"),
+     "transmittance cut-off on, order per-pixel (K=16), blend float32"),
     ({"background": (0.1, 0.2, 0.3), "sh_degree": 1}, "RayGS",
-     "mode raygs, MIP off, supersample 1x1, alpha clamp off, transmittance cut-off off, order depth"),
+     "mode raygs, MIP off, supersample 1x1, alpha clamp off, transmittance cut-off off, order depth, blend float32"),
 ]
 
 
@@ -124,10 +124,11 @@ def test_a_setting_added_later_reaches_every_describer():
     settings = WithExposure(exposure=2.0, supersample=2, order="per-pixel")
     assert describe_settings(settings) == "RayGS + 2×2, exposure x2"
     assert describe_accuracy(settings) == ("mode raygs, MIP off, supersample 2x2, alpha clamp off, "
-                                           "transmittance cut-off off, order per-pixel (exact), exposure 2")
+                                           "transmittance cut-off off, order per-pixel (exact), blend float32, "
+                                           "exposure 2")
     # Where it does not apply (needs="per_pixel"), or at its default in the label, it is left out.
     assert describe_settings(replace(settings, order="depth")) == "RayGS + 2×2"
-    assert describe_accuracy(replace(settings, order="depth")).endswith("order depth")
+    assert describe_accuracy(replace(settings, order="depth")).endswith("order depth, blend float32")
     assert describe_settings(replace(settings, exposure=1.0)) == "RayGS + 2×2"
     # Its limits are checked ...
     with pytest.raises(UserError, match=r"exposure must be a number in \[0, 8\], got 9"):

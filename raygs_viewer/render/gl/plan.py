@@ -36,6 +36,47 @@ from raygs_viewer.sort.request import Order
 #: fragment lists (glsl/fragment_lists.glsl), a k-buffer (glsl/kbuffer.glsl).
 PER_PIXEL_PATHS = {None: 0, "lists": 1, "fetch": 2}
 
+#: The texture kind (moderngl dtype) the blended colour, and the geometry attachments,
+#: accumulate in at each precision (settings.PRECISIONS). The geometry sums are signed
+#: and unbounded (depth times alpha), which 8 bits cannot hold: they take float16 there.
+COLOR_DTYPES = {"float32": "f4", "float16": "f2", "8bit": "f1"}
+GEOMETRY_DTYPES = {"float32": "f4", "float16": "f2", "8bit": "f2"}
+
+#: How the quads reach the vertex stage (splat_blocks.glsl's DRAW_VERTICES): one
+#: instance of a 4-vertex strip per splat, the splat from gl_InstanceID; or no instances,
+#: the splat from gl_VertexID: an index buffer of 6 indices over 4 vertices per splat
+#: ("indexed", as vkgs and vkraygs draw), or 6 vertices per splat and no buffer.
+DRAW_VERTICES = {"instanced": 0, "indexed": 1, "triangles": 2}
+#: Where a splat's record is: at its scene index, the vertex stage reading it through
+#: the order ("scene"); or at its place in the draw, written there by a preprocessing
+#: pass that runs over the order, so the vertex stage reads records in sequence and the
+#: culled gaussians cost no work ("draw", as vkgs and vkraygs do).
+RECORDS = ("scene", "draw")
+
+
+@dataclass(frozen=True)
+class DrawLayout:
+    """How a draw lays out its quads and records (:data:`DRAW_VERTICES`, :data:`RECORDS`).
+    Every layout draws the same triangles in the same order, so in float32 the image is
+    the same to the bit; they differ only in what the GPU does to get there."""
+
+    vertices: str = "instanced"
+    records: str = "scene"
+
+    def __post_init__(self) -> None:
+        if self.vertices not in DRAW_VERTICES:
+            raise ValueError(f"unknown draw vertices '{self.vertices}': use one of {', '.join(DRAW_VERTICES)}")
+        if self.records not in RECORDS:
+            raise ValueError(f"unknown records '{self.records}': use one of {', '.join(RECORDS)}")
+
+    @property
+    def name(self) -> str:
+        return self.vertices if self.records == "scene" else f"{self.vertices}, draw-order records"
+
+
+#: Today's layout, and the default until a GPU has measured the others (docs/performance.md).
+DEFAULT_DRAW_LAYOUT = DrawLayout()
+
 
 class Feature(NamedTuple):
     """One switch of glsl/features.glsl: its literal's name, its uniform's name, and its
@@ -77,6 +118,8 @@ class RenderPlan:
     sh_degree: the scene's stored SH degree.
     general:   the all-features build (uniforms instead of literals).
     problem:   why this GPU cannot draw the plan (one line), None when it can.
+    draw:      the draw layout; the per-pixel passes read records by scene index, so
+               with a per-pixel path the records stay in scene order.
     """
 
     settings: RenderSettings
@@ -86,6 +129,27 @@ class RenderPlan:
     sh_degree: int = 0
     general: bool = False
     problem: str | None = None
+    draw: DrawLayout = DEFAULT_DRAW_LAYOUT
+
+    def __post_init__(self) -> None:
+        if self.path is not None and self.draw.records != "scene":
+            object.__setattr__(self, "draw", DrawLayout(self.draw.vertices, "scene"))
+
+    @property
+    def records_in_draw_order(self) -> bool:
+        return self.draw.records == "draw"
+
+    @property
+    def precision(self) -> str:
+        """What the blend accumulates in: the settings' precision, or float32 where the
+        fragment stage or the per-pixel passes composite (they read the target back, or
+        write the image themselves)."""
+        return "float32" if self.path is not None or self.front_to_back else self.settings.precision
+
+    def target_dtypes(self, attachments: int) -> tuple[str, ...]:
+        """The texture kinds of a target of ``attachments`` this plan draws into: the
+        colour's, then the geometry outputs'."""
+        return (COLOR_DTYPES[self.precision],) + (GEOMETRY_DTYPES[self.precision],) * (attachments - 1)
 
     @property
     def mode_gs(self) -> bool:
@@ -127,7 +191,8 @@ class RenderPlan:
         """preprocess.comp's."""
         defines = {"SH_STORED_DEGREE": self.sh_degree, "MODE_GS": int(self.mode_gs), "GEOMETRY": int(self.geometry),
                    "GS_DILATION": glsl_literal(GS_DILATION), "GS_NEAR": glsl_literal(GS_NEAR),
-                   "EXACT_MIP": int(self.exact_mip), **self.feature_defines()}
+                   "EXACT_MIP": int(self.exact_mip), "RECORDS_IN_DRAW_ORDER": int(self.records_in_draw_order),
+                   **self.feature_defines()}
         if not self.general:
             defines["COLOR_AT_LOAD"] = glsl_literal(self.colors_at_load)
         return defines
@@ -139,7 +204,9 @@ class RenderPlan:
                 "EXACT_MIP": int(self.exact_mip), "GEOMETRY": int(self.geometry), "MODE_GS": int(self.mode_gs),
                 "MIN_TRANSMITTANCE": glsl_literal(TRANSMITTANCE_CUTOFF), "PER_PIXEL": PER_PIXEL_PATHS[self.path],
                 "CUTOFF": glsl_literal(bool(self.settings.transmittance_cutoff)),
-                "FRONT_TO_BACK": int(self.front_to_back), "MAX_ORDER_K": MAX_ORDER_K, "ORDER_K": max(1, self.window)}
+                "FRONT_TO_BACK": int(self.front_to_back), "MAX_ORDER_K": MAX_ORDER_K, "ORDER_K": max(1, self.window),
+                "DRAW_VERTICES": DRAW_VERTICES[self.draw.vertices],
+                "RECORDS_IN_DRAW_ORDER": int(self.records_in_draw_order)}
 
     def draw_stages(self, floor: bool = False) -> tuple[str, str, dict[str, object]]:
         """(vertex shader, fragment shader, defines) of the quads; ``floor``: glsl/quads.*,

@@ -38,7 +38,7 @@ from raygs_viewer.render.channel_pictures import ChannelView
 from raygs_viewer.render.channels import ChannelImage
 from raygs_viewer.render.gl.geometry import GeometryOutputs, takes_lists
 from raygs_viewer.render.gl.per_pixel import PerPixelOrder, storage_block_problem
-from raygs_viewer.render.gl.plan import RenderPlan
+from raygs_viewer.render.gl.plan import DEFAULT_DRAW_LAYOUT, DrawLayout, RenderPlan
 from raygs_viewer.render.gl.results import OrderStats, RenderResult
 from raygs_viewer.render.gl.shaders import Programs, set_uniform
 from raygs_viewer.render.gl.storage import (
@@ -46,6 +46,7 @@ from raygs_viewer.render.gl.storage import (
     GEOMETRY_BYTES,
     SPLAT_BYTES,
     SceneBuffers,
+    place_runs,
 )
 from raygs_viewer.render.gl.targets import FloatTarget, release_all, sized
 from raygs_viewer.render.settings import RenderSettings
@@ -80,14 +81,19 @@ class GLRenderer:
     to exercise the splitting). ``pool_fragments`` and ``order_path`` ("auto", "lists",
     "fetch") configure the per-pixel order (render/gl/per_pixel.py).
     ``general``: draw with the all-features variant (:mod:`raygs_viewer.render.gl.plan`).
+    ``draw_layout``: how the quads and records are laid out (render/gl/plan.py,
+    :class:`DrawLayout`; every layout draws the same image); an attribute, so a benchmark
+    can switch it between frames.
     ``storage`` holds the buffers (render/gl/storage.py), ``programs`` the compiled ones.
     """
 
     def __init__(self, ctx: moderngl.Context, scene: Scene, *, block_limit: int | None = None,
                  memory_limit: int | None = None, general: bool = False,
-                 pool_fragments: int | None = None, order_path: str = "auto"):
+                 pool_fragments: int | None = None, order_path: str = "auto",
+                 draw_layout: DrawLayout = DEFAULT_DRAW_LAYOUT):
         self.ctx = ctx
         self.general = bool(general)
+        self.draw_layout = draw_layout
         self.counters = WorkCounters()
         self.scene = scene
         self.storage = SceneBuffers(ctx, scene, block_limit=block_limit, memory_limit=memory_limit)
@@ -96,11 +102,13 @@ class GLRenderer:
         self.programs = Programs(ctx)
         self._last_layout = self.layout
         self._preprocessed_key: tuple | None = None  # what the records in storage.splats were made for
+        self._preprocessed_order: np.ndarray | None = None  # ... the order, for records in draw order
         #: Off only to demonstrate the near-plane seam that depth clamp prevents.
         self.depth_clamp = True
         self.per_pixel = PerPixelOrder(ctx, scene.count, self.storage.block_limit, pool_fragments, order_path)
         self._target: FloatTarget | None = None  # render()'s image, the latest size
-        self._samples: dict[int, FloatTarget] = {}  # sample targets, by attachments
+        self._samples: dict[tuple[str, ...], FloatTarget] = {}  # sample targets, by their attachments' kinds
+        self._indexed: dict[int, moderngl.VertexArray] = {}  # the indexed draw's arrays, by program
         self.geometry = GeometryOutputs(ctx)
 
     def plan(self, settings: RenderSettings, geometry: bool = False, median: bool = False) -> RenderPlan:
@@ -119,51 +127,80 @@ class GLRenderer:
         elif settings.transmittance_cutoff and GL_EXT_FRAMEBUFFER_FETCH not in self.ctx.extensions:
             problem = (f"the transmittance cut-off needs {GL_EXT_FRAMEBUFFER_FETCH}, "
                        f"which this GPU's OpenGL driver does not offer")
-        return RenderPlan(settings, layout, geometry, path, self.scene.sh_degree, self.general, problem)
+        return RenderPlan(settings, layout, geometry, path, self.scene.sh_degree, self.general, problem,
+                          self.draw_layout)
 
     def supports(self, settings: RenderSettings) -> str | None:
         """None when this GPU can render ``settings``' colour, else why not (one line)."""
         return self.plan(settings).problem
 
     # -- per-frame passes ---------------------------------------------------------
-    def preprocess(self, camera: Camera, plan: RenderPlan, frame: Camera | None = None,
-                   color_origin: np.ndarray | None = None, spans: np.ndarray | None = None) -> None:
-        """Writes the per-view splat record of every gaussian for ``camera`` (the camera
-        actually rasterized: already supersampled) in ``plan``'s variant. ``frame``: the
-        whole image's camera when ``camera`` renders one tile of it (GS clamps rays to the
-        whole image). ``color_origin``: the world point SH colour is seen from (default:
-        the camera's centre; stereo shares the eyes' midpoint). ``spans``: (S, 2)
-        ascending [start, stop) rows to write (an order's level-of-detail choice,
-        ``Order.spans``); None: every row."""
+    def preprocess(self, camera: Camera, plan: RenderPlan, order: Order | None = None, frame: Camera | None = None,
+                   color_origin: np.ndarray | None = None) -> None:
+        """Writes the per-view splat records for ``camera`` (the camera actually
+        rasterized: already supersampled) in ``plan``'s variant: of every gaussian at its
+        scene index, or only of ``order``'s level-of-detail rows (``Order.spans``); or,
+        with records in draw order, of ``order``'s gaussians at their places in it
+        (``order`` required). ``frame``: the whole image's camera when ``camera`` renders
+        one tile of it (GS clamps rays to the whole image). ``color_origin``: the world
+        point SH colour is seen from (default: the camera's centre; stereo shares the
+        eyes' midpoint)."""
         origin = camera.center if color_origin is None else np.asarray(color_origin, np.float64)
-        spans = None if spans is None else np.asarray(spans, np.int64).reshape(-1, 2)
+        in_draw_order = plan.records_in_draw_order
+        if in_draw_order and order is None:
+            raise ValueError("records in draw order are preprocessed for an order")
+        spans = None if order is None or in_draw_order or order.spans is None else order.spans
         defines = plan.preprocess_defines()
         uniforms = {**view_uniforms(camera, plan.settings, frame, origin), **plan.feature_uniforms()}
         key = (tuple(defines.items()), tuple(uniforms.items()), plan.layout, plan.colors_at_load,
                None if spans is None else spans.tobytes())
-        if key == self._preprocessed_key:
+        if key == self._preprocessed_key and (not in_draw_order or order.indices is self._preprocessed_order):
             self.counters.preprocess_skipped += 1
             return
-        self._preprocessed_key = None  # until this pass has written every record
+        self._preprocessed_key = self._preprocessed_order = None  # until this pass has written every record
         self.storage.hold_records(plan.layout, plan.settings.mode)
         self._last_layout = plan.layout
         program = self.programs.compute("preprocess.comp", defines)
         for name, value in uniforms.items():
             set_uniform(program, name, value)
-        for chunk in self.storage.preprocess_chunks(plan.layout, plan.colors_at_load):
-            program["u_out_offset"].value = chunk.offset
-            for first, count in chunk_runs(chunk.start, chunk.count, spans):
-                set_uniform(program, "u_first", first)  # gone where a negative control breaks the shader
-                program["u_count"].value = count
-                program.run(group_x=-(-count // WORKGROUP))
+        if in_draw_order:
+            self._preprocess_places(program, plan, order)
+        else:
+            for chunk in self.storage.preprocess_chunks(plan.layout, plan.colors_at_load):
+                program["u_out_offset"].value = chunk.offset
+                for first, count in chunk_runs(chunk.start, chunk.count, spans):
+                    set_uniform(program, "u_first", first)  # gone where a negative control breaks the shader
+                    program["u_count"].value = count
+                    program.run(group_x=-(-count // WORKGROUP))
         self.ctx.memory_barrier()
         self.counters.preprocessed += 1
         self._preprocessed_key = key
+        self._preprocessed_order = order.indices if in_draw_order else None
+
+    def _preprocess_places(self, program: moderngl.ComputeShader, plan: RenderPlan, order: Order) -> None:
+        """The draw-order preprocessing's dispatches: one per (chunk, splat block) the
+        order's places fall in (storage.place_runs)."""
+        self.upload_order(order)
+        ranks, runs = place_runs(order.indices, plan.layout)
+        self.storage.bind_places(order.count, ranks)
+        set_uniform(program, "u_ranked", ranks is not None)
+        for run in runs:
+            self.storage.bind_chunk(plan.layout, plan.colors_at_load, run.chunk_start)
+            self.storage.bind_records(plan.layout, run.block_start)
+            set_uniform(program, "u_chunk_start", run.chunk_start)
+            set_uniform(program, "u_block_start", run.block_start)
+            set_uniform(program, "u_first", run.first)
+            program["u_count"].value = run.count
+            program.run(group_x=-(-run.count // WORKGROUP))
+
+    def forget_records(self) -> None:
+        """The next :meth:`preprocess` runs whatever it last wrote (a benchmark times it)."""
+        self._preprocessed_key = self._preprocessed_order = None
 
     def read_splats(self) -> np.ndarray:
         """(N, F) float32 copy of the per-view records of the last :meth:`preprocess`
-        (the ``Splat`` struct, row by row; F = 16, or 28 in exact MIP mode), for tests
-        and diagnostics."""
+        (the ``Splat`` struct, row by row; F = 16, or 28 in exact MIP mode; with records
+        in draw order, the first rows are the order's places), for tests and diagnostics."""
         return self.storage.read_records(self._last_layout)
 
     def draw(self, camera: Camera, plan: RenderPlan, order: Order, *, floor: bool = False,
@@ -203,7 +240,21 @@ class GLRenderer:
             ctx.enable_direct(GL_DEPTH_CLAMP)
         else:
             ctx.disable_direct(GL_DEPTH_CLAMP)
-        vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=order.count)
+        vertices = plan.draw.vertices
+        if vertices == "instanced":
+            vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=order.count)
+        elif vertices == "indexed":
+            self._indexed_array(program).render(moderngl.TRIANGLES, vertices=6 * order.count)
+        else:
+            vao.render(moderngl.TRIANGLES, vertices=6 * order.count)
+
+    def _indexed_array(self, program: moderngl.Program) -> moderngl.VertexArray:
+        """``program``'s vertex array with the quads' index buffer (storage.quad_indices)."""
+        key = program.glo
+        if key not in self._indexed:
+            self._indexed[key] = self.ctx.vertex_array(program, [], index_buffer=self.storage.quad_indices(),
+                                                       index_element_size=4)
+        return self._indexed[key]
 
     def upload_order(self, order: Order) -> None:
         """Puts ``order`` in the GPU's order buffer, unless its very index array is
@@ -219,15 +270,18 @@ class GLRenderer:
         attachments): the preprocessing pass, then the blended draw or the per-pixel
         passes, into a k x k sample target first where supersampling, front-to-back
         compositing or a target the per-pixel passes cannot write call for one, then
-        resolved down. Returns what the per-pixel order's passes did (None otherwise)."""
+        resolved down; also where the blend precision is not the target's (float16 and
+        8-bit blend into a sample target of their own). Returns what the per-pixel
+        order's passes did (None otherwise)."""
         if plan.problem:
             raise UserError(plan.problem)
         settings, k = plan.settings, plan.settings.supersample
         sampled = camera.resized(camera.width * k, camera.height * k) if k > 1 else camera
         drawn = target
-        if k > 1 or plan.front_to_back or (plan.path is not None and target.dtype != "f4"):
-            drawn = self._sample_target(sampled, target.attachments)
-        self.preprocess(sampled, plan, frame or camera, color_origin, order.spans)  # the bounds are scale-invariant
+        dtypes = plan.target_dtypes(target.attachments)  # the blend precision's, or float32 for the per-pixel passes
+        if k > 1 or plan.front_to_back or target.dtypes != dtypes:
+            drawn = self._sample_target(sampled, dtypes)
+        self.preprocess(sampled, plan, order, frame or camera, color_origin)  # the bounds are scale-invariant
         stats = None
         if plan.path is not None:  # its passes write every pixel, over the background
             stats = self.per_pixel.render(self, drawn, sampled, plan, order)
@@ -290,14 +344,17 @@ class GLRenderer:
         stats = self.draw_planned(image, camera, plan, order, frame, color_origin)
         return RenderResult(stats, self.geometry.picture(self.programs, target, image, camera, view))
 
-    def _sample_target(self, camera: Camera, attachments: int) -> FloatTarget:
-        self._samples[attachments] = sized(self._samples.get(attachments), self.ctx, camera.width, camera.height,
-                                           attachments=attachments)
-        return self._samples[attachments]
+    def _sample_target(self, camera: Camera, dtypes: tuple[str, ...]) -> FloatTarget:
+        self._samples[dtypes] = sized(self._samples.get(dtypes), self.ctx, camera.width, camera.height,
+                                      dtypes=dtypes)
+        return self._samples[dtypes]
 
     def release(self) -> None:
         release_all(self._target, *self._samples.values())
         self._target, self._samples = None, {}
+        for array in self._indexed.values():
+            array.release()
+        self._indexed = {}
         self.geometry.release()
         self.per_pixel.release()
         self.programs.release()

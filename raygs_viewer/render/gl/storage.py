@@ -70,6 +70,42 @@ class StorageLayout:
 
 
 @dataclass(frozen=True)
+class PlaceRun:
+    """One dispatch of the preprocessing pass that writes records in draw order: ``count``
+    places from ``first`` (of the order, or of the ranks where the places are ranked),
+    whose gaussians lie in the chunk from scene row ``chunk_start`` and whose records
+    lie in the splat block from place ``block_start``."""
+
+    chunk_start: int
+    block_start: int
+    first: int
+    count: int
+
+
+def place_runs(indices: np.ndarray, layout: StorageLayout) -> tuple[np.ndarray | None, list[PlaceRun]]:
+    """(ranks, runs) that preprocess the order ``indices`` (M,) into records at its
+    places. A preprocessing dispatch binds one chunk of the scene and one splat block, so
+    the places are grouped by (chunk, block): ``ranks`` (M,) uint32 lists them group by
+    group, ascending within each (a stable partition), and each run is one group; None
+    where one chunk and one block hold them all (the places are then 0 .. M - 1)."""
+    count = len(indices)
+    if count == 0:
+        return None, []
+    blocks = -(-count // layout.splats_per_block)
+    if layout.count <= layout.chunk and blocks == 1:
+        return None, [PlaceRun(0, 0, 0, count)]
+    group = (np.asarray(indices, np.int64) // layout.chunk) * blocks + np.arange(count) // layout.splats_per_block
+    ranks = np.argsort(group.astype(np.uint16 if group.max() < 1 << 16 else np.int64), kind="stable")
+    sizes = np.bincount(group)
+    runs, first = [], 0
+    for key in np.flatnonzero(sizes):
+        chunk, block = divmod(int(key), blocks)
+        runs.append(PlaceRun(chunk * layout.chunk, block * layout.splats_per_block, first, int(sizes[key])))
+        first += int(sizes[key])
+    return ranks.astype(np.uint32), runs
+
+
+@dataclass(frozen=True)
 class Chunk:
     """One preprocessing chunk, its ranges bound: ``count`` gaussians from ``start``,
     whose records go to ``offset`` within the bound splat block."""
@@ -155,6 +191,8 @@ class SceneBuffers:
         self.gaussians, self.harmonics, self.splats, self.order = buffers
         self.colors: moderngl.Buffer | None = None
         self._uploaded_order: np.ndarray | None = None  # the array whose indices `order` holds
+        self._quad_indices: moderngl.Buffer | None = None  # the indexed draw's (made on first use)
+        self._ranks: moderngl.Buffer | None = None  # places of a draw-order preprocessing, by group
 
     def layout_for(self, splat_bytes: int) -> StorageLayout:
         """The layout of records of ``splat_bytes``, planned once; UserError when it
@@ -194,19 +232,54 @@ class SceneBuffers:
         """Binds each chunk's ranges in turn (gaussians at 0, the colours at load or the
         SH at 1, the chunk's splat block at 2) and yields it, for one dispatch each."""
         count = self.scene.count
+        for start in range(0, count, layout.chunk):
+            self.bind_chunk(layout, colors_at_load, start)
+            block_start = start - start % layout.splats_per_block
+            self.bind_records(layout, block_start)
+            yield Chunk(start, min(layout.chunk, count - start), start - block_start)
+
+    def bind_chunk(self, layout: StorageLayout, colors_at_load: bool, start: int) -> None:
+        """Binds the chunk of gaussians from scene row ``start`` at 0, and their colours
+        at load or SH at 1."""
         if colors_at_load:
             colors, harmonics_bytes = self.color_buffer(), COLOR_BYTES
         else:
             colors, harmonics_bytes = self.harmonics, sh_coefficient_count(self.scene.sh_degree) * 12
-        splat_bytes = layout.splat_bytes
-        for start in range(0, count, layout.chunk):
-            n = min(layout.chunk, count - start)
-            self.gaussians.bind_to_storage_buffer(0, offset=start * GAUSSIAN_BYTES, size=n * GAUSSIAN_BYTES)
-            colors.bind_to_storage_buffer(1, offset=start * harmonics_bytes, size=n * harmonics_bytes)
-            block_start = start - start % layout.splats_per_block
-            block_count = min(layout.splats_per_block, count - block_start)
-            self.splats.bind_to_storage_buffer(2, offset=block_start * splat_bytes, size=block_count * splat_bytes)
-            yield Chunk(start, n, start - block_start)
+        n = min(layout.chunk, self.scene.count - start)
+        self.gaussians.bind_to_storage_buffer(0, offset=start * GAUSSIAN_BYTES, size=n * GAUSSIAN_BYTES)
+        colors.bind_to_storage_buffer(1, offset=start * harmonics_bytes, size=n * harmonics_bytes)
+
+    def bind_records(self, layout: StorageLayout, block_start: int) -> None:
+        """Binds the splat block of records from ``block_start`` at 2 (writable)."""
+        block_count = min(layout.splats_per_block, self.scene.count - block_start)
+        self.splats.bind_to_storage_buffer(2, offset=block_start * layout.splat_bytes,
+                                           size=block_count * layout.splat_bytes)
+
+    def bind_places(self, order_count: int, ranks: np.ndarray | None) -> None:
+        """Binds the order (its first ``order_count``) at 3 and, where the places are
+        ranked (:func:`place_runs`), ``ranks`` at 4, for a draw-order preprocessing."""
+        self.order.bind_to_storage_buffer(3, size=max(order_count, 1) * 4)
+        if ranks is None:
+            self.order.bind_to_storage_buffer(4, size=4)  # declared by the shader, not read
+            return
+        if self._ranks is None:
+            self._ranks = self.ctx.buffer(reserve=max(self.scene.count, 1) * 4)
+        self._ranks.write(ranks)
+        self._ranks.bind_to_storage_buffer(4, size=max(len(ranks), 1) * 4)
+
+    def quad_indices(self) -> moderngl.Buffer:
+        """The indexed draw's index buffer: 6 uint32 per gaussian, (0, 1, 2, 2, 1, 3) + 4q
+        for quad q (the triangle strip's two triangles); made on first use."""
+        if self._quad_indices is None:
+            quads = np.arange(max(self.scene.count, 1), dtype=np.uint32)[:, None] * np.uint32(4)
+            indices = quads + np.array([0, 1, 2, 2, 1, 3], np.uint32)
+            self.ctx.error  # noqa: B018 - clears an earlier error, so the check below sees only this one
+            self._quad_indices = self.ctx.buffer(indices)
+            if self.ctx.error == "GL_OUT_OF_MEMORY":
+                self._quad_indices.release()
+                self._quad_indices = None
+                raise UserError(f"not enough GPU memory for the index buffer of {self.scene.count:,} quads")
+        return self._quad_indices
 
     def bind_for_draw(self, layout: StorageLayout, order_count: int) -> None:
         """Binds the first ``order_count`` indices of ``order`` at 0 and every splat
@@ -236,7 +309,8 @@ class SceneBuffers:
         return np.frombuffer(self.splats.read(size=count * floats * 4), np.float32).reshape(count, floats)
 
     def release(self) -> None:
-        for obj in (self.gaussians, self.harmonics, self.splats, self.order, self.colors):
+        for obj in (self.gaussians, self.harmonics, self.splats, self.order, self.colors, self._quad_indices,
+                    self._ranks):
             if obj is not None:
                 obj.release()
-        self.colors = None
+        self.colors = self._quad_indices = self._ranks = None

@@ -30,19 +30,22 @@ def check_size(ctx: moderngl.Context, width: int, height: int, label: str = "ima
 
 class FloatTarget:
     """A ``width`` x ``height`` colour target: float32 RGBA by default (``dtype="f4"``),
-    or normalised 8-bit (``"f1"``) for what is shown as it is.
+    float16 (``"f2"``, a blend precision) or normalised 8-bit (``"f1"``: a blend
+    precision, and what is shown as it is).
 
     ``attachments`` > 1 adds textures of the same kind as further colour attachments
-    (the geometry outputs: render/gl/renderer.py); ``texture`` is the first.
+    (the geometry outputs: render/gl/renderer.py), or of the kinds ``dtypes`` names,
+    one per attachment; ``texture`` is the first.
     ``label`` and ``advice`` word the UserError for a size the GPU cannot render,
     e.g. "stereo image" and "; use a smaller scale"."""
 
     def __init__(self, ctx: moderngl.Context, width: int, height: int, *, dtype: str = "f4",
-                 label: str = "image", advice: str = "", attachments: int = 1):
+                 label: str = "image", advice: str = "", attachments: int = 1, dtypes: tuple[str, ...] = ()):
         check_size(ctx, width, height, label, advice)
         self.ctx = ctx
-        self.dtype = dtype
-        self.textures = [ctx.texture((width, height), 4, dtype=dtype) for _ in range(attachments)]
+        self.dtypes = tuple(dtypes) or (dtype,) * attachments
+        self.dtype = self.dtypes[0]
+        self.textures = [ctx.texture((width, height), 4, dtype=kind) for kind in self.dtypes]
         self.texture = self.textures[0]
         self.fbo = ctx.framebuffer(color_attachments=self.textures)
         self._single: list[moderngl.Framebuffer] = []  # one per attachment, for clear_each
@@ -66,9 +69,9 @@ class FloatTarget:
             fbo.clear(*color)
 
     def read(self, components: int = 4, attachment: int = 0) -> np.ndarray:
-        """(H, W, components) of one attachment, top row first: float32 for "f4", uint8 for "f1"."""
+        """(H, W, components) of one attachment, top row first: uint8 for "f1", else float32."""
         width, height = self.size
-        if self.dtype == "f4":
+        if self.dtypes[attachment] != "f1":
             pixels = np.frombuffer(self.fbo.read(components=components, dtype="f4", attachment=attachment),
                                    np.float32)
         else:
@@ -88,10 +91,10 @@ class FloatTarget:
 
 
 def sized(target: FloatTarget | None, ctx: moderngl.Context, width: int, height: int, **options) -> FloatTarget:
-    """``target`` when it already has this size (and ``options``' attachments), else a
-    new one (``target`` released first: one size held at a time)."""
-    if (target is not None and target.size == (width, height)
-            and target.attachments == options.get("attachments", 1)):
+    """``target`` when it already has this size (and ``options``' attachments and
+    dtypes), else a new one (``target`` released first: one size held at a time)."""
+    dtypes = tuple(options.get("dtypes", ())) or (options.get("dtype", "f4"),) * options.get("attachments", 1)
+    if target is not None and target.size == (width, height) and target.dtypes == dtypes:
         return target
     if target is not None:
         target.release()

@@ -1,0 +1,188 @@
+"""Draw layouts (render/gl/plan.py, DrawLayout): the instanced strip, the indexed and the
+plain triangle draws, and records written in draw order, draw the same image to the bit,
+in every mode and pass that draws quads; the draw-order preprocessing writes exactly the
+order's records at their places, and only those."""
+
+import numpy as np
+import pytest
+from testkit import assert_matches, random_scene, rendered, sorted_channels, spans_choice
+
+from raygs_viewer.camera.pinhole import look_at
+from raygs_viewer.render.gl.plan import DRAW_VERTICES, DrawLayout
+from raygs_viewer.render.gl.renderer import GLRenderer
+from raygs_viewer.render.gl.storage import StorageLayout, place_runs
+from raygs_viewer.render.reference import render_reference
+from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import exact_order
+from raygs_viewer.sort.depth import DepthSorter
+from raygs_viewer.sort.request import Order
+
+CAMERA = look_at([0.3, -0.2, -3.0], [0, 0, 0], width=80, height=60)
+#: The camera inside the cloud: a part of it culled behind, the rest at every depth.
+INSIDE = look_at([0.1, 0.05, -0.4], [0.2, 0.0, 1.0], width=64, height=48, fov_y_degrees=90)
+LAYOUTS = [DrawLayout(vertices, records) for vertices in DRAW_VERTICES for records in ("scene", "draw")]
+TODAY = DrawLayout()
+#: 4 KiB storage blocks: 300 gaussians in 19 preprocessing chunks and 5 splat blocks, so the
+#: draw-order pass takes ranked places, group by group.
+SMALL_BLOCKS = 4096
+
+SETTINGS = {
+    "raygs": RenderSettings(),
+    "mip": RenderSettings(mip=True),
+    "exact mip": RenderSettings(mode="raygs-exact-mip"),
+    "gs": RenderSettings(mode="gs"),
+    "cut-off": RenderSettings(transmittance_cutoff=True, alpha_clamp=True),
+    "2x2": RenderSettings(supersample=2),
+    "per-pixel": RenderSettings(order="per-pixel"),
+    "per-pixel K=4": RenderSettings(order="per-pixel", order_k=4),
+    "sh 0": RenderSettings(sh_degree=0),
+}
+
+
+def _image(gl_ctx, scene, camera, settings, layout, **options):
+    renderer = GLRenderer(gl_ctx, scene, draw_layout=layout, **options)
+    try:
+        return rendered(renderer, camera, settings)[0]
+    finally:
+        renderer.release()
+
+
+@pytest.mark.parametrize("name", sorted(SETTINGS))
+def test_every_layout_draws_the_same_image_to_the_bit(gl_ctx, name):
+    scene = random_scene(n=300, seed=5)
+    settings = SETTINGS[name]
+    if GLRenderer(gl_ctx, scene).supports(settings):
+        pytest.skip("this GL cannot draw these settings")
+    for camera in (CAMERA, INSIDE):
+        today = _image(gl_ctx, scene, camera, settings, TODAY)
+        assert today[..., 3].max() > 0.5
+        for layout in LAYOUTS:
+            np.testing.assert_array_equal(_image(gl_ctx, scene, camera, settings, layout), today, err_msg=layout.name)
+        if name in ("raygs", "gs"):
+            assert_matches(today, render_reference(scene, camera, settings))
+
+
+@pytest.mark.parametrize("layout", LAYOUTS, ids=lambda layout: layout.name)
+def test_layouts_hold_across_split_storage_blocks(gl_ctx, layout):
+    scene = random_scene(n=300, seed=6)
+    today = _image(gl_ctx, scene, INSIDE, RenderSettings(), TODAY)
+    np.testing.assert_array_equal(_image(gl_ctx, scene, INSIDE, RenderSettings(), layout, block_limit=SMALL_BLOCKS),
+                                  today)
+
+
+@pytest.mark.parametrize("median", [False, True])
+def test_layouts_draw_the_same_geometry_outputs(gl_ctx, median):
+    scene = random_scene(n=250, seed=7)
+    renderer = GLRenderer(gl_ctx, scene)
+    try:
+        today = sorted_channels(renderer, CAMERA, median=median)
+        for layout in LAYOUTS:
+            renderer.draw_layout = layout
+            channels = sorted_channels(renderer, CAMERA, median=median)
+            for field in ("rgb", "alpha", "depth", "normal", "median_depth"):
+                if getattr(today, field, None) is not None:
+                    np.testing.assert_array_equal(getattr(channels, field), getattr(today, field), err_msg=field)
+    finally:
+        renderer.release()
+
+
+def test_records_in_draw_order_are_the_order_s_records_at_their_places(gl_ctx):
+    """The draw-order pass over a culled order writes record i of the order's gaussian
+    order[i], bit for bit the record the scene-order pass writes at that gaussian's index,
+    and nothing past the order's end: culled gaussians cost no work."""
+    scene = random_scene(n=300, seed=8)
+    settings = RenderSettings()
+    with DepthSorter(scene) as sorter:
+        order = exact_order(sorter, INSIDE, settings)
+    assert 0 < order.count < scene.count  # the camera inside culls some
+    for block_limit in (None, SMALL_BLOCKS):
+        renderer = GLRenderer(gl_ctx, scene, block_limit=block_limit)
+        try:
+            renderer.preprocess(INSIDE, renderer.plan(settings))
+            by_scene = renderer.read_splats()
+            renderer.storage.splats.write(np.full(by_scene.size, np.nan, np.float32))  # a mark on every record
+            renderer.draw_layout = DrawLayout("instanced", "draw")
+            renderer.preprocess(INSIDE, renderer.plan(settings), order)
+            by_place = renderer.read_splats()
+            np.testing.assert_array_equal(by_place[:order.count], by_scene[order.indices])
+            assert np.isnan(by_place[order.count:]).all()
+        finally:
+            renderer.release()
+
+
+def test_draw_order_records_follow_the_order_and_skip_only_the_same_one(gl_ctx):
+    """Records in draw order depend on the order: a new order of the same view is
+    preprocessed again; the very same order is not."""
+    scene = random_scene(n=200, seed=9)
+    renderer = GLRenderer(gl_ctx, scene, draw_layout=DrawLayout("indexed", "draw"))
+    try:
+        plan = renderer.plan(RenderSettings())
+        with DepthSorter(scene) as sorter:
+            first = exact_order(sorter, CAMERA, RenderSettings())
+        renderer.preprocess(CAMERA, plan, first)
+        records = renderer.read_splats()[:first.count]
+        renderer.preprocess(CAMERA, plan, first)
+        assert (renderer.counters.preprocessed, renderer.counters.preprocess_skipped) == (1, 1)
+        reversed_ = first.with_indices(first.indices[::-1].copy())
+        renderer.preprocess(CAMERA, plan, reversed_)
+        assert renderer.counters.preprocessed == 2
+        np.testing.assert_array_equal(renderer.read_splats()[:first.count], records[::-1])
+        with pytest.raises(ValueError, match="for an order"):
+            renderer.preprocess(CAMERA, plan)
+    finally:
+        renderer.release()
+
+
+def test_draw_order_records_draw_a_level_of_detail_choice(gl_ctx):
+    """An order over some rows only (a level-of-detail choice): the draw-order pass takes
+    the order's gaussians, whatever rows they are in; the image is today's."""
+    scene = random_scene(n=300, seed=10)
+    choice = spans_choice(np.array([[0, 90], [150, 260]]))
+    settings = RenderSettings()
+    images = []
+    for layout in (TODAY, DrawLayout("triangles", "draw")):
+        renderer = GLRenderer(gl_ctx, scene, draw_layout=layout, block_limit=SMALL_BLOCKS)
+        try:
+            images.append(rendered(renderer, CAMERA, settings, levels=choice)[0])
+        finally:
+            renderer.release()
+    np.testing.assert_array_equal(images[1], images[0])
+
+
+def test_place_runs_group_the_places_by_chunk_and_block():
+    layout = StorageLayout.plan(300, 16 * 12, SMALL_BLOCKS)  # chunks of 16 rows, blocks of 64 records
+    rng = np.random.default_rng(0)
+    indices = rng.permutation(300)[:200].astype(np.uint32)
+    ranks, runs = place_runs(indices, layout)
+    assert sorted(ranks.tolist()) == list(range(200))  # every place once
+    covered = 0
+    for run in runs:
+        places = ranks[run.first:run.first + run.count]
+        assert np.all(np.diff(places.astype(np.int64)) > 0)  # ascending: a stable partition
+        assert np.all(indices[places] // layout.chunk == run.chunk_start // layout.chunk)
+        assert np.all(places // layout.splats_per_block == run.block_start // layout.splats_per_block)
+        covered += run.count
+    assert covered == 200
+    whole = StorageLayout.plan(300, 16 * 12, 1 << 27)
+    assert place_runs(indices, whole)[0] is None  # one chunk, one block: the places as they are
+    assert place_runs(np.zeros(0, np.uint32), whole) == (None, [])
+
+
+def test_an_empty_order_draws_the_background_in_every_layout(gl_ctx):
+    scene = random_scene(n=50, seed=11)
+    settings = RenderSettings(background=(0.2, 0.3, 0.4))
+    for layout in LAYOUTS:
+        renderer = GLRenderer(gl_ctx, scene, draw_layout=layout)
+        try:
+            image = renderer.render(CAMERA, settings, Order(np.zeros(0, np.uint32)))
+            np.testing.assert_allclose(image[..., :3], np.broadcast_to([0.2, 0.3, 0.4], image[..., :3].shape),
+                                       atol=1e-7)
+        finally:
+            renderer.release()
+
+
+def test_an_unknown_layout_is_refused():
+    with pytest.raises(ValueError, match="unknown draw vertices"):
+        DrawLayout("points")
+    with pytest.raises(ValueError, match="unknown records"):
+        DrawLayout("instanced", "sorted")
