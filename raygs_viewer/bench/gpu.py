@@ -45,6 +45,7 @@ from raygs_viewer.bench.common import (
     load_scenes,
     median,
     printer,
+    psnr,
     report_head,
     run_end,
     software_renderer,
@@ -178,6 +179,10 @@ class GpuResult:
     rasterized: int = 0                   # fragments, every eye
     kept: int = 0
     frame_ms: dict[str, float] = field(default_factory=dict)  # today's and each option's whole frame, median
+    #: Each option's image against today's (the first eye of the first frame): the
+    #: largest difference over RGBA, and the PSNR of RGB (inf: identical to the bit).
+    max_error: dict[str, float] = field(default_factory=dict)
+    psnr: dict[str, float] = field(default_factory=dict)
 
     @property
     def raygs_ms(self) -> float:
@@ -249,6 +254,13 @@ def measure_case(ctx, case: GpuCase, frames: int, drained: bool, options=OPTIONS
                                                             color_origin=camera.center))
         return total
 
+    def image(camera: Camera, order: Order, eye_settings: RenderSettings, layout: DrawLayout) -> np.ndarray:
+        """The first eye's image, clipped to 0..1 as it is shown and saved."""
+        renderer.draw_layout = layout
+        renderer.draw_planned(targets, case.eyes(camera)[0], renderer.plan(eye_settings), order,
+                              color_origin=camera.center)
+        return np.clip(targets.read(), 0.0, 1.0)
+
     try:
         for frame in range(frames + 1):
             camera = views[frame % 2]
@@ -290,8 +302,13 @@ def measure_case(ctx, case: GpuCase, frames: int, drained: bool, options=OPTIONS
             frame_times = {TODAY: whole(camera, order, settings, DEFAULT_DRAW_LAYOUT)}
             for name, changes, layout in options:
                 frame_times[name] = whole(camera, order, replace(settings, **changes), layout)
-            if frame == 0:
+            if frame == 0:  # untimed: what each option draws, against today's image
                 result.visible = order.count
+                today = image(camera, order, settings, DEFAULT_DRAW_LAYOUT)
+                for name, changes, layout in options:
+                    error = np.abs(image(camera, order, replace(settings, **changes), layout) - today)
+                    result.max_error[name] = float(error.max())
+                    result.psnr[name] = psnr(float(np.mean(np.square(error[..., :3], dtype=np.float64))))
                 continue
             for name, value in (("sort", 1e3 * (sorted_.times["cull"] + sorted_.times["sort"])),
                                 ("preprocess", preprocess), ("draw", draw), ("floor", floor), ("gs", gs),
@@ -389,6 +406,7 @@ def ratio_lines(results: GpuResults) -> list[str]:
     for r in results.results:
         lines.append(f"fragments-per-second@{r.label} {r.fill_rate:.4g}")
         lines += [f"{name}@{r.label} {_ratio(r.ratio(name))}" for name, _, _ in OPTIONS]
+        lines += [f"max-difference {name}@{r.label} {r.max_error.get(name, math.nan):.3g}" for name, _, _ in OPTIONS]
     lines += [f"{name} {_ratio(median([r.ratio(name) for r in results.results]))}" for name, _, _ in OPTIONS]
     return lines
 
@@ -401,6 +419,14 @@ def _ms(value: float) -> str:
 
 def _ratio(value: float) -> str:
     return f"{value:.3f}" if math.isfinite(value) else "nan"
+
+
+def _difference(result: GpuResult, name: str) -> str:
+    if name not in result.max_error:
+        return "n/a"
+    if result.max_error[name] == 0:
+        return "identical"
+    return f"{result.psnr[name]:.1f} dB, {result.max_error[name]:.2g}"
 
 
 def _rate(value: float) -> str:
@@ -435,6 +461,11 @@ def format_report(results: GpuResults) -> str:
                      + " | ".join(_ratio(r.ratio(name)) for name in names) + " |")
     lines.append("| **median** | | | " + " | ".join(_ratio(median([r.ratio(n) for r in results.results]))
                                              for n in names) + " |")
+    lines += ["", "## What each option draws, against today's image (first eye, shown 0..1)", "",
+              "PSNR of RGB and the largest difference over RGBA; *identical* where every value is today's to "
+              "the bit.", "", "| case | view | " + " | ".join(names) + " |", "|---|---|" + "---:|" * len(names)]
+    for r in results.results:
+        lines.append(f"| {r.name} | {r.view} | " + " | ".join(_difference(r, n) for n in names) + " |")
     lines += ["", f"## VR budget ({HEADSET.label}, both eyes' preprocess + draw, and the CPU sort beside it)", "",
               "| case | eyes | GPU, today | best option | its GPU time | " + " | ".join(
                   f"{rate} Hz" for rate, _, _ in frame_budget(0.0)) + " | CPU cull+sort |",

@@ -53,6 +53,12 @@ def test_a_measured_case_counts_its_fragments_and_times_every_option(gl_ctx):
         assert set(result.frame_ms) == {bench_gpu.TODAY, *(name for name, _, _ in bench_gpu.OPTIONS)}
         assert all(math.isfinite(result.ratio(name)) for name, _, _ in bench_gpu.OPTIONS)
         assert result.fill_rate == pytest.approx(result.rasterized / (result.draw_ms / 1e3))
+        # Every layout draws today's image to the bit; a narrow blend does not, within its error.
+        for name, changes, layout in bench_gpu.OPTIONS:
+            if not changes:
+                assert result.max_error[name] == 0 and result.psnr[name] == math.inf, name
+            else:
+                assert 0 < result.max_error[name] < 0.05 and result.psnr[name] > 35, name
 
 
 def test_the_stereo_case_counts_both_eyes(gl_ctx):
@@ -93,7 +99,8 @@ def test_quick_run_prints_every_case_option_and_median(quick_run):
     report = out.read_text()
     assert report.startswith("# GPU frame figures (generated)")
     assert "`raygs-viewer bench gpu --quick --out " in report
-    for heading in ("## Today's path", "## Each option against today's path", "## VR budget"):
+    for heading in ("## Today's path", "## Each option against today's path", "## What each option draws",
+                    "## VR budget"):
         assert heading in report
     assert "| outdoor 30k | stereo 258×276 ×2 |" in report
 

@@ -17,6 +17,7 @@ from raygs_viewer.render.setting_info import applies, setting_field
 from raygs_viewer.render.settings import (
     ACCURACY_PRESETS,
     MODE_LABELS,
+    PRECISION_LABELS,
     RENDER_MODES,
     RenderSettings,
 )
@@ -81,7 +82,7 @@ def draw_render_section(settings: RenderSettings, set_settings: Callable[[Render
 
 
 def _accuracy_controls(settings: RenderSettings, supports: Supports) -> RenderSettings:
-    """MIP, GS compensation, supersampling and the INRIA/GOF parity switches; what does
+    """MIP, GS compensation, supersampling, the blend precision and the INRIA/GOF parity switches; what does
     not apply to the current mode, or what this GPU cannot render, is greyed out."""
     mode = settings.mode
     exact = mode == "raygs-exact-mip"
@@ -111,6 +112,10 @@ def _accuracy_controls(settings: RenderSettings, supports: Supports) -> RenderSe
     factors = {str(k): f"{k}\u00d7{k}" for k in range(low, high + 1)}
     settings = replace(settings, supersample=int(choice("supersampling", str(settings.supersample), factors)))
     tooltip("render k x k samples per pixel and average them (a box filter)")
+    settings = replace(settings, precision=choice("blend precision", settings.precision, PRECISION_LABELS))
+    tooltip("what the blended colour accumulates in: float32 (exact), float16 or 8-bit, which cost a GPU less "
+            "fill at the error bench accuracy states.\nThe per-pixel order and the transmittance cut-off "
+            "composite in float32 whatever is chosen here.")
     parity = "matches the images of INRIA 3DGS and GOF (section 10)"
     settings = replace(settings, alpha_clamp=checkbox("alpha clamp 0.99", settings.alpha_clamp,
                                                       help_text=f"clamp each splat's alpha to 0.99: {parity}"))
