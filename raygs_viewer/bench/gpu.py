@@ -55,6 +55,7 @@ from raygs_viewer.camera.stereo import DEFAULT_HEADSET, PRESETS, StereoRig, eye_
 from raygs_viewer.render.gl.context import context_description
 from raygs_viewer.render.gl.plan import DEFAULT_DRAW_LAYOUT, DrawLayout
 from raygs_viewer.render.gl.renderer import GLRenderer
+from raygs_viewer.render.gl.storage import place_runs
 from raygs_viewer.render.gl.targets import FloatTarget
 from raygs_viewer.render.gl.timing import GpuTimer
 from raygs_viewer.render.settings import RenderSettings
@@ -77,6 +78,8 @@ DEFAULT_FRAMES = 5
 QUICK_FRAMES = 3
 NUDGE_DEGREES = 0.1
 GENERATED_SH_DEGREE = 3
+#: The outdoor scene's median standard deviation on its object, at 1M gaussians (units).
+SIZE_AT_1M = 0.0027
 #: The options measured against today's path: (name, settings changes, draw layout).
 OPTIONS: tuple[tuple[str, dict, DrawLayout], ...] = (
     ("float16 blend", {"precision": "float16"}, DEFAULT_DRAW_LAYOUT),
@@ -95,8 +98,8 @@ TODAY = "today"
 def outdoor_scene(count: int, seed: int = 0) -> Scene:
     """``count`` gaussians shaped like a trained outdoor capture: 55 % an object (a ball
     of radius 1 at the origin), 45 % its surroundings (a shell 3 to 12 units out, thinning
-    with distance); sizes log-normal around 0.8 % of a unit on the object, growing with
-    distance outside it, anisotropic; opacities bimodal (a third faint, the rest mostly
+    with distance); sizes log-normal around :data:`SIZE_AT_1M` units on the object at 1M
+    gaussians (as 1/sqrt of the count), growing with distance outside it, anisotropic; opacities bimodal (a third faint, the rest mostly
     opaque, as training leaves them); SH degree 3 with small view-dependent terms."""
     rng = np.random.default_rng(seed)
     inner = int(round(0.55 * count))
@@ -106,7 +109,9 @@ def outdoor_scene(count: int, seed: int = 0) -> Scene:
     radius[:inner] = rng.uniform(0.0, 1.0, inner) ** (1.0 / 3.0)
     radius[inner:] = 3.0 + 9.0 * rng.uniform(0.0, 1.0, count - inner) ** 2
     positions = (directions * radius[:, None]).astype(np.float32)
-    size = 0.008 * np.maximum(radius, 1.0) ** 1.2
+    # Trained scenes tile their surfaces: more gaussians, smaller ones. At 1M, about 150
+    # fragments a visible gaussian at 1920 x 1080, some 10^8 a frame at every size.
+    size = SIZE_AT_1M * math.sqrt(1e6 / max(count, 1)) * np.maximum(radius, 1.0) ** 1.2
     scales = (size[:, None] * np.exp(rng.normal(0.0, 0.6, (count, 3)))).astype(np.float32)
     rotations = rng.normal(size=(count, 4)).astype(np.float32)
     rotations /= np.linalg.norm(rotations, axis=1, keepdims=True)
@@ -172,6 +177,7 @@ class GpuResult:
     count: int
     visible: int = 0
     sort_ms: float = math.nan             # CPU cull + sort, median
+    places_ms: float = math.nan           # CPU: grouping the order's places for records in draw order, median
     preprocess_ms: float = math.nan       # today's path, every eye, median
     draw_ms: float = math.nan
     floor_ms: float = math.nan            # the floor pass's draw
@@ -270,6 +276,9 @@ def measure_case(ctx, case: GpuCase, frames: int, drained: bool, options=OPTIONS
             order = sorted_.order
             renderer.draw_layout = DEFAULT_DRAW_LAYOUT
             plan = renderer.plan(settings)
+            started = time.perf_counter()
+            place_runs(order.indices, plan.layout)  # what records in draw order add on the CPU, per order
+            places = (time.perf_counter() - started) * 1e3
             preprocess = draw = floor = 0.0
             for eye_camera in eyes:
                 renderer.forget_records()
@@ -310,7 +319,7 @@ def measure_case(ctx, case: GpuCase, frames: int, drained: bool, options=OPTIONS
                     result.max_error[name] = float(error.max())
                     result.psnr[name] = psnr(float(np.mean(np.square(error[..., :3], dtype=np.float64))))
                 continue
-            for name, value in (("sort", 1e3 * (sorted_.times["cull"] + sorted_.times["sort"])),
+            for name, value in (("sort", 1e3 * (sorted_.times["cull"] + sorted_.times["sort"])), ("places", places),
                                 ("preprocess", preprocess), ("draw", draw), ("floor", floor), ("gs", gs),
                                 *((f"frame {k}", v) for k, v in frame_times.items())):
                 record(name, value)
@@ -318,7 +327,7 @@ def measure_case(ctx, case: GpuCase, frames: int, drained: bool, options=OPTIONS
         sorter.close()
         renderer.release()
         targets.release()
-    result.sort_ms = median(times["sort"])
+    result.sort_ms, result.places_ms = median(times["sort"]), median(times["places"])
     result.preprocess_ms, result.draw_ms = median(times["preprocess"]), median(times["draw"])
     result.floor_ms, result.gs_ms = median(times["floor"]), median(times["gs"])
     result.frame_ms = {k.removeprefix("frame "): median(v) for k, v in times.items() if k.startswith("frame ")}
@@ -455,12 +464,16 @@ def format_report(results: GpuResults) -> str:
                      f"{_ratio(r.draw_ms / r.floor_ms)} |")
     names = [name for name, _, _ in OPTIONS]
     lines += ["", "## Each option against today's path (whole frame, same frames; below 1 is faster)", "",
-              "| case | view | today | " + " | ".join(names) + " |", "|---|---|---:|" + "---:|" * len(names)]
+              "The last column is CPU time the GPU clock does not see: grouping a new order's places by "
+              "scene chunk and splat block, which records in draw order need where the scene or the order "
+              "spans more than one (`storage.place_runs`; none where one chunk holds the scene).", "",
+              "| case | view | today | " + " | ".join(names) + " | CPU grouping |",
+              "|---|---|---:|" + "---:|" * (len(names) + 1)]
     for r in results.results:
         lines.append(f"| {r.name} | {r.view} | {_ms(r.frame_ms[TODAY])} | "
-                     + " | ".join(_ratio(r.ratio(name)) for name in names) + " |")
+                     + " | ".join(_ratio(r.ratio(name)) for name in names) + f" | {_ms(r.places_ms)} |")
     lines.append("| **median** | | | " + " | ".join(_ratio(median([r.ratio(n) for r in results.results]))
-                                             for n in names) + " |")
+                                             for n in names) + " | |")
     lines += ["", "## What each option draws, against today's image (first eye, shown 0..1)", "",
               "PSNR of RGB and the largest difference over RGBA; *identical* where every value is today's to "
               "the bit.", "", "| case | view | " + " | ".join(names) + " |", "|---|---|" + "---:|" * len(names)]

@@ -239,7 +239,7 @@ def test_panel_accuracy_controls_change_the_settings_and_the_image(open_viewer):
     click_choice(drive, "supersampling", "2\u00d72")
     expected = replace(expected, mode="raygs", supersample=2)
     check()
-    click_choice(drive, "blend precision", "8-bit")
+    click_choice(drive, "blend", "8-bit")
     expected = replace(expected, precision="8bit")
     check()
     drive.click("alpha clamp 0.99")

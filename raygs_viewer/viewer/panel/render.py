@@ -112,7 +112,7 @@ def _accuracy_controls(settings: RenderSettings, supports: Supports) -> RenderSe
     factors = {str(k): f"{k}\u00d7{k}" for k in range(low, high + 1)}
     settings = replace(settings, supersample=int(choice("supersampling", str(settings.supersample), factors)))
     tooltip("render k x k samples per pixel and average them (a box filter)")
-    settings = replace(settings, precision=choice("blend precision", settings.precision, PRECISION_LABELS))
+    settings = replace(settings, precision=choice("blend", settings.precision, PRECISION_LABELS))
     tooltip("what the blended colour accumulates in: float32 (exact), float16 or 8-bit, which cost a GPU less "
             "fill at the error bench accuracy states.\nThe per-pixel order and the transmittance cut-off "
             "composite in float32 whatever is chosen here.")
