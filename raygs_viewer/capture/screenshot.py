@@ -143,7 +143,7 @@ def _tiles(sorter: DepthSorter, order: Order, camera: Camera, settings: RenderSe
     the tile's pixels beyond those rows and columns (an edge tile) are to be cropped."""
     tile = max(1, tile // settings.supersample)
     width, height = camera.width, camera.height
-    indices = order.indices
+    indices = order.host_indices()
     # Edge tiles are drawn at full tile size and cropped: one render target for all
     # tiles (the renderer reallocates its target whenever the size changes).
     tile_w, tile_h = min(tile, width), min(tile, height)
@@ -152,7 +152,7 @@ def _tiles(sorter: DepthSorter, order: Order, camera: Camera, settings: RenderSe
             part = tile_camera(camera, x0, y0, tile_w, tile_h)
             # The sorter's cull is conservative, so dropping what it culls for the tile
             # changes no pixel; the whole image's order keeps the blending sequence.
-            visible = sorter.sort(sort_request(part, settings, levels=order.choice)).order.indices
+            visible = sorter.sort(sort_request(part, settings, levels=order.choice)).order.host_indices()
             tile_order = order.with_indices(indices[np.isin(indices, visible, assume_unique=True)])
             yield part, tile_order, slice(y0, min(y0 + tile_h, height)), slice(x0, min(x0 + tile_w, width))
 

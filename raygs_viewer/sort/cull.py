@@ -1,7 +1,8 @@
 """The conservative cull of a scene's gaussians for a camera and p_min, and the sort keys
 of what it keeps, chunk by chunk (section 9).
 
-A chunk's camera-space centres mu (float32, one matmul) decide what may be visible, and
+A chunk's camera-space centres mu (float32, an exactly defined sequence of operations:
+``keys.camera_space``) decide what may be visible, and
 the same mu gives the depth key (its z) of the visible ones; the distance key is
 |p - C| in float32, which a turn about C leaves bit for bit unchanged. Chunks are
 small enough that their working arrays stay in a core's cache, and independent, so
@@ -19,16 +20,13 @@ import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.scene.model import Scene
-from raygs_viewer.sort.keys import distances
+from raygs_viewer.sort.keys import camera_space, distances
 from raygs_viewer.sort.pool import Runner
 
 #: Gaussians per chunk of the cull: its working arrays (about 50 bytes a gaussian) stay
 #: in one core's cache. Fixed, not derived from the worker count, so that every worker
 #: count computes bit-identical keys.
 CHUNK_ROWS = 1 << 16
-#: Rows per matrix product (see ``Cull._camera_space``).
-_MATMUL_ROWS = 1 << 14
-
 #: A chunk's rows: a slice of the scene, or (k,) int64 indices, ascending.
 Rows = slice | np.ndarray
 
@@ -83,6 +81,7 @@ class Cull:
 
     def __init__(self, scene: Scene, chunk_rows: int = CHUNK_ROWS):
         self.positions = scene.positions
+        self.columns = np.ascontiguousarray(scene.positions.T)  # (3, N): each coordinate contiguous
         self.chunk_rows = chunk_rows
         self.max_scale = scene.scales.max(axis=1) if scene.count else np.zeros(0, np.float32)
         with np.errstate(divide="ignore"):
@@ -160,7 +159,7 @@ class Cull:
         piece = Piece(scene_rows(rows, local))
         if "depth" in request.keys:
             if not request.depth_from_cull:
-                self._camera_space(request.camera, rows, scratch.mu[:, :n])
+                self._camera_space(request.camera, rows, scratch.mu[:, :n], scratch.product[:n])
             depth = scratch.mu[2, :n][local]
             piece.values["depth"], piece.rows["depth"] = depth, piece.visible
             piece.ranges["depth"] = _range(depth)
@@ -177,16 +176,10 @@ class Cull:
                 piece.values["distance"], piece.rows["distance"] = distance[local], piece.visible
         return piece
 
-    def _camera_space(self, camera: Camera, rows: Rows, out: np.ndarray) -> None:
-        """out[:] = (3, n) mu = R p + t of the rows, in float32 (the form the GPU uses),
-        one row per axis so that every later pass reads contiguous memory."""
-        rotation, positions = camera.R.astype(np.float32), self.positions[rows]
-        # OpenBLAS spreads a gemm over its own threads above m*n*k = 4 * 65536, and those
-        # threads then fight the pool's: keep each product below that.
-        for start in range(0, out.shape[1], _MATMUL_ROWS):
-            block = slice(start, start + _MATMUL_ROWS)
-            np.matmul(rotation, positions[block].T, out=out[:, block])
-        out += camera.t.astype(np.float32)[:, None]
+    def _camera_space(self, camera: Camera, rows: Rows, out: np.ndarray, work: np.ndarray) -> None:
+        """out[:] = (3, n) mu = R p + t of the rows (``keys.camera_space``), one row per
+        axis so that every later pass reads contiguous memory; ``work``: (n,) scratch."""
+        camera_space(self.columns[:, rows], camera, out, work)
 
     def _may_be_seen(self, camera: Camera, p_min: float, dilation: float | None, rows: Rows, n: int,
                      scratch: "_Scratch") -> None:
@@ -194,7 +187,7 @@ class Cull:
         them) may reach a pixel of ``camera``; leaves their mu in ``scratch.mu[:n]``."""
         mu, radius, product, term, keep, test = (scratch.mu[:, :n], scratch.radius[:n], scratch.product[:n],
                                                  scratch.term[:n], scratch.keep[:n], scratch.test[:n])
-        self._camera_space(camera, rows, mu)
+        self._camera_space(camera, rows, mu, product)
         slack = np.float32(1e-5 * (self.coordinate_scale + float(np.abs(camera.t).max())) + 1e-6)
         support = self.support(p_min)
         radius[:] = support.radius[rows]

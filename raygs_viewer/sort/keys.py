@@ -48,6 +48,22 @@ def snapped_centre(camera: Camera, coordinate_scale: float) -> np.ndarray:
     return (np.round(np.asarray(camera.center, np.float64) / step) * step + 0.0).astype(np.float32)
 
 
+def camera_space(columns: np.ndarray, camera: Camera, out: np.ndarray, work: np.ndarray) -> None:
+    """out[:] = (3, n) float32 mu = R p + t of the (3, n) float32 ``columns`` (x, y, z
+    rows). Each axis is ((R_i0 x + R_i1 y) + R_i2 z) + t_i with every product and sum
+    rounded to float32 on its own: a defined sequence of IEEE operations, which the GPU
+    sort repeats bit for bit (``precise`` in GLSL), and which gives the same keys on every
+    machine (a BLAS product does not: its kernels differ by CPU, with or without fused
+    multiply-adds, each in its own summation order). ``work``: (n,) float32 scratch."""
+    rotation, translation = camera.R.astype(np.float32), camera.t.astype(np.float32)
+    for axis in range(3):
+        row = out[axis]
+        np.multiply(columns[0], rotation[axis, 0], out=row)
+        row += np.multiply(columns[1], rotation[axis, 1], out=work)
+        row += np.multiply(columns[2], rotation[axis, 2], out=work)
+        row += translation[axis]
+
+
 def distances(positions: np.ndarray, centre: np.ndarray, work: np.ndarray, out: np.ndarray) -> None:
     """out[:] = |p - C| of (n, 3) ``positions`` in float32, summed x, y, z in that order:
     element by element, so the same for any chunking, and independent of the camera's
@@ -63,9 +79,9 @@ def key_values(positions: np.ndarray, camera: Camera, key: str, coordinate_scale
     """(n,) float32 ``key`` of each of (n, 3) ``positions`` seen from ``camera``, in the
     forms the chunked cull computes (the distance from the snapped centre)."""
     if key == "depth":
-        values = (positions @ camera.R.astype(np.float32).T)[:, 2]
-        values += np.float32(camera.t[2])
-        return values
+        mu = np.empty((3, positions.shape[0]), np.float32)
+        camera_space(np.ascontiguousarray(positions.T), camera, mu, np.empty(positions.shape[0], np.float32))
+        return mu[2]
     if key == "distance":
         values = np.empty(positions.shape[0], np.float32)
         distances(positions, snapped_centre(camera, coordinate_scale),

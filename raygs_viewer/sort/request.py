@@ -12,7 +12,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 from functools import cached_property
-from typing import Mapping, Sequence
+from typing import Mapping, Protocol, Sequence, runtime_checkable
 
 import numpy as np
 
@@ -88,35 +88,62 @@ def _snapshot(camera: Camera) -> Camera:
     return replace(camera, R=np.array(camera.R, np.float64), t=np.array(camera.t, np.float64))
 
 
+@runtime_checkable
+class DeviceIndices(Protocol):
+    """An order's indices kept where a GPU sort made them: a buffer of ``count`` uint32
+    scene rows, back to front, that the renderer binds as it is (no order crosses the
+    bus); :meth:`read` fetches a copy for what needs them on the CPU (a screenshot's
+    tiles, tests)."""
+
+    @property
+    def count(self) -> int: ...
+
+    @property
+    def buffer(self) -> object: ...
+
+    def read(self) -> np.ndarray: ...
+
+
 @dataclass(frozen=True, eq=False)
 class Order:
     """The gaussians a view draws, back to front.
 
-    indices: (M,) uint32 scene rows, back to front by ``key``, ties in scene order.
+    indices: (M,) uint32 scene rows, back to front by ``key``, ties in scene order; or,
+             from a GPU sort, :class:`DeviceIndices` holding them on the GPU.
     key:     the sort key ("depth" or "distance").
     request: the request it answers (None: an order given by hand, such as a test's).
     choice:  the level-of-detail choice whose rows it holds (None: the whole scene);
              only those rows need preparing for the draw.
 
-    A sort that keeps its order on the GPU hands over an ``Order`` whose ``indices``
-    stay there (a buffer and a count): the renderer reads only :attr:`count` and
-    :attr:`spans` and binds the order through one method.
+    The renderer reads only :attr:`count` and :attr:`spans` and binds the order through
+    one method (``GLRenderer.upload_order``), whichever the indices are.
     """
 
-    indices: np.ndarray
+    indices: np.ndarray | DeviceIndices
     key: SortKey = "depth"
     request: SortRequest | None = None
     choice: LodChoice | None = None
 
     def __post_init__(self) -> None:
+        if isinstance(self.indices, DeviceIndices):
+            return
         indices = np.asarray(self.indices, np.uint32)
         if indices.ndim != 1:  # a (M,) array stays the very array: the renderer skips re-uploading it
             indices = indices.reshape(-1)
         object.__setattr__(self, "indices", indices)
 
     @property
+    def on_device(self) -> bool:
+        """Whether the indices are on the GPU (:class:`DeviceIndices`)."""
+        return isinstance(self.indices, DeviceIndices)
+
+    @property
     def count(self) -> int:
-        return int(self.indices.size)
+        return int(self.indices.count if self.on_device else self.indices.size)
+
+    def host_indices(self) -> np.ndarray:
+        """(M,) uint32 indices on the CPU: the array, or a copy read from the GPU."""
+        return self.indices.read() if self.on_device else self.indices
 
     @property
     def spans(self) -> np.ndarray | None:

@@ -181,7 +181,7 @@ class GLRenderer:
         """The draw-order preprocessing's dispatches: one per (chunk, splat block) the
         order's places fall in (storage.place_runs)."""
         self.upload_order(order)
-        ranks, runs = place_runs(order.indices, plan.layout)
+        ranks, runs = place_runs(order.host_indices(), plan.layout)
         self.storage.bind_places(order.count, ranks)
         set_uniform(program, "u_ranked", ranks is not None)
         for run in runs:
@@ -257,10 +257,11 @@ class GLRenderer:
         return self._indexed[key]
 
     def upload_order(self, order: Order) -> None:
-        """Puts ``order`` in the GPU's order buffer, unless its very index array is
-        already there (orders are not modified once made: a new view makes a new one).
-        The one door an order takes to the GPU."""
-        uploaded = self.storage.upload_order(order.indices)  # which refuses an order longer than the scene
+        """Puts ``order`` in the GPU's order buffer, unless its very indices are already
+        there (orders are not modified once made: a new view makes a new one). The one
+        door an order takes to the GPU: an order a GPU sort made is copied there on the
+        GPU, never through the CPU."""
+        uploaded = self.storage.upload_order(order.indices, order.count)  # which refuses one longer than the scene
         self.counters.uploads += uploaded
         self.counters.upload_skipped += not uploaded
 

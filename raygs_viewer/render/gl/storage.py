@@ -17,6 +17,7 @@ import numpy as np
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
 from raygs_viewer.scene.sh import C0 as SH_C0
+from raygs_viewer.sort.request import DeviceIndices
 
 # The largest GL_SHADER_STORAGE_BUFFER_OFFSET_ALIGNMENT drivers report (moderngl's
 # ctx.info omits it); every range offset we bind is a multiple of it.
@@ -292,14 +293,19 @@ class SceneBuffers:
             self.splats.bind_to_storage_buffer(1 + block, offset=start * layout.splat_bytes,
                                                size=n * layout.splat_bytes)
 
-    def upload_order(self, order: np.ndarray) -> bool:
-        """Puts ``order`` (M,) in ``order`` unless this very array is already there;
-        True when it was written."""
+    def upload_order(self, order: np.ndarray | DeviceIndices, count: int) -> bool:
+        """Puts ``order`` ((count,) uint32, or indices a GPU sort keeps in a buffer, copied
+        GPU to GPU) in ``order`` unless these very indices are already there; True when
+        it was written."""
         if order is self._uploaded_order:
             return False
-        if order.size > self.scene.count:
+        if count > self.scene.count:
             raise ValueError("order longer than the scene")
-        self.order.write(np.ascontiguousarray(order, dtype=np.uint32))
+        if isinstance(order, DeviceIndices):
+            if count:
+                self.ctx.copy_buffer(self.order, order.buffer, size=count * 4)
+        else:
+            self.order.write(np.ascontiguousarray(order, dtype=np.uint32))
         self._uploaded_order = order
         return True
 
