@@ -27,6 +27,8 @@ from raygs_viewer.sort.pool import Runner
 #: in one core's cache. Fixed, not derived from the worker count, so that every worker
 #: count computes bit-identical keys.
 CHUNK_ROWS = 1 << 16
+#: What the cull multiplies every support radius by before adding :func:`cull_slack`.
+RADIUS_WIDENING = np.float32(1.0 + 1e-5)
 #: A chunk's rows: a slice of the scene, or (k,) int64 indices, ascending.
 Rows = slice | np.ndarray
 
@@ -188,7 +190,7 @@ class Cull:
         mu, radius, product, term, keep, test = (scratch.mu[:, :n], scratch.radius[:n], scratch.product[:n],
                                                  scratch.term[:n], scratch.keep[:n], scratch.test[:n])
         self._camera_space(camera, rows, mu, product)
-        slack = np.float32(1e-5 * (self.coordinate_scale + float(np.abs(camera.t).max())) + 1e-6)
+        slack = cull_slack(self.coordinate_scale, camera)
         support = self.support(p_min)
         radius[:] = support.radius[rows]
         if dilation:
@@ -199,25 +201,42 @@ class Cull:
             term *= support.root_kappa[rows]
             term *= np.float32(dilation)
             radius += term
-        radius *= np.float32(1.0 + 1e-5)
+        radius *= RADIUS_WIDENING
         radius += slack
         np.negative(radius, out=radius)  # from here on: -radius, the bound every test compares with
-        x, y, z = mu
+        z = mu[2]
         np.greater(z, radius, out=keep)
         keep &= support.candidate[rows]
         if dilation is None:
             return
-        # Side planes through the camera centre, at the image border (pixel centres lie
-        # half a pixel inside it), with unit normals pointing into the frustum.
-        for coordinate, a, b, extent in ((x, camera.fx, camera.cx, camera.width),
-                                         (y, camera.fy, camera.cy, camera.height)):
-            for normal in ((a, b), (-a, extent - b)):
-                norm = np.float32(1.0 / math.hypot(*normal))
-                np.multiply(coordinate, np.float32(normal[0]) * norm, out=product)
-                np.multiply(z, np.float32(normal[1]) * norm, out=term)
-                product += term
-                np.greater(product, radius, out=test)
-                keep &= test
+        for axis, across, along in side_planes(camera):
+            np.multiply(mu[axis], across, out=product)
+            np.multiply(z, along, out=term)
+            product += term
+            np.greater(product, radius, out=test)
+            keep &= test
+
+
+def cull_slack(coordinate_scale: float, camera: Camera) -> np.float32:
+    """What the cull adds to every support radius for ``camera`` (after widening it by
+    :data:`RADIUS_WIDENING`): float32 camera transforms lose ~1e-7 of the coordinates'
+    magnitude (the scene's, ``coordinate_scale``, and the camera's translation)."""
+    return np.float32(1e-5 * (coordinate_scale + float(np.abs(camera.t).max())) + 1e-6)
+
+
+def side_planes(camera: Camera) -> list[tuple[int, np.float32, np.float32]]:
+    """The frustum's four side planes as (axis, a, b): a point of camera space mu is
+    inside a plane by ``mu[axis] * a + mu.z * b`` (each product rounded to float32 on its
+    own). The planes pass through the camera centre at the image border (pixel centres
+    lie half a pixel inside it), with unit normals pointing into the frustum: x planes
+    first, each axis's low side first. Shared with the GPU sort, which passes these very
+    float32 values to its shader."""
+    planes = []
+    for axis, a, b, extent in ((0, camera.fx, camera.cx, camera.width), (1, camera.fy, camera.cy, camera.height)):
+        for normal in ((a, b), (-a, extent - b)):
+            norm = np.float32(1.0 / math.hypot(*normal))
+            planes.append((axis, np.float32(normal[0]) * norm, np.float32(normal[1]) * norm))
+    return planes
 
 
 def row_count(rows: Rows) -> int:

@@ -90,9 +90,16 @@ def key_values(positions: np.ndarray, camera: Camera, key: str, coordinate_scale
     raise ValueError(f"unknown sort key {key!r}; expected one of {', '.join(SORT_KEYS)}")
 
 
+def quantise_scale(near: float, far: float) -> np.float32:
+    """The factor :func:`quantise` multiplies ``far - value`` by: computed in float64 and
+    rounded once to float32 (the GPU sort takes this very value: a GPU's division is not
+    correctly rounded)."""
+    return np.float32(65535.0 / (far - near))
+
+
 def quantise(values: np.ndarray, near: float, far: float) -> np.ndarray:
     """(M,) uint16: 0 at ``far`` up to 65535 at ``near`` (far > near, both finite)."""
-    scaled = (far - values) * np.float32(65535.0 / (far - near))
+    scaled = (far - values) * quantise_scale(near, far)
     return np.minimum(scaled, np.float32(65535.0)).astype(np.uint16)  # rounding may pass 65535
 
 
