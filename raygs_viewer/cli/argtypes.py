@@ -162,6 +162,13 @@ def add_general_option(parser: argparse.ArgumentParser) -> None:
                              "slower: it shows what specialising saves")
 
 
+def add_sort_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("--sort", choices=("cpu", "gpu"), default="cpu",
+                        help="cpu: cull and sort on the CPU (the default); gpu: in OpenGL 4.3 compute shaders, the "
+                             "same order, kept on the GPU (no order crosses the bus; the draw uses the order of its "
+                             "own frame)")
+
+
 def add_backend_option(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--gl-backend", choices=("auto", "egl", "osmesa"),
                         help="headless OpenGL (default: $RAYGS_GL_BACKEND or auto: EGL, else OSMesa)")

@@ -48,7 +48,7 @@ from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.lod_view import OpenedScene, open_scene
 from raygs_viewer.render.setting_info import setting_parts
 from raygs_viewer.render.settings import RenderSettings
-from raygs_viewer.render.sorting import exact_order
+from raygs_viewer.render.sorting import exact_order, open_sorter
 from raygs_viewer.scene.demo import demo_camera, demo_scene
 from raygs_viewer.scene.io import (
     SCENE_FILES,
@@ -95,6 +95,7 @@ def add_parsers(commands) -> None:
     add_channel_options(render)
     add_stereo_options(render)
     argtypes.add_general_option(render)
+    argtypes.add_sort_option(render)
     argtypes.add_backend_option(render)
 
     verify = commands.add_parser("verify", help="render one view with GL and with the float64 reference; "
@@ -274,7 +275,11 @@ def render_image(args, ctx, opened: OpenedScene, camera: Camera, settings: Rende
             return reference.render_reference_channels(scene, camera, settings), drawn_words(opened, choice)
         return render_reference(scene, camera, settings), drawn_words(opened, choice)
     renderer = GLRenderer(ctx, opened.scene, general=args.general)
-    sorter = DepthSorter(opened.scene)
+    try:
+        sorter = open_sorter(args.sort, ctx, opened.scene)
+    except BaseException:
+        renderer.release()
+        raise
     try:
         if stereo is not None:  # the eyes' midpoint chooses the levels
             order = stereo_order(sorter, camera, settings, stereo.rig, opened.lod)

@@ -51,10 +51,10 @@ from raygs_viewer.render.gl.memory import scene_fits
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.lod_view import OpenedScene, for_settings, levels_to_read, refuse_lod_settings
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import open_sorter
 from raygs_viewer.scene.io import SCENE_FILES
 from raygs_viewer.scene.loader import load_now
 from raygs_viewer.scene.source import DEMO
-from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.lod_choice import LodRequest
 
 #: The PATH argument that asks for a turntable instead of a path file, and its defaults.
@@ -101,6 +101,7 @@ def add_parsers(commands) -> None:
     parser.add_argument("--progress", choices=MODES, default="auto",
                         help="auto: a progress bar on a terminal (default); json: one JSON line per frame on stdout")
     argtypes.add_general_option(parser)
+    argtypes.add_sort_option(parser)
     argtypes.add_backend_option(parser)
     parser.set_defaults(reference=False, sidecar=None)  # what stereo_view checks for render
     parser.set_defaults(run=command_render_path)
@@ -157,7 +158,11 @@ def _render_scene(ctx, args, document, settings, stereo, path, out, cameras_out)
     entries = frame_camera_entries(path, width, height)
     cameras = cameras_of_entries(entries)  # what render --camera loads from the entries
     renderer = GLRenderer(ctx, scene, general=args.general)
-    sorter = DepthSorter(scene)
+    try:
+        sorter = open_sorter(args.sort, ctx, scene)
+    except BaseException:
+        renderer.release()
+        raise
     try:
         problem = renderer.supports(settings)
         if problem:

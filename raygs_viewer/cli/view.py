@@ -74,6 +74,7 @@ def add_parsers(commands) -> None:
                         help="GLFW platform (default auto: null without a display)")
     add_stereo_options(parser, window=True)
     argtypes.add_general_option(parser)
+    argtypes.add_sort_option(parser)
     parser.add_argument("--save-eyes", action="store_true",
                         help="stereo screenshots also save each eye on its own (-left, -right), besides the pair")
 
@@ -129,6 +130,6 @@ def command_view(args) -> int:
         vsync=not args.no_vsync, platform=args.window_platform, general=args.general,
         navigation=NavigationChoices(mode="orbit" if args.orbit else "fly", up_axis=args.up_axis,
                                      turntable=args.turntable),
-        stereo=_viewer_stereo_options(args), images=args.images)
+        stereo=_viewer_stereo_options(args), images=args.images, sort=args.sort)
     with TerminalProgress(options.source.path) as progress:  # a multi-GB scene takes seconds before the window
         return run_viewer(options, progress)

@@ -1,17 +1,39 @@
 """The sort a render asks for: one :class:`~raygs_viewer.sort.request.SortRequest` made
 from the render settings of every side shown, and the exact order of a view sorted in
 place (what ``render``, ``render-path``, screenshots and the benchmarks draw; the window
-sorts the same requests on its sort thread)."""
+sorts the same requests on its sort thread, or with the GPU sort on its own).
+
+Two sorters answer a request with the same orders (docs/performance.md, the sort): the
+CPU's (:class:`~raygs_viewer.sort.depth.DepthSorter`, the default) and the GPU's
+(:class:`~raygs_viewer.render.gl.gpu_sort.GpuSorter`), which keeps its orders on the GPU;
+:func:`open_sorter` makes the one ``--sort`` names."""
 
 from __future__ import annotations
 
 from typing import Sequence
 
+import moderngl
+
 from raygs_viewer.camera.pinhole import Camera
+from raygs_viewer.render.gl.gpu_sort import GpuSorter
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.scene.model import Scene
 from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.lod_choice import LodChoice, LodRequest
 from raygs_viewer.sort.request import Order, SortRequest, keys_of
+
+#: What ``--sort`` takes: the CPU sort (the default) or the GPU sort.
+SORTS = ("cpu", "gpu")
+SORT_LABELS = {"cpu": "CPU sort", "gpu": "GPU sort"}
+
+
+def open_sorter(kind: str, ctx: moderngl.Context, scene: Scene) -> DepthSorter | GpuSorter:
+    """The sorter ``kind`` (one of :data:`SORTS`) of ``scene``; a UserError in one line
+    where this GPU cannot run the GPU sort (``GpuSorter.problem``). The GPU sort runs on
+    the thread that holds ``ctx``."""
+    if kind not in SORTS:
+        raise ValueError(f"unknown sort {kind!r}: use one of {', '.join(SORTS)}")
+    return GpuSorter(ctx, scene) if kind == "gpu" else DepthSorter(scene)
 
 
 def sort_request(camera: Camera, settings: RenderSettings, right: RenderSettings | None = None, *,

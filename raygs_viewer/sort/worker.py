@@ -23,7 +23,7 @@ from raygs_viewer.errors import one_line
 from raygs_viewer.sort.pool import Closable
 from raygs_viewer.sort.request import SortRequest, SortResult
 
-__all__ = ["BackgroundSorter", "Sorter"]
+__all__ = ["BackgroundSorter", "InlineSorter", "Sorter"]
 
 
 class Sorter(Protocol):
@@ -157,3 +157,62 @@ class BackgroundSorter(Closable):
                 self.error = None
                 self._answered = max(self._answered, serial)
                 self._cond.notify_all()
+
+
+class InlineSorter(Closable):
+    """Sorts on the calling thread when asked, with :class:`BackgroundSorter`'s interface
+    and counters: the frame draws the order of its own view. For the GPU sort, which
+    must run on the thread that holds the GL context (and whose work the GPU queues
+    beside the draw's); a CPU sort this way would stall every frame for its length.
+
+    A request equal to the last one is answered with the last result (``repeated``);
+    ``superseded`` stays 0 (nothing waits), and ``wait`` has nothing to wait for."""
+
+    def __init__(self, sorter: Sorter) -> None:
+        self._sorter = sorter
+        self._latest: SortResult | None = None
+        self._last: SortRequest | None = None
+        self._closed = False
+        self.requested = self.repeated = self.started = self.finished = self.failed = self.superseded = 0
+        self.error: str | None = None
+
+    def request(self, request: SortRequest) -> int:
+        """Sorts ``request`` now (unless it is the last one) and returns its serial; a
+        failed sort is reported in ``error`` and not retried until another request."""
+        if self._closed:
+            raise RuntimeError("InlineSorter.request after close()")
+        if request == self._last:
+            self.repeated += 1
+            return self.requested
+        self.requested += 1
+        self.started += 1
+        self._last = request
+        requested_at = time.perf_counter()
+        try:
+            result = self._sorter.sort(request)
+        except Exception as exc:  # reported in .error, as the background sorter does
+            self.failed += 1
+            self.error = f"{type(exc).__name__}: {one_line(exc)}" if str(exc).strip() else type(exc).__name__
+            return self.requested
+        self._latest = replace(result, serial=self.requested, requested_at=requested_at,
+                               finished_at=time.perf_counter())
+        self.finished += 1
+        self.error = None
+        return self.requested
+
+    def latest(self) -> SortResult | None:
+        return self._latest
+
+    def wait(self, serial: int, timeout: float | None = None) -> SortResult | None:
+        """The newest result when it answers ``serial`` or a later one (a request is
+        answered before :meth:`request` returns), else None (that sort failed)."""
+        latest = self._latest
+        return latest if latest is not None and latest.serial >= serial else None
+
+    def close(self) -> None:
+        if not self._closed:
+            self._closed = True
+            self._sorter.close()
+
+    def join(self, timeout: float | None = None) -> bool:
+        return True

@@ -36,6 +36,7 @@ from raygs_viewer.capture.screenshot import check_screenshot_path
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.gl.context import context_description
 from raygs_viewer.render.gl.mono_frame import Viewport
+from raygs_viewer.render.gl.gpu_sort import GpuSorter
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.lod_view import lod_settings_given
 from raygs_viewer.render.settings import RenderSettings
@@ -113,7 +114,8 @@ class Viewer:
         self.stats = FrameStats()
         self.scenes = SceneOpener(self.panel, options.source, window_fits(self.ctx, self.panel))
         self.window.set_drop_callback(self.scenes.drop)
-        self.scene = ShownScene(self.ctx, options.general, renderer_factory, sorter_factory, self.scenes, self._forget)
+        self.scene = ShownScene(self.ctx, options.general, renderer_factory, sorter_factory, self.scenes, self._forget,
+                                options.sort)
         self.drawer = SceneDrawer(self.ctx)
         self.photo = PhotoCompare(self.ctx, options.images)
         self.camera_path = PathWidget(self.panel, self)
@@ -137,6 +139,8 @@ class Viewer:
         #: in screen coordinates (imgui's), for tests; empty without the split view.
         self.overlay_rects: dict[str, tuple[float, float, float, float]] = {}
         try:
+            if options.sort == "gpu" and GpuSorter.problem(self.ctx):  # before any scene, in one line
+                raise UserError(f"--sort gpu: the GPU sort cannot run here: {GpuSorter.problem(self.ctx)}")
             self._install(loaded, start_camera)
             problem = self.scene.renderer.supports(self.settings)
             if problem:  # e.g. --transmittance-cutoff without framebuffer fetch
@@ -257,7 +261,8 @@ class Viewer:
         loaded, renderer, view, stats = self.loaded, self.scene.renderer, self.view, self.stats
         split_shown = self.split.on and self.shown_stereo is None
         return [
-            lambda: draw_statistics(stats, loaded.scene.count, self.scene.sorter, renderer.counters, renderer.general),
+            lambda: draw_statistics(stats, loaded.scene.count, self.scene.sorter, renderer.counters, renderer.general,
+                                    self.options.sort),
             lambda: draw_scene_section(loaded, self.panel, self.scenes.open, self.scenes.loader,
                                        lambda axes: self.scenes.switch_axes(loaded, axes)),
             lambda: draw_lod_section(self.scene.lod, loaded, self.scenes.loader, self.settings, self.set_settings,

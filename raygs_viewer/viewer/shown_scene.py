@@ -19,6 +19,7 @@ from typing import Callable
 
 import moderngl
 
+from raygs_viewer.render.gl.gpu_sort import GpuSorter
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.loader import LoadedScene
@@ -27,7 +28,7 @@ from raygs_viewer.scene.model import Scene
 from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.lod_choice import LodRequest
 from raygs_viewer.sort.request import SortResult
-from raygs_viewer.sort.worker import BackgroundSorter
+from raygs_viewer.sort.worker import BackgroundSorter, InlineSorter
 from raygs_viewer.viewer.loading import SceneOpener
 from raygs_viewer.viewer.lod_window import Refined, WindowLod, reading
 
@@ -37,6 +38,9 @@ class ShownScene:
     (None before :meth:`open`); ``sorter`` (made by
     ``sorter_factory(exact_sorter)``) sorts the window's requests on its thread with
     ``exact_sorter``, a DepthSorter of it, which screenshots and picks sort with too.
+    With ``sort`` "gpu": ``sorter`` is an InlineSorter of a GpuSorter that sorts in the
+    frame, and ``exact_sorter`` another GpuSorter: the frames' orders stay on the GPU,
+    and no screenshot's sorts reuse the buffer of the order the window draws.
     ``fallback``: the last result of the scene before a swap that kept the rows, drawn
     until the new sorter's first (:meth:`shown`). ``lod``: its level of detail.
 
@@ -46,13 +50,13 @@ class ShownScene:
 
     def __init__(self, ctx: moderngl.Context, general: bool, renderer_factory: Callable[..., GLRenderer],
                  sorter_factory: Callable[..., BackgroundSorter], opener: SceneOpener,
-                 forget: Callable[[SortResult | None], None]):
-        self.ctx, self.general = ctx, general
+                 forget: Callable[[SortResult | None], None], sort: str = "cpu"):
+        self.ctx, self.general, self.sort = ctx, general, sort
         self.renderer_factory, self.sorter_factory = renderer_factory, sorter_factory
         self.opener, self.forget = opener, forget
         self.renderer: GLRenderer | None = None
-        self.sorter: BackgroundSorter | None = None
-        self.exact_sorter: DepthSorter | None = None
+        self.sorter: BackgroundSorter | InlineSorter | None = None
+        self.exact_sorter: DepthSorter | GpuSorter | None = None
         self.fallback: SortResult | None = None
         self.lod = WindowLod()
 
@@ -116,6 +120,8 @@ class ShownScene:
             self.renderer.release()
         if self.sorter is not None:
             self.sorter.close()
+        if isinstance(self.exact_sorter, GpuSorter):  # a CPU one closes on the sort thread
+            self.exact_sorter.close()
 
     def _swap(self, scene: Scene, keep: bool) -> None:
         """``scene`` on the GPU with its own sorters; a UserError (too large for this GPU)
@@ -125,9 +131,27 @@ class ShownScene:
         one's)."""
         last = (None if self.sorter is None else self.sorter.latest()) or self.fallback
         renderer = self.renderer_factory(self.ctx, scene, general=self.general)
+        try:
+            sorters = self._sorters(scene)
+        except BaseException:
+            renderer.release()
+            raise
         self.close()
-        self.renderer, self.exact_sorter = renderer, DepthSorter(scene)
-        self.sorter = self.sorter_factory(self.exact_sorter)
-        kept = last if keep else None
+        self.renderer, (self.exact_sorter, self.sorter) = renderer, sorters
+        # A GPU order lives in its sorter's buffers, gone with it; the new sorter answers
+        # in the same frame anyway.
+        kept = last if keep and self.sort == "cpu" else None
         self.fallback = None if kept is None else replace(kept, serial=0)
         self.forget(kept)
+
+    def _sorters(self, scene: Scene) -> tuple[DepthSorter | GpuSorter, BackgroundSorter | InlineSorter]:
+        """(exact sorter, the frames' sorter) of ``scene`` (see the class docstring)."""
+        if self.sort == "gpu":
+            exact = GpuSorter(self.ctx, scene)
+            try:
+                return exact, InlineSorter(GpuSorter(self.ctx, scene))
+            except BaseException:
+                exact.close()
+                raise
+        exact = DepthSorter(scene)
+        return exact, self.sorter_factory(exact)

@@ -235,7 +235,8 @@ class ViewerOptions:
     null without a display). general: the all-features shader variant
     (GLRenderer(general=)), to compare. stereo: the stereo preview's start value.
     images: the training photos' folder for the Photo view (None: the one the model
-    folder's cfg_args names).
+    folder's cfg_args names). sort: "cpu" (a background thread) or "gpu" (in the frame,
+    on the GPU): ``render.sorting.SORTS``.
     """
 
     source: SceneSource = SceneSource.demo()
@@ -254,3 +255,4 @@ class ViewerOptions:
     general: bool = False
     stereo: StereoPreview = field(default_factory=StereoPreview)
     images: str | None = None
+    sort: str = "cpu"

@@ -6,21 +6,24 @@ from __future__ import annotations
 from imgui_bundle import imgui
 
 from raygs_viewer.render.gl.renderer import WorkCounters
-from raygs_viewer.sort.worker import BackgroundSorter
+from raygs_viewer.sort.worker import BackgroundSorter, InlineSorter
 from raygs_viewer.viewer.panel.widgets import ms, tooltip
 from raygs_viewer.viewer.stats import FrameStats, order_freshness
 
 
-def draw_statistics(stats: FrameStats, scene_count: int, sorter: BackgroundSorter, work: WorkCounters,
-                    general: bool) -> None:
+def draw_statistics(stats: FrameStats, scene_count: int, sorter: BackgroundSorter | InlineSorter,
+                    work: WorkCounters, general: bool, sort: str = "cpu") -> None:
     """``sorter``: its request counts; ``work``: the renderer's pass counters;
-    ``general``: whether it draws with the all-features shader variant."""
+    ``general``: whether it draws with the all-features shader variant; ``sort``: which
+    sort runs ("cpu", "gpu": ``render.sorting.SORTS``)."""
     imgui.text(f"{stats.fps:6.1f} fps  frame {ms(stats.frame_ms / 1000)}")
     tooltip("frames per second and the median frame time of the last 60 frames")
-    imgui.text(f"GPU   {ms(stats.gpu_seconds)}  sort {ms(stats.sort_seconds)}")
+    imgui.text(f"GPU   {ms(stats.gpu_seconds)}  {sort.upper()} sort {ms(stats.sort_seconds)}")
+    where = ("on the GPU, in the frame it draws (--sort gpu): the order is that frame's own" if sort == "gpu"
+             else "on the CPU, on a background thread (--sort cpu)")
     tooltip("GPU: preprocessing + draw of the last redraw (timer queries; both sides in the split view,\n"
             "both eyes in the stereo preview).\n"
-            "sort: the last sort (one cull, then a sort by each order key shown), on a background thread")
+            f"sort: the last sort (one cull, then a sort by each order key shown), {where}")
     imgui.text(f"visible {stats.visible:,} of {scene_count:,}")
     tooltip(f"the gaussians the last cull kept, of the scene's {scene_count:,}")
     imgui.text(f"order {order_freshness(stats)}")
