@@ -89,6 +89,19 @@ def drawn_views(latency: float, fps: float, frames: int) -> list[float]:
     return drawn
 
 
+#: The refresh rates the drawn order's age is given at (bench sort's report).
+AGE_RATES = (60.0, 90.0)
+
+
+def frames_old(latency: float, rate: float, frames: int = 240) -> float:
+    """The mean age, in frames, of the order the window draws while the view moves at
+    ``rate`` frames a second and each sort takes ``latency`` seconds on the sort thread
+    (:func:`drawn_views`), over the second half of ``frames`` (the steady state). The GPU
+    sort's order is the frame's own (``sort.worker.InlineSorter``): 0."""
+    views = drawn_views(latency, rate, frames)
+    return max(0.0, round(float(np.mean([(k / rate - view) * rate for k, view in enumerate(views)][frames // 2:])), 9))
+
+
 @dataclass
 class Freshness:
     """One (scene, motion, order mode, latency)."""

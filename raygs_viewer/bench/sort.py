@@ -9,6 +9,7 @@ generated PLYs (``bench.loading``). This module runs them and writes the report.
 
 from __future__ import annotations
 
+import math
 import os
 import time
 from dataclasses import dataclass, field
@@ -25,6 +26,7 @@ from raygs_viewer.bench.cube import (
     view_distance,
 )
 from raygs_viewer.bench.freshness import (
+    AGE_RATES,
     FPS,
     QUICK_LADDER_FRAMES,
     QUICK_SAMPLE_TIMES,
@@ -33,10 +35,12 @@ from raygs_viewer.bench.freshness import (
     Freshness,
     crossing_lines,
     db,
+    frames_old,
     measure_scene,
 )
 from raygs_viewer.bench.loading import LoadFigures, format_load_lines, measure_generated_loads
 from raygs_viewer.bench.sort_timing import (
+    PROJECTED_CORES,
     TIMING_SIZE,
     SceneTimes,
     summary_lines,
@@ -168,5 +172,42 @@ def format_report(results: SortResults) -> str:
                   "| N | file MiB | load s | peak MiB | peak / file |", "|---:|---:|---:|---:|---:|"]
         lines += [f"| {count_label(n)} | {f.file_bytes / (1 << 20):.0f} | {f.seconds:.2f} | "
                   f"{f.peak_bytes / (1 << 20):.0f} | {f.peak_ratio:.2f} |" for n, f in results.loads]
-    lines += ["", "## Summary", "", *summary_lines(results.scenes), *format_load_lines(results.loads)]
+    lines += ["", "## Against the naive one-liner, the GPU sort, and the drawn order's age", "",
+              "Naive: the numpy one-liner (cull by z > 0, stable argsort of the depths), timed after each round "
+              "of the runs above. GPU sort: `--sort gpu`, the same order (checked), cull and sort in compute "
+              "passes, timed with the GL drained. Age: the mean age, in frames, of the order the window draws "
+              "while the view moves (turning or flying alike), with the CPU sort on its thread at every core's "
+              "latency and at the projected one; the GPU sort draws the order of the frame itself.", "",
+              "| N | naive | cull+sort | / naive | GPU sort | "
+              + " | ".join(f"age @ {rate:g} Hz (CPU, {PROJECTED_CORES} cores proj., GPU)" for rate in AGE_RATES)
+              + " |", "|---:|---:|---:|---:|---:|" + "---|" * len(AGE_RATES)]
+    lines += [age_row(scene) for scene in results.scenes]
+    lines += ["", "## Summary", "", *summary_lines(results.scenes), *age_lines(results.scenes),
+              *format_load_lines(results.loads)]
     return "\n".join(lines) + "\n"
+
+
+def _ages(scene: SceneTimes, rate: float) -> tuple[float, float, float]:
+    """The drawn order's age in frames at ``rate``: the CPU sort on every core, projected
+    to PROJECTED_CORES cores, and the GPU sort (the frame's own: 0; nan when it did not run)."""
+    return (frames_old(scene.best.total / 1e3, rate), frames_old(scene.projected["total"] / 1e3, rate),
+            math.nan if scene.gpu_note else 0.0)
+
+
+def age_row(scene: SceneTimes) -> str:
+    gpu = f"{scene.gpu_ms:.1f} ms" if not scene.gpu_note else "not run"
+    ages = " | ".join(", ".join("n/a" if math.isnan(a) else f"{a:.1f}" for a in _ages(scene, rate))
+                      for rate in AGE_RATES)
+    return (f"| {count_label(scene.count)} | {scene.naive_ms:.0f} ms | {scene.best.total:.1f} ms | "
+            f"{scene.naive_ratio:.2f} | {gpu} | {ages} |")
+
+
+def age_lines(scenes: list[SceneTimes]) -> list[str]:
+    """``order-age@3M/60Hz cpu 2.6 frames, projected 1.0, gpu 0``."""
+    lines = []
+    for scene in scenes:
+        for rate in AGE_RATES:
+            cpu, projected, gpu = _ages(scene, rate)
+            lines.append(f"order-age@{count_label(scene.count)}/{rate:g}Hz cpu {cpu:.1f} frames, projected "
+                         f"{projected:.1f}, gpu " + ("n/a" if math.isnan(gpu) else f"{gpu:.0f}"))
+    return lines

@@ -1,6 +1,8 @@
 """The timing half of ``bench sort``: how fast the CPU cull and sort are at real scene
 sizes, for 1 worker (the single-threaded path), 2 and every core, and projected to
-PROJECTED_CORES cores (maths page, section 9).
+PROJECTED_CORES cores (maths page, section 9); beside them, in the same runs, the naive
+numpy one-liner (:func:`naive_order`) they are measured against, and the GPU sort
+(``render.gl.gpu_sort.GpuSorter``, the same order, timed with the GL drained).
 
 Times, medians over ``repeat`` runs with the worker counts interleaved (one untimed run
 first): the cull alone (``DepthSorter.cull``), the keys (what the cull with keys adds:
@@ -12,6 +14,7 @@ the order into a GL buffer.
 
 from __future__ import annotations
 
+import math
 import os
 import time
 from dataclasses import dataclass, replace
@@ -22,6 +25,8 @@ import numpy as np
 from raygs_viewer.bench.common import count_label
 from raygs_viewer.bench.cube import moved
 from raygs_viewer.camera.pinhole import Camera
+from raygs_viewer.errors import UserError
+from raygs_viewer.render.gl.gpu_sort import GpuSorter
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.sort.depth import DepthSorter
@@ -62,6 +67,27 @@ class SceneTimes:
     upload_ms: float
     projected: dict[str, float]          # a PROJECTED field -> ms on PROJECTED_CORES cores
     one_thread: Timing                   # the parallel path (2 workers) on one thread
+    naive_ms: float = math.nan           # the naive one-liner, median, interleaved with the runs above
+    gpu_ms: float = math.nan             # the GPU sort's cull+sort, GL drained (nan: not run)
+    gpu_note: str = ""                   # why the GPU sort did not run ("" when it did)
+
+    @property
+    def best(self) -> Timing:
+        """The timing of every core (the most workers measured)."""
+        return self.timings[max(self.timings)]
+
+    @property
+    def naive_ratio(self) -> float:
+        """cull+sort on every core over the naive one-liner's time."""
+        return self.best.total / self.naive_ms
+
+
+def naive_order(positions: np.ndarray, camera: Camera) -> np.ndarray:
+    """The naive numpy one-liner the sort is measured against: keep what is in front of
+    the camera (z > 0), then a stable argsort of those depths, farthest first."""
+    depth = positions @ camera.R[2].astype(np.float32) + np.float32(camera.t[2])
+    visible = np.flatnonzero(depth > 0)
+    return visible[np.argsort(-depth[visible], kind="stable")]
 
 
 def worker_counts() -> tuple[int, ...]:
@@ -71,19 +97,48 @@ def worker_counts() -> tuple[int, ...]:
 
 def time_scene(ctx, scene: Scene, camera: Camera, repeat: int, workers: tuple[int, ...]) -> SceneTimes:
     """Every time of ``scene`` seen from ``camera``, and the projection to PROJECTED_CORES."""
-    timings, order = measure_sorting(scene, camera, repeat, workers)
+    timings, order, naive = measure_sorting(scene, camera, repeat, workers)
     upload = upload_ms(ctx, order, repeat)
     one_thread = timings.pop(ONE_THREAD)
     parallel = {1: one_thread, **{w: t for w, t in timings.items() if w > 1}}
     projected = {key: amdahl({w: getattr(t, key) for w, t in parallel.items()}, PROJECTED_CORES)
                  for key in PROJECTED}
-    return SceneTimes(scene.count, timings, upload, projected, one_thread)
+    gpu, note = gpu_sort_ms(ctx, scene, camera, repeat, order)
+    return SceneTimes(scene.count, timings, upload, projected, one_thread, naive, gpu, note)
+
+
+def gpu_sort_ms(ctx, scene: Scene, camera: Camera, repeat: int, expected: np.ndarray) -> tuple[float, str]:
+    """(median ms of the GPU sort's cull+sort of the depth order, the GL drained; why it
+    did not run, or ""). Its order is checked against the CPU's ``expected``: a benchmark
+    of a sort that differs would measure something else."""
+    problem = GpuSorter.problem(ctx)
+    if problem:
+        return math.nan, problem
+    try:
+        sorter = GpuSorter(ctx, scene)
+    except UserError as error:
+        return math.nan, str(error)
+    request = SortRequest(camera, P_MIN)
+    try:
+        times = []
+        for run in range(repeat + 1):
+            ctx.finish()
+            began = time.perf_counter()
+            result = sorter.sort(request)  # ends with the GPU drained (finish=True)
+            if run:
+                times.append(1e3 * (time.perf_counter() - began))
+            elif not np.array_equal(result.order.host_indices(), expected):
+                raise RuntimeError("bench sort: the GPU sort's order differs from the CPU sort's")
+        return float(np.median(times)), ""
+    finally:
+        sorter.close()
 
 
 def measure_sorting(scene: Scene, camera: Camera, repeat: int,
-                    workers: tuple[int, ...]) -> tuple[dict[int, Timing], np.ndarray]:
-    """Times every worker count and ONE_THREAD, runs interleaved (one untimed first);
-    returns the timings and the depth order (for the upload)."""
+                    workers: tuple[int, ...]) -> tuple[dict[int, Timing], np.ndarray, float]:
+    """Times every worker count and ONE_THREAD, runs interleaved (one untimed first), and
+    the naive one-liner after each round; returns the timings, the depth order (for the
+    upload) and the naive one-liner's median ms."""
     workers = (ONE_THREAD, *workers)
     sorters = {w: DepthSorter(scene, w or 2) for w in workers}
     sorters[ONE_THREAD].close()  # same algorithm as 2 workers, on the calling thread
@@ -96,6 +151,7 @@ def measure_sorting(scene: Scene, camera: Camera, repeat: int,
     turns = [_distance(moved(camera, "turn", 0.01 * (run % 2 + 1))) for run in range(repeat + 3)]
     depth = SortRequest(camera, P_MIN)
     order = np.zeros(0, np.uint32)
+    naive = []
     try:
         for sorter in sorters.values():  # the cache of two turns, before any timing
             for turn in turns[:2]:
@@ -117,12 +173,15 @@ def measure_sorting(scene: Scene, camera: Camera, repeat: int,
                     for key, value in (("cull", cull), ("cull_keys", split["cull"]), ("sort", split["sort"]),
                                        ("total", total), ("distance", distance), ("distance_turn", turn)):
                         took[key].append(1e3 * value)
+            one_liner = _seconds(lambda: naive_order(scene.positions, camera))
+            if run:
+                naive.append(1e3 * one_liner)
     finally:
         for sorter in sorters.values():
             sorter.close()
     timings = {w: Timing(w, **{k: float(np.median(v)) for k, v in samples[w].items()}, visible=order.size)
                for w in workers}
-    return timings, order
+    return timings, order, float(np.median(naive))
 
 
 def _distance(camera: Camera) -> SortRequest:
@@ -170,9 +229,13 @@ def amdahl(times: dict[int, float], cores: int) -> float:
 
 # --- output ----------------------------------------------------------------------------------------
 
-def summary_line(count: int, ms: float) -> str:
-    """``cull+sort@1M 18.3 ms``."""
-    return f"cull+sort@{count_label(count)} {ms:.1f} ms"
+def summary_line(count: int, ms: float, naive_ms: float | None = None) -> str:
+    """``cull+sort@1M 18.3 ms``, and with ``naive_ms`` its ratio to the naive one-liner:
+    ``cull+sort@3M 31.3 ms (0.13x the naive one-liner's 240 ms)``."""
+    line = f"cull+sort@{count_label(count)} {ms:.1f} ms"
+    if naive_ms is not None:
+        line += f" ({ms / naive_ms:.2f}x the naive one-liner's {naive_ms:.0f} ms)"
+    return line
 
 
 def timing_lines(times: SceneTimes) -> list[str]:
@@ -191,6 +254,10 @@ def timing_lines(times: SceneTimes) -> list[str]:
     lines.append(f"  {label} upload of the order: {times.upload_ms:.2f} ms; projected to {PROJECTED_CORES} cores "
                  f"(Amdahl's law on the parallel path's 1-thread and multi-worker times): cull+sort "
                  f"{times.projected['total']:.1f} ms")
+    lines.append(f"  {label} naive one-liner (cull by z, stable argsort of the depths): {times.naive_ms:.1f} ms; "
+                 f"cull+sort on every core is {times.naive_ratio:.2f}x of it")
+    lines.append(f"  {label} GPU sort (the same order, GL drained): "
+                 + (f"{times.gpu_ms:.1f} ms" if not times.gpu_note else f"not run: {times.gpu_note}"))
     return lines
 
 
@@ -211,7 +278,8 @@ def table_rows(times: SceneTimes) -> list[str]:
 
 def summary_lines(scenes: list[SceneTimes]) -> list[str]:
     """``cull+sort@N`` on every core, then the same per worker count and the speed-up."""
-    lines = [summary_line(s.count, s.timings[max(s.timings)].total) for s in scenes]
+    lines = [summary_line(s.count, s.best.total, s.naive_ms) for s in scenes]
+    lines += [f"gpu-sort@{count_label(s.count)} {s.gpu_ms:.1f} ms" for s in scenes if not s.gpu_note]
     for scene in scenes:
         label = count_label(scene.count)
         for w, t in scene.timings.items():

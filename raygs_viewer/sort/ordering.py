@@ -15,6 +15,8 @@ worker count).
 
 from __future__ import annotations
 
+import sys
+
 import numpy as np
 
 from raygs_viewer.sort.cull import Piece
@@ -28,6 +30,8 @@ PARALLEL_SORT_MIN = 1 << 19
 BUCKET_KEYS = 1 << 17
 #: Coarse bins of the 16-bit key that bucket bounds are chosen from.
 _COARSE_SHIFT = 6
+#: Which uint32 half of a native uint64 holds its high bits.
+_HIGH = 1 if sys.byteorder == "little" else 0
 _COARSE_EDGES = (np.arange(0, 65536 + 1, 1 << _COARSE_SHIFT, dtype=np.uint64) << np.uint64(32))
 
 
@@ -48,8 +52,12 @@ def _bucket_sort(pieces: list[Piece], key: str, near: float, far: float, workers
     """The parallel form of :func:`sorted_rows` (see the module's description)."""
     def runs(index: int) -> tuple[np.ndarray, np.ndarray]:
         piece = pieces[index]
-        packed = quantise(piece.values[key], near, far).astype(np.uint64) << np.uint64(32)
-        packed |= piece.rows[key]
+        packed = np.empty(piece.values[key].size, np.uint64)
+        # key << 32 | index, written as the two uint32 halves of each word: one pass
+        # each, where shifting and or-ing make three over uint64.
+        halves = packed.view(np.uint32).reshape(-1, 2)
+        halves[:, 1 - _HIGH] = piece.rows[key]
+        halves[:, _HIGH] = quantise(piece.values[key], near, far)
         packed.sort()
         return packed, np.searchsorted(packed, _COARSE_EDGES)
 

@@ -89,6 +89,25 @@ def test_summary_lines_read_like_the_issue():
     assert sort_timing.summary_line(1_000_000, 18.34) == "cull+sort@1M 18.3 ms"
     assert sort_timing.summary_line(3_000_000, 52.0) == "cull+sort@3M 52.0 ms"
     assert sort_timing.summary_line(100_000, 1.25) == "cull+sort@100k 1.2 ms"
+    assert (sort_timing.summary_line(3_000_000, 31.3, 240.0)
+            == "cull+sort@3M 31.3 ms (0.13x the naive one-liner's 240 ms)")
+
+
+def test_the_naive_one_liner_keeps_what_is_in_front_farthest_first_ties_in_scene_order():
+    from raygs_viewer.camera.pinhole import look_at
+
+    positions = np.array([[0, 0, 1], [0, 0, 3], [0, 0, -5], [5, 0, 3], [0, 0, 2], [0, 0, 3]], np.float32)
+    camera = look_at((0.0, 0.0, -1.0), (0.0, 0.0, 0.0), width=8, height=8)
+    # depths 2, 4, -4 (behind: dropped), 4, 3, 4: the three at 4 in scene order, then 3, 2
+    np.testing.assert_array_equal(sort_timing.naive_order(positions, camera), [1, 3, 5, 4, 0])
+
+
+def test_the_drawn_order_is_as_old_as_the_sort_makes_it():
+    assert freshness.frames_old(0.0, 60.0) == 0.0      # the frame's own order (the GPU sort)
+    assert freshness.frames_old(0.005, 60.0) == pytest.approx(1.0)  # faster than a frame: drawn one late
+    assert freshness.frames_old(0.005, 90.0) == pytest.approx(1.0)
+    slow = freshness.frames_old(0.1, 60.0)
+    assert 6 <= slow <= 2 * 6 + 1 and freshness.frames_old(0.1, 90.0) > slow  # more frames at 90 Hz
 
 
 def test_a_tiny_run_times_every_worker_count_and_measures_every_order(gl_ctx, monkeypatch):
@@ -123,6 +142,11 @@ def test_a_tiny_run_times_every_worker_count_and_measures_every_order(gl_ctx, mo
     assert "## Loading" in report and "\nload@3k " in report
     assert "| 3k | 2 on one thread |" in report and "\ncull+sort@3k " in report and "speed-up@3k " in report
     assert "1db-age@3k/turn/depth" in report and "1db-age@5k" not in report and "\ncull+sort@5k " in report
+    # The naive one-liner beside it, the GPU sort (the same order: it is checked), the age.
+    assert scene.naive_ms > 0 and scene.naive_ratio == pytest.approx(scene.timings[2].total / scene.naive_ms)
+    assert scene.gpu_note == "" and scene.gpu_ms > 0
+    assert "the naive one-liner's" in report and "\ngpu-sort@3k " in report
+    assert "\norder-age@3k/60Hz cpu " in report and "\norder-age@3k/90Hz cpu " in report and ", gpu 0" in report
 
 
 def test_options_and_recorded_command():
