@@ -235,9 +235,11 @@ class Driver:
 
     def click(self, rect) -> None:
         """A left click at the centre of ``rect`` (x0, y0, x1, y1), or of the widget it
-        names in the last frame (Panel.rect)."""
+        names in the last frame (Panel.rect); a combo's near its left end, on its box (a
+        narrow box's centre is its label's, which does not open it)."""
         x0, y0, x1, y1 = self.panel.rect(rect) if isinstance(rect, str) else rect
-        self.click_at((x0 + x1) / 2, (y0 + y1) / 2)
+        combo = isinstance(rect, str) and [w.kind for w in self.panel.matching(rect)] == ["begin_combo"]
+        self.click_at(x0 + 8 if combo else (x0 + x1) / 2, (y0 + y1) / 2)
 
     def click_at(self, x: float, y: float) -> None:
         self.move_mouse(x, y)

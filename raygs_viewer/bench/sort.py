@@ -175,7 +175,8 @@ def format_report(results: SortResults) -> str:
     lines += ["", "## Against the naive one-liner, the GPU sort, and the drawn order's age", "",
               "Naive: the numpy one-liner (cull by z > 0, stable argsort of the depths), timed after each round "
               "of the runs above. GPU sort: `--sort gpu`, the same order (checked), cull and sort in compute "
-              "passes, timed with the GL drained. Age: the mean age, in frames, of the order the window draws "
+              "passes, timed with the GL drained (the summary's `gpu-sort` lines add a GPU timer query's time, "
+              "meaningless on a software renderer). Age: the mean age, in frames, of the order the window draws "
               "while the view moves (turning or flying alike), with the CPU sort on its thread at every core's "
               "latency and at the projected one; the GPU sort draws the order of the frame itself.", "",
               "| N | naive | cull+sort | / naive | GPU sort | "

@@ -145,7 +145,7 @@ def test_a_tiny_run_times_every_worker_count_and_measures_every_order(gl_ctx, mo
     # The naive one-liner beside it, the GPU sort (the same order: it is checked), the age.
     assert scene.naive_ms > 0 and scene.naive_ratio == pytest.approx(scene.timings[2].total / scene.naive_ms)
     assert scene.gpu_note == "" and scene.gpu_ms > 0
-    assert "the naive one-liner's" in report and "\ngpu-sort@3k " in report
+    assert "the naive one-liner's" in report and "\ngpu-sort@3k " in report and "(GPU timer " in report
     assert "\norder-age@3k/60Hz cpu " in report and "\norder-age@3k/90Hz cpu " in report and ", gpu 0" in report
 
 

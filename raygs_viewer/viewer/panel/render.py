@@ -110,8 +110,12 @@ def _accuracy_controls(settings: RenderSettings, supports: Supports) -> RenderSe
         help_text="GS mode: scale opacity by sqrt(det(S) / det(S + 0.3 px^2)), as Mip-Splatting does"))
     low, high = SUPERSAMPLE.limits
     factors = {str(k): f"{k}\u00d7{k}" for k in range(low, high + 1)}
+    # Two short choices on one line: the panel already reaches below a 720-px window.
+    imgui.set_next_item_width(imgui.get_font_size() * 4.5)
     settings = replace(settings, supersample=int(choice("supersampling", str(settings.supersample), factors)))
     tooltip("render k x k samples per pixel and average them (a box filter)")
+    imgui.same_line()
+    imgui.set_next_item_width(imgui.get_font_size() * 6.3)
     settings = replace(settings, precision=choice("blend", settings.precision, PRECISION_LABELS))
     tooltip("what the blended colour accumulates in: float32 (exact), float16 or 8-bit, which cost a GPU less "
             "fill at the error bench accuracy states.\nThe per-pixel order and the transmittance cut-off "
