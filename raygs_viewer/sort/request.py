@@ -101,6 +101,11 @@ class DeviceIndices(Protocol):
     @property
     def buffer(self) -> object: ...
 
+    @property
+    def commands(self) -> object | None:
+        """Indirect draw commands whose count the GPU wrote (the renderer draws through
+        them), or None."""
+
     def read(self) -> np.ndarray: ...
 
 

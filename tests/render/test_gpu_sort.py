@@ -299,6 +299,47 @@ def test_images_drawn_from_gpu_orders_equal_those_from_cpu_orders(gl_ctx, progra
         renderer.release()
 
 
+def test_a_gpu_order_is_drawn_through_the_commands_its_sort_wrote(gl_ctx, monkeypatch):
+    """The draw of a GPU order takes its count from the indirect commands the sort's last
+    pass wrote on the GPU (glsl/sort_commands.comp), in every draw layout and in the
+    per-pixel passes: the image is the CPU order's to the bit; commands that halve the
+    count (the negative control) draw another."""
+    from raygs_viewer.render.gl.plan import DRAW_VERTICES, DrawLayout
+    from raygs_viewer.render.sorting import exact_order
+
+    scene = random_scene(n=300, seed=13)
+    camera = camera_at(eye=(0.3, -0.2, -2.5))
+    settings_cases = (RenderSettings(), RenderSettings(order="per-pixel"))
+
+    def images(gpu_sorter) -> list[np.ndarray]:
+        out = []
+        for settings in settings_cases:
+            order = exact_order(gpu_sorter, camera, settings)
+            assert order.on_device and order.indices.commands is not None
+            for vertices in DRAW_VERTICES:
+                renderer = GLRenderer(gl_ctx, scene, draw_layout=DrawLayout(vertices))
+                try:
+                    out.append(renderer.render(camera, settings, order))
+                finally:
+                    renderer.release()
+        return out
+
+    reference = GLRenderer(gl_ctx, scene)
+    try:
+        with DepthSorter(scene) as cpu:
+            expected = [reference.render(camera, s, exact_order(cpu, camera, s))
+                        for s in settings_cases for _ in DRAW_VERTICES]
+    finally:
+        reference.release()
+    with GpuSorter(gl_ctx, scene) as gpu:
+        for image, want in zip(images(gpu), expected):
+            np.testing.assert_array_equal(image, want)
+    with monkeypatch.context() as patch:
+        patched_glsl(patch, "sort_commands.comp", "uint n = summary.visible;", "uint n = summary.visible / 2u;")
+        with GpuSorter(gl_ctx, scene) as gpu:
+            assert all(not np.array_equal(image, want) for image, want in zip(images(gpu), expected))
+
+
 # -- negative controls ----------------------------------------------------------------------------
 def test_an_approximate_square_root_breaks_the_distance_order(gl_ctx, monkeypatch):
     """The negative control: the distance as s * inversesqrt(s) (how a GPU's sqrt is

@@ -147,11 +147,22 @@ def row_list(spans: np.ndarray | None, count: int) -> tuple[np.ndarray, int]:
     return np.column_stack([spans[:, 0], ends - lengths]).astype(np.uint32), int(ends[-1]) if ends.size else 0
 
 
+#: An order's indirect draw commands (glsl/sort_commands.comp), five words each, by the
+#: draw layout's vertices: the instanced strip's and the 6-vertex draw's
+#: DrawArraysIndirect, the indexed draw's DrawElementsIndirect; written where the cull's
+#: cameras were bound.
+COMMAND_INDEX = {"instanced": 0, "triangles": 1, "indexed": 2}
+COMMAND_WORDS = 5 * len(COMMAND_INDEX)
+COMMANDS = CAMERAS
+
+
 class _OrderBuffer:
-    """One buffer an order's indices are written to, and which order holds it now."""
+    """One buffer an order's indices are written to, its indirect draw commands, and
+    which order holds them now."""
 
     def __init__(self, ctx: moderngl.Context, capacity: int):
         self.buffer = ctx.buffer(reserve=max(capacity, 1) * 4)
+        self.commands = ctx.buffer(reserve=COMMAND_WORDS * 4)
         self.holder = 0  # the serial of the sort whose order it holds
 
 
@@ -174,6 +185,12 @@ class GpuIndices:
     @property
     def buffer(self) -> moderngl.Buffer:
         return self._empty if self._store is None else self._store.buffer
+
+    @property
+    def commands(self) -> moderngl.Buffer | None:
+        """The order's indirect draw commands, their count the GPU's (COMMAND_WORDS;
+        None for an empty order, which draws nothing)."""
+        return None if self._store is None else self._store.commands
 
     @property
     def valid(self) -> bool:
@@ -398,6 +415,10 @@ class GpuSorter(Closable):
         self.ctx.memory_barrier(moderngl.SHADER_STORAGE_BARRIER_BIT)
         if plan.mode != SCENE:
             self._radix.sort(self._keys, store.buffer, kept, plan.key_bits)
+        commands = self.programs.compute("sort_commands.comp", DEFINES)
+        self._summary.bind_to_storage_buffer(SUMMARY)
+        store.commands.bind_to_storage_buffer(COMMANDS)
+        commands.run(1)
 
     # ------------------------------------------------------------------ lifetime
 
@@ -415,6 +436,7 @@ class GpuSorter(Closable):
             for store in pair:
                 store.holder = -1
                 store.buffer.release()
+                store.commands.release()
         self._orders.clear()
         if self._own_programs:
             self.programs.release()

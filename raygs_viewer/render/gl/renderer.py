@@ -37,6 +37,7 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.render.channel_pictures import ChannelView
 from raygs_viewer.render.channels import ChannelImage
 from raygs_viewer.render.gl.geometry import GeometryOutputs, takes_lists
+from raygs_viewer.render.gl.gpu_sort import COMMAND_INDEX
 from raygs_viewer.render.gl.per_pixel import PerPixelOrder, storage_block_problem
 from raygs_viewer.render.gl.plan import DEFAULT_DRAW_LAYOUT, DrawLayout, RenderPlan
 from raygs_viewer.render.gl.results import OrderStats, RenderResult
@@ -241,7 +242,12 @@ class GLRenderer:
         else:
             ctx.disable_direct(GL_DEPTH_CLAMP)
         vertices = plan.draw.vertices
-        if vertices == "instanced":
+        commands = order.indices.commands if order.on_device else None
+        if commands is not None:  # a GPU sort's order: the count its own pass wrote (glsl/sort_commands.comp)
+            mode = moderngl.TRIANGLE_STRIP if vertices == "instanced" else moderngl.TRIANGLES
+            array = self._indexed_array(program) if vertices == "indexed" else vao
+            array.render_indirect(commands, mode, count=1, first=COMMAND_INDEX[vertices])
+        elif vertices == "instanced":
             vao.render(moderngl.TRIANGLE_STRIP, vertices=4, instances=order.count)
         elif vertices == "indexed":
             self._indexed_array(program).render(moderngl.TRIANGLES, vertices=6 * order.count)
