@@ -45,6 +45,7 @@ from raygs_viewer.scene.progress import ProgressCallback
 from raygs_viewer.sort.request import SortResult
 from raygs_viewer.sort.worker import BackgroundSorter
 from raygs_viewer.viewer.drawing import SceneDrawer, request_sort
+from raygs_viewer.viewer.file_dialog import FileDialog
 from raygs_viewer.viewer.frame import NO_VIEWPORT, Frame
 from raygs_viewer.viewer.input import InputHandler
 from raygs_viewer.viewer.loading import SceneOpener, scene_title
@@ -117,6 +118,7 @@ class Viewer:
         self.scene = ShownScene(self.ctx, options.general, renderer_factory, sorter_factory, self.scenes, self._forget,
                                 options.sort)
         self.drawer = SceneDrawer(self.ctx)
+        self.file_dialog = FileDialog()
         self.photo = PhotoCompare(self.ctx, options.images)
         self.camera_path = PathWidget(self.panel, self)
         self.measure = MeasureWidget(self.panel, self)
@@ -264,7 +266,7 @@ class Viewer:
             lambda: draw_statistics(stats, loaded.scene.count, self.scene.sorter, renderer.counters, renderer.general,
                                     self.options.sort),
             lambda: draw_scene_section(loaded, self.panel, self.scenes.open, self.scenes.loader,
-                                       lambda axes: self.scenes.switch_axes(loaded, axes)),
+                                       lambda axes: self.scenes.switch_axes(loaded, axes), self.file_dialog),
             lambda: draw_lod_section(self.scene.lod, loaded, self.scenes.loader, self.settings, self.set_settings,
                                      self.set_tint, stats),
             lambda: draw_render_section(self.settings, self.set_settings, loaded.scene.sh_degree, renderer.supports,

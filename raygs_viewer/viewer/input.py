@@ -45,6 +45,10 @@ SHORTCUTS: dict[str, tuple] = {
 }
 
 
+#: The keys that type text: shortcuts and movement on them wait for the pointer to leave the panel.
+LETTERS = frozenset(getattr(Key, letter) for letter in "abcdefghijklmnopqrstuvwxyz")
+
+
 class InputHandler:
     """``actions`` maps each SHORTCUTS name to what it does; ``on_click(x, y)`` and
     ``on_double_click(x, y)`` take clicks on the view (screen coordinates)."""
@@ -68,8 +72,11 @@ class InputHandler:
         """One frame's input. ``camera`` and ``viewport``: the last frame's view;
         ``split``: the split view while it is shown (its divider can be dragged)."""
         io = imgui.get_io()
-        if not io.want_capture_keyboard:
-            self._keys(io, dt, navigator)
+        if not io.want_capture_keyboard and not self._panel_clicked(io):
+            # Letters act on the view only while the pointer is not over the panel: a
+            # person typing a path has the pointer there, and a field that lost the keys
+            # (Enter, a click beside it) must not turn the next letters into shortcuts.
+            self._keys(io, dt, navigator, letters=not io.want_capture_mouse)
         injected, self._injected = self._injected, []
         if self._divider(io, viewport, split):
             self._press = None
@@ -79,6 +86,14 @@ class InputHandler:
             self._mouse(io, navigator, camera, viewport)
         else:
             self._press = None
+
+    @staticmethod
+    def _panel_clicked(io) -> bool:
+        """Whether a button went down on the panel this frame. imgui's keyboard capture
+        is last frame's: a click into a text field and the first letters typed into it
+        can arrive in one frame (a fast typist, xdotool), and those letters are the
+        field's, not shortcuts."""
+        return io.want_capture_mouse and any(imgui.is_mouse_clicked(b) for b in range(3))
 
     def _clicks(self, io, injected: list[tuple[float, float]]) -> None:
         x, y = io.mouse_pos.x, io.mouse_pos.y
@@ -96,10 +111,14 @@ class InputHandler:
         for position in injected:
             self.on_double_click(*position)
 
-    def _keys(self, io, dt: float, navigator: Navigator) -> None:
+    def _keys(self, io, dt: float, navigator: Navigator, letters: bool = True) -> None:
+        """The shortcuts and the movement keys; with ``letters`` False only the keys that
+        type no text (F12, Escape, Tab, Page Up/Down, Home, F1)."""
         for action, keys in SHORTCUTS.items():
-            if any(imgui.is_key_pressed(k, False) for k in keys):
+            if any(imgui.is_key_pressed(k, False) for k in keys if letters or k not in LETTERS):
                 self.actions[action]()
+        if not letters:
+            return
         def down(k) -> float:
             return 1.0 if imgui.is_key_down(k) else 0.0
         right = down(Key.d) - down(Key.a)
@@ -113,7 +132,10 @@ class InputHandler:
         dx, dy = io.mouse_delta.x, io.mouse_delta.y
         if not (math.isfinite(dx) and math.isfinite(dy)):
             dx = dy = 0.0
-        left, right, middle = (imgui.is_mouse_down(b) for b in (0, 1, 2))
+        # A button that went down this frame starts its drag here: the frame's delta is
+        # the pointer's move before the press (a quick move then a click arrive in one
+        # frame at a few frames a second), not a drag.
+        left, right, middle = (imgui.is_mouse_down(b) and not imgui.is_mouse_clicked(b) for b in (0, 1, 2))
         wheel = io.mouse_wheel
         if navigator.mode == "fly":
             if (left or right) and (dx or dy):

@@ -4,6 +4,7 @@ was read in, with a switch between the two conventions when the file declares no
 
 from __future__ import annotations
 
+import os
 from typing import Callable
 
 from imgui_bundle import imgui
@@ -11,15 +12,21 @@ from imgui_bundle import imgui
 from raygs_viewer.scene.io import SCENE_SUFFIXES
 from raygs_viewer.scene.loader import LoadedScene, SceneLoader
 from raygs_viewer.scene.model import FileAxes
-from raygs_viewer.viewer.panel.widgets import checkbox, header
+from raygs_viewer.viewer.file_dialog import FileDialog, dialog_problem
+from raygs_viewer.viewer.panel.widgets import checkbox, header, tooltip
 from raygs_viewer.viewer.state import PanelState
 
 
 def draw_scene_section(loaded: LoadedScene, panel: PanelState, open_scene: Callable[[str], None],
-                       loader: SceneLoader, switch_axes: Callable[[str], None]) -> None:
+                       loader: SceneLoader, switch_axes: Callable[[str], None],
+                       dialog: FileDialog | None = None) -> None:
     """``panel``: its path field; ``open_scene``: what Open (or Enter) does with it;
     ``loader``: the background load whose progress is shown; ``switch_axes(axes)``:
-    reads the .spz again in the other convention ("rub" or "rdf")."""
+    reads the .spz again in the other convention ("rub" or "rdf"); ``dialog``: the
+    Open… button's file dialog (polled here, so a file chosen opens at once)."""
+    if dialog is not None and (chosen := dialog.poll()) is not None:
+        panel.open_path = chosen
+        open_scene(chosen)
     if not header("Scene"):
         return
     scene = loaded.scene
@@ -30,14 +37,29 @@ def draw_scene_section(loaded: LoadedScene, panel: PanelState, open_scene: Calla
                f"3D filter {'fused' if scene.filter_fused else 'none'}")
     if scene.axes is not None:
         _draw_axes(scene.axes, switch_axes, loader.busy)
+    # Selected whole when clicked: typing replaces the old path.
     entered, panel.open_path = imgui.input_text_with_hint(
         "##open", f"{' '.join(SCENE_SUFFIXES)} (or drop a file)", panel.open_path,
-        imgui.InputTextFlags_.enter_returns_true.value)
+        imgui.InputTextFlags_.enter_returns_true.value | imgui.InputTextFlags_.auto_select_all.value)
     imgui.same_line()
     if imgui.button("Open") or entered:
         open_scene(panel.open_path)
+    if dialog is not None:
+        imgui.same_line()
+        if imgui.button("Open…"):
+            problem = dialog.start(_folder_of(panel.open_path or loaded.path))
+            if problem:
+                panel.error = f"error: {problem}"
+        tooltip("the desktop's file dialog" + (f" ({problem})" if (problem := dialog_problem()) else ""))
     if loader.busy:
         imgui.progress_bar(loader.progress, (-1, 0), loader.stage)
+
+
+def _folder_of(path: str | None) -> str:
+    """Where the dialog opens: the folder of ``path`` (the typed or the loaded scene),
+    else the current one."""
+    folder = os.path.dirname(os.path.abspath(path)) if path and path != "demo" else os.getcwd()
+    return folder if os.path.isdir(folder) else os.getcwd()
 
 
 def _draw_axes(axes: FileAxes, switch_axes: Callable[[str], None], busy: bool) -> None:
