@@ -5,6 +5,8 @@
 // u_range, near bright, black where undefined), 4 normal (0.5 + 0.5 n in u_to_space).
 // SAMPLES 1 writes instead the depths an automatic range is taken from (every u_step-th
 // pixel of every u_step-th row from the top, as depth_samples takes them) into R.
+// Depth and normal pixels whose alpha is below u_alpha_threshold are black, undefined,
+// in the samples too (an automatic range ignores them), as shown() masks them on the CPU.
 // Texels come from the interpolated uv (see present.frag for why not gl_FragCoord).
 uniform sampler2D u_color;
 uniform sampler2D u_depth;
@@ -14,15 +16,19 @@ uniform vec2 u_range;          // near, far
 uniform mat3 u_to_space;       // camera -> the normals' space
 uniform int u_step;
 uniform ivec2 u_samples;       // the sample target's size
+uniform float u_alpha_threshold;
 in vec2 v_uv;
 out vec4 out_color;
 
 float depth_at(ivec2 p) {
     vec4 d = texelFetch(u_depth, p, 0);
+    float alpha = texelFetch(u_color, p, 0).a;
+    if (alpha < u_alpha_threshold) {
+        return 0.0;
+    }
 #if CHANNEL == 3
     return d.z > 0.0 ? d.y / d.z : 0.0;
 #else
-    float alpha = texelFetch(u_color, p, 0).a;
     return alpha > 0.0 ? d.x / alpha : 0.0;
 #endif
 }
@@ -40,7 +46,7 @@ void main() {
     float alpha = texelFetch(u_color, p, 0).a;
     vec3 n = texelFetch(u_normal, p, 0).xyz;
     float len = length(n);
-    out_color = vec4(alpha > 0.0 && len > 0.0 ? 0.5 + 0.5 * (u_to_space * (n / len)) : vec3(0.0), 1.0);
+    out_color = vec4(alpha > 0.0 && alpha >= u_alpha_threshold && len > 0.0 ? 0.5 + 0.5 * (u_to_space * (n / len)) : vec3(0.0), 1.0);
 #else
     float z = depth_at(p);
     float position = clamp((u_range.y - z) / (u_range.y - u_range.x), 0.0, 1.0);

@@ -23,7 +23,7 @@ import numpy as np
 from raygs_viewer.capture.image_io import encode_png, to_rgb8
 from raygs_viewer.errors import UserError
 from raygs_viewer.files import move_into_place, temporary_beside, write_atomically
-from raygs_viewer.render.channel_pictures import ChannelView, channel_picture
+from raygs_viewer.render.channel_pictures import ALPHA_THRESHOLD, ChannelView, channel_picture
 from raygs_viewer.render.channels import DEFAULT_CHANNELS, ChannelImage
 
 CHANNEL_SUFFIXES = (".png", ".npy", ".exr")
@@ -38,6 +38,7 @@ EXR_NORMAL_SPACE_ATTRIBUTE = "raygsNormalSpace"
 PNG_CHANNEL_KEY = "raygs-viewer channel"
 PNG_DEPTH_RANGE_KEY = "raygs-viewer depth range"
 PNG_NORMAL_SPACE_KEY = "raygs-viewer normal space"
+PNG_ALPHA_THRESHOLD_KEY = "raygs-viewer alpha threshold"
 
 
 def colour_channels(rgba: np.ndarray) -> ChannelImage:
@@ -51,22 +52,29 @@ def colour_channels(rgba: np.ndarray) -> ChannelImage:
 
 
 def picture_view(channels: Sequence[str], suffix: str, depth_range: tuple[float, float] | None = None,
-                 normal_space: str = "camera") -> ChannelView | None:
+                 normal_space: str = "camera", alpha_threshold: float | None = None) -> ChannelView | None:
     """The picture a ``.png`` output shows (None for the other formats): its one
-    channel, or colour for the default rgb,alpha. UserError for several channels, and
-    for a depth range where no depth picture is made (it would be silently ignored)."""
+    channel, or colour for the default rgb,alpha; ``alpha_threshold`` None: the default.
+    UserError for several channels, and for a depth range or an alpha threshold where no
+    picture uses it (it would be silently ignored). .npy and .exr are raw data: never
+    masked."""
     channels = tuple(channels)
     if suffix.lower() != ".png":
         if depth_range is not None:
             raise UserError(f"--depth-range sets a .png picture's colour map; {suffix} files keep depths as numbers")
+        if alpha_threshold is not None:
+            raise UserError(f"--alpha-threshold masks a .png picture; {suffix} files keep every pixel's value")
         return None
     if channels == DEFAULT_CHANNELS:
         channels = ("rgb",)
     if len(channels) != 1:
         raise UserError(f"a .png shows one channel, got {','.join(channels)} (write .npy or .exr for several)")
-    view = ChannelView(channels[0], depth_range, normal_space)
+    view = ChannelView(channels[0], depth_range, normal_space,
+                       ALPHA_THRESHOLD if alpha_threshold is None else alpha_threshold)
     if depth_range is not None and view.channel not in ("depth", "median_depth"):
         raise UserError(f"--depth-range is for a picture of depth or median_depth, not of {view.channel}")
+    if alpha_threshold is not None and not view.is_geometry:
+        raise UserError(f"--alpha-threshold is for a picture of depth, median_depth or normal, not of {view.channel}")
     return view
 
 
@@ -85,9 +93,11 @@ def encode_npy(image: ChannelImage, channels: Sequence[str]) -> bytes:
 
 def encode_picture(image: ChannelImage, view: ChannelView) -> tuple[bytes, tuple[float, float] | None]:
     """(PNG bytes, the depth range used or None): the 8-bit picture of ``view`` with text
-    metadata naming the channel, its depth range and its normal space."""
+    metadata naming the channel, its depth range, its normal space and its alpha threshold."""
     picture, used = channel_picture(image, view)
     text = {PNG_CHANNEL_KEY: view.channel}
+    if view.is_geometry:
+        text[PNG_ALPHA_THRESHOLD_KEY] = repr(view.alpha_threshold)
     if view.channel == "normal":
         text[PNG_NORMAL_SPACE_KEY] = view.normal_space
     if view.channel in ("depth", "median_depth"):

@@ -33,7 +33,8 @@ A picture of another channel than colour (version 3; docs/geometry.md) adds::
 
      "channel_view": {"channel": "depth",            # one of channel_pictures.PICTURE_CHANNELS
                       "depth_range": [near, far],    # the range the picture used; null if none
-                      "normal_space": "camera"}      # or "world"
+                      "normal_space": "camera",      # or "world"
+                      "alpha_threshold": 0.05}       # the geometry pictures' mask; absent: 0
 
 so that ``render --sidecar`` draws the same picture (a colour screenshot has none).
 
@@ -210,9 +211,10 @@ def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, 
 
 
 def channel_view_entry(view: ChannelView) -> dict:
-    """The "channel_view" section: the channel, its depth range, the normals' space."""
+    """The "channel_view" section: the channel, its depth range, the normals' space, the
+    alpha threshold."""
     return {"channel": view.channel, "depth_range": None if view.depth_range is None else list(view.depth_range),
-            "normal_space": view.normal_space}
+            "normal_space": view.normal_space, "alpha_threshold": view.alpha_threshold}
 
 
 def _is_picture(view: ChannelView | None) -> bool:
@@ -317,16 +319,18 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
 
 def load_channel_view_entry(fields: JsonFields) -> ChannelView:
     """The "channel_view" section: "channel" required; "depth_range" (null: automatic)
-    and "normal_space" take ChannelView's defaults where absent."""
+    and "normal_space" take ChannelView's defaults where absent; an absent
+    "alpha_threshold" is 0, as the pictures were drawn before it existed (unmasked)."""
     entry = fields.get("channel_view", dict)
-    fields.keys("channel_view", entry, ("channel",), ("depth_range", "normal_space"))
+    fields.keys("channel_view", entry, ("channel",), ("depth_range", "normal_space", "alpha_threshold"))
     channel = fields.get("channel_view.channel", str)
     depth_range = None
     if entry.get("depth_range") is not None:
         depth_range = tuple(float(v) for v in fields.array("channel_view.depth_range", (2,)))
     normal_space = fields.optional("channel_view.normal_space", str, "camera")
+    alpha_threshold = fields.optional("channel_view.alpha_threshold", float, 0.0)
     try:
-        return ChannelView(channel, depth_range, normal_space)
+        return ChannelView(channel, depth_range, normal_space, alpha_threshold)
     except UserError as exc:
         raise UserError(f"{fields.path}: 'channel_view': {exc}") from None
 

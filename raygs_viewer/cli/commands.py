@@ -247,7 +247,8 @@ class ChannelOutput:
 
 
 def channel_output(args, out: Path, shot: Sidecar | None) -> ChannelOutput:
-    """--channels, --normal-space and --depth-range checked against OUT's format; those
+    """--channels, --normal-space, --depth-range and --alpha-threshold checked against
+    OUT's format; those
     not given come from the picture a sidecar recorded (a screenshot of a depth view
     renders again as that depth picture), else the defaults (colour and alpha)."""
     recorded = None if shot is None else shot.channel_view
@@ -256,11 +257,12 @@ def channel_output(args, out: Path, shot: Sidecar | None) -> ChannelOutput:
     if normal_space is None and recorded is not None and "normal" in channels:
         normal_space = recorded.normal_space
     normal_space = check_normal_space(channels, normal_space)
-    depth_range = args.depth_range
-    if depth_range is None and recorded is not None and out.suffix.lower() == ".png" \
-            and channels == (recorded.channel,):
-        depth_range = recorded.depth_range
-    return ChannelOutput(channels, normal_space, picture_view(channels, out.suffix, depth_range, normal_space))
+    depth_range, alpha_threshold = args.depth_range, args.alpha_threshold
+    if recorded is not None and out.suffix.lower() == ".png" and channels == (recorded.channel,):
+        depth_range = recorded.depth_range if depth_range is None else depth_range
+        alpha_threshold = recorded.alpha_threshold if alpha_threshold is None else alpha_threshold
+    return ChannelOutput(channels, normal_space,
+                         picture_view(channels, out.suffix, depth_range, normal_space, alpha_threshold))
 
 
 def render_image(args, ctx, opened: OpenedScene, camera: Camera, settings: RenderSettings, stereo,

@@ -18,6 +18,7 @@ from raygs_viewer.camera.stereo import (
 )
 from raygs_viewer.cli import argtypes
 from raygs_viewer.errors import UserError
+from raygs_viewer.render.channel_pictures import ALPHA_THRESHOLD
 from raygs_viewer.render.channels import CHANNELS, DEFAULT_CHANNELS, NORMAL_SPACES
 from raygs_viewer.render.setting_info import SettingField, settings_table
 from raygs_viewer.render.settings import RenderSettings
@@ -104,8 +105,9 @@ def settings_with_options(base: RenderSettings, args) -> RenderSettings:
 # --- channels (docs/geometry.md) ------------------------------------------------------------------
 
 def add_channel_options(parser: argparse.ArgumentParser, picture: bool = True) -> None:
-    """--channels and --normal-space; ``picture``: render's --depth-range too (a PNG of
-    a depth channel). Defaults are None so that a sidecar's recorded picture can fill them."""
+    """--channels and --normal-space; ``picture``: render's --depth-range and
+    --alpha-threshold too (a PNG of a depth or normal channel). Defaults are None so
+    that a sidecar's recorded picture can fill them."""
     listed = f"separated by commas, from {', '.join(CHANNELS)}"
     if picture:
         what = (f"what to write, {listed} (default {','.join(DEFAULT_CHANNELS)}): .npy gets float32 HxWxC in the "
@@ -121,6 +123,12 @@ def add_channel_options(parser: argparse.ArgumentParser, picture: bool = True) -
         parser.add_argument("--depth-range", type=argtypes.depth_range, metavar="NEAR,FAR",
                             help="a .png of depth or median_depth: the depths the colour map spans, near bright, "
                                  "far dark (default: automatic, the 1st to 99th percentile; printed)")
+        parser.add_argument("--alpha-threshold", type=argtypes.real_number(lambda v: 0.0 <= v <= 1.0,
+                                                                           "not an alpha from 0 to 1"),
+                            metavar="A",
+                            help="a .png of depth, median_depth or normal: pixels whose alpha is below A are "
+                                 f"black, as undefined, so faint haze does not paint (default {ALPHA_THRESHOLD:g}; "
+                                 "0: off). .npy and .exr keep every value")
 
 
 def check_normal_space(channels, normal_space: str | None) -> str:

@@ -3,7 +3,11 @@
 
 Depth (expected or median) goes through viridis, a perceptually uniform colour map,
 near bright and far dark, over a stated range; normals show as 0.5 + 0.5 n; alpha as
-grey. Pixels where a channel is undefined (no coverage; no median) are black.
+grey. Pixels where a channel is undefined (no coverage; no median) are black, and so
+are, in the geometry pictures (depth, median depth, normal), pixels whose alpha is below
+the view's alpha threshold: expected depth and normals are defined wherever alpha > 0,
+so without the mask near-transparent haze paints at full strength and the picture shows
+a bloated object the colour view does not (docs/geometry.md, "Masking haze").
 """
 
 from __future__ import annotations
@@ -27,16 +31,22 @@ AUTO_PERCENTILES = (1.0, 99.0)
 #: not need the whole image read back.
 AUTO_SAMPLES = 1 << 16
 COLOR_MAP = "viridis"
+#: The geometry pictures' default alpha threshold, measured (docs/geometry_threshold.py):
+#: the painted area that best matches what the colour view visibly shows.
+ALPHA_THRESHOLD = 0.05
 
 
 @dataclass(frozen=True)
 class ChannelView:
     """What a picture shows: ``channel`` (one of PICTURE_CHANNELS), the depth range
-    (near, far) in scene units, None for automatic, and the space normals are shown in."""
+    (near, far) in scene units, None for automatic, the space normals are shown in, and
+    ``alpha_threshold`` (0..1): the geometry pictures leave pixels whose alpha is below it
+    black, as undefined (0: the mask is off; the alpha and colour pictures ignore it)."""
 
     channel: str = "rgb"
     depth_range: tuple[float, float] | None = None
     normal_space: str = "camera"
+    alpha_threshold: float = ALPHA_THRESHOLD
 
     def __post_init__(self) -> None:
         if self.channel not in PICTURE_CHANNELS:
@@ -48,10 +58,21 @@ class ChannelView:
             if not (np.isfinite(near) and np.isfinite(far) and far > near):
                 raise UserError(f"depth range must be two finite numbers, near < far, got {self.depth_range!r}")
             object.__setattr__(self, "depth_range", (near, far))
+        threshold = float(self.alpha_threshold)
+        if not 0.0 <= threshold <= 1.0:  # also refuses NaN
+            raise UserError(f"alpha threshold must be a number from 0 to 1, got {self.alpha_threshold!r}")
+        object.__setattr__(self, "alpha_threshold", threshold)
 
     @property
     def is_geometry(self) -> bool:
         return self.channel in ("depth", "median_depth", "normal")
+
+
+def shown(alpha: np.ndarray, threshold: float) -> np.ndarray:
+    """(H, W) bool: the pixels a geometry picture may paint, alpha at least ``threshold``.
+    Compared in float32, as glsl/channel_picture.frag compares the float32 texel with its
+    float32 uniform, so both twins mask the same pixels."""
+    return np.asarray(alpha, np.float32) >= np.float32(threshold)
 
 
 def sample_step(height: int, width: int) -> int:
@@ -113,8 +134,10 @@ def channel_picture(image: ChannelImage, view: ChannelView) -> tuple[np.ndarray,
         return np.clip(image.rgb, 0.0, 1.0).astype(np.float32), None
     if view.channel == "alpha":
         return np.repeat(np.clip(image.alpha, 0.0, 1.0)[..., None], 3, axis=-1).astype(np.float32), None
+    kept = shown(image.alpha, view.alpha_threshold)
     if view.channel == "normal":
         normal = image.normal
-        picture = np.where(np.any(normal != 0, axis=-1, keepdims=True), 0.5 + 0.5 * normal, 0.0)
-        return picture.astype(np.float32), None
-    return depth_picture(getattr(image, view.channel), view.depth_range)
+        painted = kept[..., None] & np.any(normal != 0, axis=-1, keepdims=True)
+        return np.where(painted, 0.5 + 0.5 * normal, 0.0).astype(np.float32), None
+    # Masked depths read as undefined (0), so the automatic range ignores them too.
+    return depth_picture(np.where(kept, getattr(image, view.channel), 0.0).astype(np.float32), view.depth_range)

@@ -25,7 +25,7 @@ from raygs_viewer.camera.stereo import (
     custom_preset,
 )
 from raygs_viewer.errors import UserError, one_line
-from raygs_viewer.render.channel_pictures import ChannelView
+from raygs_viewer.render.channel_pictures import ALPHA_THRESHOLD, ChannelView
 from raygs_viewer.render.settings import RenderSettings, apply_preset
 from raygs_viewer.scene.source import SceneSource
 
@@ -119,7 +119,8 @@ class ViewMode:
     """What the window shows: ``channel`` (render.channel_pictures.PICTURE_CHANNELS: the
     colour, or a picture of alpha, depth, median depth or normals), the depth pictures'
     range (``automatic``: spanning each image's depths; else ``near`` to ``far``, scene
-    units) and the space normals are shown in ("camera" or "world"). Both stereo eyes
+    units), the space normals are shown in ("camera" or "world") and the alpha below
+    which the depth and normal pictures leave a pixel black (0: off). Both stereo eyes
     show it; in the split view ``side`` says which side does ("both", "left", "right":
     e.g. colour on one side, depth on the other); screenshots save what is shown."""
 
@@ -128,6 +129,7 @@ class ViewMode:
     near: float = 0.1
     far: float = 10.0
     normal_space: str = "camera"
+    alpha_threshold: float = ALPHA_THRESHOLD
     side: str = "both"
 
     def view(self) -> ChannelView | None:
@@ -135,7 +137,8 @@ class ViewMode:
         UserError for a set range that is not near < far."""
         if self.channel == "rgb":
             return None
-        return ChannelView(self.channel, None if self.automatic else (self.near, self.far), self.normal_space)
+        return ChannelView(self.channel, None if self.automatic else (self.near, self.far), self.normal_space,
+                           self.alpha_threshold)
 
     def side_views(self, panel: PanelState, split: bool = True) -> tuple[ChannelView | None, ChannelView | None]:
         """(left, right) views this frame: in the split view :meth:`frame_view` on the
@@ -153,7 +156,7 @@ class ViewMode:
             view = self.view()
         except UserError as exc:
             panel.stand("view", f"error: {one_line(exc)}")
-            return ChannelView(self.channel, None, self.normal_space)
+            return ChannelView(self.channel, None, self.normal_space, self.alpha_threshold)
         panel.mend("view")
         return view
 

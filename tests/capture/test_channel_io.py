@@ -27,7 +27,7 @@ from raygs_viewer.capture.channel_io import (
 from raygs_viewer.capture.image_io import encode_image
 from raygs_viewer.capture.video import ExrFolderSink
 from raygs_viewer.errors import UserError
-from raygs_viewer.render.channel_pictures import ChannelView, automatic_range
+from raygs_viewer.render.channel_pictures import ALPHA_THRESHOLD, ChannelView, automatic_range
 from raygs_viewer.render.channels import CHANNELS, ChannelImage
 
 EVERY = ("rgb", "alpha", "depth", "median_depth", "normal")
@@ -167,7 +167,8 @@ def test_automatic_depth_range_is_stated():
 def test_normal_and_alpha_pictures():
     image = hand_made()
     pixels, text = png_of(encode_picture(image, ChannelView("normal"))[0])
-    assert text == {PNG_CHANNEL_KEY: "normal", "raygs-viewer normal space": "camera"}
+    assert text == {PNG_CHANNEL_KEY: "normal", "raygs-viewer normal space": "camera",
+                    "raygs-viewer alpha threshold": repr(ALPHA_THRESHOLD)}
     np.testing.assert_array_equal(pixels, np.round(np.where(np.any(image.normal != 0, axis=-1, keepdims=True),
                                                             0.5 + 0.5 * image.normal, 0) * 255))
     pixels, text = png_of(encode_picture(image, ChannelView("alpha"))[0])
@@ -185,6 +186,8 @@ def test_picture_view_choices():
     assert picture_view(("rgb", "alpha"), ".png") == ChannelView("rgb")
     assert picture_view(("depth",), ".PNG", (1.0, 2.0)) == ChannelView("depth", (1.0, 2.0))
     assert picture_view(("normal",), ".png", None, "world") == ChannelView("normal", None, "world")
+    assert picture_view(("depth",), ".png", None, "camera", 0.0) == ChannelView("depth", alpha_threshold=0.0)
+    assert picture_view(("depth",), ".npy") is None
     assert picture_view(EVERY, ".exr") is None and picture_view(EVERY, ".npy") is None
     for channels in (("depth", "normal"), ("alpha", "rgb"), ("rgb", "alpha", "depth")):
         with pytest.raises(UserError, match="a .png shows one channel"):

@@ -687,13 +687,14 @@ def test_a_rig_field_added_later_reads_the_files_written_before_it(tmp_path):
 
 
 @pytest.mark.parametrize("view", [ChannelView("depth", (0.5, 7.25)), ChannelView("median_depth"),
-                                  ChannelView("normal", None, "world"), ChannelView("alpha")])
+                                  ChannelView("normal", None, "world"), ChannelView("alpha"),
+                                  ChannelView("depth", alpha_threshold=0.3), ChannelView("normal", alpha_threshold=0)])
 def test_channel_view_sidecar_round_trip(tmp_path, view):
     data = demo_sidecar(channel_view=view)
     assert data["version"] == 3
     assert data["channel_view"] == {"channel": view.channel,
                                     "depth_range": None if view.depth_range is None else list(view.depth_range),
-                                    "normal_space": view.normal_space}
+                                    "normal_space": view.normal_space, "alpha_threshold": view.alpha_threshold}
     loaded = load_sidecar(write_json(tmp_path / "shot.json", data))
     assert loaded.channel_view == view
     assert loaded.settings == SETTINGS
@@ -713,7 +714,10 @@ def test_colour_sidecars_record_no_channel_view_and_keep_their_version(tmp_path,
 
 
 @pytest.mark.parametrize("missing, expected", [("channel_view.depth_range", ChannelView("normal", None, "world")),
-                                               ("channel_view.normal_space", ChannelView("normal"))])
+                                               ("channel_view.normal_space", ChannelView("normal")),
+                                               # written before the threshold: drawn unmasked
+                                               ("channel_view.alpha_threshold",
+                                                ChannelView("normal", None, "world", alpha_threshold=0.0))])
 def test_a_channel_view_key_the_file_lacks_takes_its_default(tmp_path, missing, expected):
     data = demo_sidecar(channel_view=ChannelView("normal", None, "world"))
     delete_field(missing)(data)
@@ -730,6 +734,8 @@ MALFORMED_CHANNEL_VIEW = {
     "range_three": (set_field("channel_view.depth_range", [1.0, 2.0, 3.0]), "'channel_view.depth_range'"),
     "range_words": (set_field("channel_view.depth_range", "1,2"), "'channel_view.depth_range'"),
     "space_unknown": (set_field("channel_view.normal_space", "object"), "normal space"),
+    "threshold_above_1": (set_field("channel_view.alpha_threshold", 1.5), "alpha threshold must be"),
+    "threshold_words": (set_field("channel_view.alpha_threshold", "half"), "'channel_view.alpha_threshold'"),
     "unknown_field": (set_field("channel_view.gamma", 2.2), "'channel_view.gamma'"),
 }
 

@@ -19,7 +19,7 @@ from raygs_viewer.camera.stereo import StereoRig, StereoView
 from raygs_viewer.capture.image_io import to_rgb8
 from raygs_viewer.capture.sidecar import build_sidecar, demo_sha256
 from raygs_viewer.render import reference
-from raygs_viewer.render.channel_pictures import ChannelView, automatic_range, depth_picture
+from raygs_viewer.render.channel_pictures import ALPHA_THRESHOLD, ChannelView, automatic_range, depth_picture
 from raygs_viewer.render.channels import ChannelImage
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import RenderSettings
@@ -148,13 +148,17 @@ def test_world_normals_are_the_camera_normals_turned_by_r_transposed(capsys, tmp
 def test_depth_picture_states_its_range(capsys, tmp_path, tiny, channel):
     scene, cameras = tiny
     view = ["--camera", cameras, "--camera-index", "1"]
-    render(capsys, scene, *view, "--channels", channel, "--out", tmp_path / "d.npy")
-    depth = np.load(tmp_path / "d.npy")[..., 0]
+    render(capsys, scene, *view, "--channels", f"alpha,{channel}", "--out", tmp_path / "d.npy")
+    alpha, raw = np.load(tmp_path / "d.npy").transpose(2, 0, 1)
+    depth = np.where(alpha >= np.float32(ALPHA_THRESHOLD), raw, 0.0)  # the picture masks faint pixels by default
+    # A median needs alpha 0.5, far above the threshold: the mask changes the expected depth only.
+    assert (depth != raw).any() == (channel == "depth")
     automatic = render(capsys, scene, *view, "--channels", channel, "--out", tmp_path / "auto.png")
     near, far = automatic_range(depth)
     assert f"{channel} range {near:.6g} to {far:.6g} (automatic" in automatic.splitlines()[0]
     pixels, text = png(tmp_path / "auto.png")
     assert text["raygs-viewer channel"] == channel
+    assert float(text["raygs-viewer alpha threshold"]) == ALPHA_THRESHOLD
     assert tuple(float(v) for v in text["raygs-viewer depth range"].split()) == (near, far)
     np.testing.assert_array_equal(pixels, to_rgb8(depth_picture(depth, (near, far))[0]))
     given = render(capsys, scene, *view, "--channels", channel, "--depth-range", "1.5,2.5",
@@ -163,6 +167,12 @@ def test_depth_picture_states_its_range(capsys, tmp_path, tiny, channel):
     pixels, text = png(tmp_path / "given.png")
     assert text["raygs-viewer depth range"] == "1.5 2.5"
     np.testing.assert_array_equal(pixels, to_rgb8(depth_picture(depth, (1.5, 2.5))[0]))
+    # --alpha-threshold 0: every covered pixel, as the raw depths have it.
+    render(capsys, scene, *view, "--channels", channel, "--depth-range", "1.5,2.5", "--alpha-threshold", "0",
+           "--out", tmp_path / "raw.png")
+    pixels, text = png(tmp_path / "raw.png")
+    assert text["raygs-viewer alpha threshold"] == "0.0"
+    np.testing.assert_array_equal(pixels, to_rgb8(depth_picture(raw, (1.5, 2.5))[0]))
 
 
 def test_normal_and_alpha_pictures(capsys, tmp_path, tiny):
@@ -173,11 +183,29 @@ def test_normal_and_alpha_pictures(capsys, tmp_path, tiny):
     render(capsys, scene, *view, "--channels", "normal", "--normal-space", "world", "--out", tmp_path / "n.png")
     pixels, text = png(tmp_path / "n.png")
     assert text["raygs-viewer normal space"] == "world"
-    normal = values[..., :3]
-    expected = np.where(np.any(normal != 0, axis=-1, keepdims=True), 0.5 + 0.5 * normal, 0.0)
+    normal, kept = values[..., :3], values[..., 3:] >= np.float32(ALPHA_THRESHOLD)
+    assert (np.any(normal != 0, axis=-1, keepdims=True) & ~kept).any()  # the mask shows here
+    expected = np.where(np.any(normal != 0, axis=-1, keepdims=True) & kept, 0.5 + 0.5 * normal, 0.0)
     np.testing.assert_array_equal(pixels, to_rgb8(expected))
     render(capsys, scene, *view, "--channels", "alpha", "--out", tmp_path / "a.png")
     np.testing.assert_array_equal(png(tmp_path / "a.png")[0][..., 0], to_rgb8(values[..., 3:4].repeat(3, -1))[..., 0])
+
+
+def test_npy_and_exr_keep_the_depths_the_picture_masks(capsys, tmp_path, tiny):
+    """The alpha threshold is for the eye: the raw files keep every covered pixel's values."""
+    scene, cameras = tiny
+    view = ["--camera", cameras, "--camera-index", "1"]
+    render(capsys, scene, *view, "--channels", "alpha,depth,normal", "--out", tmp_path / "g.npy")
+    render(capsys, scene, *view, "--channels", "alpha,depth,normal", "--out", tmp_path / "g.exr")
+    values = np.load(tmp_path / "g.npy")
+    alpha, depth, normal = values[..., 0], values[..., 1], values[..., 2:5]
+    faint = (alpha > 0) & (alpha < ALPHA_THRESHOLD)
+    assert faint.any() and (depth[faint] > 0).all() and np.any(normal[faint] != 0, axis=-1).all()
+    planes = read_exr(tmp_path / "g.exr")[1]
+    np.testing.assert_array_equal(planes["Z"], depth)
+    np.testing.assert_array_equal(np.stack([planes["N.X"], planes["N.Y"], planes["N.Z"]], -1), normal)
+    render(capsys, scene, *view, "--channels", "depth", "--out", tmp_path / "d.png")
+    assert not png(tmp_path / "d.png")[0][faint].any()  # where the picture shows none
 
 
 # --------------------------------------------------------------------------- the old output
@@ -217,6 +245,34 @@ def test_a_sidecar_of_a_depth_picture_renders_that_picture_again(capsys, tmp_pat
     # --channels over the sidecar's picture: the depths as numbers, none of its range.
     render(capsys, "--sidecar", sidecar, "--channels", "depth,normal", "--out", tmp_path / "again.exr")
     assert sorted(read_exr(tmp_path / "again.exr")[1]) == ["N.X", "N.Y", "N.Z", "Z"]
+
+
+def test_a_sidecar_records_the_alpha_threshold_and_an_older_one_is_unmasked(capsys, tmp_path, gl_ctx):
+    camera = demo_camera(32, 24)
+    cameras = tmp_path / "cameras.json"
+    cameras.write_text(json.dumps([camera_to_json(camera)]))
+    pictures = {}
+    for threshold in ("0", "0.3"):
+        render(capsys, "--camera", cameras, "--channels", "depth", "--depth-range", "3,6.5",
+               "--alpha-threshold", threshold, "--out", tmp_path / f"d{threshold}.png")
+        pictures[threshold] = png(tmp_path / f"d{threshold}.png")[0]
+    assert (pictures["0"] != pictures["0.3"]).any()  # the threshold matters in this view
+    entry = build_sidecar(scene_path="demo", scene_sha256=demo_sha256(), scene=demo_scene(), camera=camera,
+                          settings=RenderSettings(), scale=1.0,
+                          channel_view=ChannelView("depth", (3.0, 6.5), alpha_threshold=0.3))
+    assert entry["channel_view"]["alpha_threshold"] == 0.3
+    sidecar = tmp_path / "shot.json"
+    sidecar.write_text(json.dumps(entry))
+    render(capsys, "--sidecar", sidecar, "--out", tmp_path / "again.png")
+    assert png(tmp_path / "again.png")[0].tobytes() == pictures["0.3"].tobytes()
+    # --alpha-threshold over the sidecar's.
+    render(capsys, "--sidecar", sidecar, "--alpha-threshold", "0", "--out", tmp_path / "off.png")
+    assert png(tmp_path / "off.png")[0].tobytes() == pictures["0"].tobytes()
+    # A sidecar written before the threshold existed drew its picture unmasked.
+    del entry["channel_view"]["alpha_threshold"]
+    sidecar.write_text(json.dumps(entry))
+    render(capsys, "--sidecar", sidecar, "--out", tmp_path / "old.png")
+    assert png(tmp_path / "old.png")[0].tobytes() == pictures["0"].tobytes()
 
 
 # --------------------------------------------------------------------------- the reference
@@ -279,6 +335,14 @@ def bad_cases(tmp_path) -> dict[str, list]:
         "depth_range_normal": ["render", "--channels", "normal", "--depth-range", "1,2", "--out", out],
         "depth_range_reversed": ["render", "--channels", "depth", "--depth-range", "2,1", "--out", out],
         "depth_range_words": ["render", "--channels", "depth", "--depth-range", "near,far", "--out", out],
+        "alpha_threshold_above_1": ["render", "--channels", "depth", "--alpha-threshold", "1.5", "--out", out],
+        "alpha_threshold_negative": ["render", "--channels", "depth", "--alpha-threshold", "-0.1", "--out", out],
+        "alpha_threshold_words": ["render", "--channels", "depth", "--alpha-threshold", "half", "--out", out],
+        "alpha_threshold_npy": ["render", "--channels", "depth", "--alpha-threshold", "0.1",
+                                "--out", tmp_path / "o.npy"],
+        "alpha_threshold_exr": ["render", "--channels", "depth", "--alpha-threshold", "0.1",
+                                "--out", tmp_path / "o.exr"],
+        "alpha_threshold_alpha": ["render", "--channels", "alpha", "--alpha-threshold", "0.1", "--out", out],
         "normal_space_unknown": ["render", "--channels", "normal", "--normal-space", "object", "--out", out],
         "normal_space_without_normal": ["render", "--channels", "depth", "--normal-space", "world",
                                         "--out", tmp_path / "o.npy"],
@@ -305,7 +369,10 @@ def test_bad_channel_options_are_one_line_errors_that_write_nothing(capsys, tmp_
 def test_error_messages_say_what_to_do(capsys, tmp_path):
     expect = {"png_several": "a .png shows one channel", "unknown_channel": "choose from rgb, alpha",
               "stereo_geometry": "--stereo", "path_mp4": "--channels writes EXR frames into a folder",
-              "depth_range_npy": "--depth-range", "normal_space_without_normal": "add normal to --channels"}
+              "depth_range_npy": "--depth-range", "normal_space_without_normal": "add normal to --channels",
+              "alpha_threshold_above_1": "not an alpha from 0 to 1",
+              "alpha_threshold_npy": ".npy files keep every pixel's value",
+              "alpha_threshold_alpha": "depth, median_depth or normal, not of alpha"}
     cases = bad_cases(tmp_path)
     for case, fragment in expect.items():
         err = run_cli(capsys, *cases[case])[2]

@@ -1,15 +1,19 @@
 """Channel pictures (render/channel_pictures.py): the automatic range's sample grid, the
-colour map's direction, undefined pixels, and the view's checks. The GPU twin of these
+colour map's direction, undefined pixels, the alpha threshold's mask, and the view's
+checks. The GPU twin of these
 pictures is held to them in tests/render/test_gl_geometry.py."""
 
 import numpy as np
 import pytest
 
 from raygs_viewer.errors import UserError
+from raygs_viewer.render.channels import ChannelImage
 from raygs_viewer.render.channel_pictures import (
+    ALPHA_THRESHOLD,
     AUTO_SAMPLES,
     ChannelView,
     automatic_range,
+    channel_picture,
     color_table,
     depth_picture,
     depth_samples,
@@ -44,7 +48,34 @@ def test_depth_pictures_are_bright_near_dark_far_and_black_where_undefined():
 
 @pytest.mark.parametrize("view", [dict(channel="height"), dict(channel="depth", depth_range=(2.0, 1.0)),
                                   dict(channel="depth", depth_range=(0.0, float("inf"))),
-                                  dict(channel="normal", normal_space="object")])
+                                  dict(channel="normal", normal_space="object"),
+                                  dict(channel="depth", alpha_threshold=-0.1),
+                                  dict(channel="depth", alpha_threshold=1.5),
+                                  dict(channel="depth", alpha_threshold=float("nan"))])
 def test_a_bad_view_is_a_user_error(view):
     with pytest.raises(UserError):
         ChannelView(**view)
+
+
+def test_the_alpha_threshold_masks_faint_pixels_of_the_geometry_pictures():
+    # Alpha 0.02 (haze), exactly the threshold, opaque, none; the haze is nearest.
+    alpha = np.array([[0.02, 0.25, 0.9, 0.0]], np.float32)
+    depth = np.array([[1.0, 2.0, 3.0, 0.0]], np.float32)
+    normal = np.zeros((1, 4, 3), np.float32)
+    normal[0, :3, 2] = -1.0
+    image = ChannelImage(np.full((1, 4, 3), 0.5, np.float32), alpha, depth, depth, normal)
+    for channel in ("depth", "median_depth", "normal"):
+        masked, _ = channel_picture(image, ChannelView(channel, alpha_threshold=0.25))
+        unmasked, _ = channel_picture(image, ChannelView(channel, alpha_threshold=0.0))
+        assert not masked[0, 0].any() and unmasked[0, 0].any()  # below it: black, as undefined
+        assert masked[0, 1].any() and masked[0, 2].any()        # at it and above: painted
+        assert not masked[0, 3].any() and not unmasked[0, 3].any()
+    # The automatic range ignores the masked depth (0.25 keeps 2 and 3, 0 spans 1 to 3).
+    assert channel_picture(image, ChannelView("depth", alpha_threshold=0.25))[1] == pytest.approx(
+        tuple(np.percentile([2.0, 3.0], (1, 99))))
+    assert channel_picture(image, ChannelView("depth", alpha_threshold=0.0))[1][0] < 1.1
+    # The colour and alpha pictures show every pixel whatever the threshold.
+    for channel in ("rgb", "alpha"):
+        np.testing.assert_array_equal(channel_picture(image, ChannelView(channel, alpha_threshold=1.0))[0],
+                                      channel_picture(image, ChannelView(channel, alpha_threshold=0.0))[0])
+    assert ChannelView("depth").alpha_threshold == ALPHA_THRESHOLD > 0  # masked unless switched off

@@ -16,6 +16,7 @@ from testkit import (
     make_scene,
     patched_glsl,
     random_scene,
+    rendered,
     sorted_channels,
     sorted_render,
 )
@@ -23,7 +24,7 @@ from testkit import (
 from raygs_viewer.camera.pinhole import frame_points, look_at
 from raygs_viewer.camera.stereo import StereoRig, eye_cameras
 from raygs_viewer.errors import UserError
-from raygs_viewer.render.channel_pictures import ChannelView, channel_picture
+from raygs_viewer.render.channel_pictures import ALPHA_THRESHOLD, ChannelView, channel_picture
 from raygs_viewer.render.gl.geometry import takes_lists
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.gl.targets import FloatTarget
@@ -124,6 +125,71 @@ def test_view_pictures_show_the_channels(renderer, gl_session_ctx):
         np.testing.assert_array_equal(target.read(), renderer.render(CAMERA, RenderSettings(), order))
     finally:
         target.release()
+
+
+# --- the pictures' alpha threshold ---------------------------------------------------------------
+
+HALO_CAMERA = look_at((0.0, 0.0, -3.0), (0.0, 0.0, 0.0), width=48, height=36)
+
+
+@pytest.fixture(scope="module")
+def halo(gl_session_ctx):
+    """An opaque gaussian at z = 3 behind a wide, faint one at z = 2 (alpha about 0.03,
+    under the default threshold): haze the colour view barely shows."""
+    scene = make_scene([(0.0, 0.0, 0.0), (0.0, 0.0, -1.0)], [(0.6, 0.6, 0.1), (2.0, 2.0, 0.05)],
+                       opacities=[0.99, 0.03])
+    made = GLRenderer(gl_session_ctx, scene)
+    yield made
+    made.release()
+
+
+def gl_and_twin_pictures(renderer, view: ChannelView):
+    """((GPU picture, its range), (CPU twin's picture, its range)) of ``view``."""
+    with DepthSorter(renderer.scene) as sorter:
+        order = exact_order(sorter, HALO_CAMERA, RenderSettings())
+    image, result = rendered(renderer, HALO_CAMERA, RenderSettings(), order, view=view)
+    channels = renderer.render_channels(HALO_CAMERA, RenderSettings(), order, median=view.channel == "median_depth")
+    return (image[..., :3], result.view_range), channel_picture(channels.in_space(view.normal_space, HALO_CAMERA), view)
+
+
+@pytest.mark.parametrize("channel", ["depth", "median_depth", "normal"])
+@pytest.mark.parametrize("threshold", [0.0, ALPHA_THRESHOLD, 0.6])
+def test_the_gpu_picture_masks_as_its_cpu_twin(halo, channel, threshold):
+    (gpu, gpu_range), (cpu, cpu_range) = gl_and_twin_pictures(halo, ChannelView(channel, alpha_threshold=threshold))
+    np.testing.assert_allclose(gpu, cpu, atol=1e-6)
+    assert gpu_range == cpu_range
+
+
+def test_the_mask_removes_the_haze_and_its_depths_from_the_range(halo):
+    channels = sorted_channels(halo, HALO_CAMERA, RenderSettings())
+    haze = (channels.alpha > 0) & (channels.alpha < ALPHA_THRESHOLD)
+    core = channels.alpha > 0.5
+    assert haze.mean() > 0.3 and core.mean() > 0.05  # both are in the view
+    (off, off_range), _ = gl_and_twin_pictures(halo, ChannelView("depth", alpha_threshold=0.0))
+    (on, on_range), _ = gl_and_twin_pictures(halo, ChannelView("depth"))
+    assert off[haze].any(axis=-1).all()    # unmasked, the haze paints a depth
+    assert not on[haze].any()              # masked, it shows none
+    assert on[core].any(axis=-1).all()     # the object stays
+    # The haze at z = 2 starts the unmasked range; masked, the object near z = 3 spans it
+    # (from its fringe, whose expected depth the haze in front still pulls nearer).
+    assert off_range[0] < 2.1 and on_range[0] > 2.4
+    (normal, _), _ = gl_and_twin_pictures(halo, ChannelView("normal"))
+    assert not normal[haze].any() and normal[core].any(axis=-1).all()
+
+
+@pytest.mark.parametrize("fault", ["depth", "normal"])
+def test_an_unmasked_gpu_picture_fails_the_comparison(monkeypatch, halo, fault):
+    # Negative control: the GPU pass without its mask no longer matches the CPU twin.
+    if fault == "depth":
+        patched_glsl(monkeypatch, "channel_picture.frag", "alpha < u_alpha_threshold", "false")
+    else:
+        patched_glsl(monkeypatch, "channel_picture.frag", "alpha >= u_alpha_threshold", "true")
+    renderer = GLRenderer(halo.ctx, halo.scene)
+    try:
+        (gpu, _), (cpu, _) = gl_and_twin_pictures(renderer, ChannelView(fault))
+        assert np.abs(gpu - cpu).max() > 0.1
+    finally:
+        renderer.release()
 
 
 # --- hard cases ---------------------------------------------------------------------------------

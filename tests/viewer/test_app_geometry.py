@@ -1,6 +1,7 @@
 """The window's view mode (the Geometry section): what the frame shows in each channel,
-the depth range automatic or set and the range in use, normals in camera or world
-space, both sides of the split view and both stereo eyes, and screenshots of it."""
+the alpha threshold masking faint pixels, the depth range automatic or set and the range
+in use, normals in camera or world space, both sides of the split view and both stereo
+eyes, and screenshots of it."""
 
 from __future__ import annotations
 
@@ -15,7 +16,7 @@ from PIL import Image
 from raygs_viewer.camera.stereo import StereoRig, custom_preset, eye_cameras
 from raygs_viewer.capture.image_io import to_rgb8
 from raygs_viewer.capture.sidecar import load_sidecar
-from raygs_viewer.render.channel_pictures import ChannelView, channel_picture
+from raygs_viewer.render.channel_pictures import ALPHA_THRESHOLD, ChannelView, channel_picture
 from raygs_viewer.render.gl.stereo_frame import stereo_order
 from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.viewer.state import StereoPreview
@@ -186,9 +187,55 @@ def test_a_screenshot_saves_the_picture_shown_and_records_the_view(open_viewer):
     assert np.mean(np.abs(saved - shown) > 4) < 0.005
     near, far = viewer.drawer.view_range
     view = json.loads(sidecar.read_text())["channel_view"]
-    assert view == {"channel": "depth", "depth_range": [near, far], "normal_space": "camera"}
+    assert view == {"channel": "depth", "depth_range": [near, far], "normal_space": "camera",
+                    "alpha_threshold": ALPHA_THRESHOLD}
     # What `render --sidecar` reads back to draw the same picture.
     assert load_sidecar(sidecar).channel_view == ChannelView("depth", (near, far))
+
+
+def test_a_masked_depth_screenshot_renders_again_to_the_bit(open_viewer, tmp_path):
+    import glfw  # late: imgui must be imported before it (see raygs_viewer.viewer.window)
+
+    from raygs_viewer.cli.main import main
+    viewer, drive = small(open_viewer)
+    viewer.view_mode.channel, viewer.view_mode.alpha_threshold = "depth", 0.3
+    drive.frames(2)
+    near, far = viewer.drawer.view_range
+    expected, _ = expected_picture(viewer, ChannelView("depth", (near, far), alpha_threshold=0.3))
+    assert_picture(window_image(viewer), expected)
+    unmasked, _ = expected_picture(viewer, ChannelView("depth", (near, far), alpha_threshold=0.0))
+    assert (unmasked.any(axis=-1) & ~expected.any(axis=-1)).mean() > 0.02  # the threshold masks pixels here
+    png, sidecar = viewer.save_screenshot()
+    assert json.loads(sidecar.read_text())["channel_view"]["alpha_threshold"] == 0.3
+    out = tmp_path / "again.png"
+    assert main(["render", "--sidecar", str(sidecar), "--out", str(out)]) == 0
+    np.testing.assert_array_equal(np.asarray(Image.open(out)), np.asarray(Image.open(png)))
+    glfw.make_context_current(viewer.window.handle)
+
+
+def test_the_panel_sets_the_alpha_threshold(open_viewer):
+    viewer, drive = open_viewer(width=PANEL_NARROW, height=PANEL_HEIGHT)
+    drive.frames(2)
+    assert "mask below alpha" not in drive.panel.labels()  # the colour view has no mask
+    drive.reveal("show")
+    click_choice(drive, "show", "depth")
+    drive.frames(2)
+    assert viewer.view_mode.alpha_threshold == ALPHA_THRESHOLD and viewer.drawer.view == ChannelView("depth")
+    drive.reveal("mask below alpha")
+    drive.click_left_end("mask below alpha")  # 0: the mask off
+    drive.frames(2)
+    assert viewer.view_mode.alpha_threshold == 0.0 and viewer.drawer.view.alpha_threshold == 0.0
+    x0, y0, x1, y1 = drive.panel.rect("mask below alpha")  # the slider's frame (160 wide), then its label
+    drive.click_at(x0 + 80, (y0 + y1) / 2)  # the frame's middle: about half
+    drive.frames(2)
+    assert 0.3 < viewer.view_mode.alpha_threshold < 0.7
+    assert viewer.drawer.view.alpha_threshold == viewer.view_mode.alpha_threshold
+    click_choice(drive, "show", "normal")
+    drive.frames(2)
+    assert "mask below alpha" in drive.panel.labels()
+    click_choice(drive, "show", "alpha")
+    drive.frames(2)
+    assert "mask below alpha" not in drive.panel.labels()  # the alpha picture shows every value
 
 
 def test_a_split_screenshot_saves_each_side_in_the_range_shown(open_viewer):

@@ -77,26 +77,29 @@ class GeometryOutputs:
         channel = PICTURE_DEFINES[view.channel]
         view_range = None
         if view.channel in ("depth", "median_depth"):
-            view_range = view.depth_range or range_of_samples(self._depth_samples(programs, image, channel))
+            view_range = view.depth_range or range_of_samples(self._depth_samples(programs, image, view))
         program, vao = programs.fullscreen("channel_picture.frag", {"CHANNEL": channel, "SAMPLES": 0})
         to_space = np.asarray(camera.R, np.float32).T if view.normal_space == "world" else np.eye(3, dtype=np.float32)
         set_uniform(program, "u_to_space", to_space.tobytes(order="F"))
         set_uniform(program, "u_range", view_range or (0.0, 1.0))
+        set_uniform(program, "u_alpha_threshold", view.alpha_threshold)
         self._bind_inputs(program, image)
         target.use()
         self.ctx.disable(moderngl.BLEND)
         vao.render(moderngl.TRIANGLES, vertices=3)
         return view_range
 
-    def _depth_samples(self, programs: Programs, image: FloatTarget, channel: int) -> np.ndarray:
+    def _depth_samples(self, programs: Programs, image: FloatTarget, view: ChannelView) -> np.ndarray:
         """The depths an automatic range is taken from (render/channel_pictures.depth_samples),
-        gathered on the GPU into a small target and read back."""
+        gathered on the GPU into a small target and read back; 0 (none) where masked."""
         height, width = image.size[1], image.size[0]
         step = sample_step(height, width)
         columns, rows = -(-width // step), -(-height // step)
         self._gathered = gathered = sized(self._gathered, self.ctx, columns, rows)
-        program, vao = programs.fullscreen("channel_picture.frag", {"CHANNEL": channel, "SAMPLES": 1})
+        program, vao = programs.fullscreen("channel_picture.frag", {"CHANNEL": PICTURE_DEFINES[view.channel],
+                                                                     "SAMPLES": 1})
         set_uniform(program, "u_step", step)
+        set_uniform(program, "u_alpha_threshold", view.alpha_threshold)
         set_uniform(program, "u_samples", (columns, rows))
         self._bind_inputs(program, image)
         gathered.use()

@@ -1,6 +1,7 @@
 """The panel's Geometry section: the view mode (colour, or a picture of alpha, depth,
-median depth or normals), the depth pictures' range (automatic, or set by two fields)
-and the range in use, the normals' space, and the point the last double-click picked.
+median depth or normals), the alpha below which the depth and normal pictures mask a
+pixel, the depth pictures' range (automatic, or set by two fields) and the range in
+use, the normals' space, and the point the last double-click picked.
 In the stereo preview, whether a double-click sets the convergence."""
 
 from __future__ import annotations
@@ -12,7 +13,7 @@ from imgui_bundle import imgui
 from raygs_viewer.capture.measure_file import MeasureScale
 from raygs_viewer.render.channels import NORMAL_SPACES
 from raygs_viewer.viewer.measure import format_distance
-from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, tooltip
+from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, slider, tooltip
 from raygs_viewer.viewer.picking import Picked
 from raygs_viewer.viewer.state import VIEW_SIDES, StereoPreview, ViewMode
 
@@ -40,6 +41,8 @@ def draw_geometry_section(mode: ViewMode, range_in_use: tuple[float, float] | No
     if split and mode.channel != "rgb":
         mode.side = choice("on", mode.side, VIEW_SIDES)
         tooltip("which side of the split view shows the picture; the other shows the colour")
+    if mode.channel in ("depth", "median_depth", "normal"):
+        _alpha_threshold(mode)
     if mode.channel in ("depth", "median_depth"):
         _depth_range(mode, range_in_use)
     elif mode.channel == "normal":
@@ -59,6 +62,15 @@ def draw_geometry_section(mode: ViewMode, range_in_use: tuple[float, float] | No
         imgui.text(f"picked ({x:.4g}, {y:.4g}, {z:.4g})")
         imgui.text(f"distance from the camera {format_distance(picked.distance, scale)}")
     tooltip(PICK_HELP)
+
+
+def _alpha_threshold(mode: ViewMode) -> None:
+    imgui.set_next_item_width(160)
+    threshold = slider("mask below alpha", mode.alpha_threshold, 0.0, 1.0, "%.3f")
+    if threshold is not None:
+        mode.alpha_threshold = min(max(threshold, 0.0), 1.0)  # a ctrl-click may type beyond the slider
+    tooltip("pixels whose alpha is below this are black, as undefined: depth and normals are defined wherever\n"
+            "alpha > 0, so without it faint haze paints at full strength. 0: off (every covered pixel)")
 
 
 def _depth_range(mode: ViewMode, range_in_use: tuple[float, float] | None) -> None:
