@@ -271,7 +271,7 @@ class Viewer:
                                         self.window, self.stereo, self.split, self.panel.note),
             lambda: draw_order_section(self.settings, self.set_settings, stats, self.right_settings() is not None),
             lambda: draw_stereo_section(self.stereo, stats),
-            lambda: draw_view_section(view.navigator, view.lens.fov_y_degrees, view.set_fov, self.reset_view),
+            lambda: draw_view_section(view, self.reset_view),
             lambda: draw_training_section(loaded, view.training_index, view.select_training_camera,
                                           view.step_training_camera, self.photo),
             lambda: draw_screenshot_section(self.captures.options, self.camera, self.shown_stereo is not None,
