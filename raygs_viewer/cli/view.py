@@ -68,8 +68,10 @@ def add_parsers(commands) -> None:
     parser.add_argument("--turntable", type=argtypes.turntable, default=0.0, metavar="DEG",
                         help="orbit about the up axis by DEG degrees every frame (a reproducible "
                              "fly-around, e.g. to measure the frame rate with --frames)")
-    parser.add_argument("--up-axis", choices=UP_AXES, default="-y",
-                        help="world up, for navigation (default -y, the OpenCV/COLMAP convention)")
+    # No default here: an axis given is told apart from none, which the window takes from the cameras.
+    parser.add_argument("--up-axis", choices=UP_AXES,
+                        help="world up, for navigation (default: the training cameras' mean up, snapped to "
+                             "an axis; without cameras -y, the OpenCV/COLMAP convention)")
     parser.add_argument("--window-platform", choices=("auto", "x11", "wayland", "null"), default="auto",
                         help="GLFW platform (default auto: null without a display)")
     add_stereo_options(parser, window=True)

@@ -34,6 +34,8 @@ from raygs_viewer.camera.stereo import StereoView
 from raygs_viewer.capture.image_io import check_output_path, save_image
 from raygs_viewer.capture.screenshot import check_screenshot_path
 from raygs_viewer.errors import UserError, one_line
+from raygs_viewer.photos.dataset import Dataset, PhotoView
+from raygs_viewer.photos.evaluate import evaluation_settings, render_view
 from raygs_viewer.render.gl.context import context_description
 from raygs_viewer.render.gl.mono_frame import Viewport
 from raygs_viewer.render.gl.gpu_sort import GpuSorter
@@ -119,7 +121,7 @@ class Viewer:
                                 options.sort)
         self.drawer = SceneDrawer(self.ctx)
         self.file_dialog = FileDialog()
-        self.photo = PhotoCompare(self.ctx, options.images)
+        self.photo = PhotoCompare(self.ctx, options.images, self.render_photo_view)
         self.camera_path = PathWidget(self.panel, self)
         self.measure = MeasureWidget(self.panel, self)
         self.picker = PickTool(self, self.measure)
@@ -203,6 +205,12 @@ class Viewer:
     def set_settings(self, settings: RenderSettings) -> None:
         self.settings = settings
 
+    def render_photo_view(self, view: PhotoView, dataset: Dataset) -> np.ndarray:
+        """The Photo view's render at a training camera's own size: ``evaluate``'s, with the
+        panel's settings over the dataset's background, so the two measure one PSNR."""
+        settings = evaluation_settings(self.settings, dataset)
+        return render_view(self.scene.renderer, self.scene.exact_sorter, view, settings)
+
     def reset_view(self) -> None:
         self.view.reset(self.window.framebuffer_size(), self.shown_stereo)
 
@@ -273,7 +281,7 @@ class Viewer:
                                         self.window, self.stereo, self.split, self.panel.note),
             lambda: draw_order_section(self.settings, self.set_settings, stats, self.right_settings() is not None),
             lambda: draw_stereo_section(self.stereo, stats),
-            lambda: draw_view_section(view.navigator, view.lens.fov_y_degrees, view.set_fov, self.reset_view),
+            lambda: draw_view_section(view, self.reset_view),
             lambda: draw_training_section(loaded, view.training_index, view.select_training_camera,
                                           view.step_training_camera, self.photo),
             lambda: draw_screenshot_section(self.captures.options, self.camera, self.shown_stereo is not None,

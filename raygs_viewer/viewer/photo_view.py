@@ -9,7 +9,11 @@ render again and says so; the chosen mode comes back at the next training camera
 What is compared is what the window shows: the render at the viewport's size (the
 training camera's intrinsics scaled to it, clipped to 0..1) and the photo at that
 size (``photos.dataset.load_photo`` at the camera's own size, resampled where the
-viewport differs; the PSNR then says at which size it was measured). The photos come
+viewport differs; the PSNR then says at which size it was measured). With
+``at_camera_size`` the comparison is ``evaluate``'s instead, so the two give one PSNR
+for a view: the training camera rendered at its own size and intrinsics by
+``photos.evaluate.render_view`` (an exact sort, the dataset's background) against the
+photo as loaded, and that picture shown scaled into the viewport. The photos come
 from ``open_dataset`` on the model folder holding the scene's cameras.json (its
 cfg_args name the source images) or ``--images``. Each photo is loaded once, on
 arrival, and cached per view and size.
@@ -26,6 +30,7 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from pathlib import Path
+from typing import Callable
 
 import moderngl
 import numpy as np
@@ -65,15 +70,19 @@ def standing_at(cameras: list[Camera], index: int | None, lens: Lens, pose: Pose
 
 class PhotoCompare:
     """One per window. ``mode``: one of MODES; ``fraction``: the split's divider as a
-    fraction of the width; ``heat_max``: the |difference| at the heat map's top colour.
-    After each frame's draw: ``at`` (the training camera stood at, None: away),
-    ``status`` (the section's line: why nothing is compared, or what was), ``psnr``
-    (of render against photo, None when not compared), ``picture`` ((H, W, 3) float32
-    shown instead of the render; None: the render is shown)."""
+    fraction of the width; ``heat_max``: the |difference| at the heat map's top colour;
+    ``at_camera_size``: compare at the training camera's own size, with ``render_at``
+    (a PhotoView and its Dataset -> (H, W, 3) float32 in 0..1, evaluate's render),
+    instead of the window's. After each frame's draw: ``at`` (the training camera stood
+    at, None: away), ``status`` (the section's line: why nothing is compared, or what
+    was), ``psnr`` (of render against photo, None when not compared), ``picture``
+    ((H, W, 3) float32 shown instead of the render; None: the render is shown)."""
 
-    def __init__(self, ctx: moderngl.Context, images: str | None = None):
-        self.ctx, self.images = ctx, images
+    def __init__(self, ctx: moderngl.Context, images: str | None = None,
+                 render_at: Callable[[PhotoView, Dataset], np.ndarray] | None = None):
+        self.ctx, self.images, self.render_at = ctx, images, render_at
         self.mode, self.fraction, self.heat_max = "render", 0.5, DEFAULT_HEAT_MAX
+        self.at_camera_size = False
         self.used = False  # photos are loaded only once a mode other than the render was chosen
         self.at: int | None = None
         self.status = ""
@@ -84,8 +93,8 @@ class PhotoCompare:
         self.target: FloatTarget | None = None
         self.render: np.ndarray | None = None
         self._dataset: Dataset | str | None = None  # str: why there is none
-        #: (view index, width, height) -> (photo, the camera's own size), or why there is none.
-        self._photos: OrderedDict[tuple, tuple[np.ndarray, tuple[int, int]] | str] = OrderedDict()
+        #: (view index, (width, height) or None: the camera's own) -> (photo, its view), or why there is none.
+        self._photos: OrderedDict[tuple, tuple[np.ndarray, PhotoView] | str] = OrderedDict()
         self._key: tuple | None = None
         self._computed = 0  # pictures computed so far
         self._written = -1  # which of them ``target`` holds
@@ -95,6 +104,11 @@ class PhotoCompare:
             raise ValueError(f"unknown photo mode {mode!r}")
         self.mode = mode
         self.used |= mode != "render"
+
+    def set_camera_size(self, on: bool) -> None:
+        """Compares at the training camera's own size (True) or the window's."""
+        self.at_camera_size = bool(on)
+        self.used |= self.at_camera_size
 
     def forget_scene(self) -> None:
         """A new scene: its photos are another dataset's."""
@@ -110,8 +124,9 @@ class PhotoCompare:
         """UserError while a photo, difference or split is shown: a screenshot re-renders
         the view from its sidecar, which a photo or a heat map would not reproduce."""
         if self.showing:
-            raise UserError(f"screenshots save renders: the window shows the Photo view's "
-                            f"{self.mode}; choose 'render' in the Photo section first")
+            what = MODES[self.mode] + (" at the camera's size" if self.at_camera_size else "")
+            raise UserError(f"screenshots save renders: the window shows the Photo view's {what}; choose "
+                            f"'render' at the window's size in the Photo section first")
 
     # -- each frame ---------------------------------------------------------------------
     def after_draw(self, view, loaded: LoadedScene, camera: Camera, mono: MonoFrame, blocked: str,
@@ -133,18 +148,17 @@ class PhotoCompare:
             self.status = blocked if index is not None and self.used else ""
             self._hide(mono)
             return message
-        key = (index, camera.width, camera.height, self.mode, self.fraction, self.heat_max)
+        key = (index, camera.width, camera.height, self.mode, self.fraction, self.heat_max, self.at_camera_size)
         if not drew and key == self._key:
             self._show(mono)
             return message
-        photo = self._photo(loaded, index, camera)
-        if isinstance(photo, str):
-            self.status = photo
+        compared = self._compared(loaded, index, camera, mono)
+        if isinstance(compared, str):
+            self.status = compared
             self._hide(mono)
             return message
-        photo, self.camera_size = photo
-        self.size = (camera.width, camera.height)
-        self.render = np.clip(mono.left.read()[..., :3], 0.0, 1.0)
+        self.render, photo = compared
+        self.size = (photo.shape[1], photo.shape[0])
         self.psnr = psnr(self.render, photo)
         self.picture = self._picture(self.render, photo)
         self._key = key
@@ -153,7 +167,26 @@ class PhotoCompare:
         self._show(mono)
         return message
 
+    def _compared(self, loaded: LoadedScene, index: int, camera: Camera, mono: MonoFrame
+                  ) -> tuple[np.ndarray, np.ndarray] | str:
+        """(render, photo), both (H, W, 3) float32 in 0..1, at the window's size or the
+        camera's own; or a line saying why there are none."""
+        photo = self._photo(loaded, index, None if self.at_camera_size else (camera.width, camera.height))
+        if isinstance(photo, str):
+            return photo
+        photo, view = photo
+        self.camera_size = (view.camera.width, view.camera.height)
+        if not self.at_camera_size:
+            return np.clip(mono.left.read()[..., :3], 0.0, 1.0), photo
+        try:
+            return self.render_at(view, self._dataset_of(loaded)), photo
+        except (UserError, MemoryError, moderngl.Error) as exc:
+            return f"not rendered at the camera's size: {one_line(exc)}"
+
     def _picture(self, render: np.ndarray, photo: np.ndarray) -> np.ndarray | None:
+        if self.mode == "render":
+            # At the camera's size the render compared is not the window's: it is shown instead.
+            return render if self.at_camera_size else None
         if self.mode == "photo":
             return photo
         if self.mode == "difference":
@@ -165,7 +198,9 @@ class PhotoCompare:
     def _measured(self, loaded: LoadedScene, index: int) -> str:
         width, height = self.size
         text = f"{loaded.camera_names[index]}: PSNR {self.psnr:.2f} dB at {width}x{height}"
-        if self.camera_size != self.size:
+        if self.at_camera_size:
+            text += " (the camera's size, as evaluate measures)"
+        elif self.camera_size != self.size:
             text += f" (the window's size; the camera's is {self.camera_size[0]}x{self.camera_size[1]})"
         return text
 
@@ -202,20 +237,20 @@ class PhotoCompare:
                     self._dataset = f"no photos: {one_line(exc)}"
         return self._dataset
 
-    def _photo(self, loaded: LoadedScene, index: int, camera: Camera
-               ) -> tuple[np.ndarray, tuple[int, int]] | str:
-        """((H, W, 3) float32 at ``camera``'s size, the training camera's own (width,
-        height)), or a line saying why there is none."""
-        key = (index, camera.width, camera.height)
+    def _photo(self, loaded: LoadedScene, index: int, size: tuple[int, int] | None
+               ) -> tuple[np.ndarray, PhotoView] | str:
+        """((H, W, 3) float32 at ``size`` (width, height; None: the camera's own), the
+        dataset's view of it), or a line saying why there is none."""
+        key = (index, size)
         if key not in self._photos:
-            self._photos[key] = self._load(loaded, index, camera)
+            self._photos[key] = self._load(loaded, index, size)
             while len(self._photos) > CACHE_SIZE:
                 self._photos.popitem(last=False)
         self._photos.move_to_end(key)
         return self._photos[key]
 
-    def _load(self, loaded: LoadedScene, index: int, camera: Camera
-              ) -> tuple[np.ndarray, tuple[int, int]] | str:
+    def _load(self, loaded: LoadedScene, index: int, size: tuple[int, int] | None
+              ) -> tuple[np.ndarray, PhotoView] | str:
         dataset = self._dataset_of(loaded)
         if isinstance(dataset, str):
             return dataset
@@ -227,9 +262,9 @@ class PhotoCompare:
             photo = load_photo(view, dataset.background)
         except UserError as exc:
             return f"photo not loaded: {one_line(exc)}"
-        if photo.shape[:2] != (camera.height, camera.width):
-            photo = resize_picture(photo, camera.width, camera.height)
-        return photo, (view.camera.width, view.camera.height)
+        if size is not None and photo.shape[:2] != (size[1], size[0]):
+            photo = resize_picture(photo, *size)
+        return photo, view
 
 
 def photo_view_named(views: tuple[PhotoView, ...], name: str) -> PhotoView | None:

@@ -172,12 +172,16 @@ class ScreenshotOptions:
 @dataclass(frozen=True)
 class NavigationChoices:
     """How the camera starts to move: mode "fly" or "orbit", the world's up axis (one of
-    camera.navigation.UP_AXES), and turntable: degrees per frame about the up axis in
-    orbit mode (a reproducible fly-around; 0: off). A new scene keeps the navigator's."""
+    camera.navigation.UP_AXES; None: from the scene's training cameras, else -y, see
+    view_control.start_up) and ``up_source``, who chose a given one (the panel says it),
+    and turntable: degrees per frame about the up axis in orbit mode (a reproducible
+    fly-around; 0: off). A new scene keeps the navigator's mode, and its up axis where
+    one was chosen."""
 
     mode: str = "fly"
-    up_axis: str = "-y"
+    up_axis: str | None = None
     turntable: float = 0.0
+    up_source: str = "--up-axis"
 
 
 @dataclass

@@ -7,18 +7,42 @@ from __future__ import annotations
 import math
 
 from raygs_viewer.camera.lens import Lens, letterbox
-from raygs_viewer.camera.navigation import LOOK_RADIANS_PER_PIXEL, Navigator, Pose, framing_pose, scene_bounds
+from raygs_viewer.camera.navigation import (
+    LOOK_RADIANS_PER_PIXEL,
+    Navigator,
+    Pose,
+    cameras_up,
+    framing_pose,
+    scene_bounds,
+)
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.camera.stereo import StereoView, composed_size, eye_cameras
 from raygs_viewer.scene.loader import LoadedScene
 from raygs_viewer.viewer.frame import Framing
 from raygs_viewer.viewer.state import NavigationChoices, PanelState
 
+#: The up axis where neither the command line nor the training cameras give one: COLMAP's and INRIA's.
+DEFAULT_UP = "-y"
+#: ``up_source`` of an up axis picked in the panel's combo.
+PANEL_UP = "chosen in the panel"
+
+
+def start_up(choices: NavigationChoices, cameras: list[Camera]) -> tuple[str, str]:
+    """(up axis, where it came from): the one chosen (``choices.up_source``), else the
+    training cameras' (``navigation.cameras_up``), else :data:`DEFAULT_UP`."""
+    if choices.up_axis is not None:
+        return choices.up_axis, choices.up_source
+    derived = cameras_up(cameras)
+    if derived is not None:
+        return derived, f"from the {len(cameras)} training camera{'s' if len(cameras) != 1 else ''}"
+    return DEFAULT_UP, "default" if not cameras else "default: the training cameras agree on no axis"
+
 
 class ViewControl:
     """One per scene: the scene's bounds (``center``, ``radius``) frame it and bound
     navigation. ``training_index``: the training camera flown to last (None: a free
-    view). ``panel`` says when there is no training camera to fly to."""
+    view). ``panel`` says when there is no training camera to fly to. ``up_source``:
+    where the navigator's up axis came from (:func:`start_up`, or the panel)."""
 
     def __init__(self, loaded: LoadedScene, start_camera: Camera | None, choices: NavigationChoices,
                  aspect: float, panel: PanelState):
@@ -30,6 +54,8 @@ class ViewControl:
         self.aspect = aspect
         self.center, self.radius = scene_bounds(loaded.framed)
         self.training_index: int | None = None
+        up, self.up_source = start_up(choices, loaded.cameras)
+        self._up_chosen = choices.up_axis is not None
         if start_camera is not None:
             pose, self.lens = Pose.from_camera(start_camera), Lens.of_camera(start_camera)
         elif loaded.cameras:
@@ -37,12 +63,20 @@ class ViewControl:
             pose, self.lens = Pose.from_camera(first), Lens().with_fov(Lens.of_camera(first).fov_y_degrees)
         else:
             self.lens = Lens()
-            pose = framing_pose(self.center, self.radius, choices.up_axis, self.lens.fov_y_degrees, aspect)
-        self.navigator = Navigator(pose, self.center, self.radius, up=choices.up_axis, mode=choices.mode)
+            pose = framing_pose(self.center, self.radius, up, self.lens.fov_y_degrees, aspect)
+        self.navigator = Navigator(pose, self.center, self.radius, up=up, mode=choices.mode)
 
     def choices(self) -> NavigationChoices:
-        """The navigator's mode and up axis now: what the next scene keeps."""
-        return NavigationChoices(mode=self.navigator.mode, up_axis=self.navigator.up)
+        """What the next scene keeps: the navigator's mode, and its up axis where one was
+        chosen (an up axis from these cameras, or the default, is found anew for the next)."""
+        if not self._up_chosen:
+            return NavigationChoices(mode=self.navigator.mode)
+        return NavigationChoices(mode=self.navigator.mode, up_axis=self.navigator.up, up_source=self.up_source)
+
+    def set_up(self, up: str) -> None:
+        """The panel's choice of up axis (navigation.Navigator.set_up)."""
+        self.navigator.set_up(up)
+        self.up_source, self._up_chosen = PANEL_UP, True
 
     def switch_mode(self) -> None:
         """Fly to orbit and back."""

@@ -15,6 +15,7 @@ from raygs_viewer.camera.navigation import (
     UP_AXES,
     Navigator,
     Pose,
+    cameras_up,
     framing_pose,
     scene_bounds,
 )
@@ -668,3 +669,36 @@ def test_any_sequence_of_calls_keeps_a_finite_orthonormal_pose(ops):
         assert math.isfinite(nav.speed) and nav.speed > 0
         assert math.isfinite(nav.distance) and nav.distance > 0
         assert np.all(np.isfinite(nav.target))
+
+
+# --------------------------------------------------------------------------- up from the cameras
+
+
+def rolled(camera: Camera) -> Camera:
+    """``camera`` turned 180 degrees about its optical axis: its image down is the other way."""
+    flip = np.diag([-1.0, -1.0, 1.0])
+    return Camera(camera.width, camera.height, camera.fx, camera.fy, camera.width - camera.cx,
+                  camera.height - camera.cy, flip @ camera.R, flip @ camera.t)
+
+
+def test_cameras_up_is_the_axis_nearest_their_mean_up():
+    level = [look_at(eye, (0, 0, 0)) for eye in ((0, -1, -4), (3, -0.5, -2), (-4, 0.3, 1))]  # image down ~ +y
+    assert cameras_up(level) == "-y"
+    assert cameras_up([rolled(c) for c in level]) == "+y"
+    # Blender-style cameras, z up, tilted and one of them rolled by 30 degrees: snapped to +z.
+    blender = [look_at(eye, (0, 0, 0), up=(0, 0, 1)) for eye in ((0, -4, 1), (4, 1, 2), (-3, 3, -1))]
+    roll = math.radians(30)
+    tilt = np.array([[math.cos(roll), -math.sin(roll), 0], [math.sin(roll), math.cos(roll), 0], [0, 0, 1]])
+    blender[1] = Camera(*[getattr(blender[1], f) for f in ("width", "height", "fx", "fy", "cx", "cy")],
+                        tilt @ blender[1].R, tilt @ blender[1].t)
+    assert cameras_up(blender) == "+z"
+
+
+def test_cameras_up_is_none_without_cameras_or_an_agreed_axis():
+    camera = look_at((0, 0, -4), (0, 0, 0))
+    assert cameras_up([]) is None
+    assert cameras_up([camera, rolled(camera)]) is None  # their ups cancel out
+    # Half-way between -y and +z: no axis is nearer.
+    between = look_at((0, -4, -4), (0, 0, 0), up=(0, -1, 1))
+    assert abs(-between.R[1] @ np.array([0, -1, 0]) - (-between.R[1] @ np.array([0, 0, 1]))) < 1e-9
+    assert cameras_up([between]) is None

@@ -674,6 +674,63 @@ def test_reset_view_frames_the_scene(open_viewer):
     assert z > viewer.view.radius and abs(u - camera.cx) < 1 and abs(v - camera.cy) < 1
 
 
+def rolled_demo_cameras(tmp_path) -> tuple[str, list]:
+    """A cameras.json of the demo's views, each turned 180 degrees about its optical axis
+    (image down = -y in world space, so their up is +y), and those cameras."""
+    from raygs_viewer.camera.pinhole import Camera, camera_to_json
+    from raygs_viewer.scene.demo import demo_cameras
+    flip = np.diag([-1.0, -1.0, 1.0])
+    cameras = [Camera(c.width, c.height, c.fx, c.fy, c.width - c.cx, c.height - c.cy, flip @ c.R, flip @ c.t)
+               for c in demo_cameras(160, 120)]
+    path = tmp_path / "rolled.json"
+    path.write_text(json.dumps([camera_to_json(c, i, f"view_{i}") for i, c in enumerate(cameras)]))
+    return str(path), cameras
+
+
+def up_line(drive) -> list[str]:
+    return [label for label in drive.panel.labels("text_disabled") if label.startswith("up: ")]
+
+
+def test_up_comes_from_the_training_cameras_so_reset_view_agrees_with_them(open_viewer, tmp_path):
+    path, cameras = rolled_demo_cameras(tmp_path)
+    viewer, drive = open_viewer(SceneSource.demo(path), width=PANEL_WIDTH, height=PANEL_HEIGHT)
+    drive.frames(2)
+    assert viewer.view.navigator.up == "+y"
+    assert up_line(drive) == ["up: +y (from the 6 training cameras)"]
+    np.testing.assert_allclose(viewer.view.navigator.pose.R, cameras[0].R, atol=1e-12)  # the start view: the first
+    drive.move_mouse(PANEL_WIDTH - 2, PANEL_HEIGHT - 2)  # off the panel: R reaches the window
+    drive.tap(imgui.Key.r)
+    framed = viewer.view.navigator.pose.R
+    # R's framing is level about +y: its image down is the cameras' (-y), not upside down.
+    assert framed[1] @ np.array([0.0, -1.0, 0.0]) > 0.99
+    assert framed[1] @ cameras[0].R[1] > 0.9
+
+
+def test_an_explicit_up_axis_wins_over_the_cameras(open_viewer, tmp_path):
+    path, _ = rolled_demo_cameras(tmp_path)
+    viewer, drive = open_viewer(SceneSource.demo(path), width=PANEL_WIDTH, height=PANEL_HEIGHT,
+                                navigation=NavigationChoices(up_axis="-y"))
+    drive.frames(2)
+    assert viewer.view.navigator.up == "-y"
+    assert up_line(drive) == ["up: -y (--up-axis)"]
+
+
+def test_without_cameras_up_is_the_default_and_a_panel_choice_says_so(open_viewer, tmp_path):
+    from raygs_viewer.scene.writing import write_scene
+    from testkit import random_scene
+    scene = tmp_path / "bare.ply"
+    write_scene(random_scene(n=40, seed=1, degree=0), scene)
+    viewer, drive = open_viewer(str(scene), width=PANEL_WIDTH, height=PANEL_HEIGHT)
+    drive.frames(2)
+    assert not viewer.loaded.cameras and viewer.view.navigator.up == "-y"
+    assert up_line(drive) == ["up: -y (default)"]
+    click_choice(drive, "up axis", "+z")
+    drive.frames(1)
+    assert viewer.view.navigator.up == "+z"
+    assert up_line(drive) == ["up: +z (chosen in the panel)"]
+    assert viewer.view.choices() == NavigationChoices(up_axis="+z", up_source="chosen in the panel")
+
+
 # -- scripted runs ------------------------------------------------------------------------------------
 def test_scripted_run_saves_the_last_frame(restore_gl_ctx, tmp_path, capsys):
     from raygs_viewer.camera.pinhole import camera_to_json

@@ -4,7 +4,6 @@ missing photo, screenshots."""
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 from appkit import PANEL_HEIGHT, PANEL_WIDTH, presented, split_expected, window_image
@@ -18,6 +17,11 @@ from raygs_viewer.capture.image_io import to_rgb8
 from raygs_viewer.photos.compare import resize_picture
 from raygs_viewer.photos.dataset import load_photo, open_dataset
 from raygs_viewer.photos.metrics import psnr
+from raygs_viewer.photos.evaluate import evaluate, evaluation_settings, render_view
+from raygs_viewer.render.gl.renderer import GLRenderer
+from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.scene.io import load_scene
+from raygs_viewer.sort.depth import DepthSorter
 
 SIZE = (48, 32)  # the cameras' and, for exact pixels, the window's
 
@@ -154,3 +158,43 @@ def test_images_option_names_the_photos_folder(open_viewer, model, tmp_path):
     drive.frames(1)
     dataset = open_dataset(model, elsewhere)
     np.testing.assert_array_equal(presented(viewer), to_rgb8(load_photo(dataset.views[0], dataset.background)))
+
+
+def test_at_the_cameras_size_the_panel_measures_the_psnr_evaluate_reports(open_viewer, model, gl_ctx):
+    """The window at another size than the camera's measures another PSNR; "at the
+    camera's size" renders the camera as `evaluate` does and gets evaluate's number,
+    and shows that render scaled into the view."""
+    dataset = open_dataset(model)
+    with gl_ctx:
+        renderer = GLRenderer(gl_ctx, load_scene(scene_of(model)))
+        try:
+            score = evaluate(dataset, dataset.views, renderer, RenderSettings()).scores[0]
+            with DepthSorter(renderer.scene) as sorter:
+                render = render_view(renderer, sorter, dataset.views[0], evaluation_settings(RenderSettings(), dataset))
+        finally:
+            renderer.release()
+    viewer, drive = open_viewer(scene_of(model), width=PANEL_WIDTH, height=PANEL_HEIGHT)
+    drive.frames(2)
+    drive.reveal("###training")
+    drive.click("###training")
+    drive.reveal("at the camera's size##photo")
+    drive.click("at the camera's size##photo")
+    assert viewer.photo.at_camera_size
+    drive.move_mouse(PANEL_WIDTH - 2, PANEL_HEIGHT - 2)  # off the panel: N reaches the window
+    at_camera(drive)
+    assert (viewer.camera.width, viewer.camera.height) != SIZE  # the window renders at its own size
+    np.testing.assert_array_equal(viewer.photo.render, render)
+    assert viewer.photo.psnr == score.psnr
+    status = [label for label in drive.panel.labels("text_wrapped") if "PSNR" in label]
+    assert status == [f"view_000: PSNR {score.psnr:.2f} dB at 48x32 (the camera's size, as evaluate measures)"]
+    # Shown: the camera-size render scaled into the view (10 times the camera's size: each
+    # texel a 10 x 10 block, no pixel centre near a texel's edge).
+    import glfw
+    glfw.set_window_size(viewer.window.handle, SIZE[0] * 10, SIZE[1] * 10)
+    drive.frames(2)
+    assert viewer.viewport == (0, 0, SIZE[0] * 10, SIZE[1] * 10) and viewer.photo.psnr == score.psnr
+    np.testing.assert_array_equal(presented(viewer), np.repeat(np.repeat(to_rgb8(render), 10, 0), 10, 1))
+    # At the window's size the same view measures another PSNR: the toggle is what agrees.
+    viewer.photo.set_camera_size(False)
+    drive.frames(1)
+    assert viewer.photo.psnr != score.psnr

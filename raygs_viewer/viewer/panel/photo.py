@@ -6,7 +6,7 @@ from __future__ import annotations
 
 from imgui_bundle import imgui
 
-from raygs_viewer.viewer.panel.widgets import slider, tooltip
+from raygs_viewer.viewer.panel.widgets import checkbox, slider, tooltip
 from raygs_viewer.viewer.photo_view import MODES, PhotoCompare
 
 
@@ -17,6 +17,11 @@ def draw_photo_controls(photo: PhotoCompare) -> None:
         imgui.same_line()
         if imgui.radio_button(f"{label}##photo", photo.mode == mode):
             photo.choose(mode)
+    at_camera = checkbox("at the camera's size##photo", photo.at_camera_size,
+                         help_text="render the training camera at its own size and intrinsics and compare "
+                                   "as `evaluate` does (the same PSNR); shown scaled into the view")
+    if at_camera != photo.at_camera_size:
+        photo.set_camera_size(at_camera)
     if photo.mode == "split":
         fraction = slider("divider##photo", photo.fraction, 0.0, 1.0, "%.2f")
         if fraction is not None:

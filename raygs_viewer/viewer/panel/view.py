@@ -1,5 +1,5 @@
-"""The panel's View section: fly or orbit, the world's up axis, the field of view, the
-fly speed, and resetting the view."""
+"""The panel's View section: fly or orbit, the world's up axis and where it came from,
+the field of view, the fly speed, and resetting the view."""
 
 from __future__ import annotations
 
@@ -7,30 +7,30 @@ from typing import Callable
 
 from imgui_bundle import imgui
 
-from raygs_viewer.camera.navigation import UP_AXES, Navigator
-from raygs_viewer.viewer.panel.widgets import header, slider, tooltip
+from raygs_viewer.camera.navigation import UP_AXES
+from raygs_viewer.viewer.panel.widgets import choice, header, slider, tooltip
 
 FOV_RANGE = (10.0, 120.0)
 
 
-def draw_view_section(navigator: Navigator, fov_y_degrees: float, set_fov: Callable[[float], None],
-                      reset_view: Callable[[], None]) -> None:
-    """Edits ``navigator``'s mode and up axis; ``set_fov`` takes a new vertical field of
-    view (degrees), ``reset_view`` frames the scene again."""
+def draw_view_section(view, reset_view: Callable[[], None]) -> None:
+    """Edits ``view``'s (a view_control.ViewControl) navigation mode, up axis and field
+    of view; ``reset_view`` frames the scene again."""
     if not header("View"):
         return
+    navigator = view.navigator
     for mode in ("fly", "orbit"):
         if imgui.radio_button(mode, navigator.mode == mode):
             navigator.set_mode(mode)
         imgui.same_line()
     imgui.text_disabled("(Tab)")
-    axes = list(UP_AXES)
-    changed, index = imgui.combo("up axis", axes.index(navigator.up), axes)
-    if changed:
-        navigator.set_up(axes[index])
-    fov = slider("field of view", fov_y_degrees, *FOV_RANGE, "%.1f deg")
+    up = choice("up axis", navigator.up, {axis: axis for axis in UP_AXES})
+    if up != navigator.up:
+        view.set_up(up)
+    imgui.text_disabled(f"up: {navigator.up} ({view.up_source})")
+    fov = slider("field of view", view.lens.fov_y_degrees, *FOV_RANGE, "%.1f deg")
     if fov is not None:
-        set_fov(min(max(fov, FOV_RANGE[0]), FOV_RANGE[1]))
+        view.set_fov(min(max(fov, FOV_RANGE[0]), FOV_RANGE[1]))
     imgui.text_disabled(f"speed {navigator.speed:.3g} units/s")
     tooltip("the mouse wheel changes it in fly mode")
     imgui.same_line()
