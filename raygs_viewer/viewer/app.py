@@ -47,6 +47,7 @@ from raygs_viewer.scene.progress import ProgressCallback
 from raygs_viewer.sort.request import SortResult
 from raygs_viewer.sort.worker import BackgroundSorter
 from raygs_viewer.viewer.drawing import SceneDrawer, request_sort
+from raygs_viewer.viewer.feedback import Feedback, draw_history
 from raygs_viewer.viewer.file_dialog import FileDialog
 from raygs_viewer.viewer.frame import NO_VIEWPORT, Frame
 from raygs_viewer.viewer.input import InputHandler
@@ -54,7 +55,7 @@ from raygs_viewer.viewer.loading import SceneOpener, scene_title
 from raygs_viewer.viewer.lod_window import first_levels, lod_request, refines, window_fits, window_settings
 from raygs_viewer.viewer.measure import MeasureWidget
 from raygs_viewer.viewer.overlay import draw_split_overlay
-from raygs_viewer.viewer.panel import draw_panel
+from raygs_viewer.viewer.panel import PANEL_WINDOW, draw_panel
 from raygs_viewer.viewer.panel.geometry import draw_geometry_section
 from raygs_viewer.viewer.panel.lod import draw_lod_section
 from raygs_viewer.viewer.panel.measure import draw_measure_section
@@ -121,6 +122,7 @@ class Viewer:
                                 options.sort)
         self.drawer = SceneDrawer(self.ctx)
         self.file_dialog = FileDialog()
+        self.feedback = Feedback()
         self.photo = PhotoCompare(self.ctx, options.images, self.render_photo_view)
         self.camera_path = PathWidget(self.panel, self)
         self.measure = MeasureWidget(self.panel, self)
@@ -230,6 +232,9 @@ class Viewer:
         if self.input_script is not None:
             self.input_script(self)
         imgui.new_frame()
+        self.feedback.watch(self.panel)  # what the last frame's actions said
+        if imgui.is_mouse_clicked(0):
+            self.feedback.clicked()
         self.input.handle(dt, self.view.navigator, self.camera, self.viewport,
                           self.split if self.right_settings() is not None else None)
         self.view.advance(dt, self.options.navigation.turntable)
@@ -249,6 +254,7 @@ class Viewer:
             frame.viewport, self.split, self.settings, self.input.dragging_divider)
         self.camera_path.draw_overlay(frame, self.view.radius)
         self.measure.draw_overlay(frame, self.view.radius)
+        self._draw_feedback()
         imgui.render()
 
         frame = self.shown = frame.with_views(*self.view_mode.side_views(self.panel, split=frame.split))
@@ -264,6 +270,15 @@ class Viewer:
         self.captures.frame_shown(self.capture_window)
         self.window.end_frame()
         self.captures.frame_done(self.save_screenshot, self.panel)
+
+    def _draw_feedback(self) -> None:
+        """The notes over the view: at its top left, right of the panel when it is shown."""
+        left, top = 10.0, 10.0
+        width = imgui.get_io().display_size.x
+        panel = imgui.internal.find_window_by_name(PANEL_WINDOW) if self.panel.show_panel else None
+        if panel is not None and panel.active:
+            left = panel.pos.x + panel.size.x + 10.0
+        self.feedback.draw(left, top, width - left - 10.0)
 
     def _panel_sections(self) -> list[Callable[[], None]]:
         """Each panel section with the part of the state it edits (read when it is drawn:
@@ -290,6 +305,7 @@ class Viewer:
                                           self.measure.scale, self.stereo, split_shown),
             lambda: draw_path_section(self.camera_path),
             lambda: draw_measure_section(self.measure),
+            lambda: draw_history(self.feedback),
         ]
 
     def capture_window(self, overlay: bool = True) -> np.ndarray:

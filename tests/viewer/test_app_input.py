@@ -137,7 +137,7 @@ def test_open_button_opens_the_file_the_dialog_chose(open_viewer, monkeypatch, t
     monkeypatch.setattr(file_dialog.pfd, "open_file", dialog)
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
     drive.frames(2)
-    drive.click("Open…")
+    drive.click("Open...")
     assert viewer.file_dialog.open
     drive.frames(4)
     drive.wait_for_load()
@@ -153,7 +153,7 @@ def test_without_a_dialog_program_open_says_so_and_keeps_the_typed_path(open_vie
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
     viewer.panel.open_path = "typed/so/far.ply"
     drive.frames(2)
-    drive.click("Open…")
+    drive.click("Open...")
     assert viewer.panel.error == ("error: no file dialog here (it needs zenity or kdialog): type the scene's "
                                   "path and press Enter")
     assert viewer.panel.open_path == "typed/so/far.ply" and not viewer.file_dialog.open

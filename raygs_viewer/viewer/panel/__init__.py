@@ -18,6 +18,10 @@ from imgui_bundle import imgui
 from raygs_viewer.viewer.state import PanelState
 
 
+#: The panel's imgui window (the feedback is placed beside it).
+PANEL_WINDOW = "raygs-viewer"
+
+
 def draw_panel(panel: PanelState, sections: Sequence[Callable[[], None]]) -> None:
     """The panel's window with ``sections`` drawn in order, then ``panel``'s message
     and error lines."""
@@ -35,7 +39,7 @@ def _window(panel: PanelState, sections: Sequence[Callable[[], None]]) -> None:
     # Never taller than the window: a short window scrolls the panel instead of cutting it off.
     display = imgui.get_io().display_size
     imgui.set_next_window_size_constraints((0, 0), (1e9, max(display.y - 20, 100)))
-    visible, _ = imgui.begin("raygs-viewer", None)
+    visible, _ = imgui.begin(PANEL_WINDOW, None)
     if not visible:
         imgui.end()
         return

@@ -46,7 +46,7 @@ def draw_scene_section(loaded: LoadedScene, panel: PanelState, open_scene: Calla
         open_scene(panel.open_path)
     if dialog is not None:
         imgui.same_line()
-        if imgui.button("Open…"):
+        if imgui.button("Open..."):
             problem = dialog.start(_folder_of(panel.open_path or loaded.path))
             if problem:
                 panel.error = f"error: {problem}"
