@@ -4,8 +4,8 @@ screenshot saved, a scene opened) and every error, over the view, and on stderr.
 One mechanism for every source: whatever sets the panel's message or error line (the
 panel sections, F12, the loader, the photo view) is picked up once a frame by
 :meth:`Feedback.watch`. A result shows over the view for RESULT_SECONDS; an error stays
-until it is seen: its OK is clicked, or a click lands anywhere after it has been up for
-SEEN_AFTER seconds. Both go into a short history the panel lists, and to stderr, so a
+until it is seen: a click lands anywhere after it has been up for SEEN_AFTER seconds.
+The notes take no input: a click through them reaches the view (a pick, a drag). Both go into a short history the panel lists, and to stderr, so a
 scripted run's terminal has them too.
 """
 
@@ -78,7 +78,7 @@ class Feedback:
 
     def draw(self, left: float, top: float, width: float) -> None:
         """The notes shown, in a window at (left, top) screen units, at most ``width``
-        wide (the view area the panel leaves visible); an OK button dismisses an error."""
+        wide (the view area the panel leaves visible), which takes no input."""
         notes = self.shown()
         if not notes:
             return
@@ -87,19 +87,15 @@ class Feedback:
         imgui.set_next_window_bg_alpha(0.8)
         flags = (imgui.WindowFlags_.no_decoration | imgui.WindowFlags_.always_auto_resize
                  | imgui.WindowFlags_.no_saved_settings | imgui.WindowFlags_.no_focus_on_appearing
-                 | imgui.WindowFlags_.no_nav | imgui.WindowFlags_.no_move)
+                 | imgui.WindowFlags_.no_nav | imgui.WindowFlags_.no_move | imgui.WindowFlags_.no_inputs)
         imgui.begin("##feedback", None, flags)
         imgui.push_text_wrap_pos(max(width, 120.0) - 16)
-        for index, note in enumerate(notes):
+        for note in notes:
             if note.error:
                 imgui.push_style_color(imgui.Col_.text.value, ERROR_COLOUR)
-                imgui.text_wrapped(note.text)
+            imgui.text_wrapped(note.text)
+            if note.error:
                 imgui.pop_style_color()
-                imgui.same_line()
-                if imgui.small_button(f"OK##feedback{index}"):
-                    note.seen = True
-            else:
-                imgui.text_wrapped(note.text)
         imgui.pop_text_wrap_pos()
         imgui.end()
 

@@ -67,7 +67,7 @@ def test_a_result_shows_for_a_few_seconds_and_stays_in_the_history(open_viewer, 
     assert "Messages (1)" in drive.panel
 
 
-def test_an_error_dismissed_by_its_ok_and_not_by_an_early_click():
+def test_an_error_is_seen_by_a_click_after_it_has_been_up_a_while():
     clock, out = Clock(), io.StringIO()
     feedback = Feedback(out, clock)
     feedback.post("error: nope", error=True)
