@@ -119,11 +119,14 @@ def turned_degrees(before: np.ndarray, after: np.ndarray) -> float:
     return float(np.degrees(np.arccos(np.clip(cosine, -1.0, 1.0))))
 
 
-def order_freshness(stats: FrameStats) -> str:
+def order_freshness(stats: FrameStats, short: bool = False) -> str:
     """How old the drawn order is, in words: "up to date", or frames, milliseconds and
-    how far the camera has turned and moved since its view."""
+    how far the camera has turned and moved since its view; ``short``: frames and
+    milliseconds only (a line that fits the panel, the rest in its tooltip)."""
     if stats.order_age == 0:
         return "up to date"
+    if short:
+        return f"{stats.order_age} frames old ({stats.order_age_ms:.0f} ms)"
     return (f"{stats.order_age} frames old ({stats.order_age_ms:.0f} ms, turned {stats.order_turned_degrees:.1f}°, "
             f"moved {stats.order_moved:.3g})")
 

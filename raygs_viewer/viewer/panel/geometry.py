@@ -59,8 +59,8 @@ def draw_geometry_section(mode: ViewMode, range_in_use: tuple[float, float] | No
         imgui.text_disabled("double-click the view to pick a point")
     else:
         x, y, z = picked.point
-        imgui.text_wrapped(f"picked ({x:.4g}, {y:.4g}, {z:.4g})")
-        imgui.text_wrapped(f"distance from the camera {format_distance(picked.distance, scale)}")
+        imgui.text(f"picked ({x:.4g}, {y:.4g}, {z:.4g})")
+        imgui.text(f"distance from the camera {format_distance(picked.distance, scale)}")
     tooltip(PICK_HELP)
 
 
@@ -91,4 +91,4 @@ def _depth_range(mode: ViewMode, range_in_use: tuple[float, float] | None) -> No
     if range_in_use is None:
         imgui.text_disabled("range in use: none (nothing has a depth)")
     else:
-        imgui.text_wrapped(f"range in use: {range_in_use[0]:.4g} to {range_in_use[1]:.4g} units")
+        imgui.text(f"range in use: {range_in_use[0]:.4g} to {range_in_use[1]:.4g} units")

@@ -65,7 +65,7 @@ def draw_lod_section(window: WindowLod, loaded: LoadedScene, loader: SceneLoader
 
 def _draw_reading(lod: LodScene, reading: bool, loader: SceneLoader) -> None:
     read = ", ".join(str(level) for level in np.flatnonzero(lod.loaded)[::-1])
-    imgui.text_wrapped(f"levels read: {read} of 0..{lod.levels - 1} (0 the finest)")
+    imgui.text(f"levels read: {read} of 0..{lod.levels - 1} (0 the finest)")
     tooltip(f"gaussians per level: {', '.join(f'{level}: {n:,}' for level, n in enumerate(lod.index.counts))}"
             + (f"; environment {lod.environment[1]:,}" if lod.environment[1] else ""))
     if reading:
@@ -132,7 +132,7 @@ def _draw_choice(drawn: LodChoice | None, lod: LodScene, settings: RenderSetting
         imgui.text("drawn: waiting for the first sort")
         return
     budget = settings.lod_budget if settings.lod is None else None
-    imgui.text_wrapped(f"drawn {drawn.count:,} gaussians" + ("" if budget is None else f" of a budget of {budget:,}"))
+    imgui.text(f"drawn {drawn.count:,} gaussians" + ("" if budget is None else f" of a budget of {budget:,}"))
     tooltip("the gaussians of the levels chosen for the view (and the environment), before the cull")
     per_level = drawn.per_level(lod.levels)
     imgui.text("parts at each level: " + ", ".join(f"{level}: {n}" for level, n in enumerate(per_level)))
@@ -140,5 +140,6 @@ def _draw_choice(drawn: LodChoice | None, lod: LodScene, settings: RenderSetting
         imgui.push_style_color(imgui.Col_.text.value, WARNING_COLOUR)
         imgui.text_wrapped("the budget is below the coarsest level: the parts in view draw their coarsest")
         imgui.pop_style_color()
-    imgui.text_wrapped(f"choice {order_freshness(stats)}")
+    imgui.text(f"choice {order_freshness(stats, short=True)}")
+    tooltip(f"choice {order_freshness(stats)}")
     tooltip("made with the order, on the sort thread, for the view it was sorted for")

@@ -68,7 +68,7 @@ def _scale(widget: MeasureWidget) -> None:
         imgui.text_disabled("distances in scene units")
         return
     source = "" if scale.reference is None else f" (from {scale.reference})"
-    imgui.text_wrapped(f"1 scene unit = {scale.factor:.6g} {scale.unit}{source}")
+    imgui.text(f"1 scene unit = {scale.factor:.6g} {scale.unit}{source}")
     imgui.same_line()
     if imgui.small_button("no scale"):
         widget.clear_scale()

@@ -144,7 +144,7 @@ def _playback(widget: PathWidget) -> None:
     if scrub is not None:
         widget.seek(scrub)
     if path.keyframes:
-        imgui.text_wrapped(f"{playback.time:.2f} / {path.duration:.2f} s, "
+        imgui.text(f"{playback.time:.2f} / {path.duration:.2f} s, "
                    f"frame {playback.frame_number(path) + 1} / {path.frame_count}")
 
 

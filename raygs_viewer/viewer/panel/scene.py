@@ -33,7 +33,7 @@ def draw_scene_section(loaded: LoadedScene, panel: PanelState, open_scene: Calla
     imgui.text_wrapped("built-in demo scene" if loaded.source.is_demo else loaded.path)
     if scene.format:
         imgui.text(scene.format)
-    imgui.text_wrapped(f"{scene.count:,} gaussians, SH degree {scene.sh_degree}, "
+    imgui.text(f"{scene.count:,} gaussians, SH degree {scene.sh_degree}, "
                f"3D filter {'fused' if scene.filter_fused else 'none'}")
     if scene.axes is not None:
         _draw_axes(scene.axes, switch_axes, loader.busy)
@@ -64,7 +64,7 @@ def _folder_of(path: str | None) -> str:
 
 def _draw_axes(axes: FileAxes, switch_axes: Callable[[str], None], busy: bool) -> None:
     if axes.declared:  # the file's word wins: nothing to switch
-        imgui.text_wrapped(f"axes: {axes.stored}, declared by the file")
+        imgui.text(f"axes: {axes.stored}, declared by the file")
         return
     # Nothing in such a file tells the conventions apart; a scene upside down is the sign.
     rdf = checkbox("RDF axes (splat-transform's .spz)", axes.assumed == "rdf", not busy,

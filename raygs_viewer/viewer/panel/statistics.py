@@ -26,8 +26,11 @@ def draw_statistics(stats: FrameStats, scene_count: int, sorter: BackgroundSorte
             f"sort: the last sort (one cull, then a sort by each order key shown), {where}")
     imgui.text(f"visible {stats.visible:,} of {scene_count:,}")
     tooltip(f"the gaussians the last cull kept, of the scene's {scene_count:,}")
-    imgui.text_wrapped(f"order {order_freshness(stats)}")
-    tooltip("the drawn order's age: frames and milliseconds since the view it was sorted for, and how far\n"
+    # One line whatever the age (a line that wraps at times would move every widget below it
+    # between frames); the whole of it in the tooltip.
+    imgui.text(f"order {order_freshness(stats, short=True)}")
+    tooltip(f"order {order_freshness(stats)}\n"
+            "the drawn order's age: frames and milliseconds since the view it was sorted for, and how far\n"
             "the camera has turned and moved (scene units) since; a fresher order blends more rightly\n"
             f"sorts: {sorter.requested} asked, {sorter.finished} done, {sorter.superseded} skipped "
             f"(superseded by a newer view before they started)\n"
