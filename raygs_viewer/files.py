@@ -20,6 +20,18 @@ from typing import BinaryIO
 from raygs_viewer.errors import UserError
 
 
+def check_writable_folder(out: str | os.PathLike, folder: str | os.PathLike) -> None:
+    """UserError unless ``folder``, where ``out`` will be written, exists and this user
+    may create files in it: checked before any slow work, so that a long run does not
+    end in "permission denied" with nothing saved."""
+    folder = Path(folder)
+    if not folder.is_dir():
+        kind = " (it is a file)" if folder.exists() else ""
+        raise UserError(f"{out}: folder '{folder}' does not exist{kind}")
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise UserError(f"{out}: folder '{folder}' is not writable")
+
+
 @contextmanager
 def atomic_writer(path: str | os.PathLike, overwrite: bool = False) -> Iterator[BinaryIO]:
     """A binary stream into a temporary beside ``path``, moved into place when the

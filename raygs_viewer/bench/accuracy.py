@@ -149,8 +149,8 @@ class AccuracyOptions(RunOptions):
     width: int
     repeat: int
     gt_samples: int                 # training-like and close; far: FAR_GT_FACTOR times as many
-    report: Path
-    plot: Path
+    report: Path | None
+    plot: Path | None
     overwrite: bool = False
     command_line: str = "raygs-viewer bench accuracy"
     configs: tuple[str, ...] = CONFIGS

@@ -301,12 +301,20 @@ def draw_plot(results: AccuracyResults) -> bytes:
     return scatter_png([per_scene, mean])
 
 
-def write_outputs(results: AccuracyResults, report: Path, plot: Path, overwrite: bool) -> None:
-    """Writes the plot and the report, each atomically (a temporary file moved into place)."""
-    human = _existing_human_verdict(report) if overwrite else None
-    link = os.path.relpath(os.path.abspath(plot), os.path.dirname(os.path.abspath(report))).replace(os.sep, "/")
-    write_plot(plot, draw_plot(results), overwrite)
-    write_report(report, format_report(results, link, human), overwrite)
+def write_outputs(results: AccuracyResults, report: Path | None, plot: Path | None, overwrite: bool) -> str:
+    """Writes the plot and the report that were asked for (None: not), each atomically
+    (a temporary file moved into place); the report's text, which the command prints.
+    A report replaced with ``overwrite`` keeps its human verdict."""
+    human = _existing_human_verdict(report) if overwrite and report is not None else None
+    link = None
+    if plot is not None:
+        start = os.path.dirname(os.path.abspath(report if report is not None else plot))
+        link = os.path.relpath(os.path.abspath(plot), start).replace(os.sep, "/")
+        write_plot(plot, draw_plot(results), overwrite)
+    text = format_report(results, link, human)
+    if report is not None:
+        write_report(report, text, overwrite)
     if human:
         print(f"note: kept the human verdict of the existing {report}; check it against the new numbers",
               file=sys.stderr)
+    return text

@@ -162,9 +162,12 @@ def load_cameras(path: str | Path) -> list[Camera]:
 
 
 def load_camera(path: str | Path, index: int = 0) -> Camera:
+    """Camera ``index`` of :func:`load_cameras`. Counting from the end (Python's -1) is
+    refused: a typo would otherwise render some other camera without a word."""
     cameras = load_cameras(path)
-    if not -len(cameras) <= index < len(cameras):
-        raise UserError(f"{path}: camera index {index} out of range (the file has {len(cameras)})")
+    if not 0 <= index < len(cameras):
+        raise UserError(f"{path}: --camera-index must be 0..{len(cameras) - 1}, got {index} "
+                        f"(out of range: the file has {len(cameras)} camera{'s' if len(cameras) != 1 else ''})")
     return cameras[index]
 
 

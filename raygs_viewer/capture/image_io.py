@@ -11,7 +11,7 @@ from PIL import Image
 from PIL.PngImagePlugin import PngInfo
 
 from raygs_viewer.errors import UserError
-from raygs_viewer.files import write_atomically
+from raygs_viewer.files import check_writable_folder, write_atomically
 
 IMAGE_SUFFIXES = (".png", ".npy")
 
@@ -50,12 +50,11 @@ def encode_png(rgb8: np.ndarray, text: dict[str, str] | None = None) -> bytes:
 
 def check_output_path(path: str | Path, overwrite: bool = False, suffixes: tuple[str, ...] = IMAGE_SUFFIXES) -> Path:
     """Validates an output path before any work is done: one of ``suffixes``, an
-    existing folder, and no existing file unless ``overwrite``."""
+    existing folder this user may write in, and no existing file unless ``overwrite``."""
     path = Path(path)
     if path.suffix.lower() not in suffixes:
         raise UserError(f"{path}: output must end in {' or '.join(suffixes)}")
-    if not path.parent.is_dir():
-        raise UserError(f"{path}: folder '{path.parent}' does not exist")
+    check_writable_folder(path, path.parent)
     if path.is_dir():
         raise UserError(f"{path}: is a folder")
     if path.exists() and not overwrite:

@@ -20,7 +20,7 @@ import numpy as np
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.capture.image_io import encode_image
 from raygs_viewer.errors import UserError, finite_number
-from raygs_viewer.files import write_atomically
+from raygs_viewer.files import check_writable_folder, write_atomically
 from raygs_viewer.jsonfile import json_text
 from raygs_viewer.render.channels import CHANNEL_WIDTHS, CHANNELS, ChannelImage
 from raygs_viewer.render.settings import RenderSettings
@@ -162,12 +162,11 @@ def _tiles(sorter: DepthSorter, order: Order, camera: Camera, settings: RenderSe
 
 def check_screenshot_path(path: str | Path) -> Path:
     """Validates an explicit screenshot path before any slow work: ends in .png, its
-    folder exists, and neither the PNG nor its .json sidecar exists."""
+    folder exists and is writable, and neither the PNG nor its .json sidecar exists."""
     path = Path(path)
     if path.suffix.lower() != ".png":
         raise UserError(f"{path}: a screenshot must end in .png")
-    if not path.parent.is_dir():
-        raise UserError(f"{path}: folder '{path.parent}' does not exist")
+    check_writable_folder(path, path.parent)
     for existing in (path, sidecar_path(path)):
         if os.path.lexists(existing):
             raise UserError(f"{existing}: already exists (screenshots never replace a file)")

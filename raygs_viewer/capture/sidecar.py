@@ -71,7 +71,7 @@ from pathlib import Path
 import numpy as np
 
 import raygs_viewer
-from raygs_viewer.camera.pinhole import Camera, camera_from_json, camera_to_json
+from raygs_viewer.camera.pinhole import Camera, camera_from_json, camera_to_json, load_camera
 from raygs_viewer.camera.rotation import is_rotation
 from raygs_viewer.camera.stereo import StereoView, composed_size
 from raygs_viewer.capture.document_entries import (
@@ -315,6 +315,28 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
                         f"the file says {version}")
     return Sidecar(path, scene_path, sha, camera, settings, scale, render_mode, data, stereo, channel_view, axes,
                    levels)
+
+
+def is_sidecar_file(path: str | os.PathLike) -> bool:
+    """Whether ``path`` is a JSON object that says it is a screenshot sidecar (its
+    "format"); False for anything unreadable, so the caller's own reader words that error."""
+    try:
+        data = read_json_file(path, "a JSON file")
+    except UserError:
+        return False
+    return isinstance(data, dict) and data.get("format") == SIDECAR_FORMAT
+
+
+def load_camera_source(path: str | os.PathLike, index: int = 0) -> Camera:
+    """Camera ``index`` of an INRIA cameras.json, or the camera of a screenshot's sidecar
+    (its only one, index 0): a screenshot then renders again at another size or with
+    other settings (``render --camera SHOT.json``)."""
+    if not is_sidecar_file(path):
+        return load_camera(path, index)
+    camera = load_sidecar(path).camera
+    if index != 0:
+        raise UserError(f"{path}: --camera-index must be 0..0, got {index} (a screenshot sidecar holds one camera)")
+    return camera
 
 
 def load_channel_view_entry(fields: JsonFields) -> ChannelView:

@@ -22,7 +22,7 @@ import numpy as np
 from raygs_viewer.capture.channel_io import write_exr
 from raygs_viewer.capture.image_io import encode_png
 from raygs_viewer.errors import UserError
-from raygs_viewer.files import move_into_place, temporary_beside, write_atomically
+from raygs_viewer.files import check_writable_folder, move_into_place, temporary_beside, write_atomically
 from raygs_viewer.render.channels import ChannelImage
 
 VIDEO_SUFFIX = ".mp4"
@@ -62,7 +62,7 @@ def check_video_output(out: str | Path, overwrite: bool = False) -> Path:
     if suffix in REFUSED_SUFFIXES:
         raise UserError(f"{out}: cannot write '{suffix}' (the output is {SUPPORTED})")
     if suffix == VIDEO_SUFFIX:
-        _check_writable_folder(out, out.parent)
+        check_writable_folder(out, out.parent)
         if out.is_dir():
             raise UserError(f"{out}: is a folder")
         if os.path.lexists(out) and not overwrite:
@@ -71,19 +71,12 @@ def check_video_output(out: str | Path, overwrite: bool = False) -> Path:
     if os.path.lexists(out) and not out.is_dir():
         raise UserError(f"{out}: exists and is not a folder (the output is {SUPPORTED})")
     if out.is_dir():
-        _check_writable_folder(out, out)
+        check_writable_folder(out, out)
         if not overwrite and any(out.iterdir()):
             raise UserError(f"{out}: folder is not empty (pass --overwrite to replace its frames)")
     else:
-        _check_writable_folder(out, out.parent)
+        check_writable_folder(out, out.parent)
     return out
-
-
-def _check_writable_folder(out: Path, folder: Path) -> None:
-    if not folder.is_dir():
-        raise UserError(f"{out}: folder '{folder}' does not exist")
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise UserError(f"{out}: folder '{folder}' is not writable")
 
 
 def open_sink(out: str | Path, width: int, height: int, fps: float | Fraction, overwrite: bool = False,

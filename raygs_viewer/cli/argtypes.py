@@ -77,7 +77,7 @@ def setting_type(setting: SettingField) -> Callable[[str], object]:
     among its choices or within its limits, or a number within its limits."""
     name, info, hint = setting
     if hint == tuple[float, float, float]:
-        return color
+        return color_within(info)
     if int in (hint, *typing.get_args(hint)):
         if info.choices:
             return whole_number(min(info.choices), max(info.choices), f"not {or_list(info.choices)}")
@@ -89,6 +89,9 @@ def setting_type(setting: SettingField) -> Callable[[str], object]:
 
 
 positive_int = whole_number(1, 65536)
+#: --camera-index: refused below 0 at once, where Python's counting from the end would
+#: otherwise pick a camera nobody asked for (the file's size is checked when it is read).
+camera_index = whole_number(0, math.inf, "below 0: --camera-index must be 0..N-1 for a file of N cameras")
 frames = whole_number(1, math.inf, "not at least 1")
 turntable = real_number(lambda v: abs(v) <= 180, "not between -180 and 180")
 screenshot_scale = real_number(lambda v: 0.0 < v <= MAX_SCALE, f"not in (0, {MAX_SCALE:g}]")
@@ -103,6 +106,17 @@ def color(text: str) -> tuple[float, float, float]:
     if len(parts) != 3 or not all(math.isfinite(p) for p in parts):
         raise argparse.ArgumentTypeError(f"'{text}' is not three finite numbers R,G,B")
     return parts
+
+
+def color_within(info) -> Callable[[str], tuple[float, float, float]]:
+    """An argparse type: :func:`color` with each part within ``info``'s limits (the
+    setting's own, so the command line and the settings refuse the same colours)."""
+    def parse(text: str) -> tuple[float, float, float]:
+        parts = color(text)
+        if not all(info.within(p) for p in parts):
+            raise argparse.ArgumentTypeError(f"'{text}' is not three numbers R,G,B in {info.interval()}")
+        return parts
+    return parse
 
 
 #: The opacity cut-off, as --p-min takes it (bench's --gt-p-min too).

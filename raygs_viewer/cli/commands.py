@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from raygs_viewer.camera.pinhole import Camera, frame_points, load_camera
+from raygs_viewer.camera.pinhole import Camera, frame_points
 from raygs_viewer.capture import screenshot
 from raygs_viewer.capture.channel_io import (
     CHANNEL_SUFFIXES,
@@ -24,7 +24,13 @@ from raygs_viewer.capture.channel_io import (
     save_channels,
 )
 from raygs_viewer.capture.image_io import check_output_path, save_image
-from raygs_viewer.capture.sidecar import Sidecar, load_sidecar, resolve_scene, verify_scene_hash
+from raygs_viewer.capture.sidecar import (
+    Sidecar,
+    load_camera_source,
+    load_sidecar,
+    resolve_scene,
+    verify_scene_hash,
+)
 from raygs_viewer.cli import argtypes
 from raygs_viewer.cli.options import (
     add_channel_options,
@@ -63,10 +69,14 @@ from raygs_viewer.scene.model import Scene
 from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.lod_choice import LodChoice
 
+#: The view options that resize a camera instead of choosing one: with --sidecar they
+#: render the screenshot's view at another size.
+SIZE_OPTIONS = ("width", "height")
 #: render options that set what --sidecar already fixes, (flag, argparse dest): every
-#: view option.
+#: view option but the size.
 SIDECAR_CONFLICTS = tuple(("/".join(action.option_strings), action.dest)
-                          for action in add_view_options(argparse.ArgumentParser()))
+                          for action in add_view_options(argparse.ArgumentParser())
+                          if action.dest not in SIZE_OPTIONS)
 
 
 def add_parsers(commands) -> None:
@@ -82,7 +92,9 @@ def add_parsers(commands) -> None:
     render.add_argument("--sidecar", metavar="SHOT.json",
                         help="render a screenshot again from its sidecar: scene, camera, settings and size "
                              "come from it (SCENE, if given, replaces the scene file but must have the same "
-                             "sha256); the view options above cannot be combined with it")
+                             "sha256); --width/--height render its view at another size (the camera scaled "
+                             "as for --camera), the other view options cannot be combined with it (to change "
+                             "the settings, give the sidecar as --camera instead)")
     render.add_argument("--out", required=True, metavar="OUT.png|OUT.npy|OUT.exr",
                         help=".png: 8-bit RGB (or a picture of the one channel --channels names); .npy: float32 "
                              "HxWx4 (RGB over background, alpha) or HxWxC of --channels; .exr: float32 named "
@@ -138,20 +150,26 @@ def warn_dropped(scene: Scene) -> None:
 
 def choose_camera(positions: np.ndarray, source: SceneSource, camera_file: str | None, index: int | None,
                   width: int | None, height: int | None) -> Camera:
-    """The camera of ``--camera``/``--camera-index``, else the demo's or one framing the
-    scene's ``positions``; resized when --width/--height are given (one alone keeps the
-    aspect ratio)."""
+    """The camera of ``--camera``/``--camera-index`` (a cameras.json or a screenshot's
+    sidecar), else the demo's or one framing the scene's ``positions``; resized to
+    --width/--height (:func:`sized`)."""
     if camera_file is not None:
-        camera = load_camera(camera_file, index or 0)
+        camera = load_camera_source(camera_file, 0 if index is None else index)
     elif source.is_demo:
         camera = demo_camera()
     else:
         camera = frame_points(positions)
-    if width or height:
-        width = width or max(1, round(height * camera.width / camera.height))
-        height = height or max(1, round(width * camera.height / camera.width))
-        camera = camera.resized(width, height)
-    return camera
+    return sized(camera, width, height)
+
+
+def sized(camera: Camera, width: int | None, height: int | None) -> Camera:
+    """``camera`` at --width/--height: fx and cx scale with the width, fy and cy with the
+    height; one alone keeps the aspect ratio, neither keeps the camera."""
+    if not (width or height):
+        return camera
+    width = width or max(1, round(height * camera.width / camera.height))
+    height = height or max(1, round(width * camera.height / camera.width))
+    return camera.resized(width, height)
 
 
 def _scene_and_camera(args, settings: RenderSettings, ctx) -> tuple[OpenedScene, Camera]:
@@ -193,7 +211,8 @@ def command_render(args) -> int:
     if args.sidecar is not None:
         given = [flag for flag, dest in SIDECAR_CONFLICTS if getattr(args, dest) is not None]
         if given:
-            raise UserError(f"--sidecar already sets the view; drop {', '.join(given)}")
+            raise UserError(f"--sidecar already sets the view (--width/--height may resize it; --camera SHOT.json "
+                            f"takes its camera alone); drop {', '.join(given)}")
         if argtypes.source_options_given(args):
             raise UserError("--sidecar records the axes its .spz scene was read in; drop --spz-axes")
     stereo = stereo_view(args)
@@ -209,7 +228,7 @@ def command_render(args) -> int:
         if shot is not None:
             scene_name = resolve_scene(shot, args.scene)
             verify_scene_hash(shot, scene_name)
-            camera, settings, stereo = shot.camera, shot.settings, shot.stereo
+            camera, settings, stereo = sized(shot.camera, args.width, args.height), shot.settings, shot.stereo
             opened = open_scene_argument(shot.source(scene_name), settings, ctx)
         else:
             settings = render_settings(args)

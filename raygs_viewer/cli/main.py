@@ -70,17 +70,39 @@ def route(argv: list[str]) -> list[str]:
                     f"(see 'raygs-viewer --help')")
 
 
+#: The exit status of a command whose reader went away: a shell's for a process that
+#: SIGPIPE ended (128 + 13), which is what the command would have got without Python.
+BROKEN_PIPE_STATUS = 141
+
+
 def main(argv: list[str] | None = None) -> int:
     try:
         argv = join_up_axis(route(list(sys.argv[1:] if argv is None else argv)))
         args = build_parser().parse_args(argv)
-        return args.run(args)
+        status = args.run(args)
+        sys.stdout.flush()  # here, where a closed pipe is caught, not at exit where it is not
+        return status
+    except BrokenPipeError:
+        return quiet_broken_pipe()
     except UserError as exc:
         print(f"error: {str(exc).splitlines()[0] if str(exc) else 'failed'}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print("error: interrupted", file=sys.stderr)
         return 130
+
+
+def quiet_broken_pipe() -> int:
+    """The reader of stdout closed it (``raygs-viewer info X | head -1``): not an error
+    to report. stdout is pointed at /dev/null so that the interpreter's last flush at
+    exit, which would fail the same way and print a traceback, has nowhere to fail."""
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+        os.close(devnull)
+    except (OSError, ValueError):  # no real stdout (a test's capture): nothing is flushed at exit either
+        pass
+    return BROKEN_PIPE_STATUS
 
 
 if __name__ == "__main__":

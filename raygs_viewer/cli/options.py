@@ -43,8 +43,10 @@ def add_view_options(parser: argparse.ArgumentParser) -> list[argparse.Action]:
     so that render can tell which were given (--sidecar rejects them);
     :func:`render_settings` and ``commands.choose_camera`` apply the documented defaults."""
     parser.add_argument("scene", nargs="?", help=f"a scene file ({SCENE_FILES}), or '{DEMO}' (default)")
-    return [parser.add_argument("--camera", metavar="CAMERAS.json", help="INRIA cameras.json (a list or one camera)"),
-            parser.add_argument("--camera-index", type=int, metavar="I", help="which camera of the file (default 0)"),
+    return [parser.add_argument("--camera", metavar="CAMERAS.json",
+                                help="INRIA cameras.json (a list or one camera), or a screenshot's sidecar: its "
+                                     "camera, rendered with the settings and size given here"),
+            parser.add_argument("--camera-index", type=argtypes.camera_index, metavar="I", help="which camera of the file (default 0)"),
             parser.add_argument("--width", type=argtypes.positive_int, help="image width; fx and cx scale to match"),
             parser.add_argument("--height", type=argtypes.positive_int, help="image height; fy and cy scale to match"),
             *add_settings_options(parser, None, None)]

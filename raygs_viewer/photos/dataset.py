@@ -64,6 +64,16 @@ class Dataset:
     scene_path: Path | None = None
 
 
+#: How a message about missing photos says where to point: the option of evaluate and
+#: the window that names the photos' folder.
+IMAGES_HINT = "give the photos' folder with --images FOLDER"
+
+
+def with_images_hint(message: str) -> str:
+    """``message`` ending in how to point at the photos, unless it already names --images."""
+    return message if "--images" in message else f"{message} ({IMAGES_HINT})"
+
+
 def open_dataset(path: str | Path, images: str | Path | None = None) -> Dataset:
     """The dataset at ``path`` (an INRIA model folder, a COLMAP folder, a transforms.json
     or its folder); ``images``: the photos' folder where the layout does not say.
@@ -114,7 +124,7 @@ def load_photo(view: PhotoView, background: tuple[float, float, float]) -> np.nd
     aspect ratio does not match the camera."""
     path, camera = view.image_path, view.camera
     if path is None or not path.is_file():
-        raise UserError(f"{path or view.expected or view.name}: no such photo")
+        raise UserError(f"{path or view.expected or view.name}: no such photo ({IMAGES_HINT})")
     try:
         with Image.open(path) as image:
             image.load()
@@ -212,7 +222,7 @@ def _inria_images(cfg: Path, source: Path, configured: str, first: tuple[str, Ca
         return source / configured
     present = [source / name for name in IMAGE_FOLDERS if (source / name).is_dir()]
     if not present:
-        raise UserError(f"{cfg}: the source folder {source} has no {configured}/ folder: pass --images DIR")
+        raise UserError(f"{cfg}: the source folder {source} has no {configured}/ folder: {IMAGES_HINT}")
     name, camera = first
 
     def distance(folder: Path) -> float:

@@ -74,12 +74,12 @@ def source_folder(model: Path, cfg: Path, args: dict) -> Path:
     """The source folder cfg_args names (as written, else beside the model folder, as a
     relative path would be from where training ran); UserError asking for --images."""
     if "source_path" not in args:
-        raise UserError(f"{cfg}: no source_path (or no cfg_args): pass --images DIR with the photos")
+        raise UserError(f"{cfg}: no source_path (or no cfg_args): give the photos' folder with --images FOLDER")
     written = Path(cfg_value(cfg, args, "source_path", str, ""))
     for candidate in (written, model.parent / written, model / written):
         if candidate.is_dir():
             return candidate
-    raise UserError(f"{cfg}: the source folder {written} is not here: pass --images DIR with the photos")
+    raise UserError(f"{cfg}: the source folder {written} is not here: give the photos' folder with --images FOLDER")
 
 
 def loader_size(width: int, height: int, resolution: int | float) -> tuple[int, int]:

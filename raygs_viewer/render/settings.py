@@ -107,7 +107,7 @@ class RenderSettings:
         "opacity cut-off, sets kappa = -2 ln(P/o) (default 1/255)", "P", limits=(0.0, 1.0), open=True,
         accuracy=False, label=Shown("p_min {:.3g}")))
     background: tuple[float, float, float] = setting(DEFAULT_BACKGROUND, Setting(
-        "background colour, 0..1 each (default 0,0,0)", "R,G,B", accuracy=False))
+        "background colour, 0..1 each (default 0,0,0)", "R,G,B", limits=(0.0, 1.0), accuracy=False))
     sh_degree: int | None = setting(None, Setting(
         f"highest spherical-harmonics band to evaluate, {SH_DEGREES[0]}..{SH_DEGREES[-1]}, capped at the scene's "
         "(default: all the scene has)", "D", choices=SH_DEGREES, accuracy=False))
@@ -201,13 +201,22 @@ class RenderSettings:
     def __post_init__(self) -> None:
         for name, info, hint in settings_table(type(self)):
             if name == "background":  # a shape the table does not describe
-                if len(self.background) != 3 or not all(math.isfinite(c) for c in self.background):
-                    raise UserError(f"background must be three finite numbers, got {self.background!r}")
-                object.__setattr__(self, "background", tuple(float(c) for c in self.background))
+                object.__setattr__(self, "background", checked_colour(info, self.background))
             else:
                 object.__setattr__(self, name, checked(name, info, hint, getattr(self, name)))
         if self.per_pixel and self.mode == "gs":
             raise UserError("per-pixel order needs a RayGS mode: EWA splats have no ray parameter to sort by")
+
+
+def checked_colour(info: Setting, colour) -> tuple[float, float, float]:
+    """``colour`` as three floats, or UserError unless it is three finite numbers within
+    ``info``'s limits: a colour beyond 0..1 is no colour the image can show, and the
+    blend would carry it into every pixel a gaussian leaves uncovered."""
+    if len(colour) != 3 or not all(math.isfinite(c) for c in colour):
+        raise UserError(f"background must be three finite numbers, got {colour!r}")
+    if not all(info.within(c) for c in colour):
+        raise UserError(f"background must be three numbers in {info.interval()}, got {colour!r}")
+    return tuple(float(c) for c in colour)
 
 
 #: The accuracy options: the RenderSettings fields beyond p_min, background and SH degree

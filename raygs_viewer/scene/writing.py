@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from raygs_viewer.errors import UserError
-from raygs_viewer.files import atomic_writer
+from raygs_viewer.files import atomic_writer, check_writable_folder
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
 from raygs_viewer.scene.sh import C0
 from raygs_viewer.scene.spz_file import DC_LIMIT, LOG_SCALE_RANGE, spz_bytes
@@ -203,8 +203,7 @@ def _write(path: str | os.PathLike, chunks, overwrite: bool) -> Path:
     path = Path(path)
     if path.is_dir():
         raise UserError(f"{path}: is a folder")
-    if not path.parent.is_dir():
-        raise UserError(f"{path}: folder '{path.parent}' does not exist")
+    check_writable_folder(path, path.parent)
     if path.exists() and not overwrite:  # before any work; atomic_writer checks again at the end
         raise UserError(f"{path}: already exists (pass --overwrite to replace it)")
     with atomic_writer(path, overwrite) as stream:

@@ -45,7 +45,7 @@ from raygs_viewer.photos.compare import (
     resize_picture,
     split_picture,
 )
-from raygs_viewer.photos.dataset import Dataset, PhotoView, load_photo, open_dataset
+from raygs_viewer.photos.dataset import IMAGES_HINT, Dataset, PhotoView, load_photo, open_dataset, with_images_hint
 from raygs_viewer.photos.metrics import psnr
 from raygs_viewer.render.gl.mono_frame import MonoFrame
 from raygs_viewer.render.gl.targets import FloatTarget, sized
@@ -228,13 +228,13 @@ class PhotoCompare:
     def _dataset_of(self, loaded: LoadedScene) -> Dataset | str:
         if self._dataset is None:
             if self.images is None and loaded.cameras_path is None:
-                self._dataset = "no photos: the scene's cameras come from no model folder (pass --images DIR)"
+                self._dataset = f"no photos: the scene's cameras come from no model folder ({IMAGES_HINT})"
             else:
                 model = Path(loaded.cameras_path).parent if loaded.cameras_path else Path(loaded.path).parent
                 try:
                     self._dataset = open_dataset(model, self.images)
                 except UserError as exc:
-                    self._dataset = f"no photos: {one_line(exc)}"
+                    self._dataset = with_images_hint(f"no photos: {one_line(exc)}")
         return self._dataset
 
     def _photo(self, loaded: LoadedScene, index: int, size: tuple[int, int] | None

@@ -11,7 +11,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from PIL import Image
-from testkit import LineSink, assert_user_error, gaussian_columns, make_scene, write_ply
+from testkit import LineSink, assert_user_error, gaussian_columns, listing, make_scene, write_ply
 
 from raygs_viewer.bench import accuracy as bench
 from raygs_viewer.bench import accuracy_report as bench_report
@@ -269,6 +269,21 @@ def test_quick_defaults(tmp_path):
     if bench_common.shared_scenes_dir() is not None:
         assert any("fruit" in s for s in options.scenes)
         assert not any(s.startswith("/") for s in options.scenes)  # paths stay relative
+
+
+def test_run_as_documented_from_any_folder_prints_and_writes_nothing(tmp_path, monkeypatch, capsys):
+    """``raygs-viewer bench accuracy`` with no paths, from a folder without docs/: the
+    report is printed, no file is written (the docs' files are named explicitly)."""
+    results = synthetic_results({("demo", "training"): {"RayGS": (1.0, 40.0), "GS": (0.8, 30.0)}})
+    monkeypatch.setattr(bench, "run_accuracy", lambda options, ctx=None, **kw: results)
+    monkeypatch.chdir(tmp_path)
+    assert bench_cli.command(parse("--scenes", "demo")) == 0
+    out = capsys.readouterr().out
+    assert "# Accuracy against time" in out and "| RayGS |" in out and "wrote" not in out
+    assert list(tmp_path.iterdir()) == []
+    # Asked for, the report is written (and says so) without the plot.
+    assert bench_cli.command(parse("--scenes", "demo", "--report", "acc.md")) == 0
+    assert "wrote acc.md" in capsys.readouterr().out and listing(tmp_path) == ["acc.md"]
 
 
 def synthetic_results(table):

@@ -92,10 +92,9 @@ def test_list_of_cameras_and_index_selection(tmp_path):
         assert picked.width == camera.width
         np.testing.assert_array_equal(picked.R, camera.R)
     assert load_camera(path).width == 64                      # default index 0
-    assert load_camera(path, -1).width == 66                  # Python-style from the end
-    for bad in (3, 10, -4):
-        message = assert_camera_error(path, "out of range", index=bad)
-        assert str(bad) in message
+    for bad in (3, 10, -1, -4):  # -1 too: counting from the end would pick a camera nobody asked for
+        message = assert_camera_error(path, "out of range", "--camera-index must be 0..2", index=bad)
+        assert f"got {bad}" in message
 
 
 def test_single_object_file(tmp_path):

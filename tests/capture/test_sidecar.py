@@ -306,6 +306,9 @@ MALFORMED = {
     "background_two": (set_field("settings.background", [0.1, 0.2]), "'settings.background'"),
     "background_string": (set_field("settings.background", "abc"), "'settings.background'"),
     "background_inf": (set_field("settings.background", [0.1, float("inf"), 0.3]), "'settings.background'"),
+    "background_above_one": (set_field("settings.background", [2.0, 0.0, 0.0]),
+                             "'settings': background must be three numbers in [0, 1]"),
+    "background_negative": (set_field("settings.background", [0.0, 0.0, -0.5]), "in [0, 1]"),
     "sh_degree_four": (set_field("settings.sh_degree", 4), "sh_degree"),
     "sh_degree_fraction": (set_field("settings.sh_degree", 1.5), "'settings.sh_degree'"),
     "sh_degree_bool": (set_field("settings.sh_degree", True), "'settings.sh_degree'"),
@@ -536,8 +539,48 @@ def test_render_sidecar_after_the_folder_moved(capsys, tmp_path):
     np.testing.assert_array_equal(np.load(before), np.load(after))
 
 
-@pytest.mark.parametrize("option", [["--camera", "cams.json"], ["--camera-index", "0"], ["--width", "32"],
-                                    ["--height", "24"], ["--p-min", "0.1"], ["--background", "1,1,1"],
+@pytest.mark.parametrize("size, expected", [(["--width", "32"], (32, 24)),    # the height follows the aspect
+                                           (["--height", "12"], (16, 12)),   # and the width
+                                           (["--width", "40", "--height", "20"], (40, 20))])
+def test_render_sidecar_at_another_size_scales_the_camera(capsys, tmp_path, demo_renderer, size, expected):
+    """--width/--height with --sidecar: the screenshot's view, its settings, another size;
+    fx and cx scale with the width, fy and cy with the height (as for --camera)."""
+    camera = window_camera(64, 48)
+    js = write_json(tmp_path / "shot.json", demo_sidecar(camera=camera))
+    out = tmp_path / "resized.npy"
+    code, stdout, err = run_cli(capsys, "render", "--sidecar", js, *size, "--out", out)
+    assert code == 0, err
+    width, height = expected
+    assert f"{width}x{height}" in stdout and "view from" in stdout
+    resized = camera.resized(width, height)
+    assert resized.fx == pytest.approx(camera.fx * width / 64) and resized.cy == pytest.approx(camera.cy * height / 48)
+    image = np.load(out)
+    np.testing.assert_array_equal(image, tiled(demo_renderer, resized, SETTINGS))
+    # Negative controls: the size alone (intrinsics unscaled), or the default settings,
+    # make other pictures, so the camera is scaled and the settings are the sidecar's.
+    unscaled = dataclasses.replace(camera, width=width, height=height)
+    assert np.abs(image - tiled(demo_renderer, unscaled, SETTINGS)).max() > 0.05
+    assert np.abs(image - tiled(demo_renderer, resized, RenderSettings())).max() > 0.05
+
+
+def test_render_camera_takes_a_sidecar_with_other_settings(capsys, tmp_path, demo_renderer):
+    """--camera SHOT.json: the screenshot's camera alone; the settings and size are the
+    command line's, so a screenshot renders again with other settings."""
+    camera = window_camera(64, 48)
+    js = write_json(tmp_path / "shot.json", demo_sidecar(camera=camera))
+    out = tmp_path / "gs.npy"
+    code, _, err = run_cli(capsys, "render", "--camera", js, "--mode", "gs", "--width", "32", "--out", out)
+    assert code == 0, err
+    image = np.load(out)
+    np.testing.assert_array_equal(image, tiled(demo_renderer, camera.resized(32, 24), RenderSettings(mode="gs")))
+    assert np.abs(image - tiled(demo_renderer, camera.resized(32, 24), RenderSettings())).max() > 0.05
+    code, _, err = run_cli(capsys, "render", "--camera", js, "--camera-index", "1", "--out", tmp_path / "x.npy")
+    assert "--camera-index must be 0..0" in assert_one_line_error(code, err)
+    assert not (tmp_path / "x.npy").exists()
+
+
+@pytest.mark.parametrize("option", [["--camera", "cams.json"], ["--camera-index", "0"],
+                                    ["--p-min", "0.1"], ["--background", "1,1,1"],
                                     ["--sh-degree", "0"], ["--mode", "gs"], ["--mip"], ["--no-mip"],
                                     ["--mip-sigma2", "0.2"], ["--mip-modulation"], ["--no-mip-modulation"],
                                     ["--gs-compensation"], ["--supersample", "2"], ["--alpha-clamp"],

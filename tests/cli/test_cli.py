@@ -12,9 +12,10 @@ import pytest
 from PIL import Image
 from testkit import assert_one_line_error, listing, run_cli, sorted_render, write_inria_ply
 
+import raygs_viewer
 from raygs_viewer.bench.loading import write_generated_ply
 from raygs_viewer.camera.pinhole import Camera, camera_to_json, look_at
-from raygs_viewer.cli.main import main
+from raygs_viewer.cli.main import BROKEN_PIPE_STATUS, main
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.storage import SceneBuffers
 from raygs_viewer.render.settings import RenderSettings
@@ -300,6 +301,13 @@ def _bad_cases(tmp_path, write=True):
         "camera_index_negative_out_of_range": ["render", "--camera", good_camera, "--camera-index", "-2",
                                                "--out", out],
         "camera_index_not_int": ["render", "--camera", good_camera, "--camera-index", "one", "--out", out],
+        "camera_index_minus_one": ["render", "--camera", good_camera, "--camera-index", "-1", "--out", out],
+        "view_camera_index_minus_one": ["view", "--camera", good_camera, "--camera-index", "-1"],
+        "background_above_one": ["render", "--background", "2,0,0", "--out", out],
+        "background_negative": ["render", "--background=0,-0.5,0", "--out", out],
+        "view_background_above_one": ["view", "--background", "0,0,1.5"],
+        "verify_background_above_one": ["verify", "--background", "1,1,1.01"],
+        "output_parent_is_a_file": ["render", "--out", tmp_path / "taken.png" / "out.png"],
         "p_min_zero": ["render", "--p-min", "0", "--out", out],
         "p_min_one": ["render", "--p-min", "1", "--out", out],
         "p_min_word": ["render", "--p-min", "x", "--out", out],
@@ -403,7 +411,12 @@ def test_error_messages_name_what_is_wrong(capsys, tmp_path, monkeypatch):
         "not_a_ply": "notply.ply",
         "camera_not_json": "bad.json",
         "camera_not_rotation": "badcam.json",
-        "camera_index_out_of_range": "out of range",
+        "camera_index_out_of_range": "--camera-index must be 0..0, got 1",
+        "camera_index_minus_one": "--camera-index must be 0..N-1",
+        "view_camera_index_minus_one": "--camera-index must be 0..N-1",
+        "background_above_one": "--background: '2,0,0' is not three numbers R,G,B in [0, 1]",
+        "view_background_above_one": "--background",
+        "output_parent_is_a_file": "(it is a file)",
         "p_min_zero": "p-min",
         "background_two": "background",
         "unknown_suffix": "out.jpg",
@@ -805,6 +818,50 @@ def test_installed_module_runs_outside_the_source_tree(tmp_path):
     assert result.returncode == 2
     assert result.stderr.startswith("error: ") and result.stderr.count("\n") == 1, result.stderr
     assert "Traceback" not in result.stderr and "nonexistent.ply" in result.stderr
+
+
+def test_a_closed_pipe_ends_quietly(tmp_path):
+    """``raygs-viewer info X | head -1``: the reader goes away, which is no error to
+    report. The pipe's read end is closed before the command starts, so its first write
+    fails every time (no race with a reader that might still be reading)."""
+    env = {**os.environ, "PYTHONPATH": str(Path(raygs_viewer.__file__).parents[1])}  # this tree, not an install
+    for argv in (["info", "demo"], ["info", "demo", "--json"]):
+        read_end, write_end = os.pipe()
+        os.close(read_end)
+        try:
+            result = subprocess.run([sys.executable, "-m", "raygs_viewer", *argv], cwd=tmp_path, env=env,
+                                    stdout=write_end, stderr=subprocess.PIPE, text=True, timeout=120)
+        finally:
+            os.close(write_end)
+        assert result.stderr == "", result.stderr
+        assert result.returncode == BROKEN_PIPE_STATUS
+
+
+def test_output_folder_must_be_writable_before_any_work(capsys, tmp_path, monkeypatch):
+    """A folder this user may not write in is refused before the scene is read.
+    Simulated (these tests may run as root, whom permission bits do not stop); the
+    test below checks a real read-only folder where the user is not root."""
+    import raygs_viewer.cli.commands as cli
+
+    locked = tmp_path / "locked"
+    locked.mkdir()
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode, **kw: False if Path(p) == locked else real_access(p, mode))
+    monkeypatch.setattr(cli, "open_scene_argument", lambda *a, **k: pytest.fail("scene read before the check"))
+    for argv in (["render", "--out", locked / "x.png"], ["convert", "demo", locked / "x.ply"],
+                 ["bench", "order", "--out", locked / "x.md"], ["bench", "perf", "--plot", locked / "x.png"],
+                 ["bench", "accuracy", "--report", locked / "x.md"]):
+        code, _, err = run_cli(capsys, *argv)
+        assert "not writable" in assert_one_line_error(code, err), argv
+    assert listing(locked) == []
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root writes into read-only folders")
+def test_a_read_only_output_folder_is_refused(capsys, tmp_path):
+    locked = tmp_path / "locked"
+    locked.mkdir(mode=0o555)
+    code, _, err = run_cli(capsys, "render", "--out", locked / "x.png")
+    assert "not writable" in assert_one_line_error(code, err)
 
 
 # --------------------------------------------------------------------------- stereo

@@ -82,3 +82,24 @@ def test_bad_input_is_one_line(tmp_path, capsys, gl_render):
     # Each skipped view is named on its own line first; the error is the last line.
     assert code == 2 and err.count("skipped: ") == 2
     assert err.splitlines()[-1].startswith("error: none of the 2 views could be evaluated")
+    assert "--images FOLDER" in err.splitlines()[-1]  # says how to point at the photos
+
+
+def test_an_unusable_out_is_refused_before_any_work(tmp_path, capsys, monkeypatch):
+    """The report's folder is checked (exists, is a folder, may be written in) before the
+    dataset is read or anything rendered. The unwritable folder is simulated: these tests
+    may run as root, whom permission bits do not stop."""
+    import os
+
+    import raygs_viewer.cli.evaluate as cli
+
+    monkeypatch.setattr(cli, "open_dataset", lambda *a, **k: pytest.fail("dataset read before --out was checked"))
+    locked, a_file = tmp_path / "locked", tmp_path / "file"
+    locked.mkdir()
+    a_file.write_text("")
+    real_access = os.access
+    monkeypatch.setattr(os, "access", lambda p, mode, **kw: False if Path(p) == locked else real_access(p, mode))
+    for out, fragment in ((locked / "r.json", "not writable"), (a_file / "r.json", "(it is a file)"),
+                          (tmp_path / "no" / "r.json", "does not exist")):
+        code, _, err = run_cli(capsys, "evaluate", tmp_path / "model", "--out", out)
+        assert fragment in assert_one_line_error(code, err) and str(out) in err
