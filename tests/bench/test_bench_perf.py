@@ -210,7 +210,8 @@ def test_tiny_run_prints_every_ratio_per_case_and_their_medians(tiny_run):
         assert sorted(per_case) == sorted(cases), name
         assert all(math.isfinite(v) and v > 0 for v in per_case.values())
         headline = re.findall(rf"^{re.escape(name)} (\S+)$", out, re.M)
-        assert len(headline) == 1
+        # printed as the run ends, and again in the report's machine-readable block
+        assert len(headline) == 2 and headline[0] == headline[1], headline
         assert float(headline[0]) == pytest.approx(float(np.median(list(per_case.values()))), abs=1.5e-3)
     assert all(0 < v <= 1 for v in _lines(out, "fragments-kept").values())
     for case in cases:

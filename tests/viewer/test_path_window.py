@@ -95,6 +95,7 @@ def test_panel_buttons_add_select_reorder_delete_and_retime(open_viewer):
     drive.frames(2)
     click(drive, "Add view (K)")
     a = viewer.view.navigator.pose
+    drive.move_mouse(PANEL_WIDTH - 10, PANEL_HEIGHT - 10)  # over the view: letters fly there, not on the panel
     drive.key(imgui.Key.w, True)
     drive.frames(1)
     drive.key(imgui.Key.w, False)
@@ -104,6 +105,7 @@ def test_panel_buttons_add_select_reorder_delete_and_retime(open_viewer):
     path = viewer.camera_path.path
     assert len(path.keyframes) == 2 and same_pose(path.keyframes[0].pose, a) and same_pose(path.keyframes[1].pose, b)
 
+    drive.reveal("Go to##keyframe")  # the list just above it: a list box scrolled out of sight draws no entries
     click(drive, "##keyframe0")
     assert viewer.camera_path.selected == 0
     click(drive, "Down##keyframe")
