@@ -50,6 +50,7 @@ from raygs_viewer.bench.common import (
     run_end,
     software_renderer,
 )
+from raygs_viewer.bench.perf import NUDGE_DEGREES, at_resolution, nudged
 from raygs_viewer.camera.pinhole import Camera, look_at
 from raygs_viewer.camera.stereo import DEFAULT_HEADSET, PRESETS, StereoRig, eye_cameras, frame_budget
 from raygs_viewer.render.gl.context import context_description
@@ -76,7 +77,6 @@ HEADSET = PRESETS[DEFAULT_HEADSET]
 QUICK_EYE_SHRINK = 8
 DEFAULT_FRAMES = 5
 QUICK_FRAMES = 3
-NUDGE_DEGREES = 0.1
 GENERATED_SH_DEGREE = 3
 #: The outdoor scene's median standard deviation on its object, at 1M gaussians (units).
 SIZE_AT_1M = 0.0027
@@ -128,19 +128,6 @@ def outdoor_camera(width: int, height: int) -> Camera:
     """2.5 units from the object's centre, looking at it: the object fills the middle of
     the view, its surroundings the rest, and a part of them is behind the camera."""
     return look_at((0.0, -0.4, -2.5), (0.0, 0.0, 0.0), width=width, height=height, fov_y_degrees=60.0)
-
-
-def at_size(camera: Camera, width: int, height: int) -> Camera:
-    """``camera``'s pose at ``width`` x ``height``, its vertical field of view kept."""
-    fy = camera.fy * height / camera.height
-    return replace(camera, width=width, height=height, fx=fy, fy=fy, cx=width / 2, cy=height / 2)
-
-
-def nudged(camera: Camera, degrees: float) -> Camera:
-    """``camera`` turned about its own y axis (its centre stays)."""
-    a = math.radians(degrees)
-    turn = np.array([[math.cos(a), 0.0, math.sin(a)], [0.0, 1.0, 0.0], [-math.sin(a), 0.0, math.cos(a)]])
-    return replace(camera, R=turn @ camera.R, t=turn @ camera.t)
 
 
 @dataclass(frozen=True)
@@ -369,7 +356,7 @@ def build_cases(options: GpuOptions):
         yield GpuCase(name, scene, pose, "mono")
         yield GpuCase(name, scene, _eye_camera(pose, eye_size), "stereo", StereoRig())
     for item in load_scenes(options.scenes):
-        yield GpuCase(item.name, item.scene, at_size(item.camera, *options.mono), "mono")
+        yield GpuCase(item.name, item.scene, at_resolution(item.camera, *options.mono), "mono")
         yield GpuCase(item.name, item.scene, _eye_camera(item.camera, eye_size), "stereo", StereoRig())
 
 
