@@ -164,7 +164,7 @@ class DepthSorter(Closable):
             cull = self._cull.request(request.camera, request.p_min, request.dilation, request.cull_cameras, (),
                                       False, None, None if choice is None else choice.spans)
             pieces = self._cull.pieces(cull, self._pool.run)
-            return np.concatenate([piece.visible for piece in pieces]).astype(np.int64)
+            return np.concatenate([np.zeros(0, np.int64), *(piece.visible for piece in pieces)]).astype(np.int64)
 
     def _visible(self, order: np.ndarray) -> np.ndarray:
         """``order`` without what the last cull dropped, relative order kept."""

@@ -36,7 +36,10 @@ _COARSE_EDGES = (np.arange(0, 65536 + 1, 1 << _COARSE_SHIFT, dtype=np.uint64) <<
 
 
 def sorted_rows(pieces: list[Piece], key: str, method: SortMethod, workers: int, run: Runner) -> np.ndarray:
-    """(K,) uint32: the rows of ``key`` from every piece, back to front by its values."""
+    """(K,) uint32: the rows of ``key`` from every piece, back to front by its values
+    (none for no pieces: a level-of-detail choice of no rows)."""
+    if not pieces:
+        return np.zeros(0, np.uint32)
     near = min(piece.ranges[key][0] for piece in pieces)
     far = max(piece.ranges[key][1] for piece in pieces)
     total = sum(piece.values[key].size for piece in pieces)

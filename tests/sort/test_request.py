@@ -120,3 +120,17 @@ def test_a_result_s_order_is_its_first_key_s():
     assert real.order is real.orders["depth"] and set(real.times) == {"choice", "wait", "cull", "sort"}
     assert all(order.answers(real.request) and order.key == key for key, order in real.orders.items())
     assert real.choice is None and real.order.spans is None and real.seconds >= 0
+
+
+@pytest.mark.parametrize("workers", [1, 2])
+def test_a_choice_of_no_rows_gives_empty_orders_and_an_empty_cull(workers):
+    """A level-of-detail choice may hold no rows (every part culled before a level was
+    read): every key's order is empty, a turn in place too, and the cull keeps nothing."""
+    scene = random_scene(n=200, seed=3)
+    camera = look_at((0.0, 0.0, -3.0), (0.0, 0.0, 0.0), width=32, height=32)
+    empty = spans_choice(np.zeros((0, 2), np.int64))
+    with DepthSorter(scene, workers) as sorter:
+        for keys in (("depth",), ("distance",), ("depth", "distance"), ("distance",)):  # the last: a turn, reused
+            result = sorter.sort(SortRequest(camera, 1 / 255, levels=empty, keys=keys))
+            assert [order.count for order in result.orders.values()] == [0] * len(keys)
+        assert sorter.cull(SortRequest(camera, 1 / 255, levels=empty)).size == 0
