@@ -48,7 +48,8 @@ def add_parsers(commands) -> None:
     parser.add_argument("--images", metavar="DIR",
                         help="the training photos, for the Photo view at a training camera (default: the "
                              "images folder the model folder's cfg_args names)")
-    parser.add_argument("--camera", metavar="CAMERAS.json", help="start at a camera of this INRIA cameras.json")
+    parser.add_argument("--camera", metavar="CAMERAS.json|SHOT.json",
+                        help="start at a camera of this INRIA cameras.json, or at a screenshot's view (its sidecar)")
     parser.add_argument("--camera-index", type=argtypes.camera_index, default=0, metavar="I",
                         help="which camera of --camera to start at (default 0)")
     parser.add_argument("--width", type=argtypes.positive_int, default=1280, help="window width (default 1280)")

@@ -29,10 +29,11 @@ import moderngl
 import numpy as np
 from imgui_bundle import imgui
 
-from raygs_viewer.camera.pinhole import Camera, load_camera
+from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.camera.stereo import StereoView
 from raygs_viewer.capture.image_io import check_output_path, save_image
 from raygs_viewer.capture.screenshot import check_screenshot_path
+from raygs_viewer.capture.sidecar import load_camera_source
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.photos.dataset import Dataset, PhotoView
 from raygs_viewer.photos.evaluate import evaluation_settings, render_view
@@ -387,7 +388,9 @@ def load_start_scene(options: ViewerOptions, progress: ProgressCallback | None =
 
 
 def start_camera(options: ViewerOptions) -> Camera | None:
-    return None if options.camera is None else load_camera(options.camera, options.camera_index)
+    """The start view of ``--camera``: a cameras.json's camera, or a screenshot sidecar's
+    (the view of a screenshot, to go on from)."""
+    return None if options.camera is None else load_camera_source(options.camera, options.camera_index)
 
 
 def run_viewer(options: ViewerOptions, progress: ProgressCallback | None = None) -> int:

@@ -157,3 +157,18 @@ def test_without_a_dialog_program_open_says_so_and_keeps_the_typed_path(open_vie
     assert viewer.panel.error == ("error: no file dialog here (it needs zenity or kdialog): type the scene's "
                                   "path and press Enter")
     assert viewer.panel.open_path == "typed/so/far.ply" and not viewer.file_dialog.open
+
+
+def test_the_window_starts_at_a_screenshot_s_view(open_viewer, tmp_path):
+    """view --camera SHOT.json: the view of a screenshot, to go on from."""
+    import json
+
+    from testkit import demo_sidecar, window_camera
+
+    shot = tmp_path / "shot.json"
+    camera = window_camera(64, 48)
+    shot.write_text(json.dumps(demo_sidecar(camera=camera)))
+    viewer, drive = open_viewer(hide_panel=True, camera=str(shot))
+    drive.frames(1)
+    np.testing.assert_allclose(viewer.camera.R, camera.R, atol=1e-12)
+    np.testing.assert_allclose(viewer.camera.center, camera.center, atol=1e-9)
