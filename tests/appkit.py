@@ -292,6 +292,15 @@ def split_expected(a: np.ndarray, b: np.ndarray, column: int) -> np.ndarray:
     return np.concatenate([to_rgb8(a)[:, :column], to_rgb8(b)[:, column:]], axis=1).astype(int)
 
 
+def text_past_the_panel(drive: "Driver") -> list[str]:
+    """The lines of text the panel drew last frame that run past its right edge (cut off
+    there); the notes over the view, right of the panel, are not its."""
+    window = imgui.internal.find_window_by_name(PANEL_NAME)
+    left, right = window.pos.x, window.inner_clip_rect.max.x + 0.5
+    return [w.label for w in drive.panel.widgets
+            if w.kind in TEXTS and w.within is None and left <= w.rect[0] < right and w.rect[2] > right]
+
+
 def click_choice(drive: "Driver", combo: str, entry: str) -> None:
     """Opens the panel's combo ``combo`` and picks the entry shown as ``entry`` from it."""
     drive.click(combo)

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from appkit import PANEL_HEIGHT, PANEL_WIDTH, presented, split_expected, window_image
+from appkit import PANEL_HEIGHT, PANEL_WIDTH, presented, split_expected, text_past_the_panel, window_image
 from imgui_bundle import imgui  # before glfw (see raygs_viewer.viewer.window)
 from matplotlib import colormaps
 from datasets_kit import write_dataset
@@ -137,6 +137,7 @@ def test_panel_chooses_the_photo_and_shows_the_psnr_at_the_window_size(open_view
     drive.click("photo##photo")
     assert viewer.photo.mode == "photo"
     assert "at a training camera (N / P) the window compares with its photo" in drive.panel
+    assert text_past_the_panel(drive) == []  # the radio row and the hint fit the panel
     drive.move_mouse(PANEL_WIDTH - 2, PANEL_HEIGHT - 2)  # off the panel: N reaches the window
     at_camera(drive)
     width, height = viewer.camera.width, viewer.camera.height

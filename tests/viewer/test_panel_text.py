@@ -3,16 +3,7 @@ draws ends inside its window (long ones wrap), in the states that make the longe
 
 from __future__ import annotations
 
-from appkit import PANEL_HEIGHT, PANEL_NAME, PANEL_WIDTH
-from imgui_bundle import imgui
-
-
-def _cut(drive) -> list[str]:
-    window = imgui.internal.find_window_by_name(PANEL_NAME)
-    left, right = window.pos.x, window.inner_clip_rect.max.x + 0.5
-    return [w.label for w in drive.panel.widgets  # the panel's (the notes over the view start right of it)
-            if w.kind in ("text", "text_disabled", "text_wrapped") and w.within is None
-            and left <= w.rect[0] < right and w.rect[2] > right]
+from appkit import PANEL_HEIGHT, PANEL_WIDTH, text_past_the_panel
 
 
 def test_no_panel_text_runs_past_the_panel(open_viewer):
@@ -28,7 +19,7 @@ def test_no_panel_text_runs_past_the_panel(open_viewer):
     for step in range(3):
         drive.move_mouse(PANEL_WIDTH - 20 - 10 * (step + 1), PANEL_HEIGHT / 2)
         drive.frames(1)
-    cut = _cut(drive)
+    cut = text_past_the_panel(drive)
     assert cut == [], "\n".join(cut)
     drive.button(0, False)
     drive.frames(1)

@@ -13,8 +13,9 @@ from raygs_viewer.viewer.photo_view import MODES, PhotoCompare
 def draw_photo_controls(photo: PhotoCompare) -> None:
     """Edits ``photo``'s mode, divider and heat map scale; shows its status line."""
     imgui.text("Photo:")
-    for mode, label in MODES.items():
-        imgui.same_line()
+    for index, (mode, label) in enumerate(MODES.items()):  # a row of their own: beside the label they ran past the panel
+        if index:
+            imgui.same_line()
         if imgui.radio_button(f"{label}##photo", photo.mode == mode):
             photo.choose(mode)
     at_camera = checkbox("at the camera's size##photo", photo.at_camera_size,
@@ -33,6 +34,8 @@ def draw_photo_controls(photo: PhotoCompare) -> None:
             photo.heat_max = min(max(top, 0.01), 1.0)
         tooltip("|render - photo| (mean over RGB) shown at the top colour (magma)")
     if photo.at is None:
+        imgui.push_text_wrap_pos(0.0)  # wrapped at the panel's edge
         imgui.text_disabled("at a training camera (N / P) the window compares with its photo")
+        imgui.pop_text_wrap_pos()
     elif photo.status:
         imgui.text_wrapped(photo.status)

@@ -25,7 +25,9 @@ def draw_training_section(loaded: LoadedScene, current: int | None, select: Call
         imgui.text_disabled("none found (pass --cameras cameras.json)")
         return
     if loaded.cameras_path:
+        imgui.push_text_wrap_pos(0.0)  # a long path wraps at the panel's edge
         imgui.text_disabled(loaded.cameras_path)
+        imgui.pop_text_wrap_pos()
     if imgui.button("< previous (P)"):
         step(-1)
     imgui.same_line()
