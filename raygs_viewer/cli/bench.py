@@ -308,8 +308,8 @@ def stereo_options(args: argparse.Namespace) -> stereo_bench.StereoOptions:
 
 def _add_perf_parser(kinds) -> None:
     parser = _bench_parser(kinds, "perf",
-                           "10k and 100k gaussians, one real scene, 1280x720 only (about 6 minutes on two CPU cores "
-                           "with llvmpipe, 353 s measured; 17 minutes on 2026-11-28 with the cores shared)")
+                           "10k and 100k gaussians, one real scene, 1280x720 only (6 to 11 minutes on two CPU cores "
+                           "with llvmpipe: 353 s in an earlier run, 10.6 minutes on 2026-11-28 on an idle machine)")
     parser.add_argument("--counts", nargs="+", type=argtypes.whole_number(1, 100_000_000), metavar="N",
                         help="generated scene sizes (default 10000 100000 1000000; --quick 10000 100000)")
     parser.add_argument("--sizes", nargs="+", choices=tuple(perf.SIZES), help="footprints (default: both)")
