@@ -196,6 +196,18 @@ def error_metrics(image: np.ndarray, truth: np.ndarray) -> dict[str, float]:
             "max": float(error.max())}
 
 
+def fmt_ms(value: float) -> str:
+    """A time for a table: "n/a" when not measured, else 3 significant digits or so."""
+    if not math.isfinite(value):
+        return "n/a"
+    return f"{value:.2f} ms" if value < 10 else f"{value:.1f} ms" if value < 100 else f"{value:.0f} ms"
+
+
+def fmt_ratio(value: float) -> str:
+    """A ratio for a table or a ``NAME VALUE`` line: three decimals, "nan" when undefined."""
+    return f"{value:.3f}" if math.isfinite(value) else "nan"
+
+
 def fmt_error(value: float) -> str:
     """An absolute error for a table: two significant digits when small, else three decimals."""
     return "nan" if math.isnan(value) else f"{value:.2g}" if value < 0.01 else f"{value:.3f}"

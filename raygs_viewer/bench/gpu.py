@@ -41,6 +41,8 @@ import numpy as np
 from raygs_viewer.bench.common import (
     RunOptions,
     count_label,
+    fmt_ms,
+    fmt_ratio,
     gl_context,
     load_scenes,
     median,
@@ -389,9 +391,9 @@ def run_gpu(options: GpuOptions, ctx=None, out: TextIO | None = None) -> GpuResu
 
 
 def case_line(r: GpuResult) -> str:
-    options = ", ".join(f"{name} {_ratio(r.ratio(name))}" for name, _, _ in OPTIONS)
-    return (f"{r.label} {r.size}: {r.visible:,} of {r.count:,} visible; cull+sort {_ms(r.sort_ms)}; "
-            f"preprocess {_ms(r.preprocess_ms)}, draw {_ms(r.draw_ms)}; {r.rasterized / 1e6:.2f} M fragments "
+    options = ", ".join(f"{name} {fmt_ratio(r.ratio(name))}" for name, _, _ in OPTIONS)
+    return (f"{r.label} {r.size}: {r.visible:,} of {r.count:,} visible; cull+sort {fmt_ms(r.sort_ms)}; "
+            f"preprocess {fmt_ms(r.preprocess_ms)}, draw {fmt_ms(r.draw_ms)}; {r.rasterized / 1e6:.2f} M fragments "
             f"rasterized, {r.kept / 1e6:.2f} M kept; {_rate(r.fill_rate)} fragments/s; against today: {options}")
 
 
@@ -401,20 +403,10 @@ def ratio_lines(results: GpuResults) -> list[str]:
     lines = []
     for r in results.results:
         lines.append(f"fragments-per-second@{r.label} {r.fill_rate:.4g}")
-        lines += [f"{name}@{r.label} {_ratio(r.ratio(name))}" for name, _, _ in OPTIONS]
+        lines += [f"{name}@{r.label} {fmt_ratio(r.ratio(name))}" for name, _, _ in OPTIONS]
         lines += [f"max-difference {name}@{r.label} {r.max_error.get(name, math.nan):.3g}" for name, _, _ in OPTIONS]
-    lines += [f"{name} {_ratio(median([r.ratio(name) for r in results.results]))}" for name, _, _ in OPTIONS]
+    lines += [f"{name} {fmt_ratio(median([r.ratio(name) for r in results.results]))}" for name, _, _ in OPTIONS]
     return lines
-
-
-def _ms(value: float) -> str:
-    if not math.isfinite(value):
-        return "n/a"
-    return f"{value:.2f} ms" if value < 10 else f"{value:.1f} ms" if value < 100 else f"{value:.0f} ms"
-
-
-def _ratio(value: float) -> str:
-    return f"{value:.3f}" if math.isfinite(value) else "nan"
 
 
 def _difference(result: GpuResult, name: str) -> str:
@@ -445,10 +437,10 @@ def format_report(results: GpuResults) -> str:
               "fragments/s | RayGS/GS | draw/floor |",
               "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for r in results.results:
-        lines.append(f"| {r.name} | {r.view} {r.size} | {r.visible:,} / {r.count:,} | {_ms(r.sort_ms)} | "
-                     f"{_ms(r.preprocess_ms)} | {_ms(r.draw_ms)} | {r.rasterized / 1e6:.1f} M | "
-                     f"{r.kept / 1e6:.1f} M | {_rate(r.fill_rate)} | {_ratio(r.raygs_ms / r.gs_ms)} | "
-                     f"{_ratio(r.draw_ms / r.floor_ms)} |")
+        lines.append(f"| {r.name} | {r.view} {r.size} | {r.visible:,} / {r.count:,} | {fmt_ms(r.sort_ms)} | "
+                     f"{fmt_ms(r.preprocess_ms)} | {fmt_ms(r.draw_ms)} | {r.rasterized / 1e6:.1f} M | "
+                     f"{r.kept / 1e6:.1f} M | {_rate(r.fill_rate)} | {fmt_ratio(r.raygs_ms / r.gs_ms)} | "
+                     f"{fmt_ratio(r.draw_ms / r.floor_ms)} |")
     names = [name for name, _, _ in OPTIONS]
     lines += ["", "## Each option against today's path (whole frame, same frames; below 1 is faster)", "",
               "The last column is CPU time the GPU clock does not see: grouping a new order's places by "
@@ -457,9 +449,9 @@ def format_report(results: GpuResults) -> str:
               "| case | view | today | " + " | ".join(names) + " | CPU grouping |",
               "|---|---|---:|" + "---:|" * (len(names) + 1)]
     for r in results.results:
-        lines.append(f"| {r.name} | {r.view} | {_ms(r.frame_ms[TODAY])} | "
-                     + " | ".join(_ratio(r.ratio(name)) for name in names) + f" | {_ms(r.places_ms)} |")
-    lines.append("| **median** | | | " + " | ".join(_ratio(median([r.ratio(n) for r in results.results]))
+        lines.append(f"| {r.name} | {r.view} | {fmt_ms(r.frame_ms[TODAY])} | "
+                     + " | ".join(fmt_ratio(r.ratio(name)) for name in names) + f" | {fmt_ms(r.places_ms)} |")
+    lines.append("| **median** | | | " + " | ".join(fmt_ratio(median([r.ratio(n) for r in results.results]))
                                              for n in names) + " | |")
     lines += ["", "## What each option draws, against today's image (first eye, shown 0..1)", "",
               "PSNR of RGB and the largest difference over RGBA; *identical* where every value is today's to "
@@ -476,10 +468,10 @@ def format_report(results: GpuResults) -> str:
         best = min(names, key=lambda n: r.frame_ms.get(n, math.inf))
         best_ms = r.frame_ms[TODAY] * r.ratio(best)
         today_ms = r.raygs_ms
-        budget = " | ".join(f"{fraction:.2f}× ({_ms(seconds * 1e3)})"
+        budget = " | ".join(f"{fraction:.2f}× ({fmt_ms(seconds * 1e3)})"
                             for _, seconds, fraction in frame_budget(today_ms * 1e-3))
-        lines.append(f"| {r.name} | {r.size} | {_ms(today_ms)} | {best} | {_ms(best_ms)} | {budget} | "
-                     f"{_ms(r.sort_ms)} |")
+        lines.append(f"| {r.name} | {r.size} | {fmt_ms(today_ms)} | {best} | {fmt_ms(best_ms)} | {budget} | "
+                     f"{fmt_ms(r.sort_ms)} |")
     lines += ["", "Budget cells: today's GPU time as a fraction of the refresh's frame time (its frame time).", "",
               "Machine-readable lines (as printed):", "", "```"] + ratio_lines(results) + ["```", ""]
     return "\n".join(lines)

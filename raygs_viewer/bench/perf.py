@@ -51,6 +51,8 @@ import numpy as np
 from raygs_viewer.bench.common import (
     RunOptions,
     count_label,
+    fmt_ms,
+    fmt_ratio,
     gl_context,
     load_scenes,
     median,
@@ -373,26 +375,16 @@ def run_perf(options: PerfOptions, ctx=None, out: TextIO | None = None) -> PerfR
 
 
 def case_line(result: CaseResult) -> str:
-    stages = ", ".join(f"{s} {_ms(result.stages[s])}" for s in STAGES)
+    stages = ", ".join(f"{s} {fmt_ms(result.stages[s])}" for s in STAGES)
     return (f"{result.label}: {result.visible:,} of {result.count:,} visible; {stages}; frame "
-            f"{_ms(result.frame_ms)} ({1000 / result.frame_ms:.1f} fps)")
+            f"{fmt_ms(result.frame_ms)} ({1000 / result.frame_ms:.1f} fps)")
 
 
 def ratio_lines(results: PerfResults) -> list[str]:
     """``NAME@CASE VALUE`` for every case, then ``NAME VALUE`` (the median over cases)."""
-    lines = [f"{name}@{case.label} {_ratio(case.ratios[name])}" for case in results.cases for name in RATIOS]
-    lines += [f"{name} {_ratio(value)}" for name, value in results.summary().items()]
+    lines = [f"{name}@{case.label} {fmt_ratio(case.ratios[name])}" for case in results.cases for name in RATIOS]
+    lines += [f"{name} {fmt_ratio(value)}" for name, value in results.summary().items()]
     return lines
-
-
-def _ms(value: float) -> str:
-    if not math.isfinite(value):
-        return "n/a"
-    return f"{value:.2f} ms" if value < 10 else f"{value:.1f} ms" if value < 100 else f"{value:.0f} ms"
-
-
-def _ratio(value: float) -> str:
-    return f"{value:.3f}" if math.isfinite(value) else "nan"
 
 
 # --- report ---------------------------------------------------------------------------------------
@@ -409,22 +401,22 @@ def format_report(results: PerfResults) -> str:
               "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
     for c in results.cases:
         lines.append(f"| {c.name} | {c.width}×{c.height} | {c.visible:,} / {c.count:,} | "
-                     + " | ".join(_ms(c.stages[s]) for s in STAGES)
-                     + f" | {_ms(c.frame_ms)} | {1000 / c.frame_ms:.1f} | {_ms(c.gpu['preprocess'])}, "
-                       f"{_ms(c.gpu['draw'])} |")
+                     + " | ".join(fmt_ms(c.stages[s]) for s in STAGES)
+                     + f" | {fmt_ms(c.frame_ms)} | {1000 / c.frame_ms:.1f} | {fmt_ms(c.gpu['preprocess'])}, "
+                       f"{fmt_ms(c.gpu['draw'])} |")
     lines += ["", "## Side by side (ms) and ratios", "",
               "| case | size | RayGS pre+draw | GS pre+draw | general pre+draw | floor draw | radix | argsort | "
               + " | ".join(RATIOS) + " |",
               "|---|---|" + "---:|" * (6 + len(RATIOS))]
     for c in results.cases:
         lines.append(f"| {c.name} | {c.width}×{c.height} | "
-                     + " | ".join(_ms(c.other[k]) for k in ("raygs", "gs", "general", "quads", "radix", "argsort"))
-                     + " | " + " | ".join(_ratio(c.ratios[name]) for name in RATIOS) + " |")
+                     + " | ".join(fmt_ms(c.other[k]) for k in ("raygs", "gs", "general", "quads", "radix", "argsort"))
+                     + " | " + " | ".join(fmt_ratio(c.ratios[name]) for name in RATIOS) + " |")
     lines += ["", "## Ratios: median over the cases", "", "| ratio | median | range | target |", "|---|---:|---|---|"]
     for name, value in results.summary().items():
         values = [c.ratios[name] for c in results.cases if math.isfinite(c.ratios[name])]
         spread = f"{min(values):.3f} – {max(values):.3f}" if values else "n/a"
-        lines.append(f"| {name} | {_ratio(value)} | {spread} | {RATIO_TARGETS.get(name, '')} |")
+        lines.append(f"| {name} | {fmt_ratio(value)} | {spread} | {RATIO_TARGETS.get(name, '')} |")
     lines += ["", "Machine-readable lines (as printed):", "", "```"] + ratio_lines(results)[-len(RATIOS):] + ["```", ""]
     return "\n".join(lines)
 
