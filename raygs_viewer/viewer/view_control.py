@@ -11,12 +11,12 @@ from raygs_viewer.camera.navigation import (
     LOOK_RADIANS_PER_PIXEL,
     Navigator,
     Pose,
-    cameras_up,
     framing_pose,
     scene_bounds,
 )
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.camera.stereo import StereoView, composed_size, eye_cameras
+from raygs_viewer.camera.up_axis import cameras_up
 from raygs_viewer.scene.loader import LoadedScene
 from raygs_viewer.viewer.frame import Framing
 from raygs_viewer.viewer.state import NavigationChoices, PanelState
@@ -29,7 +29,7 @@ PANEL_UP = "chosen in the panel"
 
 def start_up(choices: NavigationChoices, cameras: list[Camera]) -> tuple[str, str]:
     """(up axis, where it came from): the one chosen (``choices.up_source``), else the
-    training cameras' (``navigation.cameras_up``), else :data:`DEFAULT_UP`."""
+    training cameras' (``up_axis.cameras_up``), else :data:`DEFAULT_UP`."""
     if choices.up_axis is not None:
         return choices.up_axis, choices.up_source
     derived = cameras_up(cameras)

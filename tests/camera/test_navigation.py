@@ -15,11 +15,11 @@ from raygs_viewer.camera.navigation import (
     UP_AXES,
     Navigator,
     Pose,
-    cameras_up,
     framing_pose,
     scene_bounds,
 )
 from raygs_viewer.camera.pinhole import Camera, frame_points, look_at
+from raygs_viewer.camera.up_axis import cameras_up
 
 W, H = 640, 480
 
