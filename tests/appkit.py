@@ -293,12 +293,17 @@ def split_expected(a: np.ndarray, b: np.ndarray, column: int) -> np.ndarray:
 
 
 def text_past_the_panel(drive: "Driver") -> list[str]:
-    """The lines of text the panel drew last frame that run past its right edge (cut off
-    there); the notes over the view, right of the panel, are not its."""
+    """The text the panel drew last frame that is cut off: lines of text and widgets
+    with their labels (checkboxes, buttons...) that run past its right edge, and
+    progress bars whose label is wider than the bar. The notes over the view, right of
+    the panel, are not its."""
     window = imgui.internal.find_window_by_name(PANEL_NAME)
     left, right = window.pos.x, window.inner_clip_rect.max.x + 0.5
-    return [w.label for w in drive.panel.widgets
-            if w.kind in TEXTS and w.within is None and left <= w.rect[0] < right and w.rect[2] > right]
+    mine = [w for w in drive.panel.widgets if w.within is None and left <= w.rect[0] < right]
+    past = [f"{w.kind}: {w.label}" for w in mine if w.rect[2] > right]
+    padding = 2 * imgui.get_style().frame_padding.x
+    return past + [f"progress_bar: {w.label}" for w in mine if w.kind == "progress_bar"
+                   and imgui.calc_text_size(w.label).x + padding > w.rect[2] - w.rect[0] + 0.5]
 
 
 def click_choice(drive: "Driver", combo: str, entry: str) -> None:

@@ -12,6 +12,15 @@ if os.environ.get("CI"):
 from raygs_viewer.render.gl.context import create_headless_context
 
 
+@pytest.fixture(autouse=True)
+def config_home(tmp_path_factory, monkeypatch):
+    """Each test its own empty config folder: what a window remembers between runs
+    (viewer.remembered) is never read from, nor written into, the user's home."""
+    folder = tmp_path_factory.mktemp("config")
+    monkeypatch.setenv("XDG_CONFIG_HOME", str(folder))
+    return folder
+
+
 @pytest.fixture(scope="session")
 def gl_session_ctx():
     """One headless GL context for the whole session (creating one costs 50-900 ms)."""

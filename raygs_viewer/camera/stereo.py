@@ -156,6 +156,13 @@ def frame_budget(seconds: float) -> list[tuple[int, float, float]]:
     return [(rate, 1.0 / rate, seconds * rate) for rate in REFRESH_RATES]
 
 
+def at_headset_size(seconds: float, drawn: tuple[int, int], headset: tuple[int, int]) -> float:
+    """The GPU time of both eyes at the headset's per-eye size (``headset``: width,
+    height), estimated from ``seconds`` measured at ``drawn``: a frame of splats is
+    bound by fill, and the same view's fill grows with its pixels."""
+    return seconds * (headset[0] * headset[1]) / max(1, drawn[0] * drawn[1])
+
+
 def custom_preset(width: int, height: int, fov_x: float, fov_y: float) -> HeadsetPreset:
     return HeadsetPreset("custom", "custom", width, height, fov_x, fov_y)
 
@@ -173,6 +180,17 @@ def check_layout(layout: str) -> str:
 def composed_size(width: int, height: int, layout: str) -> tuple[int, int]:
     """(width, height) of ``layout``'s image of two width x height eyes."""
     return (2 * width, height) if check_layout(layout) in ("sbs", "cross") else (width, height)
+
+
+def preview_camera(camera: Camera, width: int, height: int, layout: str) -> Camera:
+    """``camera`` (the midpoint at the headset's per-eye size) scaled down, its aspect
+    kept, until ``layout``'s image of two such eyes fits ``width`` x ``height`` pixels:
+    a window previews the eyes at the size it can show, never larger than the headset's."""
+    shown_width, shown_height = composed_size(camera.width, camera.height, layout)
+    scale = min(1.0, width / shown_width, height / shown_height)
+    if scale >= 1.0:
+        return camera
+    return camera.resized(max(1, round(camera.width * scale)), max(1, round(camera.height * scale)))
 
 
 @dataclass(frozen=True)

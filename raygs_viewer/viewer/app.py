@@ -56,7 +56,8 @@ from raygs_viewer.viewer.loading import SceneOpener, scene_title
 from raygs_viewer.viewer.lod_window import first_levels, lod_request, refines, window_fits, window_settings
 from raygs_viewer.viewer.measure import MeasureWidget
 from raygs_viewer.viewer.overlay import draw_split_overlay
-from raygs_viewer.viewer.panel import PANEL_WINDOW, draw_panel
+from raygs_viewer.viewer.layout import view_area
+from raygs_viewer.viewer.panel import draw_panel
 from raygs_viewer.viewer.panel.geometry import draw_geometry_section
 from raygs_viewer.viewer.panel.lod import draw_lod_section
 from raygs_viewer.viewer.panel.measure import draw_measure_section
@@ -71,6 +72,7 @@ from raygs_viewer.viewer.panel.training import draw_training_section
 from raygs_viewer.viewer.panel.view import draw_view_section
 from raygs_viewer.viewer.path_widget import PathWidget
 from raygs_viewer.viewer.photo_view import PhotoCompare, blocked_reason
+from raygs_viewer.viewer.remembered import Remembered
 from raygs_viewer.viewer.pick_tool import PickTool
 from raygs_viewer.viewer.shown_scene import ShownScene
 from raygs_viewer.viewer.screenshots import Captures, Saved, Shot, ShownView, sidecar_extra
@@ -84,6 +86,11 @@ from raygs_viewer.viewer.state import (
 from raygs_viewer.viewer.stats import FrameStats, summary
 from raygs_viewer.viewer.view_control import ViewControl
 from raygs_viewer.viewer.window import Window, choose_platform
+
+
+#: The narrowest strip beside the panel the notes are placed in (screen units); a window
+#: narrower than that shows them over the panel.
+MIN_NOTE_WIDTH = 160.0
 
 
 class Viewer:
@@ -115,7 +122,8 @@ class Viewer:
         self.captures = Captures(replace(options.screenshots))
         self.split = SplitView()
         self.view_mode = ViewMode()
-        self.panel = PanelState()
+        self.remembered = Remembered()
+        self.panel = PanelState(width=self.remembered.panel_width)
         self.stats = FrameStats()
         self.scenes = SceneOpener(self.panel, options.source, window_fits(self.ctx, self.panel))
         self.window.set_drop_callback(self.scenes.drop)
@@ -184,7 +192,8 @@ class Viewer:
         self.settings = opened_settings(self.settings, self.options.settings, loaded)
         # A new scene keeps the user's navigation choices.
         choices = self.options.navigation if self.view is None else self.view.choices()
-        self.view = ViewControl(loaded, start_camera, choices, self.options.width / self.options.height, self.panel)
+        _, _, width, height = self.view_area()
+        self.view = ViewControl(loaded, start_camera, choices, width / height, self.panel)
         self.camera_path.dolly_distance = float(self.view.radius)
         self.window.set_title(f"raygs-viewer — {scene_title(loaded.path)}")
 
@@ -215,7 +224,13 @@ class Viewer:
         return render_view(self.scene.renderer, self.scene.exact_sorter, view, settings)
 
     def reset_view(self) -> None:
-        self.view.reset(self.window.framebuffer_size(), self.shown_stereo)
+        self.view.reset(self.view_area()[2:], self.shown_stereo)
+
+    def view_area(self) -> Viewport:
+        """The part of the window the view is laid out in: beside the panel while it is
+        shown (``layout.view_area``)."""
+        scale = imgui.get_io().display_framebuffer_scale.x or 1.0
+        return view_area(self.window.framebuffer_size(), self.panel.width if self.panel.show_panel else None, scale)
 
     # -- frame -------------------------------------------------------------------------
     def frame(self) -> None:
@@ -243,14 +258,16 @@ class Viewer:
 
         stereo = self.stereo.frame_view(self.shown_stereo, self.panel)
         lod = self.scene.lod_for_frame(self.loaded, self.settings)
-        frame = self.shown = Frame.make(self.frame_index, self.view.camera(width, height, stereo), stereo,
-                                        self.settings, self.right_settings(), lod)
+        framing = self.view.camera(self.view_area(), stereo, self.stereo.headset_size)
+        frame = self.shown = Frame.make(self.frame_index, framing, stereo, self.settings, self.right_settings(), lod)
         # wait_for_sort: only the last frame of a scripted run, whose capture must show the finished view.
         # After a streamed SOG's level arrives: the last order until its first.
         result = self.scene.shown(request_sort(self.scene.sorter, self.stats, frame, self.wait_for_sort))
 
         if self.panel.show_panel:
             draw_panel(self.panel, self._panel_sections())
+            if not imgui.is_mouse_down(0):  # a resize has ended: the next run opens with this width
+                self.remembered.keep(self.panel.width)
         self.overlay_rects = {} if not frame.split else draw_split_overlay(
             frame.viewport, self.split, self.settings, self.input.dragging_divider)
         self.camera_path.draw_overlay(frame, self.view.radius)
@@ -273,13 +290,13 @@ class Viewer:
         self.captures.frame_done(self.save_screenshot, self.panel)
 
     def _draw_feedback(self) -> None:
-        """The notes over the view: at its top left, right of the panel when it is shown."""
-        left, top = 10.0, 10.0
+        """The notes over the view: at its top left, right of the panel when it is shown
+        (over the panel where the window is too narrow to leave room beside it)."""
         width = imgui.get_io().display_size.x
-        panel = imgui.internal.find_window_by_name(PANEL_WINDOW) if self.panel.show_panel else None
-        if panel is not None and panel.active:
-            left = panel.pos.x + panel.size.x + 10.0
-        self.feedback.draw(left, top, width - left - 10.0)
+        left = self.panel.width + 10.0 if self.panel.show_panel else 10.0
+        if width - left < MIN_NOTE_WIDTH:
+            left = 10.0
+        self.feedback.draw(left, 10.0, width - left - 10.0)
 
     def _panel_sections(self) -> list[Callable[[], None]]:
         """Each panel section with the part of the state it edits (read when it is drawn:
@@ -296,11 +313,12 @@ class Viewer:
             lambda: draw_render_section(self.settings, self.set_settings, loaded.scene.sh_degree, renderer.supports,
                                         self.window, self.stereo, self.split, self.panel.note),
             lambda: draw_order_section(self.settings, self.set_settings, stats, self.right_settings() is not None),
-            lambda: draw_stereo_section(self.stereo, stats),
+            lambda: draw_stereo_section(self.stereo, stats, self.shown),
             lambda: draw_view_section(view, self.reset_view),
             lambda: draw_training_section(loaded, view.training_index, view.select_training_camera,
                                           view.step_training_camera, self.photo),
-            lambda: draw_screenshot_section(self.captures.options, self.camera, self.shown_stereo is not None,
+            lambda: draw_screenshot_section(self.captures.options, self.shown and self.shown.full_camera,
+                                            self.shown_stereo is not None,
                                             self.stereo.save_eyes, split_shown, self.captures.request),
             lambda: draw_geometry_section(self.view_mode, self.drawer.view_range, self.picker.last,
                                           self.measure.scale, self.stereo, split_shown),
@@ -325,7 +343,7 @@ class Viewer:
             raise UserError("nothing has been drawn yet")
         self.photo.check_screenshot()
         self.scene.lod.check_screenshot()
-        shown = ShownView(frame.camera, self.settings, self.split if self.right_settings() is not None else None,
+        shown = ShownView(frame.full_camera, self.settings, self.split if self.right_settings() is not None else None,
                           frame.stereo, self.drawer.shown_view, self.drawer.shown_right_view)
         extra = sidecar_extra(self.view.navigator, self.loaded, self.view.training_index,
                               context_description(self.ctx))
@@ -355,6 +373,8 @@ class Viewer:
     def close(self) -> None:
         if self.window is None:
             return
+        if self.panel.show_panel:
+            self.remembered.keep(self.panel.width)
         self.camera_path.close()
         self.scenes.close()
         self.window.make_current()

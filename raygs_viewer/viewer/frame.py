@@ -34,8 +34,9 @@ NO_VIEWPORT: Viewport = (0, 0, 1, 1)
 
 class Framing(NamedTuple):
     """Where a frame looks from (``ViewControl.camera``): the camera (viewport-sized, or
-    in stereo the midpoint between the eyes at the headset's size), where its image is
-    shown, and the eye cameras (None: mono)."""
+    in stereo the midpoint between the eyes at the size previewed: the headset's, or
+    smaller to fit the view area), where its image is shown, and the eye cameras (None:
+    mono)."""
 
     camera: Camera
     viewport: Viewport
@@ -48,8 +49,10 @@ class Frame:
 
     index:      the frame's number (``Viewer.frame_index``).
     camera:     the view drawn: viewport-sized, or in stereo the midpoint between the eyes
-                at the headset's per-eye size (its order is sorted from there).
-    viewport:   where the image is shown in the window.
+                at the per-eye size previewed (its order is sorted from there;
+                :attr:`full_camera` is it at the headset's size).
+    viewport:   where the image is shown in the window: inside the view area
+                (``layout.view_area``), the part of the window the panel leaves.
     eyes:       the eye cameras drawn in stereo (None: mono), made once with ``camera``.
     stereo:     the stereo view (None: the preview is off).
     settings:   the render settings (the left side's in the split view).
@@ -80,6 +83,13 @@ class Frame:
         camera, viewport, eyes = framing
         return cls(index, camera, viewport, eyes, stereo, settings, right, lod,
                    sort_request(camera, settings, right, cull_cameras=eyes, levels=lod))
+
+    @property
+    def full_camera(self) -> Camera:
+        """The view at the size it is saved at: ``camera``, or in stereo the midpoint at
+        the headset's per-eye size (the window may preview the eyes smaller;
+        screenshots and videos take the headset's)."""
+        return self.camera if self.stereo is None else self.stereo.headset.camera(self.camera)
 
     @property
     def split(self) -> bool:

@@ -112,7 +112,7 @@ class PathWidget:
         stereo, the headset's per eye), the render settings (the left side's), the
         stereo view when the preview is on, the scene."""
         frame, loaded = self.host.shown, self.host.loaded
-        width, height = NO_VIEWPORT[2:] if frame is None else (frame.camera.width, frame.camera.height)
+        width, height = NO_VIEWPORT[2:] if frame is None else (frame.full_camera.width, frame.full_camera.height)
         return PathDocument(self.path, width, height, self.host.settings, None if frame is None else frame.stereo,
                             scene_argument(loaded), loaded.content_sha256,
                             scene_axes=loaded.scene.axes)  # a .spz's: render-path reads it in the same axes

@@ -28,6 +28,7 @@ from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.channel_pictures import ALPHA_THRESHOLD, ChannelView
 from raygs_viewer.render.settings import RenderSettings, apply_preset
 from raygs_viewer.scene.source import SceneSource
+from raygs_viewer.viewer.layout import PANEL_WIDTH
 
 #: The right side's preset when the split view is first switched on.
 DEFAULT_SPLIT_PRESET = "GS"
@@ -61,7 +62,9 @@ class StereoPreview:
     "custom", then custom_size ([width, height] per eye) and custom_fov ([horizontal,
     vertical] degrees) describe it. save_eyes: stereo screenshots also save each eye.
     converge_on_pick: a double-click on the preview sets the convergence to the picked
-    point's depth (instead of aiming the view at it).
+    point's depth (instead of aiming the view at it). headset_size: the window draws
+    each eye at the headset's per-eye size (shrunk to show it) instead of at the size
+    the view area can show; screenshots and videos take the headset's size either way.
 
     ViewerOptions holds the start value; the panel edits the viewer's copy."""
 
@@ -74,6 +77,7 @@ class StereoPreview:
     custom_fov: list[float] = field(default_factory=lambda: [CUSTOM_START.fov_x, CUSTOM_START.fov_y])
     save_eyes: bool = False
     converge_on_pick: bool = False
+    headset_size: bool = False
 
     def __post_init__(self) -> None:
         check_layout(self.layout)
@@ -186,14 +190,16 @@ class NavigationChoices:
 
 @dataclass
 class PanelState:
-    """The panel's own state: whether it is shown, the path typed into it, and its two
-    lines: message and error.
+    """The panel's own state: whether it is shown, its width as last drawn (screen
+    units; the user resizes it), the path typed into it, and its two lines: message
+    and error.
 
     An error of a condition that may mend (settings the GPU cannot draw, a custom
     headset out of range) is *standing*: it goes when its source mends, unless another
     error has replaced it meanwhile."""
 
     show_panel: bool = True
+    width: float = PANEL_WIDTH
     open_path: str = ""
     message: str = ""
     error: str = ""

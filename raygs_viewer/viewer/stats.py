@@ -25,6 +25,9 @@ class FrameStats:
     """Times in seconds."""
 
     all_frame_times: deque = field(default_factory=lambda: deque(maxlen=10000))
+    #: The times of the last 60 frames that drew the scene again (a still view's frames
+    #: reuse the image and take a fraction of it).
+    redraw_times: deque = field(default_factory=lambda: deque(maxlen=60))
     all_sort_times: deque = field(default_factory=lambda: deque(maxlen=10000))
     sort_seconds: float = float("nan")
     gpu_seconds: float = float("nan")     # the scene's draw: both sides in the split view, both eyes in stereo
@@ -46,6 +49,7 @@ class FrameStats:
     #: side of the split view); None for a side drawn in a global order (stereo: one eye's).
     order_stats: tuple[OrderStats | None, OrderStats | None] = (None, None)
     last_time: float | None = None   # time.perf_counter() at the start of the last frame
+    draws_at_last_tick: int = 0
 
     @property
     def recent_frame_times(self) -> list[float]:
@@ -61,6 +65,11 @@ class FrameStats:
         recent = self.recent_frame_times
         return 1000 * float(np.median(recent)) if recent else float("nan")
 
+    @property
+    def redraw_ms(self) -> float:
+        """The median time of the last 60 frames that drew the scene again."""
+        return 1000 * float(np.median(self.redraw_times)) if self.redraw_times else float("nan")
+
     def tick(self, fixed_dt: float | None = None) -> float:
         """Starts a frame: records the time since the last one and returns the frame
         time to move by (``fixed_dt`` when given; at most the navigator's MAX_DT; 0 for the first)."""
@@ -68,6 +77,9 @@ class FrameStats:
         last, self.last_time = self.last_time, now
         if last is not None:
             self.all_frame_times.append(now - last)
+            if self.draws > self.draws_at_last_tick:
+                self.redraw_times.append(now - last)
+        self.draws_at_last_tick = self.draws
         if fixed_dt is not None:
             return fixed_dt
         return min(now - last, MAX_DT) if last is not None else 0.0

@@ -15,8 +15,9 @@ from raygs_viewer.camera.navigation import (
     scene_bounds,
 )
 from raygs_viewer.camera.pinhole import Camera
-from raygs_viewer.camera.stereo import StereoView, composed_size, eye_cameras
+from raygs_viewer.camera.stereo import StereoView, composed_size, eye_cameras, preview_camera
 from raygs_viewer.camera.up_axis import cameras_up
+from raygs_viewer.render.gl.mono_frame import Viewport
 from raygs_viewer.scene.loader import LoadedScene
 from raygs_viewer.viewer.frame import Framing
 from raygs_viewer.viewer.state import NavigationChoices, PanelState
@@ -104,8 +105,8 @@ class ViewControl:
         self.lens = self.lens.with_fov(fov_y_degrees)
 
     def reset(self, window: tuple[int, int], stereo: StereoView | None) -> None:
-        """Frames the scene again with a free lens of the same field of view, for a
-        ``window`` of that (width, height) (none yet: of the aspect the view was made
+        """Frames the scene again with a free lens of the same field of view, for a view
+        area of ``window`` = (width, height) (none yet: of the aspect the view was made
         for), or for the eyes of ``stereo``'s headset."""
         self.set_fov(self.lens.fov_y_degrees)
         fov, (width, height) = self.lens.fov_y_degrees, window
@@ -125,14 +126,21 @@ class ViewControl:
             self.navigator.set_mode("orbit")
         self.navigator.rotate(math.radians(turntable) / LOOK_RADIANS_PER_PIXEL, 0.0)
 
-    def camera(self, width: int, height: int, stereo: StereoView | None) -> Framing:
-        """Where a width x height framebuffer's frame looks from: the viewport-sized
-        camera, or in stereo the midpoint between the eyes at the headset's per-eye size
-        and field of view, its composed image letterboxed, and the eye cameras (made here
-        only: the frame's sort culls for them and the stereo frame draws them)."""
-        camera = self.lens.camera(self.navigator.pose, width, height)
+    def camera(self, area: Viewport, stereo: StereoView | None, headset_size: bool = False) -> Framing:
+        """Where a frame shown in ``area`` (the view area: x, y, w, h of the window's
+        framebuffer, from the top-left) looks from: the camera of the lens's viewport in
+        it, or in stereo the midpoint between the eyes at the headset's field of view and
+        at the size the area can show both (``stereo.preview_camera``; ``headset_size``:
+        at the headset's own per-eye size), the composed image letterboxed in the area;
+        and the eye cameras (made here only: the frame's sort culls for them and the
+        stereo frame draws them)."""
+        ax, ay, width, height = area
         if stereo is None:
-            return Framing(camera, self.lens.viewport(width, height), None)
-        camera = stereo.headset.camera(camera)
+            x, y, w, h = self.lens.viewport(width, height)
+            return Framing(self.lens.camera(self.navigator.pose, width, height), (ax + x, ay + y, w, h), None)
+        camera = stereo.headset.camera(self.lens.camera(self.navigator.pose, width, height))
+        if not headset_size:
+            camera = preview_camera(camera, width, height, stereo.layout)
         shown_width, shown_height = composed_size(camera.width, camera.height, stereo.layout)
-        return Framing(camera, letterbox(width, height, shown_width / shown_height), eye_cameras(camera, stereo.rig))
+        x, y, w, h = letterbox(width, height, shown_width / shown_height)
+        return Framing(camera, (ax + x, ay + y, w, h), eye_cameras(camera, stereo.rig))

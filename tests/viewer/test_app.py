@@ -463,9 +463,10 @@ def test_split_view_screenshot_saves_each_side_with_its_sidecar(open_viewer, tmp
     assert sorted(p.name for p in folder.iterdir()) == sorted(p.name for pair in saved for p in pair)
     for png, sidecar in saved:
         assert sidecar == png.with_suffix(".json") and str(png) in viewer.panel.message
+    _, _, view_width, view_height = viewer.viewport
     for (png, sidecar), side, settings in zip(saved, ("left", "right"), (a, b)):
         shot = np.asarray(Image.open(png)).astype(int)
-        assert shot.shape == (PANEL_HEIGHT, PANEL_WIDTH, 3)  # the whole view, not half of it
+        assert shot.shape == (view_height, view_width, 3)  # the whole view, not half of it
         assert np.abs(shot - expected[side]).max() <= 1
         loaded = load_sidecar(sidecar)
         assert loaded.settings == settings and loaded.render_mode == settings.mode
@@ -495,9 +496,11 @@ def test_f12_screenshot_with_sidecar_reproduces_headlessly(open_viewer, tmp_path
     png, sidecar = viewer.captures.last
     assert png.parent == tmp_path / "shots" and sidecar == png.with_suffix(".json")
     shot = np.asarray(Image.open(png))
-    assert shot.shape == (PANEL_HEIGHT, PANEL_WIDTH, 3)
+    x, y, w, h = viewer.viewport  # the view beside the panel
+    assert (x, y, w, h) == (round(viewer.panel.width), 0, PANEL_WIDTH - round(viewer.panel.width), PANEL_HEIGHT)
+    assert shot.shape == (h, w, 3)
     info = json.loads(sidecar.read_text())
-    assert info["camera"]["width"] == PANEL_WIDTH and info["scene"]["path"] == "demo"
+    assert info["camera"]["width"] == w and info["scene"]["path"] == "demo"
     assert info["settings"]["p_min"] == viewer.settings.p_min
     # The scene alone: equal to the headless render of the window's camera.
     from raygs_viewer.capture.image_io import to_rgb8
@@ -521,7 +524,8 @@ def test_panel_button_saves_at_the_chosen_scale(open_viewer):
     viewer.captures.options.scale = 2.0
     drive.click("Save screenshot (F12)")
     png, sidecar = viewer.captures.last
-    assert Image.open(png).size == (2 * PANEL_WIDTH, 2 * PANEL_HEIGHT)
+    _, _, w, h = viewer.viewport
+    assert Image.open(png).size == (2 * w, 2 * h)
     assert json.loads(sidecar.read_text())["image"]["scale"] == 2.0
 
 
@@ -745,15 +749,15 @@ def test_scripted_run_saves_the_last_frame(restore_gl_ctx, tmp_path, capsys):
     assert status == 0
     # Two frames are too few for the background sort on its own: the last frame of a
     # scripted run waits for its view's order, so right of the panel the window shows
-    # the finished scene, the same as the screenshot.
+    # the finished scene, the same as the screenshot: the 4:3 camera letterboxed in the
+    # 280 x 480 view beside the 360-wide panel.
     scene, whole = (np.asarray(Image.open(p)).astype(int) for p in (shot, window))
-    assert whole.shape == scene.shape == (480, 640, 3)
-    right = slice(400, 640)
-    assert scene[:, right].std() > 10  # there is something to see there
-    assert np.abs(whole[:, right] - scene[:, right]).max() <= 1
+    assert whole.shape == (480, 640, 3) and scene.shape == (210, 280, 3)
+    assert scene.std() > 10  # there is something to see there
+    assert np.abs(whole[135:345, 360:] - scene).max() <= 1
     sidecar = json.loads(shot.with_suffix(".json").read_text())
     assert sidecar["camera"]["position"] == pytest.approx(demo_cameras()[2].center.tolist())
-    assert Image.open(shot).size == (640, 480)
+    assert Image.open(shot).size == (280, 210)
     # an existing screenshot is never overwritten: refused before the window opens
     assert main(["view", "--frames", "1", "--screenshot", str(shot), "--window-platform", "null"]) == 2
     assert "already exists" in capsys.readouterr().err
@@ -791,16 +795,21 @@ def test_window_shows_the_image_letterboxed_and_the_panel_on_top(open_viewer, tm
     outside[y:y + h, x:x + w] = False
     assert outside.any() and np.abs(window[outside] - grey).max() <= 1
 
+    # With the panel the letterbox is laid out in what the panel leaves: none of it under the panel.
     viewer.panel.show_panel = True
-    viewer.captures.keep_window = True
-    drive.frames(2)
+    drive.settle()
     viewer.captures.keep_window = True
     drive.frames(1)
     with_panel = viewer.captures.window.astype(int)
+    x, y, w, h = viewer.viewport
+    panel = round(viewer.panel.width)
+    area = PANEL_WIDTH - panel
+    # 280 x 800 beside the panel: both cameras are as wide as it, with bars above and below.
+    assert (x, w) == (panel, area) and abs(h - area * height / width) <= 1 and y == (PANEL_HEIGHT - h) // 2
+    scene = to_rgb8(window_image(viewer)).astype(int)
+    assert np.abs(with_panel[y:y + h, x:x + w] - scene).max() <= 1
     x0, y0, x1, y1 = (int(v) for v in drive.panel.rect("Reset view (R)"))
-    assert np.abs(with_panel[y0:y1, x0:x1] - window[y0:y1, x0:x1]).max() > 50  # the panel is drawn
-    right = 400  # the panel is 360 wide, at x = 10
-    assert np.abs(with_panel[:, right:] - window[:, right:]).max() <= 1  # and not over the rest
+    assert x1 <= panel and np.abs(with_panel[y0:y1, x0:x1] - window[y0:y1, x0:x1]).max() > 50  # the panel is drawn
     # A screenshot shows the scene alone.
     drive.tap(imgui.Key.f12)
     shot = np.asarray(Image.open(viewer.captures.last[0])).astype(int)

@@ -546,8 +546,9 @@ def test_tab_switches_navigation_with_the_panel_open_and_the_keys_keep_steering(
                                               else {"fly": "orbit", "orbit": "fly"}[mode])
     assert_w_moves_at_default_speed(viewer, drive)
     drive.tap(imgui.Key.r)
+    _, _, w, h = viewer.viewport  # framed for the view beside the panel
     expected = framing_pose(viewer.view.center, viewer.view.radius, viewer.view.navigator.up,
-                            viewer.view.lens.fov_y_degrees, PANEL_WIDTH / PANEL_HEIGHT)
+                            viewer.view.lens.fov_y_degrees, w / h)
     np.testing.assert_allclose(viewer.camera.R, expected.R, atol=1e-12)
     np.testing.assert_allclose(viewer.camera.center, expected.position, atol=1e-9 * viewer.view.radius)
     assert viewer.settings == settings_before and viewer.panel.open_path == open_path

@@ -39,12 +39,13 @@ EYE = custom_preset(96, 72, 90.0, 72.0)
 
 
 def stereo_viewer(open_viewer, layout="sbs", width=None, height=None, rig=StereoRig(), lens_preview=False,
-                  save_eyes=False, **options):
+                  save_eyes=False, headset_size=False, **options):
     """A viewer in the stereo preview with the small EYE headset, the window sized so
     that the composed image is shown 1:1 (unless width/height say otherwise)."""
     shown_width = EYE.width * (2 if layout in ("sbs", "cross") else 1)
     options.setdefault("hide_panel", True)
-    stereo = StereoPreview.of(EYE, on=True, layout=layout, rig=rig, lens_preview=lens_preview, save_eyes=save_eyes)
+    stereo = StereoPreview.of(EYE, on=True, layout=layout, rig=rig, lens_preview=lens_preview, save_eyes=save_eyes,
+                              headset_size=headset_size)
     return open_viewer(width=width or shown_width, height=height or EYE.height, stereo=stereo, **options)
 
 
@@ -88,9 +89,9 @@ def test_each_layout_shows_the_headless_eyes_where_they_belong(open_viewer, layo
 
 
 def test_a_pair_larger_than_the_window_is_box_filtered_into_it(open_viewer):
-    # The sbs pair is 192 x 72; the window has half of that each way: each window pixel
-    # is the mean of a 2 x 2 block.
-    viewer, drive = stereo_viewer(open_viewer, "sbs", width=EYE.width, height=EYE.height // 2)
+    # At the headset's size the sbs pair is 192 x 72; the window has half of that each
+    # way: each window pixel is the mean of a 2 x 2 block.
+    viewer, drive = stereo_viewer(open_viewer, "sbs", width=EYE.width, height=EYE.height // 2, headset_size=True)
     drive.settle()
     assert viewer.viewport == (0, 0, EYE.width, EYE.height // 2)
     image = np.clip(composed(viewer)[..., :3], 0.0, 1.0)
@@ -156,10 +157,57 @@ def test_lens_preview_in_the_window_is_the_lens_pass_of_each_eye(open_viewer):
     assert np.all(image[0, 0, :3] == 0) and np.all(image[-1, -1, :3] == 0)  # the corners are black
 
 
+def test_the_preview_draws_the_eyes_at_the_size_the_view_area_shows(open_viewer, tmp_path):
+    """A Quest 3's eyes (2064 x 2208 each) in a window with the panel open: each eye is
+    drawn at the size the view beside the panel shows, its aspect and field of view kept,
+    and both lie whole right of the panel; F12 still saves the headset's size."""
+    preset = PRESETS["quest3"]
+    viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT, stereo=StereoPreview.of(preset, on=True))
+    drive.settle()
+    x, y, w, h = viewer.viewport
+    panel = round(viewer.panel.width)
+    assert x >= panel and x + w <= PANEL_WIDTH and y >= 0 and y + h <= PANEL_HEIGHT  # both eyes beside the panel
+    camera = viewer.camera
+    assert camera.width == (PANEL_WIDTH - panel) // 2 and (w, h) == (2 * camera.width, camera.height)
+    assert abs(camera.height - camera.width * preset.height / preset.width) <= 1  # the headset's aspect
+    full = viewer.shown.full_camera
+    assert (full.width, full.height) == (preset.width, preset.height)
+    assert camera.fx / camera.width == pytest.approx(full.fx / full.width)  # its field of view
+    assert eye_sizes(viewer) == [(camera.width, camera.height)] * 2
+    left, right = headless_eyes(viewer)
+    assert_matches(composed(viewer), compose(left, right, "sbs"))
+    assert np.abs(presented(viewer) - to_rgb8(compose(left, right, "sbs")).astype(int)).max() <= 1  # shown 1:1
+    # The headset's own size on request, shrunk into the same place.
+    viewer.stereo.headset_size = True
+    drive.settle()
+    assert (viewer.camera.width, viewer.camera.height) == (preset.width, preset.height)
+    assert viewer.viewport[2] == 2 * camera.width
+    viewer.stereo.headset_size = False
+    drive.settle()
+    # Hiding the panel gives the eyes the whole window.
+    viewer.panel.show_panel = False
+    drive.settle()
+    assert viewer.camera.width == PANEL_WIDTH // 2 and viewer.viewport[0] == 0
+    viewer.panel.show_panel = True
+    drive.settle()
+
+
+def test_screenshots_and_paths_take_the_headsets_size_whatever_the_preview(open_viewer, tmp_path):
+    viewer, drive = stereo_viewer(open_viewer, "sbs", width=EYE.width, height=EYE.height // 2)
+    drive.settle()
+    assert (viewer.camera.width, viewer.camera.height) == (EYE.width // 2, EYE.height // 2)  # previewed at half
+    png, sidecar = viewer.save_screenshot()
+    assert Image.open(png).size == (2 * EYE.width, EYE.height)
+    assert json.loads(sidecar.read_text())["camera"]["width"] == EYE.width
+    document = viewer.camera_path.document()
+    assert (document.width, document.height) == (EYE.width, EYE.height)
+
+
 @pytest.mark.parametrize("name", sorted(PRESETS))
 def test_each_preset_renders_each_eye_at_its_resolution(open_viewer, name):
     preset = PRESETS[name]
-    viewer, drive = open_viewer(width=320, height=180, hide_panel=True, stereo=StereoPreview.of(preset, on=True))
+    viewer, drive = open_viewer(width=320, height=180, hide_panel=True,
+                                stereo=StereoPreview.of(preset, on=True, headset_size=True))
     drive.frames(2)
     assert viewer.stereo.headset_preset() == preset and viewer.stereo.view().headset == preset
     assert (viewer.camera.width, viewer.camera.height) == (preset.width, preset.height)
@@ -187,12 +235,13 @@ def test_panel_toggles_stereo_picks_a_layout_and_a_headset(open_viewer):
     index = PRESETS["index"]  # the entry shows the preset's label, eye size and field of view
     click_choice(drive, "headset", f"{index.label}: {index.width}x{index.height}, {index.fov_x:g}x{index.fov_y:g} deg")
     drive.frames(1)
-    assert viewer.stereo.headset_preset() == PRESETS["index"] and viewer.camera.width == PRESETS["index"].width
-    # Off again: the mono view of the window.
+    assert viewer.stereo.headset_preset() == PRESETS["index"]
+    assert viewer.shown.full_camera.width == PRESETS["index"].width
+    # Off again: the mono view of the window, beside the panel.
     drive.click("stereo")
     drive.settle()
     assert not viewer.stereo.on and viewer.shown_stereo is None
-    assert viewer.camera.width == PANEL_WIDTH
+    assert viewer.camera.width == PANEL_WIDTH - round(viewer.panel.width)
     assert_matches(window_image(viewer), headless(viewer))
 
 
@@ -224,6 +273,28 @@ def test_frame_budget_meter_reports_both_eyes_against_each_rate(open_viewer):
     viewer.drawer.post_timer.flush()
     assert viewer.stats.draws > draws
     assert len(viewer.drawer.timer.history) == len(viewer.drawer.post_timer.history) == viewer.stats.draws
+
+
+def test_the_budget_meter_says_what_it_timed_and_estimates_the_headsets_frame(open_viewer):
+    quest = PRESETS["quest3"]
+    viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT, stereo=StereoPreview.of(quest, on=True))
+    drive.settle()
+    drive.frames(2)
+    camera, seconds = viewer.camera, viewer.stats.gpu_seconds
+    texts = drive.panel.labels("text")
+    assert f"both eyes at {camera.width}x{camera.height}: {seconds * 1000:6.2f} ms" in texts
+    estimate = seconds * quest.width * quest.height / (camera.width * camera.height)
+    assert f"at {quest.width}x{quest.height}: ~{estimate * 1000:6.2f} ms (est.)" in texts
+    bars = drive.panel.labels("progress_bar")
+    fraction = estimate * 72
+    assert bars[0] == "72 Hz (13.9 ms): " + (f"{fraction:.1f}x over" if fraction > 1 else f"{fraction * 100:.0f} %")
+    # At the headset's size the time is measured, and nothing is estimated.
+    viewer.stereo.headset_size = True
+    drive.settle()
+    drive.frames(2)
+    texts = drive.panel.labels("text")
+    assert f"both eyes at {quest.width}x{quest.height}: {viewer.stats.gpu_seconds * 1000:6.2f} ms" in texts
+    assert not any(text.endswith("(est.)") for text in texts)
 
 
 def test_stereo_screenshot_saves_the_pair_and_each_eye_reproducibly(open_viewer, tmp_path):

@@ -3,7 +3,11 @@ draws ends inside its window (long ones wrap), in the states that make the longe
 
 from __future__ import annotations
 
+import pytest
 from appkit import PANEL_HEIGHT, PANEL_WIDTH, text_past_the_panel
+
+from raygs_viewer.viewer.layout import MIN_PANEL_WIDTH
+from raygs_viewer.viewer.panel.widgets import labelled_progress
 
 
 def test_no_panel_text_runs_past_the_panel(open_viewer):
@@ -23,3 +27,25 @@ def test_no_panel_text_runs_past_the_panel(open_viewer):
     assert cut == [], "\n".join(cut)
     drive.button(0, False)
     drive.frames(1)
+
+
+@pytest.mark.parametrize("mode", ["stereo", "split"])
+def test_nothing_is_cut_in_every_section_of_the_narrowest_panel(open_viewer, mode):
+    viewer, drive = open_viewer(width=PANEL_WIDTH, height=3 * PANEL_HEIGHT)
+    viewer.panel.width = MIN_PANEL_WIDTH  # the width it opens with (remembered)
+    viewer.stereo.on = mode == "stereo"
+    viewer.split.on = mode == "split"
+    viewer.measure.on = True
+    drive.frames(2)
+    for closed in ("Measure", "Training cameras (6)###training"):
+        drive.click(closed)
+    # A progress bar with a load's longest stage, as the Scene and Level of detail sections show one.
+    sections = viewer._panel_sections
+    viewer._panel_sections = lambda: sections() + [
+        lambda: labelled_progress(0.25, "reading level 3 of 5: 1,234,567 of 2,345,678 gaussians")]
+    drive.frames(3)
+    assert viewer.panel.width == MIN_PANEL_WIDTH
+    assert "replace file##measure" in drive.panel and ("Stereo" in drive.panel or mode != "stereo")
+    assert "25 %" in drive.panel.labels("progress_bar")  # the label above the bar, which says how far
+    cut = text_past_the_panel(drive)
+    assert cut == [], "\n".join(cut)

@@ -15,6 +15,7 @@ from typing import Callable, Sequence
 
 from imgui_bundle import imgui
 
+from raygs_viewer.viewer.layout import panel_width_limits
 from raygs_viewer.viewer.state import PanelState
 
 
@@ -34,12 +35,17 @@ def draw_panel(panel: PanelState, sections: Sequence[Callable[[], None]]) -> Non
 
 
 def _window(panel: PanelState, sections: Sequence[Callable[[], None]]) -> None:
-    imgui.set_next_window_pos((10, 10), imgui.Cond_.first_use_ever.value)
-    imgui.set_next_window_size((360, 0), imgui.Cond_.first_use_ever.value)
-    # Never taller than the window: a short window scrolls the panel instead of cutting it off.
+    # Down the window's left edge, its whole height (a short window scrolls the panel
+    # instead of cutting it off); the user resizes its width, which the view area
+    # (layout.view_area) follows from the next frame on.
     display = imgui.get_io().display_size
-    imgui.set_next_window_size_constraints((0, 0), (1e9, max(display.y - 20, 100)))
-    visible, _ = imgui.begin(PANEL_WINDOW, None)
+    narrowest, widest = panel_width_limits(display.x)
+    imgui.set_next_window_pos((0, 0), imgui.Cond_.always.value)
+    imgui.set_next_window_size((panel.width, display.y), imgui.Cond_.appearing.value)
+    imgui.set_next_window_size_constraints((narrowest, display.y), (widest, display.y))
+    flags = imgui.WindowFlags_.no_move.value | imgui.WindowFlags_.no_collapse.value
+    visible, _ = imgui.begin(PANEL_WINDOW, None, flags)
+    panel.width = imgui.get_window_width()
     if not visible:
         imgui.end()
         return

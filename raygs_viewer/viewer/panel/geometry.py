@@ -13,7 +13,7 @@ from imgui_bundle import imgui
 from raygs_viewer.capture.measure_file import MeasureScale
 from raygs_viewer.render.channels import NORMAL_SPACES
 from raygs_viewer.viewer.measure import format_distance
-from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, slider, tooltip
+from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, line, note, slider, tooltip
 from raygs_viewer.viewer.picking import Picked
 from raygs_viewer.viewer.state import VIEW_SIDES, StereoPreview, ViewMode
 
@@ -46,7 +46,7 @@ def draw_geometry_section(mode: ViewMode, range_in_use: tuple[float, float] | No
     if mode.channel in ("depth", "median_depth"):
         _depth_range(mode, range_in_use)
     elif mode.channel == "normal":
-        imgui.text("normals in")
+        line("normals in")
         for space in NORMAL_SPACES:
             imgui.same_line()
             if imgui.radio_button(f"{space}##normals", mode.normal_space == space):
@@ -56,11 +56,11 @@ def draw_geometry_section(mode: ViewMode, range_in_use: tuple[float, float] | No
                                            help_text="in the stereo preview, a double-click sets the convergence "
                                                      "to the picked point's depth instead of aiming the view")
     if picked is None:
-        imgui.text_disabled("double-click the view to pick a point")
+        note("double-click the view to pick a point")
     else:
         x, y, z = picked.point
-        imgui.text(f"picked ({x:.4g}, {y:.4g}, {z:.4g})")
-        imgui.text(f"distance from the camera {format_distance(picked.distance, scale)}")
+        line(f"picked ({x:.4g}, {y:.4g}, {z:.4g})")
+        line(f"distance from the camera {format_distance(picked.distance, scale)}")
     tooltip(PICK_HELP)
 
 
@@ -89,6 +89,6 @@ def _depth_range(mode: ViewMode, range_in_use: tuple[float, float] | None) -> No
         mode.far = far
     imgui.end_disabled()
     if range_in_use is None:
-        imgui.text_disabled("range in use: none (nothing has a depth)")
+        note("range in use: none (nothing has a depth)")
     else:
-        imgui.text(f"range in use: {range_in_use[0]:.4g} to {range_in_use[1]:.4g} units")
+        line(f"range in use: {range_in_use[0]:.4g} to {range_in_use[1]:.4g} units")

@@ -18,7 +18,7 @@ from raygs_viewer.scene.loader import LoadedScene, SceneLoader
 from raygs_viewer.scene.lod_file import LodScene
 from raygs_viewer.sort.lod_choice import LodChoice, automatic_distance, level_distances
 from raygs_viewer.viewer.lod_window import DEFAULT_WINDOW_BUDGET, LEVEL_COLOURS, WindowLod, reading
-from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, slider, tooltip
+from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, labelled_progress, line, slider, tooltip
 from raygs_viewer.viewer.stats import FrameStats, order_freshness
 
 PER_VIEW = "view"
@@ -65,11 +65,11 @@ def draw_lod_section(window: WindowLod, loaded: LoadedScene, loader: SceneLoader
 
 def _draw_reading(lod: LodScene, reading: bool, loader: SceneLoader) -> None:
     read = ", ".join(str(level) for level in np.flatnonzero(lod.loaded)[::-1])
-    imgui.text(f"levels read: {read} of 0..{lod.levels - 1} (0 the finest)")
+    line(f"levels read: {read} of 0..{lod.levels - 1} (0 the finest)")
     tooltip(f"gaussians per level: {', '.join(f'{level}: {n:,}' for level, n in enumerate(lod.index.counts))}"
             + (f"; environment {lod.environment[1]:,}" if lod.environment[1] else ""))
     if reading:
-        imgui.progress_bar(loader.progress, (-1, 0), f"reading finer levels: {loader.stage}")
+        labelled_progress(loader.progress, f"reading finer levels: {loader.stage}")
     if lod.unread:
         imgui.push_style_color(imgui.Col_.text.value, WARNING_COLOUR)
         imgui.text_wrapped(lod.unread)
@@ -101,7 +101,7 @@ def _edit_distance(lod: LodScene, settings: RenderSettings) -> RenderSettings:
         if value is not None and value > 0:
             settings = replace(settings, lod_distance=float(value))
     begins = level_distances(lod, settings.lod_distance)
-    imgui.text("levels begin at " + (", ".join(f"{level + 1}: {d:.3g}" for level, d in enumerate(begins)) or "-"))
+    line("levels begin at " + (", ".join(f"{level + 1}: {d:.3g}" for level, d in enumerate(begins)) or "-"))
     return settings
 
 
@@ -129,17 +129,17 @@ def _draw_legend(levels: int) -> None:
 
 def _draw_choice(drawn: LodChoice | None, lod: LodScene, settings: RenderSettings, stats: FrameStats) -> None:
     if drawn is None:
-        imgui.text("drawn: waiting for the first sort")
+        line("drawn: waiting for the first sort")
         return
     budget = settings.lod_budget if settings.lod is None else None
-    imgui.text(f"drawn {drawn.count:,} gaussians" + ("" if budget is None else f" of a budget of {budget:,}"))
+    line(f"drawn {drawn.count:,} gaussians" + ("" if budget is None else f" of a budget of {budget:,}"))
     tooltip("the gaussians of the levels chosen for the view (and the environment), before the cull")
     per_level = drawn.per_level(lod.levels)
-    imgui.text("parts at each level: " + ", ".join(f"{level}: {n}" for level, n in enumerate(per_level)))
+    line("parts at each level: " + ", ".join(f"{level}: {n}" for level, n in enumerate(per_level)))
     if drawn.over_budget:
         imgui.push_style_color(imgui.Col_.text.value, WARNING_COLOUR)
         imgui.text_wrapped("the budget is below the coarsest level: the parts in view draw their coarsest")
         imgui.pop_style_color()
-    imgui.text(f"choice {order_freshness(stats, short=True)}")
+    line(f"choice {order_freshness(stats, short=True)}")
     tooltip(f"choice {order_freshness(stats)}")
     tooltip("made with the order, on the sort thread, for the view it was sorted for")

@@ -12,7 +12,7 @@ import math
 from imgui_bundle import imgui
 
 from raygs_viewer.viewer.measure import MeasureWidget
-from raygs_viewer.viewer.panel.widgets import button, checkbox, header, tooltip
+from raygs_viewer.viewer.panel.widgets import button, button_width, checkbox, header, line, note, tooltip
 
 LIST_ROWS = 5
 
@@ -25,7 +25,7 @@ def draw_measure_section(widget: MeasureWidget) -> None:
                                    "median depth); a double-click does not move the view while this is on")
     if widget.on:
         imgui.same_line()
-        imgui.text_disabled("second point next" if widget.pending is not None else "click a point")
+        note("second point next" if widget.pending is not None else "click a point")
     _list(widget)
     _scale(widget)
     _files(widget)
@@ -39,7 +39,7 @@ def _list(widget: MeasureWidget) -> None:
             if imgui.selectable(f"{i}: {widget.describe(i)}##measurement{i}", widget.selected == i)[0]:
                 widget.selected = i
         if not count:
-            imgui.text_disabled("no measurements: tick measure and click two points")
+            note("no measurements: tick measure and click two points")
         imgui.end_list_box()
     if button("Delete##measurement", widget.selected is not None):
         widget.delete(widget.selected)
@@ -65,17 +65,17 @@ def _scale(widget: MeasureWidget) -> None:
     tooltip("the selected measurement is this long: every distance is shown converted")
     scale = widget.scale
     if scale is None:
-        imgui.text_disabled("distances in scene units")
+        note("distances in scene units")
         return
     source = "" if scale.reference is None else f" (from {scale.reference})"
-    imgui.text(f"1 scene unit = {scale.factor:.6g} {scale.unit}{source}")
+    line(f"1 scene unit = {scale.factor:.6g} {scale.unit}{source}")
     imgui.same_line()
     if imgui.small_button("no scale"):
         widget.clear_scale()
 
 
 def _files(widget: MeasureWidget) -> None:
-    imgui.set_next_item_width(-190)
+    imgui.set_next_item_width(-button_width("Save") - button_width("Load"))
     _, widget.file = imgui.input_text_with_hint("##measure file", "measurements.json", widget.file)
     imgui.same_line()
     imgui.begin_disabled(not widget.measurements)
@@ -85,6 +85,5 @@ def _files(widget: MeasureWidget) -> None:
     imgui.same_line()
     if imgui.button("Load##measure"):
         widget.load()
-    imgui.same_line()
     widget.overwrite = checkbox("replace file##measure", widget.overwrite,
                                 help_text="let Save replace an existing file")

@@ -23,7 +23,7 @@ from raygs_viewer.render.settings import (
     ORDERS,
     RenderSettings,
 )
-from raygs_viewer.viewer.panel.widgets import choice, header, tooltip
+from raygs_viewer.viewer.panel.widgets import choice, header, line, note, tooltip
 from raygs_viewer.viewer.stats import FrameStats, order_stats_lines
 
 PER_PIXEL_NEEDS_RAYGS = "per pixel needs a RayGS mode: EWA splats have no ray parameter to sort by"
@@ -75,7 +75,7 @@ def draw_order_section(settings: RenderSettings, set_settings: Callable[[RenderS
         if changed:
             edited = replace(edited, order_k=ORDER_K.clamp(int(k)))
     elif gs:
-        imgui.text_disabled("(per pixel needs a RayGS mode)")
+        note("(per pixel needs a RayGS mode)")
     if edited != settings:
         set_settings(edited)
     _statistics(stats, split_shown)
@@ -87,6 +87,6 @@ def _statistics(stats: FrameStats, split_shown: bool) -> None:
     sides = [(name, side) for name, side in (("left", left), ("right", right)) if side is not None]
     for name, side in sides:
         if split_shown:
-            imgui.text(f"{name} side:")
-        for line in order_stats_lines(side):
-            imgui.text_disabled(line)
+            line(f"{name} side:")
+        for text in order_stats_lines(side):
+            note(text)

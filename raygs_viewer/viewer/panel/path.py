@@ -12,7 +12,17 @@ from __future__ import annotations
 from imgui_bundle import imgui
 
 from raygs_viewer.camera.path import FOV_RANGE
-from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, slider, tooltip
+from raygs_viewer.viewer.panel.widgets import (
+    beside,
+    checkbox,
+    choice,
+    header,
+    labelled_progress,
+    line,
+    note,
+    slider,
+    tooltip,
+)
 from raygs_viewer.viewer.path_widget import PathWidget
 from raygs_viewer.viewer.video_job import VIDEO_SIZES, progress_text
 
@@ -68,7 +78,7 @@ def _keyframes(widget: PathWidget) -> None:
             if imgui.selectable(label, widget.selected == i)[0]:
                 widget.select(i)
         if not path.keyframes:
-            imgui.text_disabled("no keyframes: Add view (K), or a generator above")
+            note("no keyframes: Add view (K), or a generator above")
         imgui.end_list_box()
     index = widget.selected
     if index is None or index >= len(path.keyframes):
@@ -109,16 +119,16 @@ def _timing(widget: PathWidget) -> None:
     widget.show = checkbox("show path", widget.show,
                            help_text="draw the path and its keyframes' frustums over the view")
     enter = imgui.InputTextFlags_.enter_returns_true.value
-    imgui.set_next_item_width(120)
+    imgui.set_next_item_width(100)
     changed, seconds = imgui.input_float("duration (s)", path.duration, 0.0, 0.0, "%.2f", enter)
     if changed:
         widget.set_duration(seconds)
-    imgui.same_line()
-    imgui.set_next_item_width(80)
+    beside(70 + imgui.get_style().item_inner_spacing.x + imgui.calc_text_size("fps").x)
+    imgui.set_next_item_width(70)
     changed, fps = imgui.input_float("fps", path.fps, 0.0, 0.0, "%.3g", enter)
     if changed:
         widget.set_fps(fps)
-    imgui.text_disabled(f"{len(path.keyframes)} keyframes, {path.frame_count} frames")
+    note(f"{len(path.keyframes)} keyframes, {path.frame_count} frames")
 
 
 def _playback(widget: PathWidget) -> None:
@@ -144,7 +154,7 @@ def _playback(widget: PathWidget) -> None:
     if scrub is not None:
         widget.seek(scrub)
     if path.keyframes:
-        imgui.text(f"{playback.time:.2f} / {path.duration:.2f} s, "
+        line(f"{playback.time:.2f} / {path.duration:.2f} s, "
                    f"frame {playback.frame_number(path) + 1} / {path.frame_count}")
 
 
@@ -174,7 +184,7 @@ def _video(widget: PathWidget) -> None:
     video = widget.video
     if video.running:
         progress = video.job.progress
-        imgui.progress_bar(0.0 if progress is None else progress.fraction, (-80, 0), progress_text(progress))
+        labelled_progress(0.0 if progress is None else progress.fraction, progress_text(progress), room=80)
         imgui.same_line()
         if imgui.button("Cancel##video"):
             widget.cancel_video()

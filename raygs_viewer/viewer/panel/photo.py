@@ -6,16 +6,16 @@ from __future__ import annotations
 
 from imgui_bundle import imgui
 
-from raygs_viewer.viewer.panel.widgets import checkbox, slider, tooltip
+from raygs_viewer.viewer.panel.widgets import beside, checkbox, line, note, slider, tooltip
 from raygs_viewer.viewer.photo_view import MODES, PhotoCompare
 
 
 def draw_photo_controls(photo: PhotoCompare) -> None:
     """Edits ``photo``'s mode, divider and heat map scale; shows its status line."""
-    imgui.text("Photo:")
-    for index, (mode, label) in enumerate(MODES.items()):  # a row of their own: beside the label they ran past the panel
+    line("Photo:")
+    for index, (mode, label) in enumerate(MODES.items()):  # a row of their own, wrapped where the panel is narrow
         if index:
-            imgui.same_line()
+            beside(imgui.get_frame_height() + imgui.get_style().item_inner_spacing.x + imgui.calc_text_size(label).x)
         if imgui.radio_button(f"{label}##photo", photo.mode == mode):
             photo.choose(mode)
     at_camera = checkbox("at the camera's size##photo", photo.at_camera_size,
@@ -34,8 +34,6 @@ def draw_photo_controls(photo: PhotoCompare) -> None:
             photo.heat_max = min(max(top, 0.01), 1.0)
         tooltip("|render - photo| (mean over RGB) shown at the top colour (magma)")
     if photo.at is None:
-        imgui.push_text_wrap_pos(0.0)  # wrapped at the panel's edge
-        imgui.text_disabled("at a training camera (N / P) the window compares with its photo")
-        imgui.pop_text_wrap_pos()
+        note("at a training camera (N / P) the window compares with its photo")
     elif photo.status:
         imgui.text_wrapped(photo.status)

@@ -13,7 +13,7 @@ from raygs_viewer.scene.io import SCENE_SUFFIXES
 from raygs_viewer.scene.loader import LoadedScene, SceneLoader
 from raygs_viewer.scene.model import FileAxes
 from raygs_viewer.viewer.file_dialog import FileDialog, dialog_problem
-from raygs_viewer.viewer.panel.widgets import checkbox, header, tooltip
+from raygs_viewer.viewer.panel.widgets import button_width, checkbox, header, labelled_progress, line, tooltip
 from raygs_viewer.viewer.state import PanelState
 
 
@@ -32,12 +32,13 @@ def draw_scene_section(loaded: LoadedScene, panel: PanelState, open_scene: Calla
     scene = loaded.scene
     imgui.text_wrapped("built-in demo scene" if loaded.source.is_demo else loaded.path)
     if scene.format:
-        imgui.text(scene.format)
-    imgui.text(f"{scene.count:,} gaussians, SH degree {scene.sh_degree}, "
+        line(scene.format)
+    line(f"{scene.count:,} gaussians, SH degree {scene.sh_degree}, "
                f"3D filter {'fused' if scene.filter_fused else 'none'}")
     if scene.axes is not None:
         _draw_axes(scene.axes, switch_axes, loader.busy)
-    # Selected whole when clicked: typing replaces the old path.
+    # As wide as the buttons beside it leave. Selected whole when clicked: typing replaces the old path.
+    imgui.set_next_item_width(-sum(button_width(label) for label in ("Open", "Open...")[:2 if dialog else 1]))
     entered, panel.open_path = imgui.input_text_with_hint(
         "##open", f"{' '.join(SCENE_SUFFIXES)} (or drop a file)", panel.open_path,
         imgui.InputTextFlags_.enter_returns_true.value | imgui.InputTextFlags_.auto_select_all.value)
@@ -52,7 +53,7 @@ def draw_scene_section(loaded: LoadedScene, panel: PanelState, open_scene: Calla
                 panel.error = f"error: {problem}"
         tooltip("the desktop's file dialog" + (f" ({problem})" if (problem := dialog_problem()) else ""))
     if loader.busy:
-        imgui.progress_bar(loader.progress, (-1, 0), loader.stage)
+        labelled_progress(loader.progress, loader.stage)
 
 
 def _folder_of(path: str | None) -> str:
@@ -64,7 +65,7 @@ def _folder_of(path: str | None) -> str:
 
 def _draw_axes(axes: FileAxes, switch_axes: Callable[[str], None], busy: bool) -> None:
     if axes.declared:  # the file's word wins: nothing to switch
-        imgui.text(f"axes: {axes.stored}, declared by the file")
+        line(f"axes: {axes.stored}, declared by the file")
         return
     # Nothing in such a file tells the conventions apart; a scene upside down is the sign.
     rdf = checkbox("RDF axes (splat-transform's .spz)", axes.assumed == "rdf", not busy,

@@ -8,7 +8,7 @@ from typing import Callable
 from imgui_bundle import imgui
 
 from raygs_viewer.camera.pinhole import Camera
-from raygs_viewer.viewer.panel.widgets import header
+from raygs_viewer.viewer.panel.widgets import beside, header, note
 from raygs_viewer.viewer.state import ScreenshotOptions
 
 SCALE_CHOICES = (1.0, 2.0, 4.0, 8.0)
@@ -29,15 +29,14 @@ def draw_screenshot_section(options: ScreenshotOptions, camera: Camera | None, s
     if camera is not None:
         width, height = round(camera.width * options.scale), round(camera.height * options.scale)
         if stereo_shown:
-            imgui.text_disabled(f"{2 * width} x {height} px side-by-side pair ({width} x {height} per eye), offscreen")
+            note(f"{2 * width} x {height} px side-by-side pair ({width} x {height} per eye), offscreen")
         else:
-            imgui.text_disabled(f"{width} x {height} px, offscreen")
+            note(f"{width} x {height} px, offscreen")
     _, options.folder = imgui.input_text("folder", options.folder)
     if imgui.button("Save screenshot (F12)"):
         request()
-    if stereo_shown and save_eyes:
-        imgui.same_line()
-        imgui.text_disabled("(-pair, -left, -right)")
-    elif split_shown:
-        imgui.same_line()
-        imgui.text_disabled("(each side, -left/-right)")
+    files = ("(-pair, -left, -right)" if stereo_shown and save_eyes
+             else "(each side, -left/-right)" if split_shown else "")
+    if files:
+        beside(imgui.calc_text_size(files).x)
+        note(files)

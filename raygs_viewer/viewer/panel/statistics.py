@@ -7,7 +7,7 @@ from imgui_bundle import imgui
 
 from raygs_viewer.render.gl.renderer import WorkCounters
 from raygs_viewer.sort.worker import BackgroundSorter, InlineSorter
-from raygs_viewer.viewer.panel.widgets import ms, tooltip
+from raygs_viewer.viewer.panel.widgets import line, ms, tooltip
 from raygs_viewer.viewer.stats import FrameStats, order_freshness
 
 
@@ -16,19 +16,21 @@ def draw_statistics(stats: FrameStats, scene_count: int, sorter: BackgroundSorte
     """``sorter``: its request counts; ``work``: the renderer's pass counters;
     ``general``: whether it draws with the all-features shader variant; ``sort``: which
     sort runs ("cpu", "gpu": ``render.sorting.SORTS``)."""
-    imgui.text(f"{stats.fps:6.1f} fps  frame {ms(stats.frame_ms / 1000)}")
-    tooltip("frames per second and the median frame time of the last 60 frames")
-    imgui.text(f"GPU   {ms(stats.gpu_seconds)}  {sort.upper()} sort {ms(stats.sort_seconds)}")
+    line(f"{stats.fps:6.1f} fps  redraw {ms(stats.redraw_ms / 1000)}")
+    tooltip(f"frames per second over the last 60 frames (median {ms(stats.frame_ms / 1000).strip()}); a still "
+            "view is not drawn again, so its frames are quick.\nredraw: the median time of the last 60 frames "
+            "that drew the scene again (what moving the view costs)")
+    line(f"GPU   {ms(stats.gpu_seconds)}  {sort.upper()} sort {ms(stats.sort_seconds)}")
     where = ("on the GPU, in the frame it draws (--sort gpu): the order is that frame's own" if sort == "gpu"
              else "on the CPU, on a background thread (--sort cpu)")
     tooltip("GPU: preprocessing + draw of the last redraw (timer queries; both sides in the split view,\n"
             "both eyes in the stereo preview).\n"
             f"sort: the last sort (one cull, then a sort by each order key shown), {where}")
-    imgui.text(f"visible {stats.visible:,} of {scene_count:,}")
+    line(f"visible {stats.visible:,} of {scene_count:,}")
     tooltip(f"the gaussians the last cull kept, of the scene's {scene_count:,}")
     # One line whatever the age (a line that wraps at times would move every widget below it
     # between frames); the whole of it in the tooltip.
-    imgui.text(f"order {order_freshness(stats, short=True)}")
+    line(f"order {order_freshness(stats, short=True)}")
     tooltip(f"order {order_freshness(stats)}\n"
             "the drawn order's age: frames and milliseconds since the view it was sorted for, and how far\n"
             "the camera has turned and moved (scene units) since; a fresher order blends more rightly\n"

@@ -1,6 +1,7 @@
 """The panel's Stereo section, shown while the preview is on: lens preview, layout, the
-rig (IPD, convergence, scene scale), the headset, and the GPU time of both eyes against
-a headset's frame budget."""
+rig (IPD, convergence, scene scale), the headset, whether the eyes are drawn at its
+size, and the GPU time of both eyes (at the headset's size: measured, or estimated
+from the size drawn) against a headset's frame budget."""
 
 from __future__ import annotations
 
@@ -9,8 +10,17 @@ from dataclasses import replace
 
 from imgui_bundle import imgui
 
-from raygs_viewer.camera.stereo import MAX_EYE_SIZE, MAX_FOV, MIN_FOV, PRESETS, frame_budget, rig_quantities
-from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, ms, slider, tooltip
+from raygs_viewer.camera.stereo import (
+    MAX_EYE_SIZE,
+    MAX_FOV,
+    MIN_FOV,
+    PRESETS,
+    at_headset_size,
+    frame_budget,
+    rig_quantities,
+)
+from raygs_viewer.viewer.frame import Frame
+from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, line, ms, note, slider, tooltip
 from raygs_viewer.viewer.state import StereoPreview
 from raygs_viewer.viewer.stats import FrameStats
 
@@ -23,8 +33,9 @@ SCENE_SCALE_RANGE = (0.001, 1000.0)  # metres per unit, logarithmic
 RIG = rig_quantities()
 
 
-def draw_stereo_section(stereo: StereoPreview, stats: FrameStats) -> None:
-    """Edits ``stereo``; ``stats``: the GPU times of the last redraw."""
+def draw_stereo_section(stereo: StereoPreview, stats: FrameStats, shown: Frame | None) -> None:
+    """Edits ``stereo``; ``stats``: the GPU times of the last redraw; ``shown``: the
+    last frame (the eyes' size drawn and the headset's)."""
     # Only while the preview is on (the Render section's checkbox): the panel stays short.
     if not stereo.on or not header("Stereo"):
         return
@@ -45,10 +56,15 @@ def draw_stereo_section(stereo: StereoPreview, stats: FrameStats) -> None:
         changed, fov = imgui.input_float2("field of view (deg)", stereo.custom_fov, "%.1f")
         if changed and all(math.isfinite(v) for v in fov):
             stereo.custom_fov = [min(max(float(v), MIN_FOV), MAX_FOV) for v in fov]
+    stereo.headset_size = checkbox("eyes at the headset's size", stereo.headset_size,
+                                   help_text="draw each eye at the headset's per-eye resolution (slower), shrunk to "
+                                             "fit; off: at the size the window shows.\nScreenshots and videos are "
+                                             "at the headset's size either way.")
     stereo.save_eyes = checkbox("screenshots also save each eye", stereo.save_eyes,
                                 help_text="F12 saves the side-by-side pair; this adds -left and -right files")
     imgui.pop_item_width()
-    _budget(stats)
+    if shown is not None and shown.stereo is not None:
+        _budget(stats, shown)
 
 
 def _rig_controls(stereo: StereoPreview) -> None:
@@ -66,14 +82,27 @@ def _rig_controls(stereo: StereoPreview) -> None:
     if scale is not None and scale > 0:
         rig = replace(rig, scene_scale=RIG["scene_scale"].clamp(scale))
     stereo.rig = rig
-    imgui.text_disabled(f"eyes {2 * rig.half_baseline:.4g} units apart, convergence at "
+    note(f"eyes {2 * rig.half_baseline:.4g} units apart, convergence at "
                         f"{rig.convergence_units:.4g} units")
 
 
-def _budget(stats: FrameStats) -> None:
-    imgui.text(f"both eyes {ms(stats.gpu_seconds)}  lens+layout {ms(stats.post_seconds)}")
-    tooltip("GPU time of drawing both eyes (timer queries), against a headset's frame budget")
-    for rate, budget, fraction in frame_budget(stats.gpu_seconds):
+def _budget(stats: FrameStats, shown: Frame) -> None:
+    """What was timed (both eyes at the size drawn), and the headset-size frame it
+    stands for against each refresh rate's budget: measured when the eyes are drawn at
+    the headset's size, else estimated from the fill measured."""
+    drawn, full = shown.camera, shown.full_camera
+    size, headset = (drawn.width, drawn.height), (full.width, full.height)
+    line(f"both eyes at {size[0]}x{size[1]}: {ms(stats.gpu_seconds)}")
+    tooltip("GPU time of drawing both eyes at the size drawn (timer queries; lens preview and layout: "
+            f"{ms(stats.post_seconds)} more)")
+    seconds = stats.gpu_seconds
+    if size != headset:
+        seconds = at_headset_size(stats.gpu_seconds, size, headset)
+        line(f"at {headset[0]}x{headset[1]}: ~{ms(seconds)} (est.)")
+        tooltip(f"the headset's per-eye size has {headset[0] * headset[1] / (size[0] * size[1]):.1f}x the pixels "
+                "of the eyes drawn; splatting is bound by fill, so the time is estimated at that many times "
+                "the one measured.\nTick \"eyes at the headset's size\" to measure it.")
+    for rate, budget, fraction in frame_budget(seconds):
         over = math.isfinite(fraction) and fraction > 1.0
         if over:
             imgui.push_style_color(imgui.Col_.plot_histogram.value, (0.85, 0.25, 0.2, 1.0))

@@ -9,7 +9,7 @@ from imgui_bundle import imgui
 
 from raygs_viewer.scene.loader import LoadedScene
 from raygs_viewer.viewer.panel.photo import draw_photo_controls
-from raygs_viewer.viewer.panel.widgets import header
+from raygs_viewer.viewer.panel.widgets import header, note
 from raygs_viewer.viewer.photo_view import PhotoCompare
 
 
@@ -22,12 +22,10 @@ def draw_training_section(loaded: LoadedScene, current: int | None, select: Call
     if not header(label + "###training", open_first=False):
         return
     if not loaded.cameras:
-        imgui.text_disabled("none found (pass --cameras cameras.json)")
+        note("none found (pass --cameras cameras.json)")
         return
     if loaded.cameras_path:
-        imgui.push_text_wrap_pos(0.0)  # a long path wraps at the panel's edge
-        imgui.text_disabled(loaded.cameras_path)
-        imgui.pop_text_wrap_pos()
+        note(loaded.cameras_path)
     if imgui.button("< previous (P)"):
         step(-1)
     imgui.same_line()

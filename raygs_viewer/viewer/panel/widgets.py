@@ -56,6 +56,12 @@ def button(label: str, enabled: bool = True) -> bool:
     return pressed and enabled
 
 
+def button_width(label: str) -> float:
+    """The room a button ``label`` takes on a line after another widget (its spacing included)."""
+    style = imgui.get_style()
+    return imgui.calc_text_size(label.split("##")[0]).x + 2 * style.frame_padding.x + style.item_spacing.x
+
+
 def slider(label: str, value: float, low: float, high: float, fmt: str, logarithmic: bool = False) -> float | None:
     """A float slider over [low, high] (ctrl-click types any value); the new value when
     it was moved to a finite one, else None."""
@@ -66,3 +72,41 @@ def slider(label: str, value: float, low: float, high: float, fmt: str, logarith
 
 def ms(seconds: float) -> str:
     return f"{seconds * 1000:6.2f} ms" if math.isfinite(seconds) else "     - ms"
+
+
+def labelled_progress(fraction: float, label: str, room: float = 0.0) -> None:
+    """A progress bar as wide as the panel leaves (less ``room`` for a widget beside it)
+    that says ``label`` on it where it fits, else above it (wrapped) with the bar saying
+    how far along it is: a label cut at the bar's end tells nothing."""
+    fraction = min(max(fraction, 0.0), 1.0) if math.isfinite(fraction) else 0.0
+    width = imgui.get_content_region_avail().x - room
+    style = imgui.get_style()
+    if imgui.calc_text_size(label).x + 2 * style.frame_padding.x > width:
+        imgui.push_text_wrap_pos(0.0)
+        imgui.text_disabled(label)
+        imgui.pop_text_wrap_pos()
+        label = f"{fraction * 100:.0f} %"
+    imgui.progress_bar(fraction, (-room if room else -1, 0), label)
+
+
+def line(text: str) -> None:
+    """A line of text, wrapped at the panel's edge rather than cut there."""
+    imgui.push_text_wrap_pos(0.0)
+    imgui.text(text)
+    imgui.pop_text_wrap_pos()
+
+
+def note(text: str) -> None:
+    """A greyed-out remark, wrapped at the panel's edge rather than cut there."""
+    imgui.push_text_wrap_pos(0.0)
+    imgui.text_disabled(text)
+    imgui.pop_text_wrap_pos()
+
+
+def beside(width: float) -> None:
+    """The next widget, ``width`` wide, on the line of the last one where the panel has
+    room for it, else on the next line (a row of widgets that would run past the edge)."""
+    style = imgui.get_style()
+    right = imgui.get_cursor_screen_pos().x + imgui.get_content_region_avail().x  # from the next line's start
+    if imgui.get_item_rect_max().x + style.item_spacing.x + width <= right:
+        imgui.same_line()
