@@ -344,6 +344,7 @@ def test_the_sort_is_asked_with_the_cull_of_what_is_shown(open_viewer):
 @pytest.mark.parametrize("preset", ["GS", "RayGS + MIP", "RayGS 2x2 supersampling"])
 def test_split_view_shows_a_left_and_b_right(open_viewer, preset):
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
+    viewer.frustums.show = False  # the window as shown is compared with the scene: no training cameras over it
     drive.frames(2)
     drive.click("split view")
     assert viewer.split.on
@@ -770,6 +771,7 @@ def test_window_shows_the_image_letterboxed_and_the_panel_on_top(open_viewer, tm
     path.write_text(json.dumps(camera_to_json(lens)))
     viewer, drive = open_viewer(camera=str(path), width=PANEL_WIDTH, height=PANEL_HEIGHT)
     viewer.panel.show_panel = False
+    viewer.frustums.show = False  # the window as shown is compared with the scene: no training cameras over it
     drive.settle()
     viewer.captures.keep_window = True
     drive.frames(1)
