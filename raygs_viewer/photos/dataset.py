@@ -150,6 +150,29 @@ def load_photo(view: PhotoView, background: tuple[float, float, float]) -> np.nd
     return np.ascontiguousarray(rgb, np.float32)
 
 
+def load_thumbnail(view: PhotoView, background: tuple[float, float, float], width: int) -> np.ndarray:
+    """(h, w, 3) uint8: ``view``'s photo scaled down to at most ``width`` pixels wide, its
+    aspect kept (never scaled up), alpha composited over ``background``: a preview, not
+    the pixels :func:`load_photo` compares. Pillow's thumbnail decodes a JPEG at a
+    reduced size (its draft mode), so a large photo costs a few milliseconds, not a full
+    decode. UserError (one line naming the file) as load_photo."""
+    path = view.image_path
+    if path is None or not path.is_file():
+        raise UserError(f"{path or view.expected or view.name}: no such photo ({IMAGES_HINT})")
+    try:
+        with Image.open(path) as image:
+            image.thumbnail((width, max(1, round(width * image.height / image.width))), RESAMPLE)
+            alpha = "A" in image.getbands() or "transparency" in image.info
+            pixels = np.asarray(image.convert("RGBA" if alpha else "RGB"))
+    except PHOTO_ERRORS as exc:
+        raise UserError(f"{path}: cannot read the photo ({one_line(exc, 100)})") from None
+    if not alpha:
+        return np.ascontiguousarray(pixels)
+    a = pixels[..., 3:4].astype(np.float32) / 255
+    rgb = pixels[..., :3].astype(np.float32) / 255 * a + np.asarray(background, np.float32) * (1 - a)
+    return np.clip(np.rint(rgb * 255), 0, 255).astype(np.uint8)
+
+
 def same_aspect(photo: tuple[int, int], camera: tuple[int, int]) -> bool:
     """Whether a photo of size ``photo`` (width, height) scaled to ``camera``'s width, or
     to its height, lands within a pixel of the camera's other side (downscaled folders

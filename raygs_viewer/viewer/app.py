@@ -84,6 +84,8 @@ from raygs_viewer.viewer.state import (
     ViewMode,
 )
 from raygs_viewer.viewer.stats import FrameStats, summary
+from raygs_viewer.viewer.thumbnails import Thumbnails
+from raygs_viewer.viewer.training_frustums import TrainingFrustums
 from raygs_viewer.viewer.view_control import ViewControl
 from raygs_viewer.viewer.window import Window, choose_platform
 
@@ -136,13 +138,14 @@ class Viewer:
         self.camera_path = PathWidget(self.panel, self)
         self.measure = MeasureWidget(self.panel, self)
         self.picker = PickTool(self, self.measure)
+        self.frustums = TrainingFrustums(Thumbnails(self.ctx, self.photo.dataset))
         self.input = InputHandler({
             "quit": self.window.request_close, "screenshot": self.captures.request,
             "switch_navigation": lambda: self.view.switch_mode(),
             "next_camera": lambda: self.view.step_training_camera(+1),
             "previous_camera": lambda: self.view.step_training_camera(-1),
             "reset_view": self.reset_view, "toggle_panel": self.panel.toggle,
-            "add_keyframe": self.camera_path.add_view}, self.picker.click, self.picker.double_click)
+            "add_keyframe": self.camera_path.add_view}, self._click, self.picker.double_click)
         self.frame_index = 0
         self.input_script: Callable[[Viewer], None] | None = None
         self.fixed_dt: float | None = None  # tests: a deterministic frame time
@@ -202,6 +205,7 @@ class Viewer:
         self.stats.new_sorter(kept, self.frame_index)
         self.drawer.forget()
         self.photo.forget_scene()
+        self.frustums.forget()
 
     def set_tint(self, on: bool) -> None:
         """Colour by level on or off (the Level of detail section)."""
@@ -270,6 +274,7 @@ class Viewer:
                 self.remembered.keep(self.panel.width)
         self.overlay_rects = {} if not frame.split else draw_split_overlay(
             frame.viewport, self.split, self.settings, self.input.dragging_divider)
+        self.frustums.draw(frame, self.loaded, self.view.radius, hover=not self.measure.on)  # under the path's lines
         self.camera_path.draw_overlay(frame, self.view.radius)
         self.measure.draw_overlay(frame, self.view.radius)
         self._draw_feedback()
@@ -288,6 +293,15 @@ class Viewer:
         self.captures.frame_shown(self.capture_window)
         self.window.end_frame()
         self.captures.frame_done(self.save_screenshot, self.panel)
+
+    def _click(self, x: float, y: float) -> None:
+        """A click on the view: on a training camera's frustum it flies there, unless the
+        measure tool takes clicks; else the pick tool's."""
+        index = None if self.measure.on else self.frustums.camera_at(x, y)
+        if index is None:
+            self.picker.click(x, y)
+        else:
+            self.view.select_training_camera(index)
 
     def _draw_feedback(self) -> None:
         """The notes over the view: at its top left, right of the panel when it is shown
@@ -316,7 +330,7 @@ class Viewer:
             lambda: draw_stereo_section(self.stereo, stats, self.shown),
             lambda: draw_view_section(view, self.reset_view),
             lambda: draw_training_section(loaded, view.training_index, view.select_training_camera,
-                                          view.step_training_camera, self.photo),
+                                          view.step_training_camera, self.photo, self.frustums),
             lambda: draw_screenshot_section(self.captures.options, self.shown and self.shown.full_camera,
                                             self.shown_stereo is not None,
                                             self.stereo.save_eyes, split_shown, self.captures.request),
@@ -379,6 +393,7 @@ class Viewer:
         self.scenes.close()
         self.window.make_current()
         self.scene.close()
+        self.frustums.release()
         self.drawer.release()
         self.window.close()
         self.window = None

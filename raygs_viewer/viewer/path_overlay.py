@@ -59,11 +59,11 @@ def screen_segments(camera: Camera, starts: np.ndarray, ends: np.ndarray, rect: 
     """(M, 2, 2) screen segments of the world segments ``starts`` -> ``ends`` ((N, 3)
     each): cut at the plane ``near`` in front of the camera, projected, and cut to
     ``rect``; those with nothing left are dropped."""
-    return _visible_segments(camera, starts, ends, rect, near)[0]
+    return visible_segments(camera, starts, ends, rect, near)[0]
 
 
-def _visible_segments(camera: Camera, starts: np.ndarray, ends: np.ndarray, rect: Rect, near: float
-                      ) -> tuple[np.ndarray, np.ndarray]:
+def visible_segments(camera: Camera, starts: np.ndarray, ends: np.ndarray, rect: Rect, near: float
+                     ) -> tuple[np.ndarray, np.ndarray]:
     """:func:`screen_segments` and the index of the world segment each one comes from."""
     starts, ends = np.asarray(starts, np.float64).reshape(-1, 3), np.asarray(ends, np.float64).reshape(-1, 3)
     a, b = starts @ camera.R.T + camera.t, ends @ camera.R.T + camera.t
@@ -107,22 +107,40 @@ def _clip_to_rect(p: np.ndarray, q: np.ndarray, rect: Rect) -> tuple[np.ndarray,
     return np.stack([p + low[:, None] * d, p + high[:, None] * d], axis=1).reshape(-1, 2, 2), inside
 
 
+#: Each corner's (x, y) signs round an image's rim: top left, top right, bottom right, bottom left.
+CORNER_SIGNS = np.array([(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)])
+
+
+def image_corners(R: np.ndarray, apex: np.ndarray, slopes: np.ndarray, depth: float) -> np.ndarray:
+    """(K, 4, 3): the corners of K cameras' images ``depth`` in front of them. ``R``:
+    (K, 3, 3) world-to-camera rotations (rows: right, down, forward in world axes);
+    ``apex``: (K, 3) the camera centres; ``slopes``: (K, 4, 2) each corner's camera-space
+    (x / z, y / z), round the rim (:data:`CORNER_SIGNS`' order)."""
+    R, slopes = np.asarray(R, np.float64), np.asarray(slopes, np.float64)
+    return np.asarray(apex, np.float64)[:, None] + depth * (
+        R[:, None, 2] + slopes[..., :1] * R[:, None, 0] + slopes[..., 1:] * R[:, None, 1])
+
+
+def pyramid_lines(apex: np.ndarray, corners: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(K * 8, 3) starts and ends of K pyramids, eight lines each: the four edges from
+    ``apex`` ((K, 3)) to the ``corners`` ((K, 4, 3), round the rim), then the rim."""
+    apex, corners = np.asarray(apex, np.float64).reshape(-1, 3), np.asarray(corners, np.float64).reshape(-1, 4, 3)
+    starts = np.concatenate([np.repeat(apex[:, None], 4, axis=1), corners], axis=1)
+    ends = np.concatenate([corners, np.roll(corners, -1, axis=1)], axis=1)
+    return starts.reshape(-1, 3), ends.reshape(-1, 3)
+
+
 def frustum_lines(path: CameraPath, size: float, aspect: float) -> tuple[np.ndarray, np.ndarray]:
-    """(K * 8, 3) starts and ends of each keyframe's pyramid, eight lines a keyframe:
-    four edges from its camera centre to the corners of its image ``size`` in front of
-    it, then the image's rim."""
+    """(K * 8, 3) starts and ends of each keyframe's pyramid (:func:`pyramid_lines`): its
+    camera centre and the corners of its image (``aspect``: width / height) ``size`` in
+    front of it."""
     if not path.keyframes:
         return np.zeros((0, 3)), np.zeros((0, 3))
     R = np.array([k.pose.R for k in path.keyframes])                       # (K, 3, 3)
     apex = np.array([k.pose.position for k in path.keyframes])              # (K, 3)
-    half_h = size * np.tan(np.radians([k.fov_y_degrees for k in path.keyframes]) / 2)
-    half_w = half_h * aspect
-    signs = np.array([(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)])  # the corners, round the rim
-    corners = ((apex + size * R[:, 2])[:, None] + (signs[None, :, 0] * half_w[:, None])[..., None] * R[:, None, 0]
-               + (signs[None, :, 1] * half_h[:, None])[..., None] * R[:, None, 1])   # (K, 4, 3)
-    starts = np.concatenate([np.repeat(apex[:, None], 4, axis=1), corners], axis=1)
-    ends = np.concatenate([corners, np.roll(corners, -1, axis=1)], axis=1)
-    return starts.reshape(-1, 3), ends.reshape(-1, 3)
+    half_h = np.tan(np.radians([k.fov_y_degrees for k in path.keyframes]) / 2)
+    slopes = CORNER_SIGNS[None] * np.stack([half_h * aspect, half_h], axis=1)[:, None]   # (K, 4, 2)
+    return pyramid_lines(apex, image_corners(R, apex, slopes, size))
 
 
 def draw_path_overlay(path: CameraPath, camera: Camera, viewport: tuple[int, int, int, int],
@@ -140,7 +158,7 @@ def draw_path_overlay(path: CameraPath, camera: Camera, viewport: tuple[int, int
     for p, q in polyline:
         draw.add_line(tuple(p), tuple(q), imgui.IM_COL32(*PATH_COLOUR), 2.0)
     starts, ends = frustum_lines(path, size, camera.width / camera.height)
-    frustums, lines = _visible_segments(camera, starts, ends, rect, near)
+    frustums, lines = visible_segments(camera, starts, ends, rect, near)
     plain, chosen = imgui.IM_COL32(*FRUSTUM_COLOUR), imgui.IM_COL32(*SELECTED_COLOUR)
     for (p, q), line in zip(frustums, lines):
         highlight = line // 8 == selected

@@ -225,6 +225,11 @@ class PhotoCompare:
             mono.stereo_image = None
 
     # -- the photos ---------------------------------------------------------------------
+    def dataset(self, loaded: LoadedScene) -> Dataset | str:
+        """The photos of ``loaded``'s training cameras (opened once per scene), or a line
+        saying why there are none; the frustums' thumbnails share it."""
+        return self._dataset_of(loaded)
+
     def _dataset_of(self, loaded: LoadedScene) -> Dataset | str:
         if self._dataset is None:
             if self.images is None and loaded.cameras_path is None:

@@ -344,6 +344,7 @@ def test_the_sort_is_asked_with_the_cull_of_what_is_shown(open_viewer):
 @pytest.mark.parametrize("preset", ["GS", "RayGS + MIP", "RayGS 2x2 supersampling"])
 def test_split_view_shows_a_left_and_b_right(open_viewer, preset):
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
+    viewer.frustums.show = False  # the window as shown is compared with the scene: no training cameras over it
     drive.frames(2)
     drive.click("split view")
     assert viewer.split.on
@@ -754,7 +755,9 @@ def test_scripted_run_saves_the_last_frame(restore_gl_ctx, tmp_path, capsys):
     scene, whole = (np.asarray(Image.open(p)).astype(int) for p in (shot, window))
     assert whole.shape == (480, 640, 3) and scene.shape == (210, 280, 3)
     assert scene.std() > 10  # there is something to see there
-    assert np.abs(whole[135:345, 360:] - scene).max() <= 1
+    # (The other training cameras' frustums are drawn over the window's view: thin lines.)
+    same = np.abs(whole[135:345, 360:] - scene).max(axis=2) <= 1
+    assert same.mean() > 0.97 and not same.all()
     sidecar = json.loads(shot.with_suffix(".json").read_text())
     assert sidecar["camera"]["position"] == pytest.approx(demo_cameras()[2].center.tolist())
     assert Image.open(shot).size == (280, 210)
@@ -774,6 +777,7 @@ def test_window_shows_the_image_letterboxed_and_the_panel_on_top(open_viewer, tm
     path.write_text(json.dumps(camera_to_json(lens)))
     viewer, drive = open_viewer(camera=str(path), width=PANEL_WIDTH, height=PANEL_HEIGHT)
     viewer.panel.show_panel = False
+    viewer.frustums.show = False  # the window as shown is compared with the scene: no training cameras over it
     drive.settle()
     viewer.captures.keep_window = True
     drive.frames(1)
