@@ -80,6 +80,10 @@ def add_parsers(commands) -> None:
     argtypes.add_sort_option(parser)
     parser.add_argument("--save-eyes", action="store_true",
                         help="stereo screenshots also save each eye on its own (-left, -right), besides the pair")
+    parser.add_argument("--eyes-at-headset-size", action="store_true",
+                        help="the stereo preview draws each eye at the headset's per-eye resolution, shrunk to fit "
+                             "(default: at the size the window shows them, faster); screenshots and videos are at "
+                             "the headset's size either way")
 
 
 def join_up_axis(argv: list[str]) -> list[str]:
@@ -103,7 +107,8 @@ def _viewer_stereo_options(args) -> StereoPreview:
     """The stereo preview's start value (the panel's, for switching it on later too)."""
     rig = stereo_rig(args)  # checks the values before the window opens
     return StereoPreview.of(_headset(args), on=args.stereo, rig=rig, layout=args.layout or "sbs",
-                            lens_preview=bool(args.lens_preview), save_eyes=args.save_eyes)
+                            lens_preview=bool(args.lens_preview), save_eyes=args.save_eyes,
+                            headset_size=args.eyes_at_headset_size)
 
 
 def _headset(args):

@@ -937,9 +937,9 @@ def test_the_command_line_and_the_rig_take_the_same_values(flag, low, high):
     ([], {}),
     (["--stereo"], {"stereo": True}),
     (["--stereo", "--ipd", "0.07", "--convergence", "4", "--scene-scale", "0.1", "--layout", "anaglyph",
-      "--lens-preview", "--save-eyes"],
+      "--lens-preview", "--save-eyes", "--eyes-at-headset-size"],
      {"stereo": True, "ipd": 0.07, "convergence": 4.0, "scene_scale": 0.1, "stereo_layout": "anaglyph",
-      "lens_preview": True, "save_eyes": True}),
+      "lens_preview": True, "save_eyes": True, "headset_size": True}),
     (["--ipd", "0.058"], {"ipd": 0.058}),  # the panel's start value, for switching stereo on later
     (["--stereo", "--headset", "index"], {"stereo": True, "headset": "index"}),
     (["--stereo", "--headset-size", "1832x1920", "--headset-fov", "104,98"],
