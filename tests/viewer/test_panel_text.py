@@ -49,3 +49,28 @@ def test_nothing_is_cut_in_every_section_of_the_narrowest_panel(open_viewer, mod
     assert "25 %" in drive.panel.labels("progress_bar")  # the label above the bar, which says how far
     cut = text_past_the_panel(drive)
     assert cut == [], "\n".join(cut)
+
+
+def test_a_choice_cut_in_its_box_is_named_whole_on_hover(open_viewer, monkeypatch):
+    from imgui_bundle import imgui
+
+    from raygs_viewer.camera.stereo import PRESETS
+    viewer, drive = open_viewer(width=PANEL_WIDTH, height=2 * PANEL_HEIGHT)
+    viewer.panel.width = MIN_PANEL_WIDTH
+    viewer.stereo.on = True
+    drive.frames(2)
+    tips = []
+    set_tooltip = imgui.set_tooltip
+    monkeypatch.setattr(imgui, "set_tooltip", lambda text: (tips.append(text), set_tooltip(text)))
+    quest = PRESETS["quest3"]
+    whole = f"{quest.label}: {quest.width}x{quest.height}, {quest.fov_x:g}x{quest.fov_y:g} deg"
+    x0, y0, x1, y1 = drive.panel.rect("headset")
+    drive.move_mouse(x0 + 10, (y0 + y1) / 2)
+    drive.frames(2)
+    assert whole in tips
+    # A choice that fits is not named again (the combo's own help is still shown).
+    tips.clear()
+    x0, y0, x1, y1 = drive.panel.rect("order")
+    drive.move_mouse(x0 + 10, (y0 + y1) / 2)
+    drive.frames(2)
+    assert tips and "depth" not in tips

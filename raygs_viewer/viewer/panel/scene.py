@@ -40,8 +40,9 @@ def draw_scene_section(loaded: LoadedScene, panel: PanelState, open_scene: Calla
     # As wide as the buttons beside it leave. Selected whole when clicked: typing replaces the old path.
     imgui.set_next_item_width(-sum(button_width(label) for label in ("Open", "Open...")[:2 if dialog else 1]))
     entered, panel.open_path = imgui.input_text_with_hint(
-        "##open", f"{' '.join(SCENE_SUFFIXES)} (or drop a file)", panel.open_path,
+        "##open", "a scene's path, or drop a file", panel.open_path,
         imgui.InputTextFlags_.enter_returns_true.value | imgui.InputTextFlags_.auto_select_all.value)
+    tooltip(f"{' '.join(SCENE_SUFFIXES)}; Enter opens it")
     imgui.same_line()
     if imgui.button("Open") or entered:
         open_scene(panel.open_path)

@@ -24,7 +24,11 @@ def choice(label: str, current: str, choices: dict[str, str], unavailable: dict[
     reason its tooltip). Returns the chosen value."""
     chosen = current
     unavailable = unavailable or {}
-    if imgui.begin_combo(label, choices.get(current, current), imgui.ComboFlags_.height_largest.value):
+    shown = choices.get(current, current)
+    # The box shows as much of the choice as fits; the whole of it is named on hover.
+    room = imgui.calc_item_width() - imgui.get_frame_height() - 2 * imgui.get_style().frame_padding.x
+    cut = imgui.calc_text_size(shown).x > room
+    if imgui.begin_combo(label, shown, imgui.ComboFlags_.height_largest.value):
         for value, text in choices.items():
             imgui.begin_disabled(value in unavailable)
             if imgui.selectable(text, value == current)[0] and value not in unavailable:
@@ -35,6 +39,8 @@ def choice(label: str, current: str, choices: dict[str, str], unavailable: dict[
             if value == current:
                 imgui.set_item_default_focus()
         imgui.end_combo()
+    elif cut:
+        tooltip(shown)
     return chosen
 
 
