@@ -202,7 +202,8 @@ def _add_accuracy_parser(kinds) -> None:
     parser = _bench_parser(kinds, "accuracy",
                            f"the demo and one small real scene, {accuracy.QUICK_WIDTH} px wide, "
                            f"{accuracy.QUICK_REPEAT} timed frames, ground truth "
-                           f"{accuracy.QUICK_GT_SAMPLES}x{accuracy.QUICK_GT_SAMPLES} samples (under a minute)",
+                           f"{accuracy.QUICK_GT_SAMPLES}x{accuracy.QUICK_GT_SAMPLES} samples (1 to 1.5 minutes on two CPU cores with "
+                           f"llvmpipe: 74 s on 2026-11-28)",
                            scenes=True)
     _add_width_and_repeat(parser,
                           f"width of the training-like view (default {accuracy.DEFAULT_WIDTH}, --quick "
@@ -364,7 +365,8 @@ def _run_perf(args: argparse.Namespace, ctx) -> int:
 def _add_order_parser(kinds) -> None:
     parser = _bench_parser(kinds, "order",
                            f"the demo and one small real scene, {order_bench.QUICK_WIDTH} px wide, sweeps of "
-                           f"{order_bench.QUICK_FRAMES} frames (about 20 s)", scenes=True)
+                           f"{order_bench.QUICK_FRAMES} frames (30 to 60 s on two CPU cores with llvmpipe: 38 s on "
+                           f"2026-11-28)", scenes=True)
     _add_width_and_repeat(parser,
                           f"width of the views (default {order_bench.DEFAULT_WIDTH}, --quick {order_bench.QUICK_WIDTH})",
                           f"timed frames per mode (default {order_bench.DEFAULT_REPEAT}, --quick "
@@ -393,8 +395,8 @@ def _add_sort_parser(kinds) -> None:
     parser = _bench_parser(kinds, "sort",
                            f"stop at {count_label(sort_bench.QUICK_COUNTS[-1])}, {sort_bench.QUICK_REPEAT} runs; "
                            f"the freshness ({len(freshness.QUICK_SAMPLE_TIMES)} rendered frames per motion) "
-                           f"for scenes up to {count_label(sort_bench.QUICK_FRESHNESS_MAX)} gaussians only (under 3 "
-                           f"minutes on two CPU cores)")
+                           f"for scenes up to {count_label(sort_bench.QUICK_FRESHNESS_MAX)} gaussians only (1 to 3 "
+                           f"minutes on two CPU cores: 69 s on 2026-11-28)")
     parser.add_argument("--counts", nargs="+", type=argtypes.whole_number(1, 100_000_000), metavar="N",
                         help=f"scene sizes (default {SORT_COUNTS}; --quick stops at "
                              f"{count_label(sort_bench.QUICK_COUNTS[-1])})")
