@@ -13,6 +13,7 @@ folder keeps the frames written; exit status 130.
 from __future__ import annotations
 
 import argparse
+import signal
 import sys
 import time
 from dataclasses import replace
@@ -214,6 +215,11 @@ def _render(renderer, sorter, cameras, settings, stereo, out: Path, image_size, 
     if sink.note:
         print(f"note: {sink.note}", file=sys.stderr)
     progress = Progress(len(cameras), args.progress, label=out.name)
+    if args.progress == "json":
+        # The reader of JSON progress (the window's Render video) stops the render with
+        # SIGINT. A process started in the background of a script inherits SIGINT
+        # ignored, and Python then leaves it so: Cancel would do nothing.
+        signal.signal(signal.SIGINT, signal.default_int_handler)
     timed = TimedSink(sink)
     start = time.perf_counter()
     try:

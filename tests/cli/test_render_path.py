@@ -233,13 +233,15 @@ def test_bad_input_is_one_line_before_any_rendering_and_loses_nothing(tmp_path, 
 
 
 def test_a_real_sigint_mid_render_leaves_a_playable_video(tmp_path):
-    """What the window's Cancel button and a terminal's Ctrl-C send, to a real process."""
+    """What the window's Cancel button and a terminal's Ctrl-C send, to a real process;
+    one started as a script's background job is, which inherits SIGINT ignored."""
     long = demo_document(path=path_through_cameras(demo_cameras()[:3], duration=20, fps=10))  # 200 frames
     path_file = save_path_document(long, tmp_path / "long.json")
     video = tmp_path / "fly.mp4"
     process = subprocess.Popen([sys.executable, "-m", "raygs_viewer", "render-path", "demo", str(path_file),
                                 "--out", str(video), "--progress", "json"],
-                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                               stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                               preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_IGN))
     try:
         first = read_progress_line(process.stdout.readline())   # a frame is done: the encoder holds some
         for _ in range(2):

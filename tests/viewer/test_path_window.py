@@ -415,8 +415,9 @@ def line(record) -> str:
 PROGRESS = [line(FrameProgress(k, 3, 5.0, (3 - k) / 5.0)) for k in (1, 2, 3)]
 DONE = line(RenderDone("OUT", 3))
 #: Prints one progress line, then renders "forever" until SIGINT, as render-path does on Ctrl-C.
-INTERRUPTIBLE = [sys.executable, "-c", (
-    "import json, sys, time\n"
+INTERRUPTIBLE = [sys.executable, "-c", (  # as render-path --progress json: SIGINT stops it, even if inherited ignored
+    "import json, signal, sys, time\n"
+    "signal.signal(signal.SIGINT, signal.default_int_handler)\n"
     "try:\n"
     f"    print({PROGRESS[0]!r}, flush=True)\n"
     "    while True:\n"
