@@ -126,6 +126,7 @@ class Viewer:
         self.view_mode = ViewMode()
         self.remembered = Remembered()
         self.panel = PanelState(width=self.remembered.panel_width)
+        self.panel_dragged = False  # the panel's width changed in the drag under way
         self.stats = FrameStats()
         self.scenes = SceneOpener(self.panel, options.source, window_fits(self.ctx, self.panel))
         self.window.set_drop_callback(self.scenes.drop)
@@ -269,9 +270,15 @@ class Viewer:
         result = self.scene.shown(request_sort(self.scene.sorter, self.stats, frame, self.wait_for_sort))
 
         if self.panel.show_panel:
+            before = self.panel.width
             draw_panel(self.panel, self._panel_sections())
-            if not imgui.is_mouse_down(0):  # a resize has ended: the next run opens with this width
+            # Remembered when the user's drag ends: a width the window merely clamps (a
+            # smaller window) leaves the remembered one alone.
+            if imgui.is_mouse_down(0):
+                self.panel_dragged |= self.panel.width != before
+            elif self.panel_dragged:
                 self.remembered.keep(self.panel.width)
+                self.panel_dragged = False
         self.overlay_rects = {} if not frame.split else draw_split_overlay(
             frame.viewport, self.split, self.settings, self.input.dragging_divider)
         self.frustums.draw(frame, self.loaded, self.view.radius, hover=not self.measure.on)  # under the path's lines
@@ -387,7 +394,7 @@ class Viewer:
     def close(self) -> None:
         if self.window is None:
             return
-        if self.panel.show_panel:
+        if self.panel_dragged:  # closed in the middle of a drag
             self.remembered.keep(self.panel.width)
         self.camera_path.close()
         self.scenes.close()

@@ -86,6 +86,13 @@ def test_the_panel_resized_by_hand_moves_the_view_and_is_remembered(open_viewer,
     drag(drive_again, (again.panel.width - 1, PANEL_HEIGHT / 2), (PANEL_WIDTH - 10, PANEL_HEIGHT / 2))
     assert again.panel.width == pytest.approx((1 - MIN_VIEW_SHARE) * PANEL_WIDTH, abs=1)
     assert again.viewport[0] == round(again.panel.width)
+    assert json.loads(remembered_path().read_text()) == {"panel_width": round(again.panel.width, 1)}
+    # A smaller window clamps the width it opens with, and the remembered one stays.
+    again.close()
+    small, drive_small = open_viewer(width=PANEL_WIDTH // 2, height=PANEL_HEIGHT)
+    drive_small.frames(3)
+    assert small.panel.width < again.panel.width
+    assert json.loads(remembered_path().read_text()) == {"panel_width": round(again.panel.width, 1)}
 
 
 @pytest.mark.parametrize("content", ["not json", '{"panel_width": "wide"}', '{"panel_width": 1e9}', "[]"])
