@@ -7,6 +7,7 @@ import json
 
 import pytest
 from appkit import PANEL_HEIGHT, PANEL_WIDTH, headless, window_image
+from imgui_bundle import imgui
 from testkit import assert_matches
 
 from raygs_viewer.viewer.layout import MIN_PANEL_WIDTH, MIN_VIEW_SHARE, PANEL_WIDTH as DEFAULT_PANEL, view_area
@@ -54,7 +55,7 @@ def test_the_view_is_laid_out_beside_the_panel_and_takes_the_window_without_it(o
     viewer.split.on = False
     # Hidden (H, the pointer over the view): the whole window.
     drive.move_mouse(PANEL_WIDTH - 5, PANEL_HEIGHT - 5)
-    drive.tap(__import__("imgui_bundle").imgui.Key.h)
+    drive.tap(imgui.Key.h)
     drive.settle()
     assert not viewer.panel.show_panel and viewer.viewport == (0, 0, PANEL_WIDTH, PANEL_HEIGHT)
 
