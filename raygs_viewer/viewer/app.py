@@ -35,7 +35,6 @@ from raygs_viewer.capture.image_io import check_output_path, save_image
 from raygs_viewer.capture.screenshot import check_screenshot_path
 from raygs_viewer.capture.sidecar import load_camera_source
 from raygs_viewer.errors import UserError, one_line
-from raygs_viewer.photos.dataset import Dataset, PhotoView
 from raygs_viewer.photos.evaluate import evaluation_settings, render_view
 from raygs_viewer.render.gl.context import context_description
 from raygs_viewer.render.gl.mono_frame import Viewport
@@ -48,7 +47,7 @@ from raygs_viewer.scene.progress import ProgressCallback
 from raygs_viewer.sort.request import SortResult
 from raygs_viewer.sort.worker import BackgroundSorter
 from raygs_viewer.viewer.drawing import SceneDrawer, request_sort
-from raygs_viewer.viewer.feedback import Feedback, draw_history
+from raygs_viewer.viewer.feedback import Feedback
 from raygs_viewer.viewer.file_dialog import FileDialog
 from raygs_viewer.viewer.frame import NO_VIEWPORT, Frame
 from raygs_viewer.viewer.input import InputHandler
@@ -56,25 +55,13 @@ from raygs_viewer.viewer.loading import SceneOpener, scene_title
 from raygs_viewer.viewer.lod_window import first_levels, lod_request, refines, window_fits, window_settings
 from raygs_viewer.viewer.measure import MeasureWidget
 from raygs_viewer.viewer.overlay import draw_split_overlay
-from raygs_viewer.viewer.layout import view_area
-from raygs_viewer.viewer.panel import draw_panel
-from raygs_viewer.viewer.panel.geometry import draw_geometry_section
-from raygs_viewer.viewer.panel.lod import draw_lod_section
-from raygs_viewer.viewer.panel.measure import draw_measure_section
-from raygs_viewer.viewer.panel.order import draw_order_section
-from raygs_viewer.viewer.panel.path import draw_path_section
-from raygs_viewer.viewer.panel.render import draw_render_section
-from raygs_viewer.viewer.panel.scene import draw_scene_section
-from raygs_viewer.viewer.panel.screenshot import draw_screenshot_section
-from raygs_viewer.viewer.panel.statistics import draw_statistics
-from raygs_viewer.viewer.panel.stereo import draw_stereo_section
-from raygs_viewer.viewer.panel.training import draw_training_section
-from raygs_viewer.viewer.panel.view import draw_view_section
 from raygs_viewer.viewer.path_widget import PathWidget
+from raygs_viewer.viewer.panel_sections import panel_sections
 from raygs_viewer.viewer.photo_view import PhotoCompare, blocked_reason
 from raygs_viewer.viewer.remembered import Remembered
 from raygs_viewer.viewer.pick_tool import PickTool
 from raygs_viewer.viewer.shown_scene import ShownScene
+from raygs_viewer.viewer.side_panel import SidePanel
 from raygs_viewer.viewer.screenshots import Captures, Saved, Shot, ShownView, sidecar_extra
 from raygs_viewer.viewer.state import (
     PanelState,
@@ -88,11 +75,6 @@ from raygs_viewer.viewer.thumbnails import Thumbnails
 from raygs_viewer.viewer.training_frustums import TrainingFrustums
 from raygs_viewer.viewer.view_control import ViewControl
 from raygs_viewer.viewer.window import Window, choose_platform
-
-
-#: The narrowest strip beside the panel the notes are placed in (screen units); a window
-#: narrower than that shows them over the panel.
-MIN_NOTE_WIDTH = 160.0
 
 
 class Viewer:
@@ -124,9 +106,8 @@ class Viewer:
         self.captures = Captures(replace(options.screenshots))
         self.split = SplitView()
         self.view_mode = ViewMode()
-        self.remembered = Remembered()
-        self.panel = PanelState(width=self.remembered.panel_width)
-        self.panel_dragged = False  # the panel's width changed in the drag under way
+        self.panel = PanelState()
+        self.side_panel = SidePanel(self.panel, Remembered())
         self.stats = FrameStats()
         self.scenes = SceneOpener(self.panel, options.source, window_fits(self.ctx, self.panel))
         self.window.set_drop_callback(self.scenes.drop)
@@ -135,18 +116,21 @@ class Viewer:
         self.drawer = SceneDrawer(self.ctx)
         self.file_dialog = FileDialog()
         self.feedback = Feedback()
-        self.photo = PhotoCompare(self.ctx, options.images, self.render_photo_view)
+        # At a training camera's own size the Photo view renders as ``evaluate`` does, with the
+        # panel's settings over the dataset's background, so the two measure one PSNR.
+        self.photo = PhotoCompare(self.ctx, options.images, lambda view, dataset: render_view(
+            self.scene.renderer, self.scene.exact_sorter, view, evaluation_settings(self.settings, dataset)))
         self.camera_path = PathWidget(self.panel, self)
         self.measure = MeasureWidget(self.panel, self)
-        self.picker = PickTool(self, self.measure)
         self.frustums = TrainingFrustums(Thumbnails(self.ctx, self.photo.dataset))
+        self.picker = PickTool(self, self.measure, self.frustums)
         self.input = InputHandler({
             "quit": self.window.request_close, "screenshot": self.captures.request,
             "switch_navigation": lambda: self.view.switch_mode(),
             "next_camera": lambda: self.view.step_training_camera(+1),
             "previous_camera": lambda: self.view.step_training_camera(-1),
             "reset_view": self.reset_view, "toggle_panel": self.panel.toggle,
-            "add_keyframe": self.camera_path.add_view}, self._click, self.picker.double_click)
+            "add_keyframe": self.camera_path.add_view}, self.picker.click, self.picker.double_click)
         self.frame_index = 0
         self.input_script: Callable[[Viewer], None] | None = None
         self.fixed_dt: float | None = None  # tests: a deterministic frame time
@@ -222,20 +206,14 @@ class Viewer:
     def set_settings(self, settings: RenderSettings) -> None:
         self.settings = settings
 
-    def render_photo_view(self, view: PhotoView, dataset: Dataset) -> np.ndarray:
-        """The Photo view's render at a training camera's own size: ``evaluate``'s, with the
-        panel's settings over the dataset's background, so the two measure one PSNR."""
-        settings = evaluation_settings(self.settings, dataset)
-        return render_view(self.scene.renderer, self.scene.exact_sorter, view, settings)
-
     def reset_view(self) -> None:
         self.view.reset(self.view_area()[2:], self.shown_stereo)
 
     def view_area(self) -> Viewport:
         """The part of the window the view is laid out in: beside the panel while it is
         shown (``layout.view_area``)."""
-        scale = imgui.get_io().display_framebuffer_scale.x or 1.0
-        return view_area(self.window.framebuffer_size(), self.panel.width if self.panel.show_panel else None, scale)
+        return self.side_panel.view_area(self.window.framebuffer_size(),
+                                         imgui.get_io().display_framebuffer_scale.x or 1.0)
 
     # -- frame -------------------------------------------------------------------------
     def frame(self) -> None:
@@ -269,22 +247,15 @@ class Viewer:
         # After a streamed SOG's level arrives: the last order until its first.
         result = self.scene.shown(request_sort(self.scene.sorter, self.stats, frame, self.wait_for_sort))
 
-        if self.panel.show_panel:
-            before = self.panel.width
-            draw_panel(self.panel, self._panel_sections())
-            # Remembered when the user's drag ends: a width the window merely clamps (a
-            # smaller window) leaves the remembered one alone.
-            if imgui.is_mouse_down(0):
-                self.panel_dragged |= self.panel.width != before
-            elif self.panel_dragged:
-                self.remembered.keep(self.panel.width)
-                self.panel_dragged = False
+        self.side_panel.draw(panel_sections(self))
         self.overlay_rects = {} if not frame.split else draw_split_overlay(
             frame.viewport, self.split, self.settings, self.input.dragging_divider)
         self.frustums.draw(frame, self.loaded, self.view.radius, hover=not self.measure.on)  # under the path's lines
         self.camera_path.draw_overlay(frame, self.view.radius)
         self.measure.draw_overlay(frame, self.view.radius)
-        self._draw_feedback()
+        width_shown = imgui.get_io().display_size.x
+        left = self.side_panel.notes_left(width_shown)
+        self.feedback.draw(left, 10.0, width_shown - left - 10.0)
         imgui.render()
 
         frame = self.shown = frame.with_views(*self.view_mode.side_views(self.panel, split=frame.split))
@@ -300,53 +271,6 @@ class Viewer:
         self.captures.frame_shown(self.capture_window)
         self.window.end_frame()
         self.captures.frame_done(self.save_screenshot, self.panel)
-
-    def _click(self, x: float, y: float) -> None:
-        """A click on the view: on a training camera's frustum it flies there, unless the
-        measure tool takes clicks; else the pick tool's."""
-        index = None if self.measure.on else self.frustums.camera_at(x, y)
-        if index is None:
-            self.picker.click(x, y)
-        else:
-            self.view.select_training_camera(index)
-
-    def _draw_feedback(self) -> None:
-        """The notes over the view: at its top left, right of the panel when it is shown
-        (over the panel where the window is too narrow to leave room beside it)."""
-        width = imgui.get_io().display_size.x
-        left = self.panel.width + 10.0 if self.panel.show_panel else 10.0
-        if width - left < MIN_NOTE_WIDTH:
-            left = 10.0
-        self.feedback.draw(left, 10.0, width - left - 10.0)
-
-    def _panel_sections(self) -> list[Callable[[], None]]:
-        """Each panel section with the part of the state it edits (read when it is drawn:
-        an edit shows in the sections below it at once)."""
-        loaded, renderer, view, stats = self.loaded, self.scene.renderer, self.view, self.stats
-        split_shown = self.split.on and self.shown_stereo is None
-        return [
-            lambda: draw_statistics(stats, loaded.scene.count, self.scene.sorter, renderer.counters, renderer.general,
-                                    self.options.sort),
-            lambda: draw_scene_section(loaded, self.panel, self.scenes.open, self.scenes.loader,
-                                       lambda axes: self.scenes.switch_axes(loaded, axes), self.file_dialog),
-            lambda: draw_lod_section(self.scene.lod, loaded, self.scenes.loader, self.settings, self.set_settings,
-                                     self.set_tint, stats),
-            lambda: draw_render_section(self.settings, self.set_settings, loaded.scene.sh_degree, renderer.supports,
-                                        self.window, self.stereo, self.split, self.panel.note),
-            lambda: draw_order_section(self.settings, self.set_settings, stats, self.right_settings() is not None),
-            lambda: draw_stereo_section(self.stereo, stats, self.shown),
-            lambda: draw_view_section(view, self.reset_view),
-            lambda: draw_training_section(loaded, view.training_index, view.select_training_camera,
-                                          view.step_training_camera, self.photo, self.frustums),
-            lambda: draw_screenshot_section(self.captures.options, self.shown and self.shown.full_camera,
-                                            self.shown_stereo is not None,
-                                            self.stereo.save_eyes, split_shown, self.captures.request),
-            lambda: draw_geometry_section(self.view_mode, self.drawer.view_range, self.picker.last,
-                                          self.measure.scale, self.stereo, split_shown),
-            lambda: draw_path_section(self.camera_path),
-            lambda: draw_measure_section(self.measure),
-            lambda: draw_history(self.feedback),
-        ]
 
     def capture_window(self, overlay: bool = True) -> np.ndarray:
         """(H, W, 3) uint8, top row first: the window as shown, panel included;
@@ -394,8 +318,7 @@ class Viewer:
     def close(self) -> None:
         if self.window is None:
             return
-        if self.panel_dragged:  # closed in the middle of a drag
-            self.remembered.keep(self.panel.width)
+        self.side_panel.close()  # a drag of its edge the window closes in
         self.camera_path.close()
         self.scenes.close()
         self.window.make_current()

@@ -1,6 +1,7 @@
 """What a click or a double-click on the view does: the point under the mouse, picked in
 the last frame's view (:mod:`.picking`), aims the view at it, sets the stereo
-convergence, or becomes a measured point.
+convergence, or becomes a measured point; a click on a training camera's frustum flies
+there.
 
 Double-click (not while measuring): in orbit mode the point becomes the orbit centre,
 the view keeping its direction and gliding sideways so that the point sits on the image
@@ -10,7 +11,8 @@ with "double-click sets convergence" on, it sets the rig's convergence to the po
 depth instead (the plane of zero disparity is a depth, not a distance). A pixel
 without a median depth changes nothing and says so.
 
-Click (while measuring): the point is the measurement's next end.
+Click: while measuring, the point is the measurement's next end; else, on a training
+camera's frustum (:mod:`.training_frustums`), the view flies to that camera.
 """
 
 from __future__ import annotations
@@ -31,6 +33,7 @@ from raygs_viewer.viewer.measure import MeasureWidget, format_distance
 from raygs_viewer.viewer.picking import Picked, mono_pixel, pick, pixel_camera, stereo_pixel
 from raygs_viewer.viewer.shown_scene import ShownScene
 from raygs_viewer.viewer.state import PanelState, SplitView, StereoPreview
+from raygs_viewer.viewer.training_frustums import TrainingFrustums
 from raygs_viewer.viewer.view_control import ViewControl
 
 NOTHING_THERE = ("nothing to pick there: that pixel's alpha never reaches 0.5, so it has no median depth "
@@ -56,10 +59,11 @@ class PickHost(Protocol):
 
 
 class PickTool:
-    """``last``: the point of the last double-click (the panel shows it)."""
+    """``last``: the point of the last double-click (the panel shows it); ``frustums``: the
+    training cameras drawn in the scene, which a click flies to."""
 
-    def __init__(self, host: PickHost, measure: MeasureWidget):
-        self.host, self.measure = host, measure
+    def __init__(self, host: PickHost, measure: MeasureWidget, frustums: TrainingFrustums):
+        self.host, self.measure, self.frustums = host, measure, frustums
         self.last: Picked | None = None
 
     def point_at(self, x: float, y: float) -> Picked | None | bool:
@@ -120,6 +124,9 @@ class PickTool:
 
     def click(self, x: float, y: float) -> None:
         if not self.measure.on:
+            index = self.frustums.camera_at(x, y)
+            if index is not None:
+                self.host.view.select_training_camera(index)
             return
         picked = self.point_at(x, y)
         if picked is None:

@@ -6,6 +6,7 @@ from __future__ import annotations
 import pytest
 from appkit import PANEL_HEIGHT, PANEL_WIDTH, text_past_the_panel
 
+from raygs_viewer.viewer import app as viewer_app
 from raygs_viewer.viewer.layout import MIN_PANEL_WIDTH
 from raygs_viewer.viewer.panel.widgets import labelled_progress
 
@@ -30,7 +31,7 @@ def test_no_panel_text_runs_past_the_panel(open_viewer):
 
 
 @pytest.mark.parametrize("mode", ["stereo", "split"])
-def test_nothing_is_cut_in_every_section_of_the_narrowest_panel(open_viewer, mode):
+def test_nothing_is_cut_in_every_section_of_the_narrowest_panel(open_viewer, monkeypatch, mode):
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=3 * PANEL_HEIGHT)
     viewer.panel.width = MIN_PANEL_WIDTH  # the width it opens with (remembered)
     viewer.stereo.on = mode == "stereo"
@@ -40,9 +41,9 @@ def test_nothing_is_cut_in_every_section_of_the_narrowest_panel(open_viewer, mod
     for closed in ("Measure", "Training cameras (6)###training"):
         drive.click(closed)
     # A progress bar with a load's longest stage, as the Scene and Level of detail sections show one.
-    sections = viewer._panel_sections
-    viewer._panel_sections = lambda: sections() + [
-        lambda: labelled_progress(0.25, "reading level 3 of 5: 1,234,567 of 2,345,678 gaussians")]
+    sections = viewer_app.panel_sections
+    monkeypatch.setattr(viewer_app, "panel_sections", lambda window: sections(window) + [
+        lambda: labelled_progress(0.25, "reading level 3 of 5: 1,234,567 of 2,345,678 gaussians")])
     drive.frames(3)
     assert viewer.panel.width == MIN_PANEL_WIDTH
     assert "replace file##measure" in drive.panel and ("Stereo" in drive.panel or mode != "stereo")
