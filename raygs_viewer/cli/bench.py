@@ -1,16 +1,14 @@
-"""``raygs-viewer bench accuracy|stereo|perf|order|sort``: their options, the command line each run
-records (so that the report says how to reproduce it), the options handed to the
-benchmark (everything that can be checked is, before any work) and the dispatch.
+"""``raygs-viewer bench accuracy|stereo|perf|order|sort|formats|lod|gpu``: their options,
+the options handed to each benchmark (everything that can be checked is, before any
+work) and the dispatch; what they share (the parser's skeleton, the recorded command
+line, the report's output) is ``cli.bench_shared``.
 """
 
 from __future__ import annotations
 
 import argparse
 import os
-import shlex
 from pathlib import Path
-from types import ModuleType
-from typing import Callable
 
 from raygs_viewer.bench import accuracy, accuracy_report, freshness, perf
 from raygs_viewer.bench import formats as formats_bench
@@ -21,16 +19,28 @@ from raygs_viewer.bench import sort as sort_bench
 from raygs_viewer.bench import stereo as stereo_bench
 from raygs_viewer.bench.common import (
     DEMO,
-    RunOptions,
     count_label,
     shared_scene_paths,
     shared_scenes_dir,
-    write_report,
 )
 from raygs_viewer.camera import stereo as camera_stereo
-from raygs_viewer.capture.image_io import check_output_path
 from raygs_viewer.cli import argtypes
-from raygs_viewer.cli.bench_about import ABOUT, SORT_COUNTS
+from raygs_viewer.cli.bench_about import SORT_COUNTS
+from raygs_viewer.cli.bench_shared import (
+    add_out_options,
+    add_width_and_repeat,
+    bench_parser,
+    check_distinct,
+    plot_path,
+    print_notes,
+    print_written,
+    quick_or_default,
+    recorded_command,
+    report_path,
+    run_fields,
+    run_reported,
+    scene_choice,
+)
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.lod_meta import LOD_META_NAME
 
@@ -64,148 +74,23 @@ def command(args: argparse.Namespace, ctx=None) -> int:
                 "gpu": (gpu_options, gpu_bench.run_gpu, gpu_bench.format_report)}
     runs = {"accuracy": _run_accuracy, "perf": _run_perf}
     if args.bench in reported:
-        return _run_reported(*reported[args.bench], args, ctx)
+        return run_reported(*reported[args.bench], args, ctx)
     if args.bench not in runs:
         raise UserError(f"unknown benchmark '{args.bench}'")
     return runs[args.bench](args, ctx)
-
-
-# --- shared ---------------------------------------------------------------------------------------
-
-#: The options each benchmark's recorded command names, in their order there.
-RECORDED_FLAGS: dict[str, tuple[str, ...]] = {
-    "accuracy": ("--quick", "--scenes", "--width", "--repeat", "--gt-samples", "--gt-p-min", "--photos",
-                 "--photos-views", "--gl-backend", "--report", "--plot", "--overwrite"),
-    "stereo": ("--quick", "--scenes", "--presets", "--width", "--repeat", "--out", "--gl-backend", "--overwrite"),
-    "perf": ("--quick", "--counts", "--sizes", "--resolutions", "--scenes", "--frames", "--report", "--plot",
-             "--gl-backend", "--overwrite"),
-    "order": ("--quick", "--scenes", "--width", "--frames", "--repeat", "--gt-samples", "--out", "--gl-backend",
-              "--overwrite"),
-    "sort": ("--quick", "--counts", "--repeat", "--no-freshness", "--no-load", "--out", "--gl-backend", "--overwrite"),
-    "formats": ("--quick", "--scenes", "--no-samples", "--width", "--repeat", "--out", "--gl-backend", "--overwrite"),
-    "lod": ("--quick", "--scenes", "--width", "--repeat", "--lod-distance", "--out", "--gl-backend", "--overwrite"),
-    "gpu": ("--quick", "--counts", "--scenes", "--frames", "--out", "--gl-backend", "--overwrite"),
-}
-#: Options a recorded command leaves out at these values (by argparse dest).
-RECORDED_DEFAULTS: dict[str, dict[str, object]] = {"perf": {"frames": perf.DEFAULT_FRAMES}}
-
-
-def recorded_command(kind: str, args: argparse.Namespace) -> str:
-    """``raygs-viewer bench KIND`` and, in the order of ``RECORDED_FLAGS[kind]``, every
-    option given: a switch alone, a list (even empty) as its words, WxH sizes as such. An
-    option whose value is None, False or its entry in ``RECORDED_DEFAULTS`` is left out."""
-    parts = ["raygs-viewer", "bench", kind]
-    defaults = RECORDED_DEFAULTS.get(kind)
-    for flag in RECORDED_FLAGS[kind]:
-        dest = flag.removeprefix("--").replace("-", "_")
-        value = getattr(args, dest)
-        if value is None or value is False or (defaults and dest in defaults and value == defaults[dest]):
-            continue
-        if value is True:
-            parts.append(flag)
-        else:
-            words = value if isinstance(value, list) else [value]
-            parts += [flag, *("x".join(map(str, w)) if isinstance(w, tuple) else str(w) for w in words)]
-    return shlex.join(parts)
-
-
-def _report_path(path: str | Path | None, overwrite: bool) -> Path | None:
-    return None if path is None else check_output_path(path, overwrite, (".md",))
-
-
-def _plot_path(path: str | Path | None, overwrite: bool) -> Path | None:
-    return None if path is None else check_output_path(path, overwrite, (".png",))
-
-
-def _check_distinct(report: Path, plot: Path) -> None:
-    if os.path.abspath(report) == os.path.abspath(plot):
-        raise UserError(f"{report}: the report and the plot must be different files")
-
-
-def _bench_parser(kinds, kind: str, quick: str, scenes: bool = False) -> argparse.ArgumentParser:
-    """The parser of ``bench KIND`` (its ABOUT entry) with --quick (help ``quick``) and, with
-    ``scenes``, the --scenes of accuracy, stereo, order and formats."""
-    parser = kinds.add_parser(kind, help=ABOUT[kind][0], description=ABOUT[kind][1])
-    parser.add_argument("--quick", action="store_true", help=quick)
-    if scenes:
-        _add_scenes_option(parser)
-    return parser
-
-
-def _add_scenes_option(parser: argparse.ArgumentParser) -> None:
-    """accuracy's and stereo's --scenes (perf's may be empty: generated scenes only)."""
-    parser.add_argument("--scenes", nargs="+", metavar="SCENE",
-                        help=f"scene files (or '{DEMO}') instead of the demo and the real scenes in ../shared/scenes")
-
-
-def _add_width_and_repeat(parser: argparse.ArgumentParser, width_help: str, repeat_help: str) -> None:
-    """accuracy's and stereo's --width (of the views measured) and --repeat (timed frames)."""
-    parser.add_argument("--width", type=argtypes.whole_number(4, argtypes.MAX_SIDE), metavar="PX", help=width_help)
-    parser.add_argument("--repeat", type=argtypes.whole_number(1, 100000), metavar="N", help=repeat_help)
-
-
-def _add_out_options(parser: argparse.ArgumentParser, out_help: str = "also write the markdown report there") -> None:
-    """The last options of stereo, order, sort and formats: --out (the markdown report),
-    --overwrite and --gl-backend."""
-    parser.add_argument("--out", metavar="PATH.md", help=out_help)
-    parser.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
-    argtypes.add_backend_option(parser)
-
-
-def _show_report(report: str, out: Path | None, overwrite: bool) -> int:
-    """Prints a benchmark's markdown report and writes it to ``out`` (if given); exit status 0."""
-    print("", flush=True)
-    print(report, flush=True)
-    if out is not None:
-        write_report(out, report, overwrite)
-        print(f"wrote {out}", flush=True)
-    return 0
-
-
-def _print_notes(notes: tuple[str, ...]) -> None:
-    for note in notes:
-        print(f"note: {note}", flush=True)
-
-
-def _scene_choice(args: argparse.Namespace,
-                  default: Callable[[], tuple[tuple[str, ...], list[str]]]) -> tuple[tuple[str, ...], list[str]]:
-    """The scenes of --scenes as given, else ``default()``; with the notes on scenes not found."""
-    return (tuple(args.scenes), []) if args.scenes is not None else default()
-
-
-def _quick_or_default(args: argparse.Namespace, bench: ModuleType, names: tuple[str, ...]) -> dict[str, object]:
-    """{name: the option as given, else the benchmark module's QUICK_<NAME> with --quick, else
-    its DEFAULT_<NAME>}: the sizes every benchmark names the same way."""
-    prefix = "QUICK" if args.quick else "DEFAULT"
-    return {name: getattr(args, name) or getattr(bench, f"{prefix}_{name.upper()}") for name in names}
-
-
-def _run_fields(kind: str, args: argparse.Namespace, notes: list[str]) -> dict[str, object]:
-    """The fields of ``bench.common.RunOptions`` and the recorded command line, for any benchmark."""
-    return {"command_line": recorded_command(kind, args), "gl_backend": args.gl_backend, "notes": tuple(notes)}
-
-
-def _run_reported(make_options: Callable[[argparse.Namespace], RunOptions], run: Callable,
-                  report: Callable[..., str], args: argparse.Namespace, ctx) -> int:
-    """Makes the options (checking them before any work) and the --out path, prints the
-    notes, runs the benchmark and shows its report (written to --out, if given)."""
-    options = make_options(args)
-    out = _report_path(args.out, args.overwrite)
-    _print_notes(options.notes)
-    return _show_report(report(run(options, ctx)), out, args.overwrite)
 
 
 # --- accuracy ------------------------------------------------------------------------------------
 
 
 def _add_accuracy_parser(kinds) -> None:
-    parser = _bench_parser(kinds, "accuracy",
+    parser = bench_parser(kinds, "accuracy",
                            f"the demo and one small real scene, {accuracy.QUICK_WIDTH} px wide, "
                            f"{accuracy.QUICK_REPEAT} timed frames, ground truth "
                            f"{accuracy.QUICK_GT_SAMPLES}x{accuracy.QUICK_GT_SAMPLES} samples (1 to 1.5 minutes on two CPU cores with "
                            f"llvmpipe: 74 s on 2026-11-28)",
                            scenes=True)
-    _add_width_and_repeat(parser,
+    add_width_and_repeat(parser,
                           f"width of the training-like view (default {accuracy.DEFAULT_WIDTH}, --quick "
                           f"{accuracy.QUICK_WIDTH}); the far view has a quarter of it",
                           f"timed frames per configuration (default {accuracy.DEFAULT_REPEAT}, --quick "
@@ -239,50 +124,44 @@ def accuracy_command_line(args: argparse.Namespace) -> str:
 
 
 def accuracy_options(args: argparse.Namespace) -> accuracy.AccuracyOptions:
-    scenes, notes = _scene_choice(args, lambda: accuracy.default_scenes(args.quick))
+    scenes, notes = scene_choice(args, lambda: accuracy.default_scenes(args.quick))
     if args.report is not None and args.plot is not None:
-        _check_distinct(Path(args.report), Path(args.plot))
-    report, plot = _report_path(args.report, args.overwrite), _plot_path(args.plot, args.overwrite)
+        check_distinct(Path(args.report), Path(args.plot))
+    report, plot = report_path(args.report, args.overwrite), plot_path(args.plot, args.overwrite)
     return accuracy.AccuracyOptions(
-        scenes=scenes, **_quick_or_default(args, accuracy, ("width", "repeat", "gt_samples")),
+        scenes=scenes, **quick_or_default(args, accuracy, ("width", "repeat", "gt_samples")),
         report=report, plot=plot, overwrite=args.overwrite,
         gt_p_min=accuracy.GT_P_MIN if args.gt_p_min is None else args.gt_p_min,
         photos=args.photos,
         photos_views=accuracy.DEFAULT_PHOTO_VIEWS if args.photos_views is None else args.photos_views,
-        **_run_fields("accuracy", args, notes))
+        **run_fields("accuracy", args, notes))
 
 
 def _run_accuracy(args: argparse.Namespace, ctx) -> int:
     options = accuracy_options(args)
-    _print_notes(options.notes)
+    print_notes(options.notes)
     results = accuracy.run_accuracy(options, ctx)
     report = accuracy_report.write_outputs(results, options.report, options.plot, options.overwrite)
     print("", flush=True)
     print(report, flush=True)
-    _print_written(options.report, options.plot)
+    print_written(options.report, options.plot)
     return 0
-
-
-def _print_written(*paths: Path | None) -> None:
-    for path in paths:
-        if path is not None:
-            print(f"wrote {path}", flush=True)
 
 
 # --- stereo --------------------------------------------------------------------------------------
 
 
 def _add_stereo_parser(kinds) -> None:
-    parser = _bench_parser(kinds, "stereo",
+    parser = bench_parser(kinds, "stereo",
                            f"the demo scene only, {stereo_bench.QUICK_REPEAT} timed frames per preset (a few seconds)",
                            scenes=True)
     parser.add_argument("--presets", nargs="+", metavar="PRESET",
                         help="headset presets to time (default: all of " + ", ".join(camera_stereo.PRESETS) + ")")
-    _add_width_and_repeat(parser,
+    add_width_and_repeat(parser,
                           f"width of the views the sharing error is measured in (default {stereo_bench.DEFAULT_WIDTH})",
                           f"timed frames per preset (default {stereo_bench.DEFAULT_REPEAT}, --quick "
                           f"{stereo_bench.QUICK_REPEAT})")
-    _add_out_options(parser)
+    add_out_options(parser)
 
 
 def stereo_command_line(args: argparse.Namespace) -> str:
@@ -296,19 +175,19 @@ def stereo_options(args: argparse.Namespace) -> stereo_bench.StereoOptions:
     for name in presets:
         if name not in camera_stereo.PRESETS:
             raise UserError(f"unknown headset preset '{name}': use one of {', '.join(camera_stereo.PRESETS)}")
-    scenes, notes = _scene_choice(args, lambda: ((DEMO,), []) if args.quick else accuracy.default_scenes(False))
+    scenes, notes = scene_choice(args, lambda: ((DEMO,), []) if args.quick else accuracy.default_scenes(False))
     return stereo_bench.StereoOptions(
         scenes=scenes, presets=presets, width=args.width or stereo_bench.DEFAULT_WIDTH,
-        **_quick_or_default(args, stereo_bench, ("repeat",)),
-        out=_report_path(args.out, args.overwrite), overwrite=args.overwrite,
-        **_run_fields("stereo", args, notes))
+        **quick_or_default(args, stereo_bench, ("repeat",)),
+        out=report_path(args.out, args.overwrite), overwrite=args.overwrite,
+        **run_fields("stereo", args, notes))
 
 
 # --- perf ----------------------------------------------------------------------------------------
 
 
 def _add_perf_parser(kinds) -> None:
-    parser = _bench_parser(kinds, "perf",
+    parser = bench_parser(kinds, "perf",
                            "10k and 100k gaussians, one real scene, 1280x720 only (6 to 11 minutes on two CPU cores "
                            "with llvmpipe: 353 s in an earlier run, 10.6 minutes on 2026-11-28 on an idle machine)")
     parser.add_argument("--counts", nargs="+", type=argtypes.whole_number(1, 100_000_000), metavar="N",
@@ -334,28 +213,28 @@ def perf_command_line(args: argparse.Namespace) -> str:
 
 def perf_options(args: argparse.Namespace) -> perf.PerfOptions:
     """Checks everything that can be checked before any work."""
-    scenes, notes = _scene_choice(
+    scenes, notes = scene_choice(
         args, lambda: shared_scene_paths(perf.QUICK_REAL_SCENES if args.quick else perf.REAL_SCENES))
-    report = _report_path(args.report, args.overwrite)
-    plot = _plot_path(args.plot, args.overwrite)
+    report = report_path(args.report, args.overwrite)
+    plot = plot_path(args.plot, args.overwrite)
     if report is not None and plot is not None:
-        _check_distinct(report, plot)
+        check_distinct(report, plot)
     return perf.PerfOptions(
         counts=tuple(dict.fromkeys(args.counts or (perf.QUICK_COUNTS if args.quick else perf.COUNTS))),
         sizes=tuple(dict.fromkeys(args.sizes or perf.SIZES)),
         resolutions=tuple(dict.fromkeys(args.resolutions
                                         or (perf.QUICK_RESOLUTIONS if args.quick else perf.RESOLUTIONS))),
         scenes=scenes, frames=args.frames, report=report, plot=plot, overwrite=args.overwrite,
-        **_run_fields("perf", args, notes))
+        **run_fields("perf", args, notes))
 
 
 def _run_perf(args: argparse.Namespace, ctx) -> int:
     options = perf_options(args)
-    _print_notes(options.notes)
+    print_notes(options.notes)
     results = perf.run_perf(options, ctx)
     print("", flush=True)
     print(perf.format_report(results), flush=True)  # printed like every benchmark's; written when asked
-    _print_written(*perf.write_outputs(results))
+    print_written(*perf.write_outputs(results))
     return 0
 
 
@@ -363,11 +242,11 @@ def _run_perf(args: argparse.Namespace, ctx) -> int:
 
 
 def _add_order_parser(kinds) -> None:
-    parser = _bench_parser(kinds, "order",
+    parser = bench_parser(kinds, "order",
                            f"the demo and one small real scene, {order_bench.QUICK_WIDTH} px wide, sweeps of "
                            f"{order_bench.QUICK_FRAMES} frames (30 to 60 s on two CPU cores with llvmpipe: 38 s on "
                            f"2026-11-28)", scenes=True)
-    _add_width_and_repeat(parser,
+    add_width_and_repeat(parser,
                           f"width of the views (default {order_bench.DEFAULT_WIDTH}, --quick {order_bench.QUICK_WIDTH})",
                           f"timed frames per mode (default {order_bench.DEFAULT_REPEAT}, --quick "
                           f"{order_bench.QUICK_REPEAT})")
@@ -377,22 +256,22 @@ def _add_order_parser(kinds) -> None:
     parser.add_argument("--gt-samples", type=argtypes.whole_number(1, 64), metavar="N",
                         help=f"ground-truth samples per pixel axis (default {order_bench.DEFAULT_GT_SAMPLES}, "
                              f"--quick {order_bench.QUICK_GT_SAMPLES})")
-    _add_out_options(parser, f"also write the markdown report there (the docs' is {order_bench.DEFAULT_REPORT})")
+    add_out_options(parser, f"also write the markdown report there (the docs' is {order_bench.DEFAULT_REPORT})")
 
 
 def order_options(args: argparse.Namespace) -> order_bench.OrderOptions:
-    scenes, notes = _scene_choice(args, lambda: accuracy.default_scenes(args.quick))
+    scenes, notes = scene_choice(args, lambda: accuracy.default_scenes(args.quick))
     return order_bench.OrderOptions(
-        scenes=scenes, **_quick_or_default(args, order_bench, ("width", "frames", "repeat", "gt_samples")),
-        out=_report_path(args.out, args.overwrite), overwrite=args.overwrite,
-        **_run_fields("order", args, notes))
+        scenes=scenes, **quick_or_default(args, order_bench, ("width", "frames", "repeat", "gt_samples")),
+        out=report_path(args.out, args.overwrite), overwrite=args.overwrite,
+        **run_fields("order", args, notes))
 
 
 # --- sort ----------------------------------------------------------------------------------------
 
 
 def _add_sort_parser(kinds) -> None:
-    parser = _bench_parser(kinds, "sort",
+    parser = bench_parser(kinds, "sort",
                            f"stop at {count_label(sort_bench.QUICK_COUNTS[-1])}, {sort_bench.QUICK_REPEAT} runs; "
                            f"the freshness ({len(freshness.QUICK_SAMPLE_TIMES)} rendered frames per motion) "
                            f"for scenes up to {count_label(sort_bench.QUICK_FRESHNESS_MAX)} gaussians only (1 to 3 "
@@ -408,35 +287,35 @@ def _add_sort_parser(kinds) -> None:
                         help=f"no load measurements (by default each size from "
                              f"{count_label(sort_bench.LOAD_MIN)} up is written as an SH-3 PLY to a "
                              f"temporary folder, loaded in a fresh process and deleted)")
-    _add_out_options(parser)
+    add_out_options(parser)
 
 
 def sort_options(args: argparse.Namespace) -> sort_bench.SortOptions:
     quick = args.quick
     return sort_bench.SortOptions(
         counts=tuple(dict.fromkeys(args.counts or (sort_bench.QUICK_COUNTS if quick else sort_bench.COUNTS))),
-        **_quick_or_default(args, sort_bench, ("repeat",)),
+        **quick_or_default(args, sort_bench, ("repeat",)),
         sample_times=freshness.QUICK_SAMPLE_TIMES if quick else freshness.SAMPLE_TIMES,
         ladder_frames=freshness.QUICK_LADDER_FRAMES if quick else freshness.LADDER_FRAMES,
         freshness=not args.no_freshness, loads=not args.no_load,
         freshness_max=sort_bench.QUICK_FRESHNESS_MAX if quick else None,
-        **_run_fields("sort", args, []))
+        **run_fields("sort", args, []))
 
 
 # --- formats ---------------------------------------------------------------------------------------
 
 
 def _add_formats_parser(kinds) -> None:
-    parser = _bench_parser(kinds, "formats",
+    parser = bench_parser(kinds, "formats",
                            f"the demo and one real scene, {formats_bench.QUICK_WIDTH} px, "
                            f"{formats_bench.QUICK_REPEAT} loads each", scenes=True)
     parser.add_argument("--no-samples", action="store_true",
                         help="not the shared .spz sample against its INRIA PLY twin")
-    _add_width_and_repeat(parser, f"render width (default {formats_bench.DEFAULT_WIDTH}, --quick "
+    add_width_and_repeat(parser, f"render width (default {formats_bench.DEFAULT_WIDTH}, --quick "
                                   f"{formats_bench.QUICK_WIDTH})",
                           f"loads timed per file (default {formats_bench.DEFAULT_REPEAT}, --quick "
                           f"{formats_bench.QUICK_REPEAT})")
-    _add_out_options(parser)
+    add_out_options(parser)
 
 
 def _formats_scenes(quick: bool) -> tuple[tuple[str, ...], list[str]]:
@@ -446,23 +325,23 @@ def _formats_scenes(quick: bool) -> tuple[tuple[str, ...], list[str]]:
 
 
 def formats_options(args: argparse.Namespace) -> formats_bench.FormatsOptions:
-    scenes, notes = _scene_choice(args, lambda: _formats_scenes(args.quick))
+    scenes, notes = scene_choice(args, lambda: _formats_scenes(args.quick))
     return formats_bench.FormatsOptions(
-        scenes=scenes, samples=not args.no_samples, **_quick_or_default(args, formats_bench, ("width", "repeat")),
-        **_run_fields("formats", args, notes))
+        scenes=scenes, samples=not args.no_samples, **quick_or_default(args, formats_bench, ("width", "repeat")),
+        **run_fields("formats", args, notes))
 
 
 # --- lod -------------------------------------------------------------------------------------------
 
 
 def _add_lod_parser(kinds) -> None:
-    parser = _bench_parser(kinds, "lod",
+    parser = bench_parser(kinds, "lod",
                            f"{lod_bench.QUICK_WIDTH} px, {lod_bench.QUICK_REPEAT} timed frames per case "
                            f"(under a minute for a scene of 100k gaussians on two CPU cores)")
     parser.add_argument("--scenes", nargs="+", metavar="LOD.json",
                         help="streamed SOGs (lod-meta.json, or folders holding one) instead of every "
                              "lod-meta.json under ../shared/scenes")
-    _add_width_and_repeat(parser, f"width of the views (default {lod_bench.DEFAULT_WIDTH}, --quick "
+    add_width_and_repeat(parser, f"width of the views (default {lod_bench.DEFAULT_WIDTH}, --quick "
                                   f"{lod_bench.QUICK_WIDTH})",
                           f"timed frames per case (default {lod_bench.DEFAULT_REPEAT}, --quick "
                           f"{lod_bench.QUICK_REPEAT})")
@@ -470,7 +349,7 @@ def _add_lod_parser(kinds) -> None:
                         type=argtypes.real_number(lambda v: 0 < v <= 1e30, "not a distance above 0"),
                         help="the distance (scene units) from which level 1 is chosen, as render's "
                              "--lod-distance (default: automatic, four half-diagonals of the median part)")
-    _add_out_options(parser)
+    add_out_options(parser)
 
 
 def _lod_scenes() -> tuple[tuple[str, ...], list[str]]:
@@ -486,19 +365,19 @@ def _lod_scenes() -> tuple[tuple[str, ...], list[str]]:
 
 
 def lod_options(args: argparse.Namespace) -> lod_bench.LodOptions:
-    scenes, notes = _scene_choice(args, _lod_scenes)
+    scenes, notes = scene_choice(args, _lod_scenes)
     lod_bench.check_scenes(scenes)  # before any work
     return lod_bench.LodOptions(
-        scenes=scenes, **_quick_or_default(args, lod_bench, ("width", "repeat")), distance=args.lod_distance,
-        out=_report_path(args.out, args.overwrite), overwrite=args.overwrite,
-        **_run_fields("lod", args, notes))
+        scenes=scenes, **quick_or_default(args, lod_bench, ("width", "repeat")), distance=args.lod_distance,
+        out=report_path(args.out, args.overwrite), overwrite=args.overwrite,
+        **run_fields("lod", args, notes))
 
 
 # --- gpu -------------------------------------------------------------------------------------------
 
 
 def _add_gpu_parser(kinds) -> None:
-    parser = _bench_parser(kinds, "gpu",
+    parser = bench_parser(kinds, "gpu",
                            f"one generated scene of {count_label(gpu_bench.QUICK_COUNTS[0])} gaussians, "
                            f"{gpu_bench.QUICK_MONO[0]}x{gpu_bench.QUICK_MONO[1]} and a stereo pair at 1/"
                            f"{gpu_bench.QUICK_EYE_SHRINK} of the headset's size, {gpu_bench.QUICK_FRAMES} timed "
@@ -511,7 +390,7 @@ def _add_gpu_parser(kinds) -> None:
     parser.add_argument("--frames", type=argtypes.whole_number(1, 1000), metavar="N",
                         help=f"timed frames per case (default {gpu_bench.DEFAULT_FRAMES}, --quick "
                              f"{gpu_bench.QUICK_FRAMES})")
-    _add_out_options(parser)
+    add_out_options(parser)
 
 
 def gpu_options(args: argparse.Namespace) -> gpu_bench.GpuOptions:
@@ -533,5 +412,5 @@ def gpu_options(args: argparse.Namespace) -> gpu_bench.GpuOptions:
         mono=gpu_bench.QUICK_MONO if quick else gpu_bench.MONO,
         eye_shrink=gpu_bench.QUICK_EYE_SHRINK if quick else 1,
         frames=args.frames or (gpu_bench.QUICK_FRAMES if quick else gpu_bench.DEFAULT_FRAMES),
-        out=_report_path(args.out, args.overwrite), overwrite=args.overwrite,
-        **_run_fields("gpu", args, notes))
+        out=report_path(args.out, args.overwrite), overwrite=args.overwrite,
+        **run_fields("gpu", args, notes))
