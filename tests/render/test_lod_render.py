@@ -10,7 +10,8 @@ from lod_kit import random_gaussians, write_streamed_sog
 from testkit import assert_differs, assert_matches, patched_glsl, sorted_render
 
 from raygs_viewer.camera.pinhole import look_at
-from raygs_viewer.render.gl.renderer import GLRenderer, chunk_runs
+from raygs_viewer.render.gl.preprocess_pass import chunk_runs
+from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.lod_view import open_scene
 from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.settings import RenderSettings

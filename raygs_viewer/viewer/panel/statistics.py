@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from imgui_bundle import imgui
 
-from raygs_viewer.render.gl.renderer import WorkCounters
+from raygs_viewer.render.gl.preprocess_pass import WorkCounters
 from raygs_viewer.sort.worker import BackgroundSorter, InlineSorter
 from raygs_viewer.viewer.panel.widgets import line, ms, tooltip
 from raygs_viewer.viewer.stats import FrameStats, order_freshness
