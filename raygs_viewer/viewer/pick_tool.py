@@ -65,6 +65,7 @@ class PickTool:
     def __init__(self, host: PickHost, measure: MeasureWidget, frustums: TrainingFrustums):
         self.host, self.measure, self.frustums = host, measure, frustums
         self.last: Picked | None = None
+        self._flew = False  # the last click flew to a training camera
 
     def point_at(self, x: float, y: float) -> Picked | None | bool:
         """The point under screen position (x, y) in the last frame's view: False outside
@@ -103,6 +104,8 @@ class PickTool:
     def double_click(self, x: float, y: float) -> None:
         if self.measure.on:
             return  # its two clicks are the measure tool's
+        if self._flew and self.host.view.navigator.animating:
+            return  # the second press of a double-click on a frustum: its first flies there
         picked = self.point_at(x, y)
         if picked is False:
             return
@@ -125,7 +128,8 @@ class PickTool:
     def click(self, x: float, y: float) -> None:
         if not self.measure.on:
             index = self.frustums.camera_at(x, y)
-            if index is not None:
+            self._flew = index is not None
+            if self._flew:
                 self.host.view.select_training_camera(index)
             return
         picked = self.point_at(x, y)

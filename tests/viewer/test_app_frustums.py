@@ -115,6 +115,24 @@ def test_pointing_names_a_camera_and_a_click_flies_there(open_viewer, monkeypatc
     assert 2 not in viewer.frustums.drawn.depths  # now stood at
 
 
+def test_a_double_click_on_a_frustum_flies_there_and_picks_nothing(open_viewer):
+    viewer, drive = open_viewer(hide_panel=True)
+    overview(viewer, drive)
+    x, y = viewer.frustums.drawn.apexes[2]
+    drive.move_mouse(x, y)
+    drive.frames(1)
+    for _ in range(2):  # a person's double-click: its first click flies, its second must not aim the flight
+        drive.button(0, True)
+        drive.frames(1)
+        drive.button(0, False)
+        drive.frames(1)
+    assert viewer.view.training_index == 2
+    assert viewer.picker.last is None and "nothing to pick" not in viewer.panel.message
+    drive.frames(8)
+    target = Pose.from_camera(demo_cameras()[2])
+    np.testing.assert_array_equal(viewer.view.navigator.pose.position, target.position)
+
+
 def test_no_flight_with_the_frustums_hidden_or_the_measure_tool_on(open_viewer):
     viewer, drive = open_viewer(hide_panel=True)
     overview(viewer, drive)
