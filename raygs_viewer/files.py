@@ -32,6 +32,13 @@ def check_writable_folder(out: str | os.PathLike, folder: str | os.PathLike) -> 
         raise UserError(f"{out}: folder '{folder}' is not writable")
 
 
+def config_file(name: str) -> Path:
+    """Where the viewer keeps ``name`` between runs: ``$XDG_CONFIG_HOME/raygs-viewer/``
+    (``~/.config`` where that is unset); the folder may not exist yet."""
+    base = os.environ.get("XDG_CONFIG_HOME") or os.path.join(os.path.expanduser("~"), ".config")
+    return Path(base) / "raygs-viewer" / name
+
+
 @contextmanager
 def atomic_writer(path: str | os.PathLike, overwrite: bool = False) -> Iterator[BinaryIO]:
     """A binary stream into a temporary beside ``path``, moved into place when the

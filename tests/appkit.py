@@ -340,7 +340,8 @@ def open_viewer_factory(tmp_path):
         options.setdefault("width", WIDTH)
         options.setdefault("height", HEIGHT)
         options.setdefault("screenshots", ScreenshotOptions(folder=str(tmp_path / "shots")))
-        factories = {name: options.pop(name) for name in ("renderer_factory", "sorter_factory") if name in options}
+        factories = {name: options.pop(name) for name in ("renderer_factory", "sorter_factory", "probe_factory")
+                     if name in options}
         source = scene if isinstance(scene, SceneSource) else SceneSource(scene)
         viewer_options = ViewerOptions(source=source, platform="null", **options)
         viewer = Viewer(viewer_options, load_start_scene(viewer_options), start_camera(viewer_options), **factories)

@@ -176,11 +176,14 @@ def add_general_option(parser: argparse.ArgumentParser) -> None:
                              "slower: it shows what specialising saves")
 
 
-def add_sort_option(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("--sort", choices=("cpu", "gpu"), default="cpu",
-                        help="cpu: cull and sort on the CPU (the default); gpu: in OpenGL 4.3 compute shaders, the "
+def add_sort_option(parser: argparse.ArgumentParser, default: str = "cpu") -> None:
+    measured = ("auto: the one this GL measured faster at the scene's size (the window measures a GL it has not "
+                "seen in its first seconds, `raygs-viewer doctor` too; remembered in "
+                "$XDG_CONFIG_HOME/raygs-viewer/gl-profile.json; the CPU sort until then)")
+    parser.add_argument("--sort", choices=("auto", "cpu", "gpu"), default=default,
+                        help=f"{measured}; cpu: cull and sort on the CPU; gpu: in OpenGL 4.3 compute shaders, the "
                              "same order, kept on the GPU (no order crosses the bus; the draw uses the order of its "
-                             "own frame)")
+                             f"own frame). All give the same images (default {default})")
 
 
 def add_backend_option(parser: argparse.ArgumentParser) -> None:

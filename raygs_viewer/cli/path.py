@@ -102,7 +102,7 @@ def add_parsers(commands) -> None:
     parser.add_argument("--progress", choices=MODES, default="auto",
                         help="auto: a progress bar on a terminal (default); json: one JSON line per frame on stdout")
     argtypes.add_general_option(parser)
-    argtypes.add_sort_option(parser)
+    argtypes.add_sort_option(parser, default="auto")
     argtypes.add_backend_option(parser)
     parser.set_defaults(reference=False, sidecar=None)  # what stereo_view checks for render
     parser.set_defaults(run=command_render_path)

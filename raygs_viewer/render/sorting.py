@@ -16,21 +16,35 @@ import moderngl
 
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.render.gl.gpu_sort import GpuSorter
+from raygs_viewer.render.gl.profile import Choice, gl_identity, load_profile
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.lod_choice import LodChoice, LodRequest
 from raygs_viewer.sort.request import Order, SortRequest, keys_of
 
-#: What ``--sort`` takes: the CPU sort (the default) or the GPU sort.
+#: The sorts there are: the CPU's and the GPU's (``--sort`` also takes "auto": :func:`chosen_sort`).
 SORTS = ("cpu", "gpu")
 SORT_LABELS = {"cpu": "CPU sort", "gpu": "GPU sort"}
 
 
+def chosen_sort(kind: str, ctx: moderngl.Context, count: int) -> Choice:
+    """The sort ``kind`` names for a scene of ``count`` gaussians: "cpu" or "gpu" as
+    they are; "auto" the one this GL's remembered profile measured faster
+    (``render.gl.profile``), the CPU's where the GL was never measured."""
+    if kind != "auto":
+        return Choice(kind, f"sort: {kind.upper()} (--sort {kind})")
+    profile, _ = load_profile(*gl_identity(ctx))  # an unreadable file: the window and doctor say so
+    if profile is None:
+        return Choice("cpu", "sort: CPU, this GL is not measured yet (`raygs-viewer doctor` or the window measure it)")
+    return profile.sort_choice(count)
+
+
 def open_sorter(kind: str, ctx: moderngl.Context, scene: Scene) -> DepthSorter | GpuSorter:
-    """The sorter ``kind`` (one of :data:`SORTS`) of ``scene``; a UserError in one line
-    where this GPU cannot run the GPU sort (``GpuSorter.problem``). The GPU sort runs on
-    the thread that holds ``ctx``."""
+    """The sorter ``kind`` (one of :data:`SORTS`, or "auto": :func:`chosen_sort`) of
+    ``scene``; a UserError in one line where this GPU cannot run the GPU sort
+    (``GpuSorter.problem``). The GPU sort runs on the thread that holds ``ctx``."""
+    kind = chosen_sort(kind, ctx, scene.count).value
     if kind not in SORTS:
         raise ValueError(f"unknown sort {kind!r}: use one of {', '.join(SORTS)}")
     return GpuSorter(ctx, scene) if kind == "gpu" else DepthSorter(scene)

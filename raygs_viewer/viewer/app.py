@@ -25,7 +25,6 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Callable
 
-import moderngl
 import numpy as np
 from imgui_bundle import imgui
 
@@ -34,11 +33,11 @@ from raygs_viewer.camera.stereo import StereoView
 from raygs_viewer.capture.image_io import check_output_path, save_image
 from raygs_viewer.capture.screenshot import check_screenshot_path
 from raygs_viewer.capture.sidecar import load_camera_source
-from raygs_viewer.errors import UserError, one_line
+from raygs_viewer.errors import UserError
 from raygs_viewer.photos.evaluate import evaluation_settings, render_view
 from raygs_viewer.render.gl.context import context_description
 from raygs_viewer.render.gl.mono_frame import Viewport
-from raygs_viewer.render.gl.gpu_sort import GpuSorter
+from raygs_viewer.render.gl.probe import Probe
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.lod_view import lod_settings_given
 from raygs_viewer.render.settings import RenderSettings
@@ -46,6 +45,7 @@ from raygs_viewer.scene.loader import LoadedScene, load_now
 from raygs_viewer.scene.progress import ProgressCallback
 from raygs_viewer.sort.request import SortResult
 from raygs_viewer.sort.worker import BackgroundSorter
+from raygs_viewer.viewer.auto_defaults import AutoDefaults
 from raygs_viewer.viewer.drawing import SceneDrawer, request_sort
 from raygs_viewer.viewer.feedback import Feedback
 from raygs_viewer.viewer.file_dialog import FileDialog
@@ -86,21 +86,22 @@ class Viewer:
     which is called with the viewer after the GLFW backend has read the devices and
     before imgui starts the frame (the place synthetic imgui events must go).
 
-    ``renderer_factory(ctx, scene, general=)`` and ``sorter_factory(depth_sorter)``
-    make each scene's renderer and background sorter (tests pass instrumented ones).
+    ``renderer_factory(ctx, scene, general=)``, ``sorter_factory(depth_sorter)``, ``probe_factory(ctx)``:
+    each scene's renderer and sorter, the probe of a new GL (tests pass instrumented ones).
     ``settings`` is the one RenderSettings (the left side's in the split view); the
     panel replaces it whole on every edit. ``shown``: the last frame's inputs
     (:class:`~raygs_viewer.viewer.frame.Frame`; None before the first).
     """
 
     def __init__(self, options: ViewerOptions, loaded: LoadedScene, start_camera: Camera | None = None, *,
-                 renderer_factory: Callable[..., GLRenderer] = GLRenderer,
+                 renderer_factory: Callable[..., GLRenderer] = GLRenderer, probe_factory: Callable[..., Probe] = Probe,
                  sorter_factory: Callable[..., BackgroundSorter] = BackgroundSorter):
         self.options = options
         self.window = Window(f"raygs-viewer — {scene_title(loaded.path)}", options.width, options.height,
                              options.platform, options.vsync)
         self.ctx = self.window.ctx
-        self.settings: RenderSettings = options.settings
+        self.auto = AutoDefaults(self.ctx, options.sort, options.auto_precision, options.frames is None, probe_factory)
+        self.settings: RenderSettings = self.auto.settings(options.settings, options.settings)
         # Copies: the panel edits the viewer's state, never the options.
         self.stereo: StereoPreview = replace(options.stereo)
         self.captures = Captures(replace(options.screenshots))
@@ -112,7 +113,7 @@ class Viewer:
         self.scenes = SceneOpener(self.panel, options.source, window_fits(self.ctx, self.panel))
         self.window.set_drop_callback(self.scenes.drop)
         self.scene = ShownScene(self.ctx, options.general, renderer_factory, sorter_factory, self.scenes, self._forget,
-                                options.sort)
+                                lambda count: self.auto.sort_choice(count).value)
         self.drawer = SceneDrawer(self.ctx)
         self.file_dialog = FileDialog()
         self.feedback = Feedback()
@@ -142,8 +143,7 @@ class Viewer:
         #: in screen coordinates (imgui's), for tests; empty without the split view.
         self.overlay_rects: dict[str, tuple[float, float, float, float]] = {}
         try:
-            if options.sort == "gpu" and GpuSorter.problem(self.ctx):  # before any scene, in one line
-                raise UserError(f"--sort gpu: the GPU sort cannot run here: {GpuSorter.problem(self.ctx)}")
+            self.auto.check(self.ctx)  # before any scene, in one line
             self._install(loaded, start_camera)
             problem = self.scene.renderer.supports(self.settings)
             if problem:  # e.g. --transmittance-cutoff without framebuffer fetch
@@ -194,10 +194,8 @@ class Viewer:
 
     def set_tint(self, on: bool) -> None:
         """Colour by level on or off (the Level of detail section)."""
-        try:
-            self.scene.set_tint(on, self.loaded.lod)
-        except (UserError, MemoryError, moderngl.Error) as exc:
-            self.panel.error = f"error: colour by level: {one_line(exc)}"
+        if problem := self.scene.set_tint(on, self.loaded.lod):
+            self.panel.error = f"error: colour by level: {problem}"
 
     def right_settings(self) -> RenderSettings | None:
         """The split view's right side; None when it is off (it is off in the stereo preview)."""
@@ -271,6 +269,8 @@ class Viewer:
         self.captures.frame_shown(self.capture_window)
         self.window.end_frame()
         self.captures.frame_done(self.save_screenshot, self.panel)
+        if self.auto.step():  # this GL's profile is measured: its sort for the scene shown, its blend
+            self.settings = self.auto.apply(self.scene, self.settings, self.options.settings, self.panel)
 
     def capture_window(self, overlay: bool = True) -> np.ndarray:
         """(H, W, 3) uint8, top row first: the window as shown, panel included;

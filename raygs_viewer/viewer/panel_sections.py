@@ -33,7 +33,7 @@ def panel_sections(viewer) -> list[Callable[[], None]]:
     split_shown = v.split.on and v.shown_stereo is None
     return [
         lambda: draw_statistics(stats, loaded.scene.count, v.scene.sorter, renderer.counters, renderer.general,
-                                v.options.sort),
+                                v.scene.sort, v.auto.lines(loaded.scene.count)),
         lambda: draw_scene_section(loaded, v.panel, v.scenes.open, v.scenes.loader,
                                    lambda axes: v.scenes.switch_axes(loaded, axes), v.file_dialog),
         lambda: draw_lod_section(v.scene.lod, loaded, v.scenes.loader, v.settings, v.set_settings, v.set_tint, stats),

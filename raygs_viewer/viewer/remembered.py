@@ -9,12 +9,11 @@ on stderr, and the default is used.
 from __future__ import annotations
 
 import math
-import os
 import sys
 from pathlib import Path
 
 from raygs_viewer.errors import UserError, one_line
-from raygs_viewer.files import write_atomically
+from raygs_viewer.files import config_file, write_atomically
 from raygs_viewer.jsonfile import json_text, read_json_file
 from raygs_viewer.viewer.layout import MIN_PANEL_WIDTH, PANEL_WIDTH
 
@@ -24,8 +23,7 @@ MAX_REMEMBERED_WIDTH = 8192.0
 
 def remembered_path() -> Path:
     """Where the window's memory is kept."""
-    base = os.environ.get("XDG_CONFIG_HOME") or os.path.join(os.path.expanduser("~"), ".config")
-    return Path(base) / "raygs-viewer" / "window.json"
+    return config_file("window.json")
 
 
 class Remembered:

@@ -19,6 +19,7 @@ from typing import Callable
 
 import moderngl
 
+from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.gl.gpu_sort import GpuSorter
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import RenderSettings
@@ -38,7 +39,8 @@ class ShownScene:
     (None before :meth:`open`); ``sorter`` (made by
     ``sorter_factory(exact_sorter)``) sorts the window's requests on its thread with
     ``exact_sorter``, a DepthSorter of it, which screenshots and picks sort with too.
-    With ``sort`` "gpu": ``sorter`` is an InlineSorter of a GpuSorter that sorts in the
+    ``sort``: "cpu" or "gpu", what ``sort_for(count)`` says for the scene's size when
+    it is opened (or :meth:`resort` is asked). With "gpu": ``sorter`` is an InlineSorter of a GpuSorter that sorts in the
     frame, and ``exact_sorter`` another GpuSorter: the frames' orders stay on the GPU,
     and no screenshot's sorts reuse the buffer of the order the window draws.
     ``fallback``: the last result of the scene before a swap that kept the rows, drawn
@@ -50,8 +52,8 @@ class ShownScene:
 
     def __init__(self, ctx: moderngl.Context, general: bool, renderer_factory: Callable[..., GLRenderer],
                  sorter_factory: Callable[..., BackgroundSorter], opener: SceneOpener,
-                 forget: Callable[[SortResult | None], None], sort: str = "cpu"):
-        self.ctx, self.general, self.sort = ctx, general, sort
+                 forget: Callable[[SortResult | None], None], sort_for: Callable[[int], str] = lambda count: "cpu"):
+        self.ctx, self.general, self.sort_for, self.sort = ctx, general, sort_for, "cpu"
         self.renderer_factory, self.sorter_factory = renderer_factory, sorter_factory
         self.opener, self.forget = opener, forget
         self.renderer: GLRenderer | None = None
@@ -63,8 +65,14 @@ class ShownScene:
     # -- scenes ----------------------------------------------------------------------------
     def open(self, scene: Scene) -> None:
         """Shows a scene opened (not a finer reading of the one shown: :meth:`refine`), in
-        its own colours; a UserError (too large for this GPU) changes nothing."""
-        self._swap(scene, keep=False)
+        its own colours, sorted as ``sort_for`` its size says; a UserError (too large for
+        this GPU) changes nothing."""
+        sort, self.sort = self.sort, self.sort_for(scene.count)
+        try:
+            self._swap(scene, keep=False)
+        except BaseException:
+            self.sort = sort
+            raise
         self.lod.installed()
 
     def refine(self, current: LoadedScene, loaded: LoadedScene, settings: RenderSettings,
@@ -78,13 +86,37 @@ class ShownScene:
             self._swap(refined.swap.scene, refined.swap.keep)
         return refined
 
-    def set_tint(self, on: bool, lod: LodScene | None) -> None:
+    def resort(self) -> str | None:
+        """Sorts the scene shown as ``sort_for`` says now ("cpu", "gpu"), from the next
+        frame on: new sorters, the renderer and its buffers kept. Where they cannot be made
+        (the GPU sort cannot hold this scene) the sorters stay and the one line says why."""
+        sort = None if self.renderer is None else self.sort_for(self.renderer.scene.count)
+        if sort is None or sort == self.sort:
+            return None
+        previous, self.sort = self.sort, sort
+        try:
+            sorters = self._sorters(self.renderer.scene)
+        except UserError as exc:
+            self.sort = previous
+            return one_line(exc)
+        self._close_sorters()
+        self.exact_sorter, self.sorter = sorters
+        self.fallback = None
+        self.forget(None)
+        return None
+
+    def set_tint(self, on: bool, lod: LodScene | None) -> str | None:
         """Colour by level on or off for the levels ``lod``: the renderer gets the tinted
-        copy, or the scene. A UserError, MemoryError or moderngl.Error leaves it as it was."""
+        copy, or the scene. Where that fails (a UserError, MemoryError or moderngl.Error)
+        it stays as it was and the one line says why."""
         swap = self.lod.tint_swap(on, lod)
         if swap is not None:
-            self._swap(swap.scene, swap.keep)
+            try:
+                self._swap(swap.scene, swap.keep)
+            except (UserError, MemoryError, moderngl.Error) as exc:
+                return one_line(exc)
             self.lod.tint = on
+        return None
 
     # -- frames ----------------------------------------------------------------------------
     def lod_for_frame(self, loaded: LoadedScene, settings: RenderSettings) -> LodRequest | None:
@@ -118,6 +150,9 @@ class ShownScene:
         """Releases the renderer and closes the sorter (and, on its thread, the exact sorter it runs)."""
         if self.renderer is not None:
             self.renderer.release()
+        self._close_sorters()
+
+    def _close_sorters(self) -> None:
         if self.sorter is not None:
             self.sorter.close()
         if isinstance(self.exact_sorter, GpuSorter):  # a CPU one closes on the sort thread

@@ -248,8 +248,10 @@ class ViewerOptions:
     null without a display). general: the all-features shader variant
     (GLRenderer(general=)), to compare. stereo: the stereo preview's start value.
     images: the training photos' folder for the Photo view (None: the one the model
-    folder's cfg_args names). sort: "cpu" (a background thread) or "gpu" (in the frame,
-    on the GPU): ``render.sorting.SORTS``.
+    folder's cfg_args names). sort: "cpu" (a background thread), "gpu" (in the frame,
+    on the GPU: ``render.sorting.SORTS``) or "auto" (the one this GL measured faster:
+    ``viewer.auto_defaults``). auto_precision: the blend this GL measured fastest within
+    the accuracy study's error instead of ``settings.precision`` (``--precision auto``).
     """
 
     source: SceneSource = SceneSource.demo()
@@ -269,3 +271,4 @@ class ViewerOptions:
     stereo: StereoPreview = field(default_factory=StereoPreview)
     images: str | None = None
     sort: str = "cpu"
+    auto_precision: bool = False

@@ -126,3 +126,49 @@ def test_the_inline_sorter_answers_at_once_and_once_per_view():
     assert failing.wait(serial) is None and failing.failed == 1
     failing.request(first)
     assert failing._sorter.sorts == 1  # a failed view is not sorted again until another is asked
+
+
+# -- the measured defaults (--sort auto, --precision auto: viewer.auto_defaults) --------------
+
+def help_of(capsys, command) -> str:
+    with pytest.raises(SystemExit):
+        run_cli(capsys, command, "--help")
+    return " ".join(capsys.readouterr().out.split())
+
+
+def test_view_and_render_path_default_to_the_measured_sort_and_view_to_the_measured_blend(capsys):
+    view = help_of(capsys, "view")
+    assert "[--sort {auto,cpu,gpu}]" in view and "(default auto)" in view
+    assert "[--precision {float32,float16,8bit,auto}]" in view and "auto (default): the narrowest blend" in view
+    assert "(default auto)" in help_of(capsys, "render-path")
+    render = help_of(capsys, "render")
+    assert "(default cpu)" in render and "{float32,float16,8bit}" in render  # a render records what it used
+
+
+def test_view_hands_the_window_auto_or_the_named_choice(monkeypatch, capsys):
+    import raygs_viewer.viewer.app as app
+
+    seen = []
+    monkeypatch.setattr(app, "run_viewer", lambda options, progress=None: seen.append(options) or 0)
+    assert run_cli(capsys, "view", "--frames", "1")[0] == 0
+    assert run_cli(capsys, "view", "--frames", "1", "--sort", "gpu", "--precision", "float16")[0] == 0
+    (auto, named) = seen
+    assert (auto.sort, auto.auto_precision, auto.settings.precision) == ("auto", True, "float32")
+    assert (named.sort, named.auto_precision, named.settings.precision) == ("gpu", False, "float16")
+
+
+def test_render_path_s_auto_sort_takes_the_gpu_where_this_gl_measured_it_faster(capsys, tmp_path, gl_ctx,
+                                                                               monkeypatch):
+    import raygs_viewer.cli.path as path_command
+    from raygs_viewer.render.gl.profile import GlProfile, SortTiming, gl_identity, remember_profile
+
+    opened = []
+    real = path_command.open_sorter
+    monkeypatch.setattr(path_command, "open_sorter", lambda kind, ctx, scene: opened.append(
+        type(sorter := real(kind, ctx, scene)).__name__) or sorter)
+    remember_profile(GlProfile(*gl_identity(gl_ctx), "2026-12-06", (SortTiming(1000, 9.0, 1.0, True),), ()))
+    for out in ("auto", "cpu"):
+        code, _, err = run_cli(capsys, "render-path", "demo", "orbit", "--size", "16x12", "--duration", "0.2",
+                               "--fps", "5", *(() if out == "auto" else ("--sort", out)), "--out", tmp_path / out)
+        assert code == 0, err
+    assert opened == ["GpuSorter", "DepthSorter"]

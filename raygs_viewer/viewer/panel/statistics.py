@@ -7,15 +7,16 @@ from imgui_bundle import imgui
 
 from raygs_viewer.render.gl.preprocess_pass import WorkCounters
 from raygs_viewer.sort.worker import BackgroundSorter, InlineSorter
-from raygs_viewer.viewer.panel.widgets import line, ms, tooltip
+from raygs_viewer.viewer.panel.widgets import line, ms, note, tooltip
 from raygs_viewer.viewer.stats import FrameStats, order_freshness
 
 
 def draw_statistics(stats: FrameStats, scene_count: int, sorter: BackgroundSorter | InlineSorter,
-                    work: WorkCounters, general: bool, sort: str = "cpu") -> None:
+                    work: WorkCounters, general: bool, sort: str = "cpu", measured: list[str] = ()) -> None:
     """``sorter``: its request counts; ``work``: the renderer's pass counters;
     ``general``: whether it draws with the all-features shader variant; ``sort``: which
-    sort runs ("cpu", "gpu": ``render.sorting.SORTS``)."""
+    sort runs ("cpu", "gpu": ``render.sorting.SORTS``); ``measured``: what the automatic
+    defaults chose and why (``viewer.auto_defaults``)."""
     line(f"{stats.fps:6.1f} fps  redraw {ms(stats.redraw_ms / 1000)}")
     tooltip(f"frames per second over the last 60 frames (median {ms(stats.frame_ms / 1000).strip()}); a still "
             "view is not drawn again, so its frames are quick.\nredraw: the median time of the last 60 frames "
@@ -26,6 +27,11 @@ def draw_statistics(stats: FrameStats, scene_count: int, sorter: BackgroundSorte
     tooltip("GPU: preprocessing + draw of the last redraw (timer queries; both sides in the split view,\n"
             "both eyes in the stereo preview).\n"
             f"sort: the last sort (one cull, then a sort by each order key shown), {where}")
+    for why in measured:
+        note(why)
+    if measured:
+        tooltip("--sort auto and --precision auto: what this GL measured of itself (raygs-viewer doctor shows it "
+                "all), remembered in gl-profile.json per renderer and driver")
     line(f"visible {stats.visible:,} of {scene_count:,}")
     tooltip(f"the gaussians the last cull kept, of the scene's {scene_count:,}")
     # One line whatever the age (a line that wraps at times would move every widget below it
