@@ -108,6 +108,7 @@ class Probe:
         scene = probe_scene(count)
         request = sort_request(probe_camera(*self.blend_size), RenderSettings())
         cpu_times, gpu_times = [], []
+        yield f"a scene of {count:,}"
         with DepthSorter(scene) as cpu:
             expected = cpu.sort(request).order.host_indices()  # untimed: the first builds the caches
             yield f"CPU sort of {count:,}"
@@ -144,13 +145,13 @@ class Probe:
             for precision, each in settings.items():  # untimed: compiles each variant, makes the records
                 renderer.render_into(target, camera, each, order)
                 images[precision] = target.read()[..., :3]
-            yield "blends compiled"
+                yield f"{precision} blend compiled"
             times: dict[str, list[float]] = {precision: [] for precision in PRECISIONS}
             for _ in range(self.repeats):
                 for precision, each in settings.items():
                     times[precision].append(self._frame_ms(timer, lambda: renderer.render_into(
                         target, camera, each, order)))
-                yield "blends timed"
+                    yield f"{precision} blend timed"
         finally:
             target.release()
             renderer.release()
