@@ -16,7 +16,7 @@ import moderngl
 
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.render.gl.gpu_sort import GpuSorter
-from raygs_viewer.render.gl.profile import Choice, gl_identity, load_profile
+from raygs_viewer.render.gl.profile import Choice, GlProfile, gl_identity, load_profile
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.sort.depth import DepthSorter
@@ -37,7 +37,16 @@ def chosen_sort(kind: str, ctx: moderngl.Context, count: int) -> Choice:
     profile, _ = load_profile(*gl_identity(ctx))  # an unreadable file: the window and doctor say so
     if profile is None:
         return Choice("cpu", "sort: CPU, this GL is not measured yet (`raygs-viewer doctor` or the window measure it)")
-    return profile.sort_choice(count)
+    return measured_sort(profile, ctx, count)
+
+
+def measured_sort(profile: GlProfile, ctx: moderngl.Context, count: int) -> Choice:
+    """``profile``'s sort for ``count`` gaussians, the CPU's where the GPU sort cannot
+    hold that many on ``ctx`` (``GpuSorter.capacity``)."""
+    choice = profile.sort_choice(count)
+    if choice.value == "gpu" and count > GpuSorter.capacity(ctx):
+        return Choice("cpu", f"sort: CPU, the GPU sort holds at most {GpuSorter.capacity(ctx):,} gaussians here")
+    return choice
 
 
 def open_sorter(kind: str, ctx: moderngl.Context, scene: Scene) -> DepthSorter | GpuSorter:

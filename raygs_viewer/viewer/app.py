@@ -145,8 +145,7 @@ class Viewer:
         try:
             self.auto.check(self.ctx)  # before any scene, in one line
             self._install(loaded, start_camera)
-            problem = self.scene.renderer.supports(self.settings)
-            if problem:  # e.g. --transmittance-cutoff without framebuffer fetch
+            if problem := self.scene.renderer.supports(self.settings):  # e.g. --transmittance-cutoff, no fetch
                 raise UserError(problem)
         except BaseException:  # e.g. a scene too large for this GPU: no window left behind
             self.scenes.close()
@@ -322,6 +321,7 @@ class Viewer:
         self.camera_path.close()
         self.scenes.close()
         self.window.make_current()
+        self.auto.close()  # a probe under way: its GL objects, while the context lives
         self.scene.close()
         self.frustums.release()
         self.drawer.release()

@@ -24,6 +24,7 @@ from raygs_viewer.render.gl.probe import Probe
 from raygs_viewer.render.gl.profile import Choice, GlProfile, gl_identity, load_profile, remember_profile
 from raygs_viewer.render.gl.gpu_sort import GpuSorter
 from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.render.sorting import measured_sort
 from raygs_viewer.viewer.shown_scene import ShownScene
 from raygs_viewer.viewer.state import PanelState
 
@@ -40,7 +41,7 @@ class AutoDefaults:
 
     def __init__(self, ctx: moderngl.Context, sort: str, precision: bool, measure: bool,
                  probe_factory: Callable[[moderngl.Context], Probe] = Probe):
-        self.sort, self.precision = sort, precision
+        self.ctx, self.sort, self.precision = ctx, sort, precision
         self.profile: GlProfile | None = None
         self.warning = ""
         self.measuring = ""
@@ -65,7 +66,7 @@ class AutoDefaults:
             return Choice(self.sort, f"sort: {self.sort.upper()} (--sort {self.sort})")
         if self.profile is None:
             return Choice(SAFE_SORT, f"sort: CPU, until this GL is measured{self._until()}")
-        return self.profile.sort_choice(count)
+        return measured_sort(self.profile, self.ctx, count)
 
     def precision_choice(self) -> Choice | None:
         """The blend ``--precision auto`` takes now; None where the command line named one."""
@@ -123,6 +124,13 @@ class AutoDefaults:
         self.profile, self.probe, self.measuring = self.probe.profile, None, ""
         self._warn(remember_profile(self.profile))
         return True
+
+    def close(self) -> None:
+        """Ends a probe under way (its scenes, sorters and GL objects); call with the
+        window's context current."""
+        if self.probe is not None:
+            self.probe.steps.close()
+            self.probe = None
 
     def _until(self) -> str:
         if self.probe is not None:

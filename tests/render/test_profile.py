@@ -166,3 +166,14 @@ def test_the_probe_scene_covers_the_probe_view(gl_render):
     image = gl_render(probe_scene(2000), probe_camera(64, 36))
     assert np.mean(image[..., 3] > 0.5) > 0.45
     assert np.mean(image[9:27, 20:44, 3]) > 0.9
+
+
+def test_a_scene_over_what_the_gpu_sort_holds_takes_the_cpu_sort(gl_ctx, monkeypatch):
+    from raygs_viewer.render.gl.gpu_sort import GpuSorter
+
+    renderer, version = gl_identity(gl_ctx)
+    remember_profile(profile(FAST_GPU, renderer=renderer, version=version))
+    monkeypatch.setattr(GpuSorter, "capacity", staticmethod(lambda ctx: 500_000))
+    assert chosen_sort("auto", gl_ctx, 400_000).value == "gpu"
+    choice = chosen_sort("auto", gl_ctx, 600_000)
+    assert (choice.value, choice.why) == ("cpu", "sort: CPU, the GPU sort holds at most 500,000 gaussians here")

@@ -271,6 +271,11 @@ class GpuSorter(Closable):
             return f"compute shaders here have {blocks} storage blocks; the GPU sort needs {STORAGE_BLOCKS}"
         return None
 
+    @staticmethod
+    def capacity(ctx: moderngl.Context) -> int:
+        """The most gaussians it sorts on ``ctx``: their positions fill one storage block."""
+        return gpu_limit(ctx, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 1 << 27) // 12
+
     @property
     def count(self) -> int:
         return self._cull.count
