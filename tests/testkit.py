@@ -15,6 +15,7 @@ from raygs_viewer.cli.main import main
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.render.sorting import exact_order
+from raygs_viewer.render.tolerance import MATCH, OVER, PER_RAY_TIE_ERROR
 from raygs_viewer.scene.demo import demo_scene
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
 from raygs_viewer.sort.depth import DepthSorter
@@ -146,11 +147,11 @@ def compare(image, reference):
         "max": float(error.max()),
         "p999": float(np.quantile(error, 0.999)),
         "mean": float(error.mean()),
-        "over_1e-3": float((error.max(axis=-1) > 1e-3).mean()),  # fraction of pixels
+        "over_1e-3": float((error.max(axis=-1) > OVER).mean()),  # fraction of pixels
     }
 
 
-def assert_matches(image, reference, max_error=8e-3, pixel_fraction=0.002, p999=2e-4):
+def assert_matches(image, reference, max_error=MATCH.max_error, pixel_fraction=MATCH.pixel_fraction, p999=MATCH.p999):
     """GL-vs-reference agreement. Float32 and float64 agree to ~1e-5 per pixel, but a
     pixel where some gaussian's opacity lies within float32 rounding of p_min keeps or
     drops that fragment (seen: 1.1e-5 relative from p_min on a shared scene), which moves
@@ -160,12 +161,6 @@ def assert_matches(image, reference, max_error=8e-3, pixel_fraction=0.002, p999=
     assert np.all(np.isfinite(image)), "NaN or Inf in the image"
     assert stats["max"] <= max_error and stats["over_1e-3"] <= pixel_fraction and stats["p999"] <= p999, stats
     return stats
-
-
-#: The largest error allowed at a pixel where two gaussians' t* agree to float32 precision
-#: (seen: a relative gap of 5e-8 on a shared scene): float32 may composite the pair in
-#: either order, which moves the pixel by up to alpha_1 alpha_2 |c_1 - c_2|.
-PER_RAY_TIE_ERROR = 0.25
 
 
 def assert_matches_per_ray(image, reference):

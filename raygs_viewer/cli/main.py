@@ -22,7 +22,7 @@ import sys
 from pathlib import Path
 
 from raygs_viewer import __version__
-from raygs_viewer.cli import bench, commands, convert, evaluate, path, view
+from raygs_viewer.cli import bench, commands, convert, doctor, evaluate, path, view
 from raygs_viewer.cli.argtypes import Parser
 from raygs_viewer.cli.view import join_up_axis
 from raygs_viewer.errors import UserError
@@ -32,7 +32,7 @@ from raygs_viewer.scene.source import is_demo
 #: The modules of the commands, in the order --help lists them: each one's
 #: ``add_parsers`` adds its commands, and each command's parser names the function that
 #: runs it (``set_defaults(run=...)``), so a new command is a module and its entry here.
-COMMAND_MODULES = (view, commands, path, convert, evaluate, bench)
+COMMAND_MODULES = (view, commands, path, convert, evaluate, bench, doctor)
 # Arguments that keep their meaning at the top level instead of starting the window.
 TOP_LEVEL_OPTIONS = ("-h", "--help", "--version")
 

@@ -23,16 +23,18 @@ from raygs_viewer.camera.pinhole import look_at
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.settings import ACCURACY_PRESETS, PRECISIONS, RenderSettings
+from raygs_viewer.render.tolerance import BLENDS
 from raygs_viewer.scene.model import Scene
 
 CAMERA = look_at([0.3, -0.2, -3.0], [0, 0, 0], width=80, height=60)
-#: The largest error per channel against the float64 reference that each blend
-#: precision may add, for colours within 0..1 (docs/accuracy-vs-time.md measures it on
-#: real scenes): a float16 blend rounds every step to 11 significant bits (about 5e-4 at
-#: 1), an 8-bit one to 1/255; the steps' errors add up over the layers a pixel blends.
+#: The largest and the mean error per channel against the float64 reference that each
+#: blend precision may add, for colours within 0..1 (docs/accuracy-vs-time.md measures it
+#: on real scenes): a float16 blend rounds every step to 11 significant bits (about 5e-4
+#: at 1), an 8-bit one to 1/255; the steps' errors add up over the layers a pixel blends.
 #: Measured on these scenes: float16 at most 5.5e-3 (mean 1.3e-3), 8-bit 2.0e-2 (mean 2.7e-3).
-MAX_ERROR = {"float16": 1e-2, "8bit": 4e-2}
-MEAN_ERROR = {"float16": 2.5e-3, "8bit": 5e-3}
+#: One home with doctor's rows: render.tolerance.BLENDS.
+MAX_ERROR = {precision: bound.max_error for precision, bound in BLENDS.items()}
+MEAN_ERROR = {precision: bound.mean for precision, bound in BLENDS.items()}
 
 
 def in_range(scene: Scene) -> Scene:

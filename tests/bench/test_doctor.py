@@ -1,0 +1,118 @@
+"""``raygs-viewer doctor`` (raygs_viewer.bench.doctor*): the settings each case is drawn in
+and the tolerances they are held to (the tests' own), the GL tables, and the negative
+controls: a renderer path and the GPU sort broken on purpose fail their rows, and the
+command exits 1 with one line naming them."""
+
+from __future__ import annotations
+
+import io
+from dataclasses import fields
+
+import pytest
+from testkit import patched_glsl
+
+from raygs_viewer.bench import doctor_sort
+from raygs_viewer.bench.doctor import AXES, DoctorOptions, doctor_options, run_doctor, summary_line
+from raygs_viewer.bench.doctor_checks import BASE, VARIANTS, check_cases, demo_case, tolerance
+from raygs_viewer.bench.doctor_gl import driver_of, gl_rows, limit_rows
+from raygs_viewer.bench.hard_cases import HARD_CASES
+from raygs_viewer.cli.doctor import command_doctor
+from raygs_viewer.cli.main import build_parser
+from raygs_viewer.errors import UserError
+from raygs_viewer.render.gl.plan import DRAW_VERTICES, RECORDS, DrawLayout
+from raygs_viewer.render.settings import PRECISIONS
+from raygs_viewer.render.tolerance import AMBIGUOUS_P999, BLENDS, MATCH, PER_RAY
+
+#: A small run of the demo alone: the base and every draw layout, nothing else.
+LAYOUTS_ONLY = {"cases": ("demo",), "demo_axes": (BASE, "draw layout"), "sort_count": 0, "speed": None,
+                "auto": False}
+
+
+def test_each_variant_changes_one_axis_of_the_base():
+    base = VARIANTS[0]
+    assert base.axis == BASE and AXES == (BASE, "mode", "precision", "order", "draw layout", "sort")
+    for variant in VARIANTS[1:]:
+        changed = {name for name in ("layout", "sort") if getattr(variant, name) != getattr(base, name)}
+        changed |= {f.name for f in fields(variant.settings)
+                    if getattr(variant.settings, f.name) != getattr(base.settings, f.name)}
+        assert changed, variant
+        assert changed <= {"mode": {"mode", "mip"}, "precision": {"precision"}, "order": {"order", "order_k"},
+                           "draw layout": {"layout"}, "sort": {"sort"}}[variant.axis], variant
+    assert {v.layout for v in VARIANTS} == {DrawLayout(v, r) for v in DRAW_VERTICES for r in RECORDS}
+    assert {v.settings.precision for v in VARIANTS} == set(PRECISIONS)
+    assert {v.order_path for v in VARIANTS if v.settings.per_pixel} == {"lists", "fetch"}
+
+
+def test_rows_are_held_to_the_tests_tolerances():
+    demo, ambiguous = demo_case(), HARD_CASES["c2-above-kappa-1e-9"]()
+    by_axis = {variant.label: variant for variant in VARIANTS}
+    assert tolerance(demo, VARIANTS[0]) == MATCH
+    assert tolerance(demo, by_axis["precision 8-bit"]) == BLENDS["8bit"] and BLENDS["8bit"].clipped
+    assert tolerance(demo, by_axis["order per-pixel exact (fragment lists)"]) == PER_RAY
+    assert tolerance(HARD_CASES["grazing"](), VARIANTS[0]).max_error == HARD_CASES["grazing"]().bound
+    assert tolerance(ambiguous, VARIANTS[0]).p999 == AMBIGUOUS_P999
+    assert [name for name, _ in check_cases()] == ["demo", *HARD_CASES]
+    with pytest.raises(UserError, match="unknown case 'nope'"):
+        check_cases(("demo", "nope"))
+
+
+def test_the_gl_tables_name_the_gl_and_each_fallback(gl_ctx):
+    rows = dict(gl_rows(gl_ctx))
+    assert rows["renderer"] == gl_ctx.info["GL_RENDERER"]
+    assert rows["context"] in ("headless EGL", "headless OSMesa")
+    assert driver_of("4.5 (Core Profile) Mesa 22.3.6") == "Mesa 22.3.6"
+    assert driver_of("4.6.0 NVIDIA 580.159.04") == "NVIDIA 580.159.04"
+    limits = {limit.what: limit for limit in limit_rows(gl_ctx)}
+    assert "GL_EXT_shader_framebuffer_fetch" in limits and "GPU memory for buffers" in limits
+    assert all(limit.fallback for limit in limits.values())
+
+
+def test_quick_and_full_options():
+    quick, full = doctor_options(True), doctor_options(False)
+    assert quick.sort_count == doctor_sort.QUICK_SORT_COUNT and full.sort_count == doctor_sort.SORT_COUNT
+    assert quick.demo_axes == full.demo_axes == full.hard_axes == AXES and quick.hard_axes == (BASE, "mode")
+    assert quick.speed.count < full.speed.count == 1_000_000 and full.speed.mono == (1920, 1080)
+    assert doctor_options(True, speed=None).speed is None and isinstance(quick, DoctorOptions)
+
+
+def run_layouts(capsys, gl_ctx) -> tuple[int, str, str]:
+    code = command_doctor(build_parser().parse_args(["doctor"]), gl_ctx, **LAYOUTS_ONLY)
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def test_a_broken_draw_layout_fails_its_rows_and_doctor_exits_1_naming_them(capsys, gl_ctx, monkeypatch):
+    """The negative control: the indexed draw's corners taken one vertex late."""
+    code, out, err = run_layouts(capsys, gl_ctx)
+    assert code == 0 and err == "", err
+    assert out.rstrip().endswith("doctor: all 6 correctness rows passed")
+    patched_glsl(monkeypatch, "splat_blocks.glsl", "int corner = gl_VertexID & 3;",
+                 "int corner = (gl_VertexID + 1) & 3;")
+    code, out, err = run_layouts(capsys, gl_ctx)
+    assert code == 1
+    assert err.count("\n") == 1 and err.startswith("doctor: 2 of 6 correctness rows failed: "), err
+    assert "demo, draw layout indexed (max error " in err and "demo, draw layout indexed, draw-order records" in err
+    assert "triangles" not in err and "instanced" not in err
+    assert out.rstrip().endswith(err.rstrip())
+    assert "| demo | draw layout indexed | " in out and "| **FAIL**: max error" in out
+
+
+def test_a_broken_gpu_sort_fails_its_row(gl_ctx, monkeypatch):
+    """The negative control: -0.0 and +0.0 depths as two keys (numpy's are one)."""
+    patched_glsl(monkeypatch, "sort_compact.comp", "if ((bits & 0x7FFFFFFFu) == 0u) bits = 0u;", "")
+    options = DoctorOptions(cases=(), sort_count=20_000, sort_scenes=("negative zero", "random"), speed=None,
+                            auto=False)
+    result = run_doctor(options, gl_ctx, out=io.StringIO())
+    failed = [(row.scene, row.method) for row in result.failed]
+    assert failed == [("negative zero", "float")], failed
+    assert result.status == 1
+    assert summary_line(result).startswith("doctor: 1 of 4 correctness rows failed: sort negative zero 20k, float "
+                                           "keys (depth: ")
+
+
+def test_a_shader_the_driver_cannot_compile_fails_its_rows_and_the_run_goes_on(gl_ctx, monkeypatch):
+    patched_glsl(monkeypatch, "splat_blocks.glsl", "return uint(gl_VertexID) / 6u;", "return no_such_name;")
+    result = run_doctor(DoctorOptions(**LAYOUTS_ONLY), gl_ctx, out=io.StringIO())
+    assert [row.variant.name for row in result.failed] == ["triangles", "triangles, draw-order records"]
+    assert all("no_such_name" in row.failures[0] and "\n" not in row.failures[0] for row in result.failed)
+    assert len(result.judged) == 6 and result.status == 1

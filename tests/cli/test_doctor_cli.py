@@ -1,0 +1,83 @@
+"""``raygs-viewer doctor`` on the command line: the --quick run a user (and CI) makes, in a
+real process, exits 0 here and writes the report (the GL, the correctness rows with their
+errors, the GPU-against-CPU sort rows, the fill rate); --report never replaces a file
+without --overwrite; bad input is one line and exit status 2, before any work."""
+
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+
+import pytest
+from testkit import assert_one_line_error, run_cli
+
+
+@pytest.fixture(scope="module")
+def quick_run(tmp_path_factory):
+    """``raygs-viewer doctor --quick --report R.md --overwrite`` over a file already there,
+    in its own process (and config folder: the probe remembers nothing of this one)."""
+    folder = tmp_path_factory.mktemp("doctor")
+    report = folder / "R.md"
+    report.write_text("an earlier report")
+    env = {**os.environ, "XDG_CONFIG_HOME": str(folder / "config")}
+    done = subprocess.run([sys.executable, "-m", "raygs_viewer.cli.main", "doctor", "--quick", "--report",
+                           str(report), "--overwrite"], capture_output=True, text=True, env=env, timeout=300)
+    return done, report
+
+
+def test_quick_exits_0_here_and_says_so_last(quick_run):
+    done, report = quick_run
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert done.stderr == ""
+    lines = done.stdout.rstrip().splitlines()
+    assert re.fullmatch(r"doctor: all \d+ correctness rows passed", lines[-1]), lines[-1]
+    assert lines[-2] == f"wrote {report}"
+
+
+def test_the_report_has_the_gl_the_rows_the_sort_and_the_fill(quick_run):
+    done, report = quick_run
+    text = report.read_text()
+    assert text.startswith("# raygs-viewer doctor\n\n`raygs-viewer doctor --quick` on ")
+    assert text in done.stdout  # the report printed is the report written
+    for heading in ("## The GL", "## Correct here: renders against the float64 reference",
+                    "## Correct here: the GPU sort against the CPU sort", "## Fast here",
+                    "## What `--sort auto` and `--precision auto` choose here"):
+        assert heading in text, heading
+    for row in ("| renderer | ", "| driver | ", "| context | ", "| GL_EXT_shader_framebuffer_fetch | ",
+                "| storage block size | ", "| GPU memory for buffers | "):
+        assert row in text, row
+    error = r"\| (?:\d\.\d+|\d\.?\d*e-\d+) \| max "
+    for setting in ("mode GS", "precision 8-bit", "order per-pixel exact \\(fragment lists\\)",
+                    "draw layout indexed", "sort GPU"):
+        assert re.search(rf"^\| demo \| {setting} {error}.* \| pass \|$", text, re.M), setting
+    assert re.search(rf"^\| straddling-camera-plane \| mode exact MIP {error}", text, re.M)
+    assert re.search(r"^\| culled \| 200,000 \| float \| [\d,]+, [\d,]+ \| (identical|not supported here: .*) \|$",
+                     text, re.M)
+    assert re.search(r"^\| outdoor 30k mono \| 320×180 \| .* \| [\d.,]+ M/s \|$", text, re.M)
+    assert re.search(r"^\| 300k gaussians \| [\d.]+ ms \| ", text, re.M)
+    assert re.search(r"^- sort: (CPU|GPU), .*$", text, re.M) and re.search(r"^- blend: .*$", text, re.M)
+
+
+def test_an_existing_report_is_kept_without_overwrite(capsys, tmp_path):
+    existing = tmp_path / "R.md"
+    existing.write_text("mine")
+    code, out, err = run_cli(capsys, "doctor", "--quick", "--report", existing)
+    assert_one_line_error(code, err)
+    assert "already exists" in err and out == ""
+    assert existing.read_text() == "mine"
+
+
+@pytest.mark.parametrize("argv, words", [
+    (("--report", "missing-folder/R.md"), "missing-folder"),
+    (("--report", "R.txt"), "must end in .md"),
+    (("--gl-backend", "vulkan"), "vulkan"),
+    (("--quick", "--frames", "3"), "unrecognized arguments"),
+])
+def test_bad_input_is_one_line_and_status_2(capsys, tmp_path, monkeypatch, argv, words):
+    monkeypatch.chdir(tmp_path)
+    code, out, err = run_cli(capsys, "doctor", *argv)
+    assert_one_line_error(code, err)
+    assert words in err and out == ""
+    assert list(tmp_path.iterdir()) == []
