@@ -32,11 +32,15 @@ uniform uint u_out_offset;   // first output slot of this chunk within the bound
 #if RECORDS_IN_DRAW_ORDER
 // This dispatch's places are u_first .. u_first + u_count - 1, or, u_ranked, the places
 // u_ranks holds there: those whose gaussian is in the bound chunk of the scene (from row
-// u_chunk_start) and whose record is in the bound splat block (from place u_block_start).
+// u_chunk_start, u_chunk_rows rows) and whose record is in the bound splat block (from
+// place u_block_start). An order kept on the GPU is not grouped by chunk (that would read
+// it back): its places run once per chunk, and a place whose gaussian is in another
+// chunk writes nothing (render/gl/storage.py, spread_runs).
 layout(std430, binding = 3) readonly buffer Order { uint order[]; };
 layout(std430, binding = 4) readonly buffer Ranks { uint ranks[]; };
 uniform bool u_ranked;
 uniform uint u_chunk_start;
+uniform uint u_chunk_rows;
 uniform uint u_block_start;
 #endif
 uniform mat3 u_world_to_camera;
@@ -108,7 +112,8 @@ void main() {
 #if RECORDS_IN_DRAW_ORDER
     uint place = u_first + gl_GlobalInvocationID.x;
     if (u_ranked) place = ranks[place];
-    uint i = order[place] - u_chunk_start;
+    uint i = order[place] - u_chunk_start;  // wraps past u_chunk_rows below the chunk
+    if (i >= u_chunk_rows) return;
     uint slot = place - u_block_start;
 #else
     uint i = u_first + gl_GlobalInvocationID.x;

@@ -256,7 +256,7 @@ class Viewer:
         imgui.render()
 
         frame = self.shown = frame.with_views(*self.view_mode.side_views(self.panel, split=frame.split))
-        orders, serial = self.stats.order_to_draw(result, frame)
+        orders, serial = self.stats.order_to_draw(result, frame, sort_timer=self.scene.sort_timer)
         draws = self.stats.draws
         self.drawer.draw(self.scene.renderer, frame, orders, serial, self.stats, self.panel)
         blocked = blocked_reason(frame.stereo is not None, frame.split, self.view_mode.channel)

@@ -33,7 +33,7 @@ import numpy as np
 
 from raygs_viewer.camera.pinhole import camera_key
 from raygs_viewer.errors import UserError, one_line
-from raygs_viewer.render.gl.mono_frame import MonoFrame
+from raygs_viewer.render.gl.mono_frame import MonoFrame, frame_dtypes
 from raygs_viewer.render.channel_pictures import ChannelView
 from raygs_viewer.render.gl.stereo_frame import StereoFrame, fixed_range
 from raygs_viewer.render.gl.timing import GpuTimer
@@ -114,9 +114,11 @@ class SceneDrawer:
         camera, settings, right, stereo = frame.camera, frame.settings, frame.right, frame.stereo
         key = (camera_key(camera), settings, right, stereo, frame.view, frame.right_view, serial)
         if stereo is None:
-            left_target, right_target = self.mono.targets(camera.width, camera.height, split=right is not None)
+            right_dtypes = ("f4",) if right is None else frame_dtypes(renderer, right, frame.right_view)
+            left_target, right_target = self.mono.targets(camera.width, camera.height, right is not None,
+                                                          frame_dtypes(renderer, settings, frame.view), right_dtypes)
         elif self.stereo is None:
-            self.stereo = StereoFrame(self.ctx)
+            self.stereo = StereoFrame(self.ctx, narrow=True)
         self.mono.split = right is not None
         if self.mono.holds(key):
             # The image shown is still right. The GPU is idle as far as this view goes,

@@ -22,6 +22,7 @@ import moderngl
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.gl.gpu_sort import GpuSorter
 from raygs_viewer.render.gl.renderer import GLRenderer
+from raygs_viewer.render.gl.timing import GpuTimer
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.loader import LoadedScene
 from raygs_viewer.scene.lod_file import LodScene
@@ -42,7 +43,9 @@ class ShownScene:
     ``sort``: "cpu" or "gpu", what ``sort_for(count)`` says for the scene's size when
     it is opened (or :meth:`resort` is asked). With "gpu": ``sorter`` is an InlineSorter of a GpuSorter that sorts in the
     frame, and ``exact_sorter`` another GpuSorter: the frames' orders stay on the GPU,
-    and no screenshot's sorts reuse the buffer of the order the window draws.
+    and no screenshot's sorts reuse the buffer of the order the window draws. Neither
+    waits for the GPU after a sort (a frame's draw waits for it on the GPU itself);
+    the frames' sorts are timed by :attr:`sort_timer`'s queries instead.
     ``fallback``: the last result of the scene before a swap that kept the rows, drawn
     until the new sorter's first (:meth:`shown`). ``lod``: its level of detail.
 
@@ -61,6 +64,13 @@ class ShownScene:
         self.exact_sorter: DepthSorter | GpuSorter | None = None
         self.fallback: SortResult | None = None
         self.lod = WindowLod()
+        self._sort_timer: GpuTimer | None = None  # made with the first GPU sorter, kept for the window
+
+    @property
+    def sort_timer(self) -> GpuTimer | None:
+        """The GPU time of the frames' sorts while they run on the GPU (read frames
+        late: ``GpuTimer.frame``); None while the CPU sorts."""
+        return self._sort_timer if self.sort == "gpu" else None
 
     # -- scenes ----------------------------------------------------------------------------
     def open(self, scene: Scene) -> None:
@@ -182,9 +192,11 @@ class ShownScene:
     def _sorters(self, scene: Scene) -> tuple[DepthSorter | GpuSorter, BackgroundSorter | InlineSorter]:
         """(exact sorter, the frames' sorter) of ``scene`` (see the class docstring)."""
         if self.sort == "gpu":
-            exact = GpuSorter(self.ctx, scene)
+            if self._sort_timer is None:
+                self._sort_timer = GpuTimer(self.ctx)
+            exact = GpuSorter(self.ctx, scene, finish=False)
             try:
-                return exact, InlineSorter(GpuSorter(self.ctx, scene))
+                return exact, InlineSorter(GpuSorter(self.ctx, scene, finish=False, timer=self._sort_timer))
             except BaseException:
                 exact.close()
                 raise

@@ -16,6 +16,7 @@ from raygs_viewer.camera.navigation import MAX_DT
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.camera.stereo import StereoView
 from raygs_viewer.render.gl.results import OrderStats
+from raygs_viewer.render.gl.timing import GpuTimer
 from raygs_viewer.sort.request import Order, SortResult
 from raygs_viewer.viewer.frame import Frame
 
@@ -50,6 +51,18 @@ class FrameStats:
     order_stats: tuple[OrderStats | None, OrderStats | None] = (None, None)
     last_time: float | None = None   # time.perf_counter() at the start of the last frame
     draws_at_last_tick: int = 0
+    #: The GPU sort's timer (the window's ``ShownScene.sort_timer``, each frame): where
+    #: set, the sort time is the GPU's, read frames late, since a sort that does not wait
+    #: for the GPU has only its issue on the CPU's clock; None: the result's own times.
+    sort_timer: GpuTimer | None = None
+
+    def sort_times(self) -> Sequence[float]:
+        """Every sort's seconds so far: the GPU sort's from its timer (the last ones
+        included: this waits for the GPU), else the results'."""
+        if self.sort_timer is None:
+            return self.all_sort_times
+        self.sort_timer.flush()
+        return self.sort_timer.history
 
     @property
     def recent_frame_times(self) -> list[float]:
@@ -97,13 +110,15 @@ class FrameStats:
         if kept is not None:
             self.request_frames[0] = asked
 
-    def order_to_draw(self, result: SortResult | None, frame: Frame, now: float | None = None
-                      ) -> tuple[Mapping[str, Order], int]:
+    def order_to_draw(self, result: SortResult | None, frame: Frame, now: float | None = None,
+                      sort_timer: GpuTimer | None = None) -> tuple[Mapping[str, Order], int]:
         """({sort key: order}, sort request serial) ``frame`` draws: the newest finished
         sort ``result`` (None: no orders, serial 0), noting its age (frames; and, against
         the frame's camera at ``now``, a perf_counter time, milliseconds, degrees turned
         and distance moved), its time and what it keeps visible. An up-to-date result
-        answers the frame's own sort request."""
+        answers the frame's own sort request. ``sort_timer``: the GPU sort's, where it
+        sorts (``ShownScene.sort_timer``), kept as :attr:`sort_timer`."""
+        self.sort_timer = sort_timer
         frame_index, camera = frame.index, frame.camera
         self.order_age_ms = self.order_turned_degrees = self.order_moved = 0.0
         if result is None:
@@ -118,9 +133,13 @@ class FrameStats:
             self.order_age_ms = max(0.0, 1000.0 * (now - result.requested_at))
             self.order_turned_degrees = turned_degrees(result.request.camera.R, camera.R)
             self.order_moved = float(np.linalg.norm(camera.center - result.request.camera.center))
-        if result.serial != self.drawn_serial:
-            self.all_sort_times.append(result.seconds)
-        self.sort_seconds = result.seconds
+        if self.sort_timer is not None:
+            self.sort_timer.frame()
+            self.sort_seconds = self.sort_timer.seconds
+        else:
+            if result.serial != self.drawn_serial:
+                self.all_sort_times.append(result.seconds)
+            self.sort_seconds = result.seconds
         self.visible = result.order.count
         return result.orders, result.serial
 
@@ -176,6 +195,7 @@ def summary(stats: FrameStats, frames: int, camera: Camera | None, stereo: Stere
     every draw's GPU seconds (post: the stereo lens preview and layout)."""
     frame = float(np.median(stats.all_frame_times)) if stats.all_frame_times else float("nan")
     visible = f"{stats.visible:,} of {scene_count:,} visible"
+    sorts = median_ms(stats.sort_times())
     per_pixel = stats.order_stats[0]
     if per_pixel is not None:  # the last redraw's per-pixel order (the left side's, one eye's)
         visible += (f", per-pixel order {per_pixel.mean_per_covered_pixel:.1f} fragments/px "
@@ -184,8 +204,8 @@ def summary(stats: FrameStats, frames: int, camera: Camera | None, stereo: Stere
         return (f"{frames} frames ({stats.draws} drawn), stereo {stereo.headset.name} "
                 f"{camera_size(camera)} per eye: median frame {median_ms(stats.all_frame_times)}, "
                 f"both eyes GPU {median_ms(gpu_times)}, lens+layout {median_ms(post_times)}, "
-                f"sort {median_ms(stats.all_sort_times)}, {visible}")
+                f"sort {sorts}, {visible}")
     return (f"{frames} frames ({stats.draws} drawn) at {camera_size(camera)}: "
             f"median frame {median_ms(stats.all_frame_times)} ({1 / frame if frame > 0 else 0:.1f} fps), "
-            f"GPU {median_ms(gpu_times)}, sort {median_ms(stats.all_sort_times)}, {visible}"
+            f"GPU {median_ms(gpu_times)}, sort {sorts}, {visible}"
             + (", general shaders" if general else ""))

@@ -1,16 +1,18 @@
 """Draw layouts (render/gl/plan.py, DrawLayout): the instanced strip, the indexed and the
 plain triangle draws, and records written in draw order, draw the same image to the bit,
 in every mode and pass that draws quads; the draw-order preprocessing writes exactly the
-order's records at their places, and only those."""
+order's records at their places, and only those; from an order a GPU sort keeps on the
+GPU too, which it never reads back."""
 
 import numpy as np
 import pytest
 from testkit import assert_matches, random_scene, rendered, sorted_channels, spans_choice
 
 from raygs_viewer.camera.pinhole import look_at
+from raygs_viewer.render.gl.gpu_sort import GpuIndices, GpuSorter
 from raygs_viewer.render.gl.plan import DRAW_VERTICES, DrawLayout
 from raygs_viewer.render.gl.renderer import GLRenderer
-from raygs_viewer.render.gl.storage import StorageLayout, place_runs
+from raygs_viewer.render.gl.storage import StorageLayout, place_runs, spread_runs
 from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.render.sorting import exact_order
@@ -133,6 +135,67 @@ def test_records_in_draw_order_are_the_order_s_records_at_their_places(gl_ctx):
             renderer.release()
 
 
+def count_gpu_reads(monkeypatch) -> list:
+    """The read-backs of GPU sort orders from now on (``Order.host_indices`` of one reads it)."""
+    reads = []
+    original = GpuIndices.read
+    monkeypatch.setattr(GpuIndices, "read", lambda indices: (reads.append(indices), original(indices))[1])
+    return reads
+
+
+@pytest.mark.parametrize("block_limit", [None, SMALL_BLOCKS], ids=["one block", "19 chunks, 5 blocks"])
+def test_a_gpu_order_draws_every_layout_to_the_bit_and_is_never_read_back(gl_ctx, monkeypatch, block_limit):
+    """An order the GPU sort keeps on the GPU, drawn with records in draw order, over one
+    chunk and block or over many: the image of records at scene index, to the bit, and
+    the CPU order's; the pass reads nothing back to group the places."""
+    scene = random_scene(n=300, seed=12)
+    settings = RenderSettings()
+    reads = count_gpu_reads(monkeypatch)
+    with DepthSorter(scene) as cpu, GpuSorter(gl_ctx, scene) as gpu:
+        for camera in (CAMERA, INSIDE):
+            order = exact_order(gpu, camera, settings)
+            assert order.on_device and 0 < order.count
+            today = _image(gl_ctx, scene, camera, settings, TODAY, block_limit=block_limit)
+            for layout in LAYOUTS:
+                renderer = GLRenderer(gl_ctx, scene, draw_layout=layout, block_limit=block_limit)
+                try:
+                    np.testing.assert_array_equal(rendered(renderer, camera, settings, order)[0], today,
+                                                  err_msg=layout.name)
+                    assert renderer.counters.preprocessed == 1
+                    if layout.records == "draw":
+                        np.testing.assert_array_equal(rendered(renderer, camera, settings,
+                                                               exact_order(cpu, camera, settings))[0], today)
+                finally:
+                    renderer.release()
+    assert reads == []
+
+
+def test_draw_order_records_of_a_gpu_order_are_its_records_at_their_places(gl_ctx, monkeypatch):
+    """Over 19 chunks and 5 blocks, each place's record is written by the dispatch of its
+    gaussian's chunk alone: record i is the scene-order record of gaussian order[i], and
+    nothing past the order's end is written."""
+    scene = random_scene(n=300, seed=8)
+    settings = RenderSettings()
+    with GpuSorter(gl_ctx, scene) as gpu:
+        order = exact_order(gpu, INSIDE, settings)
+        indices = order.host_indices()
+        assert 0 < order.count < scene.count
+        renderer = GLRenderer(gl_ctx, scene, block_limit=SMALL_BLOCKS)
+        try:
+            renderer.preprocess(INSIDE, renderer.plan(settings))
+            by_scene = renderer.read_splats()
+            renderer.storage.splats.write(np.full(by_scene.size, np.nan, np.float32))
+            renderer.draw_layout = DrawLayout("instanced", "draw")
+            reads = count_gpu_reads(monkeypatch)
+            renderer.preprocess(INSIDE, renderer.plan(settings), order)
+            assert reads == []
+            by_place = renderer.read_splats()
+            np.testing.assert_array_equal(by_place[:order.count], by_scene[indices])
+            assert np.isnan(by_place[order.count:]).all()
+        finally:
+            renderer.release()
+
+
 def test_draw_order_records_follow_the_order_and_skip_only_the_same_one(gl_ctx):
     """Records in draw order depend on the order: a new order of the same view is
     preprocessed again; the very same order is not."""
@@ -189,6 +252,19 @@ def test_place_runs_group_the_places_by_chunk_and_block():
     whole = StorageLayout.plan(300, 16 * 12, 1 << 27)
     assert place_runs(indices, whole)[0] is None  # one chunk, one block: the places as they are
     assert place_runs(np.zeros(0, np.uint32), whole) == (None, [])
+
+
+def test_spread_runs_run_every_block_s_places_once_per_chunk():
+    layout = StorageLayout.plan(300, 16 * 12, SMALL_BLOCKS)  # chunks of 16 rows, blocks of 64 records
+    runs = spread_runs(200, layout)
+    assert len(runs) == 4 * 19  # 200 places in 4 blocks, 300 rows in 19 chunks
+    for run in runs:
+        assert run.first == run.block_start and run.count == min(64, 200 - run.block_start)
+    assert sorted({run.chunk_start for run in runs}) == list(range(0, 300, 16))
+    whole = StorageLayout.plan(300, 16 * 12, 1 << 27)
+    assert [(run.chunk_start, run.block_start, run.first, run.count) for run in spread_runs(200, whole)] == \
+        [(0, 0, 0, 200)]  # one chunk, one block: what place_runs gives
+    assert spread_runs(0, whole) == []
 
 
 def test_an_empty_order_draws_the_background_in_every_layout(gl_ctx):

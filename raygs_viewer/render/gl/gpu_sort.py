@@ -41,6 +41,7 @@ from __future__ import annotations
 
 import math
 import time
+from contextlib import nullcontext
 from dataclasses import dataclass
 
 import moderngl
@@ -51,6 +52,7 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.radix_sort import GpuRadixSort
 from raygs_viewer.render.gl.shaders import Programs, set_uniform
 from raygs_viewer.render.gl.storage import gpu_limit
+from raygs_viewer.render.gl.timing import GpuTimer
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.sort.cull import RADIUS_WIDENING, Cull, cull_slack, side_planes
 from raygs_viewer.sort.keys import SortMethod, check_method, quantisable, quantise_scale, snapped_centre
@@ -216,8 +218,10 @@ class GpuSorter(Closable):
     that made it** (the renderer copies an order into its own buffer when it is handed
     a new one, so drawing never depends on that). Each sort reads 20 bytes back after
     the cull (one sync); ``finish``: wait for the GPU at the end of a sort too, so that
-    ``times["sort"]`` is the GPU's time (False: the commands stay queued, the time is
-    their issue, and whatever draws the order next waits for them on the GPU).
+    ``times["sort"]`` is the GPU's time (what a benchmark's wall clock needs). False
+    (the window's): the commands stay queued, the time is their issue, whatever draws
+    the order next waits for them on the GPU, and a sort's GPU time comes from
+    ``timer``, a :class:`GpuTimer` each sort is measured under, read frames later.
 
     The positions go to the GPU once; the support arrays (``Cull.support``, computed by
     numpy as the CPU sort computes them) once per p_min. ``programs``: a
@@ -225,12 +229,13 @@ class GpuSorter(Closable):
     ``sorted`` orders made, ``support_uploads`` p_min changes uploaded."""
 
     def __init__(self, ctx: moderngl.Context, scene: Scene, *, programs: Programs | None = None,
-                 finish: bool = True):
+                 finish: bool = True, timer: GpuTimer | None = None):
         problem = self.problem(ctx)
         if problem:
             raise UserError(f"the GPU sort cannot run here: {problem}")
         self.ctx = ctx
         self.finish = finish
+        self.timer = timer
         self._cull = Cull(scene)
         count = self._cull.count
         self.block_limit = gpu_limit(ctx, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 1 << 27)
@@ -299,20 +304,21 @@ class GpuSorter(Closable):
         groups = -(-total // TILE)
         if groups > MAX_GROUPS:
             raise UserError(f"the GPU sort culls at most {MAX_GROUPS * TILE:,} rows, asked for {total:,}")
-        self._cull_pass(request, starts, total, groups)
-        summary = np.frombuffer(self._summary.read(), np.uint32)  # waits for the cull: the one sync
-        culled = time.perf_counter()
-        kept = int(summary[0])
-        ranges = {"depth": summary_range(int(summary[1]), int(summary[2])),
-                  "distance": summary_range(int(summary[3]), int(summary[4]))}
-        orders = {}
-        for key in request.keys:
-            store = self._order_buffer(key) if kept else None
-            if store is not None:
-                self._sort_key(key, key_plan(request.method, *ranges[key]), store, total, groups, kept)
-            orders[key] = self._order(key, request, choice, store, kept)
-            self.sorted += 1
-        self.ctx.memory_barrier()  # a copy or a read of the orders sees the last writes
+        with nullcontext() if self.timer is None else self.timer.measure():
+            self._cull_pass(request, starts, total, groups)
+            summary = np.frombuffer(self._summary.read(), np.uint32)  # waits for the cull: the one sync
+            culled = time.perf_counter()
+            kept = int(summary[0])
+            ranges = {"depth": summary_range(int(summary[1]), int(summary[2])),
+                      "distance": summary_range(int(summary[3]), int(summary[4]))}
+            orders = {}
+            for key in request.keys:
+                store = self._order_buffer(key) if kept else None
+                if store is not None:
+                    self._sort_key(key, key_plan(request.method, *ranges[key]), store, total, groups, kept)
+                orders[key] = self._order(key, request, choice, store, kept)
+                self.sorted += 1
+            self.ctx.memory_barrier()  # a copy or a read of the orders sees the last writes
         if self.finish:
             self.ctx.finish()
         return SortResult(request, orders, choice, {"choice": chosen - begin, "wait": 0.0, "cull": culled - chosen,

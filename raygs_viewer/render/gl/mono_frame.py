@@ -1,7 +1,8 @@
 """The GL side of the window's mono frame, the twin of :mod:`raygs_viewer.render.gl.stereo_frame`:
-the float targets the scene is drawn into (the A/B split view's right side in a second
-one), the key of what they hold (a still view is not drawn again), the present pass
-that shows the drawn image letterboxed in the window, and the capture of the window.
+the targets the scene is drawn into, at the blend precision (the A/B split view's right
+side in a second one), the key of what they hold (a still view is not drawn again), the
+present pass that shows the drawn image letterboxed in the window, and the capture of
+the window.
 
 The present pass (``present.frag`` over ``fullscreen.vert``) shows the left target, or the
 stereo frame's composed image while the last draw was stereo; in the split view the
@@ -16,14 +17,26 @@ from typing import Callable, Hashable
 import moderngl
 import numpy as np
 
+from raygs_viewer.render.channel_pictures import ChannelView
 from raygs_viewer.render.gl.shaders import Programs
 from raygs_viewer.render.gl.targets import FloatTarget, release_all, sized
+from raygs_viewer.render.settings import RenderSettings
 
 #: The letterbox bars' grey (linear 0..1), around an image of another aspect ratio.
 LETTERBOX_GREY = 0.12
 
 #: (x, y, w, h): the image's rectangle in the window's framebuffer, y from the top.
 Viewport = tuple[int, int, int, int]
+
+
+def frame_dtypes(renderer, settings: RenderSettings, view: ChannelView | None = None) -> tuple[str, ...]:
+    """The kind of a window's scene target for ``settings``: the one ``renderer`` draws
+    straight into (``RenderPlan.direct_dtypes``), so a narrow blend precision costs the
+    frame no copy pass and the present pass reads what was blended; float32 under a
+    channel ``view``, whose picture is drawn in float32."""
+    if view is not None and view.channel != "rgb":
+        return ("f4",)
+    return renderer.plan(settings).direct_dtypes
 
 
 class MonoFrame:
@@ -43,11 +56,13 @@ class MonoFrame:
         self._programs = Programs(ctx)
         self._program, self._vao = self._programs.fullscreen("present.frag")
 
-    def targets(self, width: int, height: int, split: bool) -> tuple[FloatTarget, FloatTarget | None]:
-        """(left, right) at width x height; right only in the split view. A target
-        made anew holds nothing yet, so the next :meth:`holds` is False."""
-        left = sized(self.left, self.ctx, width, height)
-        right = sized(self.right, self.ctx, width, height) if split else None
+    def targets(self, width: int, height: int, split: bool, dtypes: tuple[str, ...] = ("f4",),
+                right_dtypes: tuple[str, ...] = ("f4",)) -> tuple[FloatTarget, FloatTarget | None]:
+        """(left, right) at width x height, of the kinds ``dtypes`` and ``right_dtypes``
+        (:func:`frame_dtypes`); right only in the split view. A target made anew (a new
+        size or precision) holds nothing yet, so the next :meth:`holds` is False."""
+        left = sized(self.left, self.ctx, width, height, dtypes=dtypes)
+        right = sized(self.right, self.ctx, width, height, dtypes=right_dtypes) if split else None
         if left is not self.left or (split and right is not self.right):
             self._key = None
         self.left = left
@@ -107,7 +122,7 @@ class MonoFrame:
             if overlay is not None:
                 overlay()
             capture.use()  # an overlay (imgui's backend) restores the binding it found; read what it drew
-            return capture.read(components=3)
+            return capture.read(components=3, as_bytes=True)
         finally:
             capture.release()
             self.ctx.screen.use()

@@ -152,6 +152,16 @@ class RenderPlan:
         return (COLOR_DTYPES[self.precision],) + (GEOMETRY_DTYPES[self.precision],) * (attachments - 1)
 
     @property
+    def direct_dtypes(self) -> tuple[str, ...]:
+        """The kind of a colour target this plan draws straight into, with no sample
+        target and no resolve pass (``GLRenderer.draw_planned``): the blend precision's,
+        unless supersampling or front-to-back compositing resolve into the target
+        anyway; then float32, so the resolved image is the one a float32 target gets."""
+        if self.settings.supersample > 1 or self.front_to_back:
+            return ("f4",)
+        return self.target_dtypes(1)
+
+    @property
     def mode_gs(self) -> bool:
         return self.settings.mode == "gs"
 

@@ -19,7 +19,7 @@ import numpy as np
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.render.gl.plan import RenderPlan
 from raygs_viewer.render.gl.shaders import Programs, set_uniform
-from raygs_viewer.render.gl.storage import SceneBuffers, place_runs
+from raygs_viewer.render.gl.storage import SceneBuffers, place_runs, spread_runs
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.sort.request import Order
 
@@ -92,15 +92,27 @@ class PreprocessPass:
 
     def _places(self, program: moderngl.ComputeShader, plan: RenderPlan, order: Order) -> None:
         """The draw-order preprocessing's dispatches: one per (chunk, splat block) the
-        order's places fall in (storage.place_runs)."""
+        order's places fall in (storage.place_runs); for an order on the GPU, one per
+        chunk and block (storage.spread_runs)."""
         self.upload(order)
-        ranks, runs = place_runs(order.host_indices(), plan.layout)
+        layout = plan.layout
+        if order.on_device:
+            # Grouping the places by chunk on the host would read the order back: a stall
+            # until the sort is done and 4 bytes a place over the bus, every frame. Each
+            # block's places run once per chunk instead, each place not in the chunk
+            # costing one read of the order; where one chunk holds the scene (up to 2M
+            # gaussians at SH degree 0, 131k at degree 3, with 128 MiB blocks) that is
+            # one dispatch per block, no more than the grouped ones.
+            ranks, runs = None, spread_runs(order.count, layout)
+        else:
+            ranks, runs = place_runs(order.host_indices(), layout)
         self.storage.bind_places(order.count, ranks)
         set_uniform(program, "u_ranked", ranks is not None)
         for run in runs:
-            self.storage.bind_chunk(plan.layout, plan.colors_at_load, run.chunk_start)
-            self.storage.bind_records(plan.layout, run.block_start)
+            self.storage.bind_chunk(layout, plan.colors_at_load, run.chunk_start)
+            self.storage.bind_records(layout, run.block_start)
             set_uniform(program, "u_chunk_start", run.chunk_start)
+            set_uniform(program, "u_chunk_rows", min(layout.chunk, layout.count - run.chunk_start))
             set_uniform(program, "u_block_start", run.block_start)
             set_uniform(program, "u_first", run.first)
             program["u_count"].value = run.count

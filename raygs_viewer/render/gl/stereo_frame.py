@@ -1,5 +1,6 @@
-"""The GL side of a stereo frame: both eyes drawn with one order into their own float
-targets, the optional lens preview on each, and the layout composed into one image.
+"""The GL side of a stereo frame: both eyes drawn with one order into their own
+targets (the window's at the blend precision, float32 elsewhere), the optional lens
+preview on each, and the layout composed into one image.
 
 The window keeps one :class:`StereoFrame` and shows its composed target; screenshots
 and ``render --stereo`` use a fresh one through
@@ -27,6 +28,7 @@ from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.camera.stereo import StereoRig, StereoView, composed_size, eye_cameras
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.channel_pictures import ChannelView
+from raygs_viewer.render.gl.mono_frame import frame_dtypes
 from raygs_viewer.render.gl.results import RenderResult
 from raygs_viewer.render.gl.shaders import Programs, set_uniform
 from raygs_viewer.render.gl.targets import FloatTarget, release_all, sized
@@ -83,10 +85,14 @@ def render_stereo_view(renderer, order: Order, camera: Camera, settings: RenderS
 
 
 class StereoFrame:
-    """Targets are made on first use and again when a size changes."""
+    """Targets are made on first use and again when a size changes. ``narrow`` (the
+    window's): each eye's target takes the blend precision (``mono_frame.frame_dtypes``),
+    drawn into with no copy pass; else float32, so that screenshots and ``render
+    --stereo`` read the eyes as a float32 render gives them."""
 
-    def __init__(self, ctx: moderngl.Context):
+    def __init__(self, ctx: moderngl.Context, narrow: bool = False):
         self.ctx = ctx
+        self.narrow = narrow
         self.passes = StereoPasses(ctx)
         self.eyes: tuple[Camera, Camera] | None = None   # the eye cameras of the last draw
         self._eye_targets: list[FloatTarget | None] = [None, None]
@@ -108,8 +114,9 @@ class StereoFrame:
         each eye's result."""
         self.eyes = eyes
         results = []
+        dtypes = frame_dtypes(renderer, settings, view) if self.narrow else ("f4",)
         for side, eye in enumerate(self.eyes):
-            target = self._sized(self._eye_targets, side, eye.width, eye.height)
+            target = self._sized(self._eye_targets, side, eye.width, eye.height, dtypes=dtypes)
             used = results[0].view_range if results else None
             results.append(renderer.render_into(target, eye, settings, order, color_origin=camera.center,
                                                 view=fixed_range(view, used)))
@@ -144,8 +151,9 @@ class StereoFrame:
         self._eye_targets, self._lens_targets, self._image, self._shown = [None, None], [None, None], None, []
         self.passes.release()
 
-    def _sized(self, targets: list, side: int, width: int, height: int) -> FloatTarget:
-        targets[side] = sized(targets[side], self.ctx, width, height, **_SIZE_ERROR)
+    def _sized(self, targets: list, side: int, width: int, height: int, dtypes: tuple[str, ...] = ("f4",)
+               ) -> FloatTarget:
+        targets[side] = sized(targets[side], self.ctx, width, height, dtypes=dtypes, **_SIZE_ERROR)
         return targets[side]
 
 

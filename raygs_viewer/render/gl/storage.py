@@ -106,6 +106,19 @@ def place_runs(indices: np.ndarray, layout: StorageLayout) -> tuple[np.ndarray |
     return ranks.astype(np.uint32), runs
 
 
+def spread_runs(count: int, layout: StorageLayout) -> list[PlaceRun]:
+    """The runs that preprocess an order of ``count`` places whose indices stay on the
+    GPU (a GPU sort's) into records at its places, without reading it: each splat
+    block's places once per chunk of the scene, the shader skipping a place whose
+    gaussian lies in another chunk (glsl/preprocess.comp); one run where one chunk and
+    one block hold them all, as :func:`place_runs` gives."""
+    if count == 0:
+        return []
+    return [PlaceRun(chunk_start, block_start, block_start, min(layout.splats_per_block, count - block_start))
+            for block_start in range(0, count, layout.splats_per_block)
+            for chunk_start in range(0, max(layout.count, 1), layout.chunk)]
+
+
 @dataclass(frozen=True)
 class Chunk:
     """One preprocessing chunk, its ranges bound: ``count`` gaussians from ``start``,

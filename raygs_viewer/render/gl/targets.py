@@ -68,14 +68,16 @@ class FloatTarget:
         for fbo, color in zip(self._single, colors, strict=True):
             fbo.clear(*color)
 
-    def read(self, components: int = 4, attachment: int = 0) -> np.ndarray:
-        """(H, W, components) of one attachment, top row first: uint8 for "f1", else float32."""
+    def read(self, components: int = 4, attachment: int = 0, as_bytes: bool = False) -> np.ndarray:
+        """(H, W, components) float32 of one attachment, top row first, whatever its kind
+        (a window's scene target takes the blend precision's, and is read as the float32
+        image a headless render gives); ``as_bytes``: an "f1" attachment's uint8 as stored."""
         width, height = self.size
-        if self.dtypes[attachment] != "f1":
+        if as_bytes and self.dtypes[attachment] == "f1":
+            pixels = np.frombuffer(self.fbo.read(components=components, attachment=attachment), np.uint8)
+        else:
             pixels = np.frombuffer(self.fbo.read(components=components, dtype="f4", attachment=attachment),
                                    np.float32)
-        else:
-            pixels = np.frombuffer(self.fbo.read(components=components, attachment=attachment), np.uint8)
         return pixels.reshape(height, width, components)[::-1].copy()
 
     def release(self) -> None:

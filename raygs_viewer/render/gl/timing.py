@@ -25,13 +25,18 @@ class GpuTimer:
 
     ``with timer.measure(): ...`` is the window's: the result is read ``depth`` frames
     late, so reading never stalls the CPU on a real GPU; ``seconds`` is the newest and
-    ``history`` keeps every one. ``timer.time_ms(work)`` is the benchmarks': it runs
+    ``history`` keeps every one. Work measured only in some frames (the GPU sort: when
+    the view changed) counts the frames with :meth:`frame`, which reads what was
+    measured ``depth`` frames before. ``timer.time_ms(work)`` is the benchmarks': it runs
     ``work`` under a query and waits for its time."""
 
     def __init__(self, ctx: moderngl.Context, depth: int = 3):
+        self.depth = depth
         self._queries = [ctx.query(time=True) for _ in range(depth)]
         self._blocking = ctx.query(time=True)
         self._pending: deque = deque()
+        self._frames = 0
+        self._measured_in: dict[int, int] = {}  # id(query) -> the frame it was measured in
         self.seconds = math.nan
         self.history: deque = deque(maxlen=10000)
 
@@ -42,7 +47,16 @@ class GpuTimer:
             self._pending.remove(query)
             self._record(query)
         self._pending.append(query)
+        self._measured_in[id(query)] = self._frames
         return query
+
+    def frame(self) -> None:
+        """Counts a frame and reads the results measured ``depth`` frames ago or before:
+        the window has shown those frames since, so the GPU has done that work and the
+        read does not wait, though no measurement followed to push it out."""
+        self._frames += 1
+        while self._pending and self._frames - self._measured_in[id(self._pending[0])] >= self.depth:
+            self._record(self._pending.popleft())
 
     def flush(self) -> None:
         """Reads every pending result (waits for the GPU: for the end of a run)."""

@@ -22,7 +22,8 @@ def draw_statistics(stats: FrameStats, scene_count: int, sorter: BackgroundSorte
             "view is not drawn again, so its frames are quick.\nredraw: the median time of the last 60 frames "
             "that drew the scene again (what moving the view costs)")
     line(f"GPU   {ms(stats.gpu_seconds)}  {sort.upper()} sort {ms(stats.sort_seconds)}")
-    where = ("on the GPU, in the frame it draws (--sort gpu): the order is that frame's own" if sort == "gpu"
+    where = ("on the GPU, in the frame it draws (--sort gpu): the order is that frame's own; its GPU time,\n"
+             "from a timer query read a few frames late" if sort == "gpu"
              else "on the CPU, on a background thread (--sort cpu)")
     tooltip("GPU: preprocessing + draw of the last redraw (timer queries; both sides in the split view,\n"
             "both eyes in the stereo preview).\n"
