@@ -502,13 +502,18 @@ ACCURACY_CASES = [
 ]
 
 
+#: What `view` asks of the window unless told otherwise: the sort and blend this GL measured
+#: (viewer.auto_defaults); ViewerOptions' own defaults are the safe ones the tests' windows use.
+MEASURED = {"sort": "auto", "auto_precision": True}
+
+
 @pytest.mark.parametrize("argv,fields", ACCURACY_CASES)
 def test_accuracy_options_reach_the_window(capsys, viewer, argv, fields):
     from raygs_viewer.viewer.state import ViewerOptions
 
     code, _, err = run_cli(capsys, "view", *argv)
     assert code == 0, err
-    assert viewer == [ViewerOptions(settings=RenderSettings(**fields))]
+    assert viewer == [ViewerOptions(settings=RenderSettings(**fields), **MEASURED)]
     assert viewer[0].settings == RenderSettings(**fields)
 
 
@@ -600,13 +605,14 @@ def test_render_and_its_sidecar_take_the_order(capsys, tmp_path, gl_ctx, demo, m
 
 
 def test_every_command_names_the_function_that_runs_it():
-    from raygs_viewer.cli import bench, commands, convert, evaluate, path, view
+    from raygs_viewer.cli import bench, commands, convert, doctor, evaluate, path, view
     from raygs_viewer.cli.main import COMMANDS, build_parser
     minimal = {"render": ["--out", "x.png"], "render-path": ["demo", "orbit", "--out", "x.mp4"],
                "convert": ["demo", "x.ply"], "bench": ["accuracy"], "info": ["demo"], "evaluate": ["x"]}
     runs = {"view": view.command_view, "info": commands.command_info, "render": commands.command_render,
             "verify": commands.command_verify, "render-path": path.command_render_path,
-            "convert": convert.command_convert, "bench": bench.command, "evaluate": evaluate.command_evaluate}
+            "convert": convert.command_convert, "bench": bench.command, "evaluate": evaluate.command_evaluate,
+            "doctor": doctor.command_doctor}
     assert set(COMMANDS) == set(runs)
     for name in COMMANDS:
         assert build_parser().parse_args([name, *minimal.get(name, [])]).run is runs[name], name
@@ -685,7 +691,7 @@ def test_no_arguments_open_the_demo(capsys, viewer, argv):
 
     code, out, err = run_cli(capsys, *argv)
     assert (code, out, err) == (0, "", "")
-    assert viewer == [ViewerOptions()]
+    assert viewer == [ViewerOptions(**MEASURED)]
     assert viewer[0].settings.p_min == 1 / 255 and viewer[0].settings.background == (0.0, 0.0, 0.0)
 
 
@@ -724,7 +730,7 @@ def test_every_view_option(capsys, viewer, tmp_path):
         settings=RenderSettings(p_min=0.05, background=(0.5, 0.25, 1.0), sh_degree=2), frames=10,
         screenshot=str(tmp_path / "last.png"),
         screenshots=ScreenshotOptions(folder=str(tmp_path / "shots"), scale=2.5), vsync=False,
-        navigation=NavigationChoices(mode="orbit", up_axis="+z"), platform="null")]
+        navigation=NavigationChoices(mode="orbit", up_axis="+z"), platform="null", **MEASURED)]
     assert listing(tmp_path) == []  # the CLI only checks the screenshot path; nothing created
 
 
@@ -959,7 +965,7 @@ def test_stereo_options_reach_the_window(capsys, viewer, argv, fields):
     rig = StereoRig(**{name: fields.pop(name) for name in ("ipd", "convergence", "scene_scale") if name in fields})
     stereo = StereoPreview.of(fields.pop("headset"), on=fields.pop("stereo", False), rig=rig,
                               layout=fields.pop("stereo_layout", "sbs"), **fields)
-    assert viewer == [ViewerOptions(stereo=stereo)]
+    assert viewer == [ViewerOptions(stereo=stereo, **MEASURED)]
 
 
 @pytest.mark.parametrize("argv, fragment", [
