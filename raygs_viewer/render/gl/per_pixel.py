@@ -47,33 +47,34 @@ def storage_block_problem(ctx: moderngl.Context, path: str, splat_blocks: int) -
     return None
 
 
+def choose_path(ctx: moderngl.Context, settings: RenderSettings, scene_count: int, order_path: str = "auto",
+                lists_only: bool = False) -> str:
+    """"lists" or "fetch" for ``settings`` on a GPU of ``ctx``'s extensions and limits
+    (UserError: ``order_path`` "fetch" cannot run); ``lists_only``: the geometry outputs,
+    which only the lists give (the k-buffer's attachments are full)."""
+    problem = kbuffer.why_not(ctx, settings, scene_count)
+    if lists_only:
+        problem = problem or "the geometry outputs need the fragment lists"
+    if order_path == "fetch" and problem:
+        raise UserError(problem)
+    if order_path == "lists" or problem:
+        return "lists"
+    return "fetch"
+
+
 class PerPixelOrder:
     """The per-pixel order of one renderer: its paths' buffers, made on first use.
     ``block_limit``: bytes one storage block may hold; ``pool_fragments``: the lists'
     pool (default :data:`~raygs_viewer.render.gl.fragment_lists.DEFAULT_POOL_FRAGMENTS`)."""
 
-    def __init__(self, ctx: moderngl.Context, scene_count: int, block_limit: int,
-                 pool_fragments: int | None = None, order_path: str = "auto"):
+    def __init__(self, ctx: moderngl.Context, block_limit: int, pool_fragments: int | None = None,
+                 order_path: str = "auto"):
         if order_path not in ORDER_PATHS:
             raise UserError(f"order path must be one of {', '.join(ORDER_PATHS)}, got {order_path!r}")
         self.ctx = ctx
-        self.scene_count = scene_count
         self.order_path = order_path
         self.lists = FragmentLists(ctx, block_limit, pool_fragments)
         self._kbuffer: kbuffer.KBuffer | None = None
-
-    def path_for(self, settings: RenderSettings, lists_only: bool = False) -> str:
-        """"lists" or "fetch" for ``settings`` (UserError: forced "fetch" cannot run);
-        ``lists_only``: the geometry outputs, which only the lists give (the k-buffer's
-        attachments are full)."""
-        problem = kbuffer.why_not(self.ctx, settings, self.scene_count)
-        if lists_only:
-            problem = problem or "the geometry outputs need the fragment lists"
-        if self.order_path == "fetch" and problem:
-            raise UserError(problem)
-        if self.order_path == "lists" or problem:
-            return "lists"
-        return "fetch"
 
     def render(self, passes: Passes, target: FloatTarget, camera: Camera, plan: RenderPlan,
                order: Order) -> OrderStats:

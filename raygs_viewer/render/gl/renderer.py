@@ -32,19 +32,15 @@ from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.channel_pictures import ChannelView
 from raygs_viewer.render.channels import ChannelImage
-from raygs_viewer.render.gl.geometry import GeometryOutputs, takes_lists
+from raygs_viewer.render.gl.geometry import GeometryOutputs
 from raygs_viewer.render.gl.gpu_sort import COMMAND_INDEX
-from raygs_viewer.render.gl.per_pixel import PerPixelOrder, storage_block_problem
+from raygs_viewer.render.gl.per_pixel import PerPixelOrder
 from raygs_viewer.render.gl.plan import DEFAULT_DRAW_LAYOUT, DrawLayout, RenderPlan
+from raygs_viewer.render.gl.planner import Planner
 from raygs_viewer.render.gl.preprocess_pass import PreprocessPass, WorkCounters
 from raygs_viewer.render.gl.results import OrderStats, RenderResult
 from raygs_viewer.render.gl.shaders import Programs, set_uniform
-from raygs_viewer.render.gl.storage import (
-    EXACT_MIP_SPLAT_BYTES,
-    GEOMETRY_BYTES,
-    SPLAT_BYTES,
-    SceneBuffers,
-)
+from raygs_viewer.render.gl.storage import SceneBuffers
 from raygs_viewer.render.gl.targets import FloatTarget, release_all, sized
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.model import Scene
@@ -89,30 +85,16 @@ class GLRenderer:
         self.preprocessing = PreprocessPass(ctx, self.storage, self.programs, self.upload_order, self.counters)
         #: Off only to demonstrate the near-plane seam that depth clamp prevents.
         self.depth_clamp = True
-        self.per_pixel = PerPixelOrder(ctx, scene.count, self.storage.block_limit, pool_fragments, order_path)
+        self.per_pixel = PerPixelOrder(ctx, self.storage.block_limit, pool_fragments, order_path)
         self._target: FloatTarget | None = None  # render()'s image, the latest size
         self._samples: dict[tuple[str, ...], FloatTarget] = {}  # sample targets, by their attachments' kinds
         self._indexed: dict[int, moderngl.VertexArray] = {}  # the indexed draw's arrays, by program
         self.geometry = GeometryOutputs(ctx)
 
     def plan(self, settings: RenderSettings, geometry: bool = False, median: bool = False) -> RenderPlan:
-        """The plan of a render of ``settings``: colour, or with ``geometry`` the geometry
-        outputs too (``median``: with the median depth, which only the fragment lists give)."""
-        lists_geometry = geometry and takes_lists(settings, median)
-        record = EXACT_MIP_SPLAT_BYTES if settings.mode == "raygs-exact-mip" else SPLAT_BYTES
-        layout = self.storage.layout_for(record + (GEOMETRY_BYTES if geometry else 0))
-        path, problem = None, None
-        if settings.per_pixel or lists_geometry:  # composites in its own passes, the cut-off included
-            try:
-                path = self.per_pixel.path_for(settings, lists_geometry)
-                problem = storage_block_problem(self.ctx, path, layout.splat_blocks)
-            except UserError as error:  # a forced k-buffer that cannot run
-                path, problem = "fetch", str(error)
-        elif settings.transmittance_cutoff and GL_EXT_FRAMEBUFFER_FETCH not in self.ctx.extensions:
-            problem = (f"the transmittance cut-off needs {GL_EXT_FRAMEBUFFER_FETCH}, "
-                       f"which this GPU's OpenGL driver does not offer")
-        return RenderPlan(settings, layout, geometry, path, self.scene.sh_degree, self.general, problem,
-                          self.draw_layout)
+        """The plan of a render of ``settings`` on this GPU and scene (:meth:`Planner.plan`)."""
+        return Planner(self.ctx, self.storage.layout_for, self.scene.count, self.scene.sh_degree, self.general,
+                       self.per_pixel.order_path, self.draw_layout).plan(settings, geometry, median)
 
     def supports(self, settings: RenderSettings) -> str | None:
         """None when this GPU can render ``settings``' colour, else why not (one line)."""
