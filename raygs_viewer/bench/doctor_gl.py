@@ -114,7 +114,7 @@ def limit_rows(ctx: moderngl.Context) -> list[Limit]:
               "a larger K takes the fragment lists", window < MAX_ORDER_K),
         Limit(FRAMEBUFFER_FETCH, "present" if fetch else "missing",
               "the per-pixel order through a k-buffer (K > 0) and the transmittance cut-off",
-              "the bounded per-pixel order takes the fragment lists; the transmittance cut-off is not supported",
+              "the bounded per-pixel order and the transmittance cut-off take the fragment lists (the same image)",
               not fetch),
         Limit("double precision (GL 4.0, " + DOUBLES + ")", "core" if ctx.version_code >= 400 else "missing",
               "the GPU sort's correctly rounded square roots", "the CPU sort", ctx.version_code < 400),

@@ -80,14 +80,17 @@ def test_a_forced_k_buffer_without_fetch_is_refused_in_one_line(gl_ctx, pair):
         renderer.release()
 
 
-def test_the_cutoff_of_a_global_order_without_fetch_is_refused_in_one_line(pair):
+@pytest.mark.parametrize("settings", [CUTOFF, replace(CUTOFF, supersample=2),
+                                      replace(CUTOFF, alpha_clamp=True, precision="8bit")],
+                         ids=["cutoff", "cutoff-2x2", "cutoff-clamp-8bit"])
+def test_the_cutoff_of_a_global_order_without_fetch_composites_through_the_lists(pair, settings):
     with_fetch, without = pair
-    assert with_fetch.supports(CUTOFF) is None and without.supports(RenderSettings()) is None
-    problem = without.supports(CUTOFF)
-    assert problem and FRAMEBUFFER_FETCH in problem and "\n" not in problem
-    with pytest.raises(UserError) as info:
-        sorted_render(without, CAMERA, CUTOFF)
-    assert str(info.value) == problem
+    assert without.supports(settings) is None
+    assert with_fetch.plan(settings).path is None and without.plan(settings).path == "lists"
+    image = sorted_render(without, CAMERA, settings)
+    np.testing.assert_array_equal(image, sorted_render(with_fetch, CAMERA, settings))
+    assert_matches(image, render_reference(without.scene, CAMERA, settings), max_error=0.05 if
+                   settings.precision == "8bit" else 8e-3)
 
 
 def test_the_cutoff_still_renders_through_the_lists_without_fetch(pair):

@@ -75,6 +75,9 @@ class Planner:
             except UserError as error:  # a forced k-buffer that cannot run
                 path, problem = "fetch", str(error)
         elif settings.transmittance_cutoff and FRAMEBUFFER_FETCH not in self.gpu.extensions:
-            problem = (f"the transmittance cut-off needs {FRAMEBUFFER_FETCH}, "
-                       f"which this GPU's OpenGL driver does not offer")
+            # The blend cannot stop a pixel without reading it (NVIDIA's desktop drivers
+            # have no fetch): the fragment lists composite the global order with the
+            # cut-off in their own pass, as they do for the geometry outputs.
+            path = "lists"
+            problem = storage_block_problem(self.gpu, path, layout.splat_blocks)
         return RenderPlan(settings, layout, geometry, path, self.sh_degree, self.general, problem, self.draw_layout)
