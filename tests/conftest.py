@@ -9,7 +9,25 @@ settings.register_profile("ci", derandomize=True)
 if os.environ.get("CI"):
     settings.load_profile("ci")
 
+# Under pytest-xdist each worker keeps its own example database: workers share no file.
+_WORKER = os.environ.get("PYTEST_XDIST_WORKER")
+if _WORKER:
+    from hypothesis.database import DirectoryBasedExampleDatabase
+    # settings(...) starts from the profile loaded above (ci or default).
+    settings.register_profile(f"worker-{_WORKER}",
+                              settings(database=DirectoryBasedExampleDatabase(f".hypothesis/examples-{_WORKER}")))
+    settings.load_profile(f"worker-{_WORKER}")
+
+import timing_kinds
 from raygs_viewer.render.gl.context import create_headless_context
+
+
+def pytest_addoption(parser):
+    timing_kinds.add_option(parser)
+
+
+def pytest_configure(config):
+    timing_kinds.configure(config)
 
 
 @pytest.fixture(autouse=True)

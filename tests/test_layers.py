@@ -1,5 +1,5 @@
 """The package's shape, enforced: imports only down the data flow, no import cycle, no
-private name taken from another module, imports at the top of files.
+private name taken from another module, imports at the top of files, no code written twice.
 
 Layers, lowest first: errors (and the package root) -> jsonfile -> camera | files -> scene -> sort ->
 render -> capture -> viewer | bench -> cli. A module may import its own subpackage
@@ -10,6 +10,10 @@ import neither each other.
 from __future__ import annotations
 
 import ast
+import io
+import keyword
+import tokenize
+from collections import defaultdict
 from pathlib import Path
 
 import pytest
@@ -122,6 +126,67 @@ def silent_late_imports(modules: dict[str, Path]) -> list[str]:
     return silent
 
 
+#: How many lines in a row, written twice, make a repeat (the ``duplicates`` tool's own limit).
+REPEAT_LINES = 6
+_LAYOUT = {tokenize.COMMENT, tokenize.NL, tokenize.NEWLINE, tokenize.INDENT, tokenize.DEDENT, tokenize.ENDMARKER}
+
+
+def code_lines(text: str) -> list[tuple[int, str]]:
+    """(line number, shape) of each line of code. A shape keeps keywords, names and
+    operators and blanks out strings and numbers, so the same code with other constants
+    still matches; lines of only strings and punctuation (docstrings, help prose, tables
+    of text) are data, not code, and are left out, as are comments and blank lines."""
+    tokens = defaultdict(list)
+    in_import = starts_statement = True
+    for token in tokenize.generate_tokens(io.StringIO(text).readline):
+        if token.type in (tokenize.NEWLINE, tokenize.ENDMARKER):
+            in_import, starts_statement = False, True
+            continue
+        if token.type in _LAYOUT:
+            continue
+        if starts_statement:
+            # Imports name what a module uses; two modules using the same things is not a repeat.
+            in_import, starts_statement = token.string in ("import", "from"), False
+        if not in_import:
+            tokens[token.start[0]].append(token)
+    shapes = []
+    for number, line in sorted(tokens.items()):
+        if all(t.type in (tokenize.STRING, tokenize.OP) for t in line):
+            continue
+        shapes.append((number, " ".join("'s'" if t.type == tokenize.STRING else "0" if t.type == tokenize.NUMBER
+                                        else t.string for t in line)))
+    return shapes
+
+
+def repeated_runs(files: dict[str, str], run: int = REPEAT_LINES) -> list[str]:
+    """'a.py:FIRST-LAST ~ b.py:FIRST' for each stretch of ``run`` or more lines of code
+    that appears twice, in two files or twice in one. A window made of fewer than three
+    different lines (a column of like assignments) is a table, not logic, and is skipped."""
+    lines = {name: code_lines(text) for name, text in files.items()}
+    places = defaultdict(list)
+    for name, shapes in lines.items():
+        for start in range(len(shapes) - run + 1):
+            window = tuple(shape for _, shape in shapes[start:start + run])
+            if len(set(window)) >= 3:
+                places[window].append((name, start))
+    # Each matching window pair, grouped by (file, file, offset) so that a long repeat reads as one run.
+    pairs = defaultdict(set)
+    for found in places.values():
+        for i, (a, start_a) in enumerate(found):
+            for b, start_b in found[i + 1:]:
+                if a != b or abs(start_a - start_b) >= run:
+                    pairs[(a, b, start_a - start_b)].add(start_a)
+    runs = []
+    for (a, b, offset), starts in sorted(pairs.items()):
+        for start in sorted(starts):
+            if start - 1 not in starts:
+                end = start
+                while end + 1 in starts:
+                    end += 1
+                runs.append(f"{a}:{lines[a][start][0]}-{lines[a][end + run - 1][0]} ~ {b}:{lines[b][start - offset][0]}")
+    return runs
+
+
 MODULES = modules_of(PACKAGE)
 
 
@@ -148,6 +213,36 @@ def test_no_private_names_from_other_modules():
 def test_late_imports_say_why():
     silent = silent_late_imports(MODULES)
     assert not silent, "imports inside functions without a comment saying why:\n" + "\n".join(silent)
+
+
+def test_no_code_is_written_twice():
+    """One home for each piece of logic: a repeat of six lines or more, in one module or
+    two, is a helper waiting to be written (or a table that wants to be data)."""
+    files = {str(path.relative_to(PACKAGE)): path.read_text() for path in MODULES.values()}
+    repeats = repeated_runs(files)
+    assert not repeats, "code written twice (give it one home):\n" + "\n".join(repeats)
+
+
+def test_the_repeat_check_sees_a_repeat_and_only_a_repeat():
+    """The control: the same six lines with other constants are found, in two files and in
+    one; the same lines with one statement changed, docstrings, and a column of like
+    assignments are not."""
+    body = ("def {name}(path, size):\n"
+            "    data = load(path)\n"
+            "    if data.size > {limit}:\n"
+            "        raise ValueError('too big: ' + path)\n"
+            "    image = data.reshape(size, size)\n"
+            "    return image.astype(float) / {scale}\n")
+    first = body.format(name="read_a", limit=10, scale=255)
+    assert repeated_runs({"a.py": first, "b.py": body.format(name="read_a", limit=99, scale=65535)}) == [
+        "a.py:1-6 ~ b.py:1"]
+    assert repeated_runs({"a.py": first + "\n\nx = 1\n\n" + body.format(name="read_a", limit=3, scale=1)}) == [
+        "a.py:1-6 ~ a.py:11"]
+    changed = body.format(name="read_a", limit=10, scale=255).replace("astype(float)", "clip(0, 1)")
+    assert repeated_runs({"a.py": first, "b.py": changed}) == []
+    prose = '"""' + "\n".join(["words here"] * 8) + '"""\n'
+    column = "".join(f"table[{n}] = '{letter}'\n" for n, letter in enumerate("abcdefgh"))
+    assert repeated_runs({"a.py": prose + column, "b.py": prose + column.replace("= ", "= 1")}) == []
 
 
 def test_the_checks_see_what_they_forbid(tmp_path):

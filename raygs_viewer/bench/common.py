@@ -20,7 +20,7 @@ import numpy as np
 from raygs_viewer.camera.pinhole import Camera, frame_points
 from raygs_viewer.errors import UserError
 from raygs_viewer.files import write_atomically
-from raygs_viewer.render.gl.context import create_headless_context
+from raygs_viewer.render.gl.context import context_description, create_headless_context
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.scene.loader import load_now
 from raygs_viewer.scene.model import Scene
@@ -36,6 +36,26 @@ class RunOptions:
 
     gl_backend: str | None = None
     notes: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True, kw_only=True)
+class ReportedRunOptions(RunOptions):
+    """The options of a benchmark whose markdown report ``--out`` names (``None``: printed
+    only), checked before any work; keyword-only as the fields of ``RunOptions`` are."""
+
+    out: Path | None = None
+    overwrite: bool = False
+
+
+@dataclass
+class MeasuredView:
+    """Which view of which scene a per-view result measured, at what size: the first
+    fields of each benchmark's, which adds its own after them (so not keyword-only)."""
+
+    scene: str
+    view: str
+    width: int
+    height: int
 
 
 @dataclass
@@ -119,6 +139,13 @@ def gl_context(ctx=None, backend: str | None = None) -> Iterator:
 
 
 @contextlib.contextmanager
+def current_context(ctx=None, backend: str | None = None) -> Iterator[tuple[object, str]]:
+    """(context, its one-line description): ``gl_context`` made current for the run."""
+    with gl_context(ctx, backend) as ctx, ctx:
+        yield ctx, context_description(ctx)
+
+
+@contextlib.contextmanager
 def scene_renderer(ctx, scene: Scene) -> Iterator[tuple[GLRenderer, DepthSorter]]:
     """A renderer of ``scene`` and a sorter for the orders it draws (the renderer owns
     none), both released on leaving."""
@@ -169,6 +196,15 @@ def run_end(kind: str, started: float, machine: str, notes: Iterable[str], softw
     if software_renderer(machine):
         notes.append(software_note)
     return seconds, notes
+
+
+def finished_run_fields(kind: str, started: float, machine: str, notes: Iterable[str], software_note: str,
+                        say: Callable[..., None]) -> dict[str, object]:
+    """``run_end``'s seconds and notes, with the machine, its CPU cores and the date: the
+    fields, by name, of a benchmark's results that say where and how long it ran."""
+    seconds, notes = run_end(kind, started, machine, notes, software_note, say)
+    return {"machine": machine, "cpu_count": os.cpu_count() or 1, "date": run_date(), "seconds": seconds,
+            "notes": notes}
 
 
 def median(values: list[float]) -> float:

@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import contextlib
 from dataclasses import dataclass, replace
+from operator import attrgetter
 from typing import Callable, Iterator
 
 import numpy as np
@@ -108,8 +109,39 @@ def tolerance(case: HardCase, variant: Variant) -> Tolerance:
     return replace(base, p999=AMBIGUOUS_P999) if case.ambiguous else base
 
 
+@dataclass(frozen=True, kw_only=True)
+class CorrectnessRow:
+    """What doctor's summary asks of every correctness row, a check's or a sort's:
+    ``problem``, why this GL cannot run it (no failure); ``faults``, how it failed (none:
+    it passed); ``label``, its name. Keyword-only, so that each row's own fields keep
+    their places."""
+
+    problem: str | None = None
+
+    @property
+    def supported(self) -> bool:
+        return self.problem is None
+
+    @property
+    def judged(self) -> bool:
+        """Held to its test: whenever this GL can run it, unless a row says otherwise."""
+        return self.supported
+
+    @property
+    def faults(self) -> tuple[str, ...]:
+        raise NotImplementedError
+
+    @property
+    def failed(self) -> bool:
+        return bool(self.faults)
+
+    @property
+    def label(self) -> str:
+        raise NotImplementedError
+
+
 @dataclass(frozen=True)
-class CheckRow:
+class CheckRow(CorrectnessRow):
     """One correctness row: ``problem`` says why this GL cannot draw it, ``unbounded``
     why no tolerance holds for it (either way it is no failure); else ``agreement`` and
     what of the tolerance it failed (none: it passed)."""
@@ -119,21 +151,14 @@ class CheckRow:
     tolerance: Tolerance | None = None
     agreement: Agreement | None = None
     failures: tuple[str, ...] = ()
-    problem: str | None = None
     unbounded: str | None = None
 
-    @property
-    def supported(self) -> bool:
-        return self.problem is None
+    faults = property(attrgetter("failures"))
 
     @property
     def judged(self) -> bool:
         """Held to a tolerance: supported here, and one holds for it."""
         return self.supported and self.unbounded is None
-
-    @property
-    def failed(self) -> bool:
-        return bool(self.failures)
 
     @property
     def label(self) -> str:

@@ -20,12 +20,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from operator import attrgetter
 from typing import Callable
 
 import numpy as np
 
 from raygs_viewer.bench.common import count_label
-from raygs_viewer.bench.doctor_checks import error_words
+from raygs_viewer.bench.doctor_checks import CorrectnessRow, error_words
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.gl.gpu_sort import GpuSorter
@@ -135,7 +136,7 @@ SORT_SCENES: dict[str, Callable[[int, np.random.Generator], Scene]] = {
 
 
 @dataclass(frozen=True)
-class SortRow:
+class SortRow(CorrectnessRow):
     """One scene sorted with one method: per key (depth, distance) the gaussians kept
     and, where the GPU's indices differ from the CPU's, how; ``problem``: why the GPU
     sort cannot run here (no failure)."""
@@ -145,17 +146,8 @@ class SortRow:
     method: str
     kept: tuple[int, ...] = ()
     differences: tuple[str, ...] = ()
-    problem: str | None = None
 
-    @property
-    def supported(self) -> bool:
-        return self.problem is None
-
-    judged = supported
-
-    @property
-    def failed(self) -> bool:
-        return bool(self.differences)
+    faults = property(attrgetter("differences"))
 
     @property
     def label(self) -> str:

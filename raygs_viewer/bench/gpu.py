@@ -33,25 +33,11 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 from typing import Callable, TextIO
 
 import numpy as np
 
-from raygs_viewer.bench.common import (
-    RunOptions,
-    count_label,
-    fmt_ms,
-    fmt_ratio,
-    gl_context,
-    load_scenes,
-    median,
-    printer,
-    psnr,
-    report_head,
-    run_end,
-    software_renderer,
-)
+from raygs_viewer.bench import common
 from raygs_viewer.bench.perf import NUDGE_DEGREES, at_resolution, nudged
 from raygs_viewer.camera.pinhole import Camera, look_at
 from raygs_viewer.camera.stereo import DEFAULT_HEADSET, PRESETS, StereoRig, eye_cameras, frame_budget
@@ -123,7 +109,7 @@ def outdoor_scene(count: int, seed: int = 0) -> Scene:
     sh[:, 0] = rng.uniform(-1.5, 1.5, (count, 3))
     sh[:, 1:] = rng.normal(0.0, 0.05, (count, sh.shape[1] - 1, 3))
     return Scene(positions, rotations, scales, opacities, sh, GENERATED_SH_DEGREE,
-                 source=f"generated outdoor, {count_label(count)}")
+                 source=f"generated outdoor, {common.count_label(count)}")
 
 
 def outdoor_camera(width: int, height: int) -> Camera:
@@ -306,7 +292,7 @@ def measure_case(ctx, case: GpuCase, frames: int, drained: bool, options=OPTIONS
                 for name, changes, layout in options:
                     error = np.abs(image(camera, order, replace(settings, **changes), layout) - today)
                     result.max_error[name] = float(error.max())
-                    result.psnr[name] = psnr(float(np.mean(np.square(error[..., :3], dtype=np.float64))))
+                    result.psnr[name] = common.psnr(float(np.mean(np.square(error[..., :3], dtype=np.float64))))
                 continue
             for name, value in (("sort", 1e3 * (sorted_.times["cull"] + sorted_.times["sort"])), ("places", places),
                                 ("preprocess", preprocess), ("draw", draw), ("floor", floor), ("gs", gs),
@@ -316,25 +302,23 @@ def measure_case(ctx, case: GpuCase, frames: int, drained: bool, options=OPTIONS
         sorter.close()
         renderer.release()
         targets.release()
-    result.sort_ms, result.places_ms = median(times["sort"]), median(times["places"])
-    result.preprocess_ms, result.draw_ms = median(times["preprocess"]), median(times["draw"])
-    result.floor_ms, result.gs_ms = median(times["floor"]), median(times["gs"])
-    result.frame_ms = {k.removeprefix("frame "): median(v) for k, v in times.items() if k.startswith("frame ")}
+    result.sort_ms, result.places_ms = common.median(times["sort"]), common.median(times["places"])
+    result.preprocess_ms, result.draw_ms = common.median(times["preprocess"]), common.median(times["draw"])
+    result.floor_ms, result.gs_ms = common.median(times["floor"]), common.median(times["gs"])
+    result.frame_ms = {k.removeprefix("frame "): common.median(v) for k, v in times.items() if k.startswith("frame ")}
     return result
 
 
 # --- the run --------------------------------------------------------------------------------------
 
 @dataclass(frozen=True)
-class GpuOptions(RunOptions):
+class GpuOptions(common.ReportedRunOptions):
     counts: tuple[int, ...]
     scenes: tuple[str, ...]
     mono: tuple[int, int]
     eye_shrink: int
     frames: int
     command_line: str
-    out: Path | None = None
-    overwrite: bool = False
 
 
 @dataclass
@@ -354,10 +338,10 @@ def build_cases(options: GpuOptions):
     for count in options.counts:
         scene = outdoor_scene(count)
         pose = outdoor_camera(*options.mono)
-        name = f"outdoor {count_label(count)}"
+        name = f"outdoor {common.count_label(count)}"
         yield GpuCase(name, scene, pose, "mono")
         yield GpuCase(name, scene, _eye_camera(pose, eye_size), "stereo", StereoRig())
-    for item in load_scenes(options.scenes):
+    for item in common.load_scenes(options.scenes):
         yield GpuCase(item.name, item.scene, at_resolution(item.camera, *options.mono), "mono")
         yield GpuCase(item.name, item.scene, _eye_camera(item.camera, eye_size), "stereo", StereoRig())
 
@@ -372,11 +356,11 @@ def _eye_camera(pose: Camera, size: tuple[int, int]) -> Camera:
 
 def run_gpu(options: GpuOptions, ctx=None, out: TextIO | None = None) -> GpuResults:
     """Runs every case; prints a line per case as it finishes."""
-    say = printer(out)
+    say = common.printer(out)
     started = time.perf_counter()
-    with gl_context(ctx, options.gl_backend) as ctx:
+    with common.gl_context(ctx, options.gl_backend) as ctx:
         device = context_description(ctx)
-        drained = software_renderer(device)
+        drained = common.software_renderer(device)
         say(f"device: {device}")
         say(f"clock: {'CPU, GL drained (a software renderer)' if drained else 'GPU timer queries'}")
         results = []
@@ -384,17 +368,18 @@ def run_gpu(options: GpuOptions, ctx=None, out: TextIO | None = None) -> GpuResu
             result = measure_case(ctx, case, options.frames, drained)
             results.append(result)
             say(case_line(result))
-    seconds, notes = run_end("gpu", started, device, options.notes,
-                             "a software renderer: its times say how the options compare on a CPU, not on a GPU",
-                             say)
+    seconds, notes = common.run_end(
+        "gpu", started, device, options.notes,
+        "a software renderer: its times say how the options compare on a CPU, not on a GPU", say)
     return GpuResults(options, device, drained, results, seconds, notes)
 
 
 def case_line(r: GpuResult) -> str:
-    options = ", ".join(f"{name} {fmt_ratio(r.ratio(name))}" for name, _, _ in OPTIONS)
-    return (f"{r.label} {r.size}: {r.visible:,} of {r.count:,} visible; cull+sort {fmt_ms(r.sort_ms)}; "
-            f"preprocess {fmt_ms(r.preprocess_ms)}, draw {fmt_ms(r.draw_ms)}; {r.rasterized / 1e6:.2f} M fragments "
-            f"rasterized, {r.kept / 1e6:.2f} M kept; {_rate(r.fill_rate)} fragments/s; against today: {options}")
+    options = ", ".join(f"{name} {common.fmt_ratio(r.ratio(name))}" for name, _, _ in OPTIONS)
+    return (f"{r.label} {r.size}: {r.visible:,} of {r.count:,} visible; cull+sort {common.fmt_ms(r.sort_ms)}; "
+            f"preprocess {common.fmt_ms(r.preprocess_ms)}, draw {common.fmt_ms(r.draw_ms)}; "
+            f"{r.rasterized / 1e6:.2f} M fragments rasterized, {r.kept / 1e6:.2f} M kept; {_rate(r.fill_rate)} "
+            f"fragments/s; against today: {options}")
 
 
 def ratio_lines(results: GpuResults) -> list[str]:
@@ -403,9 +388,10 @@ def ratio_lines(results: GpuResults) -> list[str]:
     lines = []
     for r in results.results:
         lines.append(f"fragments-per-second@{r.label} {r.fill_rate:.4g}")
-        lines += [f"{name}@{r.label} {fmt_ratio(r.ratio(name))}" for name, _, _ in OPTIONS]
+        lines += [f"{name}@{r.label} {common.fmt_ratio(r.ratio(name))}" for name, _, _ in OPTIONS]
         lines += [f"max-difference {name}@{r.label} {r.max_error.get(name, math.nan):.3g}" for name, _, _ in OPTIONS]
-    lines += [f"{name} {fmt_ratio(median([r.ratio(name) for r in results.results]))}" for name, _, _ in OPTIONS]
+    lines += [f"{name} {common.fmt_ratio(common.median([r.ratio(name) for r in results.results]))}"
+              for name, _, _ in OPTIONS]
     return lines
 
 
@@ -423,11 +409,18 @@ def _rate(value: float) -> str:
 
 # --- report ---------------------------------------------------------------------------------------
 
+def _todays_path_row(r: GpuResult) -> str:
+    return (f"| {r.name} | {r.view} {r.size} | {r.visible:,} / {r.count:,} | {common.fmt_ms(r.sort_ms)} | "
+            f"{common.fmt_ms(r.preprocess_ms)} | {common.fmt_ms(r.draw_ms)} | {r.rasterized / 1e6:.1f} M | "
+            f"{r.kept / 1e6:.1f} M | {_rate(r.fill_rate)} | {common.fmt_ratio(r.raygs_ms / r.gs_ms)} | "
+            f"{common.fmt_ratio(r.draw_ms / r.floor_ms)} |")
+
+
 def format_report(results: GpuResults) -> str:
     options = results.options
     clock = ("CPU time with the GL drained around each piece of work (a software renderer runs passes after a "
              "timer query closes)" if results.drained else "GPU timer queries")
-    lines = report_head(
+    lines = common.report_head(
         "GPU frame figures (generated)",
         f"Produced by `{options.command_line}` on {results.device}, in {results.seconds / 60:.1f} minutes. "
         f"Clock: {clock}. Every time is the median of {options.frames} moving-view frames; a stereo row is "
@@ -436,11 +429,7 @@ def format_report(results: GpuResults) -> str:
               "| case | view | visible / N | CPU cull+sort | preprocess | draw | fragments rasterized | kept | "
               "fragments/s | RayGS/GS | draw/floor |",
               "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"]
-    for r in results.results:
-        lines.append(f"| {r.name} | {r.view} {r.size} | {r.visible:,} / {r.count:,} | {fmt_ms(r.sort_ms)} | "
-                     f"{fmt_ms(r.preprocess_ms)} | {fmt_ms(r.draw_ms)} | {r.rasterized / 1e6:.1f} M | "
-                     f"{r.kept / 1e6:.1f} M | {_rate(r.fill_rate)} | {fmt_ratio(r.raygs_ms / r.gs_ms)} | "
-                     f"{fmt_ratio(r.draw_ms / r.floor_ms)} |")
+    lines += [_todays_path_row(r) for r in results.results]
     names = [name for name, _, _ in OPTIONS]
     lines += ["", "## Each option against today's path (whole frame, same frames; below 1 is faster)", "",
               "The last column is CPU time the GPU clock does not see: grouping a new order's places by "
@@ -449,10 +438,12 @@ def format_report(results: GpuResults) -> str:
               "| case | view | today | " + " | ".join(names) + " | CPU grouping |",
               "|---|---|---:|" + "---:|" * (len(names) + 1)]
     for r in results.results:
-        lines.append(f"| {r.name} | {r.view} | {fmt_ms(r.frame_ms[TODAY])} | "
-                     + " | ".join(fmt_ratio(r.ratio(name)) for name in names) + f" | {fmt_ms(r.places_ms)} |")
-    lines.append("| **median** | | | " + " | ".join(fmt_ratio(median([r.ratio(n) for r in results.results]))
-                                             for n in names) + " | |")
+        lines.append(f"| {r.name} | {r.view} | {common.fmt_ms(r.frame_ms[TODAY])} | "
+                     + " | ".join(common.fmt_ratio(r.ratio(name)) for name in names)
+                     + f" | {common.fmt_ms(r.places_ms)} |")
+    lines.append("| **median** | | | "
+                 + " | ".join(common.fmt_ratio(common.median([r.ratio(n) for r in results.results])) for n in names)
+                 + " | |")
     lines += ["", "## What each option draws, against today's image (first eye, shown 0..1)", "",
               "PSNR of RGB and the largest difference over RGBA; *identical* where every value is today's to "
               "the bit.", "", "| case | view | " + " | ".join(names) + " |", "|---|---|" + "---:|" * len(names)]
@@ -468,10 +459,10 @@ def format_report(results: GpuResults) -> str:
         best = min(names, key=lambda n: r.frame_ms.get(n, math.inf))
         best_ms = r.frame_ms[TODAY] * r.ratio(best)
         today_ms = r.raygs_ms
-        budget = " | ".join(f"{fraction:.2f}× ({fmt_ms(seconds * 1e3)})"
+        budget = " | ".join(f"{fraction:.2f}× ({common.fmt_ms(seconds * 1e3)})"
                             for _, seconds, fraction in frame_budget(today_ms * 1e-3))
-        lines.append(f"| {r.name} | {r.size} | {fmt_ms(today_ms)} | {best} | {fmt_ms(best_ms)} | {budget} | "
-                     f"{fmt_ms(r.sort_ms)} |")
+        lines.append(f"| {r.name} | {r.size} | {common.fmt_ms(today_ms)} | {best} | {common.fmt_ms(best_ms)} | "
+                     f"{budget} | {common.fmt_ms(r.sort_ms)} |")
     lines += ["", "Budget cells: today's GPU time as a fraction of the refresh's frame time (its frame time).", "",
               "Machine-readable lines (as printed):", "", "```"] + ratio_lines(results) + ["```", ""]
     return "\n".join(lines)

@@ -84,13 +84,11 @@ CASES = (FINEST, *(case_name(f) for f in FRACTIONS))
 
 
 @dataclass(frozen=True)
-class LodOptions(common.RunOptions):
+class LodOptions(common.ReportedRunOptions):
     scenes: tuple[str, ...]      # lod-meta.json files, or folders holding one
     width: int = DEFAULT_WIDTH
     repeat: int = DEFAULT_REPEAT
     distance: float | None = None  # the first level distance (None: automatic)
-    out: Path | None = None
-    overwrite: bool = False
     command_line: str = "raygs-viewer bench lod"
 
 
@@ -115,11 +113,7 @@ class CaseRow:
 
 
 @dataclass
-class ViewResult:
-    scene: str
-    view: str
-    width: int
-    height: int
+class ViewResult(common.MeasuredView):
     rows: list[CaseRow]
 
     def row(self, case: str) -> CaseRow:

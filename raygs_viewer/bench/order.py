@@ -25,10 +25,8 @@ from __future__ import annotations
 
 import contextlib
 import math
-import os
 import time
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 from typing import TextIO
 
 import numpy as np
@@ -38,7 +36,6 @@ from raygs_viewer.bench.views import close_view, flown, training_view, turned
 from raygs_viewer.camera.navigation import scene_bounds
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.render import reference
-from raygs_viewer.render.gl.context import context_description
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.gl.results import RenderResult
 from raygs_viewer.render.gl.targets import FloatTarget
@@ -70,17 +67,18 @@ DEFAULT_FRAMES, QUICK_FRAMES = 16, 8
 DEFAULT_REPEAT, QUICK_REPEAT = 9, 5
 DEFAULT_GT_SAMPLES, QUICK_GT_SAMPLES = 4, 2
 DEFAULT_REPORT = "docs/ordering-figures.md"
+#: Noted in the report when the GL renders on the CPU (llvmpipe): its times are no GPU's.
+SOFTWARE_NOTE = ("This is a software OpenGL renderer (on the CPU): time ratios rank the modes on this machine; a "
+                 "GPU's differ (atomics and the resolve pass cost differently there).")
 
 
 @dataclass(frozen=True)
-class OrderOptions(common.RunOptions):
+class OrderOptions(common.ReportedRunOptions):
     scenes: tuple[str, ...]
     width: int = DEFAULT_WIDTH
     frames: int = DEFAULT_FRAMES
     repeat: int = DEFAULT_REPEAT
     gt_samples: int = DEFAULT_GT_SAMPLES
-    out: Path | None = None
-    overwrite: bool = False
     command_line: str = "raygs-viewer bench order"
 
 
@@ -96,11 +94,7 @@ class ModeRow:
 
 
 @dataclass
-class ViewResult:
-    scene: str
-    view: str
-    width: int
-    height: int
+class ViewResult(common.MeasuredView):
     exact_vs_reference_psnr: float       # the GL exact order against the float64 reference
     rows: dict[str, ModeRow]
     fragments_per_pixel: float = math.nan
@@ -227,8 +221,7 @@ def run_order(options: OrderOptions, ctx=None, out: TextIO | None = None) -> Ord
     scenes = common.load_scenes(options.scenes)
     views: list[ViewResult] = []
     started = time.perf_counter()
-    with common.gl_context(ctx, options.gl_backend) as ctx, ctx:  # made current for the run
-        machine = context_description(ctx)
+    with common.current_context(ctx, options.gl_backend) as (ctx, machine):
         say(f"bench order: {len(scenes)} scene(s) x {len(VIEWS)} views x {len(MODES)} modes, sweeps of "
             f"{options.frames} frames, {options.repeat} timed frames each, on {machine}")
         for item in scenes:
@@ -243,13 +236,8 @@ def run_order(options: OrderOptions, ctx=None, out: TextIO | None = None) -> Ord
                     views.append(result)
                     for line in view_lines(result):
                         say(line)
-    seconds, notes = common.run_end(
-        "order", started, machine, options.notes,
-        "This is a software OpenGL renderer (on the CPU): time ratios rank the modes on this machine; a GPU's "
-        "differ (atomics and the resolve pass cost differently there).", say)
-    return OrderResults(views, machine, os.cpu_count() or 1, options,
-                        common.run_date(),
-                        [(s.name, s.description) for s in scenes], seconds, notes)
+    finished = common.finished_run_fields("order", started, machine, options.notes, SOFTWARE_NOTE, say)
+    return OrderResults(views=views, options=options, scenes=[(s.name, s.description) for s in scenes], **finished)
 
 
 # --- output ------------------------------------------------------------------------------------

@@ -24,10 +24,8 @@ report, also written to ``--out`` when given.
 from __future__ import annotations
 
 import math
-import os
 import time
 from dataclasses import dataclass, field, replace
-from pathlib import Path
 from typing import TextIO
 
 import numpy as np
@@ -43,7 +41,6 @@ from raygs_viewer.bench.views import (
 from raygs_viewer.camera import stereo
 from raygs_viewer.camera.navigation import scene_bounds
 from raygs_viewer.camera.pinhole import Camera
-from raygs_viewer.render.gl.context import context_description
 from raygs_viewer.render.gl.stereo_frame import StereoFrame, render_stereo, stereo_order
 from raygs_viewer.render.gl.timing import GpuTimer
 from raygs_viewer.render.settings import RenderSettings
@@ -60,6 +57,9 @@ PARTS = {"whole": "", "sort-only": "sort-only-", "colour-only": "colour-only-"}
 
 DEFAULT_WIDTH = 320
 DEFAULT_REPEAT, QUICK_REPEAT = 10, 3
+#: Noted in the report when the GL renders on the CPU (llvmpipe): its times are no headset GPU's.
+SOFTWARE_NOTE = ("This is a software OpenGL renderer (on the CPU): its times rank the presets and scenes on this "
+                 "machine; they say nothing about what a headset's GPU would take.")
 
 
 # --- the measurements ------------------------------------------------------------------------
@@ -153,13 +153,11 @@ class BudgetRow:
 
 
 @dataclass(frozen=True)
-class StereoOptions(common.RunOptions):
+class StereoOptions(common.ReportedRunOptions):
     scenes: tuple[str, ...]
     presets: tuple[str, ...]
     width: int
     repeat: int
-    out: Path | None = None
-    overwrite: bool = False
     command_line: str = "raygs-viewer bench stereo"
     rig: stereo.StereoRig = stereo.StereoRig()
 
@@ -230,8 +228,7 @@ def run_stereo(options: StereoOptions, ctx=None, out: TextIO | None = None) -> S
     errors: list[ErrorRow] = []
     budgets: list[BudgetRow] = []
     started = time.perf_counter()
-    with common.gl_context(ctx, options.gl_backend) as ctx, ctx:  # made current for the run
-        machine = context_description(ctx)
+    with common.current_context(ctx, options.gl_backend) as (ctx, machine):
         say(f"bench stereo: {len(scenes)} scene(s); sharing error in {len(VIEWS)} views x {len(SCALES)} "
             f"scales; frame budget for {', '.join(options.presets)}, {options.repeat} timed frames each; "
             f"on {machine}")
@@ -252,13 +249,9 @@ def run_stereo(options: StereoOptions, ctx=None, out: TextIO | None = None) -> S
                     budgets.append(row)
                     for line in budget_lines(row):
                         say(line)
-    seconds, notes = common.run_end(
-        "stereo", started, machine, options.notes,
-        "This is a software OpenGL renderer (on the CPU): its times rank the presets and scenes on this "
-        "machine; they say nothing about what a headset's GPU would take.", say)
-    return StereoResults(errors, budgets, machine, os.cpu_count() or 1, options,
-                         common.run_date(),
-                         [(s.name, _describe(s)) for s in scenes], notes, seconds)
+    finished = common.finished_run_fields("stereo", started, machine, options.notes, SOFTWARE_NOTE, say)
+    return StereoResults(errors=errors, budgets=budgets, options=options,
+                         scenes=[(s.name, _describe(s)) for s in scenes], **finished)
 
 
 # --- the report -------------------------------------------------------------------------------

@@ -225,28 +225,35 @@ def _is_picture(view: ChannelView | None) -> bool:
 
 
 @dataclass(frozen=True)
-class Sidecar:
-    """A validated sidecar. path: the .json file. scene_path: the recorded scene
-    (absolute path or "demo"). scene_sha256: hex digest of the scene file (or of the
-    demo's arrays). camera: the screenshot's camera (R (3, 3), t (3,) float64, exactly
-    as written). settings: the render settings. scale: the window-to-screenshot scale
+class ImageView:
+    """What an image shows, as a sidecar records it and the window hands a screenshot:
+    the camera, the render settings, the stereo view (None: mono) and the picture of a
+    channel shown instead of the colour (None: colour)."""
+
+    camera: Camera
+    settings: RenderSettings
+    stereo: StereoView | None
+    channel_view: ChannelView | None
+
+
+@dataclass(frozen=True)
+class Sidecar(ImageView):
+    """A validated sidecar: the screenshot's view (camera: R (3, 3), t (3,) float64,
+    exactly as written) and where it came from. path: the .json file. scene_path: the
+    recorded scene (absolute path or "demo"). scene_sha256: hex digest of the scene
+    file (or of the demo's arrays). scale: the window-to-screenshot scale
     (informational: camera already has the screenshot's size). render_mode: the
     settings' mode (one of RENDER_MODES).
-    raw: the parsed JSON, for fields only the window reads. channel_view: the picture
-    of a channel the image is (None: colour). axes: the axes a .spz scene was read in
-    (None: another format, or an older sidecar: read it as the default). levels: the
-    levels of a streamed SOG to read (None: every level that fits)."""
+    raw: the parsed JSON, for fields only the window reads. axes: the axes a .spz
+    scene was read in (None: another format, or an older sidecar: read it as the
+    default). levels: the levels of a streamed SOG to read (None: every level that fits)."""
 
     path: Path
     scene_path: str
     scene_sha256: str
-    camera: Camera
-    settings: RenderSettings
     scale: float
     render_mode: str
     raw: dict
-    stereo: StereoView | None = None
-    channel_view: ChannelView | None = None
     axes: FileAxes | None = None
     levels: tuple[int, ...] | None = None
 
@@ -313,8 +320,8 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
     if channel_view is not None and version < CHANNEL_SIDECAR_VERSION:
         raise UserError(f"{path}: 'channel_view' needs sidecar version {CHANNEL_SIDECAR_VERSION}, "
                         f"the file says {version}")
-    return Sidecar(path, scene_path, sha, camera, settings, scale, render_mode, data, stereo, channel_view, axes,
-                   levels)
+    return Sidecar(camera, settings, stereo, channel_view, path=path, scene_path=scene_path, scene_sha256=sha,
+                   scale=scale, render_mode=render_mode, raw=data, axes=axes, levels=levels)
 
 
 def is_sidecar_file(path: str | os.PathLike) -> bool:

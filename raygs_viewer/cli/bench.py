@@ -80,6 +80,13 @@ def command(args: argparse.Namespace, ctx=None) -> int:
     return runs[args.bench](args, ctx)
 
 
+def reported_run_fields(kind: str, args: argparse.Namespace, notes: list[str]) -> dict[str, object]:
+    """The fields of ``bench.common.ReportedRunOptions``: --out (checked before any work),
+    --overwrite and ``run_fields``."""
+    return {"out": report_path(args.out, args.overwrite), "overwrite": args.overwrite,
+            **run_fields(kind, args, notes)}
+
+
 # --- accuracy ------------------------------------------------------------------------------------
 
 
@@ -178,9 +185,7 @@ def stereo_options(args: argparse.Namespace) -> stereo_bench.StereoOptions:
     scenes, notes = scene_choice(args, lambda: ((DEMO,), []) if args.quick else accuracy.default_scenes(False))
     return stereo_bench.StereoOptions(
         scenes=scenes, presets=presets, width=args.width or stereo_bench.DEFAULT_WIDTH,
-        **quick_or_default(args, stereo_bench, ("repeat",)),
-        out=report_path(args.out, args.overwrite), overwrite=args.overwrite,
-        **run_fields("stereo", args, notes))
+        **quick_or_default(args, stereo_bench, ("repeat",)), **reported_run_fields("stereo", args, notes))
 
 
 # --- perf ----------------------------------------------------------------------------------------
@@ -263,8 +268,7 @@ def order_options(args: argparse.Namespace) -> order_bench.OrderOptions:
     scenes, notes = scene_choice(args, lambda: accuracy.default_scenes(args.quick))
     return order_bench.OrderOptions(
         scenes=scenes, **quick_or_default(args, order_bench, ("width", "frames", "repeat", "gt_samples")),
-        out=report_path(args.out, args.overwrite), overwrite=args.overwrite,
-        **run_fields("order", args, notes))
+        **reported_run_fields("order", args, notes))
 
 
 # --- sort ----------------------------------------------------------------------------------------
@@ -369,19 +373,18 @@ def lod_options(args: argparse.Namespace) -> lod_bench.LodOptions:
     lod_bench.check_scenes(scenes)  # before any work
     return lod_bench.LodOptions(
         scenes=scenes, **quick_or_default(args, lod_bench, ("width", "repeat")), distance=args.lod_distance,
-        out=report_path(args.out, args.overwrite), overwrite=args.overwrite,
-        **run_fields("lod", args, notes))
+        **reported_run_fields("lod", args, notes))
 
 
 # --- gpu -------------------------------------------------------------------------------------------
 
 
 def _add_gpu_parser(kinds) -> None:
-    parser = bench_parser(kinds, "gpu",
-                           f"one generated scene of {count_label(gpu_bench.QUICK_COUNTS[0])} gaussians, "
-                           f"{gpu_bench.QUICK_MONO[0]}x{gpu_bench.QUICK_MONO[1]} and a stereo pair at 1/"
-                           f"{gpu_bench.QUICK_EYE_SHRINK} of the headset's size, {gpu_bench.QUICK_FRAMES} timed "
-                           f"frames: a smoke test (under 2 minutes on llvmpipe and two CPU cores)")
+    quick_help = (f"one generated scene of {count_label(gpu_bench.QUICK_COUNTS[0])} gaussians, "
+                  f"{gpu_bench.QUICK_MONO[0]}x{gpu_bench.QUICK_MONO[1]} and a stereo pair at 1/"
+                  f"{gpu_bench.QUICK_EYE_SHRINK} of the headset's size, {gpu_bench.QUICK_FRAMES} timed "
+                  f"frames: a smoke test (under 2 minutes on llvmpipe and two CPU cores)")
+    parser = bench_parser(kinds, "gpu", quick_help)
     parser.add_argument("--counts", nargs="*", type=argtypes.whole_number(1, 100_000_000), metavar="N",
                         help="sizes of the generated scenes (default "
                              + ", ".join(count_label(n) for n in gpu_bench.COUNTS) + "; none: real scenes only)")
@@ -412,5 +415,4 @@ def gpu_options(args: argparse.Namespace) -> gpu_bench.GpuOptions:
         mono=gpu_bench.QUICK_MONO if quick else gpu_bench.MONO,
         eye_shrink=gpu_bench.QUICK_EYE_SHRINK if quick else 1,
         frames=args.frames or (gpu_bench.QUICK_FRAMES if quick else gpu_bench.DEFAULT_FRAMES),
-        out=report_path(args.out, args.overwrite), overwrite=args.overwrite,
-        **run_fields("gpu", args, notes))
+        **reported_run_fields("gpu", args, notes))

@@ -35,7 +35,38 @@ class Sorter(Protocol):
     def close(self) -> None: ...
 
 
-class BackgroundSorter(Closable):
+class _Answers(Closable):
+    """What both sorters keep of the requests they answer: the counters, the last
+    request (a repeat of it is answered, not sorted again), the newest result and the
+    last failure's line."""
+
+    def __init__(self, sorter: Sorter) -> None:
+        self._sorter = sorter
+        self._latest: SortResult | None = None
+        self._last: SortRequest | None = None
+        self._closed = False
+        self.requested = self.repeated = self.started = self.finished = self.failed = self.superseded = 0
+        self.error: str | None = None
+
+    def _is_new(self, request: SortRequest, owner: str) -> bool:
+        """Counts ``request``: False (``repeated``) when it equals the last one, which
+        keeps its serial; else True, its serial the new ``requested``. Raises
+        RuntimeError after close (the message names ``owner``, the sorter's class)."""
+        if self._closed:
+            raise RuntimeError(f"{owner}.request after close()")
+        if request == self._last:
+            self.repeated += 1
+            return False
+        self.requested += 1
+        self._last = request
+        return True
+
+    def _failed(self, exc: Exception) -> None:
+        self.failed += 1
+        self.error = f"{type(exc).__name__}: {one_line(exc)}" if str(exc).strip() else type(exc).__name__
+
+
+class BackgroundSorter(_Answers):
     """Sorts on a daemon worker thread; the frame loop only calls :meth:`request` and :meth:`latest`.
 
     Counters (plain ints, read without locking by the statistics panel and tests):
@@ -53,20 +84,10 @@ class BackgroundSorter(Closable):
     """
 
     def __init__(self, sorter: Sorter) -> None:
-        self._sorter = sorter
+        super().__init__(sorter)
         self._cond = threading.Condition()
         self._pending: tuple[int, SortRequest, float] | None = None  # serial, request, when
-        self._latest: SortResult | None = None
         self._answered = 0  # highest serial whose sort finished or failed; wait() compares with it
-        self._last: SortRequest | None = None
-        self._closed = False
-        self.requested = 0
-        self.repeated = 0
-        self.started = 0
-        self.finished = 0
-        self.failed = 0
-        self.superseded = 0
-        self.error: str | None = None
         self._thread = threading.Thread(target=self._run, name="raygs-sort", daemon=True)
         self._thread.start()
 
@@ -78,16 +99,11 @@ class BackgroundSorter(Closable):
         equal to the last one queued is not queued again: returns the old serial.
         Raises RuntimeError after :meth:`close`."""
         with self._cond:
-            if self._closed:
-                raise RuntimeError("BackgroundSorter.request after close()")
-            if request == self._last:
-                self.repeated += 1
+            if not self._is_new(request, "BackgroundSorter"):
                 return self.requested
-            self.requested += 1
             if self._pending is not None:
                 self.superseded += 1
             self._pending = (self.requested, request, time.perf_counter())
-            self._last = request
             self._cond.notify_all()
             return self.requested
 
@@ -145,8 +161,7 @@ class BackgroundSorter(Closable):
                 result = self._sorter.sort(request)
             except Exception as exc:  # reported in .error; the thread must keep serving
                 with self._cond:
-                    self.failed += 1
-                    self.error = f"{type(exc).__name__}: {one_line(exc)}" if str(exc).strip() else type(exc).__name__
+                    self._failed(exc)
                     self._answered = max(self._answered, serial)
                     self._cond.notify_all()
                 continue
@@ -159,7 +174,7 @@ class BackgroundSorter(Closable):
                 self._cond.notify_all()
 
 
-class InlineSorter(Closable):
+class InlineSorter(_Answers):
     """Sorts on the calling thread when asked, with :class:`BackgroundSorter`'s interface
     and counters: the frame draws the order of its own view. For the GPU sort, which
     must run on the thread that holds the GL context (and whose work the GPU queues
@@ -168,31 +183,17 @@ class InlineSorter(Closable):
     A request equal to the last one is answered with the last result (``repeated``);
     ``superseded`` stays 0 (nothing waits), and ``wait`` has nothing to wait for."""
 
-    def __init__(self, sorter: Sorter) -> None:
-        self._sorter = sorter
-        self._latest: SortResult | None = None
-        self._last: SortRequest | None = None
-        self._closed = False
-        self.requested = self.repeated = self.started = self.finished = self.failed = self.superseded = 0
-        self.error: str | None = None
-
     def request(self, request: SortRequest) -> int:
         """Sorts ``request`` now (unless it is the last one) and returns its serial; a
         failed sort is reported in ``error`` and not retried until another request."""
-        if self._closed:
-            raise RuntimeError("InlineSorter.request after close()")
-        if request == self._last:
-            self.repeated += 1
+        if not self._is_new(request, "InlineSorter"):
             return self.requested
-        self.requested += 1
         self.started += 1
-        self._last = request
         requested_at = time.perf_counter()
         try:
             result = self._sorter.sort(request)
         except Exception as exc:  # reported in .error, as the background sorter does
-            self.failed += 1
-            self.error = f"{type(exc).__name__}: {one_line(exc)}" if str(exc).strip() else type(exc).__name__
+            self._failed(exc)
             return self.requested
         self._latest = replace(result, serial=self.requested, requested_at=requested_at,
                                finished_at=time.perf_counter())

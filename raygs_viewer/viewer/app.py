@@ -287,8 +287,8 @@ class Viewer:
             raise UserError("nothing has been drawn yet")
         self.photo.check_screenshot()
         self.scene.lod.check_screenshot()
-        shown = ShownView(frame.full_camera, self.settings, self.split if self.right_settings() is not None else None,
-                          frame.stereo, self.drawer.shown_view, self.drawer.shown_right_view)
+        shown = ShownView(frame.full_camera, self.settings, frame.stereo, self.drawer.shown_view,
+                          self.split if self.right_settings() is not None else None, self.drawer.shown_right_view)
         extra = sidecar_extra(self.view.navigator, self.loaded, self.view.training_index,
                               context_description(self.ctx))
         shot = Shot(shown, self.loaded, lod_request(self.loaded, self.settings), self.stereo.save_eyes, extra)

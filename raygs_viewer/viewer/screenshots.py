@@ -36,7 +36,7 @@ from raygs_viewer.capture.screenshot import (
     save_screenshots,
     scaled_camera,
 )
-from raygs_viewer.capture.sidecar import build_sidecar
+from raygs_viewer.capture.sidecar import ImageView, build_sidecar
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.channel_pictures import ChannelView, channel_picture
 from raygs_viewer.render.gl.stereo_frame import render_stereo_view, stereo_order
@@ -53,18 +53,14 @@ Saved = tuple[Path, Path]
 
 
 @dataclass(frozen=True)
-class ShownView:
+class ShownView(ImageView):
     """What the window showed in its last frame: the camera (viewport-sized; in stereo
     the midpoint between the eyes at the headset's size), the render settings (the
-    left side's in the split view), the split view when it was shown, the stereo view
-    when the preview was on, the picture shown instead of the colour (its depth range
-    the one in use)."""
+    left side's in the split view), the stereo view when the preview was on, the
+    picture shown instead of the colour (its depth range the one in use); and the split
+    view when it was shown, with the picture its right side showed."""
 
-    camera: Camera
-    settings: RenderSettings
     split: SplitView | None = None
-    stereo: StereoView | None = None
-    view: ChannelView | None = None
     right_view: ChannelView | None = None
 
 
@@ -121,7 +117,7 @@ def _take(offscreen: Offscreen, shot: Shot, options: ScreenshotOptions, path: st
     sha256 = loaded.content_sha256
 
     def sidecar(settings: RenderSettings, details: dict, stereo: StereoView | None = None,
-                view: ChannelView | None = shown.view) -> dict:
+                view: ChannelView | None = shown.channel_view) -> dict:
         return build_sidecar(scene_path=scene_path, scene_sha256=sha256, scene=loaded.scene, camera=camera,
                              settings=settings, scale=scale, window_camera=shown.camera, extra=details, stereo=stereo,
                              channel_view=view, levels=levels_read(loaded, settings))
@@ -129,15 +125,16 @@ def _take(offscreen: Offscreen, shot: Shot, options: ScreenshotOptions, path: st
     if shown.stereo is not None:
         shots = [(image, sidecar(shown.settings, {**extra, "stereo_window_layout": shown.stereo.layout}, view), tag)
                  for image, view, tag in _stereo_images(offscreen, camera, shown.settings, shown.stereo, shot.save_eyes,
-                                                        shown.view)]
+                                                        shown.channel_view)]
     elif shown.split is None:
-        shots = [(render_shown(offscreen, camera, shown.settings, shown.view), sidecar(shown.settings, extra), "left")]
+        shots = [(render_shown(offscreen, camera, shown.settings, shown.channel_view), sidecar(shown.settings, extra),
+                  "left")]
     else:
         split = shown.split
         shots = [(render_shown(offscreen, camera, settings, view), sidecar(settings, {**extra, "split_view": {
                      "side": side, "preset": split.preset if side == "right" else None, "divider": split.fraction}},
                      view=view), side)
-                 for side, settings, view in (("left", shown.settings, shown.view),
+                 for side, settings, view in (("left", shown.settings, shown.channel_view),
                                               ("right", split.right(shown.settings), shown.right_view))]
     if len(shots) == 1:
         image, data, _ = shots[0]

@@ -13,6 +13,7 @@ import pytest
 from testkit import assert_one_line_error, run_cli
 
 from raygs_viewer.bench import gpu as bench_gpu
+from raygs_viewer.bench.common import count_label
 from raygs_viewer.camera.stereo import StereoRig
 from raygs_viewer.cli import bench as bench_cli
 from raygs_viewer.render.settings import RenderSettings
@@ -89,7 +90,7 @@ def test_quick_run_prints_every_case_option_and_median(quick_run):
     code, printed, out = quick_run
     assert code == 0
     assert re.search(r"^clock: CPU, GL drained", printed, re.M)  # llvmpipe: the drained clock, and said so
-    labels = [f"outdoor-{bench_gpu.count_label(bench_gpu.QUICK_COUNTS[0])}-{view}" for view in ("mono", "stereo")]
+    labels = [f"outdoor-{count_label(bench_gpu.QUICK_COUNTS[0])}-{view}" for view in ("mono", "stereo")]
     for label in labels:
         assert re.search(rf"^fragments-per-second@{label} [0-9.e+]+$", printed, re.M)
         for name, _, _ in bench_gpu.OPTIONS:

@@ -149,6 +149,12 @@ def row_list(spans: np.ndarray | None, count: int) -> tuple[np.ndarray, int]:
     return np.column_stack([spans[:, 0], ends - lengths]).astype(np.uint32), int(ends[-1]) if ends.size else 0
 
 
+def _bind_storage(*bindings: tuple[moderngl.Buffer, int]) -> None:
+    """Binds each (buffer, binding point) pair as a shader storage block, in order."""
+    for buffer, binding in bindings:
+        buffer.bind_to_storage_buffer(binding)
+
+
 #: An order's indirect draw commands (glsl/sort_commands.comp), five words each, by the
 #: draw layout's vertices: the instanced strip's and the 6-vertex draw's
 #: DrawArraysIndirect, the indexed draw's DrawElementsIndirect; written where the cull's
@@ -394,14 +400,9 @@ class GpuSorter(Closable):
                             ("u_depth_row", depth_row.astype(np.float32).tobytes()),
                             ("u_centre", centre.astype(np.float32).tobytes())):
             set_uniform(cull, name, value)
-        self._positions.bind_to_storage_buffer(POSITIONS)
-        self._supports.bind_to_storage_buffer(SUPPORTS)
-        self._spans.bind_to_storage_buffer(SPANS)
-        self._slots.bind_to_storage_buffer(SLOTS)
-        self._values.bind_to_storage_buffer(VALUES)
-        self._group_counts.bind_to_storage_buffer(GROUP_COUNTS)
-        self._summary.bind_to_storage_buffer(SUMMARY)
-        self._cameras.bind_to_storage_buffer(CAMERAS)
+        _bind_storage((self._positions, POSITIONS), (self._supports, SUPPORTS), (self._spans, SPANS),
+                      (self._slots, SLOTS), (self._values, VALUES), (self._group_counts, GROUP_COUNTS),
+                      (self._summary, SUMMARY), (self._cameras, CAMERAS))
         cull.run(groups)
         self.ctx.memory_barrier(moderngl.SHADER_STORAGE_BARRIER_BIT)
         scan = self.programs.compute("sort_scan.comp", DEFINES)
@@ -417,18 +418,14 @@ class GpuSorter(Closable):
         for name, value in (("u_total", total), ("u_key", _KEY_COLUMN[key]), ("u_mode", plan.mode),
                             ("u_far", plan.far), ("u_scale", plan.scale)):
             set_uniform(compact, name, value)
-        self._keys.bind_to_storage_buffer(KEYS_OUT)
-        store.buffer.bind_to_storage_buffer(ROWS_OUT)
-        self._slots.bind_to_storage_buffer(SLOTS)
-        self._values.bind_to_storage_buffer(VALUES)
-        self._group_counts.bind_to_storage_buffer(GROUP_COUNTS)
+        _bind_storage((self._keys, KEYS_OUT), (store.buffer, ROWS_OUT), (self._slots, SLOTS), (self._values, VALUES),
+                      (self._group_counts, GROUP_COUNTS))
         compact.run(groups)
         self.ctx.memory_barrier(moderngl.SHADER_STORAGE_BARRIER_BIT)
         if plan.mode != SCENE:
             self._radix.sort(self._keys, store.buffer, kept, plan.key_bits)
         commands = self.programs.compute("sort_commands.comp", DEFINES)
-        self._summary.bind_to_storage_buffer(SUMMARY)
-        store.commands.bind_to_storage_buffer(COMMANDS)
+        _bind_storage((self._summary, SUMMARY), (store.commands, COMMANDS))
         commands.run(1)
 
     # ------------------------------------------------------------------ lifetime

@@ -12,7 +12,7 @@ import math
 from imgui_bundle import imgui
 
 from raygs_viewer.viewer.measure import MeasureWidget
-from raygs_viewer.viewer.panel.widgets import button, button_width, checkbox, header, line, note, tooltip
+from raygs_viewer.viewer.panel.widgets import button, checkbox, file_row, header, line, note, tooltip
 
 LIST_ROWS = 5
 
@@ -75,15 +75,10 @@ def _scale(widget: MeasureWidget) -> None:
 
 
 def _files(widget: MeasureWidget) -> None:
-    imgui.set_next_item_width(-button_width("Save") - button_width("Load"))
-    _, widget.file = imgui.input_text_with_hint("##measure file", "measurements.json", widget.file)
-    imgui.same_line()
-    imgui.begin_disabled(not widget.measurements)
-    if imgui.button("Save##measure"):
+    widget.file, save, load = file_row("measure", widget.file, "measurements.json", bool(widget.measurements))
+    if save:
         widget.save()
-    imgui.end_disabled()
-    imgui.same_line()
-    if imgui.button("Load##measure"):
+    if load:
         widget.load()
     widget.overwrite = checkbox("replace file##measure", widget.overwrite,
                                 help_text="let Save replace an existing file")

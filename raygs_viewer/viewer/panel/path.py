@@ -16,6 +16,7 @@ from raygs_viewer.viewer.panel.widgets import (
     beside,
     checkbox,
     choice,
+    file_row,
     header,
     labelled_progress,
     line,
@@ -159,15 +160,10 @@ def _playback(widget: PathWidget) -> None:
 
 
 def _files(widget: PathWidget) -> None:
-    imgui.set_next_item_width(-190)
-    _, widget.file = imgui.input_text_with_hint("##path file", "path.json", widget.file)
-    imgui.same_line()
-    imgui.begin_disabled(not widget.path.keyframes)
-    if imgui.button("Save##path"):
+    widget.file, save, load = file_row("path", widget.file, "path.json", bool(widget.path.keyframes), room=190)
+    if save:
         widget.save()
-    imgui.end_disabled()
-    imgui.same_line()
-    if imgui.button("Load##path"):
+    if load:
         widget.load()
     tooltip("a path JSON saved here, or a nerfstudio camera_path file")
     imgui.begin_disabled(not widget.path.keyframes)

@@ -68,6 +68,21 @@ def button_width(label: str) -> float:
     return imgui.calc_text_size(label.split("##")[0]).x + 2 * style.frame_padding.x + style.item_spacing.x
 
 
+def file_row(tag: str, file: str, hint: str, can_save: bool, room: float | None = None) -> tuple[str, bool, bool]:
+    """A file-name field (``hint`` shown while empty) with Save (greyed out unless
+    ``can_save``) and Load after it on its line, their ids ending in ``##tag``. The
+    field leaves ``room`` of the line (by default the buttons' width). Returns the name,
+    whether Save was pressed and whether Load was; Load is the last widget drawn, for a
+    tooltip."""
+    imgui.set_next_item_width(-(button_width("Save") + button_width("Load") if room is None else room))
+    _, file = imgui.input_text_with_hint(f"##{tag} file", hint, file)
+    imgui.same_line()
+    save = button(f"Save##{tag}", can_save)
+    imgui.same_line()
+    load = imgui.button(f"Load##{tag}")
+    return file, save, load
+
+
 def slider(label: str, value: float, low: float, high: float, fmt: str, logarithmic: bool = False) -> float | None:
     """A float slider over [low, high] (ctrl-click types any value); the new value when
     it was moved to a finite one, else None."""
