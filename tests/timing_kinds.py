@@ -12,7 +12,6 @@ inside subprocesses is measured too, as wall time between entry and return.
 
 from __future__ import annotations
 
-import os
 import subprocess
 import time
 from collections import defaultdict
@@ -121,6 +120,7 @@ class Collector:
         self.duration: dict[str, float] = defaultdict(float)
         self.kind: dict[str, str] = {}
         self.inside: dict[str, float] = defaultdict(float)
+        self.inside_by_test: dict[str, dict[str, float]] = defaultdict(dict)
         self.fixtures: dict[str, list[float]] = defaultdict(list)
 
     @pytest.hookimpl(hookwrapper=True)
@@ -151,11 +151,14 @@ class Collector:
                 self.kind[report.nodeid] = value["kind"]
                 for name, seconds in value["inside"].items():
                     self.inside[name] += seconds
+                    self.inside_by_test[report.nodeid][name] = seconds
                 for name, seconds in value["fixtures"].items():
                     self.fixtures[name].append(seconds)
 
     def pytest_terminal_summary(self, terminalreporter):
-        if os.environ.get("PYTEST_XDIST_WORKER"):  # the controller adds the workers' up
+        # The controller adds the workers' up. Asked of the config, not of the environment:
+        # a pytest this suite starts in a subprocess inherits a worker's PYTEST_XDIST_WORKER.
+        if hasattr(terminalreporter.config, "workerinput"):
             return
         text = self.markdown(time.perf_counter() - self.started)
         self.out.write_text(text)
@@ -180,6 +183,17 @@ class Collector:
             lines.append(f"| {name} | {len(times)} | {sum(times):.1f} | {sum(times) / total:.0%} |")
         lines += ["", "| inside | seconds |", "| --- | ---: |"]
         lines += [f"| {name} | {seconds:.1f} |" for name, seconds in sorted(self.inside.items())]
+        files: dict[str, float] = defaultdict(float)
+        for nodeid, seconds in self.duration.items():
+            files[nodeid.split("::")[0]] += seconds
+        # Under --dist loadfile a file is the unit a worker takes: the slowest one bounds
+        # how evenly two workers can finish.
+        lines += ["", "| test file (slowest 15) | seconds |", "| --- | ---: |"]
+        lines += [f"| {name} | {seconds:.1f} |" for name, seconds in sorted(files.items(), key=lambda kv: -kv[1])[:15]]
+        for name in sorted(self.inside):
+            ranked = sorted(((t.get(name, 0.0), nodeid) for nodeid, t in self.inside_by_test.items()), reverse=True)
+            lines += ["", f"| test (most time inside the {name}, 10) | seconds |", "| --- | ---: |"]
+            lines += [f"| {nodeid} | {seconds:.1f} |" for seconds, nodeid in ranked[:10] if seconds > 0]
         lines += ["", "| fixture (set-up time, slowest 15) | set-ups | seconds |", "| --- | ---: | ---: |"]
         slowest = sorted(self.fixtures.items(), key=lambda kv: -sum(kv[1]))[:15]
         lines += [f"| {name} | {len(times)} | {sum(times):.1f} |" for name, times in slowest]

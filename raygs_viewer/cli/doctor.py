@@ -14,6 +14,7 @@ import sys
 
 from raygs_viewer.bench.common import write_report
 from raygs_viewer.bench.doctor import doctor_options, format_report, run_doctor, summary_line
+from raygs_viewer.bench.doctor_checks import check_cases
 from raygs_viewer.cli import argtypes
 from raygs_viewer.cli.bench_shared import report_path
 
@@ -40,6 +41,9 @@ def add_parsers(commands) -> None:
                         help=f"for CI and a first look: the hard cases in the render modes only, the sort rows at "
                              f"200k, bench gpu --quick's sizes, the sorts timed at 100k and 300k ({QUICK_TIME} on "
                              f"two CPU cores with llvmpipe, 2026-12-05)")
+    parser.add_argument("--case", action="append", metavar="NAME", dest="cases",
+                        help="only this correctness case (repeat for more; 'demo' or a hard case's name, as the "
+                             "report's rows name them): re-checks what failed without the rest")
     parser.add_argument("--report", metavar="FILE.md",
                         help="also write the report there (never over an existing file without --overwrite)")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing --report file")
@@ -48,6 +52,8 @@ def add_parsers(commands) -> None:
 
 def recorded_command(args: argparse.Namespace) -> str:
     parts = ["raygs-viewer", "doctor"] + (["--quick"] if args.quick else [])
+    for name in args.cases or ():
+        parts += ["--case", name]
     if args.gl_backend:
         parts += ["--gl-backend", args.gl_backend]
     return shlex.join(parts)
@@ -58,7 +64,10 @@ def command_doctor(args: argparse.Namespace, ctx=None, **changes) -> int:
     line; the exit status. ``ctx``: a GL context to use (tests); ``changes``: fields of
     ``bench.doctor.DoctorOptions`` over the command line's (tests make a run small)."""
     out = report_path(args.report, args.overwrite)  # before any work
-    options = doctor_options(args.quick, command_line=recorded_command(args), gl_backend=args.gl_backend, **changes)
+    cases = {"cases": tuple(dict.fromkeys(args.cases))} if args.cases else {}
+    options = doctor_options(args.quick, command_line=recorded_command(args), gl_backend=args.gl_backend,
+                             **{**cases, **changes})
+    check_cases(options.cases)  # an unknown name: before any work
     result = run_doctor(options, ctx)
     report = format_report(result)
     print("", flush=True)

@@ -36,6 +36,8 @@ of the arrays). Quaternions are normalised after that rounding.
 
 from __future__ import annotations
 
+import dataclasses
+import functools
 import math
 from pathlib import Path
 
@@ -389,7 +391,22 @@ def _near_camera(parts: _Parts, rng: np.random.Generator) -> None:
 
 def demo_scene() -> Scene:
     """The built-in demo scene: 3,914 gaussians, SH degree 3, deterministic (the same
-    float32 bits on every call and machine), built in about 0.15 s."""
+    float32 bits on every call and machine). Built once a process (about 0.15 s; a
+    window, a render and a sidecar's hash each ask for it); every call gets its own
+    copy of the arrays, so a caller that changes one changes nobody else's scene."""
+    built = _built_once()
+    return dataclasses.replace(built, positions=built.positions.copy(), rotations=built.rotations.copy(),
+                               scales=built.scales.copy(), opacities=built.opacities.copy(), sh=built.sh.copy(),
+                               dropped=dict(built.dropped))
+
+
+@functools.cache
+def _built_once() -> Scene:
+    return build_demo_scene()
+
+
+def build_demo_scene() -> Scene:
+    """The demo scene generated now, not shared with :func:`demo_scene`'s."""
     rng = np.random.default_rng(SEED)
     parts = _Parts()
     _floor(parts, rng)

@@ -160,9 +160,7 @@ def span_rows(spans: np.ndarray) -> np.ndarray:
 
 def subset_scene(scene: Scene, spans: np.ndarray, format_: str) -> Scene:
     """The rows of ``spans`` of ``scene`` as a new Scene (source and drops kept)."""
-    rows = span_rows(spans)
-    return Scene(scene.positions[rows], scene.rotations[rows], scene.scales[rows], scene.opacities[rows],
-                 scene.sh[rows], scene.sh_degree, scene.filter_fused, scene.source, dict(scene.dropped), format_)
+    return scene.rows(span_rows(spans), format_)
 
 
 def load_lod(path, *, levels: tuple[int, ...] | None = None, fits: Fits | None = None,

@@ -91,6 +91,15 @@ class Scene:
     def count(self) -> int:
         return int(self.positions.shape[0])
 
+    def rows(self, rows: np.ndarray, format_: str | None = None) -> "Scene":
+        """The gaussians at ``rows`` ((K,) int64 indices, or an (N,) bool mask) as a Scene
+        of their own, in the order given; source, drops and axes kept, the format too
+        unless ``format_`` is given."""
+        rows = np.flatnonzero(rows) if np.asarray(rows).dtype == bool else np.asarray(rows, np.int64)
+        return Scene(self.positions[rows], self.rotations[rows], self.scales[rows], self.opacities[rows],
+                     self.sh[rows], self.sh_degree, self.filter_fused, self.source, dict(self.dropped),
+                     self.format if format_ is None else format_, self.axes)
+
     def with_sh_degree(self, degree: int) -> "Scene":
         """The same scene with SH truncated to ``degree`` (<= the scene's)."""
         degree = max(0, min(int(degree), self.sh_degree))

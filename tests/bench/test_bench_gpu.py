@@ -71,9 +71,14 @@ def test_the_stereo_case_counts_both_eyes(gl_ctx):
     assert pair.rasterized == pytest.approx(2 * mono.rasterized, rel=0.1)
 
 
+COUNT = 5_000
+
+
 @pytest.fixture(scope="module")
 def quick_run(tmp_path_factory):
-    """``bench gpu --quick --out``: the run CI makes."""
+    """``bench gpu --quick --out`` as CI makes it, on a smaller scene and one timed frame
+    (``--counts``, ``--frames``: the same cases, options and report, a sixth of the work;
+    what --quick itself chooses is test_options_and_the_recorded_command's)."""
     import contextlib
     import io
 
@@ -82,7 +87,7 @@ def quick_run(tmp_path_factory):
     out = tmp_path_factory.mktemp("gpu") / "gpu.md"
     printed = io.StringIO()
     with contextlib.redirect_stdout(printed):
-        code = main(["bench", "gpu", "--quick", "--out", str(out)])
+        code = main(["bench", "gpu", "--quick", "--counts", str(COUNT), "--frames", "1", "--out", str(out)])
     return code, printed.getvalue(), out
 
 
@@ -90,7 +95,7 @@ def test_quick_run_prints_every_case_option_and_median(quick_run):
     code, printed, out = quick_run
     assert code == 0
     assert re.search(r"^clock: CPU, GL drained", printed, re.M)  # llvmpipe: the drained clock, and said so
-    labels = [f"outdoor-{count_label(bench_gpu.QUICK_COUNTS[0])}-{view}" for view in ("mono", "stereo")]
+    labels = [f"outdoor-{count_label(COUNT)}-{view}" for view in ("mono", "stereo")]
     for label in labels:
         assert re.search(rf"^fragments-per-second@{label} [0-9.e+]+$", printed, re.M)
         for name, _, _ in bench_gpu.OPTIONS:
@@ -99,11 +104,11 @@ def test_quick_run_prints_every_case_option_and_median(quick_run):
         assert re.search(rf"^{re.escape(name)} [0-9.]+$", printed, re.M), name
     report = out.read_text()
     assert report.startswith("# GPU frame figures (generated)")
-    assert "`raygs-viewer bench gpu --quick --out " in report
+    assert f"`raygs-viewer bench gpu --quick --counts {COUNT} --frames 1 --out " in report
     for heading in ("## Today's path", "## Each option against today's path", "## What each option draws",
                     "## VR budget"):
         assert heading in report
-    assert "| outdoor 30k | stereo 258×276 ×2 |" in report
+    assert "| outdoor 5k | stereo 258×276 ×2 |" in report
 
 
 def test_options_and_the_recorded_command(tmp_path):

@@ -116,3 +116,13 @@ def test_a_shader_the_driver_cannot_compile_fails_its_rows_and_the_run_goes_on(g
     assert [row.variant.name for row in result.failed] == ["triangles", "triangles, draw-order records"]
     assert all("no_such_name" in row.failures[0] and "\n" not in row.failures[0] for row in result.failed)
     assert len(result.judged) == 6 and result.status == 1
+
+
+def test_every_hard_case_passes_its_quick_rows_here(gl_ctx):
+    """What `doctor --quick` checks of the hard cases (the CLI's own run names two of
+    them): each case's rows in the render modes, held to its tolerance, and passing."""
+    options = DoctorOptions(cases=tuple(HARD_CASES), demo_axes=(), hard_axes=doctor_options(True).hard_axes,
+                            sort_count=0, speed=None, auto=False)
+    result = run_doctor(options, gl_ctx, out=io.StringIO())
+    assert {row.case for row in result.checks} == set(HARD_CASES)
+    assert len(result.judged) >= 2 * len(HARD_CASES) and result.status == 0, summary_line(result)

@@ -14,6 +14,9 @@ import pytest
 from testkit import assert_one_line_error, run_cli
 
 
+CASES = ("--case", "demo", "--case", "straddling-camera-plane")
+
+
 @pytest.fixture(scope="module")
 def quick_run(tmp_path_factory):
     """``raygs-viewer doctor --quick --report R.md --overwrite`` over a file already there,
@@ -22,7 +25,9 @@ def quick_run(tmp_path_factory):
     report = folder / "R.md"
     report.write_text("an earlier report")
     env = {**os.environ, "XDG_CONFIG_HOME": str(folder / "config")}
-    done = subprocess.run([sys.executable, "-m", "raygs_viewer.cli.main", "doctor", "--quick", "--report",
+    # Two of the 16 cases (the demo in every axis, one hard case in the modes): every
+    # case's rows are checked in-process (tests/bench/test_hard_cases.py, test_doctor.py).
+    done = subprocess.run([sys.executable, "-m", "raygs_viewer.cli.main", "doctor", "--quick", *CASES, "--report",
                            str(report), "--overwrite"], capture_output=True, text=True, env=env, timeout=300)
     return done, report
 
@@ -39,7 +44,10 @@ def test_quick_exits_0_here_and_says_so_last(quick_run):
 def test_the_report_has_the_gl_the_rows_the_sort_and_the_fill(quick_run):
     done, report = quick_run
     text = report.read_text()
-    assert text.startswith("# raygs-viewer doctor\n\n`raygs-viewer doctor --quick` on ")
+    assert text.startswith("# raygs-viewer doctor\n\n`raygs-viewer doctor --quick --case demo --case "
+                           "straddling-camera-plane` on ")
+    cases = set(re.findall(r"^\| ([a-z-]+) \| (?:mode|RayGS|order|precision|draw|sort)", text, re.M))
+    assert cases == {"demo", "straddling-camera-plane"}
     assert text in done.stdout  # the report printed is the report written
     for heading in ("## The GL", "## Correct here: renders against the float64 reference",
                     "## Correct here: the GPU sort against the CPU sort", "## Fast here",
@@ -74,6 +82,7 @@ def test_an_existing_report_is_kept_without_overwrite(capsys, tmp_path):
     (("--report", "R.txt"), "must end in .md"),
     (("--gl-backend", "vulkan"), "vulkan"),
     (("--quick", "--frames", "3"), "unrecognized arguments"),
+    (("--case", "demo", "--case", "donut"), "unknown case 'donut': use one of demo, camera-at-centre"),
 ])
 def test_bad_input_is_one_line_and_status_2(capsys, tmp_path, monkeypatch, argv, words):
     monkeypatch.chdir(tmp_path)

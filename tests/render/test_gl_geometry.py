@@ -10,6 +10,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from testkit import (
+    shared_scene,
     SHARED_SCENES,
     assert_channels_differ,
     assert_channels_match,
@@ -273,21 +274,18 @@ def _shared_scene_names():
 
 #: Image sizes that show each scene at a bounded reference cost (default 48 x 36): the
 #: three-gaussian scene needs more pixels to be seen, the 45k-gaussian one fewer to be quick.
-SHARED_SIZES = {"metalsplatter-train3.ply": (64, 48), "donut-mip-fused.ply": (32, 24)}
+SHARED_SIZES = {"metalsplatter-train3.ply": (64, 48)}
 
 
 @pytest.mark.parametrize("name", _shared_scene_names())
 def test_shared_scenes_match_the_reference(gl_session_ctx, name):
     if not SHARED_SCENES.is_dir():
         pytest.skip(f"shared scenes folder {SHARED_SCENES} is absent")
-    from raygs_viewer.scene.io import load_scene  # only where the scenes exist
-    scene = load_scene(SHARED_SCENES / name)
+    scene = shared_scene(name)
     camera = frame_points(scene.positions, *SHARED_SIZES.get(name, (48, 36)))
     renderer = GLRenderer(gl_session_ctx, scene)
-    # The 45k-gaussian scene in the per-pixel order only: the reference's cost is per gaussian.
-    orders = ("per-pixel",) if scene.count > 20_000 else ("depth", "per-pixel")
     try:
-        for settings in (RenderSettings(order=order) for order in orders):
+        for settings in (RenderSettings(order=order) for order in ("depth", "per-pixel")):
             reference = render_reference_channels(scene, camera, settings)
             assert reference.alpha.max() > 0.01, "the view must show the scene"
             assert_channels_match(sorted_channels(renderer, camera, settings), reference)

@@ -9,6 +9,7 @@ from dataclasses import replace
 import numpy as np
 import pytest
 from testkit import (
+    shared_scene,
     patched_glsl,
     PER_RAY_TIE_ERROR,
     SHARED_SCENES,
@@ -276,8 +277,7 @@ def _shared_scene_names():
 def test_shared_scenes_match_the_per_pixel_reference(gl_render, name):
     if not SHARED_SCENES.is_dir():
         pytest.skip(f"shared scenes folder {SHARED_SCENES} is absent")
-    from raygs_viewer.scene.io import load_scene  # only where the scenes exist
-    scene = load_scene(SHARED_SCENES / name)
+    scene = shared_scene(name)
     camera = frame_points(scene.positions, 64, 48)
     for k in (0, 4):
         settings = RenderSettings(order="per-pixel", order_k=k)

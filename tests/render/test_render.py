@@ -6,6 +6,7 @@ import threading
 import numpy as np
 import pytest
 from testkit import (
+    shared_scene,
     SHARED_SCENES,
     assert_differs,
     assert_matches,
@@ -191,8 +192,7 @@ def _shared_scene_names():
 def test_shared_scenes_match_reference(gl_render, name, distance):
     if not SHARED_SCENES.is_dir():
         pytest.skip(f"shared scenes folder {SHARED_SCENES} is absent")
-    from raygs_viewer.scene.io import load_scene
-    scene = load_scene(SHARED_SCENES / name)
+    scene = shared_scene(name)
     camera = frame_points(scene.positions, 96, 72)
     if distance == "close":  # most of the way to the middle: large splats, some near the camera
         middle = np.median(scene.positions, axis=0).astype(np.float64)

@@ -9,7 +9,7 @@ import pytest
 
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.camera.rotation import quaternion_to_matrix
-from raygs_viewer.scene.demo import FLOOR_Y, demo_camera, demo_cameras, demo_scene
+from raygs_viewer.scene.demo import FLOOR_Y, build_demo_scene, demo_camera, demo_cameras, demo_scene
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.sh import sh_to_rgb
 
@@ -38,14 +38,25 @@ def _inside_image(scene: Scene, camera: Camera) -> np.ndarray:
 
 # --- determinism -----------------------------------------------------------------------
 
-def test_two_calls_give_identical_arrays(scene):
-    again = demo_scene()
+@pytest.mark.parametrize("make", [demo_scene, build_demo_scene], ids=["built once", "generated again"])
+def test_two_calls_give_identical_arrays(scene, make):
+    again = make()
     for name in ARRAYS:
         a, b = getattr(scene, name), getattr(again, name)
         assert a.dtype == b.dtype == np.float32
         assert np.array_equal(a, b), name
     assert again.sh_degree == scene.sh_degree == 3
     assert again.source == "demo"
+
+
+def test_each_call_owns_its_arrays():
+    first = demo_scene()
+    first.positions[:] = 0
+    first.sh[:] = 0
+    first.dropped["by a caller"] = 1
+    again = demo_scene()
+    assert np.array_equal(again.positions, build_demo_scene().positions) and again.sh.any()
+    assert "by a caller" not in again.dropped
 
 
 # The generator's output is pinned: a change to any of these numbers means the demo
