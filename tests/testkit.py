@@ -378,17 +378,10 @@ def window_camera(width=64, height=48):
 
 def demo_sidecar(camera=None, settings=SETTINGS, scale=1.0, **kwargs):
     camera = camera or window_camera()
-    return build_sidecar(scene_path="demo", scene_sha256=demo_sha256(), scene=demo_scene_cached(), camera=camera,
+    return build_sidecar(scene_path="demo", scene_sha256=demo_sha256(), scene=demo_scene(), camera=camera,
                          settings=settings, scale=scale, **kwargs)
 
 
-_DEMO = []
-
-
-def demo_scene_cached():
-    if not _DEMO:
-        _DEMO.append(demo_scene())
-    return _DEMO[0]
 
 
 DEMO_ARRAYS_SHA256 = "681ba16b73b4b817a049a853be122a212abe52c7cd0cf34d9f0bb0c41c312ef4"

@@ -14,7 +14,6 @@ import sys
 
 from raygs_viewer.bench.common import write_report
 from raygs_viewer.bench.doctor import doctor_options, format_report, run_doctor, summary_line
-from raygs_viewer.bench.doctor_checks import check_cases
 from raygs_viewer.cli import argtypes
 from raygs_viewer.cli.bench_shared import report_path
 
@@ -67,7 +66,6 @@ def command_doctor(args: argparse.Namespace, ctx=None, **changes) -> int:
     cases = {"cases": tuple(dict.fromkeys(args.cases))} if args.cases else {}
     options = doctor_options(args.quick, command_line=recorded_command(args), gl_backend=args.gl_backend,
                              **{**cases, **changes})
-    check_cases(options.cases)  # an unknown name: before any work
     result = run_doctor(options, ctx)
     report = format_report(result)
     print("", flush=True)

@@ -11,7 +11,6 @@ from PIL import Image
 from testkit import (
     assert_differs,
     assert_matches,
-    demo_scene_cached,
     demo_sidecar,
     random_scene,
     rendered,
@@ -24,6 +23,7 @@ from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.settings import ACCURACY_PRESETS, PRECISIONS, RenderSettings
 from raygs_viewer.render.tolerance import BLENDS
+from raygs_viewer.scene.demo import demo_scene
 from raygs_viewer.scene.model import Scene
 
 CAMERA = look_at([0.3, -0.2, -3.0], [0, 0, 0], width=80, height=60)
@@ -49,7 +49,7 @@ def in_range(scene: Scene) -> Scene:
 SCENES = {
     "random": lambda: in_range(random_scene(n=400, seed=1)),
     "dense": lambda: in_range(random_scene(n=2000, seed=2, log_scale=(-3.0, -1.5))),
-    "demo": demo_scene_cached,
+    "demo": demo_scene,
 }
 
 

@@ -266,3 +266,4 @@ def test_shipped_demo_cameras_match_the_generator():
         np.testing.assert_allclose([a.fx, a.fy, a.cx, a.cy], [b.fx, b.fy, b.cx, b.cy], rtol=1e-12)
         np.testing.assert_allclose(a.R, b.R, atol=1e-9)
         np.testing.assert_allclose(a.center, b.center, atol=1e-9)
+
