@@ -10,6 +10,9 @@
 // (SH degree 0 is view-independent), instead of SH coefficients.
 // RECORDS_IN_DRAW_ORDER: the pass runs over places in the order instead of gaussians, and
 // writes each record at its place (render/gl/plan.py, RECORDS); culled gaussians cost nothing.
+// SELECTION: the window's selected gaussians (one bit each at binding 5) are drawn with
+// their colour halfway to the tint: the selection is seen in the picture itself, the
+// scene's buffers untouched (render/gl/storage.py, set_selection).
 layout(local_size_x = 128) in;
 
 #include "features.glsl"
@@ -42,6 +45,13 @@ uniform bool u_ranked;
 uniform uint u_chunk_start;
 uniform uint u_chunk_rows;
 uniform uint u_block_start;
+#endif
+#if SELECTION
+layout(std430, binding = 5) readonly buffer Selection { uint selected_bits[]; };
+#if !RECORDS_IN_DRAW_ORDER
+uniform uint u_chunk_start;  // the scene row of the bound chunk's first gaussian
+#endif
+const vec3 SELECTION_TINT = vec3(1.0, 0.85, 0.0);
 #endif
 uniform mat3 u_world_to_camera;
 uniform vec3 u_translation;   // t of the world-to-camera transform: mu = R p + t
@@ -134,6 +144,10 @@ void main() {
     Splat s;
     s.color = vec4(COLOR_AT_LOAD ? coeff(0) : sh_color(normalize(g.position_opacity.xyz - u_color_origin)),
                    0.0);
+#if SELECTION
+    uint row = u_chunk_start + i;
+    if ((selected_bits[row >> 5u] & (1u << (row & 31u))) != 0u) s.color.rgb = mix(s.color.rgb, SELECTION_TINT, 0.5);
+#endif
     s.center_c2 = vec4(mu, 0.0);
     s.axis0_half = vec4(0.0);
     s.axis1_opacity = vec4(0.0, 0.0, 0.0, opacity);

@@ -34,7 +34,7 @@ PANEL_NAME = "raygs-viewer"  # the panel's imgui window
 LABELLED = {name: "label" for name in (
     "button", "small_button", "checkbox", "radio_button", "slider_float", "slider_int", "input_text",
     "input_text_with_hint", "input_float", "input_int2", "input_float2", "color_edit3", "combo",
-    "selectable", "collapsing_header")} | {"arrow_button": "str_id"}
+    "selectable", "collapsing_header", "input_float3")} | {"arrow_button": "str_id", "invisible_button": "str_id"}
 #: Plain text: named by the text itself (imgui gives it no id, so "##" means nothing there).
 TEXTS = ("text", "text_disabled", "text_wrapped")
 

@@ -95,10 +95,11 @@ from raygs_viewer.scene.source import DEMO, SceneSource, is_demo
 from raygs_viewer.scene.spz_format import DEFAULT_SPZ_AXES
 
 SIDECAR_FORMAT = "raygs-viewer screenshot"
-SIDECAR_VERSION = 4          # the newest this program reads and writes
+SIDECAR_VERSION = 5          # the newest this program reads and writes
 STEREO_SIDECAR_VERSION = 2   # the first with "stereo"
 CHANNEL_SIDECAR_VERSION = 3  # the first with "channel_view"
 RDF_SIDECAR_VERSION = 4      # the first with a .spz read in "rdf"
+EDITS_SIDECAR_VERSION = 5    # the first with "edits" (capture.edit_file: the scene was edited)
 
 SHA256_HEX = re.compile(r"[0-9a-f]{64}")
 # A pose written by this program is orthonormal to ~1e-15; anything far off is an
@@ -172,7 +173,7 @@ def _pose(camera: Camera) -> dict:
 def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, settings: RenderSettings,
                   scale: float, window_camera: Camera | None = None, extra: dict | None = None,
                   stereo: StereoView | None = None, channel_view: ChannelView | None = None,
-                  levels: tuple[int, ...] | None = None) -> dict:
+                  levels: tuple[int, ...] | None = None, edits: dict | None = None) -> dict:
     """The sidecar of a screenshot rendered at ``camera`` (the window's camera already
     scaled by ``scale``) with ``settings``. ``scene_path`` is the loaded file ("demo"
     for the demo), recorded as an absolute path; ``window_camera`` is the on-screen
@@ -182,7 +183,9 @@ def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, 
     range the picture used); colour (None, or the rgb channel) records nothing.
     ``levels``: a streamed SOG's levels read when the levels were chosen per view
     (the choice depends on them: a screenshot taken while finer levels were still being
-    read, or on a GPU that held fewer, re-renders from those alone)."""
+    read, or on a GPU that held fewer, re-renders from those alone). ``edits``: the edit
+    document (``capture.edit_file``) of a scene edited in the window, whose deletions
+    the image shows."""
     recorded_path = SceneSource(scene_path).recorded_path
     width, height = (camera.width, camera.height) if stereo is None else \
         composed_size(camera.width, camera.height, stereo.layout)
@@ -190,7 +193,8 @@ def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, 
     sidecar = {
         **document_head(SIDECAR_FORMAT, max(STEREO_SIDECAR_VERSION if stereo is not None else 1,
                                             CHANNEL_SIDECAR_VERSION if _is_picture(channel_view) else 1,
-                                            RDF_SIDECAR_VERSION if axes and axes.assumed != DEFAULT_SPZ_AXES else 1)),
+                                            RDF_SIDECAR_VERSION if axes and axes.assumed != DEFAULT_SPZ_AXES else 1,
+                                            EDITS_SIDECAR_VERSION if edits is not None else 1)),
         "image": {"width": int(width), "height": int(height), "scale": float(scale)},
         "scene": {"path": recorded_path, "sha256": scene_sha256, "count": int(scene.count),
                   "sh_degree": int(scene.sh_degree), "filter_fused": bool(scene.filter_fused),
@@ -207,6 +211,8 @@ def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, 
         sidecar["channel_view"] = channel_view_entry(channel_view)
     if window_camera is not None:
         sidecar["window"] = {"camera": _camera_entry(window_camera), "world_to_camera": _pose(window_camera)}
+    if edits is not None:
+        sidecar["edits"] = edits
     return sidecar
 
 
@@ -246,7 +252,9 @@ class Sidecar(ImageView):
     settings' mode (one of RENDER_MODES).
     raw: the parsed JSON, for fields only the window reads. axes: the axes a .spz
     scene was read in (None: another format, or an older sidecar: read it as the
-    default). levels: the levels of a streamed SOG to read (None: every level that fits)."""
+    default). levels: the levels of a streamed SOG to read (None: every level that fits).
+    edits: the edit document's JSON where the scene was edited (``capture.edit_file``
+    reads it), else None."""
 
     path: Path
     scene_path: str
@@ -256,6 +264,7 @@ class Sidecar(ImageView):
     raw: dict
     axes: FileAxes | None = None
     levels: tuple[int, ...] | None = None
+    edits: dict | None = None
 
     def source(self, scene_path: str) -> SceneSource:
         """The scene ``scene_path`` (:func:`resolve_scene`'s) read as the screenshot's was."""
@@ -320,8 +329,11 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
     if channel_view is not None and version < CHANNEL_SIDECAR_VERSION:
         raise UserError(f"{path}: 'channel_view' needs sidecar version {CHANNEL_SIDECAR_VERSION}, "
                         f"the file says {version}")
+    edits = fields.get("edits", dict) if "edits" in data else None
+    if edits is not None and version < EDITS_SIDECAR_VERSION:
+        raise UserError(f"{path}: 'edits' needs sidecar version {EDITS_SIDECAR_VERSION}, the file says {version}")
     return Sidecar(camera, settings, stereo, channel_view, path=path, scene_path=scene_path, scene_sha256=sha,
-                   scale=scale, render_mode=render_mode, raw=data, axes=axes, levels=levels)
+                   scale=scale, render_mode=render_mode, raw=data, axes=axes, levels=levels, edits=edits)
 
 
 def is_sidecar_file(path: str | os.PathLike) -> bool:

@@ -158,6 +158,49 @@ def channel_list(text: str) -> tuple[str, ...]:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def number_list(count: int) -> Callable[[str], tuple[float, ...]]:
+    """An argparse type: ``count`` finite numbers separated by commas."""
+    def parse(text: str) -> tuple[float, ...]:
+        try:
+            numbers = tuple(float(p) for p in text.split(","))
+        except ValueError:
+            numbers = ()
+        if len(numbers) != count or not all(math.isfinite(v) for v in numbers):
+            raise argparse.ArgumentTypeError(f"'{text}' is not {count} finite numbers separated by commas")
+        return numbers
+    return parse
+
+
+def looks_like_numbers(text: str) -> bool:
+    """Whether ``text`` is numbers separated by commas (``-1,0,2``), not an option."""
+    try:
+        for part in text.split(","):
+            float(part)
+    except ValueError:
+        return False
+    return True
+
+
+def join_dash_values(argv: list[str], accepts: dict[str, Callable[[str], bool]]) -> list[str]:
+    """``--flag -v`` -> ``--flag=-v`` for each flag of ``accepts`` whose next argument it
+    accepts as a value: argparse takes a value starting with '-' (``--up-axis -y``,
+    ``--crop-box -1,-1,-1,1,1,1``) for an option and would report the value missing.
+    Stops at ``--``."""
+    joined, i = [], 0
+    while i < len(argv):
+        if argv[i] == "--":
+            joined.extend(argv[i:])
+            break
+        accept = accepts.get(argv[i])
+        if accept is not None and i + 1 < len(argv) and accept(argv[i + 1]):
+            joined.append(f"{argv[i]}={argv[i + 1]}")
+            i += 2
+        else:
+            joined.append(argv[i])
+            i += 1
+    return joined
+
+
 def depth_range(text: str) -> tuple[float, float]:
     """An argparse type: NEAR,FAR, two finite numbers, NEAR < FAR."""
     try:

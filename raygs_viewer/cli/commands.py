@@ -8,7 +8,7 @@ import argparse
 import math
 import sys
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
@@ -23,6 +23,7 @@ from raygs_viewer.capture.channel_io import (
     picture_view,
     save_channels,
 )
+from raygs_viewer.capture.edit_file import read_edit_json
 from raygs_viewer.capture.image_io import check_output_path, save_image
 from raygs_viewer.capture.sidecar import (
     Sidecar,
@@ -143,6 +144,19 @@ def open_scene_argument(source: SceneSource, settings: RenderSettings, ctx=None)
     return opened
 
 
+def edited(opened: OpenedScene, shot: Sidecar) -> OpenedScene:
+    """``opened`` as the screenshot's edits left it (its sidecar's "edits"): the gaussians
+    deleted in the window left out, the rest in their order (sorted, they draw as the
+    window drew them with those rows hidden)."""
+    if shot.edits is None:
+        return opened
+    document = read_edit_json(shot.edits, f"{shot.path}: 'edits'")
+    document.check_scene(shot.scene_sha256, opened.scene.count, str(shot.path))  # the edits are of its scene
+    if opened.lod is not None:
+        raise UserError(f"{shot.path}: edits of a streamed SOG are not replayed yet")
+    return replace(opened, scene=opened.scene.rows(document.replay(opened.scene).kept))
+
+
 def warn_dropped(scene: Scene) -> None:
     for line in dropped_summary(scene):
         print(f"warning: {line}", file=sys.stderr)
@@ -229,7 +243,7 @@ def command_render(args) -> int:
             scene_name = resolve_scene(shot, args.scene)
             verify_scene_hash(shot, scene_name)
             camera, settings, stereo = sized(shot.camera, args.width, args.height), shot.settings, shot.stereo
-            opened = open_scene_argument(shot.source(scene_name), settings, ctx)
+            opened = edited(open_scene_argument(shot.source(scene_name), settings, ctx), shot)
         else:
             settings = render_settings(args)
             opened, camera = _scene_and_camera(args, settings, ctx)

@@ -23,8 +23,7 @@ from pathlib import Path
 
 from raygs_viewer import __version__
 from raygs_viewer.cli import bench, commands, convert, doctor, evaluate, path, view
-from raygs_viewer.cli.argtypes import Parser
-from raygs_viewer.cli.view import join_up_axis
+from raygs_viewer.cli.argtypes import Parser, join_dash_values
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.io import SCENE_SUFFIXES
 from raygs_viewer.scene.source import is_demo
@@ -33,6 +32,8 @@ from raygs_viewer.scene.source import is_demo
 #: ``add_parsers`` adds its commands, and each command's parser names the function that
 #: runs it (``set_defaults(run=...)``), so a new command is a module and its entry here.
 COMMAND_MODULES = (view, commands, path, convert, evaluate, bench, doctor)
+#: The options whose value may start with '-', and what such a value looks like.
+DASH_VALUES = {**view.DASH_VALUES, **convert.DASH_VALUES}
 # Arguments that keep their meaning at the top level instead of starting the window.
 TOP_LEVEL_OPTIONS = ("-h", "--help", "--version")
 
@@ -77,7 +78,7 @@ BROKEN_PIPE_STATUS = 141
 
 def main(argv: list[str] | None = None) -> int:
     try:
-        argv = join_up_axis(route(list(sys.argv[1:] if argv is None else argv)))
+        argv = join_dash_values(route(list(sys.argv[1:] if argv is None else argv)), DASH_VALUES)
         args = build_parser().parse_args(argv)
         status = args.run(args)
         sys.stdout.flush()  # here, where a closed pipe is caught, not at exit where it is not

@@ -96,21 +96,8 @@ def measured_precision(actions) -> None:
                    "the accuracy study's error (float16 1e-2, 8bit 4e-2 per channel), else float32; " + action.help)
 
 
-def join_up_axis(argv: list[str]) -> list[str]:
-    """``--up-axis -y`` -> ``--up-axis=-y``: argparse takes a value starting with '-' for
-    an option and would report the axis missing."""
-    joined, i = [], 0
-    while i < len(argv):
-        if argv[i] == "--":
-            joined.extend(argv[i:])
-            break
-        if argv[i] == "--up-axis" and i + 1 < len(argv) and argv[i + 1] in UP_AXES:
-            joined.append(f"--up-axis={argv[i + 1]}")
-            i += 2
-        else:
-            joined.append(argv[i])
-            i += 1
-    return joined
+#: ``--up-axis -y``: a value that starts with '-' (``argtypes.join_dash_values``).
+DASH_VALUES = {"--up-axis": UP_AXES.__contains__}
 
 
 def _viewer_stereo_options(args) -> StereoPreview:

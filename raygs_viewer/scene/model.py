@@ -59,6 +59,9 @@ class Scene:
                 "PlayCanvas compressed PLY", "SOG v2", ...); "" for a scene made in memory.
     axes:       for a file whose stored axes may differ from these (a .spz), what they
                 were and how the reader knew (:class:`FileAxes`); None otherwise.
+    file_rows:  (N,) int64, the row of each gaussian in its file, where they differ from
+                0..N-1 (the reader dropped invalid rows, or the scene is a subset of
+                another: :meth:`rows`); None where gaussian i is the file's row i.
     """
 
     positions: np.ndarray
@@ -72,6 +75,7 @@ class Scene:
     dropped: dict[str, int] = field(default_factory=dict)
     format: str = ""
     axes: FileAxes | None = None
+    file_rows: np.ndarray | None = None
 
     def __post_init__(self) -> None:
         n = self.positions.shape[0]
@@ -86,19 +90,26 @@ class Scene:
             array = getattr(self, name)
             if array.shape != shape or array.dtype != np.float32:
                 raise ValueError(f"Scene.{name}: expected float32 {shape}, got {array.dtype} {array.shape}")
+        if self.file_rows is not None and (self.file_rows.shape != (n,) or self.file_rows.dtype != np.int64):
+            raise ValueError(f"Scene.file_rows: expected int64 {(n,)}, got {self.file_rows.dtype} {self.file_rows.shape}")
 
     @property
     def count(self) -> int:
         return int(self.positions.shape[0])
 
+    @property
+    def rows_in_file(self) -> np.ndarray:
+        """(N,) int64: the file row of each gaussian (``file_rows``, or 0..N-1)."""
+        return np.arange(self.count, dtype=np.int64) if self.file_rows is None else self.file_rows
+
     def rows(self, rows: np.ndarray, format_: str | None = None) -> "Scene":
         """The gaussians at ``rows`` ((K,) int64 indices, or an (N,) bool mask) as a Scene
-        of their own, in the order given; source, drops and axes kept, the format too
-        unless ``format_`` is given."""
+        of their own, in the order given, each still knowing its file row; source, drops
+        and axes kept, the format too unless ``format_`` is given."""
         rows = np.flatnonzero(rows) if np.asarray(rows).dtype == bool else np.asarray(rows, np.int64)
         return Scene(self.positions[rows], self.rotations[rows], self.scales[rows], self.opacities[rows],
                      self.sh[rows], self.sh_degree, self.filter_fused, self.source, dict(self.dropped),
-                     self.format if format_ is None else format_, self.axes)
+                     self.format if format_ is None else format_, self.axes, self.rows_in_file[rows])
 
     def with_sh_degree(self, degree: int) -> "Scene":
         """The same scene with SH truncated to ``degree`` (<= the scene's)."""
@@ -108,5 +119,5 @@ class Scene:
         return Scene(
             self.positions, self.rotations, self.scales, self.opacities,
             np.ascontiguousarray(self.sh[:, : sh_coefficient_count(degree)]),
-            degree, self.filter_fused, self.source, dict(self.dropped), self.format, self.axes,
+            degree, self.filter_fused, self.source, dict(self.dropped), self.format, self.axes, self.file_rows,
         )

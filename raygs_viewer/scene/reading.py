@@ -110,9 +110,10 @@ def build_scene(*, arrays: SceneArrays, sh_degree: int, drops: DropTally, report
     ``format``, ``sh_degree`` and ``filter_fused`` are the Scene's fields of those names."""
     report.building()
     dropped = drops.dropped
-    kept = list(arrays)
+    kept, file_rows = list(arrays), None
     if dropped:
-        kept = _compact(kept, np.flatnonzero(~drops.bad))
+        file_rows = np.flatnonzero(~drops.bad).astype(np.int64)
+        kept = _compact(kept, file_rows)
     positions, rotations, scales, opacities, sh = kept
     return Scene(
         positions=np.ascontiguousarray(positions, dtype=np.float32),
@@ -125,4 +126,5 @@ def build_scene(*, arrays: SceneArrays, sh_degree: int, drops: DropTally, report
         source=source,
         dropped=dropped,
         format=format,
+        file_rows=file_rows,
     )

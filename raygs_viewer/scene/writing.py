@@ -1,4 +1,4 @@
-"""Writing a :class:`Scene` to disk: INRIA PLY, the 32-byte ``.splat`` rows and ``.spz``.
+"""Writing a :class:`Scene` to disk: INRIA PLY, the 32-byte ``.splat`` rows, ``.spz`` and SOG.
 
 - INRIA PLY (section 2 of the maths page): binary little endian, one ``vertex`` element
   of float32 properties in the trainer's order ``x y z nx ny nz f_dc_0..2 f_rest_*
@@ -15,6 +15,8 @@
 - ``.spz``: :func:`raygs_viewer.scene.spz_file.spz_bytes` (Niantic's format, version 3
   or 4), in the axes of ``spz_axes``: "rub" (the specification's) or "rdf" (the PLY's
   own, as splat-transform writes them).
+- ``.sog``: :func:`raygs_viewer.scene.sog_write.sog_bytes` (PlayCanvas's SOG version 2,
+  bundled), in the PLY's own axes, as SOG stores them; gaussians keep their order.
 
 :func:`write_scene` picks the format by suffix and writes atomically through
 :mod:`raygs_viewer.files`: a temporary beside the target moved into place, never over
@@ -34,11 +36,12 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.files import atomic_writer, check_writable_folder
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
 from raygs_viewer.scene.sh import C0
+from raygs_viewer.scene.sog_write import FLAT_MARGIN, palette_size, sog_bytes
 from raygs_viewer.scene.spz_file import DC_LIMIT, LOG_SCALE_RANGE, spz_bytes
 from raygs_viewer.scene.spz_format import DEFAULT_SPZ_AXES, spz_axes_system
 
 #: The suffixes :func:`write_scene` writes.
-WRITE_SUFFIXES = (".ply", ".splat", ".spz")
+WRITE_SUFFIXES = (".ply", ".splat", ".spz", ".sog")
 SPZ_VERSIONS = (3, 4)
 
 #: The logit written for opacity exactly 1 (and, negated, 0), whose logit is infinite.
@@ -193,6 +196,9 @@ def write_scene(scene: Scene, path: str | os.PathLike, overwrite: bool = False, 
         return write_ply(scene, path, overwrite)
     if suffix == ".splat":
         return write_splat(scene, path, overwrite)
+    if suffix == ".sog":
+        # Lazily, so that an existing file is refused before the (slow) quantisation.
+        return _write(path, (sog_bytes(scene) for _ in range(1)), overwrite)
     if spz_version not in SPZ_VERSIONS:
         raise UserError(f"{path}: .spz version {spz_version} is not written (versions {SPZ_VERSIONS[0]} "
                         f"and {SPZ_VERSIONS[1]} are)")
@@ -248,9 +254,16 @@ def writing_notes(scene: Scene, suffix: str) -> list[str]:
         if bright:
             notes.append(f"{bright:,} gaussian{'s have' if bright != 1 else ' has'} a base colour coefficient "
                          f"beyond .spz's +/-{DC_LIMIT:.3g}, clamped to it")
-    if suffix in (".ply", ".splat"):
-        zero = int(np.count_nonzero((scene.scales == 0.0).any(axis=1)))
-        if zero:
-            notes.append(f"{zero:,} gaussians have a scale of 0, written as the smallest positive float32 "
-                         f"({SMALLEST_SCALE:.3g}): a reader drops a zero scale")
+    if suffix == ".sog":
+        palette = (f", SH to a k-means palette of at most {palette_size(scene.count):,} rows of 8-bit codes"
+                   if scene.sh_degree else "")
+        notes.append("SOG quantises positions to 16 bits an axis in log space, scales and base colours to "
+                     f"256-entry codebooks, opacity to 8 bits, rotations to 8-bit smallest-three{palette}")
+    zero = int(np.count_nonzero((scene.scales == 0.0).any(axis=1)))
+    if zero and suffix in (".ply", ".splat"):
+        notes.append(f"{zero:,} gaussians have a scale of 0, written as the smallest positive float32 "
+                     f"({SMALLEST_SCALE:.3g}): a reader drops a zero scale")
+    if zero and suffix == ".sog":
+        notes.append(f"{zero:,} gaussians have a scale of 0, written as a flat codebook entry e^-{FLAT_MARGIN:g} "
+                     "times the smallest other scale: a reader drops a zero scale")
     return notes

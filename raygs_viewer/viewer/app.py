@@ -47,6 +47,7 @@ from raygs_viewer.sort.request import SortResult
 from raygs_viewer.sort.worker import BackgroundSorter
 from raygs_viewer.viewer.auto_defaults import AutoDefaults
 from raygs_viewer.viewer.drawing import SceneDrawer, request_sort
+from raygs_viewer.viewer.edit_tool import EditTool
 from raygs_viewer.viewer.feedback import Feedback
 from raygs_viewer.viewer.file_dialog import FileDialog
 from raygs_viewer.viewer.frame import NO_VIEWPORT, Frame
@@ -125,6 +126,7 @@ class Viewer:
         self.measure = MeasureWidget(self.panel, self)
         self.frustums = TrainingFrustums(Thumbnails(self.ctx, self.photo.dataset))
         self.picker = PickTool(self, self.measure, self.frustums)
+        self.edit_tool = EditTool(self)
         self.input = InputHandler({
             "quit": self.window.request_close, "screenshot": self.captures.request,
             "switch_navigation": lambda: self.view.switch_mode(),
@@ -173,9 +175,11 @@ class Viewer:
         if refines(self.loaded, loaded):  # a streamed SOG's next level: the view stays
             if refined := self.scene.refine(self.loaded, loaded, self.settings, self.options.settings):
                 self.settings, self.loaded = refined.settings, refined.loaded
+                self.edit_tool.grown(self.loaded.scene)
             return
         self.scene.open(loaded.scene)
         self.loaded = loaded
+        self.edit_tool.opened(loaded.scene)
         self.settings = opened_settings(self.settings, self.options.settings, loaded)
         # A new scene keeps the user's navigation choices.
         choices = self.options.navigation if self.view is None else self.view.choices()
@@ -231,15 +235,18 @@ class Viewer:
         self.feedback.watch(self.panel)  # what the last frame's actions said
         if imgui.is_mouse_clicked(0):
             self.feedback.clicked()
+        self.edit_tool.keys()
         self.input.handle(dt, self.view.navigator, self.camera, self.viewport,
-                          self.split if self.right_settings() is not None else None)
+                          self.split if self.right_settings() is not None else None,
+                          mouse_taken=self.edit_tool.take_mouse(self.shown))
         self.view.advance(dt, self.options.navigation.turntable)
         self.camera_path.frame(self.fixed_dt, self.stats.all_frame_times[-1] if self.stats.all_frame_times else 0.0)
 
         stereo = self.stereo.frame_view(self.shown_stereo, self.panel)
         lod = self.scene.lod_for_frame(self.loaded, self.settings)
         framing = self.view.camera(self.view_area(), stereo, self.stereo.headset_size)
-        frame = self.shown = Frame.make(self.frame_index, framing, stereo, self.settings, self.right_settings(), lod)
+        frame = self.shown = Frame.make(self.frame_index, framing, stereo, self.settings, self.right_settings(), lod,
+                                        self.edit_tool.hidden)
         # wait_for_sort: only the last frame of a scripted run, whose capture must show the finished view.
         # After a streamed SOG's level arrives: the last order until its first.
         result = self.scene.shown(request_sort(self.scene.sorter, self.stats, frame, self.wait_for_sort))
@@ -250,6 +257,7 @@ class Viewer:
         self.frustums.draw(frame, self.loaded, self.view.radius, hover=not self.measure.on)  # under the path's lines
         self.camera_path.draw_overlay(frame, self.view.radius)
         self.measure.draw_overlay(frame, self.view.radius)
+        self.edit_tool.draw_overlay()
         width_shown = imgui.get_io().display_size.x
         left = self.side_panel.notes_left(width_shown)
         self.feedback.draw(left, 10.0, width_shown - left - 10.0)
@@ -257,6 +265,7 @@ class Viewer:
 
         frame = self.shown = frame.with_views(*self.view_mode.side_views(self.panel, split=frame.split))
         orders, serial = self.stats.order_to_draw(result, frame, sort_timer=self.scene.sort_timer)
+        self.edit_tool.show_selection(self.scene.renderer)
         draws = self.stats.draws
         self.drawer.draw(self.scene.renderer, frame, orders, serial, self.stats, self.panel)
         blocked = blocked_reason(frame.stereo is not None, frame.split, self.view_mode.channel)
@@ -291,7 +300,9 @@ class Viewer:
                           self.split if self.right_settings() is not None else None, self.drawer.shown_right_view)
         extra = sidecar_extra(self.view.navigator, self.loaded, self.view.training_index,
                               context_description(self.ctx))
-        shot = Shot(shown, self.loaded, lod_request(self.loaded, self.settings), self.stereo.save_eyes, extra)
+        shot = Shot(shown, self.loaded, lod_request(self.loaded, self.settings), self.stereo.save_eyes, extra,
+                    self.edit_tool.hidden, self.edit_tool.sidecar_entry())
+        self.scene.renderer.set_selection(None)  # a screenshot shows the scene, not the selection's tint
         return self.captures.take(self.scene.renderer, self.scene.exact_sorter, shot, path)
 
     # -- loop ------------------------------------------------------------------------

@@ -112,7 +112,8 @@ class SceneDrawer:
 
     def _draw(self, renderer, frame: Frame, orders: Mapping[str, Order], serial: int, stats: FrameStats) -> bool:
         camera, settings, right, stereo = frame.camera, frame.settings, frame.right, frame.stereo
-        key = (camera_key(camera), settings, right, stereo, frame.view, frame.right_view, serial)
+        key = (camera_key(camera), settings, right, stereo, frame.view, frame.right_view, serial,
+               renderer.selection_key)
         if stereo is None:
             right_dtypes = ("f4",) if right is None else frame_dtypes(renderer, right, frame.right_view)
             left_target, right_target = self.mono.targets(camera.width, camera.height, right is not None,

@@ -68,9 +68,10 @@ class InputHandler:
         self._injected.append((float(x), float(y)))
 
     def handle(self, dt: float, navigator: Navigator, camera: Camera | None,
-               viewport: tuple[int, int, int, int], split: SplitView | None) -> None:
+               viewport: tuple[int, int, int, int], split: SplitView | None, mouse_taken: bool = False) -> None:
         """One frame's input. ``camera`` and ``viewport``: the last frame's view;
-        ``split``: the split view while it is shown (its divider can be dragged)."""
+        ``split``: the split view while it is shown (its divider can be dragged);
+        ``mouse_taken``: an edit tool draws with the mouse this frame (keys only)."""
         io = imgui.get_io()
         if not io.want_capture_keyboard and not self._panel_clicked(io):
             # Letters act on the view only while the pointer is not over the panel: a
@@ -78,6 +79,9 @@ class InputHandler:
             # (Enter, a click beside it) must not turn the next letters into shortcuts.
             self._keys(io, dt, navigator, letters=not io.want_capture_mouse)
         injected, self._injected = self._injected, []
+        if mouse_taken:
+            self._press = None
+            return
         if self._divider(io, viewport, split):
             self._press = None
             return  # the mouse drags the split view's divider, not the camera

@@ -10,6 +10,7 @@ from __future__ import annotations
 from typing import Callable
 
 from raygs_viewer.viewer.feedback import draw_history
+from raygs_viewer.viewer.panel.edit import draw_edit_section
 from raygs_viewer.viewer.panel.geometry import draw_geometry_section
 from raygs_viewer.viewer.panel.lod import draw_lod_section
 from raygs_viewer.viewer.panel.measure import draw_measure_section
@@ -51,5 +52,6 @@ def panel_sections(viewer) -> list[Callable[[], None]]:
                                       split_shown),
         lambda: draw_path_section(v.camera_path),
         lambda: draw_measure_section(v.measure),
+        lambda: draw_edit_section(v.edit_tool),
         lambda: draw_history(v.feedback),
     ]

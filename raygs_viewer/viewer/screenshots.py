@@ -44,6 +44,7 @@ from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.scene.loader import LoadedScene
 from raygs_viewer.sort.depth import DepthSorter
+from raygs_viewer.sort.hidden import HiddenRows
 from raygs_viewer.sort.lod_choice import LodChoice, LodRequest
 from raygs_viewer.sort.request import Order
 from raygs_viewer.viewer.state import PanelState, ScreenshotOptions, SplitView
@@ -75,14 +76,16 @@ def sidecar_extra(navigator: Navigator, loaded: LoadedScene, training_index: int
 @dataclass(frozen=True)
 class Offscreen:
     """What renders a screenshot: the window's renderer, an exact sorter of its scene, and
-    a streamed SOG's level choice for the screenshot's camera (None: the whole scene)."""
+    a streamed SOG's level choice for the screenshot's camera (None: the whole scene), and
+    the rows deleted in the window (None: none)."""
 
     renderer: object
     sorter: DepthSorter
     levels: LodChoice | None = None
+    hidden: HiddenRows | None = None
 
     def order(self, camera: Camera, settings: RenderSettings) -> Order:
-        return exact_order(self.sorter, camera, settings, levels=self.levels)
+        return exact_order(self.sorter, camera, settings, levels=self.levels, hidden=self.hidden)
 
 
 @dataclass(frozen=True)
@@ -90,13 +93,16 @@ class Shot:
     """A screenshot to take: the view ``shown``, the scene as ``loaded``, a streamed SOG's
     level-of-detail request (made for the screenshot's camera: both sides, both eyes take
     the one camera's choice; None: the whole scene), whether the stereo eyes are saved
-    besides the pair, and what every sidecar records besides the view (:func:`sidecar_extra`)."""
+    besides the pair, what every sidecar records besides the view (:func:`sidecar_extra`,
+    and the edit document where the scene was edited), and the rows deleted (None: none)."""
 
     shown: ShownView
     loaded: LoadedScene
     lod: LodRequest | None = None
     save_eyes: bool = False
     extra: dict = field(default_factory=dict)
+    hidden: HiddenRows | None = None
+    edits: dict | None = None
 
 
 def take_screenshots(renderer, sorter: DepthSorter, shot: Shot, options: ScreenshotOptions,
@@ -106,7 +112,7 @@ def take_screenshots(renderer, sorter: DepthSorter, shot: Shot, options: Screens
     never overwrites anything. Returns every (png, json) pair written, the left side's or
     the pair's first."""
     camera = scaled_camera(shot.shown.camera, options.scale)
-    offscreen = Offscreen(renderer, sorter, None if shot.lod is None else shot.lod.choose(camera))
+    offscreen = Offscreen(renderer, sorter, None if shot.lod is None else shot.lod.choose(camera), shot.hidden)
     return _take(offscreen, shot, options, path, camera)
 
 
@@ -120,7 +126,7 @@ def _take(offscreen: Offscreen, shot: Shot, options: ScreenshotOptions, path: st
                 view: ChannelView | None = shown.channel_view) -> dict:
         return build_sidecar(scene_path=scene_path, scene_sha256=sha256, scene=loaded.scene, camera=camera,
                              settings=settings, scale=scale, window_camera=shown.camera, extra=details, stereo=stereo,
-                             channel_view=view, levels=levels_read(loaded, settings))
+                             channel_view=view, levels=levels_read(loaded, settings), edits=shot.edits)
 
     if shown.stereo is not None:
         shots = [(image, sidecar(shown.settings, {**extra, "stereo_window_layout": shown.stereo.layout}, view), tag)
@@ -172,7 +178,7 @@ def _stereo_images(offscreen: Offscreen, camera: Camera, settings: RenderSetting
     """The side-by-side pair whatever the window's layout (the sidecar notes that
     layout), and each eye when asked, each with the view that reproduces it."""
     pair = replace(stereo, layout="sbs")
-    order = stereo_order(offscreen.sorter, camera, settings, stereo.rig, offscreen.levels)
+    order = stereo_order(offscreen.sorter, camera, settings, stereo.rig, offscreen.levels, offscreen.hidden)
     image, left, right = render_stereo_view(offscreen.renderer, order, camera, settings, pair, view)
     shots = [(image, pair, "pair")]
     if save_eyes:

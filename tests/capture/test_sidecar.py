@@ -123,7 +123,7 @@ def test_build_sidecar_fields(tmp_path, monkeypatch):
                          settings=RenderSettings(), scale=1.5, window_camera=window_camera(),
                          extra={"up_axis": "-y", "navigation": "orbit"})
     # Mono sidecars keep version 1, so that older readers still read them.
-    assert data["format"] == SIDECAR_FORMAT and data["version"] == 1 and SIDECAR_VERSION == 4
+    assert data["format"] == SIDECAR_FORMAT and data["version"] == 1 and SIDECAR_VERSION == 5
     assert data["program"] == {"name": "raygs-viewer", "version": raygs_viewer.__version__}
     created = datetime.fromisoformat(data["created"].replace("Z", "+00:00"))
     assert created.tzinfo is not None and created.utcoffset().total_seconds() == 0
@@ -852,3 +852,16 @@ def test_render_sidecar_reads_the_spz_in_its_recorded_axes(capsys, tmp_path):
         code, _, err = run_cli(capsys, "render", "--sidecar", js, "--spz-axes", axes, "--out", tmp_path / "x.png")
         assert "drop --spz-axes" in assert_one_line_error(code, err)
     assert not (tmp_path / "x.png").exists()
+
+
+def test_edits_take_version_5_which_older_readers_refuse(tmp_path):
+    """A screenshot of an edited scene shows the scene less its deleted gaussians: a reader
+    that ignored "edits" would render another picture, so the field needs version 5."""
+    edits = {"format": "raygs-viewer edits", "version": 1, "scene": {}, "operations": [{"op": "delete"}]}
+    data = demo_sidecar(edits=edits)
+    assert data["version"] == 5 and data["edits"] == edits
+    assert load_sidecar(write_json(tmp_path / "shot.json", data)).edits == edits
+    assert demo_sidecar()["version"] == 1 and load_sidecar(write_json(tmp_path / "plain.json", demo_sidecar())).edits is None
+    data["version"] = 4
+    with pytest.raises(UserError, match="'edits' needs sidecar version 5"):
+        load_sidecar(write_json(tmp_path / "old.json", data))

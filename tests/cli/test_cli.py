@@ -799,10 +799,15 @@ def test_help_and_version_stay_top_level(capsys, viewer):
     assert viewer == []
 
 
-def test_join_up_axis_stops_at_double_dash():
-    from raygs_viewer.cli.view import join_up_axis
-    assert join_up_axis(["--up-axis", "-y", "--", "--up-axis", "-y"]) == ["--up-axis=-y", "--", "--up-axis", "-y"]
-    assert join_up_axis(["--up-axis", "--frames"]) == ["--up-axis", "--frames"]
+def test_dash_values_are_joined_up_to_a_double_dash():
+    from raygs_viewer.cli.argtypes import join_dash_values
+    from raygs_viewer.cli.main import DASH_VALUES
+    assert join_dash_values(["--up-axis", "-y", "--", "--up-axis", "-y"], DASH_VALUES) == \
+        ["--up-axis=-y", "--", "--up-axis", "-y"]
+    assert join_dash_values(["--up-axis", "--frames"], DASH_VALUES) == ["--up-axis", "--frames"]
+    assert join_dash_values(["--crop-box", "-1,-2,-3,1,2,3", "--crop-sphere", "-1e3,0,0,5"], DASH_VALUES) == \
+        ["--crop-box=-1,-2,-3,1,2,3", "--crop-sphere=-1e3,0,0,5"]
+    assert join_dash_values(["--crop-box", "--overwrite"], DASH_VALUES) == ["--crop-box", "--overwrite"]
 
 
 # --------------------------------------------------------------------------- as installed

@@ -61,7 +61,7 @@ def test_existing_output_is_never_replaced_without_overwrite(capsys, tmp_path, s
     assert listing(tmp_path) == ["in.ply", "out.splat"]
 
 
-@pytest.mark.parametrize("name", ["out.txt", "out", "out.sog", "out.ply.gz"])
+@pytest.mark.parametrize("name", ["out.txt", "out", "out.ksplat", "out.ply.gz"])
 def test_unwritable_suffix_is_one_line_listing_the_targets(capsys, tmp_path, sh3_ply, name):
     code, out, err = run_cli(capsys, "convert", sh3_ply, tmp_path / name)
     message = assert_one_line_error(code, err)

@@ -402,3 +402,20 @@ def test_problem_names_what_this_gl_lacks(gl_ctx):
     assert "4.1" in GpuSorter.problem(SimpleNamespace(version_code=410, info={}))
     assert "storage blocks" in GpuSorter.problem(
         SimpleNamespace(version_code=430, info={"GL_MAX_COMPUTE_SHADER_STORAGE_BLOCKS": 4}))
+
+
+def test_hidden_rows_are_left_out_as_on_the_cpu(gl_ctx, programs):
+    """Deleted gaussians: the support is uploaded again (the scene is not) and the orders
+    equal the CPU's, which hold none of them."""
+    from raygs_viewer.sort.hidden import HiddenRows
+    scene = random_scene(n=3000, seed=13, degree=0, spread=1.5, log_scale=(-3.0, -1.0))
+    camera = camera_at()
+    rng = np.random.default_rng(5)
+    masks = [rng.random(scene.count) < 0.4, np.arange(scene.count) < 1500]
+    with GpuSorter(gl_ctx, scene, programs=programs) as gpu, DepthSorter(scene) as cpu:
+        for mask in masks:
+            for method in METHODS:
+                orders = assert_same_orders(gpu, cpu, SortRequest(camera, 1 / 255, 0.02, keys=KEYS, method=method,
+                                                                  hidden=HiddenRows(mask)))
+                assert orders["depth"].size > 0 and not mask[orders["depth"]].any()
+        assert gpu.support_uploads == 2

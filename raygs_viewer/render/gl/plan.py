@@ -197,12 +197,12 @@ class RenderPlan:
             return {}
         return {f.uniform: f.value(self.settings, self.sh_degree) for f in FEATURES}
 
-    def preprocess_defines(self) -> dict[str, object]:
-        """preprocess.comp's."""
+    def preprocess_defines(self, selection: bool = False) -> dict[str, object]:
+        """preprocess.comp's; ``selection``: the selected gaussians drawn tinted."""
         defines = {"SH_STORED_DEGREE": self.sh_degree, "MODE_GS": int(self.mode_gs), "GEOMETRY": int(self.geometry),
                    "GS_DILATION": glsl_literal(GS_DILATION), "GS_NEAR": glsl_literal(GS_NEAR),
                    "EXACT_MIP": int(self.exact_mip), "RECORDS_IN_DRAW_ORDER": int(self.records_in_draw_order),
-                   **self.feature_defines()}
+                   "SELECTION": int(selection), **self.feature_defines()}
         if not self.general:
             defines["COLOR_AT_LOAD"] = glsl_literal(self.colors_at_load)
         return defines

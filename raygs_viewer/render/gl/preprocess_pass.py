@@ -63,10 +63,11 @@ class PreprocessPass:
         if in_draw_order and order is None:
             raise ValueError("records in draw order are preprocessed for an order")
         spans = None if order is None or in_draw_order or order.spans is None else order.spans
-        defines = plan.preprocess_defines()
+        selection = self.storage.selection_key
+        defines = plan.preprocess_defines(selection is not None)
         uniforms = {**view_uniforms(camera, plan.settings, frame, origin), **plan.feature_uniforms()}
         key = (tuple(defines.items()), tuple(uniforms.items()), plan.layout, plan.colors_at_load,
-               None if spans is None else spans.tobytes())
+               None if spans is None else spans.tobytes(), selection)
         if key == self._key and (not in_draw_order or order.indices is self._order):
             self.counters.preprocess_skipped += 1
             return
@@ -76,11 +77,14 @@ class PreprocessPass:
         program = self.programs.compute("preprocess.comp", defines)
         for name, value in uniforms.items():
             set_uniform(program, name, value)
+        if selection is not None:
+            self.storage.bind_selection()
         if in_draw_order:
             self._places(program, plan, order)
         else:
             for chunk in self.storage.preprocess_chunks(plan.layout, plan.colors_at_load):
                 program["u_out_offset"].value = chunk.offset
+                set_uniform(program, "u_chunk_start", chunk.start)  # read by the selection's tint only
                 for first, count in chunk_runs(chunk.start, chunk.count, spans):
                     set_uniform(program, "u_first", first)  # gone where a negative control breaks the shader
                     program["u_count"].value = count

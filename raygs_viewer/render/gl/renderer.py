@@ -228,6 +228,16 @@ class GLRenderer:
         vao.render(moderngl.TRIANGLES, vertices=3)
 
     # -- whole renders ------------------------------------------------------------------
+    @property
+    def selection_key(self) -> bytes | None:
+        """The digest of the selection drawn tinted (None: none): a frame holding another is stale."""
+        return self.storage.selection_key
+
+    def set_selection(self, mask: np.ndarray | None, key: bytes | None = None) -> None:
+        """Draws the gaussians of ``mask`` ((N,) bool; None: none) tinted from the next
+        render on (``SceneBuffers.set_selection``; ``key``: the mask's digest)."""
+        self.storage.set_selection(mask, key)
+
     def render(self, camera: Camera, settings: RenderSettings, order: Order | np.ndarray,
                frame: Camera | None = None, color_origin: np.ndarray | None = None) -> np.ndarray:
         """(H, W, 4) float32 image, top row first: RGB over the background, and alpha.

@@ -207,6 +207,9 @@ class SceneBuffers:
         self._uploaded_order: np.ndarray | None = None  # the array whose indices `order` holds
         self._quad_indices: moderngl.Buffer | None = None  # the indexed draw's (made on first use)
         self._ranks: moderngl.Buffer | None = None  # places of a draw-order preprocessing, by group
+        self._selection: moderngl.Buffer | None = None  # the selected rows' bits (set_selection)
+        #: The digest of the selection shown tinted (None: none), part of the records' key.
+        self.selection_key: bytes | None = None
 
     def layout_for(self, splat_bytes: int) -> StorageLayout:
         """The layout of records of ``splat_bytes``, planned once; UserError when it
@@ -322,6 +325,30 @@ class SceneBuffers:
         self._uploaded_order = order
         return True
 
+    def set_selection(self, mask: np.ndarray | None, key: bytes | None = None) -> None:
+        """Shows the gaussians of ``mask`` ((N,) bool; None or none set: no selection)
+        tinted: one bit a gaussian in 32-bit words, bit ``row % 32`` of word ``row // 32``
+        (glsl/preprocess.comp, SELECTION), uploaded when ``key`` (the mask's digest)
+        changes; the scene's own buffers stay as they are."""
+        if mask is None or not mask.any():
+            self.selection_key = None
+            return
+        if key is not None and key == self.selection_key:
+            return
+        bits = np.zeros(-(-self.scene.count // 32) * 32, bool)
+        bits[: self.scene.count] = mask
+        data = np.packbits(bits, bitorder="little").view("<u4")  # bit j of word w: row 32 w + j
+        if self._selection is None or self._selection.size < data.nbytes:
+            if self._selection is not None:
+                self._selection.release()
+            self._selection = self.ctx.buffer(reserve=max(data.nbytes, 4))
+        self._selection.write(data)
+        self.selection_key = key if key is not None else data.tobytes()
+
+    def bind_selection(self) -> None:
+        """Binds the selection's bits at 5 (set_selection)."""
+        self._selection.bind_to_storage_buffer(5)
+
     def read_records(self, layout: StorageLayout) -> np.ndarray:
         """(N, splat_bytes / 4) float32 copy of the records as ``layout`` writes them."""
         count, floats = self.scene.count, layout.splat_bytes // 4
@@ -329,7 +356,7 @@ class SceneBuffers:
 
     def release(self) -> None:
         for obj in (self.gaussians, self.harmonics, self.splats, self.order, self.colors, self._quad_indices,
-                    self._ranks):
+                    self._ranks, self._selection):
             if obj is not None:
                 obj.release()
-        self.colors = self._quad_indices = self._ranks = None
+        self.colors = self._quad_indices = self._ranks = self._selection = None

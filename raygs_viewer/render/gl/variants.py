@@ -123,7 +123,9 @@ def plan_programs(plan: RenderPlan) -> list[Program]:
     if plan.problem:
         return []
     vertex, fragment, defines = plan.draw_stages()
-    programs = [Program.of(("preprocess.comp",), plan.preprocess_defines()), Program.of((vertex, fragment), defines),
+    programs = [Program.of(("preprocess.comp",), plan.preprocess_defines(selection))
+                for selection in (False, True)]
+    programs += [Program.of((vertex, fragment), defines),
                 Program.of((FULLSCREEN_VERTEX, "resolve.frag"), plan.resolve_defines())]
     if not plan.mode_gs:  # bench perf's floor pass
         vertex, fragment, defines = plan.draw_stages(floor=True)

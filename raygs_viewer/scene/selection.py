@@ -1,0 +1,217 @@
+"""What a selection tool picks out of a scene, as an (N,) bool mask: a box or a sphere in
+the scene, a range of one attribute (SuperSplat's "Splat Data" histograms), or a shape
+drawn on a view: a rectangle, a polygon (a lasso is a polygon of many points) or a
+brush stroke, holding the gaussians whose centre the view projects inside ("through":
+hidden ones included).
+
+Every shape is a frozen value with ``to_json`` and :func:`shape_from_json`, so an edit
+document records it and replays it to the same mask. Screen shapes carry their camera
+(pose and intrinsics, float64 as given) and are in that camera's continuous pixel
+coordinates: pixel (u, v) covers [u, u + 1) x [v, v + 1), its centre at (u + 0.5, v + 0.5).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Union
+
+import numpy as np
+
+from raygs_viewer.camera.pinhole import Camera
+from raygs_viewer.scene.filters import CropBox, CropSphere, KeepValues
+from raygs_viewer.scene.model import Scene
+
+#: 4/3 pi: an ellipsoid's volume from its three semi-axes (one standard deviation each).
+_BALL = 4.0 / 3.0 * math.pi
+#: The base colour of SH coefficient 0 (maths page, section 2).
+SH_C0 = 0.28209479177387814
+
+#: The attributes a range selects by, as their histograms name them.
+ATTRIBUTES = ("opacity", "largest scale", "volume", "distance", "red", "green", "blue")
+
+
+def attribute_values(scene: Scene, attribute: str) -> np.ndarray:
+    """(N,) float64 values of ``attribute`` (:data:`ATTRIBUTES`): opacity as rendered;
+    the largest axis and the volume (4/3 pi s0 s1 s2) of the scene's scales; the
+    distance of each centre from the scene's centre (the median of the centres, which
+    floaters far out do not move); the base colour's red, green and blue, 0.5 + C0 f_dc."""
+    if attribute == "opacity":
+        return scene.opacities.astype(np.float64)
+    scales = scene.scales.astype(np.float64)
+    if attribute == "largest scale":
+        return scales.max(axis=1) if scene.count else np.zeros(0)
+    if attribute == "volume":
+        return _BALL * np.prod(scales, axis=1)
+    if attribute == "distance":
+        positions = scene.positions.astype(np.float64)
+        centre = np.median(positions, axis=0) if scene.count else np.zeros(3)
+        return np.linalg.norm(positions - centre, axis=1)
+    if attribute in ("red", "green", "blue"):
+        return 0.5 + SH_C0 * scene.sh[:, 0, ("red", "green", "blue").index(attribute)].astype(np.float64)
+    raise ValueError(f"unknown attribute {attribute!r}: one of {', '.join(ATTRIBUTES)}")
+
+
+@dataclass(frozen=True)
+class Box:
+    """Centres inside the axis-aligned box (edges included): ``filters.CropBox``'s rule."""
+
+    low: tuple[float, float, float]
+    high: tuple[float, float, float]
+
+    def mask(self, scene: Scene) -> np.ndarray:
+        return CropBox(self.low, self.high).keeps(KeepValues.of_scene(scene))
+
+    def to_json(self) -> dict:
+        return {"kind": "box", "low": list(map(float, self.low)), "high": list(map(float, self.high))}
+
+
+@dataclass(frozen=True)
+class Sphere:
+    """Centres within ``radius`` of ``centre``: ``filters.CropSphere``'s rule."""
+
+    centre: tuple[float, float, float]
+    radius: float
+
+    def mask(self, scene: Scene) -> np.ndarray:
+        return CropSphere(self.centre, self.radius).keeps(KeepValues.of_scene(scene))
+
+    def to_json(self) -> dict:
+        return {"kind": "sphere", "centre": list(map(float, self.centre)), "radius": float(self.radius)}
+
+
+@dataclass(frozen=True)
+class Range:
+    """Gaussians whose ``attribute`` lies in ``low``..``high`` (both included)."""
+
+    attribute: str
+    low: float
+    high: float
+
+    def mask(self, scene: Scene) -> np.ndarray:
+        values = attribute_values(scene, self.attribute)
+        return (values >= self.low) & (values <= self.high)
+
+    def to_json(self) -> dict:
+        return {"kind": "range", "attribute": self.attribute, "low": float(self.low), "high": float(self.high)}
+
+
+def projected(scene: Scene, camera: Camera) -> tuple[np.ndarray, np.ndarray]:
+    """((N, 2) float64 continuous pixel positions of the centres, (N,) bool in front of
+    the camera): camera-space mu = R p + t, (fx x / z + cx, fy y / z + cy)."""
+    mu = scene.positions.astype(np.float64) @ np.asarray(camera.R, np.float64).T + np.asarray(camera.t, np.float64)
+    front = mu[:, 2] > 0
+    z = np.where(front, mu[:, 2], 1.0)
+    uv = np.stack([camera.fx * mu[:, 0] / z + camera.cx, camera.fy * mu[:, 1] / z + camera.cy], axis=1)
+    return uv, front
+
+
+def inside_polygon(points: np.ndarray, polygon: np.ndarray) -> np.ndarray:
+    """(P,) bool: which of ``points`` ((P, 2)) lie inside ``polygon`` ((V, 2), closed
+    implicitly) by the even-odd rule (a lasso that crosses itself leaves the overlap out)."""
+    inside = np.zeros(points.shape[0], bool)
+    x, y = points[:, 0], points[:, 1]
+    for (x0, y0), (x1, y1) in zip(polygon, np.roll(polygon, -1, axis=0)):
+        crosses = (y0 > y) != (y1 > y)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            at = x0 + (y - y0) * (x1 - x0) / (y1 - y0)
+        inside ^= crosses & (x < at)
+    return inside
+
+
+def near_stroke(points: np.ndarray, stroke: np.ndarray, radius: float) -> np.ndarray:
+    """(P,) bool: which of ``points`` lie within ``radius`` of the polyline ``stroke``
+    ((V, 2); one point is a dab)."""
+    near = np.zeros(points.shape[0], bool)
+    ends = [(stroke[0], stroke[0])] if stroke.shape[0] == 1 else zip(stroke[:-1], stroke[1:])
+    for a, b in ends:
+        d = b - a
+        length2 = float(d @ d)
+        t = np.zeros(points.shape[0]) if length2 == 0 else np.clip((points - a) @ d / length2, 0.0, 1.0)
+        gap = points - (a + t[:, None] * d)
+        near |= np.einsum("ij,ij->i", gap, gap) <= radius * radius
+    return near
+
+
+@dataclass(frozen=True, eq=False)
+class ScreenShape:
+    """A shape drawn on ``camera``'s image: ``kind`` "rectangle" (``points``: two
+    opposite corners), "polygon" (its corners, at least three) or "brush" (the stroke's
+    points, at least one, and ``radius`` in pixels). Selects the centres in front of the
+    camera that project inside ("through")."""
+
+    kind: str
+    camera: Camera
+    points: tuple[tuple[float, float], ...]
+    radius: float = 0.0
+
+    def __post_init__(self) -> None:
+        least = {"rectangle": 2, "polygon": 3, "brush": 1}.get(self.kind)
+        if least is None:
+            raise ValueError(f"unknown screen shape {self.kind!r}: rectangle, polygon or brush")
+        points = tuple((float(u), float(v)) for u, v in self.points)
+        if len(points) < least or not all(math.isfinite(c) for p in points for c in p):
+            raise ValueError(f"a {self.kind} needs at least {least} finite points")
+        if self.kind == "brush" and not (math.isfinite(self.radius) and self.radius > 0):
+            raise ValueError(f"a brush needs a radius > 0 pixels, got {self.radius}")
+        object.__setattr__(self, "points", points)
+
+    def mask(self, scene: Scene) -> np.ndarray:
+        uv, front = projected(scene, self.camera)
+        points = np.array(self.points, np.float64)
+        if self.kind == "rectangle":
+            low, high = points.min(axis=0), points.max(axis=0)
+            inside = np.all((uv >= low) & (uv <= high), axis=1)
+        elif self.kind == "polygon":
+            inside = inside_polygon(uv, points)
+        else:
+            inside = near_stroke(uv, points, float(self.radius))
+        return inside & front
+
+    def to_json(self) -> dict:
+        c = self.camera
+        entry = {"kind": self.kind, "points": [list(p) for p in self.points],
+                 "camera": {"width": int(c.width), "height": int(c.height), "fx": float(c.fx), "fy": float(c.fy),
+                            "cx": float(c.cx), "cy": float(c.cy), "R": np.asarray(c.R, np.float64).tolist(),
+                            "t": np.asarray(c.t, np.float64).tolist()}}
+        if self.kind == "brush":
+            entry["radius"] = float(self.radius)
+        return entry
+
+
+Shape = Union[Box, Sphere, Range, ScreenShape]
+
+
+def shape_from_json(entry: dict) -> Shape:
+    """The shape ``entry`` (as ``to_json`` wrote it) describes; ValueError, saying what is
+    wrong, for anything else."""
+    if not isinstance(entry, dict):
+        raise ValueError("a shape must be an object")
+    kind = entry.get("kind")
+    try:
+        if kind == "box":
+            box = CropBox(entry["low"], entry["high"])
+            return Box(box.low, box.high)
+        if kind == "sphere":
+            sphere = CropSphere(entry["centre"], entry["radius"])
+            return Sphere(sphere.centre, sphere.radius)
+        if kind == "range":
+            if entry["attribute"] not in ATTRIBUTES:
+                raise ValueError(f"unknown attribute {entry['attribute']!r}: one of {', '.join(ATTRIBUTES)}")
+            low, high = float(entry["low"]), float(entry["high"])
+            if not (low <= high):
+                raise ValueError(f"a range needs low <= high, got {low:g}..{high:g}")
+            return Range(entry["attribute"], low, high)
+        if kind in ("rectangle", "polygon", "brush"):
+            c = entry["camera"]
+            R, t = np.array(c["R"], np.float64), np.array(c["t"], np.float64)
+            if R.shape != (3, 3) or t.shape != (3,) or not (np.isfinite(R).all() and np.isfinite(t).all()):
+                raise ValueError("a screen shape's camera needs a finite 3x3 R and a 3-vector t")
+            camera = Camera(int(c["width"]), int(c["height"]), float(c["fx"]), float(c["fy"]), float(c["cx"]),
+                            float(c["cy"]), R, t)
+            return ScreenShape(kind, camera, tuple(tuple(p) for p in entry["points"]), float(entry.get("radius", 0)))
+    except KeyError as exc:
+        raise ValueError(f"a {kind} shape needs '{exc.args[0]}'") from None
+    except (TypeError, ValueError) as exc:
+        raise ValueError(f"a {kind} shape: {exc}") from None
+    raise ValueError(f"unknown shape kind {kind!r}: box, sphere, range, rectangle, polygon or brush")

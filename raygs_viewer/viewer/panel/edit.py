@@ -1,0 +1,143 @@
+"""The panel's Edit section: the selection tool, the box and the sphere, the histograms,
+the selection's and the deletions' counts, delete / undelete / crop / undo / redo, and
+the export. It edits the :class:`~raygs_viewer.viewer.edit_tool.EditTool` only through
+its methods and fields."""
+
+from __future__ import annotations
+
+import math
+
+from imgui_bundle import imgui
+
+from raygs_viewer.scene.edits import Operation
+from raygs_viewer.scene.filters import CropBox, CropSphere
+from raygs_viewer.scene.selection import ATTRIBUTES, Box, Sphere
+from raygs_viewer.viewer.edit_tool import LOG_ATTRIBUTES, TOOLS, EditTool
+from raygs_viewer.viewer.panel.widgets import button, choice, header, line, note, tooltip
+
+TOOL_LABELS = {"off": "off", "rectangle": "rectangle", "lasso": "lasso", "brush": "brush"}
+HOW_LABELS = {"set": "set", "add": "add", "subtract": "subtract", "intersect": "intersect"}
+HISTOGRAM_HEIGHT = 60.0
+
+
+def draw_edit_section(tool: EditTool) -> None:
+    if not header("Edit", open_first=False) or tool.edits is None:
+        return
+    edits = tool.edits
+    line(f"{tool.selection_count():,} selected, {tool.deleted_count():,} deleted of {edits.count:,}")
+    tool.tool = choice("tool##edit", tool.tool, TOOL_LABELS)
+    tooltip("a left drag on the view selects the centres inside what it draws (Shift adds, Ctrl subtracts, "
+            "both intersect); the camera turns again with the tool off")
+    tool.how = choice("combine##edit", tool.how, HOW_LABELS)
+    if tool.tool == "brush":
+        changed, radius = imgui.slider_float("brush radius##edit", tool.brush_radius, 2.0, 200.0, "%.0f px")
+        if changed and math.isfinite(radius):
+            tool.brush_radius = radius
+    for label, op in (("All", "select all"), ("None", "select none"), ("Invert", "invert")):
+        if imgui.button(f"{label}##select"):
+            tool.apply(Operation(op))
+        imgui.same_line()
+    note("")
+    if button("Delete##edit", tool.selection_count() > 0):
+        tool.apply(Operation("delete"))
+    imgui.same_line()
+    if button("Undelete all##edit", tool.deleted_count() > 0):
+        tool.apply(Operation("undelete all"))
+    imgui.same_line()
+    if button("Undo##edit", edits.can_undo()):
+        tool.undo()
+    imgui.same_line()
+    if button("Redo##edit", edits.can_redo()):
+        tool.redo()
+    _volume(tool)
+    _histogram(tool)
+    _export(tool)
+
+
+def _corner(label: str, values: tuple[float, float, float]) -> tuple[float, float, float] | None:
+    changed, new = imgui.input_float3(label, list(values), "%.4g")
+    return tuple(float(v) for v in new) if changed and all(math.isfinite(v) for v in new) else None
+
+
+def _volume(tool: EditTool) -> None:
+    """The box and the sphere: their numbers, select inside, crop to them."""
+    imgui.separator_text("box")
+    low, high = _corner("low##box", tool.box.low), _corner("high##box", tool.box.high)
+    if low is not None or high is not None:
+        try:
+            box = CropBox(low or tool.box.low, high or tool.box.high)
+            tool.box = Box(box.low, box.high)
+        except ValueError as exc:
+            note(str(exc))
+    if imgui.button("Select in box"):
+        tool.select(tool.box)
+    imgui.same_line()
+    if imgui.button("Crop to box"):
+        tool.apply(Operation("crop", tool.box))
+    imgui.separator_text("sphere")
+    centre = _corner("centre##sphere", tool.sphere.centre)
+    changed, radius = imgui.input_float("radius##sphere", tool.sphere.radius, 0.0, 0.0, "%.4g")
+    if centre is not None or (changed and math.isfinite(radius) and radius >= 0):
+        sphere = CropSphere(centre or tool.sphere.centre, radius if changed else tool.sphere.radius)
+        tool.sphere = Sphere(sphere.centre, sphere.radius)
+    if imgui.button("Select in sphere"):
+        tool.select(tool.sphere)
+    imgui.same_line()
+    if imgui.button("Crop to sphere"):
+        tool.apply(Operation("crop", tool.sphere))
+
+
+def _histogram(tool: EditTool) -> None:
+    """The attribute's histogram of what is not deleted; a drag across it selects that range."""
+    imgui.separator_text("splat data")
+    tool.attribute = choice("attribute##edit", tool.attribute, {a: a for a in ATTRIBUTES})
+    counts, edges = tool.histogram(tool.attribute)
+    # Bars drawn over a button: the button holds the drag (a drag on bare panel moves it).
+    imgui.invisible_button("##histogram", (max(imgui.get_content_region_avail().x, 1.0), HISTOGRAM_HEIGHT))
+    low, high = imgui.get_item_rect_min(), imgui.get_item_rect_max()
+    activated, active = imgui.is_item_activated(), imgui.is_item_active()
+    draw = imgui.get_window_draw_list()
+    draw.add_rect_filled(low, high, imgui.get_color_u32(imgui.Col_.frame_bg))
+    step, tallest = (high.x - low.x) / len(counts), max(float(counts.max()), 1.0)
+    for index, count in enumerate(counts):
+        top = high.y - (high.y - low.y) * float(count) / tallest
+        draw.add_rect_filled(imgui.ImVec2(low.x + index * step, top), imgui.ImVec2(low.x + (index + 1) * step - 1, high.y),
+                             imgui.get_color_u32(imgui.Col_.plot_histogram))
+    axis = "log10 " if tool.attribute in LOG_ATTRIBUTES else ""
+    note(f"{axis}{edges[0]:.4g} .. {edges[-1]:.4g}: drag across to select")
+
+    def value(x: float) -> float:
+        fraction = min(max((x - low.x) / max(high.x - low.x, 1.0), 0.0), 1.0)
+        return float(edges[0] + fraction * (edges[-1] - edges[0]))
+
+    x = imgui.get_io().mouse_pos.x
+    if activated:
+        tool.histogram_drag = x
+    start = tool.histogram_drag
+    if start is None:
+        return
+    draw.add_rect_filled(imgui.ImVec2(min(start, x), low.y), imgui.ImVec2(max(start, x), high.y),
+                         imgui.get_color_u32((1.0, 0.85, 0.0, 0.35)))
+    if not active:
+        tool.histogram_drag = None
+        tool.select_range(tool.attribute, value(start), value(x))
+
+
+def _export(tool: EditTool) -> None:
+    imgui.separator_text("export")
+    imgui.set_next_item_width(-70)
+    _, tool.export_file = imgui.input_text_with_hint("##export file", "clean.ply (.splat, .spz, .sog)",
+                                                     tool.export_file)
+    imgui.same_line()
+    if imgui.button("Export"):
+        tool.export()
+    tooltip("the gaussians not deleted, in their order (a PLY's rows as the file has them), and the edits "
+            "beside them as NAME.edits.json")
+    if tool.confirm_replace is not None:
+        note(f"{tool.confirm_replace} exists: replace it and its edits?")
+        if imgui.button("Replace##export"):
+            tool.export(replace=True)
+        imgui.same_line()
+        if imgui.button("Cancel##export"):
+            tool.confirm_replace = None
+

@@ -1,0 +1,244 @@
+"""Cleaning a scene in the window, through real input in the window loop: a rectangle, a
+brush and a lasso drawn with the mouse, a histogram range dragged, a box crop, Delete,
+Ctrl+Z / Ctrl+Y, and the export; each against a numpy truth on a scene made for the test.
+The picture the window draws after a delete is the scene without those gaussians, the
+selection is tinted in it, and a screenshot of an edited scene re-renders from its
+sidecar to the same image."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pytest
+from appkit import PANEL_HEIGHT, PANEL_WIDTH, window_image
+from edit_kit import rich_rows, write_rows
+from imgui_bundle import imgui
+from plyfile import PlyData
+from testkit import assert_matches, run_cli
+
+from raygs_viewer.render.gl.renderer import GLRenderer
+from raygs_viewer.render.sorting import exact_order
+from raygs_viewer.scene.filters import CropBox, KeepValues
+from raygs_viewer.sort.depth import DepthSorter
+from raygs_viewer.sort.hidden import HiddenRows
+
+Key = imgui.Key
+
+
+@pytest.fixture
+def scene_file(tmp_path):
+    rows = rich_rows(n=600, seed=21, filter_3d=False, invalid=())
+    rows["opacity"] = np.abs(rows["opacity"]) + 1.0  # opaque enough that every deletion shows
+    for a in range(3):
+        rows[f"scale_{a}"] = np.log(np.random.default_rng(a).uniform(0.02, 0.08, rows.size))
+    return write_rows(tmp_path / "room.ply", rows), rows
+
+
+def pixels_of(viewer, points):
+    """Screen points as the drawn camera's continuous pixels (the framebuffer scale is 1)."""
+    camera, (vx, vy, vw, vh) = viewer.camera, viewer.viewport
+    return np.array([((x - vx) / vw * camera.width, (y - vy) / vh * camera.height) for x, y in points])
+
+
+def projected(viewer):
+    """(N, 2) pixel positions of the centres, (N,) in front: written here, not taken from the tool."""
+    camera, positions = viewer.camera, viewer.loaded.scene.positions.astype(np.float64)
+    mu = positions @ camera.R.T + camera.t
+    with np.errstate(divide="ignore", invalid="ignore"):
+        uv = np.stack([camera.fx * mu[:, 0] / mu[:, 2] + camera.cx, camera.fy * mu[:, 1] / mu[:, 2] + camera.cy], 1)
+    return uv, mu[:, 2] > 0
+
+
+def on_view(viewer, *fractions):
+    """Screen points at these fractions of the view, whole (imgui's mouse positions are)."""
+    x, y, w, h = viewer.viewport
+    return [(float(round(x + fx * w)), float(round(y + fy * h))) for fx, fy in fractions]
+
+
+def drag(drive, points, modifier=None):
+    """A left drag through ``points`` (screen), one frame a point, ``modifier`` held."""
+    if modifier is not None:
+        drive.key(modifier, True)
+    drive.move_mouse(*points[0])
+    drive.frames(1)
+    drive.button(0, True)
+    drive.frames(1)
+    for point in points[1:]:
+        drive.move_mouse(*point)
+        drive.frames(1)
+    drive.button(0, False)
+    drive.frames(1)
+    if modifier is not None:
+        drive.key(modifier, False)
+        drive.frames(1)
+
+
+def chord(drive, *keys):
+    for key in keys:
+        drive.key(key, True)
+    drive.frames(1)
+    for key in reversed(keys):
+        drive.key(key, False)
+    drive.frames(1)
+
+
+def without(viewer, deleted):
+    """The window's view drawn from a scene that never held the ``deleted`` gaussians."""
+    scene = viewer.loaded.scene.rows(~deleted)
+    renderer = GLRenderer(viewer.ctx, scene)
+    try:
+        return renderer.render(viewer.camera, viewer.settings, exact_order(DepthSorter(scene), viewer.camera,
+                                                                          viewer.settings)).copy()
+    finally:
+        renderer.release()
+
+
+def test_a_rectangle_selects_the_centres_inside_and_delete_undo_redo_act_on_them(open_viewer, scene_file):
+    viewer, drive = open_viewer(str(scene_file[0]), hide_panel=True)
+    drive.settle()
+    before = window_image(viewer).copy()
+    viewer.edit_tool.tool = "rectangle"
+    corners = on_view(viewer, (0.38, 0.35), (0.5, 0.45), (0.62, 0.6))
+    drag(drive, corners)
+    (u0, v0), (u1, v1) = pixels_of(viewer, [corners[0], corners[-1]])
+    uv, front = projected(viewer)
+    truth = front & (uv[:, 0] >= u0) & (uv[:, 0] <= u1) & (uv[:, 1] >= v0) & (uv[:, 1] <= v1)
+    assert 40 < truth.sum() < 500
+    np.testing.assert_array_equal(viewer.edit_tool.edits.selection, truth)
+    drive.settle()
+    assert np.abs(window_image(viewer) - before).max() > 0.1  # the selection is tinted in the picture
+
+    drive.tap(Key.delete)
+    drive.settle()
+    np.testing.assert_array_equal(viewer.edit_tool.edits.deleted, truth)
+    assert viewer.edit_tool.selection_count() == 0
+    gone = window_image(viewer).copy()
+    assert_matches(gone, without(viewer, truth))
+    assert np.abs(gone - before).max() > 0.1
+
+    chord(drive, Key.mod_ctrl, Key.z)  # undo the delete: the selection is back, tinted
+    drive.settle()
+    assert not viewer.edit_tool.edits.deleted.any()
+    np.testing.assert_array_equal(viewer.edit_tool.edits.selection, truth)
+    chord(drive, Key.mod_ctrl, Key.z)  # undo the selection: the picture as it was
+    drive.settle()
+    assert_matches(window_image(viewer), before)
+    chord(drive, Key.mod_ctrl, Key.y)
+    chord(drive, Key.mod_ctrl, Key.mod_shift, Key.z)
+    drive.settle()
+    np.testing.assert_array_equal(viewer.edit_tool.edits.deleted, truth)
+    assert_matches(window_image(viewer), gone)
+
+
+def test_the_drag_draws_instead_of_turning_the_camera_and_modifiers_combine(open_viewer, scene_file):
+    viewer, drive = open_viewer(str(scene_file[0]), hide_panel=True)
+    drive.settle()
+    camera = viewer.camera
+    x, y, w, h = viewer.viewport
+    viewer.edit_tool.tool = "brush"
+    viewer.edit_tool.brush_radius = 12.0
+    stroke = on_view(viewer, (0.2, 0.5), (0.5, 0.55), (0.8, 0.5))
+    drag(drive, stroke)
+    assert np.array_equal(viewer.camera.R, camera.R) and np.array_equal(viewer.camera.t, camera.t)
+    uv, front = projected(viewer)
+    line = pixels_of(viewer, stroke)
+    radius = 12.0 * camera.width / w
+
+    def near(a, b):
+        d = b - a
+        t = np.clip(((uv - a) @ d) / (d @ d), 0, 1)
+        return np.linalg.norm(uv - (a + t[:, None] * d), axis=1) <= radius
+
+    brushed = front & (near(line[0], line[1]) | near(line[1], line[2]))
+    assert 20 < brushed.sum() < 400
+    np.testing.assert_array_equal(viewer.edit_tool.edits.selection, brushed)
+
+    viewer.edit_tool.tool = "lasso"
+    triangle = on_view(viewer, (0.1, 0.1), (0.6, 0.1), (0.1, 0.9))
+    drag(drive, triangle, Key.mod_ctrl)  # Ctrl: subtract
+    (a, b, c) = pixels_of(viewer, triangle)
+    # Inside the right triangle a-b-c: right of a's column, below a's row, left of the hypotenuse b-c.
+    cross = (c[0] - b[0]) * (uv[:, 1] - b[1]) - (c[1] - b[1]) * (uv[:, 0] - b[0])
+    inside = front & (uv[:, 0] > a[0]) & (uv[:, 1] > a[1]) & (cross > 0)
+    assert (brushed & inside).any() and (brushed & ~inside).any()
+    np.testing.assert_array_equal(viewer.edit_tool.edits.selection, brushed & ~inside)
+
+
+def test_a_drag_across_the_histogram_selects_that_range_of_opacity(open_viewer, scene_file):
+    viewer, drive = open_viewer(str(scene_file[0]), width=PANEL_WIDTH, height=PANEL_HEIGHT)
+    drive.frames(2)
+    drive.reveal("Edit")
+    drive.click("Edit")
+    drive.frames(1)
+    drive.reveal("##histogram")
+    drive.frames(1)
+    x0, y0, x1, y1 = drive.panel.rect("##histogram")
+    start, stop = float(round(x0 + 0.4 * (x1 - x0))), float(round(x0 + 0.9 * (x1 - x0)))
+    middle = float(round((y0 + y1) / 2))
+    drag(drive, [(start, middle), (float(round((start + stop) / 2)), middle), (stop, middle)])
+    opacity = viewer.loaded.scene.opacities.astype(np.float64)
+    low, high = opacity.min(), opacity.max()
+    a, b = (low + (p - x0) / (x1 - x0) * (high - low) for p in (start, stop))
+    truth = (opacity >= a) & (opacity <= b)
+    assert 0 < truth.sum() < opacity.size
+    np.testing.assert_array_equal(viewer.edit_tool.edits.selection, truth)
+
+
+def test_crop_to_the_box_and_export_write_the_kept_rows_bit_for_bit(open_viewer, scene_file, tmp_path, capsys):
+    source, rows = scene_file
+    viewer, drive = open_viewer(str(source), width=PANEL_WIDTH, height=PANEL_HEIGHT)
+    drive.frames(2)
+    drive.reveal("Edit")
+    drive.click("Edit")
+    drive.frames(1)
+    tool = viewer.edit_tool
+    tool.box = type(tool.box)((-1.0, -1.5, -2.0), (1.5, 1.0, 0.5))
+    drive.reveal("Crop to box")
+    drive.click("Crop to box")
+    kept = CropBox((-1.0, -1.5, -2.0), (1.5, 1.0, 0.5)).keeps(KeepValues.of_scene(viewer.loaded.scene))
+    assert 50 < kept.sum() < 550
+    np.testing.assert_array_equal(tool.edits.kept, kept)
+    drive.settle()
+    assert_matches(window_image(viewer), without(viewer, ~kept))
+
+    target = tmp_path / "clean.ply"
+    tool.export_file = str(target)
+    drive.reveal("Export")
+    drive.click("Export")
+    written = PlyData.read(str(target))["vertex"].data
+    assert written.tobytes() == rows[np.flatnonzero(kept)].tobytes()
+    document = tmp_path / "clean.edits.json"
+    assert json.loads(document.read_text())["operations"] == [
+        {"op": "crop", "shape": {"kind": "box", "low": [-1.0, -1.5, -2.0], "high": [1.5, 1.0, 0.5]}}]
+
+    first = target.read_bytes()
+    tool.apply(type(tool.edits.operations[0])("undelete all"))
+    drive.click("Export")  # the file exists: nothing is written until Replace
+    assert tool.confirm_replace == str(target) and target.read_bytes() == first
+    drive.reveal("Cancel##export")
+    drive.click("Cancel##export")
+    assert tool.confirm_replace is None and target.read_bytes() == first
+
+    replayed = tmp_path / "replayed.ply"
+    code, out, err = run_cli(capsys, "convert", source, replayed, "--edits", document)
+    assert code == 0, err
+    assert replayed.read_bytes() == first
+
+
+def test_an_edited_screenshot_renders_again_from_its_sidecar(open_viewer, scene_file, tmp_path, capsys):
+    viewer, drive = open_viewer(str(scene_file[0]), hide_panel=True)
+    drive.settle()
+    tool = viewer.edit_tool
+    tool.select(type(tool.box)((-2.5, -2.5, -2.5), (0.0, 2.5, 2.5)))
+    tool.apply(type(tool.edits.operations[0])("delete"))
+    drive.settle()
+    png, sidecar = viewer.save_screenshot(tmp_path / "shot.png")
+    recorded = json.loads(sidecar.read_text())
+    assert recorded["version"] == 5 and recorded["edits"]["operations"][1] == {"op": "delete"}
+    again = tmp_path / "again.png"
+    code, out, err = run_cli(capsys, "render", "--sidecar", sidecar, "--out", again)
+    assert code == 0, err
+    assert again.read_bytes() == png.read_bytes()
+    hidden = HiddenRows(tool.edits.deleted)
+    assert viewer.shown.sort.hidden.key == hidden.key  # the frame's sort leaves them out
