@@ -195,11 +195,6 @@ class Viewer:
         self.photo.forget_scene()
         self.frustums.forget()
 
-    def set_tint(self, on: bool) -> None:
-        """Colour by level on or off (the Level of detail section)."""
-        if problem := self.scene.set_tint(on, self.loaded.lod):
-            self.panel.error = f"error: colour by level: {problem}"
-
     def right_settings(self) -> RenderSettings | None:
         """The split view's right side; None when it is off (it is off in the stereo preview)."""
         return None if self.stereo.on else self.split.right(self.settings)
@@ -288,20 +283,14 @@ class Viewer:
                                         self.window.draw_imgui if overlay else None)
 
     def save_screenshot(self, path: str | Path | None = None) -> Saved:
-        """Re-renders the last frame's view offscreen (see :mod:`.screenshots`) with the
-        settings now and saves it (``captures``); returns the (png, json) pair, the left
-        side's or the stereo pair's."""
+        """Re-renders the last frame's view offscreen (:mod:`.screenshots`, :func:`window_shot`)
+        and saves it; returns the (png, json) pair, the left side's or the stereo pair's."""
         frame = self.shown
         if frame is None:
             raise UserError("nothing has been drawn yet")
         self.photo.check_screenshot()
         self.scene.lod.check_screenshot()
-        shown = ShownView(frame.full_camera, self.settings, frame.stereo, self.drawer.shown_view,
-                          self.split if self.right_settings() is not None else None, self.drawer.shown_right_view)
-        extra = sidecar_extra(self.view.navigator, self.loaded, self.view.training_index,
-                              context_description(self.ctx))
-        shot = Shot(shown, self.loaded, lod_request(self.loaded, self.settings), self.stereo.save_eyes, extra,
-                    self.edit_tool.hidden, self.edit_tool.sidecar_entry())
+        shot = window_shot(self, frame)
         self.scene.renderer.set_selection(None)  # a screenshot shows the scene, not the selection's tint
         return self.captures.take(self.scene.renderer, self.scene.exact_sorter, shot, path)
 
@@ -338,6 +327,17 @@ class Viewer:
         self.drawer.release()
         self.window.close()
         self.window = None
+
+
+def window_shot(viewer: Viewer, frame: Frame) -> Shot:
+    """The screenshot of ``frame`` as ``viewer`` shows it: the view, the scene, its level
+    choice, the eyes to save, the window's details, and the edits (the rows deleted)."""
+    v = viewer
+    shown = ShownView(frame.full_camera, v.settings, frame.stereo, v.drawer.shown_view,
+                      v.split if v.right_settings() is not None else None, v.drawer.shown_right_view)
+    extra = sidecar_extra(v.view.navigator, v.loaded, v.view.training_index, context_description(v.ctx))
+    return Shot(shown, v.loaded, lod_request(v.loaded, v.settings), v.stereo.save_eyes, extra,
+                v.edit_tool.hidden, v.edit_tool.sidecar_entry())
 
 
 def opened_settings(settings: RenderSettings, start: RenderSettings, loaded: LoadedScene) -> RenderSettings:

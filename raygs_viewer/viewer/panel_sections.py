@@ -31,13 +31,18 @@ def panel_sections(viewer) -> list[Callable[[], None]]:
     v = viewer
     loaded, renderer, view, stats = v.loaded, v.scene.renderer, v.view, v.stats
     shown = v.shown
+
+    def set_tint(on: bool) -> None:  # colour by level, the Level of detail section's
+        if problem := v.scene.set_tint(on, loaded.lod):
+            v.panel.error = f"error: colour by level: {problem}"
+
     split_shown = v.split.on and v.shown_stereo is None
     return [
         lambda: draw_statistics(stats, loaded.scene.count, v.scene.sorter, renderer.counters, renderer.general,
                                 v.scene.sort, v.auto.lines(loaded.scene.count)),
         lambda: draw_scene_section(loaded, v.panel, v.scenes.open, v.scenes.loader,
                                    lambda axes: v.scenes.switch_axes(loaded, axes), v.file_dialog),
-        lambda: draw_lod_section(v.scene.lod, loaded, v.scenes.loader, v.settings, v.set_settings, v.set_tint, stats),
+        lambda: draw_lod_section(v.scene.lod, loaded, v.scenes.loader, v.settings, v.set_settings, set_tint, stats),
         lambda: draw_render_section(v.settings, v.set_settings, loaded.scene.sh_degree, renderer.supports,
                                     v.window, v.stereo, v.split, v.panel.note),
         lambda: draw_order_section(v.settings, v.set_settings, stats, v.right_settings() is not None),
