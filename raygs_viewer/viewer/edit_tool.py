@@ -68,12 +68,13 @@ class EditTool:
         self._drag_how = "set"
         self._hidden: tuple[int, HiddenRows | None] = (-1, None)
         self._histogram: tuple[int, str, np.ndarray, np.ndarray] | None = None
+        self._counted: tuple | None = None
 
     # -- the scene --------------------------------------------------------------------
     def opened(self, scene: Scene) -> None:
         """A new scene: no edits, the box and the sphere around its centres."""
         self.edits = Edits(scene.count)
-        self.drag, self._histogram, self.confirm_replace = None, None, None
+        self.drag, self._histogram, self._counted, self.confirm_replace = None, None, None, None
         positions = scene.positions.astype(np.float64)
         if scene.count:
             low, high = positions.min(axis=0), positions.max(axis=0)
@@ -91,6 +92,7 @@ class EditTool:
             self.edits = Edits(scene.count)
             self.edits.selected[: old.count], self.edits.deleted[: old.count] = old.selected, old.deleted
             self.edits.operations = list(old.operations)
+            self._histogram = self._counted = None
 
     @property
     def scene(self) -> Scene:
@@ -107,16 +109,25 @@ class EditTool:
             self._hidden = (self.edits.generation, hidden)
         return hidden
 
+    def _state(self) -> tuple[np.ndarray, int, int]:
+        """(the selection shown, its count, the count deleted), made once an edit: the
+        panel and the draw read them every frame."""
+        key = (id(self.edits), self.edits.generation)
+        if self._counted is None or self._counted[0] != key:
+            selection = self.edits.selection
+            self._counted = (key, selection, int(selection.sum()), int(self.edits.deleted.sum()))
+        return self._counted[1:]
+
     def selection_count(self) -> int:
-        return 0 if self.edits is None else int(self.edits.selection.sum())
+        return 0 if self.edits is None else self._state()[1]
 
     def deleted_count(self) -> int:
-        return 0 if self.edits is None else int(self.edits.deleted.sum())
+        return 0 if self.edits is None else self._state()[2]
 
     def show_selection(self, renderer) -> None:
-        """The selection tinted in the next draw."""
+        """The selection tinted in the next draw (uploaded when it changed)."""
         if self.edits is not None:
-            renderer.set_selection(self.edits.selection, self.edits.generation.to_bytes(8, "little") +
+            renderer.set_selection(self._state()[0], self.edits.generation.to_bytes(8, "little") +
                                    id(self.edits).to_bytes(8, "little"))
 
     # -- edits ------------------------------------------------------------------------

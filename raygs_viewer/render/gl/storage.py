@@ -330,10 +330,10 @@ class SceneBuffers:
         tinted: one bit a gaussian in 32-bit words, bit ``row % 32`` of word ``row // 32``
         (glsl/preprocess.comp, SELECTION), uploaded when ``key`` (the mask's digest)
         changes; the scene's own buffers stay as they are."""
+        if key is not None and key == self.selection_key:
+            return
         if mask is None or not mask.any():
             self.selection_key = None
-            return
-        if key is not None and key == self.selection_key:
             return
         bits = np.zeros(-(-self.scene.count // 32) * 32, bool)
         bits[: self.scene.count] = mask
