@@ -64,7 +64,11 @@ class PlyRows:
         check_writable_folder(target, target.parent)
         if target.exists() and not overwrite:
             raise UserError(f"{target}: already exists (pass --overwrite to replace it)")
-        kept = PlyElement.describe(self.vertex.data[np.asarray(rows, np.int64)], "vertex",
+        rows = np.asarray(rows, np.int64)
+        if rows.size and (rows.min() < 0 or rows.max() >= self.count):
+            raise UserError(f"{self.path}: holds {self.count:,} gaussians, fewer than when it was read: "
+                            f"it changed since; open it again")
+        kept = PlyElement.describe(self.vertex.data[rows], "vertex",
                                    comments=list(self.vertex.comments))
         elements = [kept if element.name == "vertex" else element for element in self.ply.elements]
         out = PlyData(elements, text=self.ply.text, byte_order=self.ply.byte_order,

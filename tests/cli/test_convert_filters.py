@@ -99,3 +99,6 @@ def test_a_source_changed_since_it_was_read_is_refused(tmp_path):
     source = write_rows(tmp_path / "in.ply", rich_rows(n=20, invalid=()))
     with pytest.raises(UserError, match="changed since"):
         PlyRows(source, expected=21)
+    with pytest.raises(UserError, match="changed since"):  # a subset's rows past a file that shrank
+        PlyRows(source).write(np.array([3, 20]), tmp_path / "out.ply")
+    assert not (tmp_path / "out.ply").exists()
