@@ -43,6 +43,9 @@ def add_parsers(commands) -> None:
     parser.add_argument("--case", action="append", metavar="NAME", dest="cases",
                         help="only this correctness case (repeat for more; 'demo' or a hard case's name, as the "
                              "report's rows name them): re-checks what failed without the rest")
+    parser.add_argument("--no-speed", action="store_true",
+                        help="the correctness sections only (the GL, the renders, the sort rows): no speed rows and "
+                             "no auto choices, for a check that needs no timing")
     parser.add_argument("--report", metavar="FILE.md",
                         help="also write the report there (never over an existing file without --overwrite)")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing --report file")
@@ -51,6 +54,7 @@ def add_parsers(commands) -> None:
 
 def recorded_command(args: argparse.Namespace) -> str:
     parts = ["raygs-viewer", "doctor"] + (["--quick"] if args.quick else [])
+    parts += ["--no-speed"] if args.no_speed else []
     for name in args.cases or ():
         parts += ["--case", name]
     if args.gl_backend:
@@ -63,9 +67,11 @@ def command_doctor(args: argparse.Namespace, ctx=None, **changes) -> int:
     line; the exit status. ``ctx``: a GL context to use (tests); ``changes``: fields of
     ``bench.doctor.DoctorOptions`` over the command line's (tests make a run small)."""
     out = report_path(args.report, args.overwrite)  # before any work
-    cases = {"cases": tuple(dict.fromkeys(args.cases))} if args.cases else {}
+    chosen = {"cases": tuple(dict.fromkeys(args.cases))} if args.cases else {}
+    if args.no_speed:
+        chosen |= {"speed": None, "auto": False}
     options = doctor_options(args.quick, command_line=recorded_command(args), gl_backend=args.gl_backend,
-                             **{**cases, **changes})
+                             **{**chosen, **changes})
     result = run_doctor(options, ctx)
     report = format_report(result)
     print("", flush=True)

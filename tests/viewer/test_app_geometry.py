@@ -12,6 +12,7 @@ import numpy as np
 import pytest
 from appkit import PANEL_HEIGHT, click_choice, headless, right_image, window_image
 from PIL import Image
+from testkit import gaussian_columns, write_ply
 
 from raygs_viewer.camera.stereo import StereoRig, custom_preset, eye_cameras
 from raygs_viewer.capture.image_io import to_rgb8
@@ -101,8 +102,10 @@ def test_a_set_depth_range_is_used_and_a_bad_one_is_a_standing_error(open_viewer
     assert viewer.panel.error == "" and viewer.drawer.view_range == (3.5, 6.0)
 
 
-def test_the_panel_switches_the_view_and_states_the_range_in_use(open_viewer):
-    viewer, drive = open_viewer(width=PANEL_NARROW, height=PANEL_HEIGHT)
+def test_the_panel_switches_the_view_and_states_the_range_in_use(open_viewer, tmp_path):
+    # A few gaussians: the view fills the window under the panel, drawn per pixel each frame.
+    few = write_ply(tmp_path / "few.ply", gaussian_columns(n=40, seed=3))
+    viewer, drive = open_viewer(str(few), width=PANEL_NARROW, height=PANEL_HEIGHT)
     drive.frames(2)
     drive.reveal("show")
     click_choice(drive, "show", "median depth")
