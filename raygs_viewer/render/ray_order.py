@@ -69,11 +69,16 @@ class Fragments:
     def has_geometry(self) -> bool:
         return self.z is not None
 
-    def payload(self) -> dict[str, np.ndarray]:
-        """What compositing needs of each fragment: alpha and colour, and z and normal
-        with geometry (the keyword arguments of :meth:`FrontToBack.add`)."""
+    def payload(self, owner: bool = False) -> dict[str, np.ndarray]:
+        """What compositing needs of each fragment: alpha and colour, z and normal with
+        geometry, and with ``owner`` the scene index as float64 (exact below 2^53: the
+        k-buffer's slots are float) for :class:`LargestWeights` (the keyword arguments of
+        :meth:`FrontToBack.add`)."""
         names = ("alpha", "color", "z", "normal") if self.has_geometry else ("alpha", "color")
-        return {name: getattr(self, name) for name in names}
+        payload = {name: getattr(self, name) for name in names}
+        if owner:
+            payload["owner"] = self.index.astype(np.float64)
+        return payload
 
     def take(self, selection: np.ndarray) -> "Fragments":
         return Fragments(*(None if (value := getattr(self, field.name)) is None else value[selection]
@@ -110,22 +115,39 @@ class GeometrySums:
                                self.found[..., None].astype(np.float64)), axis=-1)
 
 
+class LargestWeights:
+    """Each gaussian's largest weight T alpha (its share of a sample's colour) over the
+    samples ``counted`` ((pixels,) bool), for ``owners`` gaussians: (owners,) float64
+    ``largest``, 0 where a gaussian adds to no counted sample."""
+
+    def __init__(self, owners: int, counted: np.ndarray):
+        self.largest = np.zeros(owners)
+        self.counted = counted
+
+    def add(self, pixels: np.ndarray, weight: np.ndarray, owner: np.ndarray) -> None:
+        counted = self.counted[pixels]
+        np.maximum.at(self.largest, owner[counted].astype(np.int64), weight[counted])
+
+
 class FrontToBack:
     """Front-to-back accumulation over ``pixels`` samples: colour so far, transmittance,
-    (with ``cutoff``) which pixels INRIA's rule has ended, and the geometry ``sums`` of
-    those pixels (None: colour alone)."""
+    (with ``cutoff``) which pixels INRIA's rule has ended, the geometry ``sums`` of
+    those pixels (None: colour alone) and the gaussians' largest ``weights`` (None: not
+    kept; the fragments then carry their owner)."""
 
-    def __init__(self, pixels: int, cutoff: float | None, sums: GeometrySums | None = None):
+    def __init__(self, pixels: int, cutoff: float | None, sums: GeometrySums | None = None,
+                 weights: LargestWeights | None = None):
         self.color = np.zeros((pixels, 3))
         self.transmittance = np.ones(pixels)
         self.cutoff = cutoff
         self.done = np.zeros(pixels, dtype=bool)
         self.geometry = sums
+        self.weights = weights
 
     def add(self, pixels: np.ndarray, alpha: np.ndarray, color: np.ndarray,
-            z: np.ndarray | None = None, normal: np.ndarray | None = None) -> None:
+            z: np.ndarray | None = None, normal: np.ndarray | None = None, owner: np.ndarray | None = None) -> None:
         """Composites one fragment at each of ``pixels`` (distinct), behind what is there;
-        ``z`` and ``normal`` are needed with geometry."""
+        ``z`` and ``normal`` are needed with geometry, ``owner`` with weights."""
         t = self.transmittance[pixels]
         after = t * (1.0 - alpha)
         take = np.ones(len(pixels), dtype=bool)
@@ -139,6 +161,8 @@ class FrontToBack:
         self.transmittance[pixels] = after
         if self.geometry is not None:
             self.geometry.add(pixels, t * alpha, 1.0 - after, z[take], normal[take])
+        if self.weights is not None:
+            self.weights.add(pixels, t * alpha, owner[take])
 
     def image(self, background) -> np.ndarray:
         """(pixels, 4): RGB over ``background`` and the accumulated alpha 1 - T."""
@@ -166,9 +190,19 @@ def composite_per_pixel_geometry(fragments: Fragments, pixels: int, background, 
     return np.concatenate((accumulator.image(background), accumulator.geometry.stacked()), axis=-1)
 
 
+def largest_weights(fragments: Fragments, pixels: int, counted: np.ndarray, owners: int, *,
+                    window: int = 0, cutoff: float | None = None) -> np.ndarray:
+    """(owners,) float64: each gaussian (``Fragments.index``)'s largest weight T alpha over
+    the ``counted`` samples ((pixels,) bool), its fragments composited as
+    :func:`composite_per_pixel` composites them."""
+    weights = LargestWeights(owners, counted)
+    _accumulate(fragments, pixels, window, cutoff, None, weights)
+    return weights.largest
+
+
 def _accumulate(fragments: Fragments, pixels: int, window: int, cutoff: float | None,
-                sums: GeometrySums | None) -> FrontToBack:
-    accumulator = FrontToBack(pixels, cutoff, sums)
+                sums: GeometrySums | None, weights: LargestWeights | None = None) -> FrontToBack:
+    accumulator = FrontToBack(pixels, cutoff, sums, weights)
     if window == 0:
         # By pixel, then t*, then index: each pixel's fragments in the order they composite.
         order = np.lexsort((fragments.index, fragments.key, fragments.pixel))
@@ -197,7 +231,7 @@ def _composite_layers(accumulator: FrontToBack, ordered: Fragments) -> None:
     position, depth = _layers(ordered.pixel)
     by_layer = np.argsort(position, kind="stable")
     bounds = np.searchsorted(position[by_layer], np.arange(depth + 1))
-    payload = ordered.payload()
+    payload = ordered.payload(owner=accumulator.weights is not None)
     for layer in range(depth):
         chosen = by_layer[bounds[layer]:bounds[layer + 1]]
         accumulator.add(ordered.pixel[chosen], **{name: column[chosen] for name, column in payload.items()})
@@ -208,14 +242,15 @@ def _stream_through_window(accumulator: FrontToBack, arriving: Fragments, pixels
     key = np.full((pixels, k), np.inf)
     index = np.zeros((pixels, k), np.int64)
     # What each slot holds for compositing: alpha and colour, and z and normal with geometry.
-    slots = {name: np.zeros((pixels, k) + column.shape[1:]) for name, column in arriving.payload().items()}
+    owner = accumulator.weights is not None
+    slots = {name: np.zeros((pixels, k) + column.shape[1:]) for name, column in arriving.payload(owner).items()}
     held = np.zeros(pixels, np.int64)
     position, depth = _layers(arriving.pixel)
     by_layer = np.argsort(position, kind="stable")
     bounds = np.searchsorted(position[by_layer], np.arange(depth + 1))
     for layer in range(depth):
         new = arriving.take(by_layer[bounds[layer]:bounds[layer + 1]])
-        payload = new.payload()
+        payload = new.payload(owner)
         p = new.pixel
         room = held[p] < k
         # A free slot: the fragment joins the window.

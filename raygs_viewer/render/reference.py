@@ -171,7 +171,7 @@ def _render(scene: Scene, camera: Camera, settings: RenderSettings, order, sampl
     return image
 
 
-def _band_rays(camera: Camera, top: int, bottom: int) -> np.ndarray:
+def band_rays(camera: Camera, top: int, bottom: int) -> np.ndarray:
     """(bottom - top, W, 3) rays (z = 1) of rows top..bottom-1: ``camera.pixel_rays()[top:bottom]``
     computed for those rows only (the same numbers, bit for bit)."""
     u = (np.arange(camera.width) + 0.5 - camera.cx) / camera.fx
@@ -194,7 +194,7 @@ def _composite(render: _Pass, top: int, bottom: int) -> np.ndarray:
     rendered camera's image."""
     model, gaussians, camera, settings, geometry = (render.model, render.gaussians, render.camera, render.settings,
                                                     render.geometry)
-    rays = _band_rays(camera, top, bottom)
+    rays = band_rays(camera, top, bottom)
     # Only gaussians whose pixel box meets the band.
     boxes = model.boxes
     meets = np.flatnonzero((boxes[:, 0] < bottom) & (boxes[:, 1] > top)

@@ -2,7 +2,8 @@
 the scene, a range of one attribute (SuperSplat's "Splat Data" histograms), or a shape
 drawn on a view: a rectangle, a polygon (a lasso is a polygon of many points) or a
 brush stroke, holding the gaussians whose centre the view projects inside ("through":
-hidden ones included).
+hidden ones included); or the rows a selection through the view found (:class:`Rows`:
+the gaussians the view shows under a shape, or the one a click's pixel shows most).
 
 Every shape is a frozen value with ``to_json`` and :func:`shape_from_json`, so an edit
 document records it and replays it to the same mask. Screen shapes carry their camera
@@ -158,15 +159,33 @@ class ScreenShape:
 
     def mask(self, scene: Scene) -> np.ndarray:
         uv, front = projected(scene, self.camera)
+        return self.holds(uv) & front
+
+    def holds(self, uv: np.ndarray) -> np.ndarray:
+        """(P,) bool: which of the image positions ``uv`` ((P, 2) continuous pixels) the shape holds."""
         points = np.array(self.points, np.float64)
         if self.kind == "rectangle":
             low, high = points.min(axis=0), points.max(axis=0)
-            inside = np.all((uv >= low) & (uv <= high), axis=1)
-        elif self.kind == "polygon":
-            inside = inside_polygon(uv, points)
-        else:
-            inside = near_stroke(uv, points, float(self.radius))
-        return inside & front
+            return np.all((uv >= low) & (uv <= high), axis=1)
+        if self.kind == "polygon":
+            return inside_polygon(uv, points)
+        return near_stroke(uv, points, float(self.radius))
+
+    def pixel_mask(self) -> np.ndarray:
+        """(H, W) bool: the camera's pixels whose centre the shape holds (the pixels a
+        "visible" selection weighs). Only the pixels of the shape's bounding box are tested."""
+        c = self.camera
+        mask = np.zeros((c.height, c.width), bool)
+        points = np.array(self.points, np.float64)
+        low, high = points.min(axis=0) - self.radius, points.max(axis=0) + self.radius
+        # Centre u + 0.5 lies in [low, high] for u in ceil(low - 0.5) .. floor(high - 0.5).
+        u0, v0 = (max(0, math.ceil(x - 0.5)) for x in low)
+        u1, v1 = (min(size, math.floor(x - 0.5) + 1) for x, size in zip(high, (c.width, c.height)))
+        if u0 >= u1 or v0 >= v1:
+            return mask
+        u, v = np.meshgrid(np.arange(u0, u1) + 0.5, np.arange(v0, v1) + 0.5)
+        mask[v0:v1, u0:u1] = self.holds(np.stack([u.ravel(), v.ravel()], axis=1)).reshape(u.shape)
+        return mask
 
     def to_json(self) -> dict:
         c = self.camera
@@ -179,7 +198,49 @@ class ScreenShape:
         return entry
 
 
-Shape = Union[Box, Sphere, Range, ScreenShape]
+#: What a selection by rows was found by: the gaussians whose largest weight over the
+#: shape's pixels is at least ``min_weight`` ("visible"), or the one with the largest
+#: ("top": a click, through the one pixel of its shape).
+FOUND_BY = ("visible", "top")
+
+
+@dataclass(frozen=True, eq=False)
+class Rows:
+    """Gaussians by row (``rows``: distinct, ascending): what a selection through the view
+    (``render.contributions``) found, recorded as rows, so an edit document replays it
+    exactly without rendering. ``found_by`` (:data:`FOUND_BY`), ``through`` (the screen
+    shape whose pixels were weighed) and ``min_weight`` record how, for the reader."""
+
+    rows: tuple[int, ...]
+    found_by: str
+    through: ScreenShape
+    min_weight: float = 0.0
+
+    def __post_init__(self) -> None:
+        rows = tuple(int(r) for r in self.rows)
+        if any(r < 0 for r in rows) or any(a >= b for a, b in zip(rows, rows[1:])):
+            raise ValueError("rows must be distinct, ascending and >= 0")
+        if self.found_by not in FOUND_BY:
+            raise ValueError(f"found_by must be one of {', '.join(FOUND_BY)}, got {self.found_by!r}")
+        if not (math.isfinite(self.min_weight) and 0 <= self.min_weight <= 1):
+            raise ValueError(f"min_weight must lie in 0..1, got {self.min_weight}")
+        object.__setattr__(self, "rows", rows)
+
+    def mask(self, scene: Scene) -> np.ndarray:
+        if self.rows and self.rows[-1] >= scene.count:
+            raise ValueError(f"row {self.rows[-1]} is past the scene's {scene.count:,} gaussians")
+        mask = np.zeros(scene.count, bool)
+        mask[list(self.rows)] = True
+        return mask
+
+    def to_json(self) -> dict:
+        entry = {"kind": "rows", "rows": list(self.rows), "found by": self.found_by, "through": self.through.to_json()}
+        if self.found_by == "visible":
+            entry["min weight"] = float(self.min_weight)
+        return entry
+
+
+Shape = Union[Box, Sphere, Range, ScreenShape, Rows]
 
 
 def shape_from_json(entry: dict) -> Shape:
@@ -202,6 +263,14 @@ def shape_from_json(entry: dict) -> Shape:
             if not (low <= high):
                 raise ValueError(f"a range needs low <= high, got {low:g}..{high:g}")
             return Range(entry["attribute"], low, high)
+        if kind == "rows":
+            through = shape_from_json(entry["through"])
+            if not isinstance(through, ScreenShape):
+                raise ValueError("'through' must be a rectangle, polygon or brush")
+            rows = entry["rows"]
+            if not isinstance(rows, list) or not all(isinstance(r, int) and not isinstance(r, bool) for r in rows):
+                raise ValueError("'rows' must be a list of whole numbers")
+            return Rows(tuple(rows), entry["found by"], through, float(entry.get("min weight", 0.0)))
         if kind in ("rectangle", "polygon", "brush"):
             c = entry["camera"]
             R, t = np.array(c["R"], np.float64), np.array(c["t"], np.float64)
@@ -214,4 +283,4 @@ def shape_from_json(entry: dict) -> Shape:
         raise ValueError(f"a {kind} shape needs '{exc.args[0]}'") from None
     except (TypeError, ValueError) as exc:
         raise ValueError(f"a {kind} shape: {exc}") from None
-    raise ValueError(f"unknown shape kind {kind!r}: box, sphere, range, rectangle, polygon or brush")
+    raise ValueError(f"unknown shape kind {kind!r}: box, sphere, range, rectangle, polygon, brush or rows")

@@ -10,8 +10,11 @@ document replays them (``capture.edit_file``).
 
 While a tool is on, a left drag on the view draws with it (Shift adds to the selection,
 Ctrl subtracts, both intersect; the panel's choice otherwise) instead of turning the
-camera; the right and middle buttons and the wheel still move it. Delete deletes the
-selection, Ctrl+Z undoes, Ctrl+Y or Ctrl+Shift+Z redoes.
+camera; the right and middle buttons and the wheel still move it. A shape selects the
+centres it covers ("through"), or the gaussians that give at least ``min_weight`` of
+some pixel's colour under it ("visible", :mod:`.view_selection`); the click tool selects
+the gaussian its pixel shows most. Delete deletes the selection, Ctrl+Z undoes, Ctrl+Y
+or Ctrl+Shift+Z redoes.
 """
 
 from __future__ import annotations
@@ -32,9 +35,13 @@ from raygs_viewer.scene.selection import ATTRIBUTES, Box, Range, ScreenShape, Sp
 from raygs_viewer.scene.source import SceneSource
 from raygs_viewer.scene.writing import WRITE_SUFFIXES
 from raygs_viewer.sort.hidden import HiddenRows
+from raygs_viewer.viewer.view_selection import shown_rows
 
-#: The tools the left button draws with ("off": it turns the camera).
-TOOLS = ("off", "rectangle", "lasso", "brush")
+#: The tools the left button draws with ("off": it turns the camera; "click": the gaussian
+#: the clicked pixel shows most).
+TOOLS = ("off", "click", "rectangle", "lasso", "brush")
+#: What a drawn shape selects: the centres it covers, or the gaussians its pixels show.
+SELECTS = ("through", "visible")
 #: Histogram bins.
 BINS = 64
 #: Attributes shown on a log10 axis (they span decades).
@@ -57,6 +64,8 @@ class EditTool:
         self.tool = "off"
         self.how = "set"
         self.brush_radius = 20.0   # screen units
+        self.selects = "through"
+        self.min_weight = 0.05     # the least share of a pixel's colour "visible" selects
         self.attribute = ATTRIBUTES[0]
         self.export_file = ""
         self.confirm_replace: str | None = None   # the export target that exists, waiting for a yes
@@ -250,6 +259,15 @@ class EditTool:
             self.drag.append((x, y))
         points, self.drag = self.drag, None
         shape = self.screen_shape(points, frame)
+        if shape is not None and (self.tool == "click" or self.selects == "visible"):
+            try:
+                shape = shown_rows(self.scene, self.host.scene.exact_sorter, frame, shape, self.hidden,
+                                   None if self.tool == "click" else self.min_weight)
+            except UserError as exc:
+                self.host.panel.error, shape = f"error: nothing selected: {one_line(exc)}", None
+            else:
+                if shape is None:
+                    self.host.panel.note("nothing selected: no gaussian shows at that pixel")
         if shape is not None:
             self.select(shape, self._drag_how)
         return True
@@ -262,6 +280,10 @@ class EditTool:
         sx, sy = (scale.x or 1.0), (scale.y or 1.0)
         pixels = tuple(((px * sx - vx) / vw * camera.width, (py * sy - vy) / vh * camera.height)
                        for px, py in points)
+        if self.tool == "click":  # the pixel under the release, as the rectangle of its centre
+            u, v = math.floor(pixels[-1][0]), math.floor(pixels[-1][1])
+            inside = 0 <= u < camera.width and 0 <= v < camera.height
+            return ScreenShape("rectangle", camera, ((u, v), (u + 1, v + 1))) if inside else None
         if self.tool == "rectangle":
             return ScreenShape("rectangle", camera, (pixels[0], pixels[-1]))
         if self.tool == "lasso":

@@ -13,7 +13,7 @@ from testkit import random_scene
 from raygs_viewer.camera.pinhole import look_at
 from raygs_viewer.scene.edits import UNDO_STEPS, Edits, Operation, replay
 from raygs_viewer.scene.selection import (
-    ATTRIBUTES, SH_C0, Box, Range, ScreenShape, Sphere, attribute_values, inside_polygon, shape_from_json)
+    ATTRIBUTES, SH_C0, Box, Range, Rows, ScreenShape, Sphere, attribute_values, inside_polygon, shape_from_json)
 
 SCENE = random_scene(n=800, seed=5, degree=1, spread=1.5)
 CAMERA = look_at((0.4, -0.3, -4.0), (0, 0, 0), width=64, height=48)
@@ -134,6 +134,13 @@ def test_the_operations_replay_from_json_to_the_same_masks():
       "cx": 2, "cy": 2, "R": np.eye(3).tolist(), "t": [0, 0, 0]}}, "radius > 0"),
     ({"kind": "polygon", "points": [[1, 2], [3, 4]], "camera": {}}, "a polygon shape needs '"),
     ({"kind": "star"}, "unknown shape kind"),
+    ({"kind": "rows", "rows": [3, 1], "found by": "top", "through": ScreenShape("rectangle", CAMERA, ((0, 0), (1, 1)))
+      .to_json()}, "distinct, ascending"),
+    ({"kind": "rows", "rows": [1.5], "found by": "top", "through": {}}, "a rows shape"),
+    ({"kind": "rows", "rows": [1], "found by": "guess", "through": ScreenShape("rectangle", CAMERA, ((0, 0), (1, 1)))
+      .to_json()}, "found_by must be"),
+    ({"kind": "rows", "rows": [1], "found by": "top", "through": {"kind": "box", "low": [0, 0, 0],
+                                                                  "high": [1, 1, 1]}}, "'through' must be"),
 ])
 def test_bad_shapes_are_refused_with_what_is_wrong(entry, words):
     with pytest.raises(ValueError, match=words):
@@ -146,3 +153,33 @@ def test_every_attribute_can_be_selected_by_range():
         middle = np.median(values)
         mask = Range(attribute, values.min(), middle).mask(SCENE)
         np.testing.assert_array_equal(mask, values <= middle)
+
+
+@pytest.mark.parametrize("shape", [
+    ScreenShape("rectangle", CAMERA, ((40.5, 30.0), (20.0, 10.5))),
+    ScreenShape("rectangle", CAMERA, ((7, 9), (8, 10))),  # one pixel: the click's shape
+    ScreenShape("polygon", CAMERA, ((-20, 5), (60, 8), (30, 70))),  # past the image's edges
+    ScreenShape("brush", CAMERA, ((10, 10), (50, 30), (52, 47)), 6.5),
+    ScreenShape("rectangle", CAMERA, ((100, 100), (120, 130))),  # off the image: no pixel
+])
+def test_a_screen_shape_holds_the_pixels_whose_centres_it_covers(shape):
+    v, u = np.mgrid[0:CAMERA.height, 0:CAMERA.width]
+    centres = np.stack([u.ravel() + 0.5, v.ravel() + 0.5], axis=1)
+    truth = shape.holds(centres).reshape(CAMERA.height, CAMERA.width)
+    np.testing.assert_array_equal(shape.pixel_mask(), truth)
+    if shape.points == ((7.0, 9.0), (8.0, 10.0)):
+        assert np.argwhere(truth).tolist() == [[9, 7]]
+
+
+def test_rows_select_exactly_their_rows_and_replay_from_json():
+    through = ScreenShape("brush", CAMERA, ((10, 10),), 4.0)
+    rows = Rows((2, 40, 799), "visible", through, 0.05)
+    mask = rows.mask(SCENE)
+    assert np.flatnonzero(mask).tolist() == [2, 40, 799]
+    entry = json.loads(json.dumps(Operation("select", rows, "add").to_json()))
+    assert entry["shape"]["min weight"] == 0.05 and entry["shape"]["through"]["kind"] == "brush"
+    again = Operation.from_json(entry)
+    np.testing.assert_array_equal(again.shape.mask(SCENE), mask)
+    assert again.shape.through.to_json() == through.to_json()
+    with pytest.raises(ValueError, match="row 799 is past the scene's 10 gaussians"):
+        rows.mask(SCENE.rows(np.arange(10)))

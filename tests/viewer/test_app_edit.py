@@ -11,7 +11,7 @@ import json
 
 import numpy as np
 import pytest
-from appkit import PANEL_HEIGHT, PANEL_WIDTH, window_image
+from appkit import PANEL_HEIGHT, PANEL_WIDTH, click_choice, window_image
 from edit_kit import rich_rows, write_rows
 from imgui_bundle import imgui
 from plyfile import PlyData
@@ -19,6 +19,7 @@ from testkit import assert_matches, run_cli
 
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.sorting import exact_order
+from raygs_viewer.scene.edits import Operation, replay
 from raygs_viewer.scene.filters import CropBox, KeepValues
 from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.hidden import HiddenRows
@@ -242,3 +243,67 @@ def test_an_edited_screenshot_renders_again_from_its_sidecar(open_viewer, scene_
     assert again.read_bytes() == png.read_bytes()
     hidden = HiddenRows(tool.edits.deleted)
     assert viewer.shown.sort.hidden.key == hidden.key  # the frame's sort leaves them out
+
+
+@pytest.fixture
+def occluded(tmp_path):
+    """On the view's axis a wide opaque gaussian in front of a small one; four more at the
+    corners frame the scene (the view looks along +z at the centre of the centres)."""
+    rows = rich_rows(n=6, seed=2, filter_3d=False, invalid=())
+    centres = [(0, 0, -0.5), (0, 0, 0.5), (-1.2, -0.9, 0), (1.2, -0.9, 0), (-1.2, 0.9, 0), (1.2, 0.9, 0)]
+    for name, column in zip("xyz", np.array(centres, np.float32).T):
+        rows[name] = column
+    for a in range(3):
+        rows[f"scale_{a}"] = np.log([0.25, 0.08, 0.05, 0.05, 0.05, 0.05])
+    rows["opacity"] = [4.0, 2.2, 2.0, 2.0, 2.0, 2.0]  # 0.982 and 0.900 as rendered
+    rows["rot_0"], rows["rot_1"], rows["rot_2"], rows["rot_3"] = 1, 0, 0, 0
+    return write_rows(tmp_path / "occluded.ply", rows)
+
+
+def screen_of(viewer, u, v):
+    camera, (vx, vy, vw, vh) = viewer.camera, viewer.viewport
+    return float(round(vx + u / camera.width * vw)), float(round(vy + v / camera.height * vh))
+
+
+def test_visible_selection_and_a_click_take_what_the_view_shows_not_what_it_covers(open_viewer, occluded):
+    viewer, drive = open_viewer(str(occluded), width=PANEL_WIDTH, height=PANEL_HEIGHT)
+    drive.frames(2)
+    drive.reveal("Edit")
+    drive.click("Edit")
+    drive.frames(1)
+    drive.reveal("tool##edit")
+    click_choice(drive, "tool##edit", "rectangle")
+    drive.settle()
+    uv, front = projected(viewer)
+    assert front.all() and np.abs(uv[0] - uv[1]).max() < 0.5  # the two centres on one pixel
+    (cu, cv) = uv[0]
+    box = [screen_of(viewer, cu - 9, cv - 9), screen_of(viewer, cu, cv), screen_of(viewer, cu + 9, cv + 9)]
+    drag(drive, box)
+    assert np.flatnonzero(viewer.edit_tool.edits.selection).tolist() == [0, 1]  # through: both centres
+
+    drive.reveal("selects##edit")
+    click_choice(drive, "selects##edit", "what the view shows")
+    assert viewer.edit_tool.selects == "visible"
+    drag(drive, box)
+    # The front one gives 0.98 of the centre pixel; the one it hides at most (1 - 0.98) * 0.9.
+    assert np.flatnonzero(viewer.edit_tool.edits.selection).tolist() == [0]
+
+    click_choice(drive, "tool##edit", "click")
+    drive.click_at(*screen_of(viewer, cu, cv))
+    assert np.flatnonzero(viewer.edit_tool.edits.selection).tolist() == [0]
+    drive.tap(Key.delete)
+    drive.settle()
+    assert np.flatnonzero(viewer.edit_tool.edits.deleted).tolist() == [0]
+    drive.click_at(*screen_of(viewer, cu, cv))  # the deleted one shows no more: the one behind it does
+    assert np.flatnonzero(viewer.edit_tool.edits.selection).tolist() == [1]
+    operations = viewer.edit_tool.document().operations
+    assert operations[-1].shape.to_json()["found by"] == "top"
+    again = replay(viewer.loaded.scene, [Operation.from_json(json.loads(json.dumps(op.to_json())))
+                                         for op in operations])
+    np.testing.assert_array_equal(again.selected, viewer.edit_tool.edits.selected)
+    np.testing.assert_array_equal(again.deleted, viewer.edit_tool.edits.deleted)
+
+    chord(drive, Key.mod_ctrl, Key.z)
+    chord(drive, Key.mod_ctrl, Key.z)
+    assert not viewer.edit_tool.edits.deleted.any()
+    assert np.flatnonzero(viewer.edit_tool.edits.selection).tolist() == [0]

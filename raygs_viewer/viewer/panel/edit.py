@@ -15,7 +15,8 @@ from raygs_viewer.scene.selection import ATTRIBUTES, Box, Sphere
 from raygs_viewer.viewer.edit_tool import LOG_ATTRIBUTES, TOOLS, EditTool
 from raygs_viewer.viewer.panel.widgets import button, choice, header, line, note, tooltip
 
-TOOL_LABELS = {"off": "off", "rectangle": "rectangle", "lasso": "lasso", "brush": "brush"}
+TOOL_LABELS = {"off": "off", "click": "click", "rectangle": "rectangle", "lasso": "lasso", "brush": "brush"}
+SELECTS_LABELS = {"through": "centres inside (through)", "visible": "what the view shows"}
 HOW_LABELS = {"set": "set", "add": "add", "subtract": "subtract", "intersect": "intersect"}
 HISTOGRAM_HEIGHT = 60.0
 
@@ -26,9 +27,18 @@ def draw_edit_section(tool: EditTool) -> None:
     edits = tool.edits
     line(f"{tool.selection_count():,} selected, {tool.deleted_count():,} deleted of {edits.count:,}")
     tool.tool = choice("tool##edit", tool.tool, TOOL_LABELS)
-    tooltip("a left drag on the view selects the centres inside what it draws (Shift adds, Ctrl subtracts, "
-            "both intersect); the camera turns again with the tool off")
+    tooltip("a left drag on the view selects with the shape it draws, a click the gaussian its pixel shows "
+            "most (Shift adds, Ctrl subtracts, both intersect); the camera turns again with the tool off")
     tool.how = choice("combine##edit", tool.how, HOW_LABELS)
+    if tool.tool in ("rectangle", "lasso", "brush"):
+        tool.selects = choice("selects##edit", tool.selects, SELECTS_LABELS)
+        tooltip("through: every centre inside, hidden ones too; what the view shows: the gaussians giving at "
+                "least the weight below of some pixel's colour under the shape, in the order the view composites")
+        if tool.selects == "visible":
+            changed, weight = imgui.slider_float("least weight##edit", tool.min_weight, 0.001, 1.0, "%.3f",
+                                                 imgui.SliderFlags_.logarithmic.value)
+            if changed and math.isfinite(weight):
+                tool.min_weight = min(1.0, max(0.001, weight))
     if tool.tool == "brush":
         changed, radius = imgui.slider_float("brush radius##edit", tool.brush_radius, 2.0, 200.0, "%.0f px")
         if changed and math.isfinite(radius):
