@@ -73,6 +73,7 @@ from raygs_viewer.capture.document_entries import (
     reading_entry,
     stereo_entry,
 )
+from raygs_viewer.capture.edit_file import read_edit_json
 from raygs_viewer.capture.image_io import check_output_path
 from raygs_viewer.capture.nerfstudio import NerfstudioPath, is_nerfstudio, read_nerfstudio, save_nerfstudio
 from raygs_viewer.capture.screenshot import MAX_SCREENSHOT_SIDE, with_relative_scene_path
@@ -97,11 +98,14 @@ KINDS = (RAYGS, NERFSTUDIO)
 MAX_IMAGE_SIZE = MAX_SCREENSHOT_SIDE
 
 PATH_FORMAT = "raygs-viewer camera path"
-PATH_VERSION = 1
+PATH_VERSION = 2
+#: The first version with "edits" (the window's edit document: the scene was edited);
+#: a file without edits is written as version 1, which every reader reads.
+EDITS_PATH_VERSION = 2
 PATH_SUFFIXES = (".json",)
 
 _TOP_REQUIRED = ("format", "version", "image", "path", "keyframes")
-_TOP_OPTIONAL = ("program", "created", "scene", "settings", "stereo", "extra")
+_TOP_OPTIONAL = ("program", "created", "scene", "settings", "stereo", "extra", "edits")
 # How far "path.up" may be from unit length (a hand-edited file writes 0.7071).
 _UNIT_TOLERANCE = 1e-6
 
@@ -118,7 +122,9 @@ class PathDocument:
     render-path then reads it as its options say). source: the
     file it was read from. kind: the format it was read from (one of KINDS). extra:
     free-form details of the window (the file's "extra"). notes: one-line remarks about
-    what the reader could not honour (e.g. a nerfstudio crop box), for the caller to show."""
+    what the reader could not honour (e.g. a nerfstudio crop box), for the caller to show.
+    edits: the edit document's JSON where the scene was edited in the window
+    (``capture.edit_file``: render-path leaves its deleted gaussians out), else None."""
 
     path: CameraPath
     width: int
@@ -134,6 +140,7 @@ class PathDocument:
     extra: dict = field(default_factory=dict)
     notes: tuple[str, ...] = ()
     scene_axes: FileAxes | None = None
+    edits: dict | None = None
 
 
 # --------------------------------------------------------------------------- writing
@@ -152,7 +159,7 @@ def path_document_json(doc: PathDocument, extra: dict | None = None) -> dict:
                  "sh_degree": None if doc.scene_sh_degree is None else int(doc.scene_sh_degree),
                  **reading_entry(doc.scene_axes)}
     return {
-        **document_head(PATH_FORMAT, PATH_VERSION),
+        **document_head(PATH_FORMAT, EDITS_PATH_VERSION if doc.edits is not None else 1),
         "scene": scene,
         "image": {"width": int(doc.width), "height": int(doc.height)},
         "settings": None if doc.settings is None else dataclasses.asdict(doc.settings),
@@ -162,6 +169,7 @@ def path_document_json(doc: PathDocument, extra: dict | None = None) -> dict:
                  "up": [float(x) for x in interpolation.up]},
         "keyframes": [_keyframe_entry(k) for k in path.keyframes],
         "extra": {**doc.extra, **(extra or {})},
+        **({} if doc.edits is None else {"edits": doc.edits}),
     }
 
 
@@ -222,7 +230,7 @@ def read_path_json(data, file: Path) -> PathDocument:
         raise UserError(f"{file}: {what}; 'format' is {show_json(data['format'])}, "
                         f"expected {show_json(PATH_FORMAT)})")
     fields = JsonFields(file, data)
-    fields.version(PATH_VERSION, "camera path")
+    version = fields.version(PATH_VERSION, "camera path")
     fields.keys("", data, _TOP_REQUIRED, _TOP_OPTIONAL)
     _check_program(fields)
 
@@ -233,10 +241,15 @@ def read_path_json(data, file: Path) -> PathDocument:
     stereo = None if data.get("stereo") is None else load_stereo_entry(fields)
     path = _load_path(fields)
     extra = {} if data.get("extra") is None else fields.get("extra", dict)
+    edits = fields.get("edits", dict) if "edits" in data else None
+    if edits is not None and version < EDITS_PATH_VERSION:
+        raise UserError(f"{file}: 'edits' needs camera path version {EDITS_PATH_VERSION}, the file says {version}")
+    if edits is not None:
+        read_edit_json(edits, f"{file}: 'edits'")  # a broken record is refused here, not after a long render
     return PathDocument(path, width, height, settings, stereo, scene.get("path"), scene.get("sha256"),
                         source=file, kind=RAYGS, scene_count=scene.get("count"),
                         scene_sh_degree=scene.get("sh_degree"), extra=dict(extra),
-                        scene_axes=scene.get("axes"))
+                        scene_axes=scene.get("axes"), edits=edits)
 
 
 def _check_program(fields: JsonFields) -> None:

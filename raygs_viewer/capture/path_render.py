@@ -34,6 +34,7 @@ from raygs_viewer.render.gl.stereo_frame import render_stereo_view, stereo_order
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.sort.depth import DepthSorter
+from raygs_viewer.sort.hidden import HiddenRows
 from raygs_viewer.sort.lod_choice import LodRequest
 
 if TYPE_CHECKING:
@@ -80,28 +81,31 @@ def frame_size(width: int, height: int, stereo: StereoView | None) -> tuple[int,
 
 
 def render_frame(renderer: "GLRenderer", sorter: DepthSorter, camera: Camera, settings: RenderSettings,
-                 stereo: StereoView | None, levels: LodRequest | None = None) -> np.ndarray:
+                 stereo: StereoView | None, levels: LodRequest | None = None,
+                 hidden: HiddenRows | None = None) -> np.ndarray:
     """(H, W, 4) float32, top row first: the image ``render`` makes of ``camera``, with
     an exact sort of its own by ``sorter`` (a stereo frame composed per
     ``stereo.layout``); ``levels``: a streamed scene's, chosen for ``camera`` (for a
-    stereo frame, the eyes' midpoint)."""
+    stereo frame, the eyes' midpoint); ``hidden``: rows left out (deleted in the window)."""
     if stereo is not None:
-        order = stereo_order(sorter, camera, settings, stereo.rig, levels)
+        order = stereo_order(sorter, camera, settings, stereo.rig, levels, hidden)
         return render_stereo_view(renderer, order, camera, settings, stereo)[0]
-    return render_tiled(renderer, sorter, exact_order(sorter, camera, settings, levels=levels), camera, settings)
+    return render_tiled(renderer, sorter, exact_order(sorter, camera, settings, levels=levels, hidden=hidden), camera,
+                        settings)
 
 
 def render_frame_channels(renderer: "GLRenderer", sorter: DepthSorter, camera: Camera, settings: RenderSettings,
                           stereo: StereoView | None, channels: tuple[str, ...],
-                          normal_space: str = "camera", levels: LodRequest | None = None) -> ChannelImage:
+                          normal_space: str = "camera", levels: LodRequest | None = None,
+                          hidden: HiddenRows | None = None) -> ChannelImage:
     """The ChannelImage of one frame, normals in ``normal_space`` of ``camera``: the
     geometry render where ``channels`` need it (not with ``stereo``: its layouts compose
     colour), else :func:`render_frame`'s colour."""
     if not needs_geometry(channels):
-        return colour_channels(render_frame(renderer, sorter, camera, settings, stereo, levels))
+        return colour_channels(render_frame(renderer, sorter, camera, settings, stereo, levels, hidden))
     if stereo is not None:
         raise UserError("--stereo composes colour; its frames cannot carry depth or normals")
-    order = exact_order(sorter, camera, settings, levels=levels)
+    order = exact_order(sorter, camera, settings, levels=levels, hidden=hidden)
     return render_tiled_channels(renderer, sorter, order, camera, settings,
                                  median="median_depth" in channels).in_space(normal_space, camera)
 
@@ -109,20 +113,22 @@ def render_frame_channels(renderer: "GLRenderer", sorter: DepthSorter, camera: C
 def render_frames(renderer: "GLRenderer", sorter: DepthSorter, cameras: list[Camera], settings: RenderSettings,
                   stereo: StereoView | None, sink: FrameSink, progress: Progress | None = None,
                   channels: tuple[str, ...] | None = None, normal_space: str = "camera",
-                  lod: LodRequest | None = None) -> int:
+                  lod: LodRequest | None = None, hidden: HiddenRows | None = None) -> int:
     """Renders each camera (:func:`render_frame`), converts it to 8 bits as a PNG
     screenshot is, and writes it to ``sink``; returns the frames written. With
     ``channels`` each frame goes to the sink as a ChannelImage instead
     (:func:`render_frame_channels`; an ExrFolderSink). ``lod``: a streamed scene's
-    levels, chosen for each frame's camera. A KeyboardInterrupt propagates
+    levels, chosen for each frame's camera; ``hidden``: rows every frame leaves out (the
+    path document's edits). A KeyboardInterrupt propagates
     between or inside frames: the caller aborts the sink, whose ``frames_written`` then
     says what it holds."""
     written = 0
     for camera in cameras:
         if channels is not None:
-            sink.write(render_frame_channels(renderer, sorter, camera, settings, stereo, channels, normal_space, lod))
+            sink.write(render_frame_channels(renderer, sorter, camera, settings, stereo, channels, normal_space, lod,
+                                             hidden))
         else:
-            sink.write(to_rgb8(render_frame(renderer, sorter, camera, settings, stereo, lod)))
+            sink.write(to_rgb8(render_frame(renderer, sorter, camera, settings, stereo, lod, hidden)))
         written += 1
         if progress is not None:
             progress.update(sink.frames_written)

@@ -68,6 +68,7 @@ from raygs_viewer.scene.source import DEMO, SceneSource
 from raygs_viewer.scene.lod_file import lod_summary
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.sort.depth import DepthSorter
+from raygs_viewer.sort.hidden import HiddenRows
 from raygs_viewer.sort.lod_choice import LodChoice
 
 #: The view options that resize a camera instead of choosing one: with --sidecar they
@@ -144,17 +145,16 @@ def open_scene_argument(source: SceneSource, settings: RenderSettings, ctx=None)
     return opened
 
 
-def edited(opened: OpenedScene, shot: Sidecar) -> OpenedScene:
-    """``opened`` as the screenshot's edits left it (its sidecar's "edits"): the gaussians
-    deleted in the window left out, the rest in their order (sorted, they draw as the
-    window drew them with those rows hidden)."""
-    if shot.edits is None:
+def edited(opened: OpenedScene, edits: dict | None, sha256: str, where: str) -> OpenedScene:
+    """``opened`` as the window's ``edits`` (a sidecar's or a path file's "edits", in the
+    file ``where``) left it: the gaussians deleted there hidden from every sort, as the
+    window hid them (a streamed SOG's levels keep their rows, so its choices stay the
+    window's). ``sha256``: the scene file's, which must be the one the edits were made on."""
+    if edits is None:
         return opened
-    document = read_edit_json(shot.edits, f"{shot.path}: 'edits'")
-    document.check_scene(shot.scene_sha256, opened.scene.count, str(shot.path))  # the edits are of its scene
-    if opened.lod is not None:
-        raise UserError(f"{shot.path}: edits of a streamed SOG are not replayed yet")
-    return replace(opened, scene=opened.scene.rows(document.replay(opened.scene).kept))
+    document = read_edit_json(edits, f"{where}: 'edits'")
+    document.check_scene(sha256, opened.scene.count, where)
+    return replace(opened, hidden=HiddenRows.of(document.replay(opened.scene).deleted))
 
 
 def warn_dropped(scene: Scene) -> None:
@@ -191,15 +191,6 @@ def _scene_and_camera(args, settings: RenderSettings, ctx) -> tuple[OpenedScene,
     source = argtypes.scene_source(args, args.scene or DEMO)
     opened = open_scene_argument(source, settings, ctx)
     return opened, choose_camera(opened.framed, source, args.camera, args.camera_index, args.width, args.height)
-
-
-def _drawn(opened: OpenedScene, camera: Camera) -> tuple[Scene, LodChoice | None]:
-    """What ``camera`` draws of ``opened`` as a Scene of its own (the reference renderer's
-    input), and the level-of-detail choice it came from."""
-    if opened.lod is None:
-        return opened.scene, None
-    choice = opened.lod.choose(camera)
-    return opened.lod.lod.subset(choice.spans), choice
 
 
 # --- the commands ---------------------------------------------------------------------------------
@@ -243,7 +234,8 @@ def command_render(args) -> int:
             scene_name = resolve_scene(shot, args.scene)
             verify_scene_hash(shot, scene_name)
             camera, settings, stereo = sized(shot.camera, args.width, args.height), shot.settings, shot.stereo
-            opened = edited(open_scene_argument(shot.source(scene_name), settings, ctx), shot)
+            opened = edited(open_scene_argument(shot.source(scene_name), settings, ctx), shot.edits,
+                            shot.scene_sha256, str(shot.path))
         else:
             settings = render_settings(args)
             opened, camera = _scene_and_camera(args, settings, ctx)
@@ -305,7 +297,7 @@ def render_image(args, ctx, opened: OpenedScene, camera: Camera, settings: Rende
     what it drew, in words. ``ctx``: the GL context (None with --reference)."""
     geometry = needs_geometry(channels)
     if args.reference:
-        scene, choice = _drawn(opened, camera)
+        scene, choice = opened.drawn(camera)
         if geometry:
             return reference.render_reference_channels(scene, camera, settings), drawn_words(opened, choice)
         return render_reference(scene, camera, settings), drawn_words(opened, choice)
@@ -317,11 +309,11 @@ def render_image(args, ctx, opened: OpenedScene, camera: Camera, settings: Rende
         raise
     try:
         if stereo is not None:  # the eyes' midpoint chooses the levels
-            order = stereo_order(sorter, camera, settings, stereo.rig, opened.lod)
+            order = stereo_order(sorter, camera, settings, stereo.rig, opened.lod, opened.hidden)
             return render_stereo_view(renderer, order, camera, settings, stereo)[0], drawn_words(opened, order.choice)
         # Tiled like the window's screenshots: the same pixels, and sizes beyond
         # the GPU's largest render target.
-        order = exact_order(sorter, camera, settings, levels=opened.lod)
+        order = exact_order(sorter, camera, settings, levels=opened.lod, hidden=opened.hidden)
         if geometry:
             return (screenshot.render_tiled_channels(renderer, sorter, order, camera, settings,
                                                      median="median_depth" in channels),
@@ -333,13 +325,16 @@ def render_image(args, ctx, opened: OpenedScene, camera: Camera, settings: Rende
 
 
 def drawn_words(opened: OpenedScene, choice: LodChoice | None) -> str:
-    """"N gaussians", or for a level-of-detail choice what it drew of what was read."""
+    """"N gaussians", or for a level-of-detail choice what it drew of what was read; and
+    how many are deleted where a screenshot's edits hide some."""
+    hidden = 0 if opened.hidden is None else int(opened.hidden.mask.sum())
+    deleted = f" ({hidden} deleted)" if hidden else ""
     if choice is None:
-        return f"{opened.scene.count} gaussians"
+        return f"{opened.scene.count - hidden} gaussians{deleted}"
     per_level = ", ".join(f"{n} at level {level}" for level, n in enumerate(choice.per_level(opened.lod.lod.levels))
                           if n)
     over = "; the coarsest levels alone exceed the budget" if choice.over_budget else ""
-    return f"{choice.count} of {opened.scene.count} gaussians (parts: {per_level}{over})"
+    return f"{choice.count} of {opened.scene.count} gaussians (parts: {per_level}{over}){deleted}"
 
 
 def command_verify(args) -> int:
@@ -362,7 +357,7 @@ def command_verify(args) -> int:
         device = context_description(ctx)
     finally:
         ctx.release()
-    scene, choice = _drawn(opened, camera)  # the reference draws what the GL renderer was restricted to
+    scene, choice = opened.drawn(camera)  # the reference draws what the GL renderer was restricted to
     start = time.perf_counter()
     reference = render_reference(scene, camera, settings)
     reference_time = time.perf_counter() - start

@@ -35,7 +35,7 @@ from raygs_viewer.capture.path_render import (
 from raygs_viewer.capture.progress import MODES, Progress
 from raygs_viewer.capture.video import VIDEO_SUFFIX, ExrFolderSink, check_video_output, open_sink
 from raygs_viewer.cli import argtypes
-from raygs_viewer.cli.commands import warn_dropped
+from raygs_viewer.cli.commands import edited, warn_dropped
 from raygs_viewer.cli.options import (
     add_channel_options,
     add_settings_options,
@@ -56,7 +56,6 @@ from raygs_viewer.render.sorting import open_sorter
 from raygs_viewer.scene.io import SCENE_FILES
 from raygs_viewer.scene.loader import load_now
 from raygs_viewer.scene.source import DEMO
-from raygs_viewer.sort.lod_choice import LodRequest
 
 #: The PATH argument that asks for a turntable instead of a path file, and its defaults.
 ORBIT = "orbit"
@@ -144,6 +143,8 @@ def _render_scene(ctx, args, document, settings, stereo, path, out, cameras_out)
     if loaded.lod is None:
         refuse_lod_settings("the demo scene" if source.is_demo else args.scene, settings)
     opened = OpenedScene(loaded.scene) if loaded.lod is None else for_settings(loaded.lod, settings)
+    if document is not None:  # the window's deletions, on the very scene they were made on
+        opened = edited(opened, document.edits, loaded.sha256, args.scene)
     scene = opened.scene
     warn_dropped(scene)
     if opened.note:
@@ -171,7 +172,7 @@ def _render_scene(ctx, args, document, settings, stereo, path, out, cameras_out)
         if cameras_out is not None:
             write_cameras_json(entries, cameras_out, args.overwrite)
         return _render(renderer, sorter, cameras, settings, stereo, out, frame_size(width, height, stereo),
-                       path.fps, args, opened.lod)
+                       path.fps, args, opened)
     finally:
         sorter.close()
         renderer.release()
@@ -207,7 +208,7 @@ def orbit_document(positions: np.ndarray, up: str, width: int, height: int) -> P
 
 
 def _render(renderer, sorter, cameras, settings, stereo, out: Path, image_size, fps: float, args,
-            lod: LodRequest | None) -> int:
+            opened: OpenedScene) -> int:
     if args.channels is not None:
         sink = ExrFolderSink(out, *image_size, args.channels, args.overwrite, frames=len(cameras))
     else:
@@ -224,7 +225,7 @@ def _render(renderer, sorter, cameras, settings, stereo, out: Path, image_size, 
     start = time.perf_counter()
     try:
         render_frames(renderer, sorter, cameras, settings, stereo, timed, progress, args.channels,
-                      check_normal_space(args.channels or (), args.normal_space), lod)
+                      check_normal_space(args.channels or (), args.normal_space), opened.lod, opened.hidden)
         written = timed.finish()
     except KeyboardInterrupt:
         kept = sink.abort()

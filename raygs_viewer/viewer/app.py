@@ -252,7 +252,7 @@ class Viewer:
         self.frustums.draw(frame, self.loaded, self.view.radius, hover=not self.measure.on)  # under the path's lines
         self.camera_path.draw_overlay(frame, self.view.radius)
         self.measure.draw_overlay(frame, self.view.radius)
-        self.edit_tool.draw_overlay()
+        self.edit_tool.draw_overlay(frame, self.view.radius)
         width_shown = imgui.get_io().display_size.x
         left = self.side_panel.notes_left(width_shown)
         self.feedback.draw(left, 10.0, width_shown - left - 10.0)

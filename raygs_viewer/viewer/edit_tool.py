@@ -20,22 +20,20 @@ or Ctrl+Shift+Z redoes.
 from __future__ import annotations
 
 import math
-import os
-from pathlib import Path
 
 import numpy as np
 from imgui_bundle import imgui
 
-from raygs_viewer.capture.edit_file import EditDocument, edit_document_json, save_edit_document
+from raygs_viewer.capture.edit_file import EditDocument, edit_document_json
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.scene.edits import Edits, Operation
 from raygs_viewer.scene.model import Scene
-from raygs_viewer.scene.ply_rows import write_kept
 from raygs_viewer.scene.selection import ATTRIBUTES, Box, Range, ScreenShape, Sphere, attribute_values
 from raygs_viewer.scene.source import SceneSource
-from raygs_viewer.scene.writing import WRITE_SUFFIXES
 from raygs_viewer.sort.hidden import HiddenRows
+from raygs_viewer.viewer.edit_export import EditExport
 from raygs_viewer.viewer.view_selection import shown_rows
+from raygs_viewer.viewer.volume_handles import VolumeHandles
 
 #: The tools the left button draws with ("off": it turns the camera; "click": the gaussian
 #: the clicked pixel shows most).
@@ -50,12 +48,6 @@ LOG_ATTRIBUTES = ("largest scale", "volume")
 TRACE_STEP = 2.0
 
 
-def edit_document_path(target: str | os.PathLike) -> Path:
-    """Where an export's edit document is written: ``NAME.edits.json`` beside it."""
-    target = Path(target)
-    return target.with_name(f"{target.stem}.edits.json")
-
-
 class EditTool:
     """The edits of the scene the window shows (``host``: the viewer, ``app.Viewer``)."""
 
@@ -67,8 +59,8 @@ class EditTool:
         self.selects = "through"
         self.min_weight = 0.05     # the least share of a pixel's colour "visible" selects
         self.attribute = ATTRIBUTES[0]
-        self.export_file = ""
-        self.confirm_replace: str | None = None   # the export target that exists, waiting for a yes
+        self.exporter = EditExport(self)
+        self.handles = VolumeHandles(self)
         self.edits: Edits | None = None
         self.box: Box | None = None
         self.sphere: Sphere | None = None
@@ -83,7 +75,8 @@ class EditTool:
     def opened(self, scene: Scene) -> None:
         """A new scene: no edits, the box and the sphere around its centres."""
         self.edits = Edits(scene.count)
-        self.drag, self._histogram, self._counted, self.confirm_replace = None, None, None, None
+        self.drag, self._histogram, self._counted, self.exporter.confirm_replace = None, None, None, None
+        self.handles.drag = None
         positions = scene.positions.astype(np.float64)
         if scene.count:
             low, high = positions.min(axis=0), positions.max(axis=0)
@@ -191,38 +184,6 @@ class EditTool:
             low, high = 10.0 ** low, 10.0 ** high
         return self.select(Range(attribute, low, high), how)
 
-    # -- export -----------------------------------------------------------------------
-    def export(self, replace: bool = False) -> Path | None:
-        """Writes the gaussians not deleted at :attr:`export_file`, and the edit document
-        beside it; an existing file waits for a confirmation (``replace``)."""
-        target = Path(self.export_file.strip() or "")
-        try:
-            if not self.export_file.strip():
-                raise UserError("name the file to export to")
-            if target.suffix.lower() not in WRITE_SUFFIXES:
-                raise UserError(f"{target}: the export must end in {', '.join(WRITE_SUFFIXES)}")
-            source = self.host.loaded.source
-            if not source.is_demo and Path(source.path).resolve() == target.resolve():
-                raise UserError(f"{target}: is the scene shown; export to another file")
-            document = edit_document_path(target)
-            if (target.exists() or document.exists()) and not replace:
-                self.confirm_replace = str(target)
-                return None
-            kept = self.edits.kept
-            if not kept.any():
-                raise UserError("every gaussian is deleted: nothing to export")
-            write_kept(self.scene.rows(kept), source.path, target, replace)
-            save_edit_document(self.document(), document, replace)
-        except UserError as exc:
-            self.host.panel.error = f"error: not exported: {one_line(exc)}"
-            return None
-        finally:
-            if replace:
-                self.confirm_replace = None
-        self.host.panel.note(f"exported {int(kept.sum()):,} gaussians to {target} (+ {document.name})")
-        self.host.panel.error = ""
-        return target
-
     def sidecar_entry(self) -> dict | None:
         """What a screenshot's sidecar records of the edits: the edit document, where a
         gaussian is deleted (a selection alone changes no screenshot); None otherwise."""
@@ -240,6 +201,8 @@ class EditTool:
         """Draws the tool's shape with the left button on ``frame``'s view; True while the
         mouse is the tool's (the camera leaves the left button alone then)."""
         io = imgui.get_io()
+        if self.edits is not None and self.drag is None and self.handles.take_mouse(frame):
+            return True
         if self.tool == "off" or frame is None or frame.stereo is not None or self.edits is None:
             self.drag = None
             return False
@@ -302,8 +265,9 @@ class EditTool:
         if io.key_ctrl and imgui.is_key_pressed(imgui.Key.y, False):
             self.redo()
 
-    def draw_overlay(self) -> None:
-        """The shape being drawn, over the view."""
+    def draw_overlay(self, frame, radius: float) -> None:
+        """The box and the sphere where shown, and the shape being drawn, over the view."""
+        self.handles.draw(frame, radius)
         if not self.drag:
             return
         draw = imgui.get_foreground_draw_list()

@@ -59,15 +59,23 @@ FRUSTUM_SIZE = 0.05
 OVERLAY_NEAR = 1e-3
 
 
+class EditsRecord(Protocol):
+    """The edit tool as the path sees it: its edit document's JSON where a gaussian is
+    deleted, None otherwise (``edit_tool.EditTool.sidecar_entry``)."""
+
+    def sidecar_entry(self) -> dict | None: ...
+
+
 class PathHost(Protocol):
     """The window as the path widget sees it (the viewer): the camera's controls and the
-    scene, both replaced when a scene loads, the render settings (the left side's), and
-    the last frame (None before the first), read at each action."""
+    scene, both replaced when a scene loads, the render settings (the left side's), the
+    last frame (None before the first), read at each action, and the scene's edits."""
 
     view: ViewControl
     loaded: LoadedScene
     settings: RenderSettings
     shown: Frame | None
+    edit_tool: EditsRecord
 
 
 class PathWidget:
@@ -110,12 +118,13 @@ class PathWidget:
     def document(self) -> PathDocument:
         """The path with what renders it as the window shows it: the view's size (in
         stereo, the headset's per eye), the render settings (the left side's), the
-        stereo view when the preview is on, the scene."""
+        stereo view when the preview is on, the scene and its edits (what is deleted)."""
         frame, loaded = self.host.shown, self.host.loaded
         width, height = NO_VIEWPORT[2:] if frame is None else (frame.full_camera.width, frame.full_camera.height)
         return PathDocument(self.path, width, height, self.host.settings, None if frame is None else frame.stereo,
                             scene_argument(loaded), loaded.content_sha256,
-                            scene_axes=loaded.scene.axes)  # a .spz's: render-path reads it in the same axes
+                            scene_axes=loaded.scene.axes,  # a .spz's: render-path reads it in the same axes
+                            edits=self.host.edit_tool.sidecar_entry())
 
     def view_aspect(self) -> float:
         """The viewport's width / height."""

@@ -224,7 +224,8 @@ MALFORMED = {
     "sidecar": (json.dumps(demo_sidecar()), "'format' is \"raygs-viewer screenshot\""),
     "no_format": (delete_field("format"), "neither 'format' nor 'camera_path'"),
     "format_number": (set_field("format", 1), "'format' is 1"),
-    "newer_version": (set_field("version", 2), "newer raygs-viewer"),
+    "newer_version": (set_field("version", 3), "newer raygs-viewer"),
+    "edits_in_version_1": (set_field("edits", {}), "'edits' needs camera path version 2"),
     "version_zero": (set_field("version", 0), "'version'"),
     "version_string": (set_field("version", "1"), "'version'"),
     "version_missing": (delete_field("version"), "missing 'version'"),
@@ -362,7 +363,7 @@ def test_the_valid_file_behind_the_cases_loads(tmp_path):
 
 def test_newer_version_says_so(tmp_path):
     path = write_malformed(tmp_path, "newer_version")
-    assert_user_error(lambda: load_path_document(path), path, "version 2", "newer raygs-viewer", "update")
+    assert_user_error(lambda: load_path_document(path), path, "version 3", "newer raygs-viewer", "update")
 
 
 def _edits():

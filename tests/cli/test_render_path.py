@@ -23,11 +23,15 @@ from raygs_viewer.camera.stereo import StereoRig, StereoView
 from raygs_viewer.capture import path_render
 from raygs_viewer.capture.path_file import PathDocument, export_nerfstudio, save_path_document
 from raygs_viewer.capture.progress import FrameProgress, RenderDone, RenderInterrupted, read_progress_line
+from raygs_viewer.capture.edit_file import EditDocument, edit_document_json
+from raygs_viewer.capture.image_io import to_rgb8
 from raygs_viewer.capture.sidecar import demo_sha256
 from raygs_viewer.cli import path as path_command
 from raygs_viewer.cli.main import main
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.demo import demo_cameras, demo_scene
+from raygs_viewer.scene.edits import Edits, Operation
+from raygs_viewer.scene.selection import Box
 
 BACKGROUND = (0.2, 0.3, 0.4)
 
@@ -258,3 +262,34 @@ def test_a_real_sigint_mid_render_leaves_a_playable_video(tmp_path):
     assert len(decoded(video)[0]) == interrupted.frames
     assert sorted(p.name for p in tmp_path.iterdir()) == ["fly.mp4", "long.json"]
     assert err.strip().splitlines()[-1].startswith("interrupted: ")
+
+
+def test_a_path_recorded_on_an_edited_scene_leaves_the_deleted_gaussians_out(tmp_path, gl_render, capsys):
+    """The window's path file carries its edit document: every frame is the scene
+    without the deleted gaussians, to the bit; edits of another scene are refused."""
+    scene = demo_scene()
+    edits = Edits(scene.count)
+    edits.apply(scene, Operation("select", Box((-5.0, -5.0, -5.0), (0.0, 5.0, 5.0))))
+    edits.apply(scene, Operation("delete"))
+    assert 0 < edits.deleted.sum() < scene.count
+    entry = edit_document_json(EditDocument("demo", demo_sha256(), scene.count, tuple(edits.operations)))
+    path_file = save_path_document(demo_document(edits=entry), tmp_path / "edited.json")
+    assert json.loads(path_file.read_text())["version"] == 2
+    frames, cameras = tmp_path / "frames", tmp_path / "cams.json"
+    assert run("demo", str(path_file), "--out", str(frames), "--cameras-out", str(cameras)) == 0
+    images = frames_of(frames)
+    kept = scene.rows(edits.kept)
+    for k in (0, 3):
+        camera = load_cameras(cameras)[k]
+        image = gl_render(kept, camera, RenderSettings(background=BACKGROUND))
+        np.testing.assert_array_equal(images[k], to_rgb8(image)[..., :3])
+    whole = tmp_path / "whole"
+    assert run("demo", str(save_path_document(demo_document(), tmp_path / "plain.json")), "--out", str(whole)) == 0
+    assert np.abs(frames_of(whole)[0].astype(int) - images[0]).max() > 20  # the deletion shows
+    capsys.readouterr()
+    other = save_path_document(demo_document(edits={**entry, "scene": {**entry["scene"], "sha256": "0" * 64}}),
+                               tmp_path / "other.json")
+    assert run("demo", str(other), "--out", str(tmp_path / "never")) == 2
+    err = capsys.readouterr().err
+    assert "is not the scene these edits were made on" in err and len(err.strip().splitlines()) == 1
+    assert not (tmp_path / "never").exists()

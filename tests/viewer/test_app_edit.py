@@ -14,6 +14,7 @@ import pytest
 from appkit import PANEL_HEIGHT, PANEL_WIDTH, click_choice, window_image
 from edit_kit import rich_rows, write_rows
 from imgui_bundle import imgui
+from PIL import Image
 from plyfile import PlyData
 from testkit import assert_matches, run_cli
 
@@ -204,7 +205,7 @@ def test_crop_to_the_box_and_export_write_the_kept_rows_bit_for_bit(open_viewer,
     assert_matches(window_image(viewer), without(viewer, ~kept))
 
     target = tmp_path / "clean.ply"
-    tool.export_file = str(target)
+    tool.exporter.file = str(target)
     drive.reveal("Export")
     drive.click("Export")
     written = PlyData.read(str(target))["vertex"].data
@@ -216,10 +217,10 @@ def test_crop_to_the_box_and_export_write_the_kept_rows_bit_for_bit(open_viewer,
     first = target.read_bytes()
     tool.apply(type(tool.edits.operations[0])("undelete all"))
     drive.click("Export")  # the file exists: nothing is written until Replace
-    assert tool.confirm_replace == str(target) and target.read_bytes() == first
+    assert tool.exporter.confirm_replace == str(target) and target.read_bytes() == first
     drive.reveal("Cancel##export")
     drive.click("Cancel##export")
-    assert tool.confirm_replace is None and target.read_bytes() == first
+    assert tool.exporter.confirm_replace is None and target.read_bytes() == first
 
     replayed = tmp_path / "replayed.ply"
     code, out, err = run_cli(capsys, "convert", source, replayed, "--edits", document)
@@ -237,10 +238,18 @@ def test_an_edited_screenshot_renders_again_from_its_sidecar(open_viewer, scene_
     png, sidecar = viewer.save_screenshot(tmp_path / "shot.png")
     recorded = json.loads(sidecar.read_text())
     assert recorded["version"] == 5 and recorded["edits"]["operations"][1] == {"op": "delete"}
+    # The path the window saves or renders a video from carries the same edits (render-path honours them).
+    assert viewer.camera_path.document().edits["operations"] == recorded["edits"]["operations"]
     again = tmp_path / "again.png"
     code, out, err = run_cli(capsys, "render", "--sidecar", sidecar, "--out", again)
     assert code == 0, err
     assert again.read_bytes() == png.read_bytes()
+    reference = tmp_path / "reference.png"  # the float64 reference leaves the same rows out
+    code, out, err = run_cli(capsys, "render", "--sidecar", sidecar, "--reference", "--out", reference)
+    assert code == 0, err
+    assert f"({int(tool.edits.deleted.sum())} deleted)" in out
+    shot, drawn = (np.asarray(Image.open(path)).astype(int) for path in (png, reference))
+    assert np.abs(shot - drawn).max() <= 3
     hidden = HiddenRows(tool.edits.deleted)
     assert viewer.shown.sort.hidden.key == hidden.key  # the frame's sort leaves them out
 

@@ -30,7 +30,9 @@ from raygs_viewer.render.gl.stereo_frame import render_stereo_view, stereo_order
 from raygs_viewer.render.gl.storage import gpu_bytes
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.render.sorting import exact_order
+from raygs_viewer.scene.edits import Operation
 from raygs_viewer.scene.lod_file import load_lod, subset_scene
+from raygs_viewer.scene.selection import Sphere
 from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.lod_choice import choose
 from raygs_viewer.sort.worker import BackgroundSorter
@@ -405,3 +407,27 @@ def test_a_scripted_run_ends_on_every_level(restore_gl_ctx, streamed, tmp_path, 
                  "--width", "64", "--height", "48", "--window-platform", "null"]) == 0
     capsys.readouterr()
     assert json.loads(shot.with_suffix(".json").read_text())["scene"]["lod_levels"] == [0, 1, 2]
+
+
+def test_an_edited_screenshot_of_a_streamed_sog_renders_again_from_its_sidecar(open_viewer, streamed, tmp_path,
+                                                                                capsys):
+    viewer, drive = open_streamed(open_viewer, streamed, hide_panel=True)
+    tool = viewer.edit_tool
+    positions = viewer.loaded.scene.positions
+    middle = np.median(positions, axis=0)
+    tool.select(Sphere(tuple(middle.tolist()), float(np.percentile(np.linalg.norm(positions - middle, axis=1), 30))))
+    tool.apply(Operation("delete"))
+    deleted = tool.edits.deleted.copy()
+    assert 0 < deleted.sum() < deleted.size
+    drive.settle()
+    png, sidecar = viewer.save_screenshot()
+    recorded = json.loads(sidecar.read_text())
+    assert recorded["edits"]["operations"][-1] == {"op": "delete"} and recorded["scene"]["lod_levels"] == [0, 1, 2]
+    shot = np.asarray(Image.open(png))
+    tool.undo()
+    drive.settle()
+    whole, _ = viewer.save_screenshot()
+    assert np.abs(np.asarray(Image.open(whole)).astype(int) - shot.astype(int)).max() > 20  # the delete shows
+    capsys.readouterr()
+    np.testing.assert_array_equal(rendered_again(viewer, sidecar, tmp_path / "again.png"), shot)
+    assert f"({int(deleted.sum())} deleted)" in capsys.readouterr().out

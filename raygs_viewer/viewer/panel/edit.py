@@ -72,6 +72,8 @@ def _corner(label: str, values: tuple[float, float, float]) -> tuple[float, floa
 def _volume(tool: EditTool) -> None:
     """The box and the sphere: their numbers, select inside, crop to them."""
     imgui.separator_text("box")
+    _, tool.handles.show_box = imgui.checkbox("show in the view##box", tool.handles.show_box)
+    tooltip("the box's edges over the view; drag its centre dot to move it, a face's dot to move that face")
     low, high = _corner("low##box", tool.box.low), _corner("high##box", tool.box.high)
     if low is not None or high is not None:
         try:
@@ -85,6 +87,8 @@ def _volume(tool: EditTool) -> None:
     if imgui.button("Crop to box"):
         tool.apply(Operation("crop", tool.box))
     imgui.separator_text("sphere")
+    _, tool.handles.show_sphere = imgui.checkbox("show in the view##sphere", tool.handles.show_sphere)
+    tooltip("the sphere over the view; drag its centre dot to move it, the dot on its rim to set the radius")
     centre = _corner("centre##sphere", tool.sphere.centre)
     changed, radius = imgui.input_float("radius##sphere", tool.sphere.radius, 0.0, 0.0, "%.4g")
     if centre is not None or (changed and math.isfinite(radius) and radius >= 0):
@@ -136,18 +140,18 @@ def _histogram(tool: EditTool) -> None:
 def _export(tool: EditTool) -> None:
     imgui.separator_text("export")
     imgui.set_next_item_width(-70)
-    _, tool.export_file = imgui.input_text_with_hint("##export file", "clean.ply (.splat, .spz, .sog)",
-                                                     tool.export_file)
+    export = tool.exporter
+    _, export.file = imgui.input_text_with_hint("##export file", "clean.ply (.splat, .spz, .sog)", export.file)
     imgui.same_line()
     if imgui.button("Export"):
-        tool.export()
+        export.export()
     tooltip("the gaussians not deleted, in their order (a PLY's rows as the file has them), and the edits "
             "beside them as NAME.edits.json")
-    if tool.confirm_replace is not None:
-        note(f"{tool.confirm_replace} exists: replace it and its edits?")
+    if export.confirm_replace is not None:
+        note(f"{export.confirm_replace} exists: replace it and its edits?")
         if imgui.button("Replace##export"):
-            tool.export(replace=True)
+            export.export(replace=True)
         imgui.same_line()
         if imgui.button("Cancel##export"):
-            tool.confirm_replace = None
+            export.confirm_replace = None
 
