@@ -111,7 +111,8 @@ class Viewer:
         self.panel = PanelState()
         self.side_panel = SidePanel(self.panel, Remembered())
         self.stats = FrameStats()
-        self.scenes = SceneOpener(self.panel, options.source, window_fits(self.ctx, self.panel))
+        self.scenes = SceneOpener(self.panel, options.source, window_fits(self.ctx, self.panel),
+                                  lambda: self.edit_tool.unsaved())
         self.window.set_drop_callback(self.scenes.drop)
         self.scene = ShownScene(self.ctx, options.general, renderer_factory, sorter_factory, self.scenes, self._forget,
                                 lambda count: self.auto.sort_choice(count).value)

@@ -36,13 +36,16 @@ class Edited(Protocol):
 
 
 class EditExport:
-    """``file``: the target the panel names; ``confirm_replace``: an existing target
-    waiting for a yes (None: none)."""
+    """``file``: the target the panel names; ``confirm_replace``: a target waiting for a
+    yes (None: none) because the files ``existing`` (it, its edit document, or both) are
+    there; ``exported``: the edits' generation last written (None: never)."""
 
     def __init__(self, tool: Edited) -> None:
         self.tool = tool
         self.file = ""
         self.confirm_replace: str | None = None
+        self.existing: tuple[str, ...] = ()
+        self.exported: int | None = None  # the edits' generation last written
 
     def export(self, replace: bool = False) -> Path | None:
         """Writes the gaussians not deleted at :attr:`file`, and the edit document beside
@@ -58,8 +61,9 @@ class EditExport:
             if not source.is_demo and Path(source.path).resolve() == target.resolve():
                 raise UserError(f"{target}: is the scene shown; export to another file")
             document = edit_document_path(target)
-            if (target.exists() or document.exists()) and not replace:
-                self.confirm_replace = str(target)
+            existing = tuple(str(path) for path in (target, document) if path.exists())
+            if existing and not replace:
+                self.confirm_replace, self.existing = str(target), existing
                 return None
             kept = tool.edits.kept
             if not kept.any():
@@ -72,6 +76,7 @@ class EditExport:
         finally:
             if replace:
                 self.confirm_replace = None
+        self.exported = tool.edits.generation
         panel.note(f"exported {int(kept.sum()):,} gaussians to {target} (+ {document.name})")
         panel.error = ""
         return target

@@ -76,7 +76,7 @@ class EditTool:
         """A new scene: no edits, the box and the sphere around its centres."""
         self.edits = Edits(scene.count)
         self.drag, self._histogram, self._counted, self.exporter.confirm_replace = None, None, None, None
-        self.handles.drag = None
+        self.handles.drag, self.exporter.exported = None, None
         positions = scene.positions.astype(np.float64)
         if scene.count:
             low, high = positions.min(axis=0), positions.max(axis=0)
@@ -119,6 +119,13 @@ class EditTool:
             selection = self.edits.selection
             self._counted = (key, selection, int(selection.sum()), int(self.edits.deleted.sum()))
         return self._counted[1:]
+
+    def unsaved(self) -> str | None:
+        """What another scene opened now would lose: "N deleted" where the deletions
+        changed since the last export (or none was made), else None."""
+        if self.edits is None or not self.edits.edited or self.exporter.exported == self.edits.generation:
+            return None
+        return f"{self.deleted_count():,} deleted"
 
     def selection_count(self) -> int:
         return 0 if self.edits is None else self._state()[1]

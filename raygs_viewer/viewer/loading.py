@@ -24,14 +24,18 @@ def scene_title(path: str) -> str:
 class SceneOpener:
     """``loader`` does the loading; ``panel`` gets the message and error lines;
     ``reading``: how a scene opened later is read (its .spz axes); ``fits()`` says what
-    fits the GPU, for a streamed SOG's levels (None: no limit)."""
+    fits the GPU, for a streamed SOG's levels (None: no limit); ``unsaved()``: what
+    opening another scene would lose (the shown scene's edits not exported), or None.
+    Where something would be lost, the first Open says so and the same Open again goes on."""
 
     def __init__(self, panel: PanelState, reading: SceneSource = SceneSource.demo(),
-                 fits: Callable[[], Fits | None] = lambda: None):
+                 fits: Callable[[], Fits | None] = lambda: None, unsaved: Callable[[], str | None] = lambda: None):
         self.panel = panel
         self.loader = SceneLoader()
         self.reading = reading
         self.fits = fits
+        self.unsaved = unsaved
+        self._warned: tuple[str, str] | None = None  # (path, what it would lose) said once
 
     def open(self, path: str, cameras: str | None = None) -> None:
         """Starts loading ``path`` in the background (with ``cameras``, a cameras.json,
@@ -40,6 +44,13 @@ class SceneOpener:
         if not path:
             self.panel.error = "error: no file given"
             return
+        lost = self.unsaved()
+        if lost is not None and self._warned != (path, lost):
+            self._warned = (path, lost)
+            self.panel.error = f"error: not opened: the edits of the scene shown ({lost}) are not exported; " \
+                               "export them, or open it again to leave them"
+            return
+        self._warned = None
         self.panel.error = ""
         self.panel.message = f"loading {path} ..."
         self.loader.start(self.reading.at(path, cameras), fits=self.fits())

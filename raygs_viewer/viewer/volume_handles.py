@@ -31,6 +31,8 @@ from raygs_viewer.viewer.path_widget import OVERLAY_NEAR
 
 #: A handle's dot (screen units), and how near a press must be to take it.
 DOT_RADIUS, GRAB_RADIUS = 5.0, 9.0
+#: A face's dot is not offered when its axis is within this many degrees of the view's ray.
+EDGE_ON = 20.0
 #: Segments of each circle drawn for the sphere.
 CIRCLE_SEGMENTS = 48
 BOX_COLOUR, SPHERE_COLOUR, ACTIVE_COLOUR = (255, 170, 40, 230), (60, 200, 255, 230), (255, 255, 255, 255)
@@ -160,7 +162,9 @@ class VolumeHandles:
         draw = imgui.get_foreground_draw_list()
         if self.show_box:
             self._lines(draw, camera, rect, near, *box_edges(self.tool.box), BOX_COLOUR)
-            self._dots(draw, camera, rect, near, box_handles(self.tool.box), BOX_COLOUR)
+            handles = {name: point for name, point in box_handles(self.tool.box).items()
+                       if name == "box centre" or not along_the_view(camera, point, AXES.index(name[-1]))}
+            self._dots(draw, camera, rect, near, handles, BOX_COLOUR)
         if self.show_sphere:
             self._lines(draw, camera, rect, near, *sphere_circles(self.tool.sphere, camera), SPHERE_COLOUR)
             self._dots(draw, camera, rect, near, sphere_handles(self.tool.sphere, camera), SPHERE_COLOUR)
@@ -180,6 +184,14 @@ class VolumeHandles:
                 chosen = name == active
                 draw.add_circle_filled((float(x), float(y)), DOT_RADIUS + 2 * chosen,
                                        imgui.IM_COL32(*(ACTIVE_COLOUR if chosen else colour)))
+
+
+def along_the_view(camera: Camera, point: np.ndarray, axis: int) -> bool:
+    """Whether world ``axis`` at ``point`` points within EDGE_ON of the view's ray there:
+    that face's dot barely moves across the view and would sit on the centre's, so it
+    is not offered (another view reaches it)."""
+    ray = camera.R @ point + camera.t
+    return abs(float(camera.R[:, axis] @ ray)) > math.cos(math.radians(EDGE_ON)) * float(np.linalg.norm(ray))
 
 
 def box_edges(box: Box) -> tuple[np.ndarray, np.ndarray]:

@@ -218,9 +218,20 @@ def test_crop_to_the_box_and_export_write_the_kept_rows_bit_for_bit(open_viewer,
     tool.apply(type(tool.edits.operations[0])("undelete all"))
     drive.click("Export")  # the file exists: nothing is written until Replace
     assert tool.exporter.confirm_replace == str(target) and target.read_bytes() == first
+    assert f"{target} and {document} exist: replace them?" in drive.panel.labels()
     drive.reveal("Cancel##export")
     drive.click("Cancel##export")
     assert tool.exporter.confirm_replace is None and target.read_bytes() == first
+    # Another format beside it shares the edit document's name: that is what the question names.
+    tool.exporter.file = str(tmp_path / "clean.splat")
+    drive.frames(3)  # the question's lines gone, the panel's scroll settles
+    drive.reveal("Export")
+    drive.click("Export")
+    assert tool.exporter.confirm_replace == str(tmp_path / "clean.splat")
+    assert f"{document} exists: replace it?" in drive.panel.labels()
+    assert not (tmp_path / "clean.splat").exists()
+    drive.reveal("Cancel##export")
+    drive.click("Cancel##export")
 
     replayed = tmp_path / "replayed.ply"
     code, out, err = run_cli(capsys, "convert", source, replayed, "--edits", document)
@@ -316,3 +327,30 @@ def test_visible_selection_and_a_click_take_what_the_view_shows_not_what_it_cove
     chord(drive, Key.mod_ctrl, Key.z)
     assert not viewer.edit_tool.edits.deleted.any()
     assert np.flatnonzero(viewer.edit_tool.edits.selection).tolist() == [0]
+
+
+def test_opening_another_scene_over_edits_not_exported_asks_first(open_viewer, scene_file, tmp_path):
+    viewer, drive = open_viewer(str(scene_file[0]), hide_panel=True)
+    drive.settle()
+    tool = viewer.edit_tool
+    tool.select(type(tool.box)((-2.5, -2.5, -2.5), (0.0, 2.5, 2.5)))
+    tool.apply(Operation("delete"))
+    deleted = tool.deleted_count()
+    viewer.scenes.drop(["demo"])
+    drive.frames(2)
+    assert not viewer.scenes.loader.busy and viewer.loaded.path == str(scene_file[0])
+    assert viewer.panel.error == (f"error: not opened: the edits of the scene shown ({deleted:,} deleted) are not "
+                                  "exported; export them, or open it again to leave them")
+    tool.exporter.file = str(tmp_path / "kept.ply")
+    assert tool.exporter.export() is not None
+    viewer.scenes.drop(["demo"])  # exported: nothing is lost, it opens at once
+    drive.wait_for_load()
+    assert viewer.loaded.source.is_demo and viewer.panel.error == ""
+    tool.select(type(tool.box)((-9.0, -9.0, -9.0), (0.0, 9.0, 9.0)))
+    tool.apply(Operation("delete"))
+    viewer.scenes.drop([str(scene_file[0])])
+    drive.frames(1)
+    assert viewer.loaded.source.is_demo and viewer.panel.error.startswith("error: not opened")
+    viewer.scenes.drop([str(scene_file[0])])  # asked, and asked again: it goes on
+    drive.wait_for_load()
+    assert viewer.loaded.path == str(scene_file[0]) and tool.deleted_count() == 0

@@ -11,7 +11,8 @@ from appkit import PANEL_HEIGHT, PANEL_WIDTH
 
 from raygs_viewer.camera.pinhole import look_at
 from raygs_viewer.scene.selection import Box, Sphere
-from raygs_viewer.viewer.volume_handles import HandleDrag, box_edges, box_handles, moved, sphere_handles
+from raygs_viewer.viewer.volume_handles import (
+    HandleDrag, along_the_view, box_edges, box_handles, moved, sphere_handles)
 
 CAMERA = look_at((0.8, -0.6, -4.0), (0.1, 0.0, 0.2), width=160, height=120)
 RECT = (40.0, 10.0, 360.0, 250.0)  # the image shown at twice its size, offset
@@ -118,3 +119,11 @@ def test_a_real_drag_on_a_face_handle_moves_the_face_and_not_the_camera(open_vie
     vx, vy, vw, vh = viewer.viewport  # the framebuffer scale is 1
     expected = moved(HandleDrag("box +x", (x, y), before, camera, (vx, vy, vx + vw, vy + vh)), x - 30.0, y + 9.0)
     assert tool.box.high[0] == pytest.approx(expected.high[0], rel=1e-12)
+
+
+def test_a_face_whose_axis_points_along_the_view_offers_no_dot():
+    camera = look_at((0.0, 0.0, -4.0), (0.0, 0.0, 0.0), width=160, height=120)  # along +z
+    handles = box_handles(BOX)
+    assert along_the_view(camera, handles["box +z"], 2) and along_the_view(camera, handles["box -z"], 2)
+    assert not any(along_the_view(camera, handles[f"box {s}{a}"], "xyz".index(a)) for s in "-+" for a in "xy")
+    assert not along_the_view(CAMERA, handles["box +z"], 0)

@@ -148,7 +148,8 @@ def _export(tool: EditTool) -> None:
     tooltip("the gaussians not deleted, in their order (a PLY's rows as the file has them), and the edits "
             "beside them as NAME.edits.json")
     if export.confirm_replace is not None:
-        note(f"{export.confirm_replace} exists: replace it and its edits?")
+        there = " and ".join(export.existing)
+        note(f"{there} {'exist' if len(export.existing) > 1 else 'exists'}: replace {'them' if len(export.existing) > 1 else 'it'}?")
         if imgui.button("Replace##export"):
             export.export(replace=True)
         imgui.same_line()
