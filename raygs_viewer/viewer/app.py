@@ -231,7 +231,7 @@ class Viewer:
         self.feedback.watch(self.panel)  # what the last frame's actions said
         if imgui.is_mouse_clicked(0):
             self.feedback.clicked()
-        self.edit_tool.keys()
+        self.edit_tool.frame()
         self.input.handle(dt, self.view.navigator, self.camera, self.viewport,
                           self.split if self.right_settings() is not None else None,
                           mouse_taken=self.edit_tool.take_mouse(self.shown))

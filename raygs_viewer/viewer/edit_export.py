@@ -1,11 +1,18 @@
 """The Edit section's export: the gaussians not deleted, in their order, written to a
 scene file (a PLY's own rows byte for byte), and the edit document beside it as
 ``NAME.edits.json``. An existing file waits for a confirmation; the scene shown is never
-a target; both files are written atomically."""
+a target; both files are written atomically.
+
+The files are written on a thread of their own (a SOG of a million gaussians takes tens
+of seconds), from the rows and the document as they were at the click, so the window
+goes on and later edits do not reach the files; the panel says when they are written.
+The thread is not a daemon: a window closed meanwhile exits once they are complete."""
 
 from __future__ import annotations
 
 import os
+import threading
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Protocol
 
@@ -35,6 +42,19 @@ class Edited(Protocol):
     def document(self) -> EditDocument: ...
 
 
+@dataclass
+class Writing:
+    """An export under way: its files, what it writes, the edits' generation it was made
+    from, and what went wrong (None: nothing, or not finished)."""
+
+    target: Path
+    document: Path
+    count: int
+    generation: int
+    thread: threading.Thread = field(init=False)
+    failure: str | None = None
+
+
 class EditExport:
     """``file``: the target the panel names; ``confirm_replace``: a target waiting for a
     yes (None: none) because the files ``existing`` (it, its edit document, or both) are
@@ -46,6 +66,7 @@ class EditExport:
         self.confirm_replace: str | None = None
         self.existing: tuple[str, ...] = ()
         self.exported: int | None = None  # the edits' generation last written
+        self.writing: Writing | None = None
 
     def export(self, replace: bool = False) -> Path | None:
         """Writes the gaussians not deleted at :attr:`file`, and the edit document beside
@@ -65,18 +86,50 @@ class EditExport:
             if existing and not replace:
                 self.confirm_replace, self.existing = str(target), existing
                 return None
+            if self.writing is not None:
+                raise UserError(f"{self.writing.target} is still being written")
             kept = tool.edits.kept
             if not kept.any():
                 raise UserError("every gaussian is deleted: nothing to export")
-            write_kept(tool.scene.rows(kept), source.path, target, replace)
-            save_edit_document(tool.document(), document, replace)
+            writing = Writing(target, document, int(kept.sum()), tool.edits.generation)
+            writing.thread = threading.Thread(target=self._write, name="export", args=(
+                writing, tool.scene.rows(kept), source.path, tool.document(), replace))
         except UserError as exc:
             panel.error = f"error: not exported: {one_line(exc)}"
             return None
         finally:
             if replace:
                 self.confirm_replace = None
-        self.exported = tool.edits.generation
-        panel.note(f"exported {int(kept.sum()):,} gaussians to {target} (+ {document.name})")
+        self.writing = writing
+        writing.thread.start()
+        panel.note(f"exporting {writing.count:,} gaussians to {target} ...")
         panel.error = ""
         return target
+
+    @staticmethod
+    def _write(writing: Writing, rows: Scene, source: str, document: EditDocument, replace: bool) -> None:
+        try:
+            write_kept(rows, source, writing.target, replace)
+            save_edit_document(document, writing.document, replace)
+        except UserError as exc:
+            writing.failure = one_line(exc)
+        except Exception as exc:  # a failure no check foresaw: said in the panel, never a dead thread
+            writing.failure = f"{type(exc).__name__}: {one_line(exc)}"
+
+    def poll(self) -> None:
+        """Says in the panel how a finished export went (each frame: a cheap check)."""
+        writing = self.writing
+        if writing is None or writing.thread.is_alive():
+            return
+        self.writing, panel = None, self.tool.host.panel
+        if writing.failure is not None:
+            panel.error = f"error: not exported: {writing.failure}"
+            return
+        self.exported = writing.generation
+        panel.note(f"exported {writing.count:,} gaussians to {writing.target} (+ {writing.document.name})")
+
+    def wait(self) -> None:
+        """Waits for an export under way to finish, then says how it went."""
+        if self.writing is not None:
+            self.writing.thread.join()
+        self.poll()

@@ -260,8 +260,10 @@ class EditTool:
             return ScreenShape("polygon", camera, pixels) if len(pixels) >= 3 else None
         return ScreenShape("brush", camera, pixels, self.brush_radius * sx * camera.width / vw)
 
-    def keys(self) -> None:
-        """Delete, Ctrl+Z, Ctrl+Y and Ctrl+Shift+Z (while the panel does not type)."""
+    def frame(self) -> None:
+        """Each frame: a finished export said, and the keys Delete, Ctrl+Z, Ctrl+Y and
+        Ctrl+Shift+Z (while the panel does not type)."""
+        self.exporter.poll()
         io = imgui.get_io()
         if io.want_capture_keyboard or self.edits is None:
             return

@@ -35,7 +35,7 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.scene import writing
 from raygs_viewer.scene.io import load_scene
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
-from raygs_viewer.scene.sog_write import FLAT_MARGIN, palette_size, sog_bytes, sog_images
+from raygs_viewer.scene.sog_write import FLAT_MARGIN, cell_shares, palette_cells, palette_size, sog_bytes, sog_images
 from raygs_viewer.scene.webp_image import decode_webp
 from raygs_viewer.scene.writing import write_scene, writing_notes
 
@@ -188,12 +188,21 @@ def assert_sh_rest_as_the_palette_allows(scene, back, meta, images):
         assert len(np.unique(np.column_stack([rows, labels]), axis=0)) == len(distinct) == len(np.unique(labels))
         assert_codebook_values_nearest(rows, back.sh[:, 1:].reshape(n, -1), book, 1e-12)
     else:
-        # k-means: each gaussian has its nearest palette row as decoded, and the palette fits.
-        assert shn["count"] == palette_size(n)
+        # k-means in two levels: each cell of rows learns its share of the palette (or its
+        # distinct rows, where fewer), and each gaussian has the nearest row, as decoded,
+        # of its cell's entries; the palette fits.
+        stored = scene.sh[:, 1:].reshape(n, -1)
+        cells = palette_cells(stored, palette_size(n))
+        sizes = [min(share, len(np.unique(stored[members], axis=0)))
+                 for members, share in zip(cells, cell_shares(palette_size(n), cells))]
+        assert shn["count"] == sum(sizes) <= palette_size(n) and sorted(np.concatenate(cells)) == list(range(n))
         p = palette.astype(np.float64)
         squared = (rows ** 2).sum(axis=1)[:, None] - 2 * rows @ p.T + (p ** 2).sum(axis=1)[None]
+        for members, first, size in zip(cells, np.cumsum([0] + sizes[:-1]), sizes):
+            own = squared[members, first:first + size]
+            assert np.all((labels[members] >= first) & (labels[members] < first + size))
+            assert np.all(squared[members, labels[members]] <= own.min(axis=1) * (1 + 1e-5) + 1e-9)
         chosen = squared[np.arange(n), labels]
-        assert np.all(chosen <= squared.min(axis=1) * (1 + 1e-5) + 1e-9)
         assert chosen.mean() < 0.25 * ((rows - rows.mean(axis=0)) ** 2).sum(axis=1).mean()
 
 

@@ -8,6 +8,7 @@ sidecar to the same image."""
 from __future__ import annotations
 
 import json
+import threading
 
 import numpy as np
 import pytest
@@ -208,6 +209,7 @@ def test_crop_to_the_box_and_export_write_the_kept_rows_bit_for_bit(open_viewer,
     tool.exporter.file = str(target)
     drive.reveal("Export")
     drive.click("Export")
+    tool.exporter.wait()  # written on a thread of its own
     written = PlyData.read(str(target))["vertex"].data
     assert written.tobytes() == rows[np.flatnonzero(kept)].tobytes()
     document = tmp_path / "clean.edits.json"
@@ -343,6 +345,7 @@ def test_opening_another_scene_over_edits_not_exported_asks_first(open_viewer, s
                                   "exported; export them, or open it again to leave them")
     tool.exporter.file = str(tmp_path / "kept.ply")
     assert tool.exporter.export() is not None
+    tool.exporter.wait()
     viewer.scenes.drop(["demo"])  # exported: nothing is lost, it opens at once
     drive.wait_for_load()
     assert viewer.loaded.source.is_demo and viewer.panel.error == ""
@@ -354,3 +357,41 @@ def test_opening_another_scene_over_edits_not_exported_asks_first(open_viewer, s
     viewer.scenes.drop([str(scene_file[0])])  # asked, and asked again: it goes on
     drive.wait_for_load()
     assert viewer.loaded.path == str(scene_file[0]) and tool.deleted_count() == 0
+
+
+def test_the_export_writes_on_its_own_thread_while_the_window_goes_on(open_viewer, scene_file, tmp_path,
+                                                                      monkeypatch):
+    from raygs_viewer.viewer import edit_export
+    release, started = threading.Event(), threading.Event()
+    real = edit_export.write_kept
+
+    def held(*args):
+        started.set()
+        assert release.wait(30), "the test never let the export go on"
+        return real(*args)
+
+    monkeypatch.setattr(edit_export, "write_kept", held)
+    viewer, drive = open_viewer(str(scene_file[0]), width=PANEL_WIDTH, height=PANEL_HEIGHT)
+    drive.frames(2)
+    drive.reveal("Edit")
+    drive.click("Edit")
+    tool = viewer.edit_tool
+    tool.select(type(tool.box)((-2.5, -2.5, -2.5), (0.0, 2.5, 2.5)))
+    tool.apply(Operation("delete"))
+    kept = tool.edits.kept.copy()
+    tool.exporter.file = str(tmp_path / "clean.ply")
+    drive.reveal("Export")
+    drive.click("Export")
+    assert started.wait(30)
+    shown = viewer.frame_index
+    drive.frames(3)  # the window draws on while the file is being written
+    assert viewer.frame_index == shown + 3 and tool.exporter.writing is not None
+    assert viewer.panel.message.startswith(f"exporting {int(kept.sum()):,} gaussians to ")
+    tool.apply(Operation("undelete all"))  # a later edit does not reach the file
+    assert tool.unsaved() is None  # nothing deleted now
+    tool.exporter.export()
+    assert viewer.panel.error.endswith("clean.ply is still being written")
+    release.set()
+    tool.exporter.wait()
+    assert PlyData.read(str(tmp_path / "clean.ply"))["vertex"].count == int(kept.sum())
+    assert viewer.panel.message.startswith(f"exported {int(kept.sum()):,} gaussians")

@@ -143,7 +143,7 @@ def _export(tool: EditTool) -> None:
     export = tool.exporter
     _, export.file = imgui.input_text_with_hint("##export file", "clean.ply (.splat, .spz, .sog)", export.file)
     imgui.same_line()
-    if imgui.button("Export"):
+    if button("Export", export.writing is None):
         export.export()
     tooltip("the gaussians not deleted, in their order (a PLY's rows as the file has them), and the edits "
             "beside them as NAME.edits.json")
