@@ -112,7 +112,7 @@ class Viewer:
         self.side_panel = SidePanel(self.panel, Remembered())
         self.stats = FrameStats()
         self.scenes = SceneOpener(self.panel, options.source, window_fits(self.ctx, self.panel),
-                                  lambda: self.edit_tool.unsaved())
+                                  lambda: self.edit_tool.exporter.unsaved())
         self.window.set_drop_callback(self.scenes.drop)
         self.scene = ShownScene(self.ctx, options.general, renderer_factory, sorter_factory, self.scenes, self._forget,
                                 lambda count: self.auto.sort_choice(count).value)
@@ -300,7 +300,7 @@ class Viewer:
         """Frames until the window closes or ``options.frames`` are drawn; the last keeps
         the window's image for ``--window-screenshot``."""
         options = self.options
-        while not self.window.should_close:
+        while not (self.window.should_close and self.edit_tool.exporter.may_close()):
             last = options.frames is not None and self.frame_index + 1 >= options.frames
             self.captures.keep_window |= last and options.window_screenshot is not None
             self.wait_for_sort = last

@@ -41,6 +41,8 @@ class Edited(Protocol):
 
     def document(self) -> EditDocument: ...
 
+    def deleted_count(self) -> int: ...
+
 
 @dataclass
 class Writing:
@@ -67,6 +69,27 @@ class EditExport:
         self.existing: tuple[str, ...] = ()
         self.exported: int | None = None  # the edits' generation last written
         self.writing: Writing | None = None
+        self._close_asked: str | None = None
+
+    def unsaved(self) -> str | None:
+        """What another scene opened now, or the window closed, would lose: "N deleted"
+        where the deletions changed since the last export (or none was made), else None."""
+        edits = self.tool.edits
+        if edits is None or not edits.edited or self.exported == edits.generation:
+            return None
+        return f"{self.tool.deleted_count():,} deleted"
+
+    def may_close(self) -> bool:
+        """Whether the window, asked to close, may: not at the first ask while deletions
+        are not exported (the panel says so, and the same ask again closes)."""
+        lost = self.unsaved()
+        if lost is None or self._close_asked == lost:
+            return True
+        self._close_asked = lost
+        self.tool.host.window.keep_open()
+        self.tool.host.panel.error = (f"error: not closed: the edits of the scene shown ({lost}) are not exported; "
+                                      "export them, or close again to leave them")
+        return False
 
     def export(self, replace: bool = False) -> Path | None:
         """Writes the gaussians not deleted at :attr:`file`, and the edit document beside

@@ -120,13 +120,6 @@ class EditTool:
             self._counted = (key, selection, int(selection.sum()), int(self.edits.deleted.sum()))
         return self._counted[1:]
 
-    def unsaved(self) -> str | None:
-        """What another scene opened now would lose: "N deleted" where the deletions
-        changed since the last export (or none was made), else None."""
-        if self.edits is None or not self.edits.edited or self.exporter.exported == self.edits.generation:
-            return None
-        return f"{self.deleted_count():,} deleted"
-
     def selection_count(self) -> int:
         return 0 if self.edits is None else self._state()[1]
 

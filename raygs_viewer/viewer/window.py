@@ -171,6 +171,10 @@ class Window:
     def request_close(self) -> None:
         glfw.set_window_should_close(self.handle, True)
 
+    def keep_open(self) -> None:
+        """Takes back a close asked for (the window has something to say first)."""
+        glfw.set_window_should_close(self.handle, False)
+
     def set_drop_callback(self, callback) -> None:
         glfw.set_drop_callback(self.handle, lambda _window, paths: callback(list(paths)))
 

@@ -359,6 +359,22 @@ def test_opening_another_scene_over_edits_not_exported_asks_first(open_viewer, s
     assert viewer.loaded.path == str(scene_file[0]) and tool.deleted_count() == 0
 
 
+def test_closing_the_window_over_edits_not_exported_asks_first(open_viewer, scene_file):
+    viewer, drive = open_viewer(str(scene_file[0]), hide_panel=True)
+    drive.settle()
+    tool = viewer.edit_tool
+    drive.tap(Key.escape)
+    assert viewer.window.should_close and tool.exporter.may_close()  # nothing to lose: it closes
+    viewer.window.keep_open()
+    tool.select(type(tool.box)((-2.5, -2.5, -2.5), (0.0, 2.5, 2.5)))
+    tool.apply(Operation("delete"))
+    drive.tap(Key.escape)
+    assert viewer.window.should_close and not tool.exporter.may_close()
+    assert not viewer.window.should_close and viewer.panel.error.startswith("error: not closed: the edits")
+    drive.tap(Key.escape)  # asked, and asked again: it closes
+    assert viewer.window.should_close and tool.exporter.may_close()
+
+
 def test_the_export_writes_on_its_own_thread_while_the_window_goes_on(open_viewer, scene_file, tmp_path,
                                                                       monkeypatch):
     from raygs_viewer.viewer import edit_export
@@ -388,7 +404,7 @@ def test_the_export_writes_on_its_own_thread_while_the_window_goes_on(open_viewe
     assert viewer.frame_index == shown + 3 and tool.exporter.writing is not None
     assert viewer.panel.message.startswith(f"exporting {int(kept.sum()):,} gaussians to ")
     tool.apply(Operation("undelete all"))  # a later edit does not reach the file
-    assert tool.unsaved() is None  # nothing deleted now
+    assert tool.exporter.unsaved() is None  # nothing deleted now
     tool.exporter.export()
     assert viewer.panel.error.endswith("clean.ply is still being written")
     release.set()
