@@ -18,11 +18,12 @@ eye whose image lies under the mouse (:func:`stereo_pixel`).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera
+from raygs_viewer.render.contributions import cropped
 from raygs_viewer.render.gl.mono_frame import Viewport
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.sort.request import Order
@@ -49,7 +50,7 @@ class Picked:
 def pixel_camera(camera: Camera, u: int, v: int) -> Camera:
     """A 1 x 1 camera whose one pixel is pixel (u, v) of ``camera``: the same pose and
     focal lengths, the principal point moved by (u, v)."""
-    return replace(camera, width=1, height=1, cx=camera.cx - u, cy=camera.cy - v)
+    return cropped(camera, slice(v, v + 1), slice(u, u + 1))
 
 
 def unproject(camera: Camera, u: float, v: float, depth: float) -> np.ndarray:
