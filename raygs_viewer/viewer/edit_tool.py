@@ -38,8 +38,6 @@ from raygs_viewer.viewer.volume_handles import VolumeHandles
 #: The tools the left button draws with ("off": it turns the camera; "click": the gaussian
 #: the clicked pixel shows most).
 TOOLS = ("off", "click", "rectangle", "lasso", "brush")
-#: What a drawn shape selects: the centres it covers, or the gaussians its pixels show.
-SELECTS = ("through", "visible")
 #: Histogram bins.
 BINS = 64
 #: Attributes shown on a log10 axis (they span decades).
@@ -56,7 +54,7 @@ class EditTool:
         self.tool = "off"
         self.how = "set"
         self.brush_radius = 20.0   # screen units
-        self.selects = "through"
+        self.selects = "through"   # or "visible": the gaussians a shape's pixels show, not the centres it covers
         self.min_weight = 0.05     # the least share of a pixel's colour "visible" selects
         self.attribute = ATTRIBUTES[0]
         self.exporter = EditExport(self)
