@@ -317,7 +317,7 @@ def headless(viewer: Viewer, settings: RenderSettings | None = None) -> np.ndarr
     """The viewer's last view rendered offscreen with an exact sort of the levels it drew."""
     settings = settings or viewer.settings
     drawn = next(iter(viewer.drawer.orders.values()), None)
-    order = exact_order(viewer.scene.exact_sorter, viewer.camera, settings, levels=None if drawn is None else drawn.choice)
+    order = exact_order(viewer.scene.direct_sorter, viewer.camera, settings, levels=None if drawn is None else drawn.choice)
     return viewer.scene.renderer.render(viewer.camera, settings, order)
 
 

@@ -34,7 +34,7 @@ from raygs_viewer.render.gl.stereo_frame import render_stereo_view, stereo_order
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.sort.depth import DepthSorter
-from raygs_viewer.sort.hidden import HiddenRows
+from raygs_viewer.sort.deleted import DeletedRows
 from raygs_viewer.sort.lod_choice import LodRequest
 
 if TYPE_CHECKING:
@@ -82,30 +82,30 @@ def frame_size(width: int, height: int, stereo: StereoView | None) -> tuple[int,
 
 def render_frame(renderer: "GLRenderer", sorter: DepthSorter, camera: Camera, settings: RenderSettings,
                  stereo: StereoView | None, levels: LodRequest | None = None,
-                 hidden: HiddenRows | None = None) -> np.ndarray:
+                 deleted: DeletedRows | None = None) -> np.ndarray:
     """(H, W, 4) float32, top row first: the image ``render`` makes of ``camera``, with
     an exact sort of its own by ``sorter`` (a stereo frame composed per
     ``stereo.layout``); ``levels``: a streamed scene's, chosen for ``camera`` (for a
-    stereo frame, the eyes' midpoint); ``hidden``: rows left out (deleted in the window)."""
+    stereo frame, the eyes' midpoint); ``deleted``: rows left out (deleted in the window)."""
     if stereo is not None:
-        order = stereo_order(sorter, camera, settings, stereo.rig, levels, hidden)
+        order = stereo_order(sorter, camera, settings, stereo.rig, levels, deleted)
         return render_stereo_view(renderer, order, camera, settings, stereo)[0]
-    return render_tiled(renderer, sorter, exact_order(sorter, camera, settings, levels=levels, hidden=hidden), camera,
+    return render_tiled(renderer, sorter, exact_order(sorter, camera, settings, levels=levels, deleted=deleted), camera,
                         settings)
 
 
 def render_frame_channels(renderer: "GLRenderer", sorter: DepthSorter, camera: Camera, settings: RenderSettings,
                           stereo: StereoView | None, channels: tuple[str, ...],
                           normal_space: str = "camera", levels: LodRequest | None = None,
-                          hidden: HiddenRows | None = None) -> ChannelImage:
+                          deleted: DeletedRows | None = None) -> ChannelImage:
     """The ChannelImage of one frame, normals in ``normal_space`` of ``camera``: the
     geometry render where ``channels`` need it (not with ``stereo``: its layouts compose
     colour), else :func:`render_frame`'s colour."""
     if not needs_geometry(channels):
-        return colour_channels(render_frame(renderer, sorter, camera, settings, stereo, levels, hidden))
+        return colour_channels(render_frame(renderer, sorter, camera, settings, stereo, levels, deleted))
     if stereo is not None:
         raise UserError("--stereo composes colour; its frames cannot carry depth or normals")
-    order = exact_order(sorter, camera, settings, levels=levels, hidden=hidden)
+    order = exact_order(sorter, camera, settings, levels=levels, deleted=deleted)
     return render_tiled_channels(renderer, sorter, order, camera, settings,
                                  median="median_depth" in channels).in_space(normal_space, camera)
 
@@ -113,12 +113,12 @@ def render_frame_channels(renderer: "GLRenderer", sorter: DepthSorter, camera: C
 def render_frames(renderer: "GLRenderer", sorter: DepthSorter, cameras: list[Camera], settings: RenderSettings,
                   stereo: StereoView | None, sink: FrameSink, progress: Progress | None = None,
                   channels: tuple[str, ...] | None = None, normal_space: str = "camera",
-                  lod: LodRequest | None = None, hidden: HiddenRows | None = None) -> int:
+                  lod: LodRequest | None = None, deleted: DeletedRows | None = None) -> int:
     """Renders each camera (:func:`render_frame`), converts it to 8 bits as a PNG
     screenshot is, and writes it to ``sink``; returns the frames written. With
     ``channels`` each frame goes to the sink as a ChannelImage instead
     (:func:`render_frame_channels`; an ExrFolderSink). ``lod``: a streamed scene's
-    levels, chosen for each frame's camera; ``hidden``: rows every frame leaves out (the
+    levels, chosen for each frame's camera; ``deleted``: rows every frame leaves out (the
     path document's edits). A KeyboardInterrupt propagates
     between or inside frames: the caller aborts the sink, whose ``frames_written`` then
     says what it holds."""
@@ -126,9 +126,9 @@ def render_frames(renderer: "GLRenderer", sorter: DepthSorter, cameras: list[Cam
     for camera in cameras:
         if channels is not None:
             sink.write(render_frame_channels(renderer, sorter, camera, settings, stereo, channels, normal_space, lod,
-                                             hidden))
+                                             deleted))
         else:
-            sink.write(to_rgb8(render_frame(renderer, sorter, camera, settings, stereo, lod, hidden)))
+            sink.write(to_rgb8(render_frame(renderer, sorter, camera, settings, stereo, lod, deleted)))
         written += 1
         if progress is not None:
             progress.update(sink.frames_written)

@@ -68,7 +68,7 @@ from raygs_viewer.scene.source import DEMO, SceneSource
 from raygs_viewer.scene.lod_file import lod_summary
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.sort.depth import DepthSorter
-from raygs_viewer.sort.hidden import HiddenRows
+from raygs_viewer.sort.deleted import DeletedRows
 from raygs_viewer.sort.lod_choice import LodChoice
 
 #: The view options that resize a camera instead of choosing one: with --sidecar they
@@ -147,14 +147,14 @@ def open_scene_argument(source: SceneSource, settings: RenderSettings, ctx=None)
 
 def edited(opened: OpenedScene, edits: dict | None, sha256: str, where: str) -> OpenedScene:
     """``opened`` as the window's ``edits`` (a sidecar's or a path file's "edits", in the
-    file ``where``) left it: the gaussians deleted there hidden from every sort, as the
+    file ``where``) left it: the gaussians deleted there left out of every sort, as the
     window hid them (a streamed SOG's levels keep their rows, so its choices stay the
     window's). ``sha256``: the scene file's, which must be the one the edits were made on."""
     if edits is None:
         return opened
     document = read_edit_json(edits, f"{where}: 'edits'")
     document.check_scene(sha256, opened.scene.count, where)
-    return replace(opened, hidden=HiddenRows.of(document.replay(opened.scene).deleted))
+    return replace(opened, deleted=DeletedRows.of(document.replay(opened.scene).deleted))
 
 
 def warn_dropped(scene: Scene) -> None:
@@ -309,11 +309,11 @@ def render_image(args, ctx, opened: OpenedScene, camera: Camera, settings: Rende
         raise
     try:
         if stereo is not None:  # the eyes' midpoint chooses the levels
-            order = stereo_order(sorter, camera, settings, stereo.rig, opened.lod, opened.hidden)
+            order = stereo_order(sorter, camera, settings, stereo.rig, opened.lod, opened.deleted)
             return render_stereo_view(renderer, order, camera, settings, stereo)[0], drawn_words(opened, order.choice)
         # Tiled like the window's screenshots: the same pixels, and sizes beyond
         # the GPU's largest render target.
-        order = exact_order(sorter, camera, settings, levels=opened.lod, hidden=opened.hidden)
+        order = exact_order(sorter, camera, settings, levels=opened.lod, deleted=opened.deleted)
         if geometry:
             return (screenshot.render_tiled_channels(renderer, sorter, order, camera, settings,
                                                      median="median_depth" in channels),
@@ -327,14 +327,14 @@ def render_image(args, ctx, opened: OpenedScene, camera: Camera, settings: Rende
 def drawn_words(opened: OpenedScene, choice: LodChoice | None) -> str:
     """"N gaussians", or for a level-of-detail choice what it drew of what was read; and
     how many are deleted where a screenshot's edits hide some."""
-    hidden = 0 if opened.hidden is None else int(opened.hidden.mask.sum())
-    deleted = f" ({hidden} deleted)" if hidden else ""
+    deleted = 0 if opened.deleted is None else int(opened.deleted.mask.sum())
+    deleted_words = f" ({deleted} deleted)" if deleted else ""
     if choice is None:
-        return f"{opened.scene.count - hidden} gaussians{deleted}"
+        return f"{opened.scene.count - deleted} gaussians{deleted_words}"
     per_level = ", ".join(f"{n} at level {level}" for level, n in enumerate(choice.per_level(opened.lod.lod.levels))
                           if n)
     over = "; the coarsest levels alone exceed the budget" if choice.over_budget else ""
-    return f"{choice.count} of {opened.scene.count} gaussians (parts: {per_level}{over}){deleted}"
+    return f"{choice.count} of {opened.scene.count} gaussians (parts: {per_level}{over}){deleted_words}"
 
 
 def command_verify(args) -> int:

@@ -225,7 +225,7 @@ def _render(renderer, sorter, cameras, settings, stereo, out: Path, image_size, 
     start = time.perf_counter()
     try:
         render_frames(renderer, sorter, cameras, settings, stereo, timed, progress, args.channels,
-                      check_normal_space(args.channels or (), args.normal_space), opened.lod, opened.hidden)
+                      check_normal_space(args.channels or (), args.normal_space), opened.lod, opened.deleted)
         written = timed.finish()
     except KeyboardInterrupt:
         kept = sink.abort()

@@ -22,7 +22,7 @@ from raygs_viewer.scene.io import load_scene
 from raygs_viewer.scene.lod_file import Fits, LodScene, level_scene, load_lod, lod_index_file, span_rows
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.source import SceneSource
-from raygs_viewer.sort.hidden import HiddenRows
+from raygs_viewer.sort.deleted import DeletedRows
 from raygs_viewer.sort.lod_choice import LodChoice, LodRequest
 
 #: The settings that only a streamed SOG takes.
@@ -33,14 +33,14 @@ LOD_FIELDS = ("lod", "lod_budget", "lod_distance")
 class OpenedScene:
     """scene: what the renderer holds. lod: the per-view choice to make before each
     view is drawn (None: draw the whole scene). note: one line on what was not read
-    (the GPU's memory), or "". hidden: the rows every sort leaves out (deleted in the
+    (the GPU's memory), or "". deleted: the rows every sort leaves out (deleted in the
     window: a screenshot's edits; None: none)."""
 
     scene: Scene
     lod: LodRequest | None = None
     note: str = ""
     environment: int = 0
-    hidden: HiddenRows | None = None
+    deleted: DeletedRows | None = None
 
     @property
     def framed(self) -> np.ndarray:
@@ -51,13 +51,13 @@ class OpenedScene:
 
     def drawn(self, camera: Camera) -> tuple[Scene, LodChoice | None]:
         """What ``camera`` draws as a Scene of its own (the reference renderer's input: the
-        level-of-detail choice's rows, without the hidden ones, in scene order), and the
+        level-of-detail choice's rows, without the deleted ones, in scene order), and the
         choice (None: the whole scene)."""
         choice = None if self.lod is None else self.lod.choose(camera)
-        if self.hidden is None:
+        if self.deleted is None:
             return (self.scene if choice is None else self.lod.lod.subset(choice.spans)), choice
         rows = np.arange(self.scene.count) if choice is None else span_rows(choice.spans)
-        return self.scene.rows(rows[~self.hidden.mask[rows]]), choice
+        return self.scene.rows(rows[~self.deleted.mask[rows]]), choice
 
 
 def lod_settings_given(settings: RenderSettings) -> list[str]:

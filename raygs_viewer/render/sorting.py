@@ -21,7 +21,7 @@ from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.lod_choice import LodChoice, LodRequest
-from raygs_viewer.sort.hidden import HiddenRows
+from raygs_viewer.sort.deleted import DeletedRows
 from raygs_viewer.sort.request import Order, SortRequest, keys_of
 
 #: The sorts there are: the CPU's and the GPU's (``--sort`` also takes "auto": :func:`chosen_sort`).
@@ -62,24 +62,24 @@ def open_sorter(kind: str, ctx: moderngl.Context, scene: Scene) -> DepthSorter |
 
 def sort_request(camera: Camera, settings: RenderSettings, right: RenderSettings | None = None, *,
                  cull_cameras: Sequence[Camera] | None = None,
-                 levels: LodRequest | LodChoice | None = None, hidden: HiddenRows | None = None) -> SortRequest:
+                 levels: LodRequest | LodChoice | None = None, deleted: DeletedRows | None = None) -> SortRequest:
     """The one sort that serves every side shown (``right``: the split view's other
     side): the more conservative cull of the two (the smaller p_min; no frustum culling
     if either side needs none, else the larger dilation) and an order per side's key,
     the left's first. ``cull_cameras``: keep what any of them sees (stereo: both eyes,
     which share the midpoint's fx and fy, hence its dilation). ``levels``: a streamed
-    SOG's levels to choose for ``camera``, or the choice already made. ``hidden``: the
+    SOG's levels to choose for ``camera``, or the choice already made. ``deleted``: the
     gaussians deleted, which no order holds."""
     sides = [settings] if right is None else [settings, right]
     dilations = [side.cull_dilation(camera) for side in sides]
     dilation = None if any(d is None for d in dilations) else max(dilations)
     return SortRequest(camera, min(side.p_min for side in sides), dilation,
                        None if cull_cameras is None else tuple(cull_cameras),
-                       keys_of([side.sort_key for side in sides]), levels, hidden=hidden)
+                       keys_of([side.sort_key for side in sides]), levels, deleted=deleted)
 
 
 def exact_order(sorter: DepthSorter, camera: Camera, settings: RenderSettings, *,
                 cull_cameras: Sequence[Camera] | None = None,
-                levels: LodRequest | LodChoice | None = None, hidden: HiddenRows | None = None) -> Order:
+                levels: LodRequest | LodChoice | None = None, deleted: DeletedRows | None = None) -> Order:
     """``camera``'s order for ``settings``, sorted now (see :func:`sort_request`)."""
-    return sorter.sort(sort_request(camera, settings, cull_cameras=cull_cameras, levels=levels, hidden=hidden)).order
+    return sorter.sort(sort_request(camera, settings, cull_cameras=cull_cameras, levels=levels, deleted=deleted)).order

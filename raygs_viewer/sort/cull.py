@@ -20,7 +20,7 @@ import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.scene.model import Scene
-from raygs_viewer.sort.hidden import HiddenRows, hidden_key
+from raygs_viewer.sort.deleted import DeletedRows, deleted_key
 from raygs_viewer.sort.keys import camera_space, distances
 from raygs_viewer.sort.pool import Runner
 
@@ -64,17 +64,17 @@ class CullRequest:
     candidates: bool        # distance over every candidate (to be cached), not the visible ones
     centre: np.ndarray | None  # (3,) float32 camera centre: the distance key's C
     chunks: list[Rows] | None = None  # each chunk's rows (span_chunks); None: the whole scene in CHUNK_ROWS
-    hidden: HiddenRows | None = None  # rows no camera keeps and no key counts (deleted)
+    deleted: DeletedRows | None = None  # rows no camera keeps and no key counts (deleted)
 
 
 class Support(NamedTuple):
-    """What the cull needs per p_min and hidden rows, per gaussian: the radius of a sphere
+    """What the cull needs per p_min and deleted rows, per gaussian: the radius of a sphere
     holding its support, sqrt(max(kappa, 0)), and whether it is a candidate: its opacity
-    passes p_min and it is not hidden (a hidden gaussian is culled like a transparent one,
+    passes p_min and it is not deleted (a deleted gaussian is culled like a transparent one,
     by the CPU's cull and the GPU's alike)."""
 
     p_min: float
-    hidden: bytes
+    deleted: bytes
     radius: np.ndarray
     root_kappa: np.ndarray
     candidate: np.ndarray
@@ -104,26 +104,26 @@ class Cull:
     def count(self) -> int:
         return self.positions.shape[0]
 
-    def support(self, p_min: float, hidden: HiddenRows | None = None) -> Support:
-        """The :class:`Support` of ``p_min`` and ``hidden``, cached for the last ones: it
+    def support(self, p_min: float, deleted: DeletedRows | None = None) -> Support:
+        """The :class:`Support` of ``p_min`` and ``deleted``, cached for the last ones: it
         changes only with them. The radius: the kappa-ellipsoid fits in a sphere of
         sqrt(kappa)*max(s); NaN-free, 0 where kappa <= 0 (those are culled separately)."""
-        key = hidden_key(hidden)
-        if self._support is None or self._support.p_min != p_min or self._support.hidden != key:
+        key = deleted_key(deleted)
+        if self._support is None or self._support.p_min != p_min or self._support.deleted != key:
             kappa = 2.0 * (self.log_opacity - np.float32(math.log(p_min)))
             root_kappa = np.sqrt(np.maximum(kappa, 0.0))
             with np.errstate(over="ignore"):  # absurd scales give inf: a sphere that culls nothing
                 radius = root_kappa * self.max_scale
             candidate = self.log_opacity > np.float32(math.log(p_min))
-            if hidden is not None:
-                candidate &= ~hidden.mask
+            if deleted is not None:
+                candidate &= ~deleted.mask
             self._support = Support(p_min, key, radius, root_kappa, candidate)
         return self._support
 
     def request(self, camera: Camera, p_min: float, dilation: float | None,
                 cull_cameras: Sequence[Camera] | None, keys: tuple[str, ...], candidates: bool,
                 centre: np.ndarray | None, spans: np.ndarray | None = None,
-                hidden: HiddenRows | None = None) -> CullRequest:
+                deleted: DeletedRows | None = None) -> CullRequest:
         """The pass for these arguments (see ``DepthSorter.cull`` for what they mean)."""
         cameras = list(cull_cameras or (camera,))
         same = [c for c in cameras if np.array_equal(c.R, camera.R) and np.array_equal(c.t, camera.t)]
@@ -132,12 +132,12 @@ class Cull:
             cameras.append(same[0])
         chunks = None if spans is None else span_chunks(spans, self.chunk_rows)
         return CullRequest(camera, p_min, dilation, tuple(cameras), bool(same), keys, candidates, centre, chunks,
-                           hidden)
+                           deleted)
 
     def pieces(self, request: CullRequest, run: Runner) -> list[Piece]:
         """The pass over every chunk, the chunks handed out by ``run``: one
         :class:`Piece` per chunk, in scene order."""
-        self.support(request.p_min, request.hidden)  # once, before the threads read it
+        self.support(request.p_min, request.deleted)  # once, before the threads read it
         if self.union is None:
             self.union = np.empty(self.count, bool)
         # Spans leave the rest of ``union`` stale: only an order cached for the same spans
@@ -179,7 +179,7 @@ class Cull:
         if "distance" in request.keys:
             distance = scratch.radius[:n]  # free once the cull is done
             distances(self.positions[rows], request.centre, scratch.mu[:, :n], distance)
-            candidate = self.support(request.p_min, request.hidden).candidate[rows]
+            candidate = self.support(request.p_min, request.deleted).candidate[rows]
             among = distance[candidate]
             piece.ranges["distance"] = _range(among)
             if request.candidates:
@@ -201,7 +201,7 @@ class Cull:
                                                  scratch.term[:n], scratch.keep[:n], scratch.test[:n])
         self._camera_space(camera, rows, mu, product)
         slack = cull_slack(self.coordinate_scale, camera)
-        support, dilation = self.support(request.p_min, request.hidden), request.dilation
+        support, dilation = self.support(request.p_min, request.deleted), request.dilation
         radius[:] = support.radius[rows]
         if dilation:
             np.multiply(mu[0], mu[0], out=term)

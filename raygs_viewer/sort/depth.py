@@ -34,14 +34,14 @@ import numpy as np
 
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.sort.cull import CHUNK_ROWS, Cull
-from raygs_viewer.sort.hidden import HiddenRows, hidden_key
+from raygs_viewer.sort.deleted import DeletedRows, deleted_key
 from raygs_viewer.sort.keys import SortMethod, snapped_centre
 from raygs_viewer.sort.ordering import sorted_rows
 from raygs_viewer.sort.pool import ChunkPool, Closable, Runner
 from raygs_viewer.sort.request import Order, SortRequest, SortResult
 
 #: What a distance order is reused for: (bytes of the snapped centre, p_min, method,
-#: bytes of the spans culled and of the hidden rows' key: both change the candidates).
+#: bytes of the spans culled and of the deleted rows' key: both change the candidates).
 Turn = tuple[bytes, float, str, bytes]
 
 
@@ -119,12 +119,12 @@ class DepthSorter(Closable):
             locked = time.perf_counter()  # after another thread's sort on this sorter, if one ran
             keys, method = request.keys, request.method
             centre = snapped_centre(request.camera, self._cull.coordinate_scale)
-            turn = _turn_of(centre, request.p_min, method, spans, request.hidden)
+            turn = _turn_of(centre, request.p_min, method, spans, request.deleted)
             kept = self._turns.kept(turn) if "distance" in keys else None
             keep = "distance" in keys and kept is None and self._turns.worth_keeping(turn)
             computed = tuple(key for key in keys if not (key == "distance" and kept is not None))
             cull = self._cull.request(request.camera, request.p_min, request.dilation, request.cull_cameras,
-                                      computed, keep, centre, spans, request.hidden)
+                                      computed, keep, centre, spans, request.deleted)
             pieces = self._cull.pieces(cull, self._pool.run)
             culled = time.perf_counter()
             orders = {}
@@ -163,7 +163,7 @@ class DepthSorter(Closable):
         choice = None if request.levels is None else request.levels.choose(request.camera)
         with self._lock:
             cull = self._cull.request(request.camera, request.p_min, request.dilation, request.cull_cameras, (),
-                                      False, None, None if choice is None else choice.spans, request.hidden)
+                                      False, None, None if choice is None else choice.spans, request.deleted)
             pieces = self._cull.pieces(cull, self._pool.run)
             return np.concatenate([np.zeros(0, np.int64), *(piece.visible for piece in pieces)]).astype(np.int64)
 
@@ -174,9 +174,9 @@ class DepthSorter(Closable):
 
 
 def _turn_of(centre: np.ndarray, p_min: float, method: SortMethod, spans: np.ndarray | None,
-             hidden: HiddenRows | None) -> Turn:
+             deleted: DeletedRows | None) -> Turn:
     spans_key = b"" if spans is None else np.asarray(spans, np.int64).tobytes()
-    return (centre.tobytes(), float(p_min), method, spans_key + hidden_key(hidden))
+    return (centre.tobytes(), float(p_min), method, spans_key + deleted_key(deleted))
 
 
 class TurnCache:

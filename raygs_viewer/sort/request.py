@@ -17,7 +17,7 @@ from typing import Mapping, Protocol, Sequence, runtime_checkable
 import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera, camera_key
-from raygs_viewer.sort.hidden import HiddenRows, hidden_key
+from raygs_viewer.sort.deleted import DeletedRows, deleted_key
 from raygs_viewer.sort.keys import SortKey, SortMethod, check_method, checked_keys
 from raygs_viewer.sort.lod_choice import LodChoice, LodRequest
 
@@ -38,7 +38,7 @@ class SortRequest:
                   ``camera`` first, or a :class:`LodChoice` already made (a frame's
                   tiles and eyes share the frame's); None: the whole scene.
     method:       ``sort.keys``' "auto", "radix" or "float".
-    hidden:       gaussians left out of every order, as if deleted (:class:`HiddenRows`);
+    deleted:       gaussians left out of every order, as if deleted (:class:`DeletedRows`);
                   None: none.
 
     Equal requests (:attr:`identity`) give equal orders. The cameras are private
@@ -52,7 +52,7 @@ class SortRequest:
     keys: tuple[SortKey, ...] = ("depth",)
     levels: LodRequest | LodChoice | None = None
     method: SortMethod = "auto"
-    hidden: HiddenRows | None = None
+    deleted: DeletedRows | None = None
 
     def __post_init__(self) -> None:
         check_method(self.method)
@@ -73,7 +73,7 @@ class SortRequest:
         frustum culling, differs from every number)."""
         culled_for = None if self.cull_cameras is None else tuple(camera_key(c) for c in self.cull_cameras)
         return (camera_key(self.camera), self.p_min, self.dilation, culled_for, self.keys,
-                _levels_identity(self.levels), self.method, hidden_key(self.hidden))
+                _levels_identity(self.levels), self.method, deleted_key(self.deleted))
 
     def __eq__(self, other: object) -> bool:
         return isinstance(other, SortRequest) and self.identity == other.identity

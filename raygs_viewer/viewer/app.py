@@ -122,7 +122,7 @@ class Viewer:
         # At a training camera's own size the Photo view renders as ``evaluate`` does, with the
         # panel's settings over the dataset's background, so the two measure one PSNR.
         self.photo = PhotoCompare(self.ctx, options.images, lambda view, dataset: render_view(
-            self.scene.renderer, self.scene.exact_sorter, view, evaluation_settings(self.settings, dataset)))
+            self.scene.renderer, self.scene.direct_sorter, view, evaluation_settings(self.settings, dataset)))
         self.camera_path = PathWidget(self.panel, self)
         self.measure = MeasureWidget(self.panel, self)
         self.frustums = TrainingFrustums(Thumbnails(self.ctx, self.photo.dataset))
@@ -242,7 +242,7 @@ class Viewer:
         lod = self.scene.lod_for_frame(self.loaded, self.settings)
         framing = self.view.camera(self.view_area(), stereo, self.stereo.headset_size)
         frame = self.shown = Frame.make(self.frame_index, framing, stereo, self.settings, self.right_settings(), lod,
-                                        self.edit_tool.hidden)
+                                        self.edit_tool.deleted)
         # wait_for_sort: only the last frame of a scripted run, whose capture must show the finished view.
         # After a streamed SOG's level arrives: the last order until its first.
         result = self.scene.shown(request_sort(self.scene.sorter, self.stats, frame, self.wait_for_sort))
@@ -293,7 +293,7 @@ class Viewer:
         self.scene.lod.check_screenshot()
         shot = window_shot(self, frame)
         self.scene.renderer.set_selection(None)  # a screenshot shows the scene, not the selection's tint
-        return self.captures.take(self.scene.renderer, self.scene.exact_sorter, shot, path)
+        return self.captures.take(self.scene.renderer, self.scene.direct_sorter, shot, path)
 
     # -- loop ------------------------------------------------------------------------
     def run(self) -> None:
@@ -338,7 +338,7 @@ def window_shot(viewer: Viewer, frame: Frame) -> Shot:
                       v.split if v.right_settings() is not None else None, v.drawer.shown_right_view)
     extra = sidecar_extra(v.view.navigator, v.loaded, v.view.training_index, context_description(v.ctx))
     return Shot(shown, v.loaded, lod_request(v.loaded, v.settings), v.stereo.save_eyes, extra,
-                v.edit_tool.hidden, v.edit_tool.sidecar_entry())
+                v.edit_tool.deleted, v.edit_tool.sidecar_entry())
 
 
 def opened_settings(settings: RenderSettings, start: RenderSettings, loaded: LoadedScene) -> RenderSettings:

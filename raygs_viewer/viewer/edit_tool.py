@@ -3,7 +3,7 @@
 the edits they make (``scene.edits``): delete, undelete, crop, undo and redo, export.
 
 The scene on the GPU never changes. A deletion hides rows from every sort the window
-makes (the frame's, screenshots', picks': ``sort.hidden``), and the selection is drawn
+makes (the frame's, screenshots', picks': ``sort.deleted``), and the selection is drawn
 tinted by the preprocessing pass from one bit a gaussian (``GLRenderer.set_selection``).
 Screen shapes are recorded in the drawn camera's pixels, with the camera, so the edit
 document replays them (``capture.edit_file``).
@@ -30,7 +30,7 @@ from raygs_viewer.scene.edits import Edits, Operation
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.selection import ATTRIBUTES, Box, Range, ScreenShape, Sphere, attribute_values
 from raygs_viewer.scene.source import SceneSource
-from raygs_viewer.sort.hidden import HiddenRows
+from raygs_viewer.sort.deleted import DeletedRows
 from raygs_viewer.viewer.edit_export import EditExport
 from raygs_viewer.viewer.view_selection import shown_rows
 from raygs_viewer.viewer.volume_handles import VolumeHandles
@@ -65,7 +65,7 @@ class EditTool:
         self.drag: list[tuple[float, float]] | None = None   # screen points of the shape being drawn
         self.histogram_drag: float | None = None   # where a drag across the histogram began (screen x)
         self._drag_how = "set"
-        self._hidden: tuple[int, HiddenRows | None] = (-1, None)
+        self._deleted_rows: tuple[int, DeletedRows | None] = (-1, None)
         self._histogram: tuple[int, str, np.ndarray, np.ndarray] | None = None
         self._counted: tuple | None = None
 
@@ -99,15 +99,15 @@ class EditTool:
         return self.host.loaded.scene
 
     @property
-    def hidden(self) -> HiddenRows | None:
+    def deleted(self) -> DeletedRows | None:
         """The deleted rows, as every sort of the window leaves them out (made once an edit)."""
         if self.edits is None:
             return None
-        generation, hidden = self._hidden
+        generation, deleted = self._deleted_rows
         if generation != self.edits.generation:
-            hidden = HiddenRows.of(self.edits.deleted)
-            self._hidden = (self.edits.generation, hidden)
-        return hidden
+            deleted = DeletedRows.of(self.edits.deleted)
+            self._deleted_rows = (self.edits.generation, deleted)
+        return deleted
 
     def _state(self) -> tuple[np.ndarray, int, int]:
         """(the selection shown, its count, the count deleted), made once an edit: the
@@ -222,7 +222,7 @@ class EditTool:
         shape = self.screen_shape(points, frame)
         if shape is not None and (self.tool == "click" or self.selects == "visible"):
             try:
-                shape = shown_rows(self.scene, self.host.scene.exact_sorter, frame, shape, self.hidden,
+                shape = shown_rows(self.scene, self.host.scene.direct_sorter, frame, shape, self.deleted,
                                    None if self.tool == "click" else self.min_weight)
             except UserError as exc:
                 self.host.panel.error, shape = f"error: nothing selected: {one_line(exc)}", None

@@ -25,7 +25,7 @@ from raygs_viewer.render.channel_pictures import ChannelView
 from raygs_viewer.render.gl.mono_frame import Viewport
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.render.sorting import sort_request
-from raygs_viewer.sort.hidden import HiddenRows
+from raygs_viewer.sort.deleted import DeletedRows
 from raygs_viewer.sort.lod_choice import LodRequest
 from raygs_viewer.sort.request import SortRequest
 
@@ -78,13 +78,13 @@ class Frame:
 
     @classmethod
     def make(cls, index: int, framing: Framing, stereo: StereoView | None, settings: RenderSettings,
-             right: RenderSettings | None, lod: LodRequest | None, hidden: HiddenRows | None = None) -> Frame:
+             right: RenderSettings | None, lod: LodRequest | None, deleted: DeletedRows | None = None) -> Frame:
         """The frame of ``framing`` with these settings, and the one sort that serves it
         (``render.sorting.sort_request``: culled for both eyes in stereo, without the
-        ``hidden`` rows, the deleted ones)."""
+        ``deleted`` rows, the deleted ones)."""
         camera, viewport, eyes = framing
         return cls(index, camera, viewport, eyes, stereo, settings, right, lod,
-                   sort_request(camera, settings, right, cull_cameras=eyes, levels=lod, hidden=hidden))
+                   sort_request(camera, settings, right, cull_cameras=eyes, levels=lod, deleted=deleted))
 
     @property
     def full_camera(self) -> Camera:

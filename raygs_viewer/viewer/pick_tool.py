@@ -94,8 +94,8 @@ class PickTool:
             order = host.drawer.orders.get(settings.sort_key)
             if order is None:  # none drawn in this key yet: the pixel's own, of the levels drawn
                 drawn = next(iter(host.drawer.orders.values()), None)
-                order = exact_order(host.scene.exact_sorter, pixel_camera(eye, u, v), settings,
-                                    levels=None if drawn is None else drawn.choice, hidden=host.edit_tool.hidden)
+                order = exact_order(host.scene.direct_sorter, pixel_camera(eye, u, v), settings,
+                                    levels=None if drawn is None else drawn.choice, deleted=host.edit_tool.deleted)
             return pick(host.scene.renderer, eye, u, v, settings, order, origin)
         except UserError as exc:  # settings this GPU cannot render (the frame says so too)
             host.panel.error = f"error: nothing picked: {one_line(exc)}"

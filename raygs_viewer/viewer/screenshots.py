@@ -44,7 +44,7 @@ from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.scene.loader import LoadedScene
 from raygs_viewer.sort.depth import DepthSorter
-from raygs_viewer.sort.hidden import HiddenRows
+from raygs_viewer.sort.deleted import DeletedRows
 from raygs_viewer.sort.lod_choice import LodChoice, LodRequest
 from raygs_viewer.sort.request import Order
 from raygs_viewer.viewer.state import PanelState, ScreenshotOptions, SplitView
@@ -82,10 +82,10 @@ class Offscreen:
     renderer: object
     sorter: DepthSorter
     levels: LodChoice | None = None
-    hidden: HiddenRows | None = None
+    deleted: DeletedRows | None = None
 
     def order(self, camera: Camera, settings: RenderSettings) -> Order:
-        return exact_order(self.sorter, camera, settings, levels=self.levels, hidden=self.hidden)
+        return exact_order(self.sorter, camera, settings, levels=self.levels, deleted=self.deleted)
 
 
 @dataclass(frozen=True)
@@ -101,7 +101,7 @@ class Shot:
     lod: LodRequest | None = None
     save_eyes: bool = False
     extra: dict = field(default_factory=dict)
-    hidden: HiddenRows | None = None
+    deleted: DeletedRows | None = None
     edits: dict | None = None
 
 
@@ -112,7 +112,7 @@ def take_screenshots(renderer, sorter: DepthSorter, shot: Shot, options: Screens
     never overwrites anything. Returns every (png, json) pair written, the left side's or
     the pair's first."""
     camera = scaled_camera(shot.shown.camera, options.scale)
-    offscreen = Offscreen(renderer, sorter, None if shot.lod is None else shot.lod.choose(camera), shot.hidden)
+    offscreen = Offscreen(renderer, sorter, None if shot.lod is None else shot.lod.choose(camera), shot.deleted)
     return _take(offscreen, shot, options, path, camera)
 
 
@@ -178,7 +178,7 @@ def _stereo_images(offscreen: Offscreen, camera: Camera, settings: RenderSetting
     """The side-by-side pair whatever the window's layout (the sidecar notes that
     layout), and each eye when asked, each with the view that reproduces it."""
     pair = replace(stereo, layout="sbs")
-    order = stereo_order(offscreen.sorter, camera, settings, stereo.rig, offscreen.levels, offscreen.hidden)
+    order = stereo_order(offscreen.sorter, camera, settings, stereo.rig, offscreen.levels, offscreen.deleted)
     image, left, right = render_stereo_view(offscreen.renderer, order, camera, settings, pair, view)
     shots = [(image, pair, "pair")]
     if save_eyes:

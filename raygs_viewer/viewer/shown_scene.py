@@ -38,11 +38,11 @@ from raygs_viewer.viewer.lod_window import Refined, WindowLod, reading
 class ShownScene:
     """``renderer`` (made by ``renderer_factory(ctx, scene, general=)``) draws the scene
     (None before :meth:`open`); ``sorter`` (made by
-    ``sorter_factory(exact_sorter)``) sorts the window's requests on its thread with
-    ``exact_sorter``, a DepthSorter of it, which screenshots and picks sort with too.
+    ``sorter_factory(direct_sorter)``) sorts the window's requests on its thread with
+    ``direct_sorter``, a DepthSorter of it, which screenshots and picks sort with too.
     ``sort``: "cpu" or "gpu", what ``sort_for(count)`` says for the scene's size when
     it is opened (or :meth:`resort` is asked). With "gpu": ``sorter`` is an InlineSorter of a GpuSorter that sorts in the
-    frame, and ``exact_sorter`` another GpuSorter: the frames' orders stay on the GPU,
+    frame, and ``direct_sorter`` another GpuSorter: the frames' orders stay on the GPU,
     and no screenshot's sorts reuse the buffer of the order the window draws. Neither
     waits for the GPU after a sort (a frame's draw waits for it on the GPU itself);
     the frames' sorts are timed by :attr:`sort_timer`'s queries instead.
@@ -61,7 +61,7 @@ class ShownScene:
         self.opener, self.forget = opener, forget
         self.renderer: GLRenderer | None = None
         self.sorter: BackgroundSorter | InlineSorter | None = None
-        self.exact_sorter: DepthSorter | GpuSorter | None = None
+        self.direct_sorter: DepthSorter | GpuSorter | None = None
         self.fallback: SortResult | None = None
         self.lod = WindowLod()
         self._sort_timer: GpuTimer | None = None  # made with the first GPU sorter, kept for the window
@@ -110,7 +110,7 @@ class ShownScene:
             self.sort = previous
             return one_line(exc)
         self._close_sorters()
-        self.exact_sorter, self.sorter = sorters
+        self.direct_sorter, self.sorter = sorters
         self.fallback = None
         self.forget(None)
         return None
@@ -165,8 +165,8 @@ class ShownScene:
     def _close_sorters(self) -> None:
         if self.sorter is not None:
             self.sorter.close()
-        if isinstance(self.exact_sorter, GpuSorter):  # a CPU one closes on the sort thread
-            self.exact_sorter.close()
+        if isinstance(self.direct_sorter, GpuSorter):  # a CPU one closes on the sort thread
+            self.direct_sorter.close()
 
     def _swap(self, scene: Scene, keep: bool) -> None:
         """``scene`` on the GPU with its own sorters; a UserError (too large for this GPU)
@@ -182,7 +182,7 @@ class ShownScene:
             renderer.release()
             raise
         self.close()
-        self.renderer, (self.exact_sorter, self.sorter) = renderer, sorters
+        self.renderer, (self.direct_sorter, self.sorter) = renderer, sorters
         # A GPU order lives in its sorter's buffers, gone with it; the new sorter answers
         # in the same frame anyway.
         kept = last if keep and self.sort == "cpu" else None

@@ -68,7 +68,7 @@ def test_the_window_sorts_on_the_gpu_in_its_own_frame(open_viewer):
     viewer, drive = open_viewer(sort="gpu", hide_panel=True)
     drive.frames(3)
     drive.settle()
-    assert isinstance(viewer.scene.sorter, InlineSorter) and isinstance(viewer.scene.exact_sorter, GpuSorter)
+    assert isinstance(viewer.scene.sorter, InlineSorter) and isinstance(viewer.scene.direct_sorter, GpuSorter)
     assert viewer.scene.sorter.finished >= 1 and viewer.scene.sorter.error is None
     order = viewer.drawer.orders["depth"]
     assert order.on_device and order.answers(viewer.shown.sort)

@@ -404,10 +404,10 @@ def test_problem_names_what_this_gl_lacks(gl_ctx):
         SimpleNamespace(version_code=430, info={"GL_MAX_COMPUTE_SHADER_STORAGE_BLOCKS": 4}))
 
 
-def test_hidden_rows_are_left_out_as_on_the_cpu(gl_ctx, programs):
+def test_deleted_rows_are_left_out_as_on_the_cpu(gl_ctx, programs):
     """Deleted gaussians: the support is uploaded again (the scene is not) and the orders
     equal the CPU's, which hold none of them."""
-    from raygs_viewer.sort.hidden import HiddenRows
+    from raygs_viewer.sort.deleted import DeletedRows
     scene = random_scene(n=3000, seed=13, degree=0, spread=1.5, log_scale=(-3.0, -1.0))
     camera = camera_at()
     rng = np.random.default_rng(5)
@@ -416,6 +416,6 @@ def test_hidden_rows_are_left_out_as_on_the_cpu(gl_ctx, programs):
         for mask in masks:
             for method in METHODS:
                 orders = assert_same_orders(gpu, cpu, SortRequest(camera, 1 / 255, 0.02, keys=KEYS, method=method,
-                                                                  hidden=HiddenRows(mask)))
+                                                                  deleted=DeletedRows(mask)))
                 assert orders["depth"].size > 0 and not mask[orders["depth"]].any()
         assert gpu.support_uploads == 2

@@ -24,7 +24,7 @@ from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.scene.edits import Operation, replay
 from raygs_viewer.scene.filters import CropBox, KeepValues
 from raygs_viewer.sort.depth import DepthSorter
-from raygs_viewer.sort.hidden import HiddenRows
+from raygs_viewer.sort.deleted import DeletedRows
 
 Key = imgui.Key
 
@@ -263,8 +263,8 @@ def test_an_edited_screenshot_renders_again_from_its_sidecar(open_viewer, scene_
     assert f"({int(tool.edits.deleted.sum())} deleted)" in out
     shot, drawn = (np.asarray(Image.open(path)).astype(int) for path in (png, reference))
     assert np.abs(shot - drawn).max() <= 3
-    hidden = HiddenRows(tool.edits.deleted)
-    assert viewer.shown.sort.hidden.key == hidden.key  # the frame's sort leaves them out
+    deleted = DeletedRows(tool.edits.deleted)
+    assert viewer.shown.sort.deleted.key == deleted.key  # the frame's sort leaves them out
 
 
 @pytest.fixture

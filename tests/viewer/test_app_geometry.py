@@ -41,7 +41,7 @@ def expected_picture(viewer, view: ChannelView, camera=None, settings=None, orde
     """(picture, range used): channel_picture of render_channels of the view."""
     camera, settings = camera or viewer.camera, settings or viewer.settings
     if order is None:
-        order = exact_order(viewer.scene.exact_sorter, camera, settings)
+        order = exact_order(viewer.scene.direct_sorter, camera, settings)
     channels = viewer.scene.renderer.render_channels(camera, settings, order, color_origin=color_origin)
     return channel_picture(channels.in_space(view.normal_space, camera), view)
 
@@ -169,7 +169,7 @@ def test_both_stereo_eyes_show_it(open_viewer):
     viewer.view_mode.channel = "depth"
     drive.settle()
     camera, rig = viewer.camera, viewer.stereo.view().rig
-    order = stereo_order(viewer.scene.exact_sorter, camera, viewer.settings, rig)
+    order = stereo_order(viewer.scene.direct_sorter, camera, viewer.settings, rig)
     left_eye, right_eye = eye_cameras(camera, rig)
     left, used = expected_picture(viewer, ChannelView("depth"), left_eye, order=order, color_origin=camera.center)
     right, _ = expected_picture(viewer, ChannelView("depth", used), right_eye, order=order,

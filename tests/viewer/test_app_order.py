@@ -57,7 +57,7 @@ class RecordingRenderer(GLRenderer):
 
 def sorted_now(viewer, p_min: float, key: str) -> np.ndarray:
     """The indices of the exact sort of the viewer's view by ``key``."""
-    return viewer.scene.exact_sorter.sort(SortRequest(viewer.camera, p_min, keys=(key,))).order.indices
+    return viewer.scene.direct_sorter.sort(SortRequest(viewer.camera, p_min, keys=(key,))).order.indices
 
 
 def drawn_into(viewer, target) -> tuple[RenderSettings, Order]:

@@ -43,7 +43,7 @@ def medians(viewer, camera=None, order=None, **kwargs) -> np.ndarray:
     """(H, W) median depth of the whole view, rendered headlessly (with an exact sort of
     its own unless an ``order`` is given)."""
     camera = camera or viewer.camera
-    order = order or exact_order(viewer.scene.exact_sorter, camera, viewer.settings)
+    order = order or exact_order(viewer.scene.direct_sorter, camera, viewer.settings)
     return viewer.scene.renderer.render_channels(camera, viewer.settings, order, **kwargs).median_depth
 
 

@@ -52,7 +52,7 @@ def stereo_viewer(open_viewer, layout="sbs", width=None, height=None, rig=Stereo
 def headless_eyes(viewer) -> tuple[np.ndarray, np.ndarray]:
     """Both eyes rendered headlessly with the shared order and colour, for the viewer's
     midpoint camera and rig."""
-    return render_stereo(viewer.scene.renderer, viewer.scene.exact_sorter, viewer.camera, viewer.settings, viewer.stereo.view().rig)
+    return render_stereo(viewer.scene.renderer, viewer.scene.direct_sorter, viewer.camera, viewer.settings, viewer.stereo.view().rig)
 
 
 def composed(viewer) -> np.ndarray:
@@ -121,7 +121,7 @@ def test_the_sort_is_culled_for_both_eyes_from_the_midpoint(open_viewer):
         assert (got.cx, got.width) == (want.cx, want.width)
         np.testing.assert_array_equal(got.t, want.t)
     np.testing.assert_array_equal(viewer.scene.sorter.latest().order.indices,
-                                  stereo_order(viewer.scene.exact_sorter, viewer.camera, viewer.settings, rig).indices)
+                                  stereo_order(viewer.scene.direct_sorter, viewer.camera, viewer.settings, rig).indices)
     # A new IPD is another cull: the drawn order catches up with it.
     viewer.stereo.rig = replace(viewer.stereo.rig, ipd=0.2)
     drive.settle()
@@ -346,7 +346,7 @@ def test_stereo_screenshot_at_scale_and_with_the_lens(open_viewer, tmp_path):
     scaled = replace(viewer.camera, width=2 * EYE.width, height=2 * EYE.height, fx=2 * viewer.camera.fx,
                      fy=2 * viewer.camera.fy, cx=2 * viewer.camera.cx, cy=2 * viewer.camera.cy)
     rig = viewer.stereo.view().rig
-    left, right = render_stereo(viewer.scene.renderer, viewer.scene.exact_sorter, scaled, viewer.settings, rig)
+    left, right = render_stereo(viewer.scene.renderer, viewer.scene.direct_sorter, scaled, viewer.settings, rig)
     eyes = eye_cameras(scaled, rig)
     expected = compose(lens_warp_reference(left, eyes[0]), lens_warp_reference(right, eyes[1]), "sbs")
     assert np.abs(np.asarray(Image.open(png)).astype(int) - to_rgb8(expected).astype(int)).max() <= 2

@@ -55,7 +55,7 @@ from raygs_viewer.render.gl.storage import gpu_limit
 from raygs_viewer.render.gl.timing import GpuTimer
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.sort.cull import RADIUS_WIDENING, Cull, cull_slack, side_planes
-from raygs_viewer.sort.hidden import HiddenRows, hidden_key
+from raygs_viewer.sort.deleted import DeletedRows, deleted_key
 from raygs_viewer.sort.keys import SortMethod, check_method, quantisable, quantise_scale, snapped_centre
 from raygs_viewer.sort.lod_choice import LodChoice
 from raygs_viewer.sort.pool import Closable
@@ -233,7 +233,7 @@ class GpuSorter(Closable):
     The positions go to the GPU once; the support arrays (``Cull.support``, computed by
     numpy as the CPU sort computes them) once per p_min. ``programs``: a
     :class:`Programs` to build in (the renderer's); by default its own. Counters:
-    ``sorted`` orders made, ``support_uploads`` p_min or hidden rows changes uploaded."""
+    ``sorted`` orders made, ``support_uploads`` p_min or deleted rows changes uploaded."""
 
     def __init__(self, ctx: moderngl.Context, scene: Scene, *, programs: Programs | None = None,
                  finish: bool = True, timer: GpuTimer | None = None):
@@ -346,20 +346,20 @@ class GpuSorter(Closable):
 
     # ------------------------------------------------------------------ passes
 
-    def _upload_support(self, p_min: float, hidden: HiddenRows | None) -> None:
+    def _upload_support(self, p_min: float, deleted: DeletedRows | None) -> None:
         """(radius, root_kappa) per gaussian for ``p_min``, root_kappa's sign bit set
-        where the gaussian is no candidate (transparent, or hidden), uploaded when p_min
-        or the hidden rows change: 8 bytes a gaussian, the scene itself stays."""
-        if self._support_key == (p_min, hidden_key(hidden)):
+        where the gaussian is no candidate (transparent, or deleted), uploaded when p_min
+        or the deleted rows change: 8 bytes a gaussian, the scene itself stays."""
+        if self._support_key == (p_min, deleted_key(deleted)):
             return
-        support = self._cull.support(p_min, hidden)
+        support = self._cull.support(p_min, deleted)
         packed = np.empty((self.count, 2), np.float32)
         packed[:, 0] = support.radius
         kappa_bits = support.root_kappa.view(np.uint32) & np.uint32(0x7FFFFFFF)
         kappa_bits |= (~support.candidate).astype(np.uint32) << np.uint32(31)
         packed[:, 1] = kappa_bits.view(np.float32)
         self._supports.write(packed)
-        self._support_key = (p_min, hidden_key(hidden))
+        self._support_key = (p_min, deleted_key(deleted))
         self.support_uploads += 1
 
     def _upload_spans(self, starts: np.ndarray) -> None:
@@ -385,7 +385,7 @@ class GpuSorter(Closable):
         """Passes 1 and 2 (the module's docstring): the cull, the keys, the ranges and
         the kept entries' starts."""
         cameras = tuple(request.cull_cameras or (request.camera,))
-        self._upload_support(request.p_min, request.hidden)
+        self._upload_support(request.p_min, request.deleted)
         self._upload_spans(starts)
         self._upload_cameras(cameras)
         self._summary.write(np.array([0, _NONE_LOW, _NONE_HIGH, _NONE_LOW, _NONE_HIGH], np.uint32))

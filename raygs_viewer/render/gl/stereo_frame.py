@@ -35,7 +35,7 @@ from raygs_viewer.render.gl.targets import FloatTarget, release_all, sized
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.sort.depth import DepthSorter
-from raygs_viewer.sort.hidden import HiddenRows
+from raygs_viewer.sort.deleted import DeletedRows
 from raygs_viewer.sort.lod_choice import LodChoice, LodRequest
 from raygs_viewer.sort.request import Order
 
@@ -49,10 +49,10 @@ def fixed_range(view: ChannelView | None, used: tuple[float, float] | None) -> C
 
 
 def stereo_order(sorter: DepthSorter, camera: Camera, settings: RenderSettings, rig: StereoRig,
-                 levels: LodRequest | LodChoice | None = None, hidden: HiddenRows | None = None) -> Order:
+                 levels: LodRequest | LodChoice | None = None, deleted: DeletedRows | None = None) -> Order:
     """The one back-to-front order both eyes draw: the settings' key seen from the
-    midpoint, keeping what either eye may see (of ``levels``' rows, without ``hidden``)."""
-    return exact_order(sorter, camera, settings, cull_cameras=eye_cameras(camera, rig), levels=levels, hidden=hidden)
+    midpoint, keeping what either eye may see (of ``levels``' rows, without ``deleted``)."""
+    return exact_order(sorter, camera, settings, cull_cameras=eye_cameras(camera, rig), levels=levels, deleted=deleted)
 
 
 def render_stereo(renderer, sorter: DepthSorter, camera: Camera, settings: RenderSettings, rig: StereoRig, *,

@@ -1,7 +1,7 @@
 """Gaussians a sort leaves out (deleted in the window), as a value a request carries.
 
 A deletion is not a new scene: the scene stays on the GPU as it was read, and the sort
-drops the hidden rows with the transparent ones (``sort.cull``'s candidates), so no
+drops the deleted rows with the transparent ones (``sort.cull``'s candidates), so no
 order holds them and nothing draws them, whichever sorter made the order.
 """
 
@@ -14,9 +14,9 @@ import numpy as np
 
 
 @dataclass(frozen=True, eq=False)
-class HiddenRows:
+class DeletedRows:
     """Gaussians a sort leaves out as if they were not in the scene (deleted in the window):
-    ``mask`` (N,) bool, True where hidden, copied and made read-only; ``key``: its digest,
+    ``mask`` (N,) bool, True where deleted, copied and made read-only; ``key``: its digest,
     what a request's identity compares (equal masks, equal keys)."""
 
     mask: np.ndarray
@@ -30,11 +30,11 @@ class HiddenRows:
                                                      ).digest())
 
     @classmethod
-    def of(cls, mask: np.ndarray | None) -> "HiddenRows | None":
-        """The hidden rows of ``mask``; None where none is hidden (the plain sort)."""
+    def of(cls, mask: np.ndarray | None) -> "DeletedRows | None":
+        """The deleted rows of ``mask``; None where none is deleted (the plain sort)."""
         return None if mask is None or not mask.any() else cls(mask)
 
 
-def hidden_key(hidden: "HiddenRows | None") -> bytes:
-    """What ``hidden`` adds to a cache's key: its digest, or nothing."""
-    return b"" if hidden is None else hidden.key
+def deleted_key(deleted: "DeletedRows | None") -> bytes:
+    """What ``deleted`` adds to a cache's key: its digest, or nothing."""
+    return b"" if deleted is None else deleted.key
