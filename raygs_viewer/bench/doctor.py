@@ -195,7 +195,7 @@ def auto_choices_section(ctx, quick: bool, say: Callable[[str], None]) -> list[s
 # --- output ----------------------------------------------------------------------------------------
 
 def _failure(row) -> str:
-    reasons = ", ".join(row.failures) if isinstance(row, CheckRow) else "; ".join(row.differences)
+    reasons = (", " if isinstance(row, CheckRow) else "; ").join(row.faults)
     return f"{row.label} ({reasons if len(reasons) <= SUMMARY_REASON else reasons[:SUMMARY_REASON - 3] + '...'})"
 
 
@@ -215,13 +215,13 @@ def _result(row: CheckRow) -> str:
         return f"not supported here: {row.problem}"
     if row.unbounded:
         return row.unbounded
-    return "**FAIL**: " + "; ".join(row.failures) if row.failed else "pass"
+    return "**FAIL**: " + "; ".join(row.faults) if row.failed else "pass"
 
 
 def _sort_result(row: doctor_sort.SortRow) -> str:
     if not row.supported:
         return f"not supported here: {row.problem}"
-    return "**FAIL**: " + "; ".join(row.differences) if row.failed else "identical"
+    return "**FAIL**: " + "; ".join(row.faults) if row.failed else "identical"
 
 
 def format_report(result: DoctorResult) -> str:

@@ -23,7 +23,6 @@ from __future__ import annotations
 
 import contextlib
 from dataclasses import dataclass, replace
-from operator import attrgetter
 from typing import Callable, Iterator
 
 import numpy as np
@@ -117,6 +116,7 @@ class CorrectnessRow:
     their places."""
 
     problem: str | None = None
+    faults: tuple[str, ...] = ()
 
     @property
     def supported(self) -> bool:
@@ -126,10 +126,6 @@ class CorrectnessRow:
     def judged(self) -> bool:
         """Held to its test: whenever this GL can run it, unless a row says otherwise."""
         return self.supported
-
-    @property
-    def faults(self) -> tuple[str, ...]:
-        raise NotImplementedError
 
     @property
     def failed(self) -> bool:
@@ -143,17 +139,14 @@ class CorrectnessRow:
 @dataclass(frozen=True)
 class CheckRow(CorrectnessRow):
     """One correctness row: ``problem`` says why this GL cannot draw it, ``unbounded``
-    why no tolerance holds for it (either way it is no failure); else ``agreement`` and
-    what of the tolerance it failed (none: it passed)."""
+    why no tolerance holds for it (either way it is no failure); else ``agreement`` and,
+    in ``faults``, what of the tolerance it failed (none: it passed)."""
 
     case: str
     variant: Variant
     tolerance: Tolerance | None = None
     agreement: Agreement | None = None
-    failures: tuple[str, ...] = ()
     unbounded: str | None = None
-
-    faults = property(attrgetter("failures"))
 
     @property
     def judged(self) -> bool:
@@ -214,7 +207,7 @@ class _CaseRender:
         measured = agreement(image, self.reference(renderer, variant), limit.clipped)
         if settings.precision != "float32" and name in UNBOUNDED_BLENDS:
             return CheckRow(name, variant, None, measured, unbounded=UNBOUNDED_BLENDS[name])
-        return CheckRow(name, variant, limit, measured, tuple(measured.failures(limit)))
+        return CheckRow(name, variant, limit, measured, faults=tuple(measured.failures(limit)))
 
     @contextlib.contextmanager
     def _sorter(self, sort: str) -> Iterator:
@@ -265,7 +258,7 @@ def guarded_row(render: _CaseRender, name: str, variant: Variant) -> CheckRow:
     except UserError as exc:
         return CheckRow(name, variant, problem=one_line(exc))
     except Exception as exc:  # noqa: BLE001 - every other failure becomes the row's one line
-        return CheckRow(name, variant, failures=(error_words(exc),))
+        return CheckRow(name, variant, faults=(error_words(exc),))
 
 
 def check_renders(ctx, cases: list[tuple[str, Callable[[], HardCase]]], axes_of: Callable[[str], tuple[str, ...]],

@@ -20,7 +20,6 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from operator import attrgetter
 from typing import Callable
 
 import numpy as np
@@ -138,16 +137,13 @@ SORT_SCENES: dict[str, Callable[[int, np.random.Generator], Scene]] = {
 @dataclass(frozen=True)
 class SortRow(CorrectnessRow):
     """One scene sorted with one method: per key (depth, distance) the gaussians kept
-    and, where the GPU's indices differ from the CPU's, how; ``problem``: why the GPU
-    sort cannot run here (no failure)."""
+    and, in ``faults``, where the GPU's indices differ from the CPU's, how; ``problem``:
+    why the GPU sort cannot run here (no failure)."""
 
     scene: str
     count: int
     method: str
     kept: tuple[int, ...] = ()
-    differences: tuple[str, ...] = ()
-
-    faults = property(attrgetter("differences"))
 
     @property
     def label(self) -> str:
@@ -176,7 +172,7 @@ def check_sorts(ctx, count: int, say: Callable[[str], None], scenes: tuple[str, 
         done = scene_rows(ctx, name, SORT_SCENES[name](count, np.random.default_rng(number)))
         rows += done
         say(f"correct: sort {name} {count_label(count)}: "
-            + ("; ".join(d for row in done for d in row.differences) or "identical"))
+            + ("; ".join(d for row in done for d in row.faults) or "identical"))
     return rows
 
 
@@ -192,9 +188,9 @@ def scene_rows(ctx, name: str, scene: Scene) -> list[SortRow]:
                 expected, got = cpu.sort(request).orders, gpu.sort(request).orders
                 found = [_difference(key, got[key].host_indices(), expected[key].indices) for key in KEYS]
                 rows.append(SortRow(name, scene.count, method, tuple(expected[key].count for key in KEYS),
-                                    tuple(text for text in found if text)))
+                                    faults=tuple(text for text in found if text)))
     except UserError as exc:
         rows += [SortRow(name, scene.count, method, problem=one_line(exc)) for method in METHODS[len(rows):]]
     except Exception as exc:  # noqa: BLE001 - every other failure becomes the rows' one line
-        rows += [SortRow(name, scene.count, method, differences=(error_words(exc),)) for method in METHODS[len(rows):]]
+        rows += [SortRow(name, scene.count, method, faults=(error_words(exc),)) for method in METHODS[len(rows):]]
     return rows

@@ -114,7 +114,7 @@ def test_a_shader_the_driver_cannot_compile_fails_its_rows_and_the_run_goes_on(g
     patched_glsl(monkeypatch, "splat_blocks.glsl", "return uint(gl_VertexID) / 6u;", "return no_such_name;")
     result = run_doctor(DoctorOptions(**LAYOUTS_ONLY), gl_ctx, out=io.StringIO())
     assert [row.variant.name for row in result.failed] == ["triangles", "triangles, draw-order records"]
-    assert all("no_such_name" in row.failures[0] and "\n" not in row.failures[0] for row in result.failed)
+    assert all("no_such_name" in row.faults[0] and "\n" not in row.faults[0] for row in result.failed)
     assert len(result.judged) == 6 and result.status == 1
 
 
