@@ -67,6 +67,15 @@ class CullRequest:
     deleted: DeletedRows | None = None  # rows no camera keeps and no key counts (deleted)
 
 
+class Culled(NamedTuple):
+    """What one pass of the cull gives: one :class:`Piece` per chunk, in scene order, and
+    ``union``, (N,) bool, what the pass kept (what a cached order is filtered by; rows
+    outside the pass's spans are left unset)."""
+
+    pieces: list[Piece]
+    union: np.ndarray
+
+
 class Support(NamedTuple):
     """What the cull needs per p_min and deleted rows, per gaussian: the radius of a sphere
     holding its support, sqrt(max(kappa, 0)), and whether it is a candidate: its opacity
@@ -83,8 +92,7 @@ class Support(NamedTuple):
 class Cull:
     """Holds what culling needs of a scene; culls and computes keys chunk by chunk.
 
-    ``chunk_rows``: gaussians per chunk (may be changed between passes). ``union``:
-    (N,) bool, what the last pass kept (what a cached order is filtered by)."""
+    ``chunk_rows``: gaussians per chunk (may be changed between passes)."""
 
     def __init__(self, scene: Scene, chunk_rows: int = CHUNK_ROWS):
         self.positions = scene.positions
@@ -96,7 +104,6 @@ class Cull:
         # float32 camera transforms lose ~1e-7 of the coordinates' magnitude: widen the
         # culling bounds by that much so rounding never drops a visible gaussian.
         self.coordinate_scale = float(np.abs(self.positions).max()) if scene.count else 0.0
-        self.union: np.ndarray | None = None
         self._support: Support | None = None
         self._local = threading.local()  # per-thread scratch arrays of one chunk
 
@@ -121,10 +128,11 @@ class Cull:
         return self._support
 
     def request(self, camera: Camera, p_min: float, dilation: float | None,
-                cull_cameras: Sequence[Camera] | None, keys: tuple[str, ...], candidates: bool,
-                centre: np.ndarray | None, spans: np.ndarray | None = None,
+                cull_cameras: Sequence[Camera] | None, *, keys: tuple[str, ...] = (), candidates: bool = False,
+                centre: np.ndarray | None = None, spans: np.ndarray | None = None,
                 deleted: DeletedRows | None = None) -> CullRequest:
-        """The pass for these arguments (see ``DepthSorter.cull`` for what they mean)."""
+        """The pass for these arguments (see ``DepthSorter.cull`` for what they mean):
+        by default one that only culls, computing no keys."""
         cameras = list(cull_cameras or (camera,))
         same = [c for c in cameras if np.array_equal(c.R, camera.R) and np.array_equal(c.t, camera.t)]
         if same:  # its mu is the last one computed: the depth key reads it
@@ -134,16 +142,15 @@ class Cull:
         return CullRequest(camera, p_min, dilation, tuple(cameras), bool(same), keys, candidates, centre, chunks,
                            deleted)
 
-    def pieces(self, request: CullRequest, run: Runner) -> list[Piece]:
+    def pieces(self, request: CullRequest, run: Runner) -> Culled:
         """The pass over every chunk, the chunks handed out by ``run``: one
-        :class:`Piece` per chunk, in scene order."""
+        :class:`Piece` per chunk, in scene order, and what the pass kept as one mask."""
         self.support(request.p_min, request.deleted)  # once, before the threads read it
-        if self.union is None:
-            self.union = np.empty(self.count, bool)
-        # Spans leave the rest of ``union`` stale: only an order cached for the same spans
+        # Spans leave the rest of the mask unset: only an order cached for the same spans
         # (the turn cache keys on them) is filtered by it, and it holds none of those rows.
+        union = np.empty(self.count, bool)
         count = -(-self.count // self.chunk_rows) if request.chunks is None else len(request.chunks)
-        return run(lambda index: self._chunk(index, request), count)
+        return Culled(run(lambda index: self._chunk(index, request, union), count), union)
 
     def _scratch(self) -> "_Scratch":
         size = min(self.chunk_rows, self.count)
@@ -152,7 +159,7 @@ class Cull:
             scratch = self._local.scratch = _Scratch(size)
         return scratch
 
-    def _chunk(self, index: int, request: CullRequest) -> Piece:
+    def _chunk(self, index: int, request: CullRequest, kept: np.ndarray) -> Piece:
         if request.chunks is None:
             start = index * self.chunk_rows
             rows = slice(start, min(start + self.chunk_rows, self.count))
@@ -167,7 +174,7 @@ class Cull:
                 union[:] = scratch.keep[:n]
             else:
                 union |= scratch.keep[:n]
-        self.union[rows] = union
+        kept[rows] = union
         local = np.flatnonzero(union)
         piece = Piece(scene_rows(rows, local))
         if "depth" in request.keys:

@@ -124,13 +124,14 @@ class DepthSorter(Closable):
             keep = "distance" in keys and kept is None and self._turns.worth_keeping(turn)
             computed = tuple(key for key in keys if not (key == "distance" and kept is not None))
             cull = self._cull.request(request.camera, request.p_min, request.dilation, request.cull_cameras,
-                                      computed, keep, centre, spans, request.deleted)
-            pieces = self._cull.pieces(cull, self._pool.run)
+                                      keys=computed, candidates=keep, centre=centre, spans=spans,
+                                      deleted=request.deleted)
+            pieces, union = self._cull.pieces(cull, self._pool.run)
             culled = time.perf_counter()
             orders = {}
             for key in keys:
                 if key == "distance" and kept is not None:
-                    indices = self._visible(kept)
+                    indices = self._visible(kept, union)
                     self.reused += 1
                 else:
                     indices = sorted_rows(pieces, key, method, self.workers, self._pool.run)
@@ -138,7 +139,7 @@ class DepthSorter(Closable):
                     if key == "distance":
                         self._turns.sorted(turn, indices if keep else None)
                         if keep:
-                            indices = self._visible(indices)
+                            indices = self._visible(indices, union)
                 orders[key] = Order(indices, key, request, choice)
             times = {"choice": chosen - begin, "wait": locked - chosen, "cull": culled - locked,
                      "sort": time.perf_counter() - culled}
@@ -162,15 +163,16 @@ class DepthSorter(Closable):
             return np.zeros(0, np.int64)
         choice = None if request.levels is None else request.levels.choose(request.camera)
         with self._lock:
-            cull = self._cull.request(request.camera, request.p_min, request.dilation, request.cull_cameras, (),
-                                      False, None, None if choice is None else choice.spans, request.deleted)
-            pieces = self._cull.pieces(cull, self._pool.run)
+            cull = self._cull.request(request.camera, request.p_min, request.dilation, request.cull_cameras,
+                                      spans=None if choice is None else choice.spans, deleted=request.deleted)
+            pieces = self._cull.pieces(cull, self._pool.run).pieces
             return np.concatenate([np.zeros(0, np.int64), *(piece.visible for piece in pieces)]).astype(np.int64)
 
-    def _visible(self, order: np.ndarray) -> np.ndarray:
-        """``order`` without what the last cull dropped, relative order kept."""
+    def _visible(self, order: np.ndarray, union: np.ndarray) -> np.ndarray:
+        """``order`` without what a cull dropped (``union``: (N,) bool, what it kept),
+        relative order kept."""
         parts = max(1, min(2 * self.workers, -(-order.size // self.chunk_rows)))
-        return _filtered(order, self._cull.union, self._pool.run, parts)
+        return _filtered(order, union, self._pool.run, parts)
 
 
 def _turn_of(centre: np.ndarray, p_min: float, method: SortMethod, spans: np.ndarray | None,

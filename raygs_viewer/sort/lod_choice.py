@@ -154,16 +154,17 @@ def choose(lod: LodScene, camera: Camera, *, level: int | None = None, budget: i
         in_view, size = screen_radius(lod.index.bounds, camera, REACH_SIGMAS * lod.leaf_scales)
         target = usable[every, np.where(in_view, wanted, levels - 1)]
         if budget is not None:
-            target, over = _within_budget(lod, usable, in_view, size, target, int(budget))
+            target, over = _within_budget(lod, target, int(budget), usable=usable, in_view=in_view, size=size)
     else:
         target = usable[every, wanted]
     spans = lod.spans(target)
     return LodChoice(target, wanted, spans, int((spans[:, 1] - spans[:, 0]).sum()), over)
 
 
-def _within_budget(lod: LodScene, usable: np.ndarray, in_view: np.ndarray, size: np.ndarray, target: np.ndarray,
-                   budget: int) -> tuple[np.ndarray, bool]:
-    """``target`` coarsened until the leaves in view and the environment fit ``budget``."""
+def _within_budget(lod: LodScene, target: np.ndarray, budget: int, *, usable: np.ndarray, in_view: np.ndarray,
+                   size: np.ndarray) -> tuple[np.ndarray, bool]:
+    """``target`` coarsened until the leaves in view and the environment fit ``budget``
+    (``usable``: :func:`usable_levels`; ``in_view``, ``size``: :func:`screen_radius`'s)."""
     leaves, levels = usable.shape
     counts = lod.rows[:, :, 1]
     every = np.arange(leaves)

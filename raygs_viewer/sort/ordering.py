@@ -47,10 +47,10 @@ def sorted_rows(pieces: list[Piece], key: str, method: SortMethod, workers: int,
         rows = np.concatenate([piece.rows[key] for piece in pieces])
         values = np.concatenate([piece.values[key] for piece in pieces])
         return rows[stable_order(values, near, far, method)]
-    return _bucket_sort(pieces, key, near, far, workers, run)
+    return _bucket_sort(pieces, key, near, far, workers=workers, run=run)
 
 
-def _bucket_sort(pieces: list[Piece], key: str, near: float, far: float, workers: int,
+def _bucket_sort(pieces: list[Piece], key: str, near: float, far: float, *, workers: int,
                  run: Runner) -> np.ndarray:
     """The parallel form of :func:`sorted_rows` (see the module's description)."""
     def runs(index: int) -> tuple[np.ndarray, np.ndarray]:
