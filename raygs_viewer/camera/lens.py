@@ -69,4 +69,4 @@ class Lens:
         else:
             scaled = self.source.resized(w, h)
             fx, fy, cx, cy = scaled.fx, scaled.fy, scaled.cx, scaled.cy
-        return pose.camera(w, h, fx, fy, cx, cy)
+        return pose.camera(w, h, fx=fx, fy=fy, cx=cx, cy=cy)

@@ -23,14 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera
-from raygs_viewer.camera.rotation import (
-    level_rotation,
-    matrix_to_quaternion,
-    orthonormalize,
-    quaternion_to_matrix,
-    slerp,
-    yaw_pitch,
-)
+from raygs_viewer.camera.rotation import level_rotation, orthonormalize, yaw_pitch
 
 # "-y" is the COLMAP/INRIA convention (default), "+z" is common for Blender and
 # photogrammetry exports.
@@ -99,6 +92,15 @@ def _smoothstep(s: float) -> float:
     return s * s * (3.0 - 2.0 * s)
 
 
+def _slerped(start: np.ndarray, end: np.ndarray, fraction: float) -> np.ndarray:
+    """(3, 3) rotation ``fraction`` of the way from ``start`` to ``end`` (3, 3) along the
+    shortest arc: scipy's slerp (only a flight's in-between poses use it; where it
+    lands is the end pose itself)."""
+    # scipy.spatial takes half a second to import, and only a flight needs it.
+    from scipy.spatial.transform import Rotation, Slerp
+    return Slerp([0.0, 1.0], Rotation.from_matrix(np.stack([start, end])))(fraction).as_matrix()
+
+
 # --------------------------------------------------------------------------- pose and lens
 
 
@@ -142,7 +144,8 @@ class Pose:
         """(3,) viewing direction in world space."""
         return self.R[2].copy()
 
-    def camera(self, width: int, height: int, fx: float, fy: float, cx: float, cy: float) -> Camera:
+    def camera(self, width: int, height: int, *, fx: float, fy: float, cx: float, cy: float) -> Camera:
+        """The camera of this pose with these intrinsics (pixels)."""
         R = np.array(self.R)
         return Camera(int(width), int(height), float(fx), float(fy), float(cx), float(cy), R, -R @ self.position)
 
@@ -371,7 +374,7 @@ class Navigator:
     # ----------------------------------------------------------------- fly
 
     @_quiet
-    def move(self, dt: float, right: float, up: float, forward: float,
+    def move(self, dt: float, right: float, up: float, forward: float, *,
              fast: bool = False, slow: bool = False) -> None:
         if not finite(dt, right, up, forward) or dt <= 0:
             return
@@ -488,6 +491,5 @@ class Navigator:
             return
         self._animation = (start, end, duration, elapsed)
         w = _smoothstep(elapsed / duration)
-        q = slerp(matrix_to_quaternion(start.R), matrix_to_quaternion(end.R), w)
-        rotation = orthonormalize(quaternion_to_matrix(q[None])[0])
+        rotation = orthonormalize(_slerped(start.R, end.R, w))
         self._set(start.position + w * (end.position - start.position), rotation)

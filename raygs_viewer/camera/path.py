@@ -28,7 +28,7 @@ import numpy as np
 from raygs_viewer.camera import spline
 from raygs_viewer.camera.navigation import Pose
 from raygs_viewer.camera.pinhole import Camera, intrinsics_from_fov
-from raygs_viewer.camera.rotation import matrix_to_quaternion, quaternion_to_matrix
+from raygs_viewer.camera.rotation import align_signs, matrix_to_quaternion, qconj, qmul, quaternion_to_matrix
 from raygs_viewer.errors import UserError, checked_number, finite_number
 
 #: Limits of the numbers a path holds (a path file outside them is refused).
@@ -105,7 +105,7 @@ class PathPose:
     def camera(self, width: int, height: int) -> Camera:
         """Square pixels, centred principal point."""
         fx, fy, cx, cy = intrinsics_from_fov(width, height, self.fov_y_degrees)
-        return self.pose.camera(width, height, fx, fy, cx, cy)
+        return self.pose.camera(width, height, fx=fx, fy=fy, cx=cx, cy=cy)
 
 
 @dataclass(frozen=True)
@@ -295,8 +295,8 @@ class CameraPath:
         positions = self._positions(segment, s)
         q = spline.squad(plan.quaternions[segment], plan.quaternions[segment + 1],
                          plan.out[segment], plan.into[segment + 1], s)
-        roll = spline.hermite(plan.roll[segment], plan.roll[segment + 1], plan.roll_rates[segment, 0],
-                              plan.roll_rates[segment, 1], plan.durations[segment], s)
+        roll = spline.hermite(plan.roll[segment], plan.roll[segment + 1], s, start_rate=plan.roll_rates[segment, 0],
+                              end_rate=plan.roll_rates[segment, 1], duration=plan.durations[segment])
         # A keyframe near the pole holds its own roll; the up-keeping roll takes over along
         # the segment (not just within the pole band, where it would whip round).
         ease = s * s * (3.0 - 2.0 * s)
@@ -371,8 +371,8 @@ def _plan(path: CameraPath) -> _Plan:
     lengths = arc[:, -1]
 
     # Pacing: arc length plus the turn and zoom in radians, worth rho scene units each.
-    quaternions = spline.align_signs(np.array([matrix_to_quaternion(R) for R in rotations])[node])
-    relative = spline.qmul(spline.qconj(quaternions[:-1]), quaternions[1:])
+    quaternions = align_signs(np.array([matrix_to_quaternion(R) for R in rotations])[node])
+    relative = qmul(qconj(quaternions[:-1]), quaternions[1:])
     turn = 2.0 * np.arctan2(np.linalg.norm(relative[:, 1:], axis=1), np.abs(relative[:, 0]))
     turn += np.abs(np.diff(fov[node]))
     total = float(lengths.sum())

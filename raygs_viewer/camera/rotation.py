@@ -1,6 +1,12 @@
 """Rotations in float64 numpy: quaternions (w, x, y, z) and matrices, the level
-(roll-free) rotation a camera looks along, yaw and pitch that stop short of the
-poles, and slerp for smooth flights."""
+(roll-free) rotation a camera looks along, and yaw and pitch that stop short of the
+poles.
+
+This is the project's one home of quaternion maths. A smooth flight's slerp is
+scipy's (:mod:`scipy.spatial.transform`); what stays here is what scipy computes with
+other roundings or other signs, and whose every bit reaches a rendered image: the
+camera paths of render-path and the float64 reference renderer. Each function says
+where scipy differs."""
 
 from __future__ import annotations
 
@@ -13,7 +19,12 @@ POLE_MARGIN = math.radians(1.0)
 
 
 def quaternion_to_matrix(q: np.ndarray) -> np.ndarray:
-    """(N, 4) unit quaternions (w, x, y, z) -> (N, 3, 3) rotation matrices, in q's dtype."""
+    """(N, 4) unit quaternions (w, x, y, z) -> (N, 3, 3) rotation matrices, in q's dtype.
+
+    Not scipy's ``Rotation.as_matrix``: that one normalises q again and sums
+    w² + x² - y² - z² on the diagonal, so its matrices differ in the last bits (and are
+    float64 only); the reference renderer's gaussians and the camera paths' rotations
+    would move."""
     w, x, y, z = (q[:, i] for i in range(4))
     m = np.empty(q.shape[:1] + (3, 3), dtype=q.dtype)
     m[:, 0, 0] = 1 - 2 * (y * y + z * z)
@@ -83,7 +94,11 @@ def level_rotation(forward: np.ndarray, up: np.ndarray, right_hint: np.ndarray |
 
 def matrix_to_quaternion(R: np.ndarray) -> np.ndarray:
     """(4,) unit quaternion (w, x, y, z) of a rotation matrix (Shepperd's method, which
-    picks the largest diagonal term so no branch divides by a tiny number)."""
+    picks the largest diagonal term so no branch divides by a tiny number).
+
+    Not scipy's ``Rotation.from_matrix``: its variant of the same method differs in the
+    last bit for most rotations, and a camera path's pacing and squad start from these
+    quaternions."""
     m = R
     trace = m[0, 0] + m[1, 1] + m[2, 2]
     if trace > 0:
@@ -99,20 +114,6 @@ def matrix_to_quaternion(R: np.ndarray) -> np.ndarray:
         s = 2.0 * math.sqrt(1.0 + m[2, 2] - m[0, 0] - m[1, 1])
         q = [(m[1, 0] - m[0, 1]) / s, (m[0, 2] + m[2, 0]) / s, (m[1, 2] + m[2, 1]) / s, 0.25 * s]
     q = np.array(q, dtype=np.float64)
-    return q / np.linalg.norm(q)
-
-
-def slerp(q0: np.ndarray, q1: np.ndarray, s: float) -> np.ndarray:
-    dot = float(np.dot(q0, q1))
-    if dot < 0:  # q and -q are the same rotation; the other sign is the long way round
-        q1, dot = -q1, -dot
-    if dot > 0.9995:
-        # Nearly equal: sin(theta) ~ 0 would amplify rounding, and lerp is exact enough.
-        q = q0 + s * (q1 - q0)
-        return q / np.linalg.norm(q)
-    theta = math.acos(min(1.0, dot))
-    sin_theta = math.sin(theta)
-    q = (math.sin((1 - s) * theta) * q0 + math.sin(s * theta) * q1) / sin_theta
     return q / np.linalg.norm(q)
 
 
@@ -151,3 +152,71 @@ def yaw_pitch(R: np.ndarray, up: np.ndarray, yaw: float, pitch: float) -> np.nda
     c, s = math.cos(phi), math.sin(phi)
     f_new, g_new = c * f + s * g, c * g - s * f
     return orthonormalize(np.stack([R[0], -g_new, f_new]))
+
+
+# --------------------------------------------------------------------------- quaternion algebra
+# Vectorised over (..., 4) quaternions for the camera paths' squad. Not scipy's Rotation:
+# it composes with another order of operations (other last bits) and its log, as_rotvec,
+# always takes the short way round, while squad's inner slerps must follow the signs the
+# path aligned.
+
+
+def row_norms(v: np.ndarray) -> np.ndarray:
+    """(...,) Euclidean lengths of the last axis of ``v`` (..., k)."""
+    return np.sqrt(np.einsum("...i,...i->...", v, v))
+
+
+def qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Hamilton products of (..., 4) quaternions (w, x, y, z): matrix(a b) = matrix(a) matrix(b)."""
+    aw, ax, ay, az = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
+    bw, bx, by, bz = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
+    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
+    out[..., 0] = aw * bw - ax * bx - ay * by - az * bz
+    out[..., 1] = aw * bx + ax * bw + ay * bz - az * by
+    out[..., 2] = aw * by - ax * bz + ay * bw + az * bx
+    out[..., 3] = aw * bz + ax * by - ay * bx + az * bw
+    return out
+
+
+def qconj(q: np.ndarray) -> np.ndarray:
+    """Conjugates of (..., 4) quaternions: the inverse rotations of unit ones."""
+    return q * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def qlog(q: np.ndarray) -> np.ndarray:
+    """(..., 3) logs of unit quaternions (half the rotation vector), along q's own sign."""
+    v = q[..., 1:]
+    norm = row_norms(v)
+    half = np.arctan2(norm, q[..., 0])
+    # half / sin(half) -> 1 as the angle vanishes; norm = sin(half).
+    factor = np.where(norm > 1e-12, half / np.where(norm > 1e-12, norm, 1.0), 1.0 / np.maximum(q[..., 0], 1e-300))
+    return v * factor[..., None]
+
+
+def qlog_short(q: np.ndarray) -> np.ndarray:
+    """Like :func:`qlog` but the short way round (q and -q are one rotation)."""
+    return qlog(np.where(q[..., :1] < 0, -q, q))
+
+
+def qexp(v: np.ndarray) -> np.ndarray:
+    """(..., 4) unit quaternions exp(v) of (..., 3) pure quaternions."""
+    half = row_norms(v)
+    sinc = np.where(half > 1e-8, np.sin(half) / np.where(half > 1e-8, half, 1.0), 1.0 - half * half / 6.0)
+    return np.concatenate([np.cos(half)[..., None], v * sinc[..., None]], axis=-1)
+
+
+def slerp_along(a: np.ndarray, b: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """Slerp of (M, 4) quaternions at fractions ``s`` (M,) WITHOUT choosing a sign: the
+    caller aligns a and b (squad's inner slerps must follow the aligned control points)."""
+    step = qlog(qmul(qconj(a), b))
+    return qmul(a, qexp(step * s[:, None]))
+
+
+def align_signs(q: np.ndarray) -> np.ndarray:
+    """(N, 4) quaternions, each negated where needed so that consecutive ones are in the
+    same hemisphere (dot >= 0): slerp then never takes the long way round."""
+    q = np.array(q, dtype=np.float64)
+    for i in range(1, len(q)):
+        if np.dot(q[i - 1], q[i]) < 0:
+            q[i] = -q[i]
+    return q

@@ -1,9 +1,10 @@
 """The numeric kernels of camera paths, vectorised in float64 numpy: the centripetal
-Catmull-Rom curve and its arc-length tables, quaternion log/exp/slerp and Shoemake's
-squad with tangents that are continuous in time, and the up-keeping roll of a camera.
+Catmull-Rom curve and its arc-length tables, Shoemake's squad with tangents that are
+continuous in time, and the up-keeping roll of a camera.
 
 :mod:`raygs_viewer.camera.path` puts them together; everything here works on plain
-arrays so a whole video's frames are evaluated at once.
+arrays so a whole video's frames are evaluated at once. The quaternion algebra squad is
+built on (log, exp, slerp) is :mod:`raygs_viewer.camera.rotation`'s.
 """
 
 from __future__ import annotations
@@ -11,6 +12,8 @@ from __future__ import annotations
 import math
 
 import numpy as np
+
+from raygs_viewer.camera.rotation import qconj, qexp, qlog_short, qmul, row_norms, slerp_along
 
 #: Cells of each segment's arc-length table. The inverse is a cubic Hermite in the exact
 #: speeds at the cell ends plus a Newton step, so 32 cells give speed errors far below
@@ -89,7 +92,7 @@ def _speeds(coefficients: np.ndarray, u: np.ndarray) -> np.ndarray:
     c = coefficients
     u = u[None, :, None]
     derivative = c[:, None, 1] + u * (2.0 * c[:, None, 2] + 3.0 * u * c[:, None, 3])
-    return _norm(derivative)
+    return row_norms(derivative)
 
 
 def arc_tables(coefficients: np.ndarray, cells: int = ARC_CELLS) -> tuple[np.ndarray, np.ndarray]:
@@ -170,7 +173,7 @@ _GAUSS3 = ((0.5 - math.sqrt(0.15), 5.0 / 18.0), (0.5, 8.0 / 18.0), (0.5 + math.s
 def _speed_at(c: np.ndarray, u: np.ndarray) -> np.ndarray:
     """(M,) |dp/du| of polynomials c (M, 4, 3) at u (M,)."""
     u = u[:, None]
-    return _norm(c[:, 1] + u * (2.0 * c[:, 2] + 3.0 * u * c[:, 3]))
+    return row_norms(c[:, 1] + u * (2.0 * c[:, 2] + 3.0 * u * c[:, 3]))
 
 
 # --------------------------------------------------------------------------- tangents in time
@@ -192,26 +195,12 @@ def time_tangents(ahead: np.ndarray, behind: np.ndarray, ahead_time: np.ndarray,
     return np.nan_to_num(rate)
 
 
-def hermite(start, end, start_rate, end_rate, duration, s):
-    """Cubic Hermite values at segment fractions ``s``, given rates per unit time."""
+def hermite(start, end, s, *, start_rate, end_rate, duration):
+    """Cubic Hermite values at segment fractions ``s`` of segments that last ``duration``,
+    given the rates per unit time at their ends."""
     s2, s3 = s * s, s * s * s
     return ((2 * s3 - 3 * s2 + 1) * start + (s3 - 2 * s2 + s) * duration * start_rate
             + (-2 * s3 + 3 * s2) * end + (s3 - s2) * duration * end_rate)
-
-
-# --------------------------------------------------------------------------- quaternions
-
-
-def qmul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Hamilton products of (..., 4) quaternions (w, x, y, z): matrix(a b) = matrix(a) matrix(b)."""
-    aw, ax, ay, az = a[..., 0], a[..., 1], a[..., 2], a[..., 3]
-    bw, bx, by, bz = b[..., 0], b[..., 1], b[..., 2], b[..., 3]
-    out = np.empty(np.broadcast_shapes(a.shape, b.shape))
-    out[..., 0] = aw * bw - ax * bx - ay * by - az * bz
-    out[..., 1] = aw * bx + ax * bw + ay * bz - az * by
-    out[..., 2] = aw * by - ax * bz + ay * bw + az * bx
-    out[..., 3] = aw * bz + ax * by - ay * bx + az * bw
-    return out
 
 
 def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -223,51 +212,7 @@ def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return out
 
 
-def _norm(v: np.ndarray) -> np.ndarray:
-    return np.sqrt(np.einsum("...i,...i->...", v, v))
-
-
-def qconj(q: np.ndarray) -> np.ndarray:
-    return q * np.array([1.0, -1.0, -1.0, -1.0])
-
-
-def qlog(q: np.ndarray) -> np.ndarray:
-    """(..., 3) logs of unit quaternions (half the rotation vector), along q's own sign."""
-    v = q[..., 1:]
-    norm = _norm(v)
-    half = np.arctan2(norm, q[..., 0])
-    # half / sin(half) -> 1 as the angle vanishes; norm = sin(half).
-    factor = np.where(norm > 1e-12, half / np.where(norm > 1e-12, norm, 1.0), 1.0 / np.maximum(q[..., 0], 1e-300))
-    return v * factor[..., None]
-
-
-def qlog_short(q: np.ndarray) -> np.ndarray:
-    """Like :func:`qlog` but the short way round (q and -q are one rotation)."""
-    return qlog(np.where(q[..., :1] < 0, -q, q))
-
-
-def qexp(v: np.ndarray) -> np.ndarray:
-    """(..., 4) unit quaternions exp(v) of (..., 3) pure quaternions."""
-    half = _norm(v)
-    sinc = np.where(half > 1e-8, np.sin(half) / np.where(half > 1e-8, half, 1.0), 1.0 - half * half / 6.0)
-    return np.concatenate([np.cos(half)[..., None], v * sinc[..., None]], axis=-1)
-
-
-def slerp_along(a: np.ndarray, b: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """Slerp of (M, 4) quaternions at fractions ``s`` (M,) WITHOUT choosing a sign: the
-    caller aligns a and b (squad's inner slerps must follow the aligned control points)."""
-    step = qlog(qmul(qconj(a), b))
-    return qmul(a, qexp(step * s[:, None]))
-
-
-def align_signs(q: np.ndarray) -> np.ndarray:
-    """(N, 4) quaternions, each negated where needed so that consecutive ones are in the
-    same hemisphere (dot >= 0): slerp then never takes the long way round."""
-    q = np.array(q, dtype=np.float64)
-    for i in range(1, len(q)):
-        if np.dot(q[i - 1], q[i]) < 0:
-            q[i] = -q[i]
-    return q
+# --------------------------------------------------------------------------- squad
 
 
 def squad_controls(q: np.ndarray, durations: np.ndarray, tension: float, loop: bool) -> tuple[np.ndarray, np.ndarray]:
@@ -316,10 +261,10 @@ def level_axes(forward: np.ndarray, up: np.ndarray) -> tuple[np.ndarray, np.ndar
     perpendicular to up, as rotation.level_rotation builds them) and sin of forward's
     angle to the up axis (M,); right is arbitrary where that is 0."""
     right = cross(forward, up)
-    sine = _norm(right)
+    sine = row_norms(right)
     fallback = cross(forward, np.where(np.abs(forward[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 0.0, 1.0]]))
     right = np.where(sine[:, None] > 1e-12, right, fallback)
-    right /= _norm(right)[:, None]
+    right /= row_norms(right)[:, None]
     return right, cross(forward, right), sine
 
 
@@ -346,10 +291,10 @@ def with_roll(R: np.ndarray, roll: np.ndarray, up: np.ndarray, weight: np.ndarra
     Proper rotations out."""
     current, sine = roll_of(R, up)
     turn = weight * pole_weight(sine) * wrap(roll - current)
-    f = R[:, 2] / _norm(R[:, 2])[:, None]
+    f = R[:, 2] / row_norms(R[:, 2])[:, None]
     x = R[:, 0]
     c, s = np.cos(turn)[:, None], np.sin(turn)[:, None]
     x = c * x + s * cross(f, x)
     x -= np.sum(x * f, axis=1, keepdims=True) * f
-    x /= _norm(x)[:, None]
+    x /= row_norms(x)[:, None]
     return np.stack([x, cross(f, x), f], axis=1)

@@ -89,7 +89,7 @@ def test_pose_from_camera_round_trips():
         pose = Pose.from_camera(camera)
         np.testing.assert_allclose(pose.position, camera.center, atol=1e-12)
         np.testing.assert_array_equal(pose.R, camera.R)
-        back = pose.camera(camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy)
+        back = pose.camera(camera.width, camera.height, fx=camera.fx, fy=camera.fy, cx=camera.cx, cy=camera.cy)
         assert (back.width, back.height, back.fx, back.fy, back.cx, back.cy) == (63, 41, 70.0, 55.0, 30.2, 19.7)
         np.testing.assert_array_equal(back.R, camera.R)
         np.testing.assert_allclose(back.t, camera.t, atol=1e-12)

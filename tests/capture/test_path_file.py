@@ -167,7 +167,7 @@ def test_an_inria_style_rotation_matches_camera_to_json(tmp_path):
     doc = make_doc()
     data = path_document_json(doc)
     for entry, key in zip(data["keyframes"], doc.path.keyframes):
-        inria = camera_to_json(key.pose.camera(64, 48, 50.0, 50.0, 32.0, 24.0))
+        inria = camera_to_json(key.pose.camera(64, 48, fx=50.0, fy=50.0, cx=32.0, cy=24.0))
         assert entry["rotation"] == inria["rotation"]
         assert np.allclose(entry["position"], inria["position"], rtol=0, atol=1e-14)
 
