@@ -165,8 +165,8 @@ def default_scenes(quick: bool) -> tuple[tuple[str, ...], list[str]]:
     return (DEMO, *found), notes
 
 
-def measure(ctx, renderer, sorter: DepthSorter, camera: Camera, settings: dict[str, RenderSettings], repeat: int
-            ) -> tuple[dict[str, list[float]], dict[str, np.ndarray]]:
+def measure(ctx, renderer, sorter: DepthSorter, camera: Camera, settings: dict[str, RenderSettings], *,
+            repeat: int) -> tuple[dict[str, list[float]], dict[str, np.ndarray]]:
     """GPU times (ms, ``repeat`` per configuration) and the image of every configuration.
 
     Each configuration is sorted once (by ``sorter``) and rendered once untimed (compiling its shaders;
@@ -225,7 +225,7 @@ def run_accuracy(options: AccuracyOptions, ctx=None, out: TextIO | None = None,
                     gt_seconds = time.perf_counter() - clock
                     say(f"[{item.name} / {view}] ground truth in {gt_seconds:.1f} s; timing "
                         f"{len(settings)} configurations x {options.repeat} ...")
-                    times, images = measure(ctx, renderer, sorter, camera, settings, options.repeat)
+                    times, images = measure(ctx, renderer, sorter, camera, settings, repeat=options.repeat)
                     case = CaseResult(item.name, view, camera.width, camera.height, samples[view], gt_seconds,
                                       compare(times, images, truth))
                     cases.append(case)
@@ -283,7 +283,7 @@ def photo_cases(ctx, options: AccuracyOptions, base: RenderSettings, ground_trut
             clock = time.perf_counter()
             truth = ground_truth(item.scene, camera, truth_settings, options.gt_samples)
             gt_seconds = time.perf_counter() - clock
-            times, images = measure(ctx, renderer, sorter, camera, settings, options.repeat)
+            times, images = measure(ctx, renderer, sorter, camera, settings, repeat=options.repeat)
             rows = compare(times, images, truth)
             for name, row in rows.items():
                 shown = np.clip(images[name][..., :3], 0.0, 1.0)

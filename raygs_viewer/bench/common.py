@@ -185,7 +185,7 @@ def software_renderer(machine: str) -> bool:
     return "llvmpipe" in machine or "softpipe" in machine
 
 
-def run_end(kind: str, started: float, machine: str, notes: Iterable[str], software_note: str,
+def run_end(kind: str, started: float, *, machine: str, notes: Iterable[str], software_note: str,
             say: Callable[..., None]) -> tuple[float, list[str]]:
     """The seconds since ``started`` (``time.perf_counter()``), printed as ``bench KIND: done
     in S s``, and the run's notes, ``software_note`` added when ``machine`` is a software
@@ -198,11 +198,11 @@ def run_end(kind: str, started: float, machine: str, notes: Iterable[str], softw
     return seconds, notes
 
 
-def finished_run_fields(kind: str, started: float, machine: str, notes: Iterable[str], software_note: str,
+def finished_run_fields(kind: str, started: float, *, machine: str, notes: Iterable[str], software_note: str,
                         say: Callable[..., None]) -> dict[str, object]:
     """``run_end``'s seconds and notes, with the machine, its CPU cores and the date: the
     fields, by name, of a benchmark's results that say where and how long it ran."""
-    seconds, notes = run_end(kind, started, machine, notes, software_note, say)
+    seconds, notes = run_end(kind, started, machine=machine, notes=notes, software_note=software_note, say=say)
     return {"machine": machine, "cpu_count": os.cpu_count() or 1, "date": run_date(), "seconds": seconds,
             "notes": notes}
 

@@ -80,6 +80,16 @@ class Row:
 
 
 @dataclass(frozen=True)
+class Reference:
+    """What a file read back is held against: the scene it was written from (or its
+    twin), the view, and that scene's own render there ((H, W, 4) float32)."""
+
+    scene: Scene
+    camera: Camera
+    image: np.ndarray
+
+
+@dataclass(frozen=True)
 class FormatsResults:
     options: FormatsOptions
     machine: str
@@ -95,14 +105,14 @@ def run_formats(options: FormatsOptions, ctx=None) -> FormatsResults:
             for bench_scene in load_scenes(options.scenes):
                 say(f"{bench_scene.name}: writing and reading {len(TARGETS)} formats")
                 camera = training_view(bench_scene.camera, options.width)
-                truth = _render(ctx, bench_scene.scene, camera)
+                reference = Reference(bench_scene.scene, camera, _render(ctx, bench_scene.scene, camera))
                 rows = []
                 if bench_scene.path is not None:
-                    rows.append(_row(ctx, AS_READ, Path(bench_scene.path), None, None, None, options.repeat))
+                    rows.append(_row(ctx, AS_READ, Path(bench_scene.path), repeat=options.repeat))
                 for label, suffix, version in TARGETS:
                     path = write_scene(bench_scene.scene, Path(folder) / f"{bench_scene.name}-{label[-2:]}{suffix}",
                                        spz_version=version)
-                    rows.append(_row(ctx, label, path, bench_scene.scene, truth, camera, options.repeat))
+                    rows.append(_row(ctx, label, path, repeat=options.repeat, reference=reference))
                 results.scenes.append((bench_scene.name, bench_scene.description, rows))
         if options.samples:
             results.scenes.extend(_samples(ctx, options, say))
@@ -121,16 +131,17 @@ def _samples(ctx, options: FormatsOptions, say) -> list[tuple[str, str, list[Row
             say(f"{sample} or {twin} not found: skipped")
             continue
         say(f"{sample}: loading")
-        reference = load_scene(folder / twin)
-        camera = training_view(frame_points(reference.positions), options.width)
-        row = _row(ctx, Path(sample).suffix, path, reference, _render(ctx, reference, camera), camera,
-                   options.repeat)
+        scene = load_scene(folder / twin)
+        camera = training_view(frame_points(scene.positions), options.width)
+        row = _row(ctx, Path(sample).suffix, path, repeat=options.repeat,
+                   reference=Reference(scene, camera, _render(ctx, scene, camera)))
         found.append((Path(sample).name, f"against {twin}, its twin in INRIA PLY", [row]))
     return found
 
 
-def _row(ctx, label: str, path: Path, reference: Scene | None, truth: np.ndarray | None, camera: Camera | None,
-         repeat: int) -> Row:
+def _row(ctx, label: str, path: Path, *, repeat: int, reference: Reference | None = None) -> Row:
+    """The row of the file at ``path``: its median of ``repeat`` loads, and its errors
+    against ``reference`` (None: it is the reference's own file)."""
     times = []
     for _ in range(repeat):
         start = time.perf_counter()
@@ -138,8 +149,8 @@ def _row(ctx, label: str, path: Path, reference: Scene | None, truth: np.ndarray
         times.append((time.perf_counter() - start) * 1000)
     errors = psnr = None
     if reference is not None:
-        errors = attribute_errors(reference, scene)
-        psnr = error_metrics(_render(ctx, scene, camera), truth)["psnr"]
+        errors = attribute_errors(reference.scene, scene)
+        psnr = error_metrics(_render(ctx, scene, reference.camera), reference.image)["psnr"]
     return Row(label, os.path.getsize(path), median(times), scene.count, scene.format, errors, psnr)
 
 

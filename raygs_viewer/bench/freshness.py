@@ -147,9 +147,10 @@ def _mse(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.mean((a - b) ** 2))
 
 
-def measure_freshness(frames: Frames, count: int, mode: str, cores: str, latency_ms: float,
+def measure_freshness(frames: Frames, mode: str, cores: str, latency_ms: float, *, count: int,
                       sample_times: tuple[float, ...]) -> Freshness:
-    """The stale images of the sampled frames against the fresh ones and the truth."""
+    """The stale images of the sampled frames against the fresh ones and the truth, for the
+    row of a scene of ``count`` gaussians."""
     indices = [round(t * FPS) for t in sample_times]
     views = drawn_views(latency_ms / 1e3, FPS, max(indices) + 1)
     stale_fresh, stale_truth, fresh_truth, ages = [], [], [], []
@@ -179,7 +180,7 @@ def latencies(times: SceneTimes, mode: str, sweep: str, ladder_frames: tuple[int
     return measured + [("ladder", 1e3 * frames / FPS) for frames in ladder_frames]
 
 
-def measure_scene(ctx, scene: Scene, times: SceneTimes, sample_times: tuple[float, ...],
+def measure_scene(ctx, scene: Scene, times: SceneTimes, *, sample_times: tuple[float, ...],
                   ladder_frames: tuple[int, ...], say: Callable[..., None]) -> list[Freshness]:
     """Every motion, order and latency of ``scene``, each row printed as it is measured."""
     start = view_camera(*RENDER_SIZE, FRESHNESS_DISTANCE)
@@ -193,7 +194,8 @@ def measure_scene(ctx, scene: Scene, times: SceneTimes, sample_times: tuple[floa
             try:
                 for mode in MODES:
                     for cores, latency in latencies(times, mode, sweep, ladder_frames):
-                        rows.append(measure_freshness(frames, times.count, mode, cores, latency, sample_times))
+                        rows.append(measure_freshness(frames, mode, cores, latency, count=times.count,
+                                                       sample_times=sample_times))
                         say(freshness_line(rows[-1]))
             finally:
                 frames.release()

@@ -369,8 +369,8 @@ def run_gpu(options: GpuOptions, ctx=None, out: TextIO | None = None) -> GpuResu
             results.append(result)
             say(case_line(result))
     seconds, notes = common.run_end(
-        "gpu", started, device, options.notes,
-        "a software renderer: its times say how the options compare on a CPU, not on a GPU", say)
+        "gpu", started, machine=device, notes=options.notes, say=say,
+        software_note="a software renderer: its times say how the options compare on a CPU, not on a GPU")
     return GpuResults(options, device, drained, results, seconds, notes)
 
 

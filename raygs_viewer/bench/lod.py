@@ -366,9 +366,10 @@ def run_lod(options: LodOptions, ctx=None, out: TextIO | None = None) -> LodResu
             finally:
                 runner.release()
     results.seconds, results.notes = common.run_end(
-        "lod", started, machine, options.notes,
-        "This is a software OpenGL renderer (on the CPU): its GPU timer may read only part of the work (the "
-        "passes can run after the query closes), so the drained GL times are the ones to read; a GPU's differ.", say)
+        "lod", started, machine=machine, notes=options.notes, say=say,
+        software_note="This is a software OpenGL renderer (on the CPU): its GPU timer may read only part of the "
+                      "work (the passes can run after the query closes), so the drained GL times are the ones to "
+                      "read; a GPU's differ.")
     return results
 
 

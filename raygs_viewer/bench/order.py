@@ -236,7 +236,8 @@ def run_order(options: OrderOptions, ctx=None, out: TextIO | None = None) -> Ord
                     views.append(result)
                     for line in view_lines(result):
                         say(line)
-    finished = common.finished_run_fields("order", started, machine, options.notes, SOFTWARE_NOTE, say)
+    finished = common.finished_run_fields("order", started, machine=machine, notes=options.notes,
+                                          software_note=SOFTWARE_NOTE, say=say)
     return OrderResults(views=views, options=options, scenes=[(s.name, s.description) for s in scenes], **finished)
 
 

@@ -112,8 +112,8 @@ def run_sort(options: SortOptions, ctx=None, out: TextIO | None = None) -> SortR
             for line in timing_lines(result):
                 say(line)
             if options.freshness and (options.freshness_max is None or count <= options.freshness_max):
-                result.freshness = measure_scene(ctx, scene, result, options.sample_times,
-                                                 options.ladder_frames, say)
+                result.freshness = measure_scene(ctx, scene, result, sample_times=options.sample_times,
+                                                 ladder_frames=options.ladder_frames, say=say)
             results.append(result)
             del scene
     loads = []

@@ -94,7 +94,7 @@ def sharing_errors(renderer, sorter: DepthSorter, camera: Camera, settings: Rend
             "colour-only": common.error_metrics(shared, colour_only)}
 
 
-def time_both_eyes(ctx, renderer, sorter: DepthSorter, camera: Camera, settings: RenderSettings,
+def time_both_eyes(ctx, renderer, sorter: DepthSorter, camera: Camera, settings: RenderSettings, *,
                    rig: stereo.StereoRig, repeat: int) -> tuple[list[float], list[float]]:
     """(GPU ms, sort CPU ms), ``repeat`` of each: per frame the stereo sort by ``sorter``
     (timed on the CPU), then both eyes drawn with it as the window draws them
@@ -243,13 +243,15 @@ def run_stereo(options: StereoOptions, ctx=None, out: TextIO | None = None) -> S
                     camera = preset.camera(item.camera)
                     say(f"[{item.name} / {preset.name}] {camera.width}x{camera.height} per eye: "
                         f"timing {options.repeat} frames ...")
-                    gpu, sort = time_both_eyes(ctx, renderer, sorter, camera, settings, options.rig, options.repeat)
+                    gpu, sort = time_both_eyes(ctx, renderer, sorter, camera, settings, rig=options.rig,
+                                               repeat=options.repeat)
                     row = BudgetRow(item.name, preset.name, preset.label, camera.width, camera.height,
                                     common.median(gpu), common.median(sort), gpu, sort)
                     budgets.append(row)
                     for line in budget_lines(row):
                         say(line)
-    finished = common.finished_run_fields("stereo", started, machine, options.notes, SOFTWARE_NOTE, say)
+    finished = common.finished_run_fields("stereo", started, machine=machine, notes=options.notes,
+                                          software_note=SOFTWARE_NOTE, say=say)
     return StereoResults(errors=errors, budgets=budgets, options=options,
                          scenes=[(s.name, _describe(s)) for s in scenes], **finished)
 

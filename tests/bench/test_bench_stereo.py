@@ -193,7 +193,7 @@ def test_both_eyes_are_drawn_with_one_order_under_one_query(demo_renderer, demo_
     camera = TINY_PRESETS["tiny"].camera(demo_view())
     rig = stereo.StereoRig()
     log = _Log(gl_ctx, demo_renderer, demo_sorter, invalid_frames={2})
-    gpu, sort = bench_stereo.time_both_eyes(log, log, log, camera, RenderSettings(), rig, repeat=3)
+    gpu, sort = bench_stereo.time_both_eyes(log, log, log, camera, RenderSettings(), rig=rig, repeat=3)
     assert len(gpu) == len(sort) == 3  # the warm-up frame is not kept
     assert math.isnan(gpu[1]) and all(t > 0 for i, t in enumerate(gpu) if i != 1)  # frame 2: the invalid one
     assert all(t > 0 for t in sort)
