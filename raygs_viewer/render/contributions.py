@@ -17,7 +17,7 @@ are those of the 1 x 1 sample image, which ``supersample`` 1 draws).
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -77,84 +77,99 @@ def max_weights(scene: Scene, camera: Camera, settings: RenderSettings, order: n
                         f"(at most {MAX_FRAGMENTS:,} are weighed): draw a smaller one, or select 'through'")
     width = cols.stop - cols.start
     band_rows = max(1, BAND_SAMPLES // PER_PIXEL_BAND_DIVISOR // width)
-    cutoff = TRANSMITTANCE_CUTOFF if settings.transmittance_cutoff else None
+    weighing = _Weighing(model, boxes, camera, settings, order, cols)
     for top in range(rows.start, rows.stop, band_rows):
         bottom = min(rows.stop, top + band_rows)
         counted = inside[top:bottom, cols]
         if settings.per_pixel:
-            band = _band_fragments(model, boxes, camera, settings, order, top, bottom, cols)
+            band = weighing.band_fragments(top, bottom)
             np.maximum(weights, largest_weights(band, counted.size, counted.reshape(-1), scene.count,
-                                                window=settings.order_k, cutoff=cutoff), out=weights)
+                                                window=settings.order_k, cutoff=weighing.cutoff), out=weights)
         else:
-            _global_weights(weights, model, boxes, camera, settings, order, top, bottom, cols, counted, cutoff)
+            weighing.global_weights(weights, top, bottom, counted)
     return weights
 
 
-def _fragment_alpha(model, i: int, rays: np.ndarray, r0: int, r1: int, c0: int, c1: int, settings: RenderSettings,
-                    key: bool = False):
-    """Gaussian ``i``'s alpha (and t* with ``key``) over rows r0..r1-1, columns c0..c1-1
-    (``rays``: theirs), clamped as the settings clamp it."""
-    found = model.alpha(i, rays, slice(r0, r1), slice(c0, c1), key=True) if key else \
-        (model.alpha(i, rays, slice(r0, r1), slice(c0, c1)), None)
-    if settings.alpha_clamp:  # after the p_min test, as INRIA does
-        np.minimum(found[0], ALPHA_CLAMP, out=found[0])
-    return found
+@dataclass(frozen=True)
+class _Weighing:
+    """One weighing, decided once: the settings' model of the whole camera, its pixel
+    boxes clipped to the pixels asked about, the global order (scene rows, back to front)
+    and the columns of the part weighed."""
 
+    model: object
+    boxes: np.ndarray
+    camera: Camera
+    settings: RenderSettings
+    order: np.ndarray
+    cols: slice
 
-def _global_weights(weights: np.ndarray, model, boxes: np.ndarray, camera: Camera, settings: RenderSettings,
-                    order: np.ndarray, top: int, bottom: int, cols: slice, counted: np.ndarray,
-                    cutoff: float | None) -> None:
-    """Raises ``weights`` to each gaussian's largest weight over the ``counted`` pixels of
-    rows top..bottom-1, columns ``cols``, composited front to back in the global order
-    (the same weights as back to front; with ``cutoff``, INRIA's rule ends a pixel at the
-    fragment that would take it below, which itself weighs 0)."""
-    rays = band_rays(camera, top, bottom)
-    transmittance = np.ones(counted.shape)
-    done = np.zeros(counted.shape, bool)
-    for j in _meeting(boxes, top, bottom)[::-1]:
-        r0, r1, c0, c1 = boxes[j]
-        r0, r1 = max(r0, top), min(r1, bottom)
-        i = model.drawn[j]
-        alpha, _ = _fragment_alpha(model, i, rays[r0 - top:r1 - top, c0:c1], r0, r1, c0, c1, settings)
-        part = (slice(r0 - top, r1 - top), slice(c0 - cols.start, c1 - cols.start))
-        t = transmittance[part]  # a view, updated in place
-        after = t * (1 - alpha)
-        take = alpha > 0
-        if cutoff is not None:
-            finished = done[part]
-            take &= ~finished
-            stop = take & (after < cutoff)
-            finished |= stop
-            take &= ~stop
-        weight = np.where(take & counted[part], t * alpha, 0.0)
-        if weight.size:
-            weights[order[i]] = max(weights[order[i]], float(weight.max()))
-        t[take] = after[take]
+    @property
+    def cutoff(self) -> float | None:
+        return TRANSMITTANCE_CUTOFF if self.settings.transmittance_cutoff else None
+
+    def fragment_alpha(self, i: int, rays: np.ndarray, rows: slice, cols: slice, *, key: bool = False):
+        """Gaussian ``i``'s alpha (and t* with ``key``) over ``rows`` x ``cols`` (``rays``:
+        theirs), clamped as the settings clamp it."""
+        if key:
+            found = self.model.alpha(i, rays, rows, cols, key=True)
+        else:
+            found = self.model.alpha(i, rays, rows, cols), None
+        if self.settings.alpha_clamp:  # after the p_min test, as INRIA does
+            np.minimum(found[0], ALPHA_CLAMP, out=found[0])
+        return found
+
+    def global_weights(self, weights: np.ndarray, top: int, bottom: int, counted: np.ndarray) -> None:
+        """Raises ``weights`` to each gaussian's largest weight over the ``counted`` pixels of
+        rows top..bottom-1, composited front to back in the global order (the same
+        weights as back to front; with the cut-off, INRIA's rule ends a pixel at the
+        fragment that would take it below, which itself weighs 0)."""
+        model, boxes, order, cols, cutoff = self.model, self.boxes, self.order, self.cols, self.cutoff
+        rays = band_rays(self.camera, top, bottom)
+        transmittance = np.ones(counted.shape)
+        done = np.zeros(counted.shape, bool)
+        for j in _meeting(boxes, top, bottom)[::-1]:
+            r0, r1, c0, c1 = boxes[j]
+            r0, r1 = max(r0, top), min(r1, bottom)
+            i = model.drawn[j]
+            alpha, _ = self.fragment_alpha(i, rays[r0 - top:r1 - top, c0:c1], slice(r0, r1), slice(c0, c1))
+            part = (slice(r0 - top, r1 - top), slice(c0 - cols.start, c1 - cols.start))
+            t = transmittance[part]  # a view, updated in place
+            after = t * (1 - alpha)
+            take = alpha > 0
+            if cutoff is not None:
+                finished = done[part]
+                take &= ~finished
+                stop = take & (after < cutoff)
+                finished |= stop
+                take &= ~stop
+            weight = np.where(take & counted[part], t * alpha, 0.0)
+            if weight.size:
+                weights[order[i]] = max(weights[order[i]], float(weight.max()))
+            t[take] = after[take]
+
+    def band_fragments(self, top: int, bottom: int) -> Fragments:
+        """The fragments (alpha > 0) of rows top..bottom-1 for a per-ray order: pixels flat
+        in that part, t*, the scene row, the rank in the order."""
+        model, boxes, order, cols = self.model, self.boxes, self.order, self.cols
+        rays = band_rays(self.camera, top, bottom)
+        width, parts = cols.stop - cols.start, []
+        for j in _meeting(boxes, top, bottom):
+            r0, r1, c0, c1 = boxes[j]
+            r0, r1 = max(r0, top), min(r1, bottom)
+            i = model.drawn[j]
+            alpha, key = self.fragment_alpha(i, rays[r0 - top:r1 - top, c0:c1], slice(r0, r1), slice(c0, c1),
+                                             key=True)
+            hit_rows, hit_cols = np.nonzero(alpha > 0)
+            if hit_rows.size == 0:
+                continue
+            count = hit_rows.size
+            parts.append(((hit_rows + (r0 - top)) * width + (c0 - cols.start) + hit_cols, key[hit_rows, hit_cols],
+                          np.full(count, order[i], np.int64), np.full(count, i, np.int64),
+                          alpha[hit_rows, hit_cols], np.zeros((count, 3))))
+        return Fragments.concatenate(parts)
 
 
 def _meeting(boxes: np.ndarray, top: int, bottom: int) -> np.ndarray:
     """The boxes (indices, back to front) that meet rows top..bottom-1 and are not empty."""
     return np.flatnonzero((boxes[:, 0] < bottom) & (boxes[:, 1] > top)
                           & (boxes[:, 0] < boxes[:, 1]) & (boxes[:, 2] < boxes[:, 3]))
-
-
-def _band_fragments(model, boxes: np.ndarray, camera: Camera, settings: RenderSettings, order: np.ndarray,
-                    top: int, bottom: int, cols: slice) -> Fragments:
-    """The fragments (alpha > 0) of rows top..bottom-1 and columns ``cols`` (``boxes``:
-    the model's, clipped to them) for a per-ray order: pixels flat in that part, t*, the
-    scene row, the rank in ``order``."""
-    rays = band_rays(camera, top, bottom)
-    width, parts = cols.stop - cols.start, []
-    for j in _meeting(boxes, top, bottom):
-        r0, r1, c0, c1 = boxes[j]
-        r0, r1 = max(r0, top), min(r1, bottom)
-        i = model.drawn[j]
-        alpha, key = _fragment_alpha(model, i, rays[r0 - top:r1 - top, c0:c1], r0, r1, c0, c1, settings, key=True)
-        hit_rows, hit_cols = np.nonzero(alpha > 0)
-        if hit_rows.size == 0:
-            continue
-        count = hit_rows.size
-        parts.append(((hit_rows + (r0 - top)) * width + (c0 - cols.start) + hit_cols, key[hit_rows, hit_cols],
-                      np.full(count, order[i], np.int64), np.full(count, i, np.int64), alpha[hit_rows, hit_cols],
-                      np.zeros((count, 3))))
-    return Fragments.concatenate(parts)

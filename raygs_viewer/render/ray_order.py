@@ -144,7 +144,7 @@ class FrontToBack:
         self.geometry = sums
         self.weights = weights
 
-    def add(self, pixels: np.ndarray, alpha: np.ndarray, color: np.ndarray,
+    def add(self, pixels: np.ndarray, alpha: np.ndarray, color: np.ndarray, *,
             z: np.ndarray | None = None, normal: np.ndarray | None = None, owner: np.ndarray | None = None) -> None:
         """Composites one fragment at each of ``pixels`` (distinct), behind what is there;
         ``z`` and ``normal`` are needed with geometry, ``owner`` with weights."""
@@ -178,7 +178,7 @@ def composite_per_pixel(fragments: Fragments, pixels: int, background, *, window
     its fragments composited per pixel: exactly by (t*, index) with ``window`` 0, else
     through a k-buffer of ``window`` entries (module docstring). ``cutoff``: the
     transmittance cut-off, or None."""
-    return _accumulate(fragments, pixels, window, cutoff, None).image(background)
+    return _accumulate(fragments, pixels, window=window, cutoff=cutoff).image(background)
 
 
 def composite_per_pixel_geometry(fragments: Fragments, pixels: int, background, *, window: int = 0,
@@ -186,7 +186,7 @@ def composite_per_pixel_geometry(fragments: Fragments, pixels: int, background, 
     """(pixels, 10) float64: :func:`composite_per_pixel`'s RGBA, then the geometry sums
     (:meth:`GeometrySums.stacked`) accumulated in the order the fragments composite;
     ``fragments`` must carry geometry."""
-    accumulator = _accumulate(fragments, pixels, window, cutoff, GeometrySums((pixels,)))
+    accumulator = _accumulate(fragments, pixels, window=window, cutoff=cutoff, sums=GeometrySums((pixels,)))
     return np.concatenate((accumulator.image(background), accumulator.geometry.stacked()), axis=-1)
 
 
@@ -196,12 +196,12 @@ def largest_weights(fragments: Fragments, pixels: int, counted: np.ndarray, owne
     the ``counted`` samples ((pixels,) bool), its fragments composited as
     :func:`composite_per_pixel` composites them."""
     weights = LargestWeights(owners, counted)
-    _accumulate(fragments, pixels, window, cutoff, None, weights)
+    _accumulate(fragments, pixels, window=window, cutoff=cutoff, weights=weights)
     return weights.largest
 
 
-def _accumulate(fragments: Fragments, pixels: int, window: int, cutoff: float | None,
-                sums: GeometrySums | None, weights: LargestWeights | None = None) -> FrontToBack:
+def _accumulate(fragments: Fragments, pixels: int, *, window: int, cutoff: float | None,
+                sums: GeometrySums | None = None, weights: LargestWeights | None = None) -> FrontToBack:
     accumulator = FrontToBack(pixels, cutoff, sums, weights)
     if window == 0:
         # By pixel, then t*, then index: each pixel's fragments in the order they composite.

@@ -67,7 +67,7 @@ def render_reference(scene: Scene, camera: Camera, settings: RenderSettings = Re
     its window (``order_k``) is fed in the global order.
     """
     settings, order = _settings_and_order(scene, camera, settings, order)
-    return _render(scene, camera, settings, order, settings.supersample, BAND_SAMPLES)
+    return _render(scene, camera, settings, order, samples=settings.supersample, band_samples=BAND_SAMPLES)
 
 
 def render_reference_channels(scene: Scene, camera: Camera, settings: RenderSettings = RenderSettings(),
@@ -81,7 +81,8 @@ def render_reference_channels(scene: Scene, camera: Camera, settings: RenderSett
     fragment under the cut-off adds nothing), per sample, then average over the
     supersampling block before :func:`raygs_viewer.render.channels.finish`."""
     settings, order = _settings_and_order(scene, camera, settings, order)
-    values = _render(scene, camera, settings, order, settings.supersample, BAND_SAMPLES, geometry=True)
+    values = _render(scene, camera, settings, order, samples=settings.supersample, band_samples=BAND_SAMPLES,
+                     geometry=True)
     return finish(values[..., :4], values[..., 4:8], values[..., 8:10])
 
 
@@ -104,7 +105,8 @@ def ground_truth(scene: Scene, camera: Camera, settings: RenderSettings = Render
         raise ValueError(f"samples must be a whole number >= 1, got {samples!r}")
     exact = replace(settings, mode="raygs", mip=False, supersample=1, alpha_clamp=False,
                     transmittance_cutoff=False, order=order or settings.order, order_k=0)
-    return _render(scene, camera, exact, global_order(scene, camera, exact), samples, band_samples)
+    return _render(scene, camera, exact, global_order(scene, camera, exact), samples=samples,
+                   band_samples=band_samples)
 
 
 def _settings_and_order(scene: Scene, camera: Camera, settings: RenderSettings, order):
@@ -133,7 +135,7 @@ class _Pass:
     geometry: bool
 
 
-def _render(scene: Scene, camera: Camera, settings: RenderSettings, order, samples: int,
+def _render(scene: Scene, camera: Camera, settings: RenderSettings, order, *, samples: int,
             band_samples: int, geometry: bool = False) -> np.ndarray:
     """(H, W, COLOR_VALUES) or, with ``geometry``, (H, W, GEOMETRY_VALUES): ``render_reference``
     with an explicit sample count per axis (``settings.supersample`` is ignored), so ground

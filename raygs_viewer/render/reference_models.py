@@ -103,7 +103,7 @@ class RayGS:
         with np.errstate(divide="ignore"):
             self.kappa = -2.0 * np.log(settings.p_min / opacities)
         self.drawn = np.flatnonzero((self.kappa > 0) & (c2 > self.kappa))
-        self.boxes = support_boxes(camera, g.mu, g.rotation, scales, self.kappa, self.drawn)
+        self.boxes = support_boxes(camera, g, scales, self.kappa, self.drawn)
 
     def alpha(self, i: int, rays: np.ndarray, rows: slice, cols: slice, key: bool = False):
         """The opacity gaussian ``i`` has at each of ``rays``; with ``key``, also t* (its
@@ -150,7 +150,7 @@ class ExactMip:
         self.w_big = self.local / self.big
         c2_big = np.einsum("ni,ni->n", self.w_big, self.w_big)
         self.drawn = np.flatnonzero((self.kappa > 0) & (c2_big > self.kappa))
-        self.boxes = support_boxes(camera, g.mu, g.rotation, self.big, self.kappa, self.drawn)
+        self.boxes = support_boxes(camera, g, self.big, self.kappa, self.drawn)
 
     def alpha(self, i: int, rays: np.ndarray, rows: slice, cols: slice, key: bool = False):
         """As :meth:`RayGS.alpha`; t* is the peak of this pixel's filtered gaussian."""
@@ -254,16 +254,18 @@ MODELS = {"raygs": RayGS, "raygs-exact-mip": ExactMip, "gs": Splat}
 
 # --- pixel bounds --------------------------------------------------------------------------
 
-def support_boxes(camera: Camera, mu: np.ndarray, rotation: np.ndarray, scales: np.ndarray,
-                   kappa: np.ndarray, drawn: np.ndarray) -> np.ndarray:
+def support_boxes(camera: Camera, gaussians: CameraGaussians, scales: np.ndarray, kappa: np.ndarray,
+                  drawn: np.ndarray) -> np.ndarray:
     """(len(drawn), 4) int64 rows start, stop, columns start, stop per drawn gaussian:
     pixels whose ray can meet its kappa-ellipsoid (p - mu)^T Sigma^-1 (p - mu) <= kappa,
-    Sigma = Rp diag(scales^2) Rp^T (``rotation`` is Rp^T). A ray meets it exactly where
+    Sigma = Rp diag(scales^2) Rp^T (``gaussians``' camera-space centres mu and rotations
+    Rp^T; ``scales`` (N, 3) the ones the model draws). A ray meets it exactly where
     D <= kappa (D is the least Mahalanobis distance^2 along the ray's line).
 
     The bounding sphere's box (:func:`_pixel_bounds`) is intersected with the ellipsoid's
     own projected box, which is much tighter for needles and pancakes (the reference's
     cost is the pixels it visits). Only an optimisation: the per-pixel test decides."""
+    mu, rotation = gaussians.mu, gaussians.rotation
     boxes = np.zeros((len(drawn), 4), np.int64)
     radius = np.sqrt(np.maximum(kappa, 0.0)) * scales.max(axis=1)
     for k, i in enumerate(drawn):

@@ -26,7 +26,6 @@ from raygs_viewer.sort.request import Order, SortRequest, keys_of
 
 #: The sorts there are: the CPU's and the GPU's (``--sort`` also takes "auto": :func:`chosen_sort`).
 SORTS = ("cpu", "gpu")
-SORT_LABELS = {"cpu": "CPU sort", "gpu": "GPU sort"}
 
 
 def chosen_sort(kind: str, ctx: moderngl.Context, count: int) -> Choice:
