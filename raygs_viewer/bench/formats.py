@@ -42,6 +42,7 @@ from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.scene.compare import AttributeErrors, attribute_errors
 from raygs_viewer.scene.io import load_scene
 from raygs_viewer.scene.model import Scene
+from raygs_viewer.scene.spz_format import SpzEncoding
 from raygs_viewer.scene.writing import write_scene
 
 #: The targets every reference scene is written to: (label, suffix, spz version).
@@ -111,7 +112,7 @@ def run_formats(options: FormatsOptions, ctx=None) -> FormatsResults:
                     rows.append(_row(ctx, AS_READ, Path(bench_scene.path), repeat=options.repeat))
                 for label, suffix, version in TARGETS:
                     path = write_scene(bench_scene.scene, Path(folder) / f"{bench_scene.name}-{label[-2:]}{suffix}",
-                                       spz_version=version)
+                                       spz=SpzEncoding(version))
                     rows.append(_row(ctx, label, path, repeat=options.repeat, reference=reference))
                 results.scenes.append((bench_scene.name, bench_scene.description, rows))
         if options.samples:

@@ -19,7 +19,7 @@ from raygs_viewer.render.setting_info import SettingField, or_list, setting_fiel
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.model import FileAxes
 from raygs_viewer.scene.source import SceneSource
-from raygs_viewer.scene.spz_format import SPZ_AXES
+from raygs_viewer.scene.spz_format import SPZ_AXES, SpzEncoding
 
 #: The longest side of an image the benchmarks accept, in pixels.
 MAX_SIDE = 16384
@@ -262,6 +262,7 @@ def source_options_given(args: argparse.Namespace) -> list[str]:
     return ["--spz-axes"] if args.spz_axes is not None else []
 
 
-def written_axes(args: argparse.Namespace, read: SceneSource) -> str:
-    """convert's ``--out-spz-axes``: the axes OUT is written in, by default those IN was read in."""
-    return args.out_spz_axes or read.spz_axes
+def spz_encoding(args: argparse.Namespace, read: SceneSource) -> SpzEncoding:
+    """How convert writes OUT when it is a .spz: ``--spz-version``, and ``--out-spz-axes``,
+    by default the axes IN was read in."""
+    return SpzEncoding(args.spz_version, args.out_spz_axes or read.spz_axes)

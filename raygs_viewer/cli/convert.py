@@ -103,7 +103,7 @@ def command_convert(args) -> int:
     check_output_path(target, args.overwrite, WRITE_SUFFIXES)  # before any slow work
     rules = keep_rules(args)
     edits = None if args.edits is None else load_edit_document(args.edits)
-    out_axes = argtypes.written_axes(args, source)
+    spz = argtypes.spz_encoding(args, source)
     scene = load_scene_argument(source, args.lod)
     warn_dropped(scene)
     print(f"read {source.path}: {scene.format or 'built-in'}{_axes(scene.axes)}, {scene.count:,} gaussians, "
@@ -112,10 +112,9 @@ def command_convert(args) -> int:
     if rules or edits is not None:
         kept = None if edits is None else _replayed(edits, args.edits, scene, source)
         scene = _filtered(scene, rules, source.path, rows, kept)
-    copied = write_kept(scene, source.path, target, args.overwrite, rows=rows, spz_version=args.spz_version,
-                        spz_axes=out_axes)
+    copied = write_kept(scene, source.path, target, args.overwrite, rows=rows, spz=spz)
     print(f"wrote {target}: {os.path.getsize(target):,} bytes{', each row as IN has it' if copied else ''}")
-    back = load_scene(source.at(target).with_axes(out_axes))
+    back = load_scene(source.at(target).with_axes(spz.axes))
     print(f"read back {target}: {back.format}{_axes(back.axes)}, {back.count:,} gaussians, "
           f"SH degree {back.sh_degree}")
     for note in [] if copied else writing_notes(scene, target.suffix):
@@ -138,7 +137,7 @@ def _replayed(edits: EditDocument, file: str, scene: Scene, source: SceneSource)
     """(N,) bool: what the edits in ``file`` keep of ``scene``, read from ``source``;
     printed like a filter's removals."""
     edits.check_scene(demo_sha256() if source.is_demo else scene_sha256(source.path), scene.count, source.path)
-    kept = edits.replay(scene).kept
+    kept = ~edits.replay(scene).deleted
     print(f"edits {file}: {len(edits.operations)} operations, removed {scene.count - int(kept.sum()):,}")
     return kept
 

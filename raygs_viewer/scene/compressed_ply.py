@@ -44,6 +44,7 @@ from __future__ import annotations
 import math
 import os
 import re
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -72,9 +73,22 @@ def _sh_of_byte() -> np.ndarray:
 
 _SH_OF_BYTE = _sh_of_byte()
 
-def load_compressed_ply(path, shown: str, report: Reporter, chunk_bytes: int, header_bytes: int,
+@dataclass(frozen=True)
+class _Layout:
+    """Where a compressed PLY's values are: its ``vertex`` element, whether its chunks
+    carry colour bounds, its ``sh`` element (None without one) and that element's
+    f_rest_* names in index order."""
+
+    vertex: PlyElement
+    has_colour: bool
+    sh: PlyElement | None
+    rest_names: list[str]
+
+
+def load_compressed_ply(path, shown: str, report: Reporter, *, chunk_bytes: int, header_bytes: int,
                         elements: list[PlyElement], refusal: str | None) -> Scene:
-    """The Scene of a compressed PLY whose header :func:`parse_header` has read."""
+    """The Scene of a compressed PLY whose header :func:`parse_header` has read:
+    ``header_bytes`` long, its ``elements``, and plyfile's ``refusal`` of it or None."""
     chunk, vertex, sh = _check_elements(shown, elements)
     n = vertex.count
     chunk_types = dict(chunk.properties)
@@ -109,18 +123,19 @@ def load_compressed_ply(path, shown: str, report: Reporter, chunk_bytes: int, he
 
     arrays = scene_arrays(n, degree)
     drops = DropTally(n)
+    layout = _Layout(vertex, has_colour, sh, rest_names)
     with open(path, "rb") as f:
-        bounds_rows = _read_rows(f, shown, offsets["chunk"], chunk, 0, chunks)
+        bounds_rows = _read_rows(f, shown, chunk, offsets["chunk"], range(0, chunks))
         bounds = np.stack([_field(bounds_rows, chunk, name, "<f4") for name in bound_names], axis=1)
         del bounds_rows
         row_bytes = vertex.min_row_bytes + (sh.min_row_bytes if sh is not None else 0)
         step = max(1, chunk_bytes // max(1, row_bytes))
         for start in range(0, n, step):
             stop = min(n, start + step)
-            words = _read_rows(f, shown, offsets["vertex"], vertex, start, stop)
-            coefficients = _read_rows(f, shown, offsets["sh"], sh, start, stop) if sh is not None else None
-            _decode(start, stop, words, vertex, bounds[np.arange(start, stop) // CHUNK_GAUSSIANS], has_colour,
-                    coefficients, sh, rest_names, arrays, drops)
+            words = _read_rows(f, shown, vertex, offsets["vertex"], range(start, stop))
+            coefficients = _read_rows(f, shown, sh, offsets["sh"], range(start, stop)) if sh is not None else None
+            _decode(layout, start, words, bounds[np.arange(start, stop) // CHUNK_GAUSSIANS], coefficients,
+                    out=arrays, drops=drops)
             del words, coefficients
             report.reading(stop, n)
     report.activating()
@@ -129,11 +144,13 @@ def load_compressed_ply(path, shown: str, report: Reporter, chunk_bytes: int, he
                        format=COMPRESSED_PLY_FORMAT)
 
 
-def _decode(start: int, stop: int, words: np.ndarray, vertex: PlyElement, block: np.ndarray, has_colour: bool,
-            coefficients: np.ndarray | None, sh: PlyElement | None, rest_names: list[str], out: SceneArrays,
-            drops: DropTally) -> None:
-    """Gaussians ``start..stop`` from their raw vertex rows, their chunks' bounds ``block``
-    (rows, 12 or 18) and raw sh rows, into the scene's arrays ``out``."""
+def _decode(layout: _Layout, start: int, words: np.ndarray, block: np.ndarray, coefficients: np.ndarray | None, *,
+            out: SceneArrays, drops: DropTally) -> None:
+    """The gaussians from ``start`` on, from their raw vertex rows ``words`` (rows, row
+    bytes), their chunks' bounds ``block`` (rows, 12 or 18) and their raw sh rows (None
+    without SH), into the scene's arrays ``out``; their drops into ``drops``."""
+    stop = start + len(words)
+    vertex, has_colour, sh, rest_names = layout.vertex, layout.has_colour, layout.sh, layout.rest_names
     positions, rotations, scales, opacities, sh_out = (a[start:stop] for a in out)
     with np.errstate(all="ignore"):  # non-finite bounds: their gaussians are dropped below
         positions[:] = _unpack_111011(_field(words, vertex, "packed_position", "<u4"), block[:, 0:6])
@@ -202,9 +219,10 @@ def _rest_names(shown: str, sh: PlyElement) -> list[str]:
     return [rest[i] for i in range(len(rest))]
 
 
-def _read_rows(f, shown: str, offset: int, element: PlyElement, start: int, stop: int) -> np.ndarray:
-    """Rows ``start..stop`` of ``element`` (data at ``offset``) as (rows, row bytes) uint8;
-    ``f`` is buffered, so a short read means the end of the file."""
+def _read_rows(f, shown: str, element: PlyElement, offset: int, rows: range) -> np.ndarray:
+    """The ``rows`` of ``element`` (data at ``offset``) as (rows, row bytes) uint8; ``f``
+    is buffered, so a short read means the end of the file."""
+    start, stop = rows.start, rows.stop
     row = element.min_row_bytes
     f.seek(offset + start * row)
     data = f.read((stop - start) * row)  # no more than the size check found in the file

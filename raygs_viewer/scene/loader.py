@@ -184,7 +184,7 @@ def load_now(source: SceneSource, progress: ProgressCallback | None = None, *,
             report(_SCENE_END, "hashing")
             digest = arrays_sha256(scene)
         elif lod_index_file(source.path) is not None:
-            return _read_levels(source, progress, report, cancel, read_lod, fits, on_level)
+            return _read_levels(source, progress, report, cancel, read_lod, fits=fits, on_level=on_level)
         else:
             scene, digest = _read_and_hash(source, progress, report, cancel, read_scene)
         warnings = dropped_summary(scene)
@@ -209,7 +209,7 @@ def _read_and_hash(source: SceneSource, progress: ProgressCallback | None, repor
 
 
 def _read_levels(source: SceneSource, progress: ProgressCallback | None, report: Reporter,
-                 cancel: threading.Event | None, read_lod: LodReader, fits: Fits | None,
+                 cancel: threading.Event | None, read_lod: LodReader, *, fits: Fits | None,
                  on_level: Callable[[LoadedScene], None] | None) -> LoadedScene:
     """A streamed SOG read and hashed side by side (``source.levels`` while they ``fit``).
     The cameras come first: the coarsest level is shown with them."""

@@ -214,10 +214,10 @@ def load_lod(path, *, levels: tuple[int, ...] | None = None, fits: Fits | None =
         loaded[level] = True
         result = None  # one Scene of every part is made once, unless each level is handed on
         if on_level is not None:
-            result = _assemble(parts, index, starts, kept, loaded, environment, shown)
+            result = _assemble(parts, index, shown, starts=starts, kept=kept, loaded=loaded, environment=environment)
             on_level(result)
     if result is None:
-        result = _assemble(parts, index, starts, kept, loaded, environment, shown)
+        result = _assemble(parts, index, shown, starts=starts, kept=kept, loaded=loaded, environment=environment)
     report(1.0, "done")
     return replace(result, unread=unread) if unread else result
 
@@ -255,9 +255,12 @@ class _UnitReader:
         return scene, dropped
 
 
-def _assemble(parts: list[Scene], index: LodIndex, starts: dict[int, int], kept: dict[int, np.ndarray | None],
-              loaded: np.ndarray, environment: tuple[int, int], shown: str) -> LodScene:
-    """The LodScene of the units read so far: one Scene, and each leaf's rows in it."""
+def _assemble(parts: list[Scene], index: LodIndex, shown: str, *, starts: dict[int, int],
+              kept: dict[int, np.ndarray | None], loaded: np.ndarray, environment: tuple[int, int]) -> LodScene:
+    """The LodScene of the units read so far: one Scene, and each leaf's rows in it.
+    ``starts``: each file's first row in the scene; ``kept``: each file's mask of the
+    rows its unit dropped (None: none); ``loaded``: (levels,) bool, the levels read;
+    ``environment``: the environment's rows (first, count)."""
     rows = np.zeros((index.leaves, index.levels, 2), np.int64)
     for level in np.flatnonzero(loaded):
         files, offsets, counts = index.ranges[:, level].T

@@ -29,7 +29,7 @@ import numpy as np
 from raygs_viewer.errors import finite_number, is_number
 from raygs_viewer.jsonfile import json_key, parse_json, show_json
 from raygs_viewer.scene.reading import file_error
-from raygs_viewer.scene.sog_meta import MAX_COUNT
+from raygs_viewer.scene.sog_meta import MAX_COUNT, whole_number
 
 LOD_META_NAME = "lod-meta.json"
 #: What an index may hold: far past any published scene (splat-transform's chunks hold
@@ -94,7 +94,7 @@ def parse_lod_meta(shown: str, raw: bytes) -> LodIndex:
     if version is not None and not (is_number(version) and version == 1):
         raise file_error(shown, f"streamed SOG version {show_json(version, _SHOWN)} is not supported "
                                 "(this reader reads version 1, and files without a version)")
-    levels = _whole(shown, meta.get("lodLevels"), "lodLevels", 1, MAX_LEVELS, "levels")
+    levels = whole_number(shown, "lodLevels", meta.get("lodLevels"), (1, MAX_LEVELS), "levels")
     files = _names(shown, meta.get("filenames"))
     environment = meta.get("environment")
     if environment is not None and not (isinstance(environment, str) and environment):
@@ -107,14 +107,6 @@ def parse_lod_meta(shown: str, raw: bytes) -> LodIndex:
     _check_counts(shown, meta, index)
     _check_files(shown, index)
     return index
-
-
-def _whole(shown: str, value, name: str, low: int, high: int, what: str) -> int:
-    if finite_number(value) is None or value != int(value):
-        raise file_error(shown, f"'{name}' is {show_json(value, _SHOWN)}, expected a whole number")
-    if not low <= int(value) <= high:
-        raise file_error(shown, f"'{name}' is {int(value)}: expected {low}..{high} {what}")
-    return int(value)
 
 
 def _names(shown: str, value) -> tuple[str, ...]:
@@ -173,11 +165,13 @@ def _lods(shown: str, lods, where: str, levels: int, file_count: int) -> list[li
             raise file_error(shown, f"'{name}': level {json_key(key)!s} is not one of 0..{levels - 1} ('lodLevels')")
         if not isinstance(entry, dict):
             raise file_error(shown, f"'{name}' must hold 'file', 'offset' and 'count'")
-        file = _whole(shown, entry.get("file"), f"{name}.file", 0, max(file_count - 1, 0), "(an index into 'filenames')")
+        file = whole_number(shown, f"{name}.file", entry.get("file"), (0, max(file_count - 1, 0)),
+                            "(an index into 'filenames')")
         if file_count == 0:
             raise file_error(shown, f"'{name}.file' names a file, but 'filenames' is empty")
-        offset = _whole(shown, entry.get("offset"), f"{name}.offset", 0, MAX_COUNT, "rows")
-        count = _whole(shown, entry.get("count"), f"{name}.count", 0, MAX_COUNT - offset, "rows (with the offset)")
+        offset = whole_number(shown, f"{name}.offset", entry.get("offset"), (0, MAX_COUNT), "rows")
+        count = whole_number(shown, f"{name}.count", entry.get("count"), (0, MAX_COUNT - offset),
+                             "rows (with the offset)")
         row[int(key)] = [file, offset, count]
     return row
 

@@ -38,7 +38,8 @@ def load_ply(source: SceneSource, report: Reporter, chunk_bytes: int) -> Scene:
     path = shown = source.path
     header_bytes, elements, refusal = parse_header(path, shown)
     if any(e.name == "chunk" for e in elements):  # PlayCanvas's packed layout, not INRIA's
-        return load_compressed_ply(path, shown, report, chunk_bytes, header_bytes, elements, refusal)
+        return load_compressed_ply(path, shown, report, chunk_bytes=chunk_bytes, header_bytes=header_bytes,
+                                   elements=elements, refusal=refusal)
     vertex = next((e for e in elements if e.name == "vertex"), None)
     if vertex is None:
         raise file_error(shown, "PLY file has no 'vertex' element")
@@ -91,7 +92,7 @@ def load_ply(source: SceneSource, report: Reporter, chunk_bytes: int) -> Scene:
         for element in elements[: elements.index(vertex)]:
             offset += element.count * element.min_row_bytes
         offsets = _property_offsets(vertex, used)
-        for start, raw in _file_chunks(path, shown, offset, n, vertex.min_row_bytes, chunk_bytes):
+        for start, raw in _file_chunks(path, shown, offset, n, row_bytes=vertex.min_row_bytes, chunk_bytes=chunk_bytes):
             target.add(start, _gather_float32(raw, offsets))
             report.reading(start + raw.shape[0], n)
     elif n:
@@ -126,7 +127,7 @@ def _property_offsets(vertex, used: list[str]) -> list[int]:
     return [offsets[name] for name in used]
 
 
-def _file_chunks(path, shown: str, offset: int, n: int, row_bytes: int, chunk_bytes: int):
+def _file_chunks(path, shown: str, offset: int, n: int, *, row_bytes: int, chunk_bytes: int):
     """Yields (first row, (rows, row_bytes) uint8) for the ``n`` rows at ``offset``, about
     ``chunk_bytes`` at a time, read into one reused buffer (each chunk is only valid
     until the next one is read)."""

@@ -21,7 +21,7 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.files import atomic_writer, check_writable_folder
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.ply_file import PLY_FORMAT
-from raygs_viewer.scene.spz_format import DEFAULT_SPZ_AXES
+from raygs_viewer.scene.spz_format import SpzEncoding
 from raygs_viewer.scene.writing import write_scene
 
 LOG_SCALE_COLUMNS = ("scale_0", "scale_1", "scale_2")
@@ -90,7 +90,7 @@ def read_count(scene: Scene) -> int:
 
 
 def write_kept(scene: Scene, path: str, target: str | os.PathLike, overwrite: bool = False, *,
-               rows: PlyRows | None = None, spz_version: int = 3, spz_axes: str = DEFAULT_SPZ_AXES) -> bool:
+               rows: PlyRows | None = None, spz: SpzEncoding = SpzEncoding()) -> bool:
     """Writes ``scene`` (read from ``path``; a subset keeps its file rows,
     ``Scene.rows``) at ``target`` in the format its suffix names: a PLY read as a PLY by
     copying its own rows (``rows``, read here if not given), anything else from the
@@ -99,5 +99,5 @@ def write_kept(scene: Scene, path: str, target: str | os.PathLike, overwrite: bo
         (rows or PlyRows(path, scene.count if scene.file_rows is None else None)).write(
             scene.rows_in_file, target, overwrite)
         return True
-    write_scene(scene, target, overwrite, spz_version, spz_axes)
+    write_scene(scene, target, overwrite, spz)
     return False

@@ -98,7 +98,7 @@ def read_sog(path, shown: str, report: Reporter, chunk_bytes: int) -> tuple[Scen
         meta = parse_meta(source.shown_meta, source.read_meta())
         chunk_bytes = max(1, chunk_bytes)
         images, done, total = _read_images(source, meta, shown, report, chunk_bytes)
-        return _decode(images, meta, shown, report, chunk_bytes, done, total)
+        return _decode(images, meta, shown, report, chunk_bytes, done=done, total=total)
 
 
 def scene_files(path) -> list[str] | None:
@@ -166,7 +166,7 @@ def _read_images(source: SogSource, meta: SogMeta, shown: str, report: Reporter,
     return images, done, total
 
 
-def _decode(images: dict[str, np.ndarray], meta: SogMeta, shown: str, report: Reporter, chunk_bytes: int,
+def _decode(images: dict[str, np.ndarray], meta: SogMeta, shown: str, report: Reporter, chunk_bytes: int, *,
             done: int, total: int) -> tuple[Scene, np.ndarray | None]:
     """The gaussians of the decoded images, a chunk at a time; progress goes on from
     ``done`` of ``total``."""

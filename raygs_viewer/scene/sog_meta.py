@@ -62,7 +62,7 @@ def parse_meta(shown: str, raw: bytes) -> SogMeta:
     if not isinstance(meta, dict):
         raise file_error(shown, "not a SOG meta.json (expected a JSON object)")
     _check_version(shown, meta)
-    count = _integer(shown, meta, "count", 0, MAX_COUNT, "gaussians")
+    count = whole_number(shown, "count", meta.get("count"), (0, MAX_COUNT), "gaussians")
     means = _section(shown, meta, "means")
     mins = _numbers(shown, means, "means", "mins", 3)
     maxs = _numbers(shown, means, "means", "maxs", 3)
@@ -77,9 +77,10 @@ def parse_meta(shown: str, raw: bytes) -> SogMeta:
     palette = {}
     if meta.get("shN") is not None:
         shn = _section(shown, meta, "shN")
-        palette["bands"] = _integer(shown, shn, "bands", 0, 3, "SH bands", where="shN")
+        palette["bands"] = whole_number(shown, "shN.bands", shn.get("bands"), (0, 3), "SH bands")
         if palette["bands"]:
-            palette["palette_count"] = _integer(shown, shn, "count", 0, MAX_PALETTE, "palette entries", where="shN")
+            palette["palette_count"] = whole_number(shown, "shN.count", shn.get("count"), (0, MAX_PALETTE),
+                                                    "palette entries")
             palette["shn_codebook"] = _codebook(shown, shn, "shN")
             palette["shn_files"] = tuple(_files(shown, shn, "shN", 2)[:2])
     return SogMeta(count, mins, maxs, means_files, scales_codebook, scales_file, quats_file, sh0_codebook, sh0_file,
@@ -115,9 +116,11 @@ def _json_type(value) -> str:
     return names.get(type(value), "null")
 
 
-def _integer(shown: str, section: dict, key: str, low: int, high: int, what: str, where: str = "") -> int:
-    name = f"{where}.{key}" if where else key
-    value = section.get(key)
+def whole_number(shown: str, name: str, value, allowed: tuple[int, int], what: str) -> int:
+    """The JSON field ``name``'s ``value`` as an int, when it is a whole number within
+    ``allowed`` (low, high), counting ``what``; else a one-line error naming the file
+    ``shown`` and the field (the SOG meta.json's and the streamed SOG index's fields)."""
+    low, high = allowed
     if finite_number(value) is None or value != int(value):
         raise file_error(shown, f"'{name}' is {show_json(value, _SHOWN_CHARACTERS)}, expected a whole number")
     value = int(value)

@@ -55,11 +55,14 @@ def load_spz(source: SceneSource, report: Reporter, chunk_bytes: int) -> Scene:
     path = shown = source.path
     chunk = max(1, int(chunk_bytes))
     layout, data, declared = read_spz_file(path, shown, report, chunk)
-    scene = _decode(data, layout, declared or spz_axes_system(source.spz_axes), shown, report, chunk)
+    scene = _decode(data, layout, declared or spz_axes_system(source.spz_axes), shown, report, chunk=chunk)
     return replace(scene, axes=FileAxes(source.spz_axes, COORDINATE_SYSTEMS[declared - 1] if declared else ""))
 
 
-def _decode(data: np.ndarray, layout: Layout, system: int, shown: str, report: Reporter, chunk: int) -> Scene:
+def _decode(data: np.ndarray, layout: Layout, system: int, shown: str, report: Reporter, *, chunk: int) -> Scene:
+    """The gaussians of a .spz's decompressed ``data``, stored in coordinate system
+    ``system`` (an index into COORDINATE_SYSTEMS, from 1), converted to RDF; ``chunk``
+    bytes of rows between progress reports."""
     n = layout.n
     degree = min(layout.degree, 3)
     k = sh_coefficient_count(degree) - 1

@@ -48,15 +48,16 @@ uses it too. An ``SPZ_ADOBE_coordinate_system`` extension (type 0xADBE0003) nami
 standard-family system other than RUB is honoured the same way; one of the rotated
 family (which needs a 90-degree SH rotation) is refused in one line.
 
-Two conventions for files without that extension (:data:`SPZ_AXES`, the ``spz_axes``
-keyword of reading and writing): "rub", the specification's, which Niantic's library
-and Scaniverse write; and "rdf", the INRIA PLY's own axes, which PlayCanvas's
-splat-transform (and so SuperSplat) writes and reads with no mark in the file
-(``src/lib/spz-module.ts``: ``from: CoordinateSystem.UNSPECIFIED`` on data kept in PLY
-axes; ``readers/read-spz.ts`` decodes without conversion). Nothing in such a file tells
-the two apart, so the reader is told; a declaration in the file wins over it. The
-writer writes no extension for either, like splat-transform, so what it writes in
-"rdf" reads in splat-transform as that tool's own files do.
+Two conventions for files without that extension (:data:`SPZ_AXES`: a SceneSource's
+``spz_axes`` when reading, :class:`SpzEncoding`'s ``axes`` when writing): "rub", the
+specification's, which Niantic's library and Scaniverse write; and "rdf", the INRIA
+PLY's own axes, which PlayCanvas's splat-transform (and so SuperSplat) writes and
+reads with no mark in the file (``src/lib/spz-module.ts``:
+``from: CoordinateSystem.UNSPECIFIED`` on data kept in PLY axes;
+``readers/read-spz.ts`` decodes without conversion). Nothing in such a file tells the two apart, so the reader
+is told; a declaration in the file wins over it. The writer writes no extension for
+either, like splat-transform, so what it writes in "rdf" reads in splat-transform as
+that tool's own files do.
 
 Decisions:
 
@@ -145,6 +146,20 @@ def spz_axes_system(spz_axes: str) -> int:
     if spz_axes not in SPZ_AXES:
         raise UserError(f"unknown .spz axes convention {spz_axes!r} (expected {' or '.join(SPZ_AXES)})")
     return COORDINATE_SYSTEMS.index(spz_axes.upper()) + 1
+
+
+@dataclass(frozen=True)
+class SpzEncoding:
+    """How a ``.spz`` is written: the format ``version`` (the writer refuses one it does
+    not write, naming the file) and the ``axes`` its gaussians are stored in, a
+    convention of :data:`SPZ_AXES` that the file does not mark. An unknown ``axes`` is a
+    UserError when the value is made, before anything is written."""
+
+    version: int = 3
+    axes: str = DEFAULT_SPZ_AXES
+
+    def __post_init__(self) -> None:
+        spz_axes_system(self.axes)
 
 
 def axes_description(axes: FileAxes) -> dict:

@@ -13,8 +13,8 @@
   rounded), the quaternion as four bytes ``q * 128 + 128`` rounded and clipped. SH
   beyond the DC term is lost.
 - ``.spz``: :func:`raygs_viewer.scene.spz_file.spz_bytes` (Niantic's format, version 3
-  or 4), in the axes of ``spz_axes``: "rub" (the specification's) or "rdf" (the PLY's
-  own, as splat-transform writes them).
+  or 4), in the axes of its :class:`~raygs_viewer.scene.spz_format.SpzEncoding`: "rub"
+  (the specification's) or "rdf" (the PLY's own, as splat-transform writes them).
 - ``.sog``: :func:`raygs_viewer.scene.sog_write.sog_bytes` (PlayCanvas's SOG version 2,
   bundled), in the PLY's own axes, as SOG stores them; gaussians keep their order.
 
@@ -38,7 +38,7 @@ from raygs_viewer.scene.model import Scene, sh_coefficient_count
 from raygs_viewer.scene.sh import C0
 from raygs_viewer.scene.sog_write import FLAT_MARGIN, palette_size, sog_bytes
 from raygs_viewer.scene.spz_file import DC_LIMIT, LOG_SCALE_RANGE, spz_bytes
-from raygs_viewer.scene.spz_format import DEFAULT_SPZ_AXES, spz_axes_system
+from raygs_viewer.scene.spz_format import SpzEncoding
 
 #: The suffixes :func:`write_scene` writes.
 WRITE_SUFFIXES = (".ply", ".splat", ".spz", ".sog")
@@ -180,14 +180,13 @@ def write_splat(scene: Scene, path: str | os.PathLike, overwrite: bool = False) 
     return _write(path, splat_chunks(scene), overwrite)
 
 
-def write_scene(scene: Scene, path: str | os.PathLike, overwrite: bool = False, spz_version: int = 3,
-                spz_axes: str = DEFAULT_SPZ_AXES) -> Path:
+def write_scene(scene: Scene, path: str | os.PathLike, overwrite: bool = False,
+                spz: SpzEncoding = SpzEncoding()) -> Path:
     """Writes ``scene`` in the format its suffix names (:data:`WRITE_SUFFIXES`), through
     a temporary beside ``path`` moved into place; an existing ``path`` is replaced only
-    with ``overwrite``. A ``.spz`` stores the axes of ``spz_axes`` ("rub" or "rdf").
-    One-line UserError for an unknown suffix, an unknown ``spz_axes``, an existing file,
-    a missing folder or a failed write."""
-    spz_axes_system(spz_axes)
+    with ``overwrite``. A ``.spz`` is written as ``spz`` says (its version and axes).
+    One-line UserError for an unknown suffix, a .spz version not written, an existing
+    file, a missing folder or a failed write."""
     path = Path(path)
     suffix = path.suffix.lower()
     if suffix not in WRITE_SUFFIXES:
@@ -199,10 +198,10 @@ def write_scene(scene: Scene, path: str | os.PathLike, overwrite: bool = False, 
     if suffix == ".sog":
         # Lazily, so that an existing file is refused before the (slow) quantisation.
         return _write(path, (sog_bytes(scene) for _ in range(1)), overwrite)
-    if spz_version not in SPZ_VERSIONS:
-        raise UserError(f"{path}: .spz version {spz_version} is not written (versions {SPZ_VERSIONS[0]} "
+    if spz.version not in SPZ_VERSIONS:
+        raise UserError(f"{path}: .spz version {spz.version} is not written (versions {SPZ_VERSIONS[0]} "
                         f"and {SPZ_VERSIONS[1]} are)")
-    return _write(path, [spz_bytes(scene, spz_version, spz_axes)], overwrite)
+    return _write(path, [spz_bytes(scene, spz.version, spz.axes)], overwrite)
 
 
 def _write(path: str | os.PathLike, chunks, overwrite: bool) -> Path:

@@ -797,9 +797,10 @@ def test_malformed_channel_view_is_one_line_user_error(tmp_path, case):
 
 def spz_scene_file(tmp_path, spz_axes="rdf"):
     """A .spz of 40 gaussians written in ``spz_axes``, as splat-transform writes "rdf"."""
+    from raygs_viewer.scene.spz_format import SpzEncoding
     from raygs_viewer.scene.writing import write_scene
     scene = load_scene(write_inria_ply(tmp_path / "source.ply", n=40, seed=5))
-    return write_scene(scene, tmp_path / f"scene-{spz_axes}.spz", spz_axes=spz_axes)
+    return write_scene(scene, tmp_path / f"scene-{spz_axes}.spz", spz=SpzEncoding(axes=spz_axes))
 
 
 def test_a_spz_scene_records_the_axes_it_was_read_in(tmp_path):

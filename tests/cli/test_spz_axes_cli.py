@@ -20,6 +20,7 @@ from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.io import load_scene
 from raygs_viewer.scene.model import FileAxes
 from raygs_viewer.scene.source import SceneSource
+from raygs_viewer.scene.spz_format import SpzEncoding
 from raygs_viewer.scene.writing import write_scene
 
 F = np.array([1.0, -1.0, -1.0])
@@ -33,7 +34,7 @@ def scene():
 @pytest.fixture
 def st_spz(tmp_path, scene):
     """A .spz in the PLY's axes, as splat-transform writes it."""
-    return write_scene(scene, tmp_path / "st.spz", spz_axes="rdf")
+    return write_scene(scene, tmp_path / "st.spz", spz=SpzEncoding(axes="rdf"))
 
 
 def stored_positions(path) -> np.ndarray:

@@ -14,6 +14,7 @@ from raygs_viewer.bench.common import error_metrics
 from raygs_viewer.camera.pinhole import frame_points
 from raygs_viewer.scene.demo import demo_camera
 from raygs_viewer.scene.io import load_scene
+from raygs_viewer.scene.spz_format import SpzEncoding
 from raygs_viewer.scene.writing import write_scene
 
 CAMERA = demo_camera().resized(96, 72)
@@ -35,7 +36,7 @@ TARGETS = {"ply": (".ply", 3), "spz3": (".spz", 3), "spz4": (".spz", 4), "splat"
 def formats(demo, tmp_path_factory):
     """The demo written in each format and read back."""
     folder = tmp_path_factory.mktemp("formats")
-    return {name: load_scene(write_scene(demo, folder / f"demo-{name}{suffix}", spz_version=version))
+    return {name: load_scene(write_scene(demo, folder / f"demo-{name}{suffix}", spz=SpzEncoding(version)))
             for name, (suffix, version) in TARGETS.items()}
 
 

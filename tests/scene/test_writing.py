@@ -16,6 +16,7 @@ from raygs_viewer.scene import writing
 from raygs_viewer.scene.compare import rotation_angles
 from raygs_viewer.scene.io import load_scene
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
+from raygs_viewer.scene.spz_format import SpzEncoding
 from raygs_viewer.scene.writing import (
     OPACITY_LOGIT_LIMIT,
     SMALLEST_SCALE,
@@ -235,7 +236,7 @@ def test_write_scene_refuses_what_it_cannot_write(tmp_path):
     scene = random_scene(n=2, degree=0)
     assert_user_error(lambda: write_scene(scene, tmp_path / "out.txt"), "out.txt", ".ply", ".splat", ".spz")
     assert_user_error(lambda: write_scene(scene, tmp_path / "no" / "out.ply"), "out.ply", "does not exist")
-    assert_user_error(lambda: write_scene(scene, tmp_path / "out.spz", spz_version=2), "out.spz", "version 2")
+    assert_user_error(lambda: write_scene(scene, tmp_path / "out.spz", spz=SpzEncoding(2)), "out.spz", "version 2")
     (tmp_path / "folder.ply").mkdir()
     assert_user_error(lambda: write_scene(scene, tmp_path / "folder.ply", overwrite=True), "folder.ply", "folder")
     assert sorted(p.name for p in tmp_path.iterdir()) == ["folder.ply"]
@@ -251,14 +252,15 @@ def test_spz_goes_through_spz_bytes_with_its_version_and_axes(tmp_path, monkeypa
         return b"NGSP fake"
 
     monkeypatch.setattr(writing, "spz_bytes", fake_spz_bytes)
-    given = {} if axes is None else {"spz_axes": axes}
-    path = write_scene(random_scene(n=3, degree=0), tmp_path / "out.spz", spz_version=version, **given)
+    given = {} if axes is None else {"axes": axes}
+    path = write_scene(random_scene(n=3, degree=0), tmp_path / "out.spz", spz=SpzEncoding(version, **given))
     assert calls == [(3, version, axes or "rub")] and path.read_bytes() == b"NGSP fake"
 
 
 def test_an_unknown_spz_axes_is_refused_before_writing(tmp_path):
     for name in ("out.spz", "out.ply"):
-        assert_user_error(lambda: write_scene(random_scene(n=3, degree=0), tmp_path / name, spz_axes="lub"),
+        assert_user_error(lambda: write_scene(random_scene(n=3, degree=0), tmp_path / name,
+                                              spz=SpzEncoding(axes="lub")),
                           "lub", "rub or rdf")
     assert list(tmp_path.iterdir()) == []
 

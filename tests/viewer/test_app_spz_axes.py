@@ -18,6 +18,7 @@ from raygs_viewer.scene.io import load_scene
 from raygs_viewer.scene.model import FileAxes
 from raygs_viewer.scene.source import SceneSource
 from raygs_viewer.scene.spz_file import spz_bytes
+from raygs_viewer.scene.spz_format import SpzEncoding
 from raygs_viewer.scene.writing import write_scene
 
 SWITCH = "RDF axes (splat-transform's .spz)"
@@ -30,7 +31,7 @@ def st_spz(tmp_path):
     scene = random_scene(n=80, seed=4, degree=1, spread=0.6)
     shifted = scene.positions + np.float32([0.0, 0.8, 0.4])
     scene = type(scene)(shifted, scene.rotations, scene.scales, scene.opacities, scene.sh, scene.sh_degree)
-    return write_scene(scene, tmp_path / "st.spz", spz_axes="rdf")
+    return write_scene(scene, tmp_path / "st.spz", spz=SpzEncoding(axes="rdf"))
 
 
 def test_the_switch_reads_the_scene_again_flipped(open_viewer, st_spz):
