@@ -1,7 +1,9 @@
 """``raygs-viewer doctor`` (raygs_viewer.bench.doctor*): the settings each case is drawn in
 and the tolerances they are held to (the tests' own), the GL tables, and the negative
 controls: a renderer path and the GPU sort broken on purpose fail their rows, and the
-command exits 1 with one line naming them."""
+command exits 1 with one line naming them; a setting this GL cannot draw leaves its
+option out of the speed rows, and the narrow blends of a case past their bound are
+reported, not failed."""
 
 from __future__ import annotations
 
@@ -12,20 +14,24 @@ import pytest
 from testkit import patched_glsl
 
 from raygs_viewer.bench import doctor_sort
-from raygs_viewer.bench.doctor import AXES, DoctorOptions, doctor_options, run_doctor, summary_line
-from raygs_viewer.bench.doctor_checks import BASE, VARIANTS, check_cases, demo_case, tolerance
+from raygs_viewer.bench.doctor import AXES, DoctorOptions, doctor_options, format_report, run_doctor, summary_line
+from raygs_viewer.bench.doctor_checks import BASE, UNBOUNDED_BLENDS, VARIANTS, check_cases, demo_case, tolerance
 from raygs_viewer.bench.doctor_gl import driver_of, gl_rows, limit_rows
+from raygs_viewer.bench.doctor_speed import SpeedSizes
 from raygs_viewer.bench.hard_cases import HARD_CASES
 from raygs_viewer.cli.doctor import command_doctor
 from raygs_viewer.cli.main import build_parser
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.plan import DRAW_VERTICES, RECORDS, DrawLayout
+from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.settings import PRECISIONS
 from raygs_viewer.render.tolerance import AMBIGUOUS_P999, BLENDS, MATCH, PER_RAY
 
 #: A small run of the demo alone: the base and every draw layout, nothing else.
 LAYOUTS_ONLY = {"cases": ("demo",), "demo_axes": (BASE, "draw layout"), "sort_count": 0, "speed": None,
                 "auto": False}
+#: Speed rows far smaller than --quick's: one frame of a 2k scene at 64x36, no sorts timed.
+TINY_SPEED = SpeedSizes(2_000, (64, 36), 16, 1, 1, (), 1)
 
 
 def test_each_variant_changes_one_axis_of_the_base():
@@ -126,3 +132,40 @@ def test_every_hard_case_passes_its_quick_rows_here(gl_ctx):
     result = run_doctor(options, gl_ctx, out=io.StringIO())
     assert {row.case for row in result.checks} == set(HARD_CASES)
     assert len(result.judged) >= 2 * len(HARD_CASES) and result.status == 0, summary_line(result)
+
+
+def test_an_option_this_gl_cannot_draw_is_left_out_of_the_speed_rows_as_unsupported(gl_ctx, monkeypatch):
+    """A renderer that refuses float16 blending (as a GL without blendable float16
+    targets would): its rows are "not supported here", no failure, and the options that
+    blend in float16 are not timed but named as unsupported, while 8-bit is timed."""
+    refusal = "no blendable float16 target on this GL (the test's)"
+    supports = GLRenderer.supports
+    monkeypatch.setattr(GLRenderer, "supports", lambda renderer, settings: refusal
+                        if settings.precision == "float16" else supports(renderer, settings))
+    options = DoctorOptions(cases=("demo",), demo_axes=(BASE, "precision"), sort_count=0, speed=TINY_SPEED,
+                            auto=False)
+    result = run_doctor(options, gl_ctx, out=io.StringIO())
+    assert result.status == 0 and len(result.judged) == 2, summary_line(result)
+    assert [row.problem for row in result.checks if not row.supported] == [refusal]
+    float16 = ("float16 blend", "float16, indexed, draw-order records")
+    assert result.speed.left_out == {name: f"not supported here: {refusal}" for name in float16}
+    for case in result.speed.cases:
+        assert not set(float16) & set(case.frame_ms), case.view
+    assert "8-bit blend" in result.speed.cases[0].frame_ms
+    assert f"| float16 blend |  |  | not measured: not supported here: {refusal} |" in format_report(result)
+
+
+def test_the_narrow_blends_of_a_case_past_their_bound_are_reported_not_failed(gl_ctx):
+    """The cases of UNBOUNDED_BLENDS (2,000 layers a pixel) exceed a narrow blend's bound
+    here: their float16 and 8-bit rows say why no bound holds and are not held to one,
+    while their float32 row is."""
+    options = DoctorOptions(cases=tuple(UNBOUNDED_BLENDS), demo_axes=(), hard_axes=(BASE, "precision"),
+                            sort_count=0, speed=None, auto=False)
+    result = run_doctor(options, gl_ctx, out=io.StringIO())
+    narrow = [row for row in result.checks if row.variant.axis == "precision"]
+    assert len(narrow) == 2 * len(UNBOUNDED_BLENDS) and result.status == 0, summary_line(result)
+    assert all(row.unbounded == UNBOUNDED_BLENDS[row.case] and not row.judged and not row.failed for row in narrow)
+    assert any(row.agreement.failures(BLENDS[row.variant.settings.precision]) for row in narrow)
+    assert [row.variant.axis for row in result.judged] == [BASE] * len(UNBOUNDED_BLENDS)
+    report = format_report(result)
+    assert all(f"| {UNBOUNDED_BLENDS[row.case]} |" in report for row in narrow)
