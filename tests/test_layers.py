@@ -2,9 +2,10 @@
 private name taken from another module, imports at the top of files, no code written twice.
 
 Layers, lowest first: errors (and the package root) -> jsonfile -> camera | files -> scene -> sort ->
-render -> capture -> viewer | bench -> cli. A module may import its own subpackage
-and any lower layer; camera and files, and viewer and bench, stand side by side and
-import neither each other.
+render -> capture -> photos -> viewer | bench -> cli -> __main__. A module may import its own
+subpackage and any lower layer; camera and files, and viewer and bench, stand side by side
+and import neither each other. The order has one home, ``LAYER_GROUPS`` in
+docs/architecture_table.py, which draws it as the diagram of docs/architecture.md.
 """
 
 from __future__ import annotations
@@ -12,40 +13,28 @@ from __future__ import annotations
 import ast
 import io
 import keyword
+import sys
 import tokenize
 from collections import defaultdict
 from pathlib import Path
 
 import pytest
 
+# The layer order and the walk over the package live with the script that draws the
+# architecture's diagram from them, so the diagram and this test cannot disagree.
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "docs"))
+from architecture_table import INDENTED_IMPORT, LAYERS, late_imports, layer_of, modules_of, parsed  # noqa: E402
+
 PACKAGE = Path(__file__).resolve().parents[1] / "raygs_viewer"
-LAYERS = {"errors": 0, "jsonfile": 1, "camera": 2, "files": 2, "scene": 3, "sort": 4, "render": 5, "capture": 6, "photos": 6.5, "viewer": 7,
-          "bench": 7, "cli": 8, "__main__": 9}
-
-
-def modules_of(package: Path) -> dict[str, Path]:
-    """{dotted module name: file} of every module under ``package``."""
-    modules = {}
-    for path in sorted(package.rglob("*.py")):
-        parts = path.relative_to(package.parent).with_suffix("").parts
-        if parts[-1] == "__init__":
-            parts = parts[:-1]
-        modules[".".join(parts)] = path
-    return modules
-
-
-def layer(module: str) -> tuple[str, int]:
-    parts = module.split(".")
-    if len(parts) == 1:  # the package root (__version__)
-        return parts[0], 0
-    return parts[1], LAYERS[parts[1]]
 
 
 def imports(path: Path, modules: dict[str, Path]):
     """(node, imported module, names taken from it) of each import of the package."""
     root = next(iter(modules)).split(".")[0]
-    tree = ast.parse(path.read_text(), str(path))
-    for node in ast.walk(tree):
+    text = path.read_text()
+    tree = parsed(text, str(path))
+    # Only a module with an indented import line has imports below its top level to walk to.
+    for node in ast.walk(tree) if INDENTED_IMPORT.search(text) else tree.body:
         if isinstance(node, ast.Import):
             for alias in node.names:
                 if alias.name.split(".")[0] == root:
@@ -58,12 +47,14 @@ def imports(path: Path, modules: dict[str, Path]):
             yield node, node.module, [n for n in names if n not in submodules]
 
 
-def upward_imports(modules: dict[str, Path]) -> list[str]:
+def upward_imports(modules: dict[str, Path], layers: dict[str, int] = LAYERS) -> list[str]:
+    """'file:line module -> target' of each import of a layer above, or beside, the
+    importing module's (``layers``: {top-level module or package: its place})."""
     wrong = []
     for module, path in modules.items():
-        name, level = layer(module)
+        name, level = layer_of(module, layers)
         for node, target, _ in imports(path, modules):
-            target_name, target_level = layer(target)
+            target_name, target_level = layer_of(target, layers)
             if target_name != name and target_level >= level:
                 wrong.append(f"{path.name}:{node.lineno} {module} -> {target}")
     return wrong
@@ -113,17 +104,7 @@ def private_imports(modules: dict[str, Path]) -> list[str]:
 
 def silent_late_imports(modules: dict[str, Path]) -> list[str]:
     """Imports inside functions with no comment on their line or the line above."""
-    silent = []
-    for path in modules.values():
-        lines = path.read_text().splitlines()
-        tree = ast.parse("\n".join(lines))
-        top = {id(node) for node in tree.body}
-        for node in ast.walk(tree):
-            if isinstance(node, (ast.Import, ast.ImportFrom)) and id(node) not in top:
-                here, above = lines[node.lineno - 1], lines[node.lineno - 2] if node.lineno > 1 else ""
-                if "#" not in here and not above.strip().startswith("#"):
-                    silent.append(f"{path.name}:{node.lineno}: {here.strip()}")
-    return silent
+    return [f"{late.path.name}:{late.line}: {late.text}" for late in late_imports(modules) if not late.says_why]
 
 
 #: How many lines in a row, written twice, make a repeat (the ``duplicates`` tool's own limit).
@@ -192,7 +173,7 @@ MODULES = modules_of(PACKAGE)
 
 def test_every_module_has_a_layer():
     for module in MODULES:
-        layer(module)  # KeyError for a subpackage missing from LAYERS
+        layer_of(module, LAYERS)  # KeyError for a subpackage missing from LAYERS
 
 
 def test_imports_go_down_the_layers():
