@@ -162,7 +162,7 @@ def warn_dropped(scene: Scene) -> None:
         print(f"warning: {line}", file=sys.stderr)
 
 
-def choose_camera(positions: np.ndarray, source: SceneSource, camera_file: str | None, index: int | None,
+def choose_camera(positions: np.ndarray, source: SceneSource, *, camera_file: str | None, index: int | None,
                   width: int | None, height: int | None) -> Camera:
     """The camera of ``--camera``/``--camera-index`` (a cameras.json or a screenshot's
     sidecar), else the demo's or one framing the scene's ``positions``; resized to
@@ -190,7 +190,8 @@ def _scene_and_camera(args, settings: RenderSettings, ctx) -> tuple[OpenedScene,
     """The scene of render's or verify's options and its camera."""
     source = argtypes.scene_source(args, args.scene or DEMO)
     opened = open_scene_argument(source, settings, ctx)
-    return opened, choose_camera(opened.framed, source, args.camera, args.camera_index, args.width, args.height)
+    return opened, choose_camera(opened.framed, source, camera_file=args.camera, index=args.camera_index,
+                                 width=args.width, height=args.height)
 
 
 # --- the commands ---------------------------------------------------------------------------------
@@ -240,7 +241,7 @@ def command_render(args) -> int:
             settings = render_settings(args)
             opened, camera = _scene_and_camera(args, settings, ctx)
         start = time.perf_counter()
-        image, drawn = render_image(args, ctx, opened, camera, settings, stereo, output.channels)
+        image, drawn = render_image(args, ctx, opened, camera, settings, stereo=stereo, channels=output.channels)
         elapsed = time.perf_counter() - start
     finally:
         if ctx is not None:
@@ -290,11 +291,12 @@ def channel_output(args, out: Path, shot: Sidecar | None) -> ChannelOutput:
                          picture_view(channels, out.suffix, depth_range, normal_space, alpha_threshold))
 
 
-def render_image(args, ctx, opened: OpenedScene, camera: Camera, settings: RenderSettings, stereo,
+def render_image(args, ctx, opened: OpenedScene, camera: Camera, settings: RenderSettings, *, stereo,
                  channels: tuple[str, ...]) -> tuple[np.ndarray | ChannelImage, str]:
     """The render: a ChannelImage (camera-space normals) when ``channels`` need geometry,
-    else the (H, W, 4) RGBA image render always made (float64 from the reference); and
-    what it drew, in words. ``ctx``: the GL context (None with --reference)."""
+    else the (H, W, 4) RGBA image render always made (float64 from the reference), of
+    the pair when ``stereo`` (a StereoView) is given; and what it drew, in words.
+    ``ctx``: the GL context (None with --reference)."""
     geometry = needs_geometry(channels)
     if args.reference:
         scene, choice = opened.drawn(camera)
@@ -309,7 +311,7 @@ def render_image(args, ctx, opened: OpenedScene, camera: Camera, settings: Rende
         raise
     try:
         if stereo is not None:  # the eyes' midpoint chooses the levels
-            order = stereo_order(sorter, camera, settings, stereo.rig, opened.lod, opened.deleted)
+            order = stereo_order(sorter, camera, settings, stereo.rig, levels=opened.lod, deleted=opened.deleted)
             return render_stereo_view(renderer, order, camera, settings, stereo)[0], drawn_words(opened, order.choice)
         # Tiled like the window's screenshots: the same pixels, and sizes beyond
         # the GPU's largest render target.

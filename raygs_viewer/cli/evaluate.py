@@ -94,7 +94,7 @@ def command_evaluate(args: argparse.Namespace) -> int:
             about = {"dataset": str(dataset.root), "layout": dataset.layout, "split": args.split,
                      "scene": str(scene_path)}
             if paths is not None:
-                write_outputs(paths, result, about, dataset, views, renderer, args.overwrite)
+                write_outputs(paths, result, about, args.overwrite, dataset=dataset, views=views, renderer=renderer)
         finally:
             renderer.release()
     finally:
@@ -122,9 +122,11 @@ def print_summary(result: EvaluationResult) -> None:
           + (": " + ", ".join(shown) if shown else ""))
 
 
-def write_outputs(paths, result: EvaluationResult, about: dict, dataset, views, renderer, overwrite: bool) -> None:
+def write_outputs(paths, result: EvaluationResult, about: dict, overwrite: bool, *, dataset, views,
+                  renderer) -> None:
     """The report, then the contact sheet of its worst views (rendered again: keeping
-    every view's images through a long run would cost memory for five pictures)."""
+    every view's images through a long run would cost memory for five pictures): the
+    views of ``dataset`` that were evaluated, ``views``, rendered by ``renderer``."""
     report, sheet = paths
     worst = result.worst(WORST_COUNT)
     write_report(report, result, about, overwrite, sheet if worst else None)

@@ -16,13 +16,14 @@ import argparse
 import signal
 import sys
 import time
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 
 import numpy as np
 
 from raygs_viewer.camera.navigation import UP_AXES, framing_distance, framing_pose, scene_bounds, up_vector
 from raygs_viewer.camera.path import FPS_RANGE, MAX_DURATION, CameraPath, orbit_path
+from raygs_viewer.camera.stereo import StereoView
 from raygs_viewer.capture.image_io import check_output_path
 from raygs_viewer.capture.path_file import PathDocument, load_path_document, scene_mismatch
 from raygs_viewer.capture.path_render import (
@@ -128,14 +129,30 @@ def command_render_path(args: argparse.Namespace) -> int:
 
     ctx = create_headless_context(args.gl_backend)
     try:
-        return _render_scene(ctx, args, document, settings, stereo, path, out, cameras_out)
+        return _render_scene(ctx, args, _Job(document, settings, stereo, path, out, cameras_out))
     finally:
         ctx.release()
 
 
-def _render_scene(ctx, args, document, settings, stereo, path, out, cameras_out) -> int:
+@dataclass(frozen=True)
+class _Job:
+    """render-path's options once checked, before anything is read: the path file
+    (None: the orbit, made once the scene is read), the settings, the stereo view (None:
+    mono), the path at --fps and --duration (None with the orbit), the frames' output
+    and where the cameras go (None: nowhere)."""
+
+    document: PathDocument | None
+    settings: RenderSettings
+    stereo: StereoView | None
+    path: CameraPath | None
+    out: Path
+    cameras_out: Path | None
+
+
+def _render_scene(ctx, args, job: _Job) -> int:
     """render-path once its options are checked: the scene read (a streamed SOG: the
     levels the GPU of ``ctx`` holds, chosen for each frame), the frames rendered."""
+    document, settings, path = job.document, job.settings, job.path
     source = argtypes.scene_source(args, args.scene, recorded=document and document.scene_axes,
                                    levels=levels_to_read(settings))
     with TerminalProgress(args.scene) as loading:  # the scene's hash is taken while it is read
@@ -169,10 +186,10 @@ def _render_scene(ctx, args, document, settings, stereo, path, out, cameras_out)
         problem = renderer.supports(settings)
         if problem:
             raise UserError(problem)
-        if cameras_out is not None:
-            write_cameras_json(entries, cameras_out, args.overwrite)
-        return _render(renderer, sorter, cameras, settings, stereo, out, frame_size(width, height, stereo),
-                       path.fps, args, opened)
+        if job.cameras_out is not None:
+            write_cameras_json(entries, job.cameras_out, args.overwrite)
+        return _render(renderer, sorter, cameras, job, image_size=frame_size(width, height, job.stereo),
+                       fps=path.fps, args=args, opened=opened)
     finally:
         sorter.close()
         renderer.release()
@@ -207,12 +224,15 @@ def orbit_document(positions: np.ndarray, up: str, width: int, height: int) -> P
     return PathDocument(path, width, height)
 
 
-def _render(renderer, sorter, cameras, settings, stereo, out: Path, image_size, fps: float, args,
+def _render(renderer, sorter, cameras, job: _Job, *, image_size: tuple[int, int], fps: float, args,
             opened: OpenedScene) -> int:
+    """The frames of ``cameras`` rendered into ``job.out`` at ``image_size`` (width,
+    height; a stereo frame's pair), ``fps``; the exit status (130: interrupted)."""
+    settings, stereo, out = job.settings, job.stereo, job.out
     if args.channels is not None:
-        sink = ExrFolderSink(out, *image_size, args.channels, args.overwrite, frames=len(cameras))
+        sink = ExrFolderSink(out, *image_size, args.channels, overwrite=args.overwrite, frames=len(cameras))
     else:
-        sink = open_sink(out, *image_size, fps, args.overwrite, frames=len(cameras))
+        sink = open_sink(out, *image_size, fps, overwrite=args.overwrite, frames=len(cameras))
     if sink.note:
         print(f"note: {sink.note}", file=sys.stderr)
     progress = Progress(len(cameras), args.progress, label=out.name)
@@ -224,8 +244,9 @@ def _render(renderer, sorter, cameras, settings, stereo, out: Path, image_size, 
     timed = TimedSink(sink)
     start = time.perf_counter()
     try:
-        render_frames(renderer, sorter, cameras, settings, stereo, timed, progress, args.channels,
-                      check_normal_space(args.channels or (), args.normal_space), opened.lod, opened.deleted)
+        render_frames(renderer, sorter, cameras, settings, timed, stereo=stereo, progress=progress,
+                      channels=args.channels, normal_space=check_normal_space(args.channels or (), args.normal_space),
+                      lod=opened.lod, deleted=opened.deleted)
         written = timed.finish()
     except KeyboardInterrupt:
         kept = sink.abort()

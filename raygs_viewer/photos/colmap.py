@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera
+from raygs_viewer.camera.rotation import quaternion_to_matrix
 from raygs_viewer.errors import UserError, one_line
 
 #: COLMAP's camera models by id: (name, parameter count), as read_write_model.py lists them.
@@ -55,23 +56,18 @@ def read_colmap(sparse: Path) -> list[tuple[str, Camera]]:
         if camera_id not in intrinsics:
             raise UserError(f"{images_path}: image {name!r} names camera {camera_id}, which {cameras_path.name} lacks")
         width, height, fx, fy, cx, cy = intrinsics[camera_id]
-        views.append((name, Camera(width, height, fx, fy, cx, cy, rotation_from_quaternion(qvec), tvec)))
+        # COLMAP's (w, x, y, z), normalised first: text files round it.
+        rotation = quaternion_to_matrix((qvec / np.linalg.norm(qvec))[None])[0]
+        views.append((name, Camera(width, height, fx, fy, cx, cy, rotation, tvec)))
     if not views:
         raise UserError(f"{images_path}: holds no images")
     return views
 
 
-def rotation_from_quaternion(qvec: np.ndarray) -> np.ndarray:
-    """(3, 3) float64 rotation of COLMAP's (w, x, y, z) quaternion, normalised first (text files round it)."""
-    w, x, y, z = qvec / np.linalg.norm(qvec)
-    return np.array([
-        [1 - 2 * y * y - 2 * z * z, 2 * x * y - 2 * w * z, 2 * x * z + 2 * w * y],
-        [2 * x * y + 2 * w * z, 1 - 2 * x * x - 2 * z * z, 2 * y * z - 2 * w * x],
-        [2 * x * z - 2 * w * y, 2 * y * z + 2 * w * x, 1 - 2 * x * x - 2 * y * y]])
-
-
-def _intrinsics(path: Path, camera_id: int, model: str, width, height, params) -> tuple:
-    """(width, height, fx, fy, cx, cy) of one camera; UserError for a model with distortion."""
+def _intrinsics(path: Path, camera_id: int, model: str, size: tuple, params) -> tuple:
+    """(width, height, fx, fy, cx, cy) of one camera of ``size`` (width, height) and the
+    ``model``'s ``params``; UserError for a model with distortion."""
+    width, height = size
     if model not in ("SIMPLE_PINHOLE", "PINHOLE"):
         raise UserError(f"{path}: camera {camera_id} uses the {model} model, which has lens distortion; only "
                         f"PINHOLE and SIMPLE_PINHOLE are read (undistort first: colmap image_undistorter)")
@@ -131,7 +127,7 @@ def _binary_cameras(path: Path, data: bytes) -> dict[int, tuple]:
         if model_id not in MODELS:
             raise UserError(f"{path}: camera {camera_id} has an unknown model id {model_id}")
         model, n = MODELS[model_id]
-        cameras[camera_id] = _intrinsics(path, camera_id, model, width, height, reader.read(f"{n}d"))
+        cameras[camera_id] = _intrinsics(path, camera_id, model, (width, height), reader.read(f"{n}d"))
     return cameras
 
 
@@ -177,7 +173,7 @@ def _text_cameras(path: Path, lines: list[str]) -> dict[int, tuple]:
         if len(fields) != 4 + count:
             raise UserError(f"{path}: line {number}: the {model} model has {count} parameters, got {len(fields) - 4}")
         camera_id, width, height = _numbers(path, number, [fields[0], fields[2], fields[3]], int)
-        cameras[camera_id] = _intrinsics(path, camera_id, model, width, height,
+        cameras[camera_id] = _intrinsics(path, camera_id, model, (width, height),
                                          _numbers(path, number, fields[4:], float))
     return cameras
 

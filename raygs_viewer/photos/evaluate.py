@@ -103,7 +103,7 @@ def score_view(name: str, photo: np.ndarray, render: np.ndarray, lpips: Lpips | 
                      None if lpips is None else lpips(photo, render))
 
 
-def evaluate(dataset: Dataset, views: Sequence[PhotoView], renderer, settings: RenderSettings,
+def evaluate(dataset: Dataset, views: Sequence[PhotoView], renderer, settings: RenderSettings, *,
              progress: Progress | None = None, lpips: Lpips | None = None,
              lpips_note: str | None = None) -> EvaluationResult:
     """Scores every view of ``views`` (a split of ``dataset``) rendered by ``renderer``

@@ -43,11 +43,13 @@ def read_transforms(path: Path, photo_size) -> list[tuple[str, Camera]]:
         name = f"frames[{index}]"
         fields = JsonFields.entry(path, name, entry)
         file_path = fields.get(f"{name}.file_path", str)
-        views.append((file_path, _camera(path, top, fields, name, photo_size, file_path)))
+        views.append((file_path, _camera(path, top, fields, name, photo_size=photo_size, file_path=file_path)))
     return views
 
 
-def _camera(path: Path, top: JsonFields, fields: JsonFields, name: str, photo_size, file_path: str) -> Camera:
+def _camera(path: Path, top: JsonFields, fields: JsonFields, name: str, *, photo_size, file_path: str) -> Camera:
+    """The camera of frame ``name`` (its ``fields``; the file's ``top`` ones where it has
+    none), sized from its photo ``file_path`` by ``photo_size`` where neither gives w and h."""
     def value(key: str) -> float | None:
         # A frame's own value wins over the file's.
         frame_value = fields.optional(f"{name}.{key}", float)

@@ -44,6 +44,7 @@ from pathlib import Path
 import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera, camera_to_json, look_at
+from raygs_viewer.camera.rotation import matrix_to_quaternion, qmul
 from raygs_viewer.jsonfile import json_text
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
 from raygs_viewer.scene.sh import C0, sh_basis
@@ -67,17 +68,6 @@ def _normalize(v: np.ndarray) -> np.ndarray:
     return v / np.sqrt(np.sum(v * v, axis=-1, keepdims=True))
 
 
-def _quat_mul(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    aw, ax, ay, az = (a[..., i] for i in range(4))
-    bw, bx, by, bz = (b[..., i] for i in range(4))
-    return np.stack([
-        aw * bw - ax * bx - ay * by - az * bz,
-        aw * bx + ax * bw + ay * bz - az * by,
-        aw * by - ax * bz + ay * bw + az * bx,
-        aw * bz + ax * by - ay * bx + az * bw,
-    ], axis=-1)
-
-
 def _quat_z_to(axis: np.ndarray, twist: np.ndarray | float = 0.0) -> np.ndarray:
     """(N, 4) quaternions whose rotation takes local +z to ``axis`` (N, 3), after a
     rotation by ``twist`` radians about local z."""
@@ -90,7 +80,7 @@ def _quat_z_to(axis: np.ndarray, twist: np.ndarray | float = 0.0) -> np.ndarray:
     arc = _normalize(arc)
     half = 0.5 * np.broadcast_to(np.asarray(twist, dtype=np.float64), (n,))
     spin = np.stack([np.cos(half), np.zeros(n), np.zeros(n), np.sin(half)], axis=-1)
-    return _quat_mul(arc, spin)
+    return qmul(arc, spin)
 
 
 def _quat_from_axes(x_axis, z_axis) -> np.ndarray:
@@ -102,20 +92,7 @@ def _quat_from_axes(x_axis, z_axis) -> np.ndarray:
     x = x - (x @ z) * z
     x = x / np.linalg.norm(x)
     m = np.stack([x, np.cross(z, x), z], axis=1)  # columns: local axes in world space
-    trace = m[0, 0] + m[1, 1] + m[2, 2]
-    if trace > 0:
-        w = 0.5 * math.sqrt(1.0 + trace)
-        q = [w, (m[2, 1] - m[1, 2]) / (4 * w), (m[0, 2] - m[2, 0]) / (4 * w), (m[1, 0] - m[0, 1]) / (4 * w)]
-    else:
-        i = int(np.argmax(np.diag(m)))
-        j, k = (i + 1) % 3, (i + 2) % 3
-        r = 0.5 * math.sqrt(1.0 + m[i, i] - m[j, j] - m[k, k])
-        q = [0.0, 0.0, 0.0, 0.0]
-        q[0] = (m[k, j] - m[j, k]) / (4 * r)
-        q[1 + i] = r
-        q[1 + j] = (m[j, i] + m[i, j]) / (4 * r)
-        q[1 + k] = (m[k, i] + m[i, k]) / (4 * r)
-    return np.array([q])
+    return matrix_to_quaternion(m)[None]
 
 
 def _sh_from_rgb(rgb: np.ndarray) -> np.ndarray:

@@ -91,7 +91,7 @@ def test_ctrl_c_keeps_the_views_done(tmp_path, gl_render, renderer_of):
             raise KeyboardInterrupt
 
     result = evaluate(dataset, select_split(dataset.views, "all"), renderer_of(data.scene), RenderSettings(),
-                      progress)
+                      progress=progress)
     assert result.interrupted and len(result.scores) == 3 and seen == [(1, 9), (2, 9), (3, 9)]
     document = report.report_document(result)
     assert document["interrupted"] is True and len(document["views"]) == 3
