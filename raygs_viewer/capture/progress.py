@@ -1,8 +1,10 @@
-"""Progress of a long render (``render-path``): a bar on a terminal, or versioned JSON
-lines for a program that runs it, and the reader of those lines (the window's *Render
-video* runs render-path as a subprocess and reads them with :func:`read_progress_line`).
+"""The command line's progress: one line on a terminal, redrawn in place
+(:class:`TerminalLine`), for a scene's load (:class:`TerminalProgress`) and for a long
+render's bar (:class:`Progress`); and render-path's versioned JSON lines for a program
+that runs it, and the reader of those lines (the window's *Render video* runs
+render-path as a subprocess and reads them with :func:`read_progress_line`).
 
-Modes:
+Modes of a render's progress:
 
 - ``"bar"``: one line on stderr, redrawn in place:
   ``fly.mp4: 37/120 frames [#######-------------] 31%  2.3 fps  1:02 left``;
@@ -141,7 +143,93 @@ def _count(fields: JsonFields, key: str) -> int:
     return value
 
 
-# --------------------------------------------------------------------------- the writer
+# --------------------------------------------------------------------------- the terminal
+
+
+def is_terminal(stream) -> bool:
+    """Whether ``stream`` is a terminal (False for one without isatty, or closed): a
+    progress line is drawn only there, so piped and scripted output stays as it was."""
+    try:
+        return bool(stream.isatty())
+    except (AttributeError, ValueError):  # no isatty, or a closed stream
+        return False
+
+
+class TerminalLine:
+    """The one line every progress display of the command line redraws in place on
+    ``stream``: each text written over the last after a carriage return (padded to the
+    longest drawn, so nothing of a longer one is left), then erased or ended."""
+
+    def __init__(self, stream: TextIO) -> None:
+        self.stream = stream
+        #: The longest text drawn since the line was last erased or ended; 0: none is shown.
+        self.width = 0
+
+    def draw(self, text: str) -> None:
+        self.stream.write("\r" + text.ljust(self.width))
+        self.stream.flush()
+        self.width = max(self.width, len(text))
+
+    def erase(self) -> None:
+        """Blanks the line, when one is shown (a failed load's error then prints on a clean line)."""
+        if self.width:
+            self.stream.write("\r" + " " * self.width + "\r")
+            self.stream.flush()
+            self.width = 0
+
+    def end(self) -> None:
+        """Keeps the line as drawn and moves on to the next."""
+        self.stream.write("\n")
+        self.stream.flush()
+        self.width = 0
+
+
+class TerminalProgress:
+    """A :data:`~raygs_viewer.scene.progress.ProgressCallback` that shows a synchronous
+    load on a terminal (the scene named on the command line loads before the window
+    opens, or before render-path and evaluate render): ``loading NAME: reading 42%``
+    redrawn in place at most every ``interval`` seconds, starting once the load has
+    taken ``delay`` seconds (small scenes print nothing), erased at "done" and on
+    leaving a ``with`` block (so a failed load's error starts on a clean line).
+
+    Writes only when ``stream`` (default: stderr) is a terminal, so piped and scripted
+    output stays as it was. ``clock`` is for tests.
+    """
+
+    def __init__(self, name: str, stream: TextIO | None = None, *, delay: float = 0.5, interval: float = 0.2,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        self.name = name
+        self.line = TerminalLine(sys.stderr if stream is None else stream)
+        self.delay, self.interval, self.clock = delay, interval, clock
+        self.enabled = is_terminal(self.line.stream)
+        self.started = clock()
+        self.shown_at: float | None = None
+
+    def __call__(self, fraction: float, stage: str) -> None:
+        if not self.enabled:
+            return
+        now = self.clock()
+        if stage == "done":
+            self.close()
+            return
+        if now - self.started < self.delay or (self.shown_at is not None and now - self.shown_at < self.interval):
+            return
+        self.line.draw(f"loading {self.name}: {stage} {fraction * 100:3.0f}%")
+        self.shown_at = now
+
+    def close(self) -> None:
+        """Erases the line, if one is shown."""
+        self.line.erase()
+        self.shown_at = None
+
+    def __enter__(self) -> "TerminalProgress":
+        return self
+
+    def __exit__(self, *exc_info) -> None:
+        self.close()
+
+
+# --------------------------------------------------------------------------- a render's progress
 
 
 class Progress:
@@ -157,12 +245,12 @@ class Progress:
         self.clock = clock
         self.label = label
         self._stream = stream
+        self._line = TerminalLine(sys.stderr if stream is None else stream)
         if mode == "auto":
-            mode = "bar" if _is_terminal(sys.stderr if stream is None else stream) else "none"
+            mode = "bar" if is_terminal(self._line.stream) else "none"
         self.mode = mode
         self.done = 0
         self._samples: deque[tuple[float, int]] = deque([(clock(), 0)], maxlen=RATE_WINDOW + 1)
-        self._width = 0   # of the bar line last drawn
         self._drawn_at: float | None = None
 
     # -- what the render calls ---------------------------------------------------------
@@ -173,7 +261,7 @@ class Progress:
         self._samples.append((now, self.done))
         if self.mode == "bar":
             if self._drawn_at is None or now - self._drawn_at >= REDRAW_INTERVAL or self.done >= self.total:
-                self._draw(self.bar_text())
+                self._line.draw(self.bar_text())
                 self._drawn_at = now
         elif self.mode == "json":
             fps, eta = self.rate(), self.eta_seconds()
@@ -183,9 +271,8 @@ class Progress:
     def finish(self, out: Path | str) -> None:
         """The render is complete and written to ``out``."""
         if self.mode == "bar":
-            self._draw(self.bar_text())
-            self._text_stream().write("\n")
-            self._text_stream().flush()
+            self._line.draw(self.bar_text())
+            self._line.end()
         elif self.mode == "json":
             self._json(RenderDone(str(out), self.done))
 
@@ -197,11 +284,10 @@ class Progress:
             self._json(RenderInterrupted(self.done, None if out is None else str(out)))
             return
         kept = f"kept {out} ({self.done} frames)" if out is not None else "nothing written"
-        line = f"interrupted after {self.done}/{self.total} frames: {kept}"
-        stream = self._text_stream()
-        stream.write(("\n" if self._width else "") + line + "\n")
-        stream.flush()
-        self._width = 0
+        if self._line.width:  # the bar stays, the line goes below it
+            self._line.end()
+        self._line.stream.write(f"interrupted after {self.done}/{self.total} frames: {kept}\n")
+        self._line.stream.flush()
 
     # -- numbers and text --------------------------------------------------------------
     def rate(self) -> float | None:
@@ -225,15 +311,6 @@ class Progress:
                 f"{'--:--' if eta is None else format_duration(eta)} left")
 
     # -- output --------------------------------------------------------------------------
-    def _text_stream(self) -> TextIO:
-        return sys.stderr if self._stream is None else self._stream
-
-    def _draw(self, line: str) -> None:
-        stream = self._text_stream()
-        stream.write("\r" + line.ljust(self._width))
-        stream.flush()
-        self._width = max(self._width, len(line))
-
     def _json(self, record: ProgressRecord) -> None:
         stream = sys.stdout if self._stream is None else self._stream
         stream.write(progress_line(record))
@@ -254,10 +331,3 @@ def format_duration(seconds: float) -> str:
     hours, rest = divmod(whole, 3600)
     minutes, secs = divmod(rest, 60)
     return f"{hours}:{minutes:02d}:{secs:02d}" if hours else f"{minutes}:{secs:02d}"
-
-
-def _is_terminal(stream) -> bool:
-    try:
-        return bool(stream.isatty())
-    except (AttributeError, ValueError):  # no isatty, or a closed stream
-        return False

@@ -15,10 +15,10 @@ import argparse
 import sys
 from dataclasses import replace
 
+from raygs_viewer.capture.progress import TerminalProgress
 from raygs_viewer.cli import argtypes
 from raygs_viewer.cli.commands import warn_dropped
 from raygs_viewer.cli.options import add_settings_options, render_settings
-from raygs_viewer.cli.progress_line import TerminalProgress
 from raygs_viewer.errors import UserError
 from raygs_viewer.photos.dataset import SPLITS, load_photo, open_dataset, select_split
 from raygs_viewer.photos.evaluate import METRICS, EvaluationResult, evaluate, render_view

@@ -33,7 +33,7 @@ from raygs_viewer.capture.path_render import (
     render_frames,
     write_cameras_json,
 )
-from raygs_viewer.capture.progress import MODES, Progress
+from raygs_viewer.capture.progress import MODES, Progress, TerminalProgress
 from raygs_viewer.capture.video import VIDEO_SUFFIX, ExrFolderSink, check_video_output, open_sink
 from raygs_viewer.cli import argtypes
 from raygs_viewer.cli.commands import edited, warn_dropped
@@ -45,7 +45,6 @@ from raygs_viewer.cli.options import (
     settings_with_options,
     stereo_view,
 )
-from raygs_viewer.cli.progress_line import TerminalProgress
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.context import create_headless_context
 from raygs_viewer.render.channels import needs_geometry

@@ -12,6 +12,7 @@ from raygs_viewer.camera.stereo import (
     PRESETS,
     custom_preset,
 )
+from raygs_viewer.capture.progress import TerminalProgress
 from raygs_viewer.capture.screenshot import check_screenshot_path
 from raygs_viewer.cli import argtypes
 from raygs_viewer.cli.options import (
@@ -20,7 +21,6 @@ from raygs_viewer.cli.options import (
     render_settings,
     stereo_rig,
 )
-from raygs_viewer.cli.progress_line import TerminalProgress
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.settings import DEFAULT_BACKGROUND, DEFAULT_P_MIN
 from raygs_viewer.scene.io import SCENE_FILES

@@ -5,7 +5,7 @@ training cameras found beside it, a content hash, and warnings.
 bad file fails before a window opens); :class:`SceneLoader` does it on a daemon
 thread while the window keeps drawing, reporting progress and discarding a load
 that a newer one replaced. The hash is :mod:`~raygs_viewer.scene.content_hash`'s; a
-progress line on a terminal is the command line's (``cli/progress_line.py``).
+progress line on a terminal is the command line's (``capture/progress.py``).
 
 A streamed SOG (``lod-meta.json``) is read level by level, coarsest first
 (:func:`~raygs_viewer.scene.lod_file.load_lod`), and each level read is handed on at

@@ -1,5 +1,7 @@
-"""Progress of a render: the terminal's bar, and the versioned JSON lines render-path
-prints for the window, written and read back by one module."""
+"""The command line's progress: the line a scene's load shows on a terminal (redrawn in
+place, silent off a terminal and for quick loads, erased before an error), a render's
+bar, and the versioned JSON lines render-path prints for the window, written and read
+back by one module. Clocks are the tests' own: nothing here measures time."""
 
 from __future__ import annotations
 
@@ -7,6 +9,7 @@ import io
 import json
 
 import pytest
+from testkit import gaussian_columns, write_ply
 
 from raygs_viewer.capture.progress import (
     PROTOCOL,
@@ -14,10 +17,14 @@ from raygs_viewer.capture.progress import (
     Progress,
     RenderDone,
     RenderInterrupted,
+    TerminalProgress,
     format_duration,
     progress_line,
     read_progress_line,
 )
+from raygs_viewer.errors import UserError
+from raygs_viewer.scene.loader import load_now
+from raygs_viewer.scene.source import SceneSource
 
 RECORDS = [FrameProgress(0, 3), FrameProgress(37, 120, 2.3, 36.1), FrameProgress(3, 3, 5.0, 0.0),
            RenderDone("fly.mp4", 120), RenderDone("frames/", 0), RenderInterrupted(37, "fly.mp4"),
@@ -68,7 +75,54 @@ def test_a_line_of_another_version_or_garbage_is_none(line):
     assert read_progress_line(line) is None
 
 
-# --------------------------------------------------------------------------- the writer
+# --------------------------------------------------------------------------- a scene's load
+
+
+class FakeTerminal(io.StringIO):
+    def isatty(self):
+        return True
+
+
+def test_terminal_progress_redraws_one_line_and_erases_it():
+    now = [0.0]
+    stream = FakeTerminal()
+    with TerminalProgress("big.ply", stream, delay=0.5, interval=0.2, clock=lambda: now[0]) as progress:
+        for t, fraction in ((0.1, 0.05), (0.6, 0.3), (0.65, 0.35), (0.9, 0.6)):
+            now[0] = t
+            progress(fraction, "reading")
+        now[0] = 1.2
+        progress(0.9, "hashing")
+        progress(1.0, "done")
+    text = stream.getvalue()
+    assert "\n" not in text
+    frames = text.split("\r")
+    assert frames[1:4] == ["loading big.ply: reading  30%", "loading big.ply: reading  60%",
+                           "loading big.ply: hashing  90%"]  # before 0.5 s and within 0.2 s: nothing
+    assert frames[-2:] == [" " * len(frames[3]), ""]  # erased once, at "done"
+
+
+def test_terminal_progress_is_silent_off_a_terminal_and_for_quick_loads(tmp_path):
+    scene = write_ply(tmp_path / "scene.ply", gaussian_columns(5, 1))
+    piped = io.StringIO()
+    with TerminalProgress("scene.ply", piped, delay=0.0, interval=0.0) as progress:
+        load_now(SceneSource(scene), progress=progress)
+    assert piped.getvalue() == ""
+    quick = FakeTerminal()
+    with TerminalProgress("scene.ply", quick, clock=lambda: 0.0) as progress:  # within the default delay
+        load_now(SceneSource(scene), progress=progress)
+    assert quick.getvalue() == ""
+
+
+def test_a_failed_load_leaves_a_clean_line_for_its_error(tmp_path):
+    stream = FakeTerminal()
+    with pytest.raises(UserError):
+        with TerminalProgress("gone.ply", stream, delay=0.0, interval=0.0) as progress:
+            progress(0.2, "reading")
+            load_now(SceneSource(tmp_path / "gone.ply"), progress=progress)
+    assert stream.getvalue().endswith("\r" + " " * len("loading gone.ply: reading  20%") + "\r")
+
+
+# --------------------------------------------------------------------------- a render's bar
 
 
 class FakeClock:
