@@ -192,17 +192,14 @@ class _CaseRender:
     def row(self, name: str, variant: Variant) -> CheckRow:
         case, camera, settings = self.case, self.case.camera, variant.settings
         renderer = self.renderer(variant.order_path)
-        renderer.draw_layout = variant.layout
-        try:
-            problem = renderer.supports(settings)
-            if problem is None and variant.sort == "gpu":
-                problem = GpuSorter.problem(self.ctx)
-            if problem is not None:
-                return CheckRow(name, variant, problem=problem)
-            with self._sorter(variant.sort) as sorter:
-                image = renderer.render(camera, settings, exact_order(sorter, camera, settings))
-        finally:
-            renderer.draw_layout = DEFAULT_DRAW_LAYOUT
+        problem = renderer.supports(settings)
+        if problem is None and variant.sort == "gpu":
+            problem = GpuSorter.problem(self.ctx)
+        if problem is not None:
+            return CheckRow(name, variant, problem=problem)
+        with self._sorter(variant.sort) as sorter:
+            image = renderer.render(camera, settings, exact_order(sorter, camera, settings),
+                                    draw_layout=variant.layout)
         limit = tolerance(case, variant)
         measured = agreement(image, self.reference(renderer, variant), limit.clipped)
         if settings.precision != "float32" and name in UNBOUNDED_BLENDS:

@@ -226,8 +226,7 @@ def measure_case(ctx, case: GpuCase, frames: int, drained: bool, options=OPTIONS
 
     def whole(camera: Camera, order: Order, eye_settings: RenderSettings, layout: DrawLayout) -> float:
         """Every eye's preprocess + draw (+ resolve) into a float32 image, as a render does."""
-        renderer.draw_layout = layout
-        plan = renderer.plan(eye_settings)
+        plan = renderer.plan(eye_settings, draw_layout=layout)
         total = 0.0
         for eye_camera in case.eyes(camera):
             renderer.forget_records()
@@ -237,8 +236,7 @@ def measure_case(ctx, case: GpuCase, frames: int, drained: bool, options=OPTIONS
 
     def image(camera: Camera, order: Order, eye_settings: RenderSettings, layout: DrawLayout) -> np.ndarray:
         """The first eye's image, clipped to 0..1 as it is shown and saved."""
-        renderer.draw_layout = layout
-        renderer.draw_planned(targets, case.eyes(camera)[0], renderer.plan(eye_settings), order,
+        renderer.draw_planned(targets, case.eyes(camera)[0], renderer.plan(eye_settings, draw_layout=layout), order,
                               color_origin=camera.center)
         return np.clip(targets.read(), 0.0, 1.0)
 
@@ -249,8 +247,7 @@ def measure_case(ctx, case: GpuCase, frames: int, drained: bool, options=OPTIONS
             request = sort_request(camera, settings, cull_cameras=eyes if case.rig is not None else None)
             sorted_ = sorter.sort(request)
             order = sorted_.order
-            renderer.draw_layout = DEFAULT_DRAW_LAYOUT
-            plan = renderer.plan(settings)
+            plan = renderer.plan(settings)  # today's layout, the renderer's own
             started = time.perf_counter()
             place_runs(order.indices, plan.layout)  # what records in draw order add on the CPU, per order
             places = (time.perf_counter() - started) * 1e3

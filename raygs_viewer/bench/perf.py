@@ -233,7 +233,7 @@ def measure_case(ctx, case: PerfCase, frames: int, settings: RenderSettings = Re
     try:
         general = renderer_type(ctx, case.scene, general=True)
         plan, gs_plan, general_plan = renderer.plan(settings), renderer.plan(gs_settings), general.plan(settings)
-        blended_geometry, lists_geometry = renderer.plan(settings, True), renderer.plan(settings, True, median=True)
+        blended_geometry, lists_geometry = renderer.plan(settings, "geometry"), renderer.plan(settings, "median")
         for frame in range(frames + 1):
             camera = views[frame % 2]
             timed = frame > 0

@@ -81,28 +81,29 @@ def frame_size(width: int, height: int, stereo: StereoView | None) -> tuple[int,
 
 
 def render_frame(renderer: "GLRenderer", sorter: DepthSorter, camera: Camera, settings: RenderSettings,
-                 stereo: StereoView | None, levels: LodRequest | None = None,
+                 stereo: StereoView | None = None, *, levels: LodRequest | None = None,
                  deleted: DeletedRows | None = None) -> np.ndarray:
     """(H, W, 4) float32, top row first: the image ``render`` makes of ``camera``, with
     an exact sort of its own by ``sorter`` (a stereo frame composed per
     ``stereo.layout``); ``levels``: a streamed scene's, chosen for ``camera`` (for a
     stereo frame, the eyes' midpoint); ``deleted``: rows left out (deleted in the window)."""
     if stereo is not None:
-        order = stereo_order(sorter, camera, settings, stereo.rig, levels, deleted)
+        order = stereo_order(sorter, camera, settings, stereo.rig, levels=levels, deleted=deleted)
         return render_stereo_view(renderer, order, camera, settings, stereo)[0]
     return render_tiled(renderer, sorter, exact_order(sorter, camera, settings, levels=levels, deleted=deleted), camera,
                         settings)
 
 
 def render_frame_channels(renderer: "GLRenderer", sorter: DepthSorter, camera: Camera, settings: RenderSettings,
-                          stereo: StereoView | None, channels: tuple[str, ...],
+                          stereo: StereoView | None = None, *, channels: tuple[str, ...],
                           normal_space: str = "camera", levels: LodRequest | None = None,
                           deleted: DeletedRows | None = None) -> ChannelImage:
     """The ChannelImage of one frame, normals in ``normal_space`` of ``camera``: the
     geometry render where ``channels`` need it (not with ``stereo``: its layouts compose
     colour), else :func:`render_frame`'s colour."""
     if not needs_geometry(channels):
-        return colour_channels(render_frame(renderer, sorter, camera, settings, stereo, levels, deleted))
+        return colour_channels(render_frame(renderer, sorter, camera, settings, stereo, levels=levels,
+                                            deleted=deleted))
     if stereo is not None:
         raise UserError("--stereo composes colour; its frames cannot carry depth or normals")
     order = exact_order(sorter, camera, settings, levels=levels, deleted=deleted)
@@ -111,11 +112,11 @@ def render_frame_channels(renderer: "GLRenderer", sorter: DepthSorter, camera: C
 
 
 def render_frames(renderer: "GLRenderer", sorter: DepthSorter, cameras: list[Camera], settings: RenderSettings,
-                  stereo: StereoView | None, sink: FrameSink, progress: Progress | None = None,
+                  sink: FrameSink, *, stereo: StereoView | None = None, progress: Progress | None = None,
                   channels: tuple[str, ...] | None = None, normal_space: str = "camera",
                   lod: LodRequest | None = None, deleted: DeletedRows | None = None) -> int:
-    """Renders each camera (:func:`render_frame`), converts it to 8 bits as a PNG
-    screenshot is, and writes it to ``sink``; returns the frames written. With
+    """Renders each camera (:func:`render_frame`; ``stereo`` as it takes it), converts it
+    to 8 bits as a PNG screenshot is, and writes it to ``sink``; returns the frames written. With
     ``channels`` each frame goes to the sink as a ChannelImage instead
     (:func:`render_frame_channels`; an ExrFolderSink). ``lod``: a streamed scene's
     levels, chosen for each frame's camera; ``deleted``: rows every frame leaves out (the
@@ -125,10 +126,10 @@ def render_frames(renderer: "GLRenderer", sorter: DepthSorter, cameras: list[Cam
     written = 0
     for camera in cameras:
         if channels is not None:
-            sink.write(render_frame_channels(renderer, sorter, camera, settings, stereo, channels, normal_space, lod,
-                                             deleted))
+            sink.write(render_frame_channels(renderer, sorter, camera, settings, stereo, channels=channels,
+                                             normal_space=normal_space, levels=lod, deleted=deleted))
         else:
-            sink.write(to_rgb8(render_frame(renderer, sorter, camera, settings, stereo, lod, deleted)))
+            sink.write(to_rgb8(render_frame(renderer, sorter, camera, settings, stereo, levels=lod, deleted=deleted)))
         written += 1
         if progress is not None:
             progress.update(sink.frames_written)

@@ -76,7 +76,7 @@ def tile_camera(camera: Camera, x0: int, y0: int, width: int, height: int) -> Ca
 
 
 def render_tiled(renderer: "GLRenderer", sorter: DepthSorter, order: Order, camera: Camera,
-                 settings: RenderSettings, tile: int = DEFAULT_TILE) -> np.ndarray:
+                 settings: RenderSettings, *, tile: int = DEFAULT_TILE) -> np.ndarray:
     """(H, W, 4) float32 image, top row first, like :meth:`GLRenderer.render` of
     ``order`` (``camera``'s, for ``settings``), drawn in tiles of at most ``tile`` x
     ``tile`` pixels so a large screenshot never needs one huge render target.
@@ -100,7 +100,7 @@ def render_tiled(renderer: "GLRenderer", sorter: DepthSorter, order: Order, came
 
 
 def render_tiled_channels(renderer: "GLRenderer", sorter: DepthSorter, order: Order, camera: Camera,
-                          settings: RenderSettings, tile: int = DEFAULT_TILE, median: bool = True) -> ChannelImage:
+                          settings: RenderSettings, *, tile: int = DEFAULT_TILE, median: bool = True) -> ChannelImage:
     """The ChannelImage of :meth:`GLRenderer.render_channels` (camera-space normals),
     drawn in tiles as :func:`render_tiled` draws colour, with the same order per tile.
     ``median`` False leaves the median depth out (None; cheaper in a global order)."""

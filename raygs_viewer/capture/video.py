@@ -79,7 +79,7 @@ def check_video_output(out: str | Path, overwrite: bool = False) -> Path:
     return out
 
 
-def open_sink(out: str | Path, width: int, height: int, fps: float | Fraction, overwrite: bool = False,
+def open_sink(out: str | Path, width: int, height: int, fps: float | Fraction, *, overwrite: bool = False,
               frames: int | None = None) -> "FrameSink":
     """An :class:`Mp4Sink` for a ``.mp4`` ``out``, else a :class:`PngFolderSink`;
     ``out`` is checked as :func:`check_video_output` does. ``frames``: how many will
@@ -339,7 +339,7 @@ class ExrFolderSink(FolderSink):
 
     suffix = ".exr"
 
-    def __init__(self, path: Path, width: int, height: int, channels: tuple[str, ...], overwrite: bool = False,
+    def __init__(self, path: Path, width: int, height: int, channels: tuple[str, ...], *, overwrite: bool = False,
                  frames: int | None = None) -> None:
         super().__init__(path, width, height, overwrite, frames)
         self.channels = tuple(channels)

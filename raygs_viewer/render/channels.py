@@ -20,7 +20,7 @@ mean of median * found, so a pixel's median is the mean over the samples that ha
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Literal, Sequence
 
 import numpy as np
 
@@ -39,6 +39,10 @@ GEOMETRY_CHANNELS = ("depth", "median_depth", "normal")
 NORMAL_SPACES = ("camera", "world")
 #: The accumulated alpha at which the median depth is taken.
 MEDIAN_ALPHA = 0.5
+#: What a render draws: colour alone; the geometry outputs beside it; or those with the
+#: median depth too (it costs an ordered walk of each pixel's fragments).
+Outputs = Literal["color", "geometry", "median"]
+OUTPUTS: tuple[Outputs, ...] = ("color", "geometry", "median")
 
 
 def parse_channels(text: str) -> tuple[str, ...]:

@@ -144,7 +144,7 @@ class SceneDrawer:
             self.mono.drawn(key)
         else:
             with self.timer.measure():  # both eyes: what the frame-budget meter compares
-                _, last_eye = self.stereo.draw_eyes(renderer, camera, settings, frame.eyes, order, frame.view)
+                _, last_eye = self.stereo.draw_eyes(renderer, camera, settings, frame.eyes, order, view=frame.view)
                 self.view_range = last_eye.view_range
             stats.order_stats = (last_eye.order_stats, None)  # the last eye's (the right)
             with self.post_timer.measure():

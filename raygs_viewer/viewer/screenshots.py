@@ -178,8 +178,9 @@ def _stereo_images(offscreen: Offscreen, camera: Camera, settings: RenderSetting
     """The side-by-side pair whatever the window's layout (the sidecar notes that
     layout), and each eye when asked, each with the view that reproduces it."""
     pair = replace(stereo, layout="sbs")
-    order = stereo_order(offscreen.sorter, camera, settings, stereo.rig, offscreen.levels, offscreen.deleted)
-    image, left, right = render_stereo_view(offscreen.renderer, order, camera, settings, pair, view)
+    order = stereo_order(offscreen.sorter, camera, settings, stereo.rig, levels=offscreen.levels,
+                         deleted=offscreen.deleted)
+    image, left, right = render_stereo_view(offscreen.renderer, order, camera, settings, pair, channel_view=view)
     shots = [(image, pair, "pair")]
     if save_eyes:
         shots += [(left, replace(stereo, layout="left"), "left"), (right, replace(stereo, layout="right"), "right")]

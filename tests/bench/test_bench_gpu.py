@@ -15,6 +15,7 @@ from testkit import assert_one_line_error, run_cli
 from raygs_viewer.bench import gpu as bench_gpu
 from raygs_viewer.bench.common import count_label
 from raygs_viewer.camera.stereo import StereoRig
+from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.cli import bench as bench_cli
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.render.sorting import sort_request
@@ -60,6 +61,35 @@ def test_a_measured_case_counts_its_fragments_and_times_every_option(gl_ctx):
                 assert result.max_error[name] == 0 and result.psnr[name] == math.inf, name
             else:
                 assert 0 < result.max_error[name] < 0.05 and result.psnr[name] > 35, name
+
+
+def test_each_option_draws_through_a_plan_of_its_own_layout_leaving_the_renderer_as_made(gl_ctx, monkeypatch):
+    """What each option measures is planned with its layout; the renderer's own layout,
+    which other renders take, is never changed on the way (nor changed back)."""
+    renderers = []
+
+    class Watched(GLRenderer):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            self.planned = set()
+            renderers.append(self)
+
+        def __setattr__(self, name, value):
+            if name == "draw_layout" and name in self.__dict__:
+                raise AssertionError(f"the renderer's draw layout was set to {value}")
+            super().__setattr__(name, value)
+
+        def plan(self, *args, **kwargs):
+            plan = super().plan(*args, **kwargs)
+            self.planned.add(plan.draw)
+            return plan
+
+    monkeypatch.setattr(bench_gpu, "GLRenderer", Watched)
+    scene = bench_gpu.outdoor_scene(1_000, seed=2)
+    bench_gpu.measure_case(gl_ctx, bench_gpu.GpuCase("tiny", scene, bench_gpu.outdoor_camera(48, 32), "mono"),
+                           frames=1, drained=True)
+    assert len(renderers) == 1
+    assert renderers[0].planned == {layout for _, _, layout in bench_gpu.OPTIONS}
 
 
 def test_the_stereo_case_counts_both_eyes(gl_ctx):

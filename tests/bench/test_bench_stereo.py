@@ -150,7 +150,8 @@ class _Log:
     # renderer
     def render_into(self, target, camera, settings, order, frame=None, color_origin=None, view=None):
         self.events.append(("eye", target.size, camera, order, color_origin))
-        return self.renderer.render_into(target, camera, settings, order, frame, color_origin, view)
+        return self.renderer.render_into(target, camera, settings, order, frame=frame, color_origin=color_origin,
+                                         view=view)
 
     # context
     def framebuffer(self, *args, **kwargs):

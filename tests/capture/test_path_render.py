@@ -88,7 +88,7 @@ def render_path(renderer, out, cameras, progress=None, stereo=None, overwrite=Fa
     sink = open_sink(out, width, height, 30, overwrite=overwrite, frames=len(cameras))
     with renderer.ctx, DepthSorter(renderer.scene) as sorter:
         try:
-            render_frames(renderer, sorter, cameras, SETTINGS, stereo, sink, progress, lod=lod)
+            render_frames(renderer, sorter, cameras, SETTINGS, sink, stereo=stereo, progress=progress, lod=lod)
         except KeyboardInterrupt:
             kept = sink.abort()
             if progress is not None:

@@ -41,6 +41,7 @@ import pytest
 from testkit import patched_glsl, random_scene
 
 from raygs_viewer.errors import UserError
+from raygs_viewer.render.channels import OUTPUTS
 from raygs_viewer.render.gl import variants
 from raygs_viewer.render.gl.kbuffer import FRAMEBUFFER_FETCH
 from raygs_viewer.render.gl.plan import RenderPlan
@@ -58,11 +59,11 @@ needs_glslang = pytest.mark.skipif(GLSLANG is None, reason="glslangValidator is 
 #: Compiles run in this many glslangValidator processes at once, each given many files.
 PROCESSES = 2
 #: Plans GLRenderer.plan makes on llvmpipe, with a 4 KiB block limit (several splat blocks).
-RENDERER_CASES = [(RenderSettings(), False, False), (RenderSettings(mode="gs", alpha_clamp=True), True, False),
-                  (RenderSettings(transmittance_cutoff=True, sh_degree=1), False, False),
-                  (RenderSettings(mode="raygs-exact-mip", order="per-pixel", order_k=3), False, False),
-                  (RenderSettings(order="per-pixel", transmittance_cutoff=True), True, True),
-                  (RenderSettings(mip=True, mip_modulation=False), True, True)]
+RENDERER_CASES = [(RenderSettings(), "color"), (RenderSettings(mode="gs", alpha_clamp=True), "geometry"),
+                  (RenderSettings(transmittance_cutoff=True, sh_degree=1), "color"),
+                  (RenderSettings(mode="raygs-exact-mip", order="per-pixel", order_k=3), "color"),
+                  (RenderSettings(order="per-pixel", transmittance_cutoff=True), "median"),
+                  (RenderSettings(mip=True, mip_modulation=False), "median")]
 
 _FETCH_DIRECTIVE = re.compile(rf"^\s*#\s*extension\s+{FRAMEBUFFER_FETCH}\s*:\s*(?:require|enable)\s*$", re.MULTILINE)
 _GLOBAL_INOUT = re.compile(r"^(\s*(?:layout\s*\([^)]*\)\s*)?)inout(\s+\w+\s+\w+(?:\s*\[[^\]]*\])?\s*;)", re.MULTILINE)
@@ -188,9 +189,9 @@ def test_random_plannings_make_no_source_the_search_missed():
         except UserError:  # per-pixel GS
             continue
         tried += 1
-        inputs = variants.Inputs(settings, rng.choice(variants.ASKS), rng.choice(variants.GPUS), rng.random() < 0.5,
-                                 rng.choice(variants.DRAW_LAYOUTS), rng.randint(1, MAX_SPLAT_BLOCKS),
-                                 rng.choice(SH_DEGREES))
+        inputs = variants.Inputs(settings, outputs=rng.choice(OUTPUTS), gpu=rng.choice(variants.GPUS),
+                                 general=rng.random() < 0.5, draw=rng.choice(variants.DRAW_LAYOUTS),
+                                 blocks=rng.randint(1, MAX_SPLAT_BLOCKS), sh_degree=rng.choice(SH_DEGREES))
         for program in variants.plan_programs(inputs.plan()):
             missed = [unit.stage for unit in program.units() if variants.compile_class(unit) not in classes]
             assert not missed, f"{inputs}: {program.describe()} ({missed}) is in no compiled class"
@@ -200,8 +201,8 @@ def test_the_renderers_own_plans_are_among_the_variants(gl_ctx):
     classes = {variants.compile_class(unit) for unit in variants.compile_units(variants.all_programs())}
     renderer = GLRenderer(gl_ctx, random_scene(n=50, seed=3), block_limit=4096)
     try:
-        for settings, geometry, median in RENDERER_CASES:
-            for program in variants.plan_programs(renderer.plan(settings, geometry, median)):
+        for settings, outputs in RENDERER_CASES:
+            for program in variants.plan_programs(renderer.plan(settings, outputs)):
                 assert all(variants.compile_class(unit) in classes for unit in program.units()), program.describe()
     finally:
         renderer.release()

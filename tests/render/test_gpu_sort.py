@@ -11,8 +11,10 @@ import math
 from dataclasses import replace
 from types import SimpleNamespace
 
+import moderngl
 import numpy as np
 import pytest
+from moderngl import InvalidObject
 from testkit import make_scene, patched_glsl, random_scene, spans_choice
 
 from raygs_viewer.camera.pinhole import look_at
@@ -419,3 +421,41 @@ def test_deleted_rows_are_left_out_as_on_the_cpu(gl_ctx, programs):
                                                                   deleted=DeletedRows(mask)))
                 assert orders["depth"].size > 0 and not mask[orders["depth"]].any()
         assert gpu.support_uploads == 2
+
+
+class RunningOut:
+    """The session's context, out of GPU memory at its ``fail_at``-th buffer; ``made``:
+    every buffer it did make."""
+
+    def __init__(self, ctx, fail_at: int):
+        self._ctx, self.fail_at, self.made = ctx, fail_at, []
+
+    def buffer(self, *args, **kwargs):
+        if len(self.made) + 1 == self.fail_at:
+            raise moderngl.Error("GL_OUT_OF_MEMORY")
+        self.made.append(self._ctx.buffer(*args, **kwargs))
+        return self.made[-1]
+
+    def __getattr__(self, name):
+        return getattr(self._ctx, name)
+
+
+@pytest.mark.parametrize("fail_at", [3, 6, 10])
+def test_a_sorter_that_runs_out_of_memory_half_made_releases_what_it_had_made(gl_ctx, fail_at):
+    ctx = RunningOut(gl_ctx, fail_at)
+    with pytest.raises(moderngl.Error, match="OUT_OF_MEMORY"):
+        GpuSorter(ctx, random_scene(n=200, seed=4, degree=0))
+    assert len(ctx.made) == fail_at - 1
+    assert all(isinstance(buffer.mglo, InvalidObject) for buffer in ctx.made)  # each one released
+
+
+def test_a_closed_sorter_has_released_every_buffer_it_made_once(gl_ctx):
+    ctx = RunningOut(gl_ctx, fail_at=0)
+    scene = random_scene(n=200, seed=4, degree=0)
+    sorter = GpuSorter(ctx, scene)
+    sorter.sort(SortRequest(camera_at(), 1 / 255, keys=("depth", "distance"),
+                            cull_cameras=eye_cameras(camera_at(), StereoRig())))
+    assert len(ctx.made) > 10  # the sort's own: the cameras, the orders' buffers
+    sorter.close()
+    sorter.close()
+    assert all(isinstance(buffer.mglo, InvalidObject) for buffer in ctx.made)

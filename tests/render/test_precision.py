@@ -120,9 +120,9 @@ def test_float32_is_today_s_image_and_plans_say_what_they_blend_in(gl_ctx):
     renderer = GLRenderer(gl_ctx, scene)
     try:
         assert renderer.plan(RenderSettings()).target_dtypes(1) == ("f4",)
-        assert renderer.plan(RenderSettings(precision="float16"), True).target_dtypes(3) == ("f2",) * 3
+        assert renderer.plan(RenderSettings(precision="float16"), "geometry").target_dtypes(3) == ("f2",) * 3
         # 8 bits hold no signed, unbounded depth sums: the geometry outputs take float16.
-        assert renderer.plan(RenderSettings(precision="8bit"), True).target_dtypes(3) == ("f1", "f2", "f2")
+        assert renderer.plan(RenderSettings(precision="8bit"), "geometry").target_dtypes(3) == ("f1", "f2", "f2")
     finally:
         renderer.release()
 

@@ -15,7 +15,12 @@ from testkit import (
 )
 
 from raygs_viewer.camera.pinhole import Camera, frame_points, look_at
+from raygs_viewer.errors import UserError
+from raygs_viewer.render.gl.geometry import GeometryOutputs
+from raygs_viewer.render.gl.per_pixel import PerPixelOrder
 from raygs_viewer.render.gl.renderer import GLRenderer
+from raygs_viewer.render.gl.shaders import Programs
+from raygs_viewer.render.gl.storage import SceneBuffers
 from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.render.sorting import exact_order
@@ -243,3 +248,30 @@ def test_the_renderer_owns_no_sorter_and_its_release_leaves_the_caller_s_open(gl
 
 def threads_of(sorter):
     return [t for t in threading.enumerate() if t.name.startswith(sorter.thread_prefix)]
+
+
+def test_a_renderer_that_fails_half_made_releases_what_it_had_made_and_releases_once(gl_ctx, monkeypatch):
+    """Its parts are released by one owner: a part that fails while the renderer is being
+    made (here a forced order path that does not exist, refused after the scene's buffers
+    are on the GPU) releases the parts made before it; release() releases each part once,
+    however often it is called."""
+    released = []
+
+    def recorded(release):
+        def recording(self):
+            released.append(type(self))
+            release(self)
+        return recording
+
+    for part in (SceneBuffers, Programs, PerPixelOrder, GeometryOutputs):
+        monkeypatch.setattr(part, "release", recorded(part.release))
+    scene = random_scene(50, seed=2)
+    with pytest.raises(UserError, match="order path"):
+        GLRenderer(gl_ctx, scene, order_path="sideways")
+    assert released == [Programs, SceneBuffers]  # the last made first
+    released.clear()
+    renderer = GLRenderer(gl_ctx, scene)
+    renderer.render(frame_points(scene.positions, 64, 48), RenderSettings(), np.arange(scene.count))
+    renderer.release()
+    renderer.release()
+    assert released == [GeometryOutputs, PerPixelOrder, Programs, SceneBuffers]

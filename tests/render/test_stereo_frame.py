@@ -168,7 +168,7 @@ def test_draw_eyes_returns_each_eye_s_result_in_the_left_eye_s_depth_range(rende
     eyes = left_eye, right_eye = eye_cameras(MID, rig)
     frame = StereoFrame(renderer.ctx)
     try:
-        left, right = frame.draw_eyes(renderer, MID, settings, eyes, order, ChannelView("depth"))
+        left, right = frame.draw_eyes(renderer, MID, settings, eyes, order, view=ChannelView("depth"))
         own_left = rendered(renderer, left_eye, settings, order, color_origin=MID.center, view=ChannelView("depth"))
         own_right = rendered(renderer, right_eye, settings, order, color_origin=MID.center, view=ChannelView("depth"))
         assert left.view_range is not None and left.view_range == own_left[1].view_range

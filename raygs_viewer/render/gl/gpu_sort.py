@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import math
 import time
-from contextlib import nullcontext
+from contextlib import ExitStack, nullcontext
 from dataclasses import dataclass
 
 import moderngl
@@ -233,7 +233,9 @@ class GpuSorter(Closable):
     The positions go to the GPU once; the support arrays (``Cull.support``, computed by
     numpy as the CPU sort computes them) once per p_min. ``programs``: a
     :class:`Programs` to build in (the renderer's); by default its own. Counters:
-    ``sorted`` orders made, ``support_uploads`` p_min or deleted rows changes uploaded."""
+    ``sorted`` orders made, ``support_uploads`` p_min or deleted rows changes uploaded.
+    What it makes on the GPU is released once, by :meth:`close`; a buffer that cannot be
+    made while the sorter is being made releases those made before it."""
 
     def __init__(self, ctx: moderngl.Context, scene: Scene, *, programs: Programs | None = None,
                  finish: bool = True, timer: GpuTimer | None = None):
@@ -249,22 +251,33 @@ class GpuSorter(Closable):
         if count * 12 > self.block_limit:
             raise UserError(f"the GPU sort holds a scene's positions in one storage block: {count:,} gaussians "
                             f"need {count * 12:,} bytes, this GPU allows {self.block_limit:,}")
-        self._own_programs = programs is None
-        self.programs = programs or Programs(ctx)
-        self._radix = GpuRadixSort(ctx, 0, programs=self.programs)
-        capacity = max(count, 1)
-        self._positions = ctx.buffer(np.ascontiguousarray(scene.positions, np.float32) if count else bytes(12))
-        self._supports = ctx.buffer(reserve=capacity * 8)
-        self._slots = ctx.buffer(reserve=capacity * 4)
-        self._values = ctx.buffer(reserve=capacity * 8)
-        self._keys = ctx.buffer(reserve=capacity * 4)
-        self._group_counts = ctx.buffer(reserve=max(-(-count // TILE), 1) * 4)
-        self._summary = ctx.buffer(reserve=SUMMARY_WORDS * 4)
-        self._empty = ctx.buffer(reserve=4)  # what an empty order binds
         self._spans: moderngl.Buffer | None = None
         self._spans_key: bytes | None = None
         self._cameras: moderngl.Buffer | None = None
         self._orders: dict[str, list[_OrderBuffer]] = {}  # per key, the two buffers it alternates between
+        capacity = max(count, 1)
+        with ExitStack() as made:
+            self.programs = programs or Programs(ctx)
+            if programs is None:  # its own, not the renderer's
+                made.callback(self.programs.release)
+            self._radix = GpuRadixSort(ctx, 0, programs=self.programs)
+            made.callback(self._radix.release)
+
+            def buffer(data=None, reserve: int = 0) -> moderngl.Buffer:
+                made_buffer = ctx.buffer(data, reserve=reserve)
+                made.callback(made_buffer.release)
+                return made_buffer
+
+            self._positions = buffer(np.ascontiguousarray(scene.positions, np.float32) if count else bytes(12))
+            self._supports = buffer(reserve=capacity * 8)
+            self._slots = buffer(reserve=capacity * 4)
+            self._values = buffer(reserve=capacity * 8)
+            self._keys = buffer(reserve=capacity * 4)
+            self._group_counts = buffer(reserve=max(-(-count // TILE), 1) * 4)
+            self._summary = buffer(reserve=SUMMARY_WORDS * 4)
+            self._empty = buffer(reserve=4)  # what an empty order binds
+            made.callback(self._release_per_sort)  # made as sorts come, released first
+            self._owned = made.pop_all()
         self._support_key: tuple[float, bytes] | None = None
         self._serial = 0
         self.sorted = 0
@@ -322,7 +335,8 @@ class GpuSorter(Closable):
             for key in request.keys:
                 store = self._order_buffer(key) if kept else None
                 if store is not None:
-                    self._sort_key(key, key_plan(request.method, *ranges[key]), store, total, groups, kept)
+                    self._sort_key(key, key_plan(request.method, *ranges[key]), store, total=total, groups=groups,
+                                   kept=kept)
                 orders[key] = self._order(key, request, choice, store, kept)
                 self.sorted += 1
             self.ctx.memory_barrier()  # a copy or a read of the orders sees the last writes
@@ -413,9 +427,10 @@ class GpuSorter(Closable):
         # The summary is read with glGetBufferSubData, the starts by the compaction.
         self.ctx.memory_barrier(moderngl.SHADER_STORAGE_BARRIER_BIT | moderngl.BUFFER_UPDATE_BARRIER_BIT)
 
-    def _sort_key(self, key: str, plan: KeyPlan, store: _OrderBuffer, total: int, groups: int, kept: int) -> None:
+    def _sort_key(self, key: str, plan: KeyPlan, store: _OrderBuffer, *, total: int, groups: int, kept: int) -> None:
         """Passes 4 and 5 for ``key``: its kept entries and keys in scene order, sorted
-        stably into ``store`` (SCENE: the compaction is the order)."""
+        stably into ``store`` (SCENE: the compaction is the order); ``total`` rows culled
+        in ``groups`` workgroups, ``kept`` of them kept."""
         compact = self.programs.compute("sort_compact.comp", DEFINES)
         for name, value in (("u_total", total), ("u_key", _KEY_COLUMN[key]), ("u_mode", plan.mode),
                             ("u_far", plan.far), ("u_scale", plan.scale)):
@@ -432,23 +447,25 @@ class GpuSorter(Closable):
 
     # ------------------------------------------------------------------ lifetime
 
-    def close(self) -> None:
-        """Releases the buffers and programs (the orders it made become invalid). Idempotent."""
-        if self._closed:
-            return
-        self._closed = True
-        self._radix.release()
-        for buffer in (self._positions, self._supports, self._slots, self._values, self._keys, self._group_counts,
-                       self._summary, self._empty, self._spans, self._cameras):
+    def _release_per_sort(self) -> None:
+        """The buffers made as sorts came: the spans, the cameras and the orders (which
+        become invalid)."""
+        for buffer in (self._spans, self._cameras):
             if buffer is not None:
                 buffer.release()
+        self._spans = self._cameras = None
         for pair in self._orders.values():
             for store in pair:
                 store.holder = -1
                 store.buffer.release()
                 store.commands.release()
         self._orders.clear()
-        if self._own_programs:
-            self.programs.release()
+
+    def close(self) -> None:
+        """Releases the buffers and programs (the orders it made become invalid). Idempotent."""
+        if self._closed:
+            return
+        self._closed = True
+        self._owned.close()
 
     release = close

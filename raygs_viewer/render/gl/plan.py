@@ -16,10 +16,11 @@ gives both the literals and the uniforms.
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import KW_ONLY, dataclass
 from typing import Callable, NamedTuple, Protocol
 
 from raygs_viewer.camera.pinhole import Camera
+from raygs_viewer.render.channels import Outputs
 from raygs_viewer.render.gl.shaders import Programs
 from raygs_viewer.render.gl.storage import StorageLayout
 from raygs_viewer.render.settings import (
@@ -112,7 +113,8 @@ class RenderPlan:
     settings:  the render settings.
     layout:    the storage layout of the records (exact MIP's are larger, and the
                geometry outputs' hold the normal too).
-    geometry:  the records and targets carry the geometry outputs.
+    outputs:   what the render draws; unless it is colour alone, the records and
+               targets carry the geometry outputs (:attr:`geometry`).
     path:      the per-pixel passes that composite (None: blending, or with the cut-off
                the fragment stage composites front to back; "lists"; "fetch").
     sh_degree: the scene's stored SH degree.
@@ -124,7 +126,8 @@ class RenderPlan:
 
     settings: RenderSettings
     layout: StorageLayout
-    geometry: bool = False
+    _: KW_ONLY
+    outputs: Outputs = "color"
     path: str | None = None
     sh_degree: int = 0
     general: bool = False
@@ -134,6 +137,11 @@ class RenderPlan:
     def __post_init__(self) -> None:
         if self.path is not None and self.draw.records != "scene":
             object.__setattr__(self, "draw", DrawLayout(self.draw.vertices, "scene"))
+
+    @property
+    def geometry(self) -> bool:
+        """The records and targets carry the geometry outputs."""
+        return self.outputs != "color"
 
     @property
     def records_in_draw_order(self) -> bool:

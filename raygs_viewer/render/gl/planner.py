@@ -4,7 +4,7 @@ every pass then follows.
 
 The GPU enters only through its extensions and limits (:class:`GLCapabilities`), which a
 ``moderngl.Context`` has and a :class:`GpuDescription` states without opening one: the
-renderer plans with its context (``GLRenderer.plan``); the shader variants
+renderer plans with its context (``GLRenderer.planner``, made once); the shader variants
 (:mod:`raygs_viewer.render.gl.variants`) plan with described GPUs, through this same
 code, every render the renderer can make.
 """
@@ -12,10 +12,11 @@ code, every render the renderer can make.
 from __future__ import annotations
 
 from collections.abc import Mapping, Set
-from dataclasses import dataclass, field
+from dataclasses import KW_ONLY, dataclass, field
 from typing import Callable, Protocol
 
 from raygs_viewer.errors import UserError
+from raygs_viewer.render.channels import Outputs
 from raygs_viewer.render.gl.geometry import takes_lists
 from raygs_viewer.render.gl.kbuffer import FRAMEBUFFER_FETCH
 from raygs_viewer.render.gl.per_pixel import choose_path, storage_block_problem
@@ -44,27 +45,31 @@ class GpuDescription:
 
 @dataclass(frozen=True)
 class Planner:
-    """What a render's plan is decided from besides its settings.
+    """What a render's plan is decided from besides what the render asks (its settings,
+    outputs and draw layout: :meth:`plan`'s arguments); made once per renderer.
 
     gpu:         the GPU's extensions and limits (the renderer's context).
     layout_for:  the storage layout of records of so many bytes (``SceneBuffers.layout_for``;
                  UserError where this GPU cannot bind them).
     scene_count, sh_degree: the scene's gaussians and stored SH degree.
-    general, order_path, draw_layout: the renderer's options (``GLRenderer``).
+    general, order_path: the renderer's options (``GLRenderer``).
     """
 
     gpu: GLCapabilities
     layout_for: Callable[[int], StorageLayout]
     scene_count: int
     sh_degree: int
+    _: KW_ONLY
     general: bool = False
     order_path: str = "auto"
-    draw_layout: DrawLayout = DEFAULT_DRAW_LAYOUT
 
-    def plan(self, settings: RenderSettings, geometry: bool = False, median: bool = False) -> RenderPlan:
-        """The plan of a render of ``settings``: colour, or with ``geometry`` the geometry
-        outputs too (``median``: with the median depth, which only the fragment lists give)."""
-        lists_geometry = geometry and takes_lists(settings, median)
+    def plan(self, settings: RenderSettings, outputs: Outputs = "color",
+             draw_layout: DrawLayout = DEFAULT_DRAW_LAYOUT) -> RenderPlan:
+        """The plan of a render of ``settings`` that draws ``outputs`` (colour, or the
+        geometry outputs too, with or without the median depth, which only the fragment
+        lists give) in ``draw_layout``."""
+        geometry = outputs != "color"
+        lists_geometry = geometry and takes_lists(settings, outputs == "median")
         record = EXACT_MIP_SPLAT_BYTES if settings.mode == "raygs-exact-mip" else SPLAT_BYTES
         layout = self.layout_for(record + (GEOMETRY_BYTES if geometry else 0))
         path, problem = None, None
@@ -80,4 +85,5 @@ class Planner:
             # cut-off in their own pass, as they do for the geometry outputs.
             path = "lists"
             problem = storage_block_problem(self.gpu, path, layout.splat_blocks)
-        return RenderPlan(settings, layout, geometry, path, self.sh_degree, self.general, problem, self.draw_layout)
+        return RenderPlan(settings, layout, outputs=outputs, path=path, sh_degree=self.sh_degree,
+                          general=self.general, problem=problem, draw=draw_layout)

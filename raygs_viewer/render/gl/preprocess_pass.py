@@ -48,7 +48,7 @@ class PreprocessPass:
         self._order: np.ndarray | None = None  # ... the order, for records in draw order
         self._last_layout = storage.layout
 
-    def run(self, camera: Camera, plan: RenderPlan, order: Order | None = None, frame: Camera | None = None,
+    def run(self, camera: Camera, plan: RenderPlan, order: Order | None = None, *, frame: Camera | None = None,
             color_origin: np.ndarray | None = None) -> None:
         """Writes the per-view splat records for ``camera`` (the camera actually
         rasterized: already supersampled) in ``plan``'s variant: of every gaussian at its

@@ -25,13 +25,15 @@ uploaded (orders are never modified once made).
 
 from __future__ import annotations
 
+from contextlib import ExitStack
+
 import moderngl
 import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.channel_pictures import ChannelView
-from raygs_viewer.render.channels import ChannelImage
+from raygs_viewer.render.channels import ChannelImage, Outputs
 from raygs_viewer.render.gl.geometry import GeometryOutputs
 from raygs_viewer.render.gl.gpu_sort import COMMAND_INDEX
 from raygs_viewer.render.gl.per_pixel import PerPixelOrder
@@ -64,9 +66,12 @@ class GLRenderer:
     "fetch") configure the per-pixel order (render/gl/per_pixel.py).
     ``general``: draw with the all-features variant (:mod:`raygs_viewer.render.gl.plan`).
     ``draw_layout``: how the quads and records are laid out (render/gl/plan.py,
-    :class:`DrawLayout`; every layout draws the same image); an attribute, so a benchmark
-    can switch it between frames.
-    ``storage`` holds the buffers (render/gl/storage.py), ``programs`` the compiled ones.
+    :class:`DrawLayout`; every layout draws the same image) where a render asks for no
+    layout of its own (a benchmark measures each through :meth:`plan`'s ``draw_layout``).
+    ``storage`` holds the buffers (render/gl/storage.py), ``programs`` the compiled ones;
+    ``planner`` plans every render (:meth:`plan`). What it makes on the GPU is released
+    once, by :meth:`release`; a part that fails while the renderer is being made releases
+    the parts made before it.
     """
 
     def __init__(self, ctx: moderngl.Context, scene: Scene, *, block_limit: int | None = None,
@@ -78,33 +83,43 @@ class GLRenderer:
         self.draw_layout = draw_layout
         self.counters = WorkCounters()
         self.scene = scene
-        self.storage = SceneBuffers(ctx, scene, block_limit=block_limit, memory_limit=memory_limit)
-        self.layout = self.storage.layout
-        self.gpu_bytes = self.storage.gpu_bytes
-        self.programs = Programs(ctx)
-        self.preprocessing = PreprocessPass(ctx, self.storage, self.programs, self.upload_order, self.counters)
         #: Off only to demonstrate the near-plane seam that depth clamp prevents.
         self.depth_clamp = True
-        self.per_pixel = PerPixelOrder(ctx, self.storage.block_limit, pool_fragments, order_path)
         self._target: FloatTarget | None = None  # render()'s image, the latest size
         self._samples: dict[tuple[str, ...], FloatTarget] = {}  # sample targets, by their attachments' kinds
         self._indexed: dict[int, moderngl.VertexArray] = {}  # the indexed draw's arrays, by program
-        self.geometry = GeometryOutputs(ctx)
+        with ExitStack() as made:
+            self.storage = SceneBuffers(ctx, scene, block_limit=block_limit, memory_limit=memory_limit)
+            made.callback(self.storage.release)
+            self.programs = Programs(ctx)
+            made.callback(self.programs.release)
+            self.per_pixel = PerPixelOrder(ctx, self.storage.block_limit, pool_fragments, order_path)
+            made.callback(self.per_pixel.release)
+            self.geometry = GeometryOutputs(ctx)
+            made.callback(self.geometry.release)
+            made.callback(self._release_targets)  # made as sizes come, released first
+            self._owned = made.pop_all()
+        self.layout = self.storage.layout
+        self.gpu_bytes = self.storage.gpu_bytes
+        self.preprocessing = PreprocessPass(ctx, self.storage, self.programs, self.upload_order, self.counters)
+        self.planner = Planner(ctx, self.storage.layout_for, scene.count, scene.sh_degree, general=self.general,
+                               order_path=self.per_pixel.order_path)
 
-    def plan(self, settings: RenderSettings, geometry: bool = False, median: bool = False) -> RenderPlan:
-        """The plan of a render of ``settings`` on this GPU and scene (:meth:`Planner.plan`)."""
-        return Planner(self.ctx, self.storage.layout_for, self.scene.count, self.scene.sh_degree, self.general,
-                       self.per_pixel.order_path, self.draw_layout).plan(settings, geometry, median)
+    def plan(self, settings: RenderSettings, outputs: Outputs = "color", *,
+             draw_layout: DrawLayout | None = None) -> RenderPlan:
+        """The plan of a render of ``settings`` that draws ``outputs`` on this GPU and scene
+        (:meth:`Planner.plan`), in ``draw_layout`` (None: the renderer's ``draw_layout``)."""
+        return self.planner.plan(settings, outputs, draw_layout or self.draw_layout)
 
     def supports(self, settings: RenderSettings) -> str | None:
         """None when this GPU can render ``settings``' colour, else why not (one line)."""
         return self.plan(settings).problem
 
     # -- per-frame passes ---------------------------------------------------------
-    def preprocess(self, camera: Camera, plan: RenderPlan, order: Order | None = None, frame: Camera | None = None,
-                   color_origin: np.ndarray | None = None) -> None:
+    def preprocess(self, camera: Camera, plan: RenderPlan, order: Order | None = None, *,
+                   frame: Camera | None = None, color_origin: np.ndarray | None = None) -> None:
         """The per-view records of ``camera`` in ``plan``'s variant (:meth:`PreprocessPass.run`)."""
-        self.preprocessing.run(camera, plan, order, frame, color_origin)
+        self.preprocessing.run(camera, plan, order, frame=frame, color_origin=color_origin)
 
     def forget_records(self) -> None:
         """The next :meth:`preprocess` runs whatever it last wrote (a benchmark times it)."""
@@ -181,7 +196,7 @@ class GLRenderer:
         self.counters.uploads += uploaded
         self.counters.upload_skipped += not uploaded
 
-    def draw_planned(self, target: FloatTarget, camera: Camera, plan: RenderPlan, order: Order,
+    def draw_planned(self, target: FloatTarget, camera: Camera, plan: RenderPlan, order: Order, *,
                      frame: Camera | None = None, color_origin: np.ndarray | None = None) -> OrderStats | None:
         """Draws ``order`` by ``plan`` into ``target`` (camera-sized, with the plan's
         attachments): the preprocessing pass, then the blended draw or the per-pixel
@@ -198,7 +213,8 @@ class GLRenderer:
         dtypes = plan.target_dtypes(target.attachments)  # the blend precision's, or float32 for the per-pixel passes
         if k > 1 or plan.front_to_back or target.dtypes != dtypes:
             drawn = self._sample_target(sampled, dtypes)
-        self.preprocess(sampled, plan, order, frame or camera, color_origin)  # the bounds are scale-invariant
+        self.preprocess(sampled, plan, order, frame=frame or camera,  # the bounds are scale-invariant
+                        color_origin=color_origin)
         stats = None
         if plan.path is not None:  # its passes write every pixel, over the background
             stats = self.per_pixel.render(self, drawn, sampled, plan, order)
@@ -238,26 +254,29 @@ class GLRenderer:
         render on (``SceneBuffers.set_selection``; ``key``: the mask's digest)."""
         self.storage.set_selection(mask, key)
 
-    def render(self, camera: Camera, settings: RenderSettings, order: Order | np.ndarray,
-               frame: Camera | None = None, color_origin: np.ndarray | None = None) -> np.ndarray:
+    def render(self, camera: Camera, settings: RenderSettings, order: Order | np.ndarray, *,
+               frame: Camera | None = None, color_origin: np.ndarray | None = None,
+               draw_layout: DrawLayout | None = None) -> np.ndarray:
         """(H, W, 4) float32 image, top row first: RGB over the background, and alpha.
-        ``frame``, ``color_origin``: see :meth:`preprocess`."""
+        ``frame``, ``color_origin``: see :meth:`preprocess`; ``draw_layout``: see :meth:`plan`."""
         self._target = sized(self._target, self.ctx, camera.width, camera.height)
-        self.render_into(self._target, camera, settings, order, frame, color_origin)
+        self.draw_planned(self._target, camera, self.plan(settings, draw_layout=draw_layout), as_order(order),
+                          frame=frame, color_origin=color_origin)
         return self._target.read()
 
-    def render_channels(self, camera: Camera, settings: RenderSettings, order: Order | np.ndarray,
+    def render_channels(self, camera: Camera, settings: RenderSettings, order: Order | np.ndarray, *,
                         frame: Camera | None = None, color_origin: np.ndarray | None = None,
                         median: bool = True) -> ChannelImage:
         """Colour, alpha and the geometry outputs of ``camera``'s image (camera-space
         normals; render/gl/geometry.py). Arguments as :meth:`render`; ``median`` False
         leaves the median depth out (None): a global order then draws once, blending."""
         image = self.geometry.image(camera)
-        self.draw_planned(image, camera, self.plan(settings, True, median), as_order(order), frame, color_origin)
+        plan = self.plan(settings, "median" if median else "geometry")
+        self.draw_planned(image, camera, plan, as_order(order), frame=frame, color_origin=color_origin)
         return self.geometry.read(image, median)
 
     def render_into(self, target: FloatTarget, camera: Camera, settings: RenderSettings,
-                    order: Order | np.ndarray, frame: Camera | None = None,
+                    order: Order | np.ndarray, *, frame: Camera | None = None,
                     color_origin: np.ndarray | None = None, view: ChannelView | None = None) -> RenderResult:
         """Clears ``target`` (camera-sized, float colour) and draws the scene into it:
         background-composited colour in RGB and the accumulated alpha in A; or, with a
@@ -265,10 +284,11 @@ class GLRenderer:
         range it used is in the result)."""
         order = as_order(order)
         if view is None or view.channel == "rgb":
-            return RenderResult(self.draw_planned(target, camera, self.plan(settings), order, frame, color_origin))
+            return RenderResult(self.draw_planned(target, camera, self.plan(settings), order, frame=frame,
+                                                  color_origin=color_origin))
         image = self.geometry.image(camera)
-        plan = self.plan(settings, True, view.channel == "median_depth")
-        stats = self.draw_planned(image, camera, plan, order, frame, color_origin)
+        plan = self.plan(settings, "median" if view.channel == "median_depth" else "geometry")
+        stats = self.draw_planned(image, camera, plan, order, frame=frame, color_origin=color_origin)
         return RenderResult(stats, self.geometry.picture(self.programs, target, image, camera, view))
 
     def _sample_target(self, camera: Camera, dtypes: tuple[str, ...]) -> FloatTarget:
@@ -276,13 +296,14 @@ class GLRenderer:
                                       dtypes=dtypes)
         return self._samples[dtypes]
 
-    def release(self) -> None:
+    def _release_targets(self) -> None:
+        """The targets and vertex arrays made as renders came (each size and program)."""
         release_all(self._target, *self._samples.values())
         self._target, self._samples = None, {}
         for array in self._indexed.values():
             array.release()
         self._indexed = {}
-        self.geometry.release()
-        self.per_pixel.release()
-        self.programs.release()
-        self.storage.release()
+
+    def release(self) -> None:
+        """Releases everything the renderer made on the GPU, last made first. Idempotent."""
+        self._owned.close()

@@ -48,7 +48,7 @@ def fixed_range(view: ChannelView | None, used: tuple[float, float] | None) -> C
     return replace(view, depth_range=used)
 
 
-def stereo_order(sorter: DepthSorter, camera: Camera, settings: RenderSettings, rig: StereoRig,
+def stereo_order(sorter: DepthSorter, camera: Camera, settings: RenderSettings, rig: StereoRig, *,
                  levels: LodRequest | LodChoice | None = None, deleted: DeletedRows | None = None) -> Order:
     """The one back-to-front order both eyes draw: the settings' key seen from the
     midpoint, keeping what either eye may see (of ``levels``' rows, without ``deleted``)."""
@@ -69,7 +69,7 @@ def render_stereo(renderer, sorter: DepthSorter, camera: Camera, settings: Rende
     return tuple(renderer.render(eye, settings, exact_order(sorter, eye, settings)) for eye in (left, right))
 
 
-def render_stereo_view(renderer, order: Order, camera: Camera, settings: RenderSettings, view: StereoView,
+def render_stereo_view(renderer, order: Order, camera: Camera, settings: RenderSettings, view: StereoView, *,
                        channel_view: ChannelView | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(image, left, right) float32 (H, W, 4) arrays, top row first: the composed
     stereo image of ``view`` around the midpoint ``camera``, and each eye as it goes
@@ -78,7 +78,7 @@ def render_stereo_view(renderer, order: Order, camera: Camera, settings: RenderS
     passes as the window's: what screenshots and ``render --stereo`` save."""
     frame = StereoFrame(renderer.ctx)
     try:
-        frame.draw_eyes(renderer, camera, settings, eye_cameras(camera, view.rig), order, channel_view)
+        frame.draw_eyes(renderer, camera, settings, eye_cameras(camera, view.rig), order, view=channel_view)
         frame.finish(view)
         return frame.read_image(), *frame.read_eyes()
     finally:
@@ -107,7 +107,7 @@ class StereoFrame:
         return self._image
 
     def draw_eyes(self, renderer, camera: Camera, settings: RenderSettings, eyes: tuple[Camera, Camera],
-                  order: Order, view: ChannelView | None = None) -> tuple[RenderResult, RenderResult]:
+                  order: Order, *, view: ChannelView | None = None) -> tuple[RenderResult, RenderResult]:
         """Draws both ``eyes`` (``camera.stereo.eye_cameras`` around the midpoint
         ``camera``) with ``order``; SH colour is seen from the midpoint (see
         :mod:`raygs_viewer.camera.stereo`). ``view``: the picture both eyes show instead of

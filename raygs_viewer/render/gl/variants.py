@@ -37,11 +37,12 @@ from __future__ import annotations
 import dataclasses
 import re
 from collections.abc import Callable, Iterable, Iterator, Mapping
-from dataclasses import dataclass
+from dataclasses import KW_ONLY, dataclass
 from functools import lru_cache
 from typing import ClassVar
 
 from raygs_viewer.errors import UserError
+from raygs_viewer.render.channels import OUTPUTS, Outputs
 from raygs_viewer.render.gl.geometry import PICTURE_DEFINES
 from raygs_viewer.render.gl.gpu_sort import DEFINES as SORT_DEFINES
 from raygs_viewer.render.gl.kbuffer import FRAMEBUFFER_FETCH
@@ -66,9 +67,6 @@ WIDE_LIMITS = {"GL_MAX_DRAW_BUFFERS": MAX_ORDER_K + 1, "GL_MAX_COLOR_ATTACHMENTS
 #: about (kbuffer.FRAMEBUFFER_FETCH) present (llvmpipe) and missing (NVIDIA's desktop drivers).
 GPUS = tuple((GpuDescription(extensions, WIDE_LIMITS), order_path)
              for extensions in (frozenset({FRAMEBUFFER_FETCH}), frozenset()) for order_path in ORDER_PATHS)
-#: What a render asks for (``GLRenderer.plan``'s geometry, median): colour; the geometry
-#: outputs blended beside it; with the median depth.
-ASKS = ((False, False), (True, False), (True, True))
 DRAW_LAYOUTS = tuple(DrawLayout(vertices, records) for vertices in DRAW_VERTICES for records in RECORDS)
 #: Real GPUs cap one storage block at 128 MiB (docs/architecture.md, "Storage limits").
 BLOCK_LIMIT = 1 << 27
@@ -236,11 +234,12 @@ def blocks_layout(blocks: int) -> Callable[[int], StorageLayout]:
 
 @dataclass(frozen=True)
 class Inputs:
-    """One planning's inputs: the settings, what is asked, the GPU, the renderer's options
-    and the scene (its storage blocks and stored SH degree)."""
+    """One planning's inputs: the settings, what the render draws, the GPU, the renderer's
+    options and the scene (its storage blocks and stored SH degree)."""
 
     settings: RenderSettings
-    asks: tuple[bool, bool] = ASKS[0]
+    _: KW_ONLY
+    outputs: Outputs = OUTPUTS[0]
     gpu: tuple[GpuDescription, str] = GPUS[0]
     general: bool = False
     draw: DrawLayout = DRAW_LAYOUTS[0]
@@ -251,11 +250,11 @@ class Inputs:
         description, order_path = self.gpu
         layout_for = blocks_layout(self.blocks)
         planner = Planner(_WatchedGpu(description), layout_for, layout_for(SPLAT_BYTES).count, self.sh_degree,
-                          self.general, order_path, self.draw)
-        return planner.plan(self.settings, *self.asks)
+                          general=self.general, order_path=order_path)
+        return planner.plan(self.settings, self.outputs, self.draw)
 
 
-_CONTEXT_AXES = {"asks": ASKS, "gpu": GPUS, "general": (False, True)}
+_CONTEXT_AXES = {"outputs": OUTPUTS, "gpu": GPUS, "general": (False, True)}
 
 
 @lru_cache(maxsize=None)
@@ -270,7 +269,7 @@ def _evaluate(fixed: Mapping[str, object]) -> tuple[list[str], object]:
     settings = _settings(tuple(sorted((k, v) for k, v in fixed.items() if k not in _CONTEXT_AXES)))
     if settings is None:
         return [], None
-    _Watched.reads = ["asks", "general"]
+    _Watched.reads = ["outputs", "general"]
     inputs = Inputs(settings, **{name: fixed[name] for name in _CONTEXT_AXES if name in fixed})
     programs = plan_programs(inputs.plan())
     return list(dict.fromkeys(_Watched.reads)), (inputs, programs)
