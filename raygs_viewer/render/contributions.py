@@ -77,7 +77,7 @@ def max_weights(scene: Scene, camera: Camera, settings: RenderSettings, order: n
                         f"(at most {MAX_FRAGMENTS:,} are weighed): draw a smaller one, or select 'through'")
     width = cols.stop - cols.start
     band_rows = max(1, BAND_SAMPLES // PER_PIXEL_BAND_DIVISOR // width)
-    weighing = _Weighing(model, boxes, camera, settings, order, cols)
+    weighing = _Weighing(model, boxes, camera=camera, settings=settings, order=order, cols=cols)
     for top in range(rows.start, rows.stop, band_rows):
         bottom = min(rows.stop, top + band_rows)
         counted = inside[top:bottom, cols]

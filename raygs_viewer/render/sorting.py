@@ -74,7 +74,7 @@ def sort_request(camera: Camera, settings: RenderSettings, right: RenderSettings
     dilation = None if any(d is None for d in dilations) else max(dilations)
     return SortRequest(camera, min(side.p_min for side in sides), dilation,
                        None if cull_cameras is None else tuple(cull_cameras),
-                       keys_of([side.sort_key for side in sides]), levels, deleted=deleted)
+                       keys_of([side.sort_key for side in sides]), levels=levels, deleted=deleted)
 
 
 def exact_order(sorter: DepthSorter, camera: Camera, settings: RenderSettings, *,

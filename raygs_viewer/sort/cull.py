@@ -13,7 +13,7 @@ from __future__ import annotations
 
 import math
 import threading
-from dataclasses import dataclass, field
+from dataclasses import KW_ONLY, dataclass, field
 from typing import NamedTuple, Sequence
 
 import numpy as np
@@ -58,6 +58,7 @@ class CullRequest:
     camera: Camera
     p_min: float
     dilation: float | None
+    _: KW_ONLY
     cull_cameras: tuple[Camera, ...]
     depth_from_cull: bool   # the last cull camera has the sort camera's R and t
     keys: tuple[str, ...]   # keys whose values the pass computes
@@ -139,8 +140,8 @@ class Cull:
             cameras.remove(same[0])
             cameras.append(same[0])
         chunks = None if spans is None else span_chunks(spans, self.chunk_rows)
-        return CullRequest(camera, p_min, dilation, tuple(cameras), bool(same), keys, candidates, centre, chunks,
-                           deleted)
+        return CullRequest(camera, p_min, dilation, cull_cameras=tuple(cameras), depth_from_cull=bool(same), keys=keys,
+                           candidates=candidates, centre=centre, chunks=chunks, deleted=deleted)
 
     def pieces(self, request: CullRequest, run: Runner) -> Culled:
         """The pass over every chunk, the chunks handed out by ``run``: one
