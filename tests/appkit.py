@@ -4,6 +4,7 @@ and where, and the images the window holds and shows. The ``open_viewer`` fixtur
 
 from __future__ import annotations
 
+import math
 import threading
 import time
 from dataclasses import dataclass
@@ -168,22 +169,48 @@ class PanelRecorder:
         self.target.widgets.append(Widget(kind, label, (low.x, low.y, high.x, high.y), within))
 
 
+class FrameClock:
+    """The viewer's clock in tests: each reading is ``step`` seconds after the last (one
+    frame of that time). A step that is no finite number gives that reading once and the
+    clock goes on from the last finite one; a step too small to move a clock grown huge
+    starts it again from 0 (that one frame's time is negative: the viewer moves nothing)."""
+
+    def __init__(self, step: float = 0.1):
+        self.step, self.now = step, 0.0
+
+    def __call__(self) -> float:
+        reading = self.now + self.step
+        if not math.isfinite(reading):
+            return reading
+        if reading == self.now and self.step > 0:
+            reading = self.step
+        self.now = reading
+        return reading
+
+
 class Driver:
     """Queues imgui input for the next frames and runs them; ``panel``: the widgets the
-    last frame drew (recorded by ``recorder``)."""
+    last frame drew (recorded by ``recorder``); ``clock``: the viewer's (its frame time:
+    ``clock.step``)."""
 
-    def __init__(self, viewer: Viewer, recorder: PanelRecorder):
+    def __init__(self, viewer: Viewer, recorder: PanelRecorder, clock: FrameClock):
         self.viewer = viewer
         self.recorder = recorder
+        self.clock = clock
         self.panel = Panel()
         self.mouse: tuple[float, float] | None = None
         self._queued: list = []
-        viewer.input_script = self._inject
-        viewer.fixed_dt = 0.1
+        begin_frame = viewer.window.begin_frame
 
-    def _inject(self, viewer) -> None:
-        # The viewer calls this just before imgui.new_frame(), whoever runs the frame
-        # (frames(), viewer.run()): this frame's widgets replace the last frame's.
+        def begin_then_inject() -> None:
+            begin_frame()
+            self._inject()
+        # After the GLFW backend has read the devices, before imgui starts the frame: where
+        # synthetic imgui events must go, whoever runs the frame (frames(), viewer.run()).
+        viewer.window.begin_frame = begin_then_inject
+
+    def _inject(self) -> None:
+        # This frame's widgets replace the last frame's.
         self.panel = self.recorder.start_frame()
         io = imgui.get_io()
         if self.mouse is not None:  # the GLFW backend overwrites the position every frame
@@ -344,10 +371,12 @@ def open_viewer_factory(tmp_path):
                      if name in options}
         source = scene if isinstance(scene, SceneSource) else SceneSource(scene)
         viewer_options = ViewerOptions(source=source, platform="null", **options)
-        viewer = Viewer(viewer_options, load_start_scene(viewer_options), start_camera(viewer_options), **factories)
+        clock = FrameClock()
+        viewer = Viewer(viewer_options, load_start_scene(viewer_options), start_camera(viewer_options), clock=clock,
+                        **factories)
         viewers.append(viewer)
         viewer.panel.show_panel = not hide_panel
-        return viewer, Driver(viewer, recorder)
+        return viewer, Driver(viewer, recorder, clock)
 
     def close_all():
         try:

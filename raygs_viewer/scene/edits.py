@@ -21,28 +21,36 @@ is computed from the scene and the operation alone.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+import itertools
+from dataclasses import dataclass, field, replace
+from typing import Callable, Literal, get_args
 
 import numpy as np
 
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.selection import Box, Shape, Sphere, shape_from_json
 
-HOWS = ("set", "add", "subtract", "intersect")
-#: Operations without a shape.
-PLAIN = ("select all", "select none", "invert", "delete", "undelete all")
+#: How a selection combines with the one before.
+How = Literal["set", "add", "subtract", "intersect"]
+HOWS: tuple[How, ...] = get_args(How)
+#: The operations: two with a shape (select, crop), the others (:data:`PLAIN`) without.
+OperationName = Literal["select", "crop", "select all", "select none", "invert", "delete", "undelete all"]
+PLAIN: tuple[OperationName, ...] = get_args(OperationName)[2:]
 #: The fewest undo steps kept (older steps are forgotten first).
 UNDO_STEPS = 256
+#: Every state of every Edits gets its own generation: equal generations are equal masks,
+#: so a cache of anything made from the masks is keyed on the generation alone.
+_GENERATIONS = itertools.count(1)
 
 
 @dataclass(frozen=True)
 class Operation:
-    """One edit: ``op`` (select, crop, or one of :data:`PLAIN`), with a ``shape`` for
-    select and crop and ``how`` a selection combines with the last."""
+    """One edit: ``op``, with a ``shape`` for select and crop and ``how`` a selection
+    combines with the last."""
 
-    op: str
+    op: OperationName
     shape: Shape | None = None
-    how: str = "set"
+    how: How = "set"
 
     def __post_init__(self) -> None:
         if self.op == "select":
@@ -84,7 +92,8 @@ class _Step:
 class Edits:
     """The edits of a scene of ``count`` gaussians: ``selected`` and ``deleted`` (N,) bool,
     ``operations`` applied so far (what the document records; undone ones are not), the
-    undo and redo steps (at most ``undo_steps`` of them kept)."""
+    undo and redo steps (at most ``undo_steps`` of them kept). ``generation``: this
+    state's number, new at every change and unique across all edits (a cache's key)."""
 
     count: int
     undo_steps: int = UNDO_STEPS
@@ -93,7 +102,7 @@ class Edits:
     operations: list[Operation] = field(init=False, default_factory=list)
     _undo: list[_Step] = field(init=False, default_factory=list)
     _redo: list[_Step] = field(init=False, default_factory=list)
-    generation: int = field(init=False, default=0)
+    generation: int = field(init=False, default_factory=lambda: next(_GENERATIONS))
 
     def __post_init__(self) -> None:
         self.selected = np.zeros(self.count, bool)
@@ -104,10 +113,19 @@ class Edits:
         """(N,) bool: what is selected and not deleted (shown tinted, deleted by delete)."""
         return self.selected & ~self.deleted
 
-    @property
-    def kept(self) -> np.ndarray:
-        """(N,) bool: what is not deleted (drawn, exported)."""
-        return ~self.deleted
+    def grow(self, count: int) -> Edits:
+        """These edits of a scene that grew to ``count`` rows, its rows before kept where
+        they were (a streamed SOG's finer level): the new rows start neither selected nor
+        deleted; the operations and the undo steps carry over (they change only the rows
+        they were made on)."""
+        if count < self.count:
+            raise ValueError(f"edits of {self.count} gaussians cannot grow to {count}")
+        grown = Edits(count, self.undo_steps)
+        grown.selected[: self.count], grown.deleted[: self.count] = self.selected, self.deleted
+        grown.operations = list(self.operations)
+        grown._undo = [replace(step, change=_padded(step.change, count)) for step in self._undo]
+        grown._redo = [replace(step, change=_padded(step.change, count)) for step in self._redo]
+        return grown
 
     @property
     def edited(self) -> bool:
@@ -134,28 +152,12 @@ class Edits:
         del self._undo[: max(0, len(self._undo) - self.undo_steps)]
         self._redo.clear()
         self.operations.append(operation)
-        self.generation += 1
+        self.generation = next(_GENERATIONS)
         return True
 
     def _result(self, scene: Scene, operation: Operation) -> tuple[str, np.ndarray]:
         """(the mask ``operation`` changes, its new value)."""
-        op, alive = operation.op, ~self.deleted
-        if op == "delete":
-            return "deleted", self.deleted | self.selection
-        if op == "undelete all":
-            return "deleted", np.zeros(self.count, bool)
-        if op == "crop":
-            return "deleted", self.deleted | ~operation.shape.mask(scene)
-        if op == "select all":
-            return "selected", alive.copy()
-        if op == "select none":
-            return "selected", np.zeros(self.count, bool)
-        if op == "invert":
-            return "selected", alive & ~self.selected
-        shape = operation.shape.mask(scene) & alive
-        current = self.selection
-        return "selected", {"set": shape, "add": current | shape, "subtract": current & ~shape,
-                            "intersect": current & shape}[operation.how]
+        return RESULTS[operation.op](self, scene, operation)
 
     def undo(self) -> bool:
         """Undoes the last step; False when there is none."""
@@ -176,12 +178,40 @@ class Edits:
             self.operations.append(step.operation)
         else:
             self.operations.pop()
-        self.generation += 1
+        self.generation = next(_GENERATIONS)
         return True
 
     def undo_bytes(self) -> int:
         """Bytes the undo and redo steps hold (each at most ceil(N / 8))."""
         return sum(step.change.nbytes for step in self._undo + self._redo)
+
+
+def _selected(edits: Edits, scene: Scene, operation: Operation) -> tuple[str, np.ndarray]:
+    """A selection by a shape, combined with the one before (a deleted gaussian is never selected)."""
+    shape = operation.shape.mask(scene) & ~edits.deleted
+    current = edits.selection
+    return "selected", {"set": shape, "add": current | shape, "subtract": current & ~shape,
+                        "intersect": current & shape}[operation.how]
+
+
+#: What each operation does: (the mask it changes, its new value) of the edits, the scene
+#: and the operation.
+RESULTS: dict[OperationName, Callable[[Edits, Scene, Operation], tuple[str, np.ndarray]]] = {
+    "select": _selected,
+    "crop": lambda edits, scene, operation: ("deleted", edits.deleted | ~operation.shape.mask(scene)),
+    "select all": lambda edits, scene, operation: ("selected", ~edits.deleted),
+    "select none": lambda edits, scene, operation: ("selected", np.zeros(edits.count, bool)),
+    "invert": lambda edits, scene, operation: ("selected", ~edits.deleted & ~edits.selected),
+    "delete": lambda edits, scene, operation: ("deleted", edits.deleted | edits.selection),
+    "undelete all": lambda edits, scene, operation: ("deleted", np.zeros(edits.count, bool)),
+}
+
+
+def _padded(packed: np.ndarray, count: int) -> np.ndarray:
+    """A packed change of fewer rows as one of ``count`` rows (the new rows unchanged)."""
+    grown = np.zeros((count + 7) // 8, np.uint8)
+    grown[: packed.size] = packed
+    return grown
 
 
 def replay(scene: Scene, operations: list[Operation]) -> Edits:

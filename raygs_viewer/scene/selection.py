@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Union
+from typing import Callable, Literal, Union
 
 import numpy as np
 
@@ -134,6 +134,25 @@ def near_stroke(points: np.ndarray, stroke: np.ndarray, radius: float) -> np.nda
     return near
 
 
+def within_corners(uv: np.ndarray, corners: np.ndarray, radius: float = 0.0) -> np.ndarray:
+    """(P,) bool: which of ``uv`` ((P, 2)) lie in the axis-aligned rectangle spanned by
+    ``corners`` ((2+, 2)), edges included."""
+    low, high = corners.min(axis=0), corners.max(axis=0)
+    return np.all((uv >= low) & (uv <= high), axis=1)
+
+
+#: The shapes drawn on a view.
+ScreenKind = Literal["rectangle", "polygon", "brush"]
+#: Each kind's test of image positions: holds(uv (P, 2), points (V, 2), radius) -> (P,) bool.
+SCREEN_KINDS: dict[ScreenKind, Callable[[np.ndarray, np.ndarray, float], np.ndarray]] = {
+    "rectangle": within_corners,
+    "polygon": lambda uv, corners, radius: inside_polygon(uv, corners),
+    "brush": lambda uv, stroke, radius: near_stroke(uv, stroke, radius),
+}
+#: The fewest points of each kind: a rectangle's two corners, a polygon's three, a brush's one dab.
+LEAST_POINTS: dict[ScreenKind, int] = {"rectangle": 2, "polygon": 3, "brush": 1}
+
+
 @dataclass(frozen=True, eq=False)
 class ScreenShape:
     """A shape drawn on ``camera``'s image: ``kind`` "rectangle" (``points``: two
@@ -141,13 +160,13 @@ class ScreenShape:
     points, at least one, and ``radius`` in pixels). Selects the centres in front of the
     camera that project inside ("through")."""
 
-    kind: str
+    kind: ScreenKind
     camera: Camera
     points: tuple[tuple[float, float], ...]
     radius: float = 0.0
 
     def __post_init__(self) -> None:
-        least = {"rectangle": 2, "polygon": 3, "brush": 1}.get(self.kind)
+        least = LEAST_POINTS.get(self.kind)
         if least is None:
             raise ValueError(f"unknown screen shape {self.kind!r}: rectangle, polygon or brush")
         points = tuple((float(u), float(v)) for u, v in self.points)
@@ -163,13 +182,7 @@ class ScreenShape:
 
     def holds(self, uv: np.ndarray) -> np.ndarray:
         """(P,) bool: which of the image positions ``uv`` ((P, 2) continuous pixels) the shape holds."""
-        points = np.array(self.points, np.float64)
-        if self.kind == "rectangle":
-            low, high = points.min(axis=0), points.max(axis=0)
-            return np.all((uv >= low) & (uv <= high), axis=1)
-        if self.kind == "polygon":
-            return inside_polygon(uv, points)
-        return near_stroke(uv, points, float(self.radius))
+        return SCREEN_KINDS[self.kind](uv, np.array(self.points, np.float64), float(self.radius))
 
     def pixel_mask(self) -> np.ndarray:
         """(H, W) bool: the camera's pixels whose centre the shape holds (the pixels a
@@ -271,7 +284,7 @@ def shape_from_json(entry: dict) -> Shape:
             if not isinstance(rows, list) or not all(isinstance(r, int) and not isinstance(r, bool) for r in rows):
                 raise ValueError("'rows' must be a list of whole numbers")
             return Rows(tuple(rows), entry["found by"], through, float(entry.get("min weight", 0.0)))
-        if kind in ("rectangle", "polygon", "brush"):
+        if kind in SCREEN_KINDS:
             c = entry["camera"]
             R, t = np.array(c["R"], np.float64), np.array(c["t"], np.float64)
             if R.shape != (3, 3) or t.shape != (3,) or not (np.isfinite(R).all() and np.isfinite(t).all()):

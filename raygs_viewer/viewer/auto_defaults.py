@@ -25,8 +25,6 @@ from raygs_viewer.render.gl.profile import Choice, GlProfile, gl_identity, load_
 from raygs_viewer.render.gl.gpu_sort import GpuSorter
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.render.sorting import measured_sort
-from raygs_viewer.viewer.shown_scene import ShownScene
-from raygs_viewer.viewer.state import PanelState
 
 #: What a sort or blend is until the profile says otherwise.
 SAFE_SORT, SAFE_PRECISION = "cpu", "float32"
@@ -68,6 +66,10 @@ class AutoDefaults:
             return Choice(SAFE_SORT, f"sort: CPU, until this GL is measured{self._until()}")
         return measured_sort(self.profile, self.ctx, count)
 
+    def sort_for(self, count: int) -> str:
+        """The sort ("cpu", "gpu") for a scene of ``count`` gaussians (:meth:`sort_choice`)."""
+        return self.sort_choice(count).value
+
     def precision_choice(self) -> Choice | None:
         """The blend ``--precision auto`` takes now; None where the command line named one."""
         if not self.precision:
@@ -80,14 +82,6 @@ class AutoDefaults:
         """UserError in one line where ``--sort gpu`` was asked of a GL that cannot run it."""
         if self.sort == "gpu" and GpuSorter.problem(ctx):
             raise UserError(f"--sort gpu: the GPU sort cannot run here: {GpuSorter.problem(ctx)}")
-
-    def apply(self, scene: ShownScene, settings: RenderSettings, start: RenderSettings,
-              panel: PanelState) -> RenderSettings:
-        """The profile has arrived: ``scene`` sorted as it says for its size (a sort that
-        cannot be made is the panel's error) and the ``settings`` to draw with now."""
-        if problem := scene.resort():
-            panel.error = f"error: sort: {problem}"
-        return self.settings(settings, start)
 
     def settings(self, settings: RenderSettings, start: RenderSettings) -> RenderSettings:
         """``settings`` with the blend ``--precision auto`` takes now, unless the panel

@@ -26,6 +26,8 @@ fixed for the other, so that one colour is one depth across the divider.
 
 from __future__ import annotations
 
+import time
+from dataclasses import dataclass
 from typing import Mapping, Sequence
 
 import moderngl
@@ -33,32 +35,40 @@ import numpy as np
 
 from raygs_viewer.camera.pinhole import camera_key
 from raygs_viewer.errors import UserError, one_line
-from raygs_viewer.render.gl.mono_frame import MonoFrame, frame_dtypes
 from raygs_viewer.render.channel_pictures import ChannelView
+from raygs_viewer.render.gl.mono_frame import MonoFrame, frame_dtypes
+from raygs_viewer.render.gl.renderer import GLRenderer
+from raygs_viewer.render.gl.results import OrderStats
 from raygs_viewer.render.gl.stereo_frame import StereoFrame, fixed_range
 from raygs_viewer.render.gl.timing import GpuTimer
 from raygs_viewer.sort.request import Order, SortResult
+from raygs_viewer.sort.worker import BackgroundSorter, InlineSorter
 from raygs_viewer.viewer.frame import Frame
-from raygs_viewer.viewer.state import PanelState
-from raygs_viewer.viewer.stats import FrameStats
 
 #: What a frame draws before the first sort.
 EMPTY_ORDER = Order(np.zeros(0, np.uint32))
 
 
-def request_sort(sorter, stats: FrameStats, frame: Frame, wait: bool = False) -> SortResult | None:
-    """Asks ``sorter`` (a BackgroundSorter) for ``frame``'s sort (one cull for every side
-    shown, an order per key, of the levels its ``lod`` chooses for the view: a streamed
-    SOG); ``wait``: until that sort is done (a scripted run's last frame). Returns its
-    newest finished result."""
+@dataclass(frozen=True)
+class SortAsked:
+    """A frame's sort request to the frames' sorter: its ``serial``, and whether a sort
+    was still running after it was asked (this one, or an older one)."""
+
+    serial: int
+    running: bool
+
+
+def request_sort(sorter: BackgroundSorter | InlineSorter, frame: Frame, wait: bool = False
+                 ) -> tuple[SortResult | None, SortAsked]:
+    """Asks ``sorter`` for ``frame``'s sort (one cull for every side shown, an order per
+    key, of the levels its ``lod`` chooses for the view: a streamed SOG); ``wait``: until
+    that sort is done (a scripted run's last frame). Returns its newest finished result,
+    and what was asked."""
     serial = sorter.request(frame.sort)
-    stats.asked(serial, frame.index)
     if wait:
         sorter.wait(serial, timeout=120)
     result = sorter.latest()
-    if sorter.started > sorter.finished:
-        stats.frames_with_sort_running += 1
-    return result
+    return result, SortAsked(serial, sorter.started > sorter.finished)
 
 
 def order_for(orders: Mapping[str, Order], key: str) -> Order:
@@ -69,6 +79,34 @@ def order_for(orders: Mapping[str, Order], key: str) -> Order:
     if key in orders:
         return orders[key]
     return next(iter(orders.values()), EMPTY_ORDER)
+
+
+@dataclass(frozen=True, eq=False)
+class DrawReport:
+    """What a frame's draw did, as :meth:`SceneDrawer.draw` returns it: the ``frame``, the
+    sort it ``asked`` for, the sort ``result`` it drew (None: none yet), whether it drew
+    the scene again (``drew``: else the image already held this view) and when (``at``, a
+    perf_counter time); ``problem``: why these settings cannot be drawn here (None: they
+    can); the GPU seconds of the scene's draw and of the stereo lens preview and layout,
+    as the timers last read them, and the GPU sort's ``sort_timer`` (None: the CPU
+    sorts); what the per-pixel order did on each side (left or the only one, the split
+    view's right; None: a global order, or not drawn again)."""
+
+    frame: Frame
+    asked: SortAsked
+    result: SortResult | None
+    drew: bool
+    at: float
+    problem: str | None = None
+    gpu_seconds: float = float("nan")
+    post_seconds: float = float("nan")
+    sort_timer: GpuTimer | None = None
+    order_stats: tuple[OrderStats | None, OrderStats | None] | None = None
+
+    @property
+    def serial(self) -> int:
+        """The sort request whose order was drawn (0: none)."""
+        return 0 if self.result is None else self.result.serial
 
 
 class SceneDrawer:
@@ -90,27 +128,26 @@ class SceneDrawer:
         self.view_range: tuple[float, float] | None = None
         self.orders: dict[str, Order] = {}
 
-    def draw(self, renderer, frame: Frame, orders: Mapping[str, Order], serial: int, stats: FrameStats,
-             panel: PanelState) -> None:
-        """Draws each side of ``frame`` with its key's order from ``orders`` ({sort key:
-        order} of sort request ``serial``) unless the frame already holds this view, these
-        settings and these orders, and notes the draw, its GPU times and the per-pixel
-        order's statistics in ``stats``. The orders carry the rows of their
-        level-of-detail choice, which a pick draws too. Settings this GPU cannot render
-        (the panel greys those out) are a standing error in ``panel``; the frame is then
-        drawn again next time."""
+    def draw(self, renderer: GLRenderer, frame: Frame, result: SortResult | None, asked: SortAsked,
+             sort_timer: GpuTimer | None = None) -> DrawReport:
+        """Draws each side of ``frame`` with its key's order from ``result`` (the newest
+        finished sort: {sort key: order}; None: none yet) unless the frame already holds
+        this view, these settings and these orders, and reports what it did. The orders
+        carry the rows of their level-of-detail choice, which a pick draws too. Settings
+        this GPU cannot render (the panel greys those out) are the report's problem; the
+        frame is then drawn again next time."""
+        orders, serial = ({}, 0) if result is None else (result.orders, result.serial)
         self.orders, self.view, self.right_view = dict(orders), frame.view, frame.right_view
         try:
-            drew = self._draw(renderer, frame, orders, serial, stats)
+            drew, order_stats = self._draw(renderer, frame, orders, serial)
         except UserError as exc:
-            panel.stand("draw", f"error: {one_line(exc)}")
-            return
-        if drew:
-            panel.mend("draw")
-            stats.drawn_serial, stats.draws = serial, stats.draws + 1
-        stats.gpu_seconds, stats.post_seconds = self.timer.seconds, self.post_timer.seconds
+            return DrawReport(frame, asked, result, False, time.perf_counter(), one_line(exc),
+                              sort_timer=sort_timer)
+        return DrawReport(frame, asked, result, drew, time.perf_counter(), None, self.timer.seconds,
+                          self.post_timer.seconds, sort_timer, order_stats)
 
-    def _draw(self, renderer, frame: Frame, orders: Mapping[str, Order], serial: int, stats: FrameStats) -> bool:
+    def _draw(self, renderer: GLRenderer, frame: Frame, orders: Mapping[str, Order], serial: int
+              ) -> tuple[bool, tuple[OrderStats | None, OrderStats | None] | None]:
         camera, settings, right, stereo = frame.camera, frame.settings, frame.right, frame.stereo
         key = (camera_key(camera), settings, right, stereo, frame.view, frame.right_view, serial,
                renderer.selection_key)
@@ -126,7 +163,7 @@ class SceneDrawer:
             # so the last timings can be read without stalling.
             self.timer.flush()
             self.post_timer.flush()
-            return False
+            return False, None
         self.mono.forget()
         order = order_for(orders, settings.sort_key)
         if stereo is None:
@@ -140,17 +177,15 @@ class SceneDrawer:
                                                         view=fixed_range(frame.right_view, self.view_range))
                     if self.view_range is None:
                         self.view_range = right_result.view_range
-            stats.order_stats = (left.order_stats, None if right_result is None else right_result.order_stats)
             self.mono.drawn(key)
-        else:
-            with self.timer.measure():  # both eyes: what the frame-budget meter compares
-                _, last_eye = self.stereo.draw_eyes(renderer, camera, settings, frame.eyes, order, view=frame.view)
-                self.view_range = last_eye.view_range
-            stats.order_stats = (last_eye.order_stats, None)  # the last eye's (the right)
-            with self.post_timer.measure():
-                self.stereo.finish(stereo)
-            self.mono.drawn(key, self.stereo.image)
-        return True
+            return True, (left.order_stats, None if right_result is None else right_result.order_stats)
+        with self.timer.measure():  # both eyes: what the frame-budget meter compares
+            _, last_eye = self.stereo.draw_eyes(renderer, camera, settings, frame.eyes, order, view=frame.view)
+            self.view_range = last_eye.view_range
+        with self.post_timer.measure():
+            self.stereo.finish(stereo)
+        self.mono.drawn(key, self.stereo.image)
+        return True, (last_eye.order_stats, None)  # the last eye's (the right)
 
     def gpu_times(self) -> tuple[Sequence[float], Sequence[float]]:
         """Every draw's GPU seconds so far, the last one's included: the scene's (both sides,

@@ -20,24 +20,32 @@ or Ctrl+Shift+Z redoes.
 from __future__ import annotations
 
 import math
+from typing import Literal, get_args
 
 import numpy as np
 from imgui_bundle import imgui
 
-from raygs_viewer.capture.edit_file import EditDocument, edit_document_json
-from raygs_viewer.errors import UserError, one_line
-from raygs_viewer.scene.edits import Edits, Operation
+from raygs_viewer.capture.edit_file import edit_document_json
+from raygs_viewer.errors import UserError
+from raygs_viewer.render.gl.renderer import GLRenderer
+from raygs_viewer.scene.edits import Edits, How, Operation
+from raygs_viewer.scene.loader import LoadedScene
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.selection import ATTRIBUTES, Box, Range, ScreenShape, Sphere, attribute_values
-from raygs_viewer.scene.source import SceneSource
 from raygs_viewer.sort.deleted import DeletedRows
-from raygs_viewer.viewer.edit_export import EditExport
+from raygs_viewer.viewer.edit_export import EditExport, edit_document
+from raygs_viewer.viewer.frame import Frame
+from raygs_viewer.viewer.part import NO_REPLY, Part, Pointing, Reply, SceneView, Shown
+from raygs_viewer.viewer.state import Message, failed, note
 from raygs_viewer.viewer.view_selection import shown_rows
 from raygs_viewer.viewer.volume_handles import VolumeHandles
 
 #: The tools the left button draws with ("off": it turns the camera; "click": the gaussian
 #: the clicked pixel shows most).
-TOOLS = ("off", "click", "rectangle", "lasso", "brush")
+Tool = Literal["off", "click", "rectangle", "lasso", "brush"]
+TOOLS: tuple[Tool, ...] = get_args(Tool)
+#: What a shape selects: the centres it covers, or the gaussians its pixels show.
+Selects = Literal["through", "visible"]
 #: Histogram bins.
 BINS = 64
 #: Attributes shown on a log10 axis (they span decades).
@@ -46,35 +54,41 @@ LOG_ATTRIBUTES = ("largest scale", "volume")
 TRACE_STEP = 2.0
 
 
-class EditTool:
-    """The edits of the scene the window shows (``host``: the viewer, ``app.Viewer``)."""
+class EditTool(Part):
+    """The edits of the scene the window shows (None before the first), the tool and
+    its settings, the box and the sphere, the export. Each action is handed the scene it
+    acts on and returns what the panel says of it."""
 
-    def __init__(self, host) -> None:
-        self.host = host
-        self.tool = "off"
-        self.how = "set"
+    def __init__(self) -> None:
+        self.tool: Tool = "off"
+        self.how: How = "set"
         self.brush_radius = 20.0   # screen units
-        self.selects = "through"   # or "visible": the gaussians a shape's pixels show, not the centres it covers
+        self.selects: Selects = "through"
         self.min_weight = 0.05     # the least share of a pixel's colour "visible" selects
         self.attribute = ATTRIBUTES[0]
-        self.exporter = EditExport(self)
-        self.handles = VolumeHandles(self)
+        self.exporter = EditExport()
+        self.handles = VolumeHandles()
         self.edits: Edits | None = None
         self.box: Box | None = None
         self.sphere: Sphere | None = None
         self.drag: list[tuple[float, float]] | None = None   # screen points of the shape being drawn
         self.histogram_drag: float | None = None   # where a drag across the histogram began (screen x)
-        self._drag_how = "set"
-        self._deleted_rows: tuple[int, DeletedRows | None] = (-1, None)
+        self._drag_how: How = "set"
+        # Made from the edits' masks, each keyed on the edits' generation (unique to a state).
+        self._deleted: tuple[int, DeletedRows | None] = (0, None)
         self._histogram: tuple[int, str, np.ndarray, np.ndarray] | None = None
-        self._counted: tuple | None = None
+        self._counted: tuple[int, np.ndarray, int, int] | None = None
 
     # -- the scene --------------------------------------------------------------------
-    def opened(self, scene: Scene) -> None:
-        """A new scene: no edits, the box and the sphere around its centres."""
+    def scene_shown(self, loaded: LoadedScene, grown: bool) -> Reply:
+        """A new scene: no edits, the box and the sphere around its centres. A streamed
+        SOG's finer level (``grown``): the rows added after those read start unedited."""
+        if grown and self.edits is not None:
+            self.edits = self.edits.grow(loaded.scene.count)
+            return NO_REPLY
+        scene = loaded.scene
         self.edits = Edits(scene.count)
-        self.drag, self._histogram, self._counted, self.exporter.confirm_replace = None, None, None, None
-        self.handles.drag, self.exporter.exported = None, None
+        self.drag, self.exporter.confirm_replace, self.handles.drag, self.exporter.exported = None, None, None, None
         positions = scene.positions.astype(np.float64)
         if scene.count:
             low, high = positions.min(axis=0), positions.max(axis=0)
@@ -84,38 +98,25 @@ class EditTool:
             low, high, centre, radius = np.zeros(3), np.zeros(3), np.zeros(3), 0.0
         self.box = Box(tuple(low.tolist()), tuple(high.tolist()))
         self.sphere = Sphere(tuple(centre.tolist()), radius)
-
-    def grown(self, scene: Scene) -> None:
-        """A streamed SOG's next level added rows after those read: they start unedited."""
-        if self.edits is not None and scene.count != self.edits.count:
-            old = self.edits
-            self.edits = Edits(scene.count)
-            self.edits.selected[: old.count], self.edits.deleted[: old.count] = old.selected, old.deleted
-            self.edits.operations = list(old.operations)
-            self._histogram = self._counted = None
-
-    @property
-    def scene(self) -> Scene:
-        return self.host.loaded.scene
+        return NO_REPLY
 
     @property
     def deleted(self) -> DeletedRows | None:
         """The deleted rows, as every sort of the window leaves them out (made once an edit)."""
         if self.edits is None:
             return None
-        generation, deleted = self._deleted_rows
+        generation, deleted = self._deleted
         if generation != self.edits.generation:
             deleted = DeletedRows.of(self.edits.deleted)
-            self._deleted_rows = (self.edits.generation, deleted)
+            self._deleted = (self.edits.generation, deleted)
         return deleted
 
     def _state(self) -> tuple[np.ndarray, int, int]:
         """(the selection shown, its count, the count deleted), made once an edit: the
         panel and the draw read them every frame."""
-        key = (id(self.edits), self.edits.generation)
-        if self._counted is None or self._counted[0] != key:
+        if self._counted is None or self._counted[0] != self.edits.generation:
             selection = self.edits.selection
-            self._counted = (key, selection, int(selection.sum()), int(self.edits.deleted.sum()))
+            self._counted = (self.edits.generation, selection, int(selection.sum()), int(self.edits.deleted.sum()))
         return self._counted[1:]
 
     def selection_count(self) -> int:
@@ -124,84 +125,102 @@ class EditTool:
     def deleted_count(self) -> int:
         return 0 if self.edits is None else self._state()[2]
 
-    def show_selection(self, renderer) -> None:
-        """The selection tinted in the next draw (uploaded when it changed)."""
-        if self.edits is not None:
-            renderer.set_selection(self._state()[0], self.edits.generation.to_bytes(8, "little") +
-                                   id(self.edits).to_bytes(8, "little"))
+    def unsaved(self) -> str | None:
+        """What another scene opened now, or the window closed, would lose (the deletions
+        not exported), or None."""
+        return self.exporter.unsaved(self.edits)
 
     # -- edits ------------------------------------------------------------------------
-    def apply(self, operation: Operation) -> bool:
-        """Applies ``operation``; says what it did on the message line."""
+    def apply(self, operation: Operation, scene: Scene) -> Message | None:
+        """Applies ``operation`` to ``scene``; says what it did."""
         if self.edits is None:
-            return False
+            return None
         try:
-            changed = self.edits.apply(self.scene, operation)
+            changed = self.edits.apply(scene, operation)
         except ValueError as exc:
-            self.host.panel.error = f"error: {operation.op}: {one_line(exc)}"
-            return False
-        self.host.panel.note(f"{operation.op}: {self.selection_count():,} selected, {self.deleted_count():,} deleted"
-                             if changed else f"{operation.op}: nothing changed")
-        return changed
+            return failed(exc, operation.op)
+        return note(f"{operation.op}: {self._counts()}" if changed else f"{operation.op}: nothing changed")
 
-    def select(self, shape, how: str | None = None) -> bool:
-        return self.apply(Operation("select", shape, how or self.how))
+    def select(self, shape, scene: Scene, how: How | None = None) -> Message | None:
+        return self.apply(Operation("select", shape, how or self.how), scene)
 
-    def undo(self) -> None:
+    def undo(self) -> Message | None:
         if self.edits is not None and self.edits.undo():
-            self.host.panel.note(f"undone: {self.selection_count():,} selected, {self.deleted_count():,} deleted")
+            return note(f"undone: {self._counts()}")
+        return None
 
-    def redo(self) -> None:
+    def redo(self) -> Message | None:
         if self.edits is not None and self.edits.redo():
-            self.host.panel.note(f"redone: {self.selection_count():,} selected, {self.deleted_count():,} deleted")
+            return note(f"redone: {self._counts()}")
+        return None
 
-    def histogram(self, attribute: str) -> tuple[np.ndarray, np.ndarray]:
-        """(BINS,) float32 counts of the gaussians not deleted, and the BINS + 1 edges (in
-        log10 for :data:`LOG_ATTRIBUTES`), made once an edit and attribute."""
+    def _counts(self) -> str:
+        return f"{self.selection_count():,} selected, {self.deleted_count():,} deleted"
+
+    def histogram(self, scene: Scene, attribute: str) -> tuple[np.ndarray, np.ndarray]:
+        """(BINS,) float32 counts of the gaussians of ``scene`` not deleted, and the BINS + 1
+        edges (in log10 for :data:`LOG_ATTRIBUTES`), made once an edit and attribute."""
         key = (self.edits.generation, attribute)
         if self._histogram is None or self._histogram[:2] != key:
-            values = self.axis_values(attribute)[self.edits.kept]
+            values = axis_values(scene, attribute)[~self.edits.deleted]
             values = values[np.isfinite(values)]
             low, high = (float(values.min()), float(values.max())) if values.size else (0.0, 1.0)
             counts, edges = np.histogram(values, BINS, (low, high if high > low else low + 1.0))
             self._histogram = (*key, counts.astype(np.float32), edges)
         return self._histogram[2], self._histogram[3]
 
-    def axis_values(self, attribute: str) -> np.ndarray:
-        values = attribute_values(self.scene, attribute)
-        if attribute in LOG_ATTRIBUTES:
-            with np.errstate(divide="ignore"):
-                return np.log10(values)
-        return values
-
-    def select_range(self, attribute: str, low: float, high: float, how: str | None = None) -> bool:
+    def select_range(self, scene: Scene, attribute: str, low: float, high: float, how: How | None = None
+                     ) -> Message | None:
         """Selects ``attribute`` in ``low``..``high`` on the histogram's axis (log10 for
         :data:`LOG_ATTRIBUTES`)."""
         low, high = min(low, high), max(low, high)
         if attribute in LOG_ATTRIBUTES:
             low, high = 10.0 ** low, 10.0 ** high
-        return self.select(Range(attribute, low, high), how)
+        return self.select(Range(attribute, low, high), scene, how)
 
-    def sidecar_entry(self) -> dict | None:
-        """What a screenshot's sidecar records of the edits: the edit document, where a
-        gaussian is deleted (a selection alone changes no screenshot); None otherwise."""
+    def sidecar_entry(self, loaded: LoadedScene) -> dict | None:
+        """What a screenshot's sidecar records of the edits of ``loaded``: the edit
+        document, where a gaussian is deleted (a selection alone changes no screenshot);
+        None otherwise."""
         if self.edits is None or not self.edits.edited:
             return None
-        return edit_document_json(self.document())
+        return edit_document_json(edit_document(loaded, self.edits))
 
-    def document(self) -> EditDocument:
-        loaded = self.host.loaded
-        return EditDocument(SceneSource(loaded.path).recorded_path, loaded.content_sha256, self.edits.count,
-                            tuple(self.edits.operations))
-
-    # -- input ------------------------------------------------------------------------
-    def take_mouse(self, frame) -> bool:
-        """Draws the tool's shape with the left button on ``frame``'s view; True while the
-        mouse is the tool's (the camera leaves the left button alone then)."""
+    # -- each frame -------------------------------------------------------------------
+    def act(self, shown: Shown, mouse_free: bool) -> Reply:
+        """A finished export said; the keys Delete, Ctrl+Z, Ctrl+Y and Ctrl+Shift+Z (while
+        the panel does not type); the left button's drag on the view, where the mouse is
+        free: a handle's, else the tool's shape."""
+        said = [self.exporter.poll()]
         io = imgui.get_io()
-        if self.edits is not None and self.drag is None and self.handles.take_mouse(frame):
-            return True
-        if self.tool == "off" or frame is None or frame.stereo is not None or self.edits is None:
+        if self.edits is None:
+            return Reply.of(*said)
+        scene = shown.scene.loaded.scene
+        if not io.want_capture_keyboard:
+            if imgui.is_key_pressed(imgui.Key.delete, False):
+                said.append(self.apply(Operation("delete"), scene))
+            if io.key_ctrl and imgui.is_key_pressed(imgui.Key.z, False):
+                said.append(self.redo() if io.key_shift else self.undo())
+            if io.key_ctrl and imgui.is_key_pressed(imgui.Key.y, False):
+                said.append(self.redo())
+        took = mouse_free and self.take_mouse(shown, said)
+        return Reply.of(*said, took_mouse=took)
+
+    def take_mouse(self, shown: Shown, said: list) -> bool:
+        """Draws the tool's shape with the left button on the last frame's view; True while
+        the mouse is the tool's (the camera leaves the left button alone then). What a
+        finished shape selected is said into ``said``."""
+        io = imgui.get_io()
+        frame = shown.frame
+        if self.drag is None:
+            took, moved = self.handles.take_mouse(frame, self.box, self.sphere)
+            if isinstance(moved, Box):
+                self.box = moved
+            elif moved is not None:
+                self.sphere = moved
+            if took:
+                return True
+        if self.tool == "off" or frame is None or frame.stereo is not None:
             self.drag = None
             return False
         x, y = io.mouse_pos.x, io.mouse_pos.y
@@ -219,21 +238,24 @@ class EditTool:
         if finite and (x, y) != self.drag[-1]:
             self.drag.append((x, y))
         points, self.drag = self.drag, None
+        said.append(self._select_drawn(points, frame, shown.scene))
+        return True
+
+    def _select_drawn(self, points: list[tuple[float, float]], frame: Frame, scene: SceneView) -> Message | None:
+        """Selects what the shape drawn through screen ``points`` holds: the centres it
+        covers, or what the view shows under it (the click: its pixel's top gaussian)."""
         shape = self.screen_shape(points, frame)
         if shape is not None and (self.tool == "click" or self.selects == "visible"):
             try:
-                shape = shown_rows(self.scene, self.host.scene.direct_sorter, frame, shape, self.deleted,
-                                   None if self.tool == "click" else self.min_weight)
+                shape = shown_rows(scene.loaded.scene, scene.sorter, frame, shape, deleted=self.deleted,
+                                   min_weight=None if self.tool == "click" else self.min_weight)
             except UserError as exc:
-                self.host.panel.error, shape = f"error: nothing selected: {one_line(exc)}", None
-            else:
-                if shape is None:
-                    self.host.panel.note("nothing selected: no gaussian shows at that pixel")
-        if shape is not None:
-            self.select(shape, self._drag_how)
-        return True
+                return failed(exc, "nothing selected")
+            if shape is None:
+                return note("nothing selected: no gaussian shows at that pixel")
+        return None if shape is None else self.select(shape, scene.loaded.scene, self._drag_how)
 
-    def screen_shape(self, points: list[tuple[float, float]], frame) -> ScreenShape | None:
+    def screen_shape(self, points: list[tuple[float, float]], frame: Frame) -> ScreenShape | None:
         """The shape drawn through screen ``points`` on ``frame``'s view, in its camera's
         pixels; None where the drag drew nothing (a lasso of fewer than three points)."""
         camera, (vx, vy, vw, vh) = frame.camera, frame.viewport
@@ -251,25 +273,14 @@ class EditTool:
             return ScreenShape("polygon", camera, pixels) if len(pixels) >= 3 else None
         return ScreenShape("brush", camera, pixels, self.brush_radius * sx * camera.width / vw)
 
-    def frame(self) -> None:
-        """Each frame: a finished export said, and the keys Delete, Ctrl+Z, Ctrl+Y and
-        Ctrl+Shift+Z (while the panel does not type)."""
-        self.exporter.poll()
-        io = imgui.get_io()
-        if io.want_capture_keyboard or self.edits is None:
-            return
-        if imgui.is_key_pressed(imgui.Key.delete, False):
-            self.apply(Operation("delete"))
-        if io.key_ctrl and imgui.is_key_pressed(imgui.Key.z, False):
-            self.redo() if io.key_shift else self.undo()
-        if io.key_ctrl and imgui.is_key_pressed(imgui.Key.y, False):
-            self.redo()
-
-    def draw_overlay(self, frame, radius: float) -> None:
-        """The box and the sphere where shown, and the shape being drawn, over the view."""
-        self.handles.draw(frame, radius)
+    def overlay(self, frame: Frame, scene: SceneView, pointing: Pointing) -> Reply:
+        """The box and the sphere where shown, and the shape being drawn, over the view;
+        the selection tinted in the draw to come."""
+        if self.edits is not None:
+            self.show_selection(scene.renderer)
+            self.handles.draw(frame, scene.radius, self.box, self.sphere)
         if not self.drag:
-            return
+            return NO_REPLY
         draw = imgui.get_foreground_draw_list()
         colour = imgui.get_color_u32((1.0, 0.85, 0.0, 1.0))
         points = [imgui.ImVec2(x, y) for x, y in self.drag]
@@ -280,9 +291,24 @@ class EditTool:
         else:
             for point in points:
                 draw.add_circle(point, self.brush_radius, colour, 0, 1.0)
+        return NO_REPLY
+
+    def show_selection(self, renderer: GLRenderer) -> None:
+        """The selection tinted in ``renderer``'s next draw (uploaded when it changed)."""
+        renderer.set_selection(self._state()[0], self.edits.generation.to_bytes(8, "little"))
 
 
-def modifier_how(io, default: str) -> str:
+def axis_values(scene: Scene, attribute: str) -> np.ndarray:
+    """(N,) float64: ``attribute`` of ``scene``'s gaussians on the histogram's axis
+    (log10 for :data:`LOG_ATTRIBUTES`)."""
+    values = attribute_values(scene, attribute)
+    if attribute in LOG_ATTRIBUTES:
+        with np.errstate(divide="ignore"):
+            return np.log10(values)
+    return values
+
+
+def modifier_how(io, default: How) -> How:
     """How a drag combines with the selection: Shift adds, Ctrl subtracts, both intersect."""
     if io.key_shift and io.key_ctrl:
         return "intersect"

@@ -1,22 +1,19 @@
 """One frame of the window as a value: what it draws and from where.
 
-``Viewer.frame`` makes one :class:`Frame` after the input has moved the camera and
-hands it to everything that works on the frame: the sort request
-(``drawing.request_sort``), the drawn order's age (``stats.FrameStats.order_to_draw``),
-the drawer (``drawing.SceneDrawer.draw``), the overlays; the viewer keeps the last one
-(``Viewer.shown``), which the picker, screenshots and the panel read. Nothing in it is
-derived twice: the eye cameras come from ``view_control.ViewControl.camera`` and are
-the ones the stereo frame draws; the sort request is made here from the rest.
-
-The channel views are the one input read after the panel has drawn (:meth:`Frame.with_views`),
-so that an edit of the view mode shows in the frame it is made in; everything else is
-read before it, so the panel's edits of the settings, the split view and the stereo
-preview show from the next frame on.
+``Viewer.frame`` makes one :class:`Frame`, once, after the input has moved the camera
+and the panel has returned what it changed (so every edit shows in the frame it is
+made in), and hands it to everything that works on the frame: the sort request
+(``drawing.request_sort``), the drawer (``drawing.SceneDrawer.draw``, whose report the
+statistics record with the drawn order's age), the overlays; the viewer keeps the last
+one (``Viewer.shown``), which picks, the next frame's input and panel, and screenshots
+read. Nothing in it is derived twice: the eye cameras come from
+``view_control.ViewControl.camera`` and are the ones the stereo frame draws; the sort
+request is made here from the rest.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import NamedTuple
 
 from raygs_viewer.camera.pinhole import Camera
@@ -77,14 +74,15 @@ class Frame:
     right_view: ChannelView | None = None
 
     @classmethod
-    def make(cls, index: int, framing: Framing, stereo: StereoView | None, settings: RenderSettings,
-             right: RenderSettings | None, lod: LodRequest | None, deleted: DeletedRows | None = None) -> Frame:
-        """The frame of ``framing`` with these settings, and the one sort that serves it
-        (``render.sorting.sort_request``: culled for both eyes in stereo, without the
-        ``deleted`` rows, the deleted ones)."""
+    def make(cls, index: int, framing: Framing, *, stereo: StereoView | None, settings: RenderSettings,
+             right: RenderSettings | None, lod: LodRequest | None, deleted: DeletedRows | None = None,
+             views: tuple[ChannelView | None, ChannelView | None] = (None, None)) -> Frame:
+        """The frame of ``framing`` with these settings and (left, right) channel views,
+        and the one sort that serves it (``render.sorting.sort_request``: culled for both
+        eyes in stereo, without the ``deleted`` rows)."""
         camera, viewport, eyes = framing
         return cls(index, camera, viewport, eyes, stereo, settings, right, lod,
-                   sort_request(camera, settings, right, cull_cameras=eyes, levels=lod, deleted=deleted))
+                   sort_request(camera, settings, right, cull_cameras=eyes, levels=lod, deleted=deleted), *views)
 
     @property
     def full_camera(self) -> Camera:
@@ -97,7 +95,3 @@ class Frame:
     def split(self) -> bool:
         """Whether the split view is shown."""
         return self.right is not None
-
-    def with_views(self, view: ChannelView | None, right_view: ChannelView | None) -> Frame:
-        """This frame showing these channel views (``state.ViewMode.side_views``)."""
-        return replace(self, view=view, right_view=right_view)

@@ -3,10 +3,10 @@ split view's divider drag, and clicks and double-clicks on the view (picking a p
 
 A click is a left press and release with the mouse moved at most CLICK_SLOP screen
 units between them (a drag turns the camera instead); a double-click is imgui's (two
-presses within its io.mouse_double_click_time). Both go to the "click" and
-"double_click" actions with the screen position. :meth:`InputHandler.inject` queues a
-double-click directly, through the same handling, for what cannot wait on real time
-(tests, scripts).
+presses within its io.mouse_double_click_time). Shortcuts and clicks come back as
+requests (``part.Press``, ``part.Click``) for the window to carry out.
+:meth:`InputHandler.inject` queues a double-click directly, through the same handling,
+for what cannot wait on real time (tests, scripts).
 
 imgui has already decided whether the panel wants the keyboard or the mouse; what it
 wants is left alone. Positions are in screen coordinates (imgui's), the viewport in
@@ -16,12 +16,13 @@ framebuffer pixels: ``io.display_framebuffer_scale`` converts.
 from __future__ import annotations
 
 import math
-from typing import Callable, Mapping
+from typing import get_args
 
 from imgui_bundle import imgui
 
 from raygs_viewer.camera.navigation import Navigator
 from raygs_viewer.camera.pinhole import Camera
+from raygs_viewer.viewer.part import Click, Press, Request, Shortcut
 from raygs_viewer.viewer.state import SplitView
 
 #: The divider's position, as a fraction of the viewport's width, stays in this range.
@@ -32,8 +33,8 @@ SPLIT_GRAB = 6.0
 CLICK_SLOP = 3.0
 
 Key = imgui.Key
-#: The shortcuts, in the order they are handled: action name -> the keys that trigger it.
-SHORTCUTS: dict[str, tuple] = {
+#: The shortcuts, in the order they are handled: each request -> the keys that make it.
+SHORTCUTS: dict[Shortcut, tuple] = {
     "quit": (Key.escape,),
     "screenshot": (Key.f12,),
     "add_keyframe": (Key.k,),
@@ -49,15 +50,14 @@ SHORTCUTS: dict[str, tuple] = {
 LETTERS = frozenset(getattr(Key, letter) for letter in "abcdefghijklmnopqrstuvwxyz")
 
 
-class InputHandler:
-    """``actions`` maps each SHORTCUTS name to what it does; ``on_click(x, y)`` and
-    ``on_double_click(x, y)`` take clicks on the view (screen coordinates)."""
+assert set(SHORTCUTS) == set(get_args(Shortcut))
 
-    def __init__(self, actions: Mapping[str, Callable[[], None]],
-                 on_click: Callable[[float, float], None] = lambda x, y: None,
-                 on_double_click: Callable[[float, float], None] = lambda x, y: None):
-        self.actions = dict(actions)
-        self.on_click, self.on_double_click = on_click, on_double_click
+
+class InputHandler:
+    """The keys and the mouse of the view, each frame: they move the camera, drag the
+    split view's divider, and come back as requests (shortcuts, clicks)."""
+
+    def __init__(self) -> None:
         self.dragging_divider = False   # the left button holds the split view's divider
         self._press: tuple[float, float] | None = None   # where the left button went down on the view
         self._injected: list[tuple[float, float]] = []
@@ -67,29 +67,30 @@ class InputHandler:
         one is (unless the panel has the mouse there)."""
         self._injected.append((float(x), float(y)))
 
-    def handle(self, dt: float, navigator: Navigator, camera: Camera | None,
-               viewport: tuple[int, int, int, int], split: SplitView | None, mouse_taken: bool = False) -> None:
-        """One frame's input. ``camera`` and ``viewport``: the last frame's view;
+    def handle(self, dt: float, navigator: Navigator, *, camera: Camera | None, viewport: tuple[int, int, int, int],
+               split: SplitView | None, mouse_taken: bool = False) -> list[Request]:
+        """One frame's input: moves ``navigator``; returns the shortcuts pressed and the
+        clicks on the view, in order. ``camera`` and ``viewport``: the last frame's view;
         ``split``: the split view while it is shown (its divider can be dragged);
         ``mouse_taken``: an edit tool draws with the mouse this frame (keys only)."""
         io = imgui.get_io()
+        requests: list[Request] = []
         if not io.want_capture_keyboard and not self._panel_clicked(io):
             # Letters act on the view only while the pointer is not over the panel: a
             # person typing a path has the pointer there, and a field that lost the keys
             # (Enter, a click beside it) must not turn the next letters into shortcuts.
-            self._keys(io, dt, navigator, letters=not io.want_capture_mouse)
+            requests += self._keys(io, dt, navigator, letters=not io.want_capture_mouse)
         injected, self._injected = self._injected, []
         if mouse_taken:
             self._press = None
-            return
-        if self._divider(io, viewport, split):
-            self._press = None
-            return  # the mouse drags the split view's divider, not the camera
-        if not io.want_capture_mouse:
-            self._clicks(io, injected)
+        elif self._divider(io, viewport, split):
+            self._press = None  # the mouse drags the split view's divider, not the camera
+        elif not io.want_capture_mouse:
+            requests += self._clicks(io, injected)
             self._mouse(io, navigator, camera, viewport)
         else:
             self._press = None
+        return requests
 
     @staticmethod
     def _panel_clicked(io) -> bool:
@@ -99,30 +100,30 @@ class InputHandler:
         field's, not shortcuts."""
         return io.want_capture_mouse and any(imgui.is_mouse_clicked(b) for b in range(3))
 
-    def _clicks(self, io, injected: list[tuple[float, float]]) -> None:
+    def _clicks(self, io, injected: list[tuple[float, float]]) -> list[Click]:
         x, y = io.mouse_pos.x, io.mouse_pos.y
         if not (math.isfinite(x) and math.isfinite(y)):
             self._press = None
-            return
+            return []
+        clicks = []
         if imgui.is_mouse_clicked(0):
             self._press = (x, y)
         elif self._press is not None and imgui.is_mouse_released(0):
             press, self._press = self._press, None
             if abs(x - press[0]) <= CLICK_SLOP and abs(y - press[1]) <= CLICK_SLOP:
-                self.on_click(x, y)
+                clicks.append(Click(x, y))
         if imgui.is_mouse_double_clicked(0):
             injected.append((x, y))
-        for position in injected:
-            self.on_double_click(*position)
+        return clicks + [Click(*position, double=True) for position in injected]
 
-    def _keys(self, io, dt: float, navigator: Navigator, letters: bool = True) -> None:
-        """The shortcuts and the movement keys; with ``letters`` False only the keys that
-        type no text (F12, Escape, Tab, Page Up/Down, Home, F1)."""
-        for action, keys in SHORTCUTS.items():
-            if any(imgui.is_key_pressed(k, False) for k in keys if letters or k not in LETTERS):
-                self.actions[action]()
+    def _keys(self, io, dt: float, navigator: Navigator, letters: bool = True) -> list[Press]:
+        """The shortcuts pressed, and the movement keys; with ``letters`` False only the
+        keys that type no text (F12, Escape, Tab, Page Up/Down, Home, F1)."""
+        pressed = [Press(shortcut) for shortcut, keys in SHORTCUTS.items()
+                   if any(imgui.is_key_pressed(k, False) for k in keys if letters or k not in LETTERS)]
         if not letters:
-            return
+            return pressed
+
         def down(k) -> float:
             return 1.0 if imgui.is_key_down(k) else 0.0
         right = down(Key.d) - down(Key.a)
@@ -130,6 +131,7 @@ class InputHandler:
         forward = down(Key.w) - down(Key.s)
         if right or upward or forward:
             navigator.move(dt, right, upward, forward, fast=io.key_shift, slow=io.key_ctrl)
+        return pressed
 
     @staticmethod
     def _mouse(io, navigator: Navigator, camera: Camera | None, viewport: tuple[int, int, int, int]) -> None:

@@ -32,7 +32,7 @@ from typing import Callable, Protocol
 import moderngl
 import numpy as np
 
-from raygs_viewer.errors import UserError, one_line
+from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.memory import scene_fits
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.loader import LoadedScene
@@ -42,7 +42,6 @@ from raygs_viewer.scene.model import Scene
 from raygs_viewer.scene.sh import C0
 from raygs_viewer.sort.lod_choice import LodChoice, LodRequest
 from raygs_viewer.sort.request import SortResult
-from raygs_viewer.viewer.state import PanelState
 
 #: The window's budget of gaussians when the command line gives none (``render`` has no
 #: limit): the cull and sort of 4,000,000 took 66-72 ms on 16 cores in docs/lod.md, so
@@ -171,16 +170,10 @@ def lod_request(loaded: LoadedScene, settings: RenderSettings) -> LodRequest | N
     return LodRequest(lod, settings.lod, settings.lod_budget, settings.lod_distance)
 
 
-def window_fits(ctx: moderngl.Context, panel: PanelState) -> Callable[[], Fits | None]:
-    """What says whether a scene fits this window's GPU (``render.gl.memory.scene_fits``):
-    None (no limit) when ``RAYGS_GPU_MEMORY`` is not a size, which ``panel`` says."""
-    def fits() -> Fits | None:
-        try:
-            return scene_fits(ctx)[0]
-        except UserError as exc:
-            panel.error = f"error: {one_line(exc)}"
-            return None
-    return fits
+def window_fits(ctx: moderngl.Context) -> Callable[[], Fits | None]:
+    """What says whether a scene fits this window's GPU (``render.gl.memory.scene_fits``);
+    a UserError where ``RAYGS_GPU_MEMORY`` is not a size."""
+    return lambda: scene_fits(ctx)[0]
 
 
 class WindowLod:

@@ -14,8 +14,6 @@ not wrapped through infinity) and cut to the view.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Protocol
-
 import numpy as np
 from imgui_bundle import imgui
 
@@ -30,23 +28,18 @@ from raygs_viewer.capture.measure_file import (
     measure_scene_mismatch,
     save_measure_document,
 )
-from raygs_viewer.errors import UserError, one_line
+from raygs_viewer.errors import UserError
 from raygs_viewer.scene.loader import LoadedScene
 from raygs_viewer.viewer.frame import Frame
 from raygs_viewer.viewer.path_overlay import project_points, screen_segments, viewport_rect
 from raygs_viewer.viewer.path_widget import OVERLAY_NEAR, scene_argument
+from raygs_viewer.viewer.part import NO_REPLY, Part, Pointing, Reply, SceneView
 from raygs_viewer.viewer.picking import Picked
-from raygs_viewer.viewer.state import PanelState
+from raygs_viewer.viewer.state import Message, done, failed, note, saved
 
 LINE_COLOUR = (255, 120, 40, 240)
 POINT_COLOUR = (255, 230, 60, 255)
 LABEL_BACKGROUND = (0, 0, 0, 170)
-
-
-class MeasureHost(Protocol):
-    """The window as the measure tool sees it: the scene (replaced when one loads)."""
-
-    loaded: LoadedScene
 
 
 @dataclass(frozen=True)
@@ -65,15 +58,14 @@ def format_distance(distance: float, scale: MeasureScale | None) -> str:
     return f"{value:.4g} {unit}"
 
 
-class MeasureWidget:
+class MeasureWidget(Part):
     """``on``: clicks on the view measure; ``measurements``, the ``selected`` one (None:
     none) and ``pending``: the first point of the next one. ``scale``: None shows scene
     units. The panel's fields: ``known_length`` and ``unit`` (what Set scale makes the
     selected measurement), ``file`` and ``overwrite`` (Save may replace it). ``drawn``:
-    the overlay as drawn last frame."""
+    the overlay as drawn last frame. Each action returns what the panel says of it."""
 
-    def __init__(self, panel: PanelState, host: MeasureHost):
-        self.panel, self.host = panel, host
+    def __init__(self) -> None:
         self.on = False
         self.measurements: list[Measurement] = []
         self.selected: int | None = None
@@ -86,21 +78,20 @@ class MeasureWidget:
         self.drawn = DrawnMeasure()
 
     # -- points and measurements ------------------------------------------------------------
-    def add_point(self, picked: Picked) -> None:
+    def add_point(self, picked: Picked) -> Message | None:
         """The first point of a measurement, or its second (which closes it and selects
         it). A second point equal to the first is ignored: the two clicks of a
         double-click are one point, not a measurement of length 0."""
         first = self.pending
         if first is None:
             self.pending = picked
-            self.panel.message = "first point picked: click the second"
-            return
+            return note("first point picked: click the second")
         if np.array_equal(first.point, picked.point):
-            return
+            return None
         self.pending = None
         self.measurements.append(Measurement(first.point, picked.point))
         self.selected = len(self.measurements) - 1
-        self.panel.message = f"measurement {self.selected}: {self.describe(self.selected)}"
+        return note(f"measurement {self.selected}: {self.describe(self.selected)}")
 
     def describe(self, index: int) -> str:
         return format_distance(self.measurements[index].distance, self.scale)
@@ -122,15 +113,14 @@ class MeasureWidget:
             self.scale = MeasureScale(self.scale.factor, self.scale.unit)
 
     # -- the scale ---------------------------------------------------------------------
-    def set_scale(self, index: int) -> None:
+    def set_scale(self, index: int) -> Message:
         """Measurement ``index`` is ``known_length`` ``unit``s long: every distance is
         shown converted from now on."""
         try:
             self.scale = MeasureScale.from_length(self.measurements[index], float(self.known_length), self.unit, index)
         except UserError as exc:
-            self.panel.error = f"error: scale not set: {one_line(exc)}"
-            return
-        self.panel.message, self.panel.error = f"scale: 1 scene unit = {self.scale.factor:.6g} {self.scale.unit}", ""
+            return failed(exc, "scale not set")
+        return done(f"scale: 1 scene unit = {self.scale.factor:.6g} {self.scale.unit}")
 
     def set_unit(self, unit: str) -> None:
         """The unit text; a scale already set keeps its factor and takes the new name."""
@@ -145,39 +135,36 @@ class MeasureWidget:
         self.scale = None
 
     # -- files -------------------------------------------------------------------------
-    def document(self) -> MeasureDocument:
-        loaded = self.host.loaded
+    def document(self, loaded: LoadedScene) -> MeasureDocument:
+        """The measurements of the scene ``loaded``, as a file records them."""
         return MeasureDocument(tuple(self.measurements), self.scale, scene_argument(loaded), loaded.content_sha256)
 
-    def save(self) -> None:
-        self.panel.saved("measurements", lambda: save_measure_document(self.document(), self.file, self.overwrite))
+    def save(self, loaded: LoadedScene) -> Message:
+        return saved("measurements", lambda: save_measure_document(self.document(loaded), self.file, self.overwrite))
 
-    def load(self) -> None:
+    def load(self, loaded: LoadedScene) -> Message:
         """The file's measurements and scale replace these; a file measured on another
-        scene loads with a warning."""
+        scene than ``loaded`` loads with a warning."""
         try:
             document = load_measure_document(self.file)
         except UserError as exc:
-            self.panel.error = f"error: measurements not loaded: {one_line(exc)}"
-            return
+            return failed(exc, "measurements not loaded")
         self.measurements, self.scale, self.pending = list(document.measurements), document.scale, None
         self.selected = None
         if self.scale is not None:
             self.unit = self.scale.unit
-        loaded = self.host.loaded
         warning = measure_scene_mismatch(document, scene_argument(loaded), loaded.content_sha256)
-        self.panel.message = "; ".join(filter(None, [f"loaded {self.file}: {len(self.measurements)} measurements",
-                                                     warning]))
-        self.panel.error = ""
+        return done("; ".join(filter(None, [f"loaded {self.file}: {len(self.measurements)} measurements", warning])))
 
     # -- the overlay -------------------------------------------------------------------
-    def draw_overlay(self, frame: Frame, radius: float) -> None:
+    def overlay(self, frame: Frame, scene: SceneView, pointing: Pointing) -> Reply:
         """The measurements over ``frame``'s view, each labelled with its distance; not in
         the stereo preview, whose image shows two eyes rather than the frame's camera's view."""
         if frame.stereo is not None or not (self.measurements or self.pending):
             self.drawn = DrawnMeasure()
-            return
-        self.drawn = draw_measure_overlay(self, frame.camera, frame.viewport, OVERLAY_NEAR * radius)
+        else:
+            self.drawn = draw_measure_overlay(self, frame.camera, frame.viewport, OVERLAY_NEAR * scene.radius)
+        return NO_REPLY
 
 
 def draw_measure_overlay(widget: MeasureWidget, camera: Camera, viewport: tuple[int, int, int, int],

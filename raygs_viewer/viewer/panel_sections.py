@@ -1,14 +1,19 @@
 """What each panel section is handed: the part of the window's state it shows and edits.
 
-The wiring lives here, apart from the frame loop (``app.Viewer``): each section is a
-closure over the viewer, read when the panel draws it, so an edit shows in the
-sections below it at once.
+The window's one composition of the panel: which section shows which part, in which
+order. Each section is a closure, read when the panel draws it, over the parts and the
+state of the window it is handed (never stored); it returns what it said and asked for
+(``part.Reply``). The render settings are edited through a :class:`Draft`, so an edit
+shows in the sections below it at once and the frame made after the panel takes them
+whole.
 """
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Callable
 
+from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.viewer.feedback import draw_history
 from raygs_viewer.viewer.panel.edit import draw_edit_section
 from raygs_viewer.viewer.panel.geometry import draw_geometry_section
@@ -23,40 +28,55 @@ from raygs_viewer.viewer.panel.statistics import draw_statistics
 from raygs_viewer.viewer.panel.stereo import draw_stereo_section
 from raygs_viewer.viewer.panel.training import draw_training_section
 from raygs_viewer.viewer.panel.view import draw_view_section
+from raygs_viewer.viewer.part import Reply
 
 
-def panel_sections(viewer) -> list[Callable[[], None]]:
+@dataclass
+class Draft:
+    """The render settings as the panel edits them, section by section."""
+
+    settings: RenderSettings
+
+    def set(self, settings: RenderSettings) -> None:
+        self.settings = settings
+
+
+def said(draw: Callable[[], object]) -> Callable[[], Reply]:
+    """A section that says nothing, as one that returns a Reply."""
+    def section() -> Reply:
+        draw()
+        return Reply()
+    return section
+
+
+def panel_sections(viewer, draft: Draft) -> list[Callable[[], Reply]]:
     """Each section of the panel of ``viewer`` (the window: ``app.Viewer``, which calls
-    this and is not imported here), in order, with the state it edits."""
+    this and is not imported here), in order, with the state it edits; the render
+    settings through ``draft``."""
     v = viewer
-    loaded, renderer, view, stats = v.loaded, v.scene.renderer, v.view, v.stats
-    shown = v.shown
-
-    def set_tint(on: bool) -> None:  # colour by level, the Level of detail section's
-        if problem := v.scene.set_tint(on, loaded.lod):
-            v.panel.error = f"error: colour by level: {problem}"
-
-    split_shown = v.split.on and v.shown_stereo is None
+    loaded, renderer, view, stats, shown = v.loaded, v.scene.renderer, v.view, v.stats, v.shown
+    split_shown = v.split.on and (shown is None or shown.stereo is None)
+    path_scene = v.path_scene()
     return [
-        lambda: draw_statistics(stats, loaded.scene.count, v.scene.sorter, renderer.counters, renderer.general,
-                                v.scene.sort, v.auto.lines(loaded.scene.count)),
-        lambda: draw_scene_section(loaded, v.panel, v.scenes.open, v.scenes.loader,
-                                   lambda axes: v.scenes.switch_axes(loaded, axes), v.file_dialog),
-        lambda: draw_lod_section(v.scene.lod, loaded, v.scenes.loader, v.settings, v.set_settings, set_tint, stats),
-        lambda: draw_render_section(v.settings, v.set_settings, loaded.scene.sh_degree, renderer.supports,
-                                    v.window, v.stereo, v.split, v.panel.note),
-        lambda: draw_order_section(v.settings, v.set_settings, stats, v.right_settings() is not None),
-        lambda: draw_stereo_section(v.stereo, stats, shown),
-        lambda: draw_view_section(view, v.reset_view),
-        lambda: draw_training_section(loaded, view.training_index, view.select_training_camera,
-                                      view.step_training_camera, v.photo, v.frustums),
+        said(lambda: draw_statistics(stats, loaded.scene.count, v.scene.sorter, work=renderer.counters,
+                                     general=renderer.general, sort=v.scene.sort,
+                                     measured=v.auto.lines(loaded.scene.count))),
+        lambda: draw_scene_section(loaded, v.panel, v.scenes.loader, v.file_dialog),
+        lambda: draw_lod_section(v.scene.lod, loaded, v.scenes.loader, draft.settings, set_settings=draft.set,
+                                 stats=stats),
+        lambda: draw_render_section(draft.settings, draft.set, scene_sh_degree=loaded.scene.sh_degree,
+                                    supports=renderer.supports, window=v.window, stereo=v.stereo, split=v.split),
+        said(lambda: draw_order_section(draft.settings, draft.set, stats, v.split.on and not v.stereo.on)),
+        said(lambda: draw_stereo_section(v.stereo, stats, shown)),
+        lambda: draw_view_section(view),
+        lambda: draw_training_section(loaded, view.training_index, v.photo, v.frustums),
         lambda: draw_screenshot_section(v.captures.options, shown and shown.full_camera,
-                                        v.shown_stereo is not None,
-                                        v.stereo.save_eyes, split_shown, v.captures.request),
-        lambda: draw_geometry_section(v.view_mode, v.drawer.view_range, v.picker.last, v.measure.scale, v.stereo,
-                                      split_shown),
-        lambda: draw_path_section(v.camera_path),
-        lambda: draw_measure_section(v.measure),
-        lambda: draw_edit_section(v.edit_tool),
-        lambda: draw_history(v.feedback),
+                                        stereo_shown=shown is not None and shown.stereo is not None,
+                                        save_eyes=v.stereo.save_eyes, split_shown=split_shown),
+        said(lambda: draw_geometry_section(v.view_mode, v.drawer.view_range, picked=v.picker.last,
+                                           scale=v.measure.scale, stereo=v.stereo, split=split_shown)),
+        lambda: draw_path_section(v.camera_path, path_scene),
+        lambda: draw_measure_section(v.measure, loaded),
+        lambda: draw_edit_section(v.edit_tool, loaded),
+        said(lambda: draw_history(v.feedback)),
     ]

@@ -12,18 +12,19 @@ The widget owns three collaborators: its playback
 (:class:`~raygs_viewer.viewer.path_playback.Playback`), the overlay drawn over the view
 (:mod:`raygs_viewer.viewer.path_overlay`) and Render video
 (:class:`~raygs_viewer.viewer.video_job.VideoRender`). What only the window knows (the
-view, the scene, the render settings) it reads from its :class:`PathHost`.
+view, the scene, the render settings) it is handed with each action (:class:`PathScene`),
+and it returns what the panel says of it.
 """
 
 from __future__ import annotations
 
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Callable, Protocol, Sequence
+from typing import Callable, Sequence
 
 import numpy as np
 
-from raygs_viewer.camera.navigation import framing_distance
+from raygs_viewer.camera.navigation import framing_distance, scene_bounds
 from raygs_viewer.camera.path import (
     FOV_RANGE,
     FPS_RANGE,
@@ -41,13 +42,14 @@ from raygs_viewer.capture.path_file import (
     save_path_document,
     scene_mismatch,
 )
-from raygs_viewer.errors import UserError, checked_number, one_line
+from raygs_viewer.errors import UserError, checked_number
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.loader import LoadedScene
 from raygs_viewer.viewer.frame import NO_VIEWPORT, Frame
 from raygs_viewer.viewer.path_overlay import DrawnPath, draw_path_overlay
 from raygs_viewer.viewer.path_playback import MAX_PLAY_DT, Playback
-from raygs_viewer.viewer.state import PanelState
+from raygs_viewer.viewer.part import NO_REPLY, Part, Pointing, Reply, SceneView, Shown
+from raygs_viewer.viewer.state import Message, done, failed, mended, saved
 from raygs_viewer.viewer.video_job import VideoRender
 from raygs_viewer.viewer.view_control import ViewControl
 
@@ -59,33 +61,28 @@ FRUSTUM_SIZE = 0.05
 OVERLAY_NEAR = 1e-3
 
 
-class EditsRecord(Protocol):
-    """The edit tool as the path sees it: its edit document's JSON where a gaussian is
-    deleted, None otherwise (``edit_tool.EditTool.sidecar_entry``)."""
-
-    def sidecar_entry(self) -> dict | None: ...
-
-
-class PathHost(Protocol):
-    """The window as the path widget sees it (the viewer): the camera's controls and the
-    scene, both replaced when a scene loads, the render settings (the left side's), the
-    last frame (None before the first), read at each action, and the scene's edits."""
+@dataclass(frozen=True, eq=False)
+class PathScene:
+    """What the path widget is handed for an action: the view's controls (their pose,
+    field of view and up axis), the scene as read, the render settings (the left
+    side's), the last frame (None before the first) and the edit document's JSON where
+    a gaussian is deleted (None: nothing deleted; ``edit_tool.EditTool.sidecar_entry``)."""
 
     view: ViewControl
     loaded: LoadedScene
     settings: RenderSettings
     shown: Frame | None
-    edit_tool: EditsRecord
+    edits: dict | None = None
 
 
-class PathWidget:
+class PathWidget(Part):
     """``path`` and the keyframe ``selected`` (None: none); the panel's fields: ``show``
     (draw the path over the view), ``file`` (the path's file) and ``overwrite`` (Save may
     replace it), ``dolly_distance`` (scene units); ``playback``; ``video`` (Render
-    video's folder, size and job); ``drawn``: the overlay as drawn last frame (tests)."""
+    video's folder, size and job); ``drawn``: the overlay as drawn last frame (tests).
+    Each action returns what the panel says of it (None: nothing)."""
 
-    def __init__(self, panel: PanelState, host: PathHost):
-        self.panel, self.host = panel, host
+    def __init__(self) -> None:
         self.path = CameraPath()
         self.selected: int | None = None
         self.show = True
@@ -97,64 +94,70 @@ class PathWidget:
         self.drawn = DrawnPath()
 
     # -- each frame --------------------------------------------------------------------
-    def frame(self, dt: float | None, frame_time: float) -> None:
-        """Plays the path (after the user's input, before the frame's camera is made) and
-        takes the video's news. ``dt``: the viewer's fixed frame time, if any; else the
-        last frame's real time moves playback on (up to MAX_PLAY_DT: a stall skips ahead
-        at most that far), not the navigator's dt, which is clamped to keep key moves small."""
-        self.playback.follow(self.path, self.host.view, dt if dt is not None else min(frame_time, MAX_PLAY_DT))
-        result = self.video.poll()
-        if result is not None and result.kind == "error":
-            self.panel.error = result.message
-        elif result is not None:
-            self.panel.message, self.panel.error = result.message, ""
+    def scene_shown(self, loaded: LoadedScene, grown: bool) -> Reply:
+        """A scene opened: Dolly moves by its radius until the field says otherwise."""
+        if not grown:
+            self.dolly_distance = float(scene_bounds(loaded.framed)[1])
+        return NO_REPLY
 
-    def draw_overlay(self, frame: Frame, radius: float) -> None:
+    def act(self, shown: Shown, mouse_free: bool) -> Reply:
+        """The video's news."""
+        result = self.video.poll()
+        if result is None:
+            return NO_REPLY
+        return Reply.of(Message("error", result.message) if result.kind == "error" else done(result.message))
+
+    def follow(self, view: ViewControl, frame_time: float) -> None:
+        """Plays the path (after the user's input has moved ``view``, before the frame's
+        camera is made): the last frame's time moves playback on, up to MAX_PLAY_DT (a
+        stall skips ahead at most that far), not the navigator's step, which is clamped
+        to keep key moves small."""
+        self.playback.follow(self.path, view, min(frame_time, MAX_PLAY_DT))
+
+    def overlay(self, frame: Frame, scene: SceneView, pointing: Pointing) -> Reply:
         """The path over ``frame``'s view, when shown; not in the stereo preview, whose
         image shows two eyes rather than the frame's camera's view."""
+        radius = scene.radius
         self.drawn = DrawnPath() if not self.show or frame.stereo is not None else draw_path_overlay(
             self.path, frame.camera, frame.viewport, self.selected, FRUSTUM_SIZE * radius, OVERLAY_NEAR * radius)
+        return NO_REPLY
 
-    def document(self) -> PathDocument:
+    def document(self, at: PathScene) -> PathDocument:
         """The path with what renders it as the window shows it: the view's size (in
         stereo, the headset's per eye), the render settings (the left side's), the
         stereo view when the preview is on, the scene and its edits (what is deleted)."""
-        frame, loaded = self.host.shown, self.host.loaded
+        frame, loaded = at.shown, at.loaded
         width, height = NO_VIEWPORT[2:] if frame is None else (frame.full_camera.width, frame.full_camera.height)
-        return PathDocument(self.path, width, height, self.host.settings, None if frame is None else frame.stereo,
+        return PathDocument(self.path, width, height, at.settings, None if frame is None else frame.stereo,
                             scene_argument(loaded), loaded.content_sha256,
                             scene_axes=loaded.scene.axes,  # a .spz's: render-path reads it in the same axes
-                            edits=self.host.edit_tool.sidecar_entry())
-
-    def view_aspect(self) -> float:
-        """The viewport's width / height."""
-        _, _, width, height = NO_VIEWPORT if self.host.shown is None else self.host.shown.viewport
-        return width / height
+                            edits=at.edits)
 
     # -- the one way an edit happens ----------------------------------------------------
-    def edit(self, change: Callable[[CameraPath], CameraPath], select: int | None = -1) -> bool:
+    def edit(self, change: Callable[[CameraPath], CameraPath], select: int | None = -1) -> Message:
         """Replaces the path by ``change(path)``; ``select``: the keyframe to select
-        afterwards (-1: keep the selection, kept within the path). False, and the error
-        in the panel, when the change is refused."""
+        afterwards (-1: keep the selection, kept within the path). A change the path
+        refuses leaves it as it was, and its error stands in the panel until an edit
+        succeeds."""
         try:
             path = change(self.path)
         except (UserError, ValueError) as exc:
-            self.panel.stand("path", f"error: {one_line(exc)}")
-            return False
-        self.panel.mend("path")
+            return failed(exc, source="path")
         self.path = path
         count = len(path.keyframes)
         chosen = self.selected if select == -1 else select
         self.selected = None if chosen is None or count == 0 else min(max(chosen, 0), count - 1)
-        return True
+        return mended("path")
 
     # -- keyframes ----------------------------------------------------------------------
     def select(self, index: int | None) -> None:
         self.selected = index
 
-    def add(self, keyframes: Sequence[Keyframe], up: np.ndarray | None = None) -> bool:
+    def add(self, keyframes: Sequence[Keyframe], up: np.ndarray | None = None) -> Message | None:
         """Inserts ``keyframes`` after the selected keyframe (or at the end) and selects
         the last of them; ``up``: the world's up axis the path keeps from now on."""
+        if not keyframes:
+            return None
         index = len(self.path.keyframes) if self.selected is None else self.selected + 1
 
         def change(path: CameraPath) -> CameraPath:
@@ -163,23 +166,19 @@ class PathWidget:
             if up is not None:
                 path = replace(path, interpolation=replace(path.interpolation, up=tuple(float(u) for u in up)))
             return path
-        return bool(keyframes) and self.edit(change, select=index + len(keyframes) - 1)
+        return self.edit(change, select=index + len(keyframes) - 1)
 
-    def add_view(self) -> None:
+    def add_view(self, view: ViewControl) -> Message | None:
         """The current view as a keyframe, after the selected one (or at the end)."""
-        view = self.host.view
-        self.add([current_keyframe(view)], view.navigator.up_vector)
+        return self.add([current_keyframe(view)], view.navigator.up_vector)
 
-    @property
-    def has_training_cameras(self) -> bool:
-        return bool(self.host.loaded.cameras)
-
-    def add_training_cameras(self) -> None:
+    def add_training_cameras(self, view: ViewControl, loaded: LoadedScene) -> Message | None:
         """Every training camera, in order, after the selected keyframe (or at the end)."""
-        if self.has_training_cameras:
-            self.add(list(path_through_cameras(self.host.loaded.cameras).keyframes), self.host.view.navigator.up_vector)
+        if not loaded.cameras:
+            return None
+        return self.add(list(path_through_cameras(loaded.cameras).keyframes), view.navigator.up_vector)
 
-    def delete(self, index: int) -> bool:
+    def delete(self, index: int) -> Message:
         """Deletes keyframe ``index``; the selection stays on the same keyframe, or on
         the one that takes the deleted one's place."""
         selected = self.selected
@@ -187,46 +186,47 @@ class PathWidget:
             selected -= 1
         return self.edit(lambda path: path.without_keyframe(index), select=selected)
 
-    def move(self, index: int, step: int) -> bool:
+    def move(self, index: int, step: int) -> Message | None:
         """Moves keyframe ``index`` ``step`` places later (negative: earlier) in the
         flight order; it stays selected."""
         to = index + step
         if not 0 <= to < len(self.path.keyframes):
-            return False
+            return None
         return self.edit(lambda path: path.moved(index, to), select=to)
 
-    def set_time(self, index: int, time: float | None) -> bool:
+    def set_time(self, index: int, time: float | None) -> Message:
         """Keyframe ``index`` at ``time`` seconds, or placed by the pacing (None)."""
         def change(path: CameraPath) -> CameraPath:
             value = None if time is None else checked_number(time, 0.0, MAX_DURATION, "a keyframe's time (s)")
             return path.with_keyframe_changed(index, time=value)
         return self.edit(change)
 
-    def set_fov(self, index: int, fov_y_degrees: float) -> bool:
+    def set_fov(self, index: int, fov_y_degrees: float) -> Message:
         return self.edit(lambda path: path.with_keyframe_changed(
             index, fov_y_degrees=checked_number(fov_y_degrees, *FOV_RANGE, "a keyframe's field of view (degrees)")))
 
     # -- the whole path -----------------------------------------------------------------
-    def set_loop(self, loop: bool) -> bool:
+    def set_loop(self, loop: bool) -> Message:
         return self.edit(lambda path: replace(path, interpolation=replace(path.interpolation, loop=bool(loop))))
 
-    def set_duration(self, seconds: float) -> bool:
+    def set_duration(self, seconds: float) -> Message:
         return self.edit(lambda path: replace(path, duration=checked_number(seconds, MIN_DURATION, MAX_DURATION,
                                                                             "the path's duration (s)")))
 
-    def set_fps(self, fps: float) -> bool:
+    def set_fps(self, fps: float) -> Message:
         return self.edit(lambda path: replace(path, fps=checked_number(fps, *FPS_RANGE, "the frame rate (fps)")))
 
-    def clear(self) -> bool:
+    def clear(self) -> Message:
         return self.edit(lambda path: replace(path, keyframes=()), select=None)
 
-    def orbit(self) -> bool:
-        """Replaces the path by a turntable lap around the scene, from the current view."""
-        return self.edit(lambda path: orbit_around_scene(self.host.view, self.view_aspect(), path), select=None)
+    def orbit(self, view: ViewControl, aspect: float) -> Message:
+        """Replaces the path by a turntable lap around the scene, from the current view
+        (``aspect``: the viewport's width / height)."""
+        return self.edit(lambda path: orbit_around_scene(view, aspect, path), select=None)
 
-    def dolly(self) -> bool:
+    def dolly(self, view: ViewControl) -> Message:
         """Replaces the path by a straight move of ``dolly_distance`` from the current view."""
-        return self.edit(lambda path: dolly_from_view(self.host.view, self.dolly_distance, path), select=None)
+        return self.edit(lambda path: dolly_from_view(view, self.dolly_distance, path), select=None)
 
     # -- playback -----------------------------------------------------------------------
     def play(self) -> None:
@@ -248,49 +248,42 @@ class PathWidget:
         self.playback.show_keyframe(self.path, index)
 
     # -- files --------------------------------------------------------------------------
-    def save(self) -> None:
+    def save(self, at: PathScene) -> Message:
         """The path document written to ``file`` (replacing it only with ``overwrite``)."""
-        self._write(save_path_document)
+        return saved("path", lambda: save_path_document(self.document(at), self.file, self.overwrite))
 
-    def export_nerfstudio(self) -> None:
+    def export_nerfstudio(self, at: PathScene) -> Message:
         """The path at the view's size written to ``file`` as a nerfstudio camera_path."""
-        self._write(export_nerfstudio)
+        return saved("path", lambda: export_nerfstudio(self.document(at), self.file, self.overwrite))
 
-    def _write(self, writer: Callable[[PathDocument, str, bool], Path]) -> None:
-        self.panel.saved("path", lambda: writer(self.document(), self.file, self.overwrite))
-
-    def load(self) -> None:
+    def load(self, loaded: LoadedScene) -> tuple[Message, ...]:
         """The path JSON (or nerfstudio camera_path file) in ``file`` becomes the path,
-        nothing selected; the view and the render settings stay."""
+        nothing selected; the view and the render settings stay. A file of another scene
+        than ``loaded`` loads with a warning."""
         try:
             document = load_path_document(self.file)
         except UserError as exc:
-            self.panel.error = f"error: path not loaded: {one_line(exc)}"
-            return
+            return (failed(exc, "path not loaded"),)
         self.playback.pause()
         self.playback.time = 0.0
-        self.edit(lambda _: document.path, select=None)
-        loaded = self.host.loaded
+        edited = self.edit(lambda _: document.path, select=None)
         notes = [*document.notes, scene_mismatch(document, scene_argument(loaded), loaded.content_sha256)]
-        self.panel.message = "; ".join([f"loaded {self.file}: {len(document.path.keyframes)} keyframes, "
-                                        f"{document.path.duration:g} s", *filter(None, notes)])
-        self.panel.error = ""
+        return edited, done("; ".join([f"loaded {self.file}: {len(document.path.keyframes)} keyframes, "
+                                       f"{document.path.duration:g} s", *filter(None, notes)]))
 
     # -- video --------------------------------------------------------------------------
-    def render_video(self) -> None:
+    def render_video(self, at: PathScene) -> Message | None:
         """Saves the path document into the videos folder and renders it beside it with
         render-path, in the background."""
         if self.video.running:
-            return
+            return None
         if not self.path.keyframes:
-            self.panel.error = "error: the path has no keyframes (add the view with K)"
-            return
+            return failed("the path has no keyframes (add the view with K)")
         try:
-            out = self.video.start(self.document(), scene_argument(self.host.loaded))
+            out = self.video.start(self.document(at), scene_argument(at.loaded))
         except UserError as exc:
-            self.panel.error = f"error: video not started: {one_line(exc)}"
-            return
-        self.panel.message, self.panel.error = f"rendering {out} ...", ""
+            return failed(exc, "video not started")
+        return done(f"rendering {out} ...")
 
     def cancel_video(self) -> None:
         self.video.cancel()

@@ -30,7 +30,8 @@ from __future__ import annotations
 
 from collections import OrderedDict
 from pathlib import Path
-from typing import Callable
+from dataclasses import dataclass
+from typing import Callable, Literal
 
 import moderngl
 import numpy as np
@@ -50,9 +51,13 @@ from raygs_viewer.photos.metrics import psnr
 from raygs_viewer.render.gl.mono_frame import MonoFrame
 from raygs_viewer.render.gl.targets import FloatTarget, sized
 from raygs_viewer.scene.loader import LoadedScene
+from raygs_viewer.viewer.state import Message, note
 
+#: What the Photo view shows: the render, the photo, |render - photo| as a heat map, or the
+#: photo left of a divider and the render right of it.
+PhotoMode = Literal["render", "photo", "difference", "split"]
 #: The Photo view's modes, as the panel names them.
-MODES = {"render": "render", "photo": "photo", "difference": "|difference|", "split": "split"}
+MODES: dict[PhotoMode, str] = {"render": "render", "photo": "photo", "difference": "|difference|", "split": "split"}
 #: Photos kept in memory (each at one size): a few views' worth while stepping back and forth.
 CACHE_SIZE = 8
 
@@ -68,20 +73,66 @@ def standing_at(cameras: list[Camera], index: int | None, lens: Lens, pose: Pose
     return None
 
 
+class ScenePhotos:
+    """The training photos of the scene shown: its dataset (``open_dataset`` on the model
+    folder holding the scene's cameras.json, whose cfg_args name the source images, or
+    ``images``: ``--images``), opened on first use once per scene, or a line saying why
+    there is none. The Photo view and the frustums' thumbnails share it."""
+
+    def __init__(self, images: str | None = None):
+        self.images = images
+        self._dataset: Dataset | str | None = None  # str: why there is none
+
+    def of(self, loaded: LoadedScene) -> Dataset | str:
+        """The photos of ``loaded``'s training cameras, or why there are none."""
+        if self._dataset is None:
+            if self.images is None and loaded.cameras_path is None:
+                self._dataset = f"no photos: the scene's cameras come from no model folder ({IMAGES_HINT})"
+            else:
+                model = Path(loaded.cameras_path).parent if loaded.cameras_path else Path(loaded.path).parent
+                try:
+                    self._dataset = open_dataset(model, self.images)
+                except UserError as exc:
+                    self._dataset = with_images_hint(f"no photos: {one_line(exc)}")
+        return self._dataset
+
+    def forget(self) -> None:
+        """Another scene: another dataset."""
+        self._dataset = None
+
+
+@dataclass(frozen=True, eq=False)
+class Drawn:
+    """What the Photo view is handed after a frame's draw: the scene shown, the training
+    camera the view stands at (``index``; None: away, or nothing drawn), the window's
+    camera, why the Photo view cannot show now (``blocked``; "" when it can), whether
+    the draw made a new render (``drew``), the window's frame (its drawn render is
+    compared, and it shows the picture), and evaluate's render of a training view at its
+    own size (``render_at``: a PhotoView and its Dataset -> (H, W, 3) float32 in 0..1,
+    what ``at_camera_size`` compares)."""
+
+    loaded: LoadedScene
+    index: int | None
+    camera: Camera
+    blocked: str
+    drew: bool
+    mono: MonoFrame
+    render_at: Callable[[PhotoView, Dataset], np.ndarray]
+
+
 class PhotoCompare:
     """One per window. ``mode``: one of MODES; ``fraction``: the split's divider as a
     fraction of the width; ``heat_max``: the |difference| at the heat map's top colour;
-    ``at_camera_size``: compare at the training camera's own size, with ``render_at``
-    (a PhotoView and its Dataset -> (H, W, 3) float32 in 0..1, evaluate's render),
+    ``at_camera_size``: compare at the training camera's own size (``Drawn.render_at``)
     instead of the window's. After each frame's draw: ``at`` (the training camera stood
     at, None: away), ``status`` (the section's line: why nothing is compared, or what
     was), ``psnr`` (of render against photo, None when not compared), ``picture``
     ((H, W, 3) float32 shown instead of the render; None: the render is shown)."""
 
-    def __init__(self, ctx: moderngl.Context, images: str | None = None,
-                 render_at: Callable[[PhotoView, Dataset], np.ndarray] | None = None):
-        self.ctx, self.images, self.render_at = ctx, images, render_at
-        self.mode, self.fraction, self.heat_max = "render", 0.5, DEFAULT_HEAT_MAX
+    def __init__(self, ctx: moderngl.Context, photos: ScenePhotos):
+        self.ctx, self.photos = ctx, photos
+        self.mode: PhotoMode = "render"
+        self.fraction, self.heat_max = 0.5, DEFAULT_HEAT_MAX
         self.at_camera_size = False
         self.used = False  # photos are loaded only once a mode other than the render was chosen
         self.at: int | None = None
@@ -92,14 +143,13 @@ class PhotoCompare:
         self.camera_size: tuple[int, int] | None = None  # the training camera's own
         self.target: FloatTarget | None = None
         self.render: np.ndarray | None = None
-        self._dataset: Dataset | str | None = None  # str: why there is none
         #: (view index, (width, height) or None: the camera's own) -> (photo, its view), or why there is none.
         self._photos: OrderedDict[tuple, tuple[np.ndarray, PhotoView] | str] = OrderedDict()
         self._key: tuple | None = None
         self._computed = 0  # pictures computed so far
         self._written = -1  # which of them ``target`` holds
 
-    def choose(self, mode: str) -> None:
+    def choose(self, mode: PhotoMode) -> None:
         if mode not in MODES:
             raise ValueError(f"unknown photo mode {mode!r}")
         self.mode = mode
@@ -112,7 +162,7 @@ class PhotoCompare:
 
     def forget_scene(self) -> None:
         """A new scene: its photos are another dataset's."""
-        self._dataset, self._key = None, None
+        self._key = None
         self._photos.clear()
 
     @property
@@ -129,34 +179,26 @@ class PhotoCompare:
                             f"'render' at the window's size in the Photo section first")
 
     # -- each frame ---------------------------------------------------------------------
-    def after_draw(self, view, loaded: LoadedScene, camera: Camera, mono: MonoFrame, blocked: str,
-                   drew: bool) -> str:
-        """:meth:`frame` for the window's ``view`` (a ViewControl): at the training camera it
-        stands at, none while nothing has been drawn (the draw failed)."""
-        index = standing_at(view.cameras, view.training_index, view.lens, view.navigator.pose)
-        return self.frame(loaded, None if mono.left is None else index, camera, blocked, mono, drew)
-
-    def frame(self, loaded: LoadedScene, index: int | None, camera: Camera, blocked: str, mono: MonoFrame,
-              drew: bool) -> str:
-        """Called after the frame's draw: ``index`` the training camera stood at (see
-        :func:`standing_at`), ``camera`` the window's, ``blocked`` why the Photo view
-        cannot show now ("" when it can), ``drew``: the draw made a new render. Puts the
-        picture to show in ``mono``; returns a message for the panel ("" for none)."""
+    def frame(self, drawn: Drawn) -> Message | None:
+        """Called after the frame's draw: puts the picture to show in the frame; returns
+        what the panel says (None: nothing)."""
+        index, camera, mono = drawn.index, drawn.camera, drawn.mono
         left, self.at = self.at is not None and index is None, index
-        message = "left the training camera: the window shows the render" if left and self.showing else ""
-        if index is None or blocked or not self.used:
-            self.status = blocked if index is not None and self.used else ""
+        message = note("left the training camera: the window shows the render") if left and self.showing else None
+        if index is None or drawn.blocked or not self.used:
+            self.status = drawn.blocked if index is not None and self.used else ""
             self._hide(mono)
             return message
         key = (index, camera.width, camera.height, self.mode, self.fraction, self.heat_max, self.at_camera_size)
-        if not drew and key == self._key:
+        if not drawn.drew and key == self._key:
             self._show(mono)
             return message
-        compared = self._compared(loaded, index, camera, mono)
+        compared = self._compared(drawn)
         if isinstance(compared, str):
             self.status = compared
             self._hide(mono)
             return message
+        loaded = drawn.loaded
         self.render, photo = compared
         self.size = (photo.shape[1], photo.shape[0])
         self.psnr = psnr(self.render, photo)
@@ -167,33 +209,32 @@ class PhotoCompare:
         self._show(mono)
         return message
 
-    def _compared(self, loaded: LoadedScene, index: int, camera: Camera, mono: MonoFrame
-                  ) -> tuple[np.ndarray, np.ndarray] | str:
+    def _compared(self, drawn: Drawn) -> tuple[np.ndarray, np.ndarray] | str:
         """(render, photo), both (H, W, 3) float32 in 0..1, at the window's size or the
         camera's own; or a line saying why there are none."""
-        photo = self._photo(loaded, index, None if self.at_camera_size else (camera.width, camera.height))
+        camera, loaded = drawn.camera, drawn.loaded
+        photo = self._photo(loaded, drawn.index, None if self.at_camera_size else (camera.width, camera.height))
         if isinstance(photo, str):
             return photo
         photo, view = photo
         self.camera_size = (view.camera.width, view.camera.height)
         if not self.at_camera_size:
-            return np.clip(mono.left.read()[..., :3], 0.0, 1.0), photo
+            return np.clip(drawn.mono.left.read()[..., :3], 0.0, 1.0), photo
         try:
-            return self.render_at(view, self._dataset_of(loaded)), photo
+            return drawn.render_at(view, self.photos.of(loaded)), photo
         except (UserError, MemoryError, moderngl.Error) as exc:
             return f"not rendered at the camera's size: {one_line(exc)}"
 
     def _picture(self, render: np.ndarray, photo: np.ndarray) -> np.ndarray | None:
-        if self.mode == "render":
+        """The picture the mode shows instead of the window's render (None: the render)."""
+        pictures: dict[PhotoMode, Callable[[], np.ndarray | None]] = {
             # At the camera's size the render compared is not the window's: it is shown instead.
-            return render if self.at_camera_size else None
-        if self.mode == "photo":
-            return photo
-        if self.mode == "difference":
-            return difference_picture(render, photo, self.heat_max)
-        if self.mode == "split":
-            return split_picture(photo, render, self.fraction)
-        return None
+            "render": lambda: render if self.at_camera_size else None,
+            "photo": lambda: photo,
+            "difference": lambda: difference_picture(render, photo, self.heat_max),
+            "split": lambda: split_picture(photo, render, self.fraction),
+        }
+        return pictures[self.mode]()
 
     def _measured(self, loaded: LoadedScene, index: int) -> str:
         width, height = self.size
@@ -225,23 +266,6 @@ class PhotoCompare:
             mono.stereo_image = None
 
     # -- the photos ---------------------------------------------------------------------
-    def dataset(self, loaded: LoadedScene) -> Dataset | str:
-        """The photos of ``loaded``'s training cameras (opened once per scene), or a line
-        saying why there are none; the frustums' thumbnails share it."""
-        return self._dataset_of(loaded)
-
-    def _dataset_of(self, loaded: LoadedScene) -> Dataset | str:
-        if self._dataset is None:
-            if self.images is None and loaded.cameras_path is None:
-                self._dataset = f"no photos: the scene's cameras come from no model folder ({IMAGES_HINT})"
-            else:
-                model = Path(loaded.cameras_path).parent if loaded.cameras_path else Path(loaded.path).parent
-                try:
-                    self._dataset = open_dataset(model, self.images)
-                except UserError as exc:
-                    self._dataset = with_images_hint(f"no photos: {one_line(exc)}")
-        return self._dataset
-
     def _photo(self, loaded: LoadedScene, index: int, size: tuple[int, int] | None
                ) -> tuple[np.ndarray, PhotoView] | str:
         """((H, W, 3) float32 at ``size`` (width, height; None: the camera's own), the
@@ -256,7 +280,7 @@ class PhotoCompare:
 
     def _load(self, loaded: LoadedScene, index: int, size: tuple[int, int] | None
               ) -> tuple[np.ndarray, PhotoView] | str:
-        dataset = self._dataset_of(loaded)
+        dataset = self.photos.of(loaded)
         if isinstance(dataset, str):
             return dataset
         name = loaded.camera_names[index]

@@ -17,60 +17,36 @@ camera's frustum (:mod:`.training_frustums`), the view flies to that camera.
 
 from __future__ import annotations
 
-from dataclasses import replace
-from typing import Protocol
-
 from imgui_bundle import imgui
 
 from raygs_viewer.camera.stereo import rig_quantities
 from raygs_viewer.capture.measure_file import MeasureScale
-from raygs_viewer.errors import UserError, one_line
-from raygs_viewer.render.settings import RenderSettings
+from raygs_viewer.errors import UserError
 from raygs_viewer.render.sorting import exact_order
-from raygs_viewer.viewer.drawing import SceneDrawer
-from raygs_viewer.viewer.frame import Frame
-from raygs_viewer.viewer.measure import MeasureWidget, format_distance
+from raygs_viewer.viewer.measure import format_distance
+from raygs_viewer.viewer.part import AimAt, Converge, FlyTo, MeasurePoint, Pointing, Reply, Shown
 from raygs_viewer.viewer.picking import Picked, mono_pixel, pick, pixel_camera, stereo_pixel
-from raygs_viewer.viewer.shown_scene import ShownScene
-from raygs_viewer.viewer.state import PanelState, SplitView, StereoPreview
-from raygs_viewer.viewer.training_frustums import TrainingFrustums
-from raygs_viewer.viewer.view_control import ViewControl
+from raygs_viewer.viewer.state import failed, note
 
 NOTHING_THERE = ("nothing to pick there: that pixel's alpha never reaches 0.5, so it has no median depth "
                  "(the view is unchanged)")
 CONVERGENCE = rig_quantities()["convergence"]
 
 
-class PickHost(Protocol):
-    """The window as the pick tool sees it: the last frame (None before the first) and how
-    it was drawn, the settings now."""
-
-    scene: ShownScene
-    view: ViewControl
-    shown: Frame | None
-    settings: RenderSettings
-    split: SplitView
-    stereo: StereoPreview
-    panel: PanelState
-    drawer: SceneDrawer
-
-    def right_settings(self) -> RenderSettings | None:
-        """The split view's right side, None when it is off."""
-
-
 class PickTool:
-    """``last``: the point of the last double-click (the panel shows it); ``frustums``: the
-    training cameras drawn in the scene, which a click flies to."""
+    """``last``: the point of the last double-click (the panel shows it)."""
 
-    def __init__(self, host: PickHost, measure: MeasureWidget, frustums: TrainingFrustums):
-        self.host, self.measure, self.frustums = host, measure, frustums
+    def __init__(self) -> None:
         self.last: Picked | None = None
         self._flew = False  # the last click flew to a training camera
 
-    def point_at(self, x: float, y: float) -> Picked | None | bool:
-        """The point under screen position (x, y) in the last frame's view: False outside
-        the image (or before the first frame), None where the pixel has no median depth."""
-        host, frame = self.host, self.host.shown
+    @staticmethod
+    def point_at(x: float, y: float, shown: Shown, divider: int | None = None) -> Picked | None | bool:
+        """The point under screen position (x, y) in the last frame's view (``shown``):
+        False outside the image (or before the first frame), None where the pixel has no
+        median depth. ``divider``: the split view's first column of the right side. A
+        UserError where the GPU cannot draw the view's settings (the frame says so too)."""
+        frame, scene = shown.frame, shown.scene
         if frame is None:
             return False
         camera = frame.camera
@@ -82,61 +58,59 @@ class PickTool:
             if found is None:
                 return False
             eye, u, v = found
-            settings, origin = host.settings, camera.center  # the eyes' colour is the midpoint's
+            settings, origin = frame.settings, camera.center  # the eyes' colour is the midpoint's
         else:
             pixel = mono_pixel(x, y, frame.viewport, scale, camera)
             if pixel is None:
                 return False
             (u, v), eye = pixel, camera
-            right = host.right_settings()
-            settings = right if right is not None and u >= host.split.column(camera.width) else host.settings
-        try:
-            order = host.drawer.orders.get(settings.sort_key)
-            if order is None:  # none drawn in this key yet: the pixel's own, of the levels drawn
-                drawn = next(iter(host.drawer.orders.values()), None)
-                order = exact_order(host.scene.direct_sorter, pixel_camera(eye, u, v), settings,
-                                    levels=None if drawn is None else drawn.choice, deleted=host.edit_tool.deleted)
-            return pick(host.scene.renderer, eye, u, v, settings, order, origin)
-        except UserError as exc:  # settings this GPU cannot render (the frame says so too)
-            host.panel.error = f"error: nothing picked: {one_line(exc)}"
-            return False
+            right = frame.right
+            settings = right if right is not None and divider is not None and u >= divider else frame.settings
+        order = scene.orders.get(settings.sort_key)
+        if order is None:  # none drawn in this key yet: the pixel's own, of the levels drawn
+            drawn = next(iter(scene.orders.values()), None)
+            order = exact_order(scene.sorter, pixel_camera(eye, u, v), settings,
+                                levels=None if drawn is None else drawn.choice, deleted=scene.deleted)
+        return pick(scene.renderer, eye, u, v, settings, order, origin)
 
-    def double_click(self, x: float, y: float) -> None:
-        if self.measure.on:
-            return  # its two clicks are the measure tool's
-        if self._flew and self.host.view.navigator.animating:
-            return  # the second press of a double-click on a frustum: its first flies there
-        picked = self.point_at(x, y)
-        if picked is False:
-            return
-        panel = self.host.panel
-        if picked is None:
-            panel.message = NOTHING_THERE
-            return
+    def double_click(self, x: float, y: float, shown: Shown, pointing: Pointing) -> Reply:
+        """The point under (x, y) aims the view at it, or sets the stereo convergence to
+        its depth."""
+        if pointing.measuring:
+            return Reply()  # its two clicks are the measure tool's
+        if self._flew and pointing.flying:
+            return Reply()  # the second press of a double-click on a frustum: its first flies there
+        picked = self._point(x, y, shown, pointing)
+        if isinstance(picked, Reply):
+            return picked
         self.last = picked
-        stereo = self.host.stereo
-        if self.host.shown.stereo is not None and stereo.converge_on_pick:
-            rig = stereo.rig
-            stereo.rig = replace(rig, convergence=CONVERGENCE.clamp(picked.depth * rig.scene_scale))
-            panel.message = (f"convergence set to {stereo.rig.convergence:.4g} m "
-                             f"(the picked point's depth, {picked.depth:.4g} units)")
-            return
-        navigator = self.host.view.navigator
-        navigator.aim_at(picked.point)
-        panel.message = f"{describe(picked, self.measure.scale)}: {'orbiting around it' if navigator.mode == 'orbit' else 'facing it'}"
+        if shown.frame.stereo is not None and pointing.converge:
+            metres = CONVERGENCE.clamp(picked.depth * pointing.rig.scene_scale)
+            return Reply.of(Converge(metres), note(f"convergence set to {metres:.4g} m "
+                                                   f"(the picked point's depth, {picked.depth:.4g} units)"))
+        aimed = "orbiting around it" if pointing.orbiting else "facing it"
+        return Reply.of(AimAt(picked.point), note(f"{describe(picked, pointing.scale)}: {aimed}"))
 
-    def click(self, x: float, y: float) -> None:
-        if not self.measure.on:
-            index = self.frustums.camera_at(x, y)
-            self._flew = index is not None
-            if self._flew:
-                self.host.view.select_training_camera(index)
-            return
-        picked = self.point_at(x, y)
-        if picked is None:
-            self.host.panel.message = NOTHING_THERE.replace("the view is unchanged", "no point taken")
-        elif picked is not False:
-            self.measure.add_point(picked)
+    def click(self, x: float, y: float, shown: Shown, pointing: Pointing, frustum: int | None = None) -> Reply:
+        """While measuring, the point under (x, y) is the measurement's next end; else a
+        click on a training camera's frustum (``frustum``: the one under (x, y), None:
+        none) flies there."""
+        if not pointing.measuring:
+            self._flew = frustum is not None
+            return Reply.of(FlyTo(frustum)) if self._flew else Reply()
+        picked = self._point(x, y, shown, pointing, NOTHING_THERE.replace("the view is unchanged", "no point taken"))
+        return picked if isinstance(picked, Reply) else Reply.of(MeasurePoint(picked))
+
+    def _point(self, x: float, y: float, shown: Shown, pointing: Pointing, nothing: str = NOTHING_THERE
+               ) -> Picked | Reply:
+        """The point under (x, y), or what the panel says where there is none."""
+        try:
+            picked = self.point_at(x, y, shown, pointing.divider)
+        except UserError as exc:  # settings this GPU cannot render (the frame says so too)
+            return Reply.of(failed(exc, "nothing picked"))
+        if picked is False:
+            return Reply()
+        return Reply.of(note(nothing)) if picked is None else picked
 
 
 def describe(picked: Picked, scale: MeasureScale | None = None) -> str:

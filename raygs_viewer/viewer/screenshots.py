@@ -37,7 +37,7 @@ from raygs_viewer.capture.screenshot import (
     scaled_camera,
 )
 from raygs_viewer.capture.sidecar import ImageView, build_sidecar
-from raygs_viewer.errors import UserError, one_line
+from raygs_viewer.errors import UserError
 from raygs_viewer.render.channel_pictures import ChannelView, channel_picture
 from raygs_viewer.render.gl.stereo_frame import render_stereo_view, stereo_order
 from raygs_viewer.render.settings import RenderSettings
@@ -47,7 +47,7 @@ from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.deleted import DeletedRows
 from raygs_viewer.sort.lod_choice import LodChoice, LodRequest
 from raygs_viewer.sort.request import Order
-from raygs_viewer.viewer.state import PanelState, ScreenshotOptions, SplitView
+from raygs_viewer.viewer.state import Message, ScreenshotOptions, SplitView, done, failed
 
 #: (png, sidecar) paths of one saved image.
 Saved = tuple[Path, Path]
@@ -191,14 +191,14 @@ class Captures:
     """What the window saves of itself: screenshots (``options``: the folder and the
     scale, which the panel edits; ``requested``: one at the end of the next frame;
     ``saved``: every (png, json) pair of the last, the left side's or the stereo pair's
-    first) and its own image (``keep_window``: keep the next frame's, in ``window``:
+    first) and its own image (``keep_next``: keep the next frame's, in ``window``:
     (H, W, 3) uint8, the panel included)."""
 
     def __init__(self, options: ScreenshotOptions):
         self.options = options
         self.requested = False
         self.saved: list[Saved] = []
-        self.keep_window = False
+        self.keep_next = False
         self.window: np.ndarray | None = None
 
     @property
@@ -215,23 +215,25 @@ class Captures:
         self.saved = take_screenshots(renderer, sorter, shot, self.options, path)
         return self.last
 
-    def frame_shown(self, image: Callable[[], np.ndarray]) -> None:
-        """The frame is in the window: its ``image()`` is kept when asked for."""
-        if self.keep_window:
-            self.keep_window = False
-            self.window = image()
+    def due(self) -> bool:
+        """Whether a screenshot was requested since the last call (the request is then taken)."""
+        requested, self.requested = self.requested, False
+        return requested
 
-    def frame_done(self, save: Callable[[], object], panel: PanelState) -> None:
-        """The frame is over: the screenshot requested is saved by ``save``; ``panel``'s
-        lines say what was written, or why nothing was."""
-        if not self.requested:
-            return
-        self.requested = False
-        try:
-            save()
-            panel.message, panel.error = saved_message(self.saved), ""
-        except (UserError, MemoryError, moderngl.Error) as exc:
-            panel.error = f"error: screenshot not saved: {one_line(exc)}"
+    def window_due(self) -> bool:
+        """Whether the frame shown now is to be kept (the request is then taken): set
+        :attr:`window` to its image."""
+        keep, self.keep_next = self.keep_next, False
+        return keep
+
+
+def screenshot_said(take: Callable[[], list[Saved]]) -> Message:
+    """What the panel says of a screenshot ``take`` saves: the files written, or why
+    nothing was."""
+    try:
+        return done(saved_message(take()))
+    except (UserError, MemoryError, moderngl.Error) as exc:
+        return failed(exc, "screenshot not saved")
 
 
 def saved_message(saved: list[Saved]) -> str:

@@ -14,7 +14,8 @@ the reading, and the window takes the scene as read and the settings from it.
 
 from __future__ import annotations
 
-from dataclasses import replace
+from contextlib import ExitStack
+from dataclasses import dataclass, replace
 from typing import Callable
 
 import moderngl
@@ -28,18 +29,27 @@ from raygs_viewer.scene.loader import LoadedScene
 from raygs_viewer.scene.lod_file import LodScene
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.sort.depth import DepthSorter
-from raygs_viewer.sort.lod_choice import LodRequest
 from raygs_viewer.sort.request import SortResult
 from raygs_viewer.sort.worker import BackgroundSorter, InlineSorter
-from raygs_viewer.viewer.loading import SceneOpener
-from raygs_viewer.viewer.lod_window import Refined, WindowLod, reading
+from raygs_viewer.viewer.lod_window import LoaderState, Refined, WindowLod
+
+
+@dataclass(frozen=True)
+class Swapped:
+    """The GPU's copy of the scene was replaced: what was drawn of the one before is
+    stale; ``kept``: the result drawn on until the new sorter's first, as it was (None:
+    none)."""
+
+    kept: SortResult | None
 
 
 class ShownScene:
     """``renderer`` (made by ``renderer_factory(ctx, scene, general=)``) draws the scene
     (None before :meth:`open`); ``sorter`` (made by
-    ``sorter_factory(direct_sorter)``) sorts the window's requests on its thread with
-    ``direct_sorter``, a DepthSorter of it, which screenshots and picks sort with too.
+    ``sorter_factory(direct_sorter)``) sorts the frames' requests without waiting;
+    ``direct_sorter`` sorts on the caller's thread and returns the order (screenshots,
+    picks and selections sort with it; with the CPU sort, ``sorter`` runs the same
+    DepthSorter on its thread).
     ``sort``: "cpu" or "gpu", what ``sort_for(count)`` says for the scene's size when
     it is opened (or :meth:`resort` is asked). With "gpu": ``sorter`` is an InlineSorter of a GpuSorter that sorts in the
     frame, and ``direct_sorter`` another GpuSorter: the frames' orders stay on the GPU,
@@ -49,22 +59,21 @@ class ShownScene:
     ``fallback``: the last result of the scene before a swap that kept the rows, drawn
     until the new sorter's first (:meth:`shown`). ``lod``: its level of detail.
 
-    ``opener`` reads a streamed SOG's levels; ``forget(kept)`` is called after each swap:
-    what the window keeps of the scene before is stale (``kept``: the result drawn on
-    until the new sorter's first, as it was; None: none)."""
+    Each action that replaces the GPU's copy returns :class:`Swapped`: what the window
+    keeps of the scene before is then stale."""
 
-    def __init__(self, ctx: moderngl.Context, general: bool, renderer_factory: Callable[..., GLRenderer],
-                 sorter_factory: Callable[..., BackgroundSorter], opener: SceneOpener,
-                 forget: Callable[[SortResult | None], None], sort_for: Callable[[int], str] = lambda count: "cpu"):
+    def __init__(self, ctx: moderngl.Context, *, general: bool, renderer_factory: Callable[..., GLRenderer],
+                 sorter_factory: Callable[..., BackgroundSorter], sort_for: Callable[[int], str] = lambda count: "cpu"):
         self.ctx, self.general, self.sort_for, self.sort = ctx, general, sort_for, "cpu"
         self.renderer_factory, self.sorter_factory = renderer_factory, sorter_factory
-        self.opener, self.forget = opener, forget
         self.renderer: GLRenderer | None = None
         self.sorter: BackgroundSorter | InlineSorter | None = None
         self.direct_sorter: DepthSorter | GpuSorter | None = None
         self.fallback: SortResult | None = None
         self.lod = WindowLod()
         self._sort_timer: GpuTimer | None = None  # made with the first GPU sorter, kept for the window
+        # What releases the scene's renderer and closes its sorters, each made with them.
+        self._renderer_made, self._sorters_made = ExitStack(), ExitStack()
 
     @property
     def sort_timer(self) -> GpuTimer | None:
@@ -73,33 +82,36 @@ class ShownScene:
         return self._sort_timer if self.sort == "gpu" else None
 
     # -- scenes ----------------------------------------------------------------------------
-    def open(self, scene: Scene) -> None:
+    def open(self, scene: Scene) -> Swapped:
         """Shows a scene opened (not a finer reading of the one shown: :meth:`refine`), in
         its own colours, sorted as ``sort_for`` its size says; a UserError (too large for
         this GPU) changes nothing."""
         sort, self.sort = self.sort, self.sort_for(scene.count)
         try:
-            self._swap(scene, keep=False)
+            swapped = self._swap(scene, keep=False)
         except BaseException:
             self.sort = sort
             raise
         self.lod.installed()
+        return swapped
 
-    def refine(self, current: LoadedScene, loaded: LoadedScene, settings: RenderSettings,
-               start: RenderSettings) -> Refined | None:
+    def refine(self, current: LoadedScene, loaded: LoadedScene, settings: RenderSettings, start: RenderSettings,
+               loader: LoaderState) -> tuple[Refined | None, Swapped | None]:
         """Shows the levels of ``loaded``, a finer reading of the scene shown (``current``;
-        ``lod_window.refines``), in the view as it is (``WindowLod.refine``); returns the
-        scene as read and the settings now (``start``: the command line's), None when
-        nothing changes. A UserError (the GPU's memory) leaves the scene shown."""
-        refined = self.lod.refine(current, loaded, settings, start, self.opener.loader)
-        if refined is not None and refined.swap is not None:
-            self._swap(refined.swap.scene, refined.swap.keep)
-        return refined
+        ``lod_window.refines``), in the view as it is (``WindowLod.refine``, with the
+        ``loader``'s state); returns the scene as read and the settings now (``start``:
+        the command line's; None when nothing changes), and the swap where there was one.
+        A UserError (the GPU's memory) leaves the scene shown."""
+        refined = self.lod.refine(current, loaded, settings, start, loader)
+        if refined is None or refined.swap is None:
+            return refined, None
+        return refined, self._swap(refined.swap.scene, refined.swap.keep)
 
-    def resort(self) -> str | None:
+    def resort(self) -> Swapped | str | None:
         """Sorts the scene shown as ``sort_for`` says now ("cpu", "gpu"), from the next
-        frame on: new sorters, the renderer and its buffers kept. Where they cannot be made
-        (the GPU sort cannot hold this scene) the sorters stay and the one line says why."""
+        frame on: new sorters, the renderer and its buffers kept (None: nothing to do).
+        Where they cannot be made (the GPU sort cannot hold this scene) the sorters stay
+        and the one line says why."""
         sort = None if self.renderer is None else self.sort_for(self.renderer.scene.count)
         if sort is None or sort == self.sort:
             return None
@@ -109,43 +121,28 @@ class ShownScene:
         except UserError as exc:
             self.sort = previous
             return one_line(exc)
-        self._close_sorters()
+        *sorters, sorters_made = sorters
+        self._sorters_made.close()
+        self._sorters_made = sorters_made
         self.direct_sorter, self.sorter = sorters
         self.fallback = None
-        self.forget(None)
-        return None
+        return Swapped(None)
 
-    def set_tint(self, on: bool, lod: LodScene | None) -> str | None:
+    def set_tint(self, on: bool, lod: LodScene | None) -> Swapped | str | None:
         """Colour by level on or off for the levels ``lod``: the renderer gets the tinted
-        copy, or the scene. Where that fails (a UserError, MemoryError or moderngl.Error)
-        it stays as it was and the one line says why."""
+        copy, or the scene (None: nothing to do). Where that fails (a UserError,
+        MemoryError or moderngl.Error) it stays as it was and the one line says why."""
         swap = self.lod.tint_swap(on, lod)
-        if swap is not None:
-            try:
-                self._swap(swap.scene, swap.keep)
-            except (UserError, MemoryError, moderngl.Error) as exc:
-                return one_line(exc)
-            self.lod.tint = on
-        return None
+        if swap is None:
+            return None
+        try:
+            swapped = self._swap(swap.scene, swap.keep)
+        except (UserError, MemoryError, moderngl.Error) as exc:
+            return one_line(exc)
+        self.lod.tint = on
+        return swapped
 
     # -- frames ----------------------------------------------------------------------------
-    def lod_for_frame(self, loaded: LoadedScene, settings: RenderSettings) -> LodRequest | None:
-        """A frame's level-of-detail request of the scene shown (``loaded``), after
-        starting to read the levels ``settings`` want that are not read
-        (``WindowLod.for_frame``)."""
-        lod = self.lod.for_frame(loaded, settings, self.opener.loader)
-        if lod.read is not None:
-            self.opener.read_levels(lod.read)
-        return lod.request
-
-    def read_all(self, loaded: LoadedScene, settings: RenderSettings) -> None:
-        """Blocks until the levels of the scene shown (``loaded``) that ``settings`` want
-        are read (the next frame shows them): a scripted run's last frame and its
-        screenshot show the scene as it ends up, not as far as its reading had come."""
-        self.lod_for_frame(loaded, settings)
-        if reading(loaded, self.opener.loader):
-            self.opener.loader.wait_done()
-
     def shown(self, result: SortResult | None) -> SortResult | None:
         """The result a frame draws: ``result`` (the sorter's newest), else the fallback,
         which the new sorter's first result ends; its choice is the one drawn."""
@@ -157,48 +154,44 @@ class ShownScene:
         return result
 
     def close(self) -> None:
-        """Releases the renderer and closes the sorter (and, on its thread, the exact sorter it runs)."""
-        if self.renderer is not None:
-            self.renderer.release()
-        self._close_sorters()
+        """Releases the renderer and closes the sorters (a CPU direct sorter on the sort
+        thread that runs it)."""
+        self._sorters_made.close()
+        self._renderer_made.close()
 
-    def _close_sorters(self) -> None:
-        if self.sorter is not None:
-            self.sorter.close()
-        if isinstance(self.direct_sorter, GpuSorter):  # a CPU one closes on the sort thread
-            self.direct_sorter.close()
-
-    def _swap(self, scene: Scene, keep: bool) -> None:
+    def _swap(self, scene: Scene, keep: bool) -> Swapped:
         """``scene`` on the GPU with its own sorters; a UserError (too large for this GPU)
         changes nothing. ``keep``: ``scene`` holds the rows of the scene shown where they
         were, so the last result (the sorter's newest, else the fallback) becomes the
         fallback, as serial 0, which no request has (so its draw is never taken for a new
         one's)."""
         last = (None if self.sorter is None else self.sorter.latest()) or self.fallback
-        renderer = self.renderer_factory(self.ctx, scene, general=self.general)
-        try:
-            sorters = self._sorters(scene)
-        except BaseException:
-            renderer.release()
-            raise
+        with ExitStack() as made:
+            renderer = self.renderer_factory(self.ctx, scene, general=self.general)
+            made.callback(renderer.release)
+            *sorters, sorters_made = self._sorters(scene)
+            renderer_made = made.pop_all()
         self.close()
+        self._renderer_made, self._sorters_made = renderer_made, sorters_made
         self.renderer, (self.direct_sorter, self.sorter) = renderer, sorters
         # A GPU order lives in its sorter's buffers, gone with it; the new sorter answers
         # in the same frame anyway.
         kept = last if keep and self.sort == "cpu" else None
         self.fallback = None if kept is None else replace(kept, serial=0)
-        self.forget(kept)
+        return Swapped(kept)
 
-    def _sorters(self, scene: Scene) -> tuple[DepthSorter | GpuSorter, BackgroundSorter | InlineSorter]:
-        """(exact sorter, the frames' sorter) of ``scene`` (see the class docstring)."""
-        if self.sort == "gpu":
-            if self._sort_timer is None:
-                self._sort_timer = GpuTimer(self.ctx)
-            exact = GpuSorter(self.ctx, scene, finish=False)
-            try:
-                return exact, InlineSorter(GpuSorter(self.ctx, scene, finish=False, timer=self._sort_timer))
-            except BaseException:
-                exact.close()
-                raise
-        exact = DepthSorter(scene)
-        return exact, self.sorter_factory(exact)
+    def _sorters(self, scene: Scene) -> tuple[DepthSorter | GpuSorter, BackgroundSorter | InlineSorter, ExitStack]:
+        """(direct sorter, the frames' sorter, what closes both) of ``scene`` (see the
+        class docstring)."""
+        with ExitStack() as made:
+            if self.sort == "gpu":
+                if self._sort_timer is None:
+                    self._sort_timer = GpuTimer(self.ctx)
+                direct = GpuSorter(self.ctx, scene, finish=False)
+                made.callback(direct.close)
+                frames = InlineSorter(GpuSorter(self.ctx, scene, finish=False, timer=self._sort_timer))
+            else:  # the sort thread runs the direct sorter too, and closes it
+                direct = DepthSorter(scene)
+                frames = self.sorter_factory(direct)
+            made.callback(frames.close)
+            return direct, frames, made.pop_all()

@@ -11,6 +11,7 @@ from imgui_bundle import imgui
 from raygs_viewer.render.gl.mono_frame import Viewport
 from raygs_viewer.viewer.layout import view_area
 from raygs_viewer.viewer.panel import draw_panel
+from raygs_viewer.viewer.part import Reply
 from raygs_viewer.viewer.remembered import Remembered
 from raygs_viewer.viewer.state import PanelState
 
@@ -33,18 +34,19 @@ class SidePanel:
         pixels per screen unit: beside the panel while it is shown (``layout.view_area``)."""
         return view_area(window, self.state.width if self.state.show_panel else None, scale)
 
-    def draw(self, sections: Sequence[Callable[[], None]]) -> None:
-        """The panel with ``sections``, when shown. Its width is remembered when the
-        user's drag ends; a width the window merely clamps (a smaller window) leaves
-        the remembered one alone."""
+    def draw(self, sections: Sequence[Callable[[], Reply]]) -> Reply:
+        """The panel with ``sections``, when shown; returns what they said and asked for.
+        Its width is remembered when the user's drag ends; a width the window merely
+        clamps (a smaller window) leaves the remembered one alone."""
         if not self.state.show_panel:
-            return
+            return Reply()
         before = self.state.width
-        draw_panel(self.state, sections)
+        reply = draw_panel(self.state, sections)
         if imgui.is_mouse_down(0):
             self._dragged |= self.state.width != before
         elif self._dragged:
             self.close()
+        return reply
 
     def notes_left(self, display_width: float) -> float:
         """The left edge of the notes over the view (screen units): right of the panel

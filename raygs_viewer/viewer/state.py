@@ -11,8 +11,9 @@ time, so an edit shows from the next frame on.
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
+from typing import Literal
 
 from raygs_viewer.camera.lens_model import DEFAULT_LENS
 from raygs_viewer.camera.stereo import (
@@ -102,16 +103,15 @@ class StereoPreview:
             return None
         return StereoView(self.rig, self.layout, DEFAULT_LENS if self.lens_preview else None, self.headset_preset())
 
-    def frame_view(self, shown: StereoView | None, panel: PanelState) -> StereoView | None:
-        """The stereo view to draw this frame. A custom headset out of range is a
-        standing error in ``panel``, and the preview keeps ``shown`` (the last frame's)."""
+    def frame_view(self, shown: StereoView | None) -> tuple[StereoView | None, Message]:
+        """The stereo view to draw this frame, and what the panel says of it: a custom
+        headset out of range is a standing error, and the preview keeps ``shown`` (the
+        last frame's)."""
         try:
             view = self.view()
         except UserError as exc:
-            panel.stand("stereo", f"error: {one_line(exc)}")
-            return shown if self.on else None
-        panel.mend("stereo")
-        return view
+            return (shown if self.on else None), failed(exc, source="stereo")
+        return view, mended("stereo")
 
 
 #: Which sides of the split view show the view mode's picture.
@@ -144,25 +144,25 @@ class ViewMode:
         return ChannelView(self.channel, None if self.automatic else (self.near, self.far), self.normal_space,
                            self.alpha_threshold)
 
-    def side_views(self, panel: PanelState, split: bool = True) -> tuple[ChannelView | None, ChannelView | None]:
-        """(left, right) views this frame: in the split view :meth:`frame_view` on the
-        sides ``side`` names and the colour (None) on the other; else the view itself
-        (``side`` names a side of the split view only)."""
-        view = self.frame_view(panel)
+    def side_views(self, split: bool = True) -> tuple[ChannelView | None, ChannelView | None, Message]:
+        """(left, right) views this frame, and what the panel says of them
+        (:meth:`frame_view`): in the split view the view on the sides ``side`` names and
+        the colour (None) on the other; else the view itself (``side`` names a side of
+        the split view only)."""
+        view, said = self.frame_view()
         if not split:
-            return view, view
-        return (view if self.side in ("both", "left") else None, view if self.side in ("both", "right") else None)
+            return view, view, said
+        return (view if self.side in ("both", "left") else None, view if self.side in ("both", "right") else None,
+                said)
 
-    def frame_view(self, panel: PanelState) -> ChannelView | None:
-        """The view to draw this frame. A set range that is not one is a standing error in
-        ``panel``, and the frame shows the automatic range meanwhile."""
+    def frame_view(self) -> tuple[ChannelView | None, Message]:
+        """The view to draw this frame, and what the panel says of it: a set range that is
+        not one is a standing error, and the frame shows the automatic range meanwhile."""
         try:
             view = self.view()
         except UserError as exc:
-            panel.stand("view", f"error: {one_line(exc)}")
-            return ChannelView(self.channel, None, self.normal_space, self.alpha_threshold)
-        panel.mend("view")
-        return view
+            return ChannelView(self.channel, None, self.normal_space, self.alpha_threshold), failed(exc, source="view")
+        return view, mended("view")
 
 
 @dataclass
@@ -188,47 +188,102 @@ class NavigationChoices:
     up_source: str = "--up-axis"
 
 
+#: What a line for the panel does: "note" sets the message line (an error stays), "done"
+#: sets it and clears the error line (an action that went well), "error" sets the error
+#: line, "mended" ends a standing error (:class:`Message`).
+MessageKind = Literal["note", "done", "error", "mended"]
+
+
+@dataclass(frozen=True)
+class Message:
+    """A line a part says to the panel (:meth:`PanelState.say`). ``source``: an error of
+    a condition that may mend (settings the GPU cannot draw, a custom headset out of
+    range, a path edit refused) *stands* until the same source says "mended", unless
+    another error has replaced it meanwhile."""
+
+    kind: MessageKind
+    text: str = ""
+    source: str | None = None
+
+
+def note(text: str) -> Message:
+    """The message line: what an action did besides the obvious."""
+    return Message("note", text)
+
+
+def done(text: str) -> Message:
+    """An action went well: the message line says so and the error line is cleared."""
+    return Message("done", text)
+
+
+def failed(why: str | BaseException, action: str | None = None, source: str | None = None) -> Message:
+    """The error line: "error: ACTION: WHY" in one line (``why`` an exception or its
+    words); with ``source``, an error that stands until that source is mended."""
+    text = one_line(why) if isinstance(why, BaseException) else why
+    return Message("error", f"error: {action}: {text}" if action else f"error: {text}", source)
+
+
+def mended(source: str) -> Message:
+    """The condition ``source`` stood for is gone: its error goes (unless another replaced it)."""
+    return Message("mended", source=source)
+
+
+def saved(what: str, save: Callable[[], object]) -> Message:
+    """Runs ``save`` (which returns where it wrote): the message naming the file, or
+    the error saying in one line why ``what`` was not saved."""
+    try:
+        where = save()
+    except UserError as exc:
+        return failed(exc, f"{what} not saved")
+    return done(f"saved {where}")
+
+
+def said_lines(said: Iterable[Message | tuple[Message, ...] | None]) -> list[Message]:
+    """The messages of ``said`` in order: each message, each message of a tuple, nothing of None."""
+    lines = [line for item in said if item is not None for line in (item if isinstance(item, tuple) else (item,))]
+    return [line for line in lines if line is not None]
+
+
 @dataclass
 class PanelState:
     """The panel's own state: whether it is shown, its width as last drawn (screen
-    units; the user resizes it), the path typed into it, and its two lines: message
-    and error.
-
-    An error of a condition that may mend (settings the GPU cannot draw, a custom
-    headset out of range) is *standing*: it goes when its source mends, unless another
-    error has replaced it meanwhile."""
+    units; the user resizes it), the path typed into it, and its two lines, message and
+    error, which only :meth:`say` changes."""
 
     show_panel: bool = True
     width: float = PANEL_WIDTH
     open_path: str = ""
-    message: str = ""
-    error: str = ""
-    standing: dict[str, str] = field(default_factory=dict)
+    _message: str = ""
+    _error: str = ""
+    _standing: dict[str, str] = field(default_factory=dict)
+
+    @property
+    def message(self) -> str:
+        return self._message
+
+    @property
+    def error(self) -> str:
+        return self._error
 
     def toggle(self) -> None:
         self.show_panel = not self.show_panel
 
-    def saved(self, what: str, save: Callable[[], object]) -> None:
-        """Runs ``save`` (which returns where it wrote); the message line names the file,
-        or the error line says in one line why ``what`` was not saved."""
-        try:
-            where = save()
-        except UserError as exc:
-            self.error = f"error: {what} not saved: {one_line(exc)}"
-            return
-        self.message, self.error = f"saved {where}", ""
-
-    def note(self, message: str) -> None:
-        """Shows ``message`` on the message line (what an edit did besides the obvious)."""
-        self.message = message
-
-    def stand(self, source: str, error: str) -> None:
-        self.error = self.standing[source] = error
-
-    def mend(self, source: str) -> None:
-        error = self.standing.pop(source, None)
-        if error is not None and self.error == error:
-            self.error = ""
+    def say(self, *messages: Message | tuple[Message, ...] | None) -> None:
+        """Shows each of ``messages`` in turn (a tuple: each of its messages; None: nothing
+        to say)."""
+        for message in said_lines(messages):
+            if message.kind == "note":
+                self._message = message.text
+            elif message.kind == "done":
+                self._message, self._error = message.text, ""
+            elif message.kind == "error":
+                self._error = message.text
+                if message.source is not None:
+                    self._standing[message.source] = message.text
+            elif message.source is not None:  # mended
+                error = self._standing.pop(message.source, None)
+                if error is not None and self._error == error:
+                    self._error = ""
 
 
 @dataclass(frozen=True)

@@ -5,10 +5,10 @@ run (the whole history)."""
 from __future__ import annotations
 
 import itertools
-import time
+import math
 from collections import deque
 from dataclasses import dataclass, field
-from typing import Mapping, Sequence
+from typing import Sequence
 
 import numpy as np
 
@@ -17,8 +17,8 @@ from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.camera.stereo import StereoView
 from raygs_viewer.render.gl.results import OrderStats
 from raygs_viewer.render.gl.timing import GpuTimer
-from raygs_viewer.sort.request import Order, SortResult
-from raygs_viewer.viewer.frame import Frame
+from raygs_viewer.sort.request import SortResult
+from raygs_viewer.viewer.drawing import DrawReport
 
 
 @dataclass
@@ -49,7 +49,7 @@ class FrameStats:
     #: What the per-pixel order did in the last redraw: (left side or the only one, right
     #: side of the split view); None for a side drawn in a global order (stereo: one eye's).
     order_stats: tuple[OrderStats | None, OrderStats | None] = (None, None)
-    last_time: float | None = None   # time.perf_counter() at the start of the last frame
+    last_time: float | None = None   # the clock at the start of the last frame
     draws_at_last_tick: int = 0
     #: The GPU sort's timer (the window's ``ShownScene.sort_timer``, each frame): where
     #: set, the sort time is the GPU's, read frames late, since a sort that does not wait
@@ -83,23 +83,25 @@ class FrameStats:
         """The median time of the last 60 frames that drew the scene again."""
         return 1000 * float(np.median(self.redraw_times)) if self.redraw_times else float("nan")
 
-    def tick(self, fixed_dt: float | None = None) -> float:
-        """Starts a frame: records the time since the last one and returns the frame
-        time to move by (``fixed_dt`` when given; at most the navigator's MAX_DT; 0 for the first)."""
-        now = time.perf_counter()
+    def tick(self, now: float) -> float:
+        """Starts a frame at ``now`` (a clock's seconds): records the time since the last
+        one and returns the frame time to move by: at most the navigator's MAX_DT, 0 for
+        the first frame and for a time that is no number >= 0 (a clock gone wrong moves
+        nothing)."""
         last, self.last_time = self.last_time, now
-        if last is not None:
-            self.all_frame_times.append(now - last)
-            if self.draws > self.draws_at_last_tick:
-                self.redraw_times.append(now - last)
+        if last is None:
+            return 0.0
+        elapsed = now - last
+        self.all_frame_times.append(elapsed)
+        if self.draws > self.draws_at_last_tick:
+            self.redraw_times.append(elapsed)
         self.draws_at_last_tick = self.draws
-        if fixed_dt is not None:
-            return fixed_dt
-        return min(now - last, MAX_DT) if last is not None else 0.0
+        return min(elapsed, MAX_DT) if elapsed >= 0 and math.isfinite(elapsed) else 0.0
 
-    def asked(self, serial: int, frame_index: int) -> None:
-        """Frame ``frame_index`` asked for sort request ``serial``."""
-        self.request_frames.setdefault(serial, frame_index)
+    @property
+    def last_frame_time(self) -> float:
+        """The last frame's seconds (0 before the second frame)."""
+        return self.all_frame_times[-1] if self.all_frame_times else 0.0
 
     def new_sorter(self, kept: SortResult | None, frame_index: int) -> None:
         """A new scene's sorter: the requests asked of the old one are gone; ``kept``, the
@@ -110,27 +112,37 @@ class FrameStats:
         if kept is not None:
             self.request_frames[0] = asked
 
-    def order_to_draw(self, result: SortResult | None, frame: Frame, now: float | None = None,
-                      sort_timer: GpuTimer | None = None) -> tuple[Mapping[str, Order], int]:
-        """({sort key: order}, sort request serial) ``frame`` draws: the newest finished
-        sort ``result`` (None: no orders, serial 0), noting its age (frames; and, against
-        the frame's camera at ``now``, a perf_counter time, milliseconds, degrees turned
-        and distance moved), its time and what it keeps visible. An up-to-date result
-        answers the frame's own sort request. ``sort_timer``: the GPU sort's, where it
-        sorts (``ShownScene.sort_timer``), kept as :attr:`sort_timer`."""
-        self.sort_timer = sort_timer
-        frame_index, camera = frame.index, frame.camera
+    def record(self, report: DrawReport) -> None:
+        """What a frame's draw did: the sort it asked for, the age of the order it drew
+        (frames; and, against the frame's camera at the report's time, milliseconds,
+        degrees turned and distance moved), the sort's time (the GPU sort's timer, read
+        frames late, where it sorts) and what it keeps visible, and the draw itself (its
+        GPU times, what the per-pixel order did). An up-to-date result answers the frame's
+        own sort request."""
+        frame, result = report.frame, report.result
+        self.request_frames.setdefault(report.asked.serial, frame.index)
+        self.frames_with_sort_running += report.asked.running
+        self.sort_timer = report.sort_timer
         self.order_age_ms = self.order_turned_degrees = self.order_moved = 0.0
         if result is None:
-            self.order_age = frame_index - min(self.request_frames.values(), default=frame_index)
-            return {}, 0
+            self.order_age = frame.index - min(self.request_frames.values(), default=frame.index)
+        else:
+            self._age(report, result)
+        if report.problem is not None:
+            return
+        if report.drew:
+            self.drawn_serial, self.draws = report.serial, self.draws + 1
+            self.order_stats = report.order_stats
+        self.gpu_seconds, self.post_seconds = report.gpu_seconds, report.post_seconds
+
+    def _age(self, report: DrawReport, result: SortResult) -> None:
+        frame, camera = report.frame, report.frame.camera
         for older in [n for n in self.request_frames if n < result.serial]:  # answered or skipped
             del self.request_frames[older]
         current = result.order.answers(frame.sort)
-        self.order_age = 0 if current else frame_index - self.request_frames.get(result.serial, frame_index)
+        self.order_age = 0 if current else frame.index - self.request_frames.get(result.serial, frame.index)
         if not current:
-            now = time.perf_counter() if now is None else now
-            self.order_age_ms = max(0.0, 1000.0 * (now - result.requested_at))
+            self.order_age_ms = max(0.0, 1000.0 * (report.at - result.requested_at))
             self.order_turned_degrees = turned_degrees(result.request.camera.R, camera.R)
             self.order_moved = float(np.linalg.norm(camera.center - result.request.camera.center))
         if self.sort_timer is not None:
@@ -141,7 +153,6 @@ class FrameStats:
                 self.all_sort_times.append(result.seconds)
             self.sort_seconds = result.seconds
         self.visible = result.order.count
-        return result.orders, result.serial
 
 
 def turned_degrees(before: np.ndarray, after: np.ndarray) -> float:

@@ -33,7 +33,7 @@ READ_ERRORS = (UserError, OSError, ValueError, MemoryError)
 
 class Thumbnails:
     """One per window. ``dataset_of(loaded)``: the scene's photos (a Dataset) or a line
-    saying why there are none (``PhotoCompare.dataset``). ``status``: "" while all is
+    saying why there are none (``photo_view.ScenePhotos.of``). ``status``: "" while all is
     well, else one line: why there are no photos, or which could not be read."""
 
     def __init__(self, ctx: moderngl.Context, dataset_of: Callable[[LoadedScene], Dataset | str]):

@@ -27,6 +27,7 @@ from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.photos.dataset import TEST_EVERY
 from raygs_viewer.scene.loader import LoadedScene
 from raygs_viewer.viewer.frame import Frame
+from raygs_viewer.viewer.part import NO_REPLY, Part, Pointing, Reply, SceneView
 from raygs_viewer.viewer.path_overlay import (
     CORNER_SIGNS,
     SELECTED_COLOUR,
@@ -127,7 +128,7 @@ class _Cameras:
     test: np.ndarray     # (K,) bool
 
 
-class TrainingFrustums:
+class TrainingFrustums(Part):
     """One per window. ``show``: the panel's "show in the scene"; ``drawn``: the last
     frame's :class:`DrawnFrustums`; ``thumbnails``: the photos shown inside."""
 
@@ -147,13 +148,20 @@ class TrainingFrustums:
         self.thumbnails.forget()
         self.drawn, self._cameras = DrawnFrustums(), None
 
-    def release(self) -> None:
+    def close(self) -> None:
         self.thumbnails.release()
+
+    def overlay(self, frame: Frame, scene: SceneView, pointing: Pointing) -> Reply:
+        """The frustums of ``scene``'s training cameras over ``frame``'s view, a fraction
+        of its radius deep; the one under the pointer named (not while the pointer is on
+        the panel, nor while the measure tool takes the clicks). Not in the stereo
+        preview, whose image shows two eyes rather than the frame's camera's."""
+        self.draw(frame, scene.loaded, scene.radius, hover=not pointing.measuring)
+        return NO_REPLY
 
     def draw(self, frame: Frame, loaded: LoadedScene, radius: float, hover: bool = True) -> None:
         """The frustums over ``frame``'s view, ``FRUSTUM_SIZE * radius`` deep; the one under
-        the pointer named when ``hover`` (not while the pointer is on the panel). Not in
-        the stereo preview, whose image shows two eyes rather than the frame's camera's."""
+        the pointer named when ``hover``."""
         if not self.show or frame.stereo is not None or not loaded.cameras:
             self.drawn = DrawnFrustums()
             return

@@ -20,7 +20,7 @@ from raygs_viewer.camera.up_axis import cameras_up
 from raygs_viewer.render.gl.mono_frame import Viewport
 from raygs_viewer.scene.loader import LoadedScene
 from raygs_viewer.viewer.frame import Framing
-from raygs_viewer.viewer.state import NavigationChoices, PanelState
+from raygs_viewer.viewer.state import Message, NavigationChoices, note
 
 #: The up axis where neither the command line nor the training cameras give one: COLMAP's and INRIA's.
 DEFAULT_UP = "-y"
@@ -42,16 +42,15 @@ def start_up(choices: NavigationChoices, cameras: list[Camera]) -> tuple[str, st
 class ViewControl:
     """One per scene: the scene's bounds (``center``, ``radius``) frame it and bound
     navigation. ``training_index``: the training camera flown to last (None: a free
-    view). ``panel`` says when there is no training camera to fly to. ``up_source``:
-    where the navigator's up axis came from (:func:`start_up`, or the panel)."""
+    view). ``up_source``: where the navigator's up axis came from (:func:`start_up`, or
+    the panel)."""
 
     def __init__(self, loaded: LoadedScene, start_camera: Camera | None, choices: NavigationChoices,
-                 aspect: float, panel: PanelState):
+                 aspect: float):
         """The first training view, filling the window with its vertical field of view,
         unless ``start_camera`` is given; without either a view framing the scene for
         a window of ``aspect`` (width / height)."""
         self.cameras = loaded.cameras
-        self.panel = panel
         self.aspect = aspect
         self.center, self.radius = scene_bounds(loaded.framed)
         self.training_index: int | None = None
@@ -83,21 +82,22 @@ class ViewControl:
         """Fly to orbit and back."""
         self.navigator.set_mode("orbit" if self.navigator.mode == "fly" else "fly")
 
-    def select_training_camera(self, index: int) -> None:
-        """Flies to training camera ``index`` (wrapping) and renders with its intrinsics."""
+    def select_training_camera(self, index: int) -> Message | None:
+        """Flies to training camera ``index`` (wrapping) and renders with its intrinsics;
+        says so where the scene has none."""
         cameras = self.cameras
         if not cameras:
-            self.panel.message = "this scene has no training cameras"
-            return
+            return note("this scene has no training cameras")
         index %= len(cameras)
         self.training_index = index
         self.lens = Lens.of_camera(cameras[index])
         self.navigator.fly_to(Pose.from_camera(cameras[index]))
+        return None
 
-    def step_training_camera(self, step: int) -> None:
+    def step_training_camera(self, step: int) -> Message | None:
         """Flies to the next (+1) or previous (-1) training camera."""
         start = self.training_index if self.training_index is not None else (-1 if step > 0 else 0)
-        self.select_training_camera(start + step)
+        return self.select_training_camera(start + step)
 
     def set_fov(self, fov_y_degrees: float) -> None:
         """A free lens of this vertical field of view."""

@@ -32,7 +32,7 @@ def weights_under(scene: Scene, sorter, frame: Frame, shape: ScreenShape, delete
     return max_weights(scene, shape.camera, frame.settings, indices, inside)
 
 
-def shown_rows(scene: Scene, sorter, frame: Frame, shape: ScreenShape, deleted: DeletedRows | None,
+def shown_rows(scene: Scene, sorter, frame: Frame, shape: ScreenShape, *, deleted: DeletedRows | None,
                min_weight: float | None) -> Rows | None:
     """The gaussians ``shape`` shows with a weight of at least ``min_weight`` somewhere, or
     with ``min_weight`` None the one it shows most (None where it shows none)."""

@@ -107,12 +107,11 @@ def moved(drag: HandleDrag, x: float, y: float) -> Box | Sphere:
 
 
 class VolumeHandles:
-    """The box and the sphere of ``tool`` (``viewer.edit_tool.EditTool``: its ``box`` and
-    ``sphere``) over the view where ``show_box`` / ``show_sphere``; ``drawn``: each
-    handle's screen position in the last frame, where it was visible."""
+    """The handles of the edit tool's box and sphere, over the view where ``show_box`` /
+    ``show_sphere``; ``drawn``: each handle's screen position in the last frame, where it
+    was visible; ``drag``: the drag under way (None: none)."""
 
-    def __init__(self, tool) -> None:
-        self.tool = tool
+    def __init__(self) -> None:
         self.show_box = self.show_sphere = False
         self.drag: HandleDrag | None = None
         self.drawn: dict[str, tuple[float, float]] = {}
@@ -123,34 +122,30 @@ class VolumeHandles:
         near = [found for found in near if found[0] <= GRAB_RADIUS]
         return min(near)[1] if near else None
 
-    def take_mouse(self, frame) -> bool:
-        """Moves a handle with the left button; True while a drag is the handles'."""
+    def take_mouse(self, frame, box: Box, sphere: Sphere) -> tuple[bool, Box | Sphere | None]:
+        """Moves a handle of ``box`` or ``sphere`` with the left button: (True while a drag
+        is the handles', the shape it moved to this frame; None: none moved)."""
         io = imgui.get_io()
         if frame is None or frame.stereo is not None:
             self.drag = None
-            return False
+            return False, None
         x, y = io.mouse_pos.x, io.mouse_pos.y
         finite = math.isfinite(x) and math.isfinite(y) and abs(x) < 1e30 and abs(y) < 1e30
         if self.drag is None:
             name = self.handle_at(x, y) if finite else None
             if name is None or io.want_capture_mouse or not imgui.is_mouse_clicked(0):
-                return False
+                return False, None
             scale = io.display_framebuffer_scale
-            shape = self.tool.box if name.startswith("box") else self.tool.sphere
+            shape = box if name.startswith("box") else sphere
             self.drag = HandleDrag(name, (x, y), shape, frame.camera,
                                    viewport_rect(frame.viewport, (scale.x or 1.0, scale.y or 1.0)))
-            return True
-        if finite:
-            shape = moved(self.drag, x, y)
-            if isinstance(shape, Box):
-                self.tool.box = shape
-            else:
-                self.tool.sphere = shape
+            return True, None
+        shape = moved(self.drag, x, y) if finite else None
         if not imgui.is_mouse_down(0):
             self.drag = None
-        return True
+        return True, shape
 
-    def draw(self, frame, radius: float) -> None:
+    def draw(self, frame, radius: float, box: Box, sphere: Sphere) -> None:
         """The shown volumes' lines and handles over ``frame``'s view (cut at the overlays'
         near plane for a scene of ``radius``)."""
         self.drawn = {}
@@ -161,13 +156,13 @@ class VolumeHandles:
         camera, rect = frame.camera, viewport_rect(frame.viewport, (scale.x or 1.0, scale.y or 1.0))
         draw = imgui.get_foreground_draw_list()
         if self.show_box:
-            self._lines(draw, camera, rect, near, *box_edges(self.tool.box), BOX_COLOUR)
-            handles = {name: point for name, point in box_handles(self.tool.box).items()
+            self._lines(draw, camera, rect, near, *box_edges(box), BOX_COLOUR)
+            handles = {name: point for name, point in box_handles(box).items()
                        if name == "box centre" or not along_the_view(camera, point, AXES.index(name[-1]))}
             self._dots(draw, camera, rect, near, handles, BOX_COLOUR)
         if self.show_sphere:
-            self._lines(draw, camera, rect, near, *sphere_circles(self.tool.sphere, camera), SPHERE_COLOUR)
-            self._dots(draw, camera, rect, near, sphere_handles(self.tool.sphere, camera), SPHERE_COLOUR)
+            self._lines(draw, camera, rect, near, *sphere_circles(sphere, camera), SPHERE_COLOUR)
+            self._dots(draw, camera, rect, near, sphere_handles(sphere, camera), SPHERE_COLOUR)
 
     @staticmethod
     def _lines(draw, camera, rect, near, starts, ends, colour) -> None:

@@ -77,6 +77,8 @@ class Window:
             glfw.terminate()
             raise
         glfw.make_context_current(self.handle)
+        self._dropped: list[str] = []
+        glfw.set_drop_callback(self.handle, lambda _window, paths: setattr(self, "_dropped", list(paths)))
         self.vsync = vsync
         # moderngl's own detection knows only GLX on Linux: the loader gives it the
         # window's context whatever API GLFW created it with.
@@ -175,8 +177,10 @@ class Window:
         """Takes back a close asked for (the window has something to say first)."""
         glfw.set_window_should_close(self.handle, False)
 
-    def set_drop_callback(self, callback) -> None:
-        glfw.set_drop_callback(self.handle, lambda _window, paths: callback(list(paths)))
+    def dropped(self) -> list[str]:
+        """The files of the last drop on the window since the last call (none: [])."""
+        dropped, self._dropped = self._dropped, []
+        return dropped
 
     def close(self) -> None:
         if getattr(self, "handle", None) is None:

@@ -278,7 +278,7 @@ def test_a_path_recorded_on_an_edited_scene_leaves_the_deleted_gaussians_out(tmp
     frames, cameras = tmp_path / "frames", tmp_path / "cams.json"
     assert run("demo", str(path_file), "--out", str(frames), "--cameras-out", str(cameras)) == 0
     images = frames_of(frames)
-    kept = scene.rows(edits.kept)
+    kept = scene.rows(~edits.deleted)
     for k in (0, 3):
         camera = load_cameras(cameras)[k]
         image = gl_render(kept, camera, RenderSettings(background=BACKGROUND))

@@ -79,7 +79,7 @@ def test_set_operations_delete_and_crop():
     edits.apply(SCENE, Operation("invert"))
     assert not edits.selection.any()
     edits.apply(SCENE, Operation("crop", a))
-    np.testing.assert_array_equal(edits.kept, in_a & ~(in_b & ~in_a))
+    np.testing.assert_array_equal(~edits.deleted, in_a & ~(in_b & ~in_a))
     assert not edits.apply(SCENE, Operation("crop", a))  # nothing more to remove: no step
     edits.apply(SCENE, Operation("undelete all"))
     assert not edits.deleted.any()

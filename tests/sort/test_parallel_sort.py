@@ -271,7 +271,7 @@ def test_the_viewer_closes_the_pool_on_scene_change_and_exit(open_viewer, tmp_pa
     first, first_worker = made[0]
     assert len(threads_of(first)) == 1
     path = write_ply(tmp_path / "next.ply", gaussian_columns(n=400, degree=0, seed=2))
-    viewer.scenes.open(str(path))
+    viewer.open_scene(str(path))
     drive.wait_for_load()
     assert viewer.loaded.path == str(path) and len(made) == 2
     assert first_worker.join(DEADLOCK) and first.closed and threads_of(first) == []

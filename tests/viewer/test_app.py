@@ -371,7 +371,7 @@ def test_split_view_shows_a_left_and_b_right(open_viewer, preset):
     for c in (column - 1, column):  # a boundary one column off would show
         assert np.abs(rgb_a[:, c] - rgb_b[:, c]).max() > 2
     # The window as shown: the same, apart from the divider line and the side labels.
-    viewer.captures.keep_window = True
+    viewer.captures.keep_next = True
     drive.frames(1)
     window = viewer.captures.window[y:y + h, x:x + w].astype(int)
     covered = np.zeros((h, w), bool)
@@ -548,7 +548,7 @@ def test_bad_file_dropped_in_shows_an_error_and_keeps_the_scene(open_viewer, tmp
     loaded, image = viewer.loaded, window_image(viewer).copy()
     bad = tmp_path / "broken.ply"
     bad.write_bytes(b"ply\nformat binary_little_endian 1.0\nelement vertex 100\nproperty float x\nend_header\n\x00")
-    viewer.scenes.drop([str(bad)])
+    viewer.drop([str(bad)])
     drive.wait_for_load()
     assert viewer.panel.error.startswith("error: ") and "broken.ply" in viewer.panel.error
     assert "\n" not in viewer.panel.error
@@ -565,7 +565,7 @@ def test_good_file_opened_replaces_the_scene(open_viewer, tmp_path, route):
     path = tmp_path / "small.ply"
     write_ply(path, gaussian_columns(n=50, degree=1, seed=3))
     if route == "drop":
-        viewer.scenes.drop([str(path)])
+        viewer.drop([str(path)])
     else:  # click into the field, type the path, press Enter
         drive.click("##open")
         drive._queued.append(lambda io: io.add_input_characters_utf8(str(path)))
@@ -779,7 +779,7 @@ def test_window_shows_the_image_letterboxed_and_the_panel_on_top(open_viewer, tm
     viewer.panel.show_panel = False
     viewer.frustums.show = False  # the window as shown is compared with the scene: no training cameras over it
     drive.settle()
-    viewer.captures.keep_window = True
+    viewer.captures.keep_next = True
     drive.frames(1)
     window = viewer.captures.window.astype(int)
     x, y, w, h = viewer.viewport
@@ -802,7 +802,7 @@ def test_window_shows_the_image_letterboxed_and_the_panel_on_top(open_viewer, tm
     # With the panel the letterbox is laid out in what the panel leaves: none of it under the panel.
     viewer.panel.show_panel = True
     drive.settle()
-    viewer.captures.keep_window = True
+    viewer.captures.keep_next = True
     drive.frames(1)
     with_panel = viewer.captures.window.astype(int)
     x, y, w, h = viewer.viewport

@@ -25,6 +25,7 @@ from raygs_viewer.scene.edits import Operation, replay
 from raygs_viewer.scene.filters import CropBox, KeepValues
 from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.deleted import DeletedRows
+from raygs_viewer.viewer.edit_export import edit_document
 
 Key = imgui.Key
 
@@ -201,7 +202,7 @@ def test_crop_to_the_box_and_export_write_the_kept_rows_bit_for_bit(open_viewer,
     drive.click("Crop to box")
     kept = CropBox((-1.0, -1.5, -2.0), (1.5, 1.0, 0.5)).keeps(KeepValues.of_scene(viewer.loaded.scene))
     assert 50 < kept.sum() < 550
-    np.testing.assert_array_equal(tool.edits.kept, kept)
+    np.testing.assert_array_equal(~tool.edits.deleted, kept)
     drive.settle()
     assert_matches(window_image(viewer), without(viewer, ~kept))
 
@@ -209,7 +210,7 @@ def test_crop_to_the_box_and_export_write_the_kept_rows_bit_for_bit(open_viewer,
     tool.exporter.file = str(target)
     drive.reveal("Export")
     drive.click("Export")
-    tool.exporter.wait()  # written on a thread of its own
+    viewer.panel.say(tool.exporter.wait())  # written on a thread of its own
     written = PlyData.read(str(target))["vertex"].data
     assert written.tobytes() == rows[np.flatnonzero(kept)].tobytes()
     document = tmp_path / "clean.edits.json"
@@ -217,7 +218,7 @@ def test_crop_to_the_box_and_export_write_the_kept_rows_bit_for_bit(open_viewer,
         {"op": "crop", "shape": {"kind": "box", "low": [-1.0, -1.5, -2.0], "high": [1.5, 1.0, 0.5]}}]
 
     first = target.read_bytes()
-    tool.apply(type(tool.edits.operations[0])("undelete all"))
+    tool.apply(type(tool.edits.operations[0])("undelete all"), viewer.loaded.scene)
     drive.click("Export")  # the file exists: nothing is written until Replace
     assert tool.exporter.confirm_replace == str(target) and target.read_bytes() == first
     assert f"{target} and {document} exist: replace them?" in drive.panel.labels()
@@ -245,14 +246,14 @@ def test_an_edited_screenshot_renders_again_from_its_sidecar(open_viewer, scene_
     viewer, drive = open_viewer(str(scene_file[0]), hide_panel=True)
     drive.settle()
     tool = viewer.edit_tool
-    tool.select(type(tool.box)((-2.5, -2.5, -2.5), (0.0, 2.5, 2.5)))
-    tool.apply(type(tool.edits.operations[0])("delete"))
+    tool.select(type(tool.box)((-2.5, -2.5, -2.5), (0.0, 2.5, 2.5)), viewer.loaded.scene)
+    tool.apply(type(tool.edits.operations[0])("delete"), viewer.loaded.scene)
     drive.settle()
     png, sidecar = viewer.save_screenshot(tmp_path / "shot.png")
     recorded = json.loads(sidecar.read_text())
     assert recorded["version"] == 5 and recorded["edits"]["operations"][1] == {"op": "delete"}
     # The path the window saves or renders a video from carries the same edits (render-path honours them).
-    assert viewer.camera_path.document().edits["operations"] == recorded["edits"]["operations"]
+    assert viewer.camera_path.document(viewer.path_scene()).edits["operations"] == recorded["edits"]["operations"]
     again = tmp_path / "again.png"
     code, out, err = run_cli(capsys, "render", "--sidecar", sidecar, "--out", again)
     assert code == 0, err
@@ -318,7 +319,7 @@ def test_visible_selection_and_a_click_take_what_the_view_shows_not_what_it_cove
     assert np.flatnonzero(viewer.edit_tool.edits.deleted).tolist() == [0]
     drive.click_at(*screen_of(viewer, cu, cv))  # the deleted one shows no more: the one behind it does
     assert np.flatnonzero(viewer.edit_tool.edits.selection).tolist() == [1]
-    operations = viewer.edit_tool.document().operations
+    operations = edit_document(viewer.loaded, viewer.edit_tool.edits).operations
     assert operations[-1].shape.to_json()["found by"] == "top"
     again = replay(viewer.loaded.scene, [Operation.from_json(json.loads(json.dumps(op.to_json())))
                                          for op in operations])
@@ -335,26 +336,26 @@ def test_opening_another_scene_over_edits_not_exported_asks_first(open_viewer, s
     viewer, drive = open_viewer(str(scene_file[0]), hide_panel=True)
     drive.settle()
     tool = viewer.edit_tool
-    tool.select(type(tool.box)((-2.5, -2.5, -2.5), (0.0, 2.5, 2.5)))
-    tool.apply(Operation("delete"))
+    tool.select(type(tool.box)((-2.5, -2.5, -2.5), (0.0, 2.5, 2.5)), viewer.loaded.scene)
+    tool.apply(Operation("delete"), viewer.loaded.scene)
     deleted = tool.deleted_count()
-    viewer.scenes.drop(["demo"])
+    viewer.drop(["demo"])
     drive.frames(2)
     assert not viewer.scenes.loader.busy and viewer.loaded.path == str(scene_file[0])
     assert viewer.panel.error == (f"error: not opened: the edits of the scene shown ({deleted:,} deleted) are not "
                                   "exported; export them, or open it again to leave them")
     tool.exporter.file = str(tmp_path / "kept.ply")
-    assert tool.exporter.export() is not None
+    assert tool.exporter.export(tool.edits, viewer.loaded)[0].kind == "done"
     tool.exporter.wait()
-    viewer.scenes.drop(["demo"])  # exported: nothing is lost, it opens at once
+    viewer.drop(["demo"])  # exported: nothing is lost, it opens at once
     drive.wait_for_load()
     assert viewer.loaded.source.is_demo and viewer.panel.error == ""
-    tool.select(type(tool.box)((-9.0, -9.0, -9.0), (0.0, 9.0, 9.0)))
-    tool.apply(Operation("delete"))
-    viewer.scenes.drop([str(scene_file[0])])
+    tool.select(type(tool.box)((-9.0, -9.0, -9.0), (0.0, 9.0, 9.0)), viewer.loaded.scene)
+    tool.apply(Operation("delete"), viewer.loaded.scene)
+    viewer.drop([str(scene_file[0])])
     drive.frames(1)
     assert viewer.loaded.source.is_demo and viewer.panel.error.startswith("error: not opened")
-    viewer.scenes.drop([str(scene_file[0])])  # asked, and asked again: it goes on
+    viewer.drop([str(scene_file[0])])  # asked, and asked again: it goes on
     drive.wait_for_load()
     assert viewer.loaded.path == str(scene_file[0]) and tool.deleted_count() == 0
 
@@ -364,15 +365,15 @@ def test_closing_the_window_over_edits_not_exported_asks_first(open_viewer, scen
     drive.settle()
     tool = viewer.edit_tool
     drive.tap(Key.escape)
-    assert viewer.window.should_close and tool.exporter.may_close()  # nothing to lose: it closes
+    assert viewer.window.should_close and viewer.may_close()  # nothing to lose: it closes
     viewer.window.keep_open()
-    tool.select(type(tool.box)((-2.5, -2.5, -2.5), (0.0, 2.5, 2.5)))
-    tool.apply(Operation("delete"))
+    tool.select(type(tool.box)((-2.5, -2.5, -2.5), (0.0, 2.5, 2.5)), viewer.loaded.scene)
+    tool.apply(Operation("delete"), viewer.loaded.scene)
     drive.tap(Key.escape)
-    assert viewer.window.should_close and not tool.exporter.may_close()
+    assert viewer.window.should_close and not viewer.may_close()
     assert not viewer.window.should_close and viewer.panel.error.startswith("error: not closed: the edits")
     drive.tap(Key.escape)  # asked, and asked again: it closes
-    assert viewer.window.should_close and tool.exporter.may_close()
+    assert viewer.window.should_close and viewer.may_close()
 
 
 def test_the_export_writes_on_its_own_thread_while_the_window_goes_on(open_viewer, scene_file, tmp_path,
@@ -392,9 +393,9 @@ def test_the_export_writes_on_its_own_thread_while_the_window_goes_on(open_viewe
     drive.reveal("Edit")
     drive.click("Edit")
     tool = viewer.edit_tool
-    tool.select(type(tool.box)((-2.5, -2.5, -2.5), (0.0, 2.5, 2.5)))
-    tool.apply(Operation("delete"))
-    kept = tool.edits.kept.copy()
+    tool.select(type(tool.box)((-2.5, -2.5, -2.5), (0.0, 2.5, 2.5)), viewer.loaded.scene)
+    tool.apply(Operation("delete"), viewer.loaded.scene)
+    kept = ~tool.edits.deleted.copy()
     tool.exporter.file = str(tmp_path / "clean.ply")
     drive.reveal("Export")
     drive.click("Export")
@@ -403,11 +404,11 @@ def test_the_export_writes_on_its_own_thread_while_the_window_goes_on(open_viewe
     drive.frames(3)  # the window draws on while the file is being written
     assert viewer.frame_index == shown + 3 and tool.exporter.writing is not None
     assert viewer.panel.message.startswith(f"exporting {int(kept.sum()):,} gaussians to ")
-    tool.apply(Operation("undelete all"))  # a later edit does not reach the file
-    assert tool.exporter.unsaved() is None  # nothing deleted now
-    tool.exporter.export()
+    tool.apply(Operation("undelete all"), viewer.loaded.scene)  # a later edit does not reach the file
+    assert tool.unsaved() is None  # nothing deleted now
+    viewer.panel.say(tool.exporter.export(tool.edits, viewer.loaded))
     assert viewer.panel.error.endswith("clean.ply is still being written")
     release.set()
-    tool.exporter.wait()
+    viewer.panel.say(tool.exporter.wait())
     assert PlyData.read(str(tmp_path / "clean.ply"))["vertex"].count == int(kept.sum())
     assert viewer.panel.message.startswith(f"exported {int(kept.sum()):,} gaussians")

@@ -214,6 +214,6 @@ def test_the_photo_is_shown_inside_its_frustum_and_a_bad_one_is_a_line(open_view
     assert tuple(viewer.capture_window(overlay=False)[int(y), int(x)]) != (r, g, b)
 
     texture = viewer.frustums.thumbnails.texture(1)
-    viewer.scenes.open("demo")
+    viewer.open_scene("demo")
     drive.wait_for_load()
     assert viewer.frustums.thumbnails.texture(1) is None and isinstance(texture.mglo, moderngl.InvalidObject)

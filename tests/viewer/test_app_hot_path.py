@@ -71,7 +71,7 @@ def test_the_window_blends_at_its_precision_straight_into_what_it_shows(open_vie
     drive.settle()
     resolves = count_resolves(monkeypatch)
     draws = viewer.stats.draws
-    viewer.set_settings(replace(settings, background=(0.1, 0.2, 0.3)))  # a frame to draw again
+    viewer.settings = replace(settings, background=(0.1, 0.2, 0.3))  # a frame to draw again
     drive.settle()
     assert viewer.stats.draws > draws and resolves == []
     assert viewer.drawer.mono.left.dtypes == (dtype,)
@@ -82,7 +82,7 @@ def test_the_window_blends_at_its_precision_straight_into_what_it_shows(open_vie
     assert expected[..., 3].max() > 0.5
 
     # The split view: a float32 left side beside the right side's preset at the precision.
-    viewer.set_settings(replace(viewer.settings, precision="float32"))
+    viewer.settings = replace(viewer.settings, precision="float32")
     viewer.split.on, viewer.split.preset = True, PRESETS[precision]
     draws = viewer.stats.draws
     drive.settle()
@@ -101,7 +101,7 @@ def test_the_window_s_target_follows_the_precision_and_what_resolves_into_it(ope
     for settings, dtype in ((replace(viewer.settings, precision="float16"), "f2"),
                             (replace(viewer.settings, precision="float16", supersample=2), "f4"),
                             (replace(viewer.settings, precision="8bit"), "f1")):
-        viewer.set_settings(settings)
+        viewer.settings = settings
         drive.settle()
         assert viewer.drawer.mono.left.dtypes == (dtype,), settings
         np.testing.assert_array_equal(window_image(viewer), headless(viewer))
@@ -111,7 +111,7 @@ def test_the_stereo_eyes_blend_at_the_precision_with_no_copy_pass(open_viewer, m
     viewer, drive = stereo_viewer(open_viewer, settings=RenderSettings(precision="float16"))
     drive.settle()
     resolves = count_resolves(monkeypatch)
-    viewer.set_settings(replace(viewer.settings, background=(0.1, 0.2, 0.3)))  # a frame to draw again
+    viewer.settings = replace(viewer.settings, background=(0.1, 0.2, 0.3))  # a frame to draw again
     draws = viewer.stats.draws
     drive.settle()
     assert viewer.stats.draws > draws and resolves == []

@@ -377,7 +377,7 @@ def test_levels_cut_short_by_another_file_are_read_again(open_viewer, streamed, 
     try:
         drive.frames(1)  # starts reading the finer levels
         stepped.wait_handed(0)
-        viewer.scenes.open(str(tmp_path / "missing.ply"))  # cancels that reading, then fails
+        viewer.open_scene(str(tmp_path / "missing.ply"))  # cancels that reading, then fails
         stepped.release_all()
         drive.wait_for_load()
         assert "missing.ply" in viewer.panel.error and viewer.loaded.path == index
@@ -415,8 +415,9 @@ def test_an_edited_screenshot_of_a_streamed_sog_renders_again_from_its_sidecar(o
     tool = viewer.edit_tool
     positions = viewer.loaded.scene.positions
     middle = np.median(positions, axis=0)
-    tool.select(Sphere(tuple(middle.tolist()), float(np.percentile(np.linalg.norm(positions - middle, axis=1), 30))))
-    tool.apply(Operation("delete"))
+    tool.select(Sphere(tuple(middle.tolist()), float(np.percentile(np.linalg.norm(positions - middle, axis=1), 30))),
+                viewer.loaded.scene)
+    tool.apply(Operation("delete"), viewer.loaded.scene)
     deleted = tool.edits.deleted.copy()
     assert 0 < deleted.sum() < deleted.size
     drive.settle()

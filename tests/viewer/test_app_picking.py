@@ -247,7 +247,7 @@ def test_a_scale_from_one_known_length_converts_every_distance(open_viewer):
     widget.delete(0)  # the scale stays, no longer naming a measurement
     assert widget.scale.reference is None and widget.describe(0) == f"{1.2 / 2.5:.4g} metres"
     widget.known_length = -1.0
-    widget.set_scale(0)
+    viewer.panel.say(widget.set_scale(0))
     assert viewer.panel.error.startswith("error: scale not set") and widget.scale.factor == pytest.approx(0.48)
 
 

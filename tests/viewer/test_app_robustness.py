@@ -41,6 +41,7 @@ from raygs_viewer.camera.navigation import (
 )
 from raygs_viewer.scene.io import load_scene
 from raygs_viewer.scene.spz_file import spz_bytes
+from raygs_viewer.viewer.state import done
 
 NAN, INF = float("nan"), float("inf")
 
@@ -129,7 +130,8 @@ def drain_input(drive) -> None:
 def assert_w_moves_at_default_speed(viewer, drive) -> None:
     """One frame of W at dt 0.1 moves the camera straight ahead by the default speed's step:
     the view is not stuck."""
-    viewer.fixed_dt = 0.1
+    drive.clock.step = 0.1
+    drive.frames(1)  # the clock at 0.1 s a frame (after a huge one it starts again: a frame of no time)
     before = viewer.camera
     drive.key(imgui.Key.w, True)
     drive.frames(1)
@@ -220,11 +222,11 @@ def test_a_corrupt_file_opened_leaves_the_scene_camera_and_image(open_viewer, tm
     shown = Shown(viewer)
     bad = BAD_FILES[kind](tmp_path)
     for route in ("path field", "drop"):
-        viewer.panel.error = ""
+        viewer.panel.say(done(""))
         if route == "drop":
-            viewer.scenes.drop([str(bad)])
+            viewer.drop([str(bad)])
         else:
-            viewer.scenes.open(str(bad))
+            viewer.open_scene(str(bad))
         drive.wait_for_load()
         assert_one_line_error(viewer, bad.name)
         drive.frames(3)  # the loop keeps running...
@@ -233,7 +235,7 @@ def test_a_corrupt_file_opened_leaves_the_scene_camera_and_image(open_viewer, tm
         assert viewer.window.handle is not None and not viewer.window.should_close
     # A good file opened afterwards still loads.
     good = good_ply(tmp_path / "good.ply")
-    viewer.scenes.open(str(good))
+    viewer.open_scene(str(good))
     drive.wait_for_load()
     assert viewer.panel.error == ""
     assert viewer.loaded.path == str(good) and viewer.loaded.scene.count == 50
@@ -246,7 +248,7 @@ def test_a_dropped_spz_opens_like_a_ply(open_viewer, tmp_path):
     drive.frames(1)
     spz = tmp_path / "scene.spz"
     spz.write_bytes(spz_bytes(load_scene(good_ply(tmp_path / "scene.ply"))))
-    viewer.scenes.drop([str(spz)])
+    viewer.drop([str(spz)])
     drive.wait_for_load()
     assert viewer.panel.error == "" and viewer.loaded.path == str(spz)
     assert (viewer.loaded.scene.format, viewer.loaded.scene.count) == ("spz v3", 50)
@@ -265,7 +267,7 @@ def test_random_bytes_that_happen_to_be_whole_splat_rows_load_without_breaking_t
     drive.frames(1)
     path = tmp_path / "noise-rows.splat"
     path.write_bytes(np.random.default_rng(1).bytes(32 * 1000))
-    viewer.scenes.open(str(path))
+    viewer.open_scene(str(path))
     drive.wait_for_load()
     assert viewer.panel.error == "" and viewer.loaded.path == str(path)
     assert "dropped" in viewer.panel.message and "\n" not in viewer.panel.message
@@ -420,7 +422,7 @@ def test_extreme_moves_never_break_the_pose_the_image_or_the_controls(open_viewe
     # the scene: every frame moves exactly the clamped step.
     drive.key(imgui.Key.mod_shift, True)
     for dt, key in ((1e6, imgui.Key.w), (1e30, imgui.Key.s)):
-        viewer.fixed_dt = dt
+        drive.clock.step = dt
         drive.key(key, True)
         for _ in range(15):
             before = viewer.camera.center
@@ -434,7 +436,7 @@ def test_extreme_moves_never_break_the_pose_the_image_or_the_controls(open_viewe
     # Into and through the dense centre at the default speed, frame by frame.
     drive.tap(imgui.Key.r)
     assert nav.speed == default
-    viewer.fixed_dt = 1e30
+    drive.clock.step = 1e30
     drive.key(imgui.Key.w, True)
     travelled, beyond = 0.0, 2 * np.linalg.norm(viewer.view.center - viewer.camera.center) + viewer.view.radius
     while travelled < beyond:
@@ -486,8 +488,8 @@ def test_extreme_moves_never_break_the_pose_the_image_or_the_controls(open_viewe
         run_checked(drive, 2)
     drive.key(imgui.Key.d, False)
     drive.tap(imgui.Key.n)
-    run_checked(drive, 2)
-    assert viewer.view.training_index == 3
+    run_checked(drive, 6)  # a flight's 0.6 s in frames of at most MAX_DT
+    assert viewer.view.training_index == 3 and not viewer.view.navigator.animating
     goal = demo_cameras()[3]
     np.testing.assert_allclose(viewer.camera.center, goal.center, atol=1e-9)
     np.testing.assert_allclose(viewer.camera.R, goal.R, atol=1e-9)
@@ -579,7 +581,7 @@ def test_any_sequence_of_extreme_input_keeps_the_viewer_sane_and_usable(open_vie
     try:
         drive.frames(1)
         for dt, keys, wheel, mouse, buttons, size in frames:
-            viewer.fixed_dt = dt
+            drive.clock.step = dt
             for key, down in keys:
                 drive.key(key, down)
             if wheel is not None:
@@ -598,7 +600,7 @@ def test_any_sequence_of_extreme_input_keeps_the_viewer_sane_and_usable(open_vie
         for button in range(3):
             drive.button(button, False)
         drive.move_mouse(WIDTH / 2, HEIGHT / 2)
-        viewer.fixed_dt = 0.1
+        drive.clock.step = 0.1
         drain_input(drive)
         drive.settle()
         assert_sane(viewer)
@@ -685,12 +687,12 @@ def test_opening_a_file_while_another_loads_replaces_that_load(open_viewer, tmp_
     drive.settle()
     shown = Shown(viewer)
     slow = good_ply(tmp_path / "slow.ply", n=30, seed=1)
-    viewer.scenes.open(str(slow))
+    viewer.open_scene(str(slow))
     assert gate.entered.wait(30)
     run_checked(drive, 5)  # the loop never waits for the load; the scene stays meanwhile
     assert viewer.scenes.loader.busy and viewer.loaded is shown.loaded
     path = good_ply(tmp_path / "good.ply") if second == "good" else _noise("noise.ply", 999)(tmp_path)
-    viewer.scenes.open(str(path))
+    viewer.open_scene(str(path))
     drive.wait_for_load()
     if second == "good":
         assert viewer.panel.error == "" and viewer.loaded.path == str(path)
@@ -716,19 +718,19 @@ def test_dropping_several_files_opens_the_first(open_viewer, tmp_path):
     drive.settle()
     good = good_ply(tmp_path / "good.ply")
     bad = _noise("noise.ply", 999)(tmp_path)
-    viewer.scenes.drop([str(good), str(bad), str(tmp_path / "missing.ply")])
+    viewer.drop([str(good), str(bad), str(tmp_path / "missing.ply")])
     assert "3 files" in viewer.panel.message
     drive.wait_for_load()
     assert viewer.panel.error == "" and viewer.loaded.path == str(good)
     drive.settle()
     shown = Shown(viewer)
-    viewer.scenes.drop([str(bad), str(good)])
+    viewer.drop([str(bad), str(good)])
     drive.wait_for_load()
     assert_one_line_error(viewer, bad.name)
     drive.settle()
     shown.assert_still_shown(viewer)
     started = viewer.scenes.loader.started
-    viewer.scenes.drop([])  # e.g. a drop of something that is no file
+    viewer.drop([])  # e.g. a drop of something that is no file
     run_checked(drive, 2)
     assert viewer.scenes.loader.started == started and viewer.loaded is shown.loaded
 
@@ -740,7 +742,7 @@ def test_a_load_that_finishes_while_minimised_is_shown_when_restored(open_viewer
     glfw.set_window_size(viewer.window.handle, 0, 0)
     drive.frames(1)
     good = good_ply(tmp_path / "good.ply")
-    viewer.scenes.open(str(good))
+    viewer.open_scene(str(good))
     drive.wait_for_load()
     assert viewer.panel.error == "" and viewer.loaded.path == str(good)
     glfw.set_window_size(viewer.window.handle, WIDTH, HEIGHT)

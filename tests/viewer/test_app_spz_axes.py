@@ -80,8 +80,8 @@ def test_screenshots_and_paths_record_the_axes_and_render_again_from_them(open_v
     flipped.write_text(json.dumps(data))
     assert main(["render", "--sidecar", str(flipped), "--out", str(tmp_path / "rub.png")]) == 0
     assert np.abs(np.asarray(Image.open(tmp_path / "rub.png")).astype(int) - np.asarray(Image.open(png))).max() > 50
-    viewer.camera_path.add_view()
-    assert viewer.camera_path.document().scene_axes == FileAxes("rdf")  # render-path reads it so
+    viewer.camera_path.add_view(viewer.view)
+    assert viewer.camera_path.document(viewer.path_scene()).scene_axes == FileAxes("rdf")  # render-path reads it so
 
 
 def test_no_switch_for_a_ply_nor_a_file_that_declares_its_axes(open_viewer, tmp_path):
@@ -97,7 +97,7 @@ def test_no_switch_for_a_ply_nor_a_file_that_declares_its_axes(open_viewer, tmp_
     header[16:20] = struct.pack("<I", 32 + len(extension))  # the table of contents moves past them
     declared = tmp_path / "declared.spz"
     declared.write_bytes(bytes(header) + extension + plain[32:])
-    viewer.scenes.open(str(declared))
+    viewer.open_scene(str(declared))
     drive.wait_for_load()
     assert viewer.panel.error == "" and viewer.loaded.scene.axes == FileAxes("rub", "RDF")
     drive.frames(1)

@@ -199,7 +199,7 @@ def test_screenshots_and_paths_take_the_headsets_size_whatever_the_preview(open_
     png, sidecar = viewer.save_screenshot()
     assert Image.open(png).size == (2 * EYE.width, EYE.height)
     assert json.loads(sidecar.read_text())["camera"]["width"] == EYE.width
-    document = viewer.camera_path.document()
+    document = viewer.camera_path.document(viewer.path_scene())
     assert (document.width, document.height) == (EYE.width, EYE.height)
 
 

@@ -89,7 +89,7 @@ def test_a_new_driver_is_measured_again(open_viewer, gl_ctx):
 
 def test_a_choice_made_in_the_panel_stands_when_the_profile_arrives(open_viewer):
     viewer, drive = open_viewer(sort="auto", auto_precision=True, probe_factory=ScriptedProbe)
-    viewer.set_settings(replace(viewer.settings, precision="float16"))
+    viewer.settings = replace(viewer.settings, precision="float16")
     drive.frames(STEPS + 1)
     assert viewer.settings.precision == "float16"
 

@@ -37,10 +37,11 @@ def test_each_frame_is_made_once_and_handed_to_the_sort_the_drawer_and_the_overl
     viewer, drive = open_viewer(hide_panel=True)
     made, asked, drawn, overlaid = [], [], [], []
     make = Frame.make.__func__
-    monkeypatch.setattr(Frame, "make", classmethod(lambda cls, *args: made.append(make(cls, *args)) or made[-1]))
+    monkeypatch.setattr(Frame, "make", classmethod(lambda cls, *args, **kwargs: made.append(make(cls, *args, **kwargs))
+                                                   or made[-1]))
     recording(monkeypatch, viewer.scene.sorter, "request", lambda args: asked.append(args[0]))
     recording(monkeypatch, viewer.drawer, "draw", lambda args: drawn.append(args[1]))
-    recording(monkeypatch, viewer.measure, "draw_overlay", lambda args: overlaid.append(args[0]))
+    recording(monkeypatch, viewer.measure, "overlay", lambda args: overlaid.append(args[0]))
     drive.frames(3)
     assert len(made) == len(asked) == len(drawn) == len(overlaid) == 3
     for frame, request, draw, overlay in zip(made, asked, drawn, overlaid):

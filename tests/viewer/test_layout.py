@@ -43,7 +43,7 @@ def test_the_view_is_laid_out_beside_the_panel_and_takes_the_window_without_it(o
     assert panel == DEFAULT_PANEL
     assert viewer.viewport == (panel, 0, PANEL_WIDTH - panel, PANEL_HEIGHT)
     assert (viewer.camera.width, viewer.camera.height) == (PANEL_WIDTH - panel, PANEL_HEIGHT)
-    viewer.captures.keep_window = True
+    viewer.captures.keep_next = True
     drive.frames(1)
     assert_matches(window_image(viewer), headless(viewer))
     shown = viewer.captures.window.astype(int)

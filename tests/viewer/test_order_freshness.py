@@ -15,6 +15,7 @@ from raygs_viewer.bench.views import turned
 from raygs_viewer.camera.pinhole import look_at
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.sort.request import Order, SortResult
+from raygs_viewer.viewer.drawing import DrawReport, SortAsked
 from raygs_viewer.viewer.frame import Frame, Framing
 from raygs_viewer.viewer.stats import (
     FrameStats,
@@ -24,8 +25,8 @@ from raygs_viewer.viewer.stats import (
 
 
 def _frame(index, camera) -> Frame:
-    return Frame.make(index, Framing(camera, (0, 0, camera.width, camera.height), None), None, RenderSettings(),
-                      None, None)
+    return Frame.make(index, Framing(camera, (0, 0, camera.width, camera.height), None), stereo=None,
+                      settings=RenderSettings(), right=None, lod=None)
 
 
 def _result(camera, requested_at) -> SortResult:
@@ -45,14 +46,14 @@ def test_a_stale_order_reports_its_age_turn_and_move():
     now = replace(turned(sorted_for, 12.0))
     now = replace(now, t=now.t - now.R @ np.array([0.0, 0.3, 0.4]))  # and moved 0.5 units
     stats = FrameStats()
-    stats.asked(1, 3)
     result = _result(sorted_for, requested_at=100.0)
-    stats.order_to_draw(result, _frame(7, now), now=100.25)
+    stats.record(DrawReport(_frame(3, sorted_for), SortAsked(1, True), None, False, 100.0))  # frame 3 asks
+    stats.record(DrawReport(_frame(7, now), SortAsked(2, True), result, True, 100.25))
     assert stats.order_age == 4 and stats.order_age_ms == pytest.approx(250.0)
     assert stats.order_turned_degrees == pytest.approx(12.0) and stats.order_moved == pytest.approx(0.5)
     assert order_freshness(stats) == "4 frames old (250 ms, turned 12.0°, moved 0.5)"
     # Up to date: the same view asked again.
-    stats.order_to_draw(result, _frame(8, sorted_for), now=101.0)
+    stats.record(DrawReport(_frame(8, sorted_for), SortAsked(3, False), result, True, 101.0))
     assert (stats.order_age, stats.order_age_ms, stats.order_turned_degrees, stats.order_moved) == (0, 0, 0, 0)
     assert order_freshness(stats) == "up to date"
 

@@ -9,15 +9,17 @@ from appkit import PANEL_HEIGHT, PANEL_WIDTH, text_past_the_panel
 from raygs_viewer.viewer import app as viewer_app
 from raygs_viewer.viewer.layout import MIN_PANEL_WIDTH
 from raygs_viewer.viewer.panel.widgets import labelled_progress
+from raygs_viewer.viewer.panel_sections import said
+from raygs_viewer.viewer.state import failed, note
 
 
 def test_no_panel_text_runs_past_the_panel(open_viewer):
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
     drive.frames(3)
     # The longest lines: an order while the view turns, a long message and error.
-    viewer.panel.message = "saved /a/rather/long/folder/name/that/people/have/screenshots/raygs-20261128-000000.png"
-    viewer.panel.error = ("error: nothing to pick there: that pixel's alpha never reaches 0.5 along its ray "
-                          "(the scene is too faint or absent there)")
+    viewer.panel.say(note("saved /a/rather/long/folder/name/that/people/have/screenshots/raygs-20261128-000000.png"),
+                     failed("nothing to pick there: that pixel's alpha never reaches 0.5 along its ray "
+                            "(the scene is too faint or absent there)"))
     drive.move_mouse(PANEL_WIDTH - 20, PANEL_HEIGHT / 2)
     drive.button(0, True)
     drive.frames(1)
@@ -42,8 +44,8 @@ def test_nothing_is_cut_in_every_section_of_the_narrowest_panel(open_viewer, mon
         drive.click(closed)
     # A progress bar with a load's longest stage, as the Scene and Level of detail sections show one.
     sections = viewer_app.panel_sections
-    monkeypatch.setattr(viewer_app, "panel_sections", lambda window: sections(window) + [
-        lambda: labelled_progress(0.25, "reading level 3 of 5: 1,234,567 of 2,345,678 gaussians")])
+    monkeypatch.setattr(viewer_app, "panel_sections", lambda window, draft: sections(window, draft) + [
+        said(lambda: labelled_progress(0.25, "reading level 3 of 5: 1,234,567 of 2,345,678 gaussians"))])
     drive.frames(3)
     assert viewer.panel.width == MIN_PANEL_WIDTH
     assert "replace file##measure" in drive.panel and ("Stereo" in drive.panel or mode != "stereo")

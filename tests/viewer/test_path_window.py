@@ -127,11 +127,11 @@ def test_panel_buttons_add_select_reorder_delete_and_retime(open_viewer):
 
     # An edit the path refuses stands in the error line, and the path stays.
     before = viewer.camera_path.path
-    assert not viewer.camera_path.set_duration(-1.0)
+    viewer.panel.say(viewer.camera_path.set_duration(-1.0))
     assert viewer.panel.error.startswith("error: ") and "duration" in viewer.panel.error
     assert viewer.camera_path.path is before
     drive.frames(1)  # drawn as a line, not raised
-    assert viewer.camera_path.set_fps(24.0)
+    viewer.panel.say(viewer.camera_path.set_fps(24.0))  # an edit that goes through mends it
     assert viewer.panel.error == "" and viewer.camera_path.path.fps == 24.0
 
     click(drive, "Add training cameras")  # after the selected keyframe 1: at the end
@@ -497,10 +497,10 @@ def test_video_documents_never_clobber(open_viewer, tmp_path):
     drive.tap(imgui.Key.k)
     now = datetime(2026, 11, 21, 10, 15, 0)
     folder = tmp_path / "videos"
-    first = write_video_document(viewer.camera_path.document(), folder, now)
+    first = write_video_document(viewer.camera_path.document(viewer.path_scene()), folder, now)
     assert first == (folder / "raygs-20261121-101500.json", folder / "raygs-20261121-101500.mp4")
     (folder / "raygs-20261121-101500-2.mp4").write_bytes(b"taken")
-    second = write_video_document(viewer.camera_path.document(), folder, now)
+    second = write_video_document(viewer.camera_path.document(viewer.path_scene()), folder, now)
     assert second[0].name == "raygs-20261121-101500-3.json" and not second[1].exists()
     assert first[0].read_bytes() != b"" and (folder / "raygs-20261121-101500-2.mp4").read_bytes() == b"taken"
 
@@ -604,7 +604,7 @@ def test_a_path_recorded_and_played_in_the_window_renders_as_it_was_shown(open_v
     shot, _ = viewer.save_screenshot(tmp_path / "shot.png")
     saved = tmp_path / "path.json"
     widget.file = str(saved)
-    widget.save()
+    viewer.panel.say(widget.save(viewer.path_scene()))
     assert viewer.panel.message == f"saved {saved}"
 
     frames = tmp_path / "frames"

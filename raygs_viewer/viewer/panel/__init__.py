@@ -4,9 +4,12 @@ camera path, measure), each drawing from
 and editing only the state it is given (the path and measure sections: the viewer's
 PathWidget and MeasureWidget), and the panel's two message lines under them.
 
-Edits apply from the next frame on: the frame reads the state each time. Tests find
-the widgets by their imgui labels (tests/appkit.py records them): the panel carries no
-hook for them.
+Each section returns what it said and asked for (a ``part.Reply``: messages, and
+requests such as opening a scene), which the panel hands back to the window whole; the
+state a section edits (the stereo preview, the split view, a part's fields) and the
+render settings it edits (through the draft it is handed) are read when the frame is
+made, after the panel. Tests find the widgets by their imgui labels (tests/appkit.py
+records them): the panel carries no hook for them.
 """
 
 from __future__ import annotations
@@ -16,6 +19,7 @@ from typing import Callable, Sequence
 from imgui_bundle import imgui
 
 from raygs_viewer.viewer.layout import panel_width_limits
+from raygs_viewer.viewer.part import Reply
 from raygs_viewer.viewer.state import PanelState
 
 
@@ -23,18 +27,19 @@ from raygs_viewer.viewer.state import PanelState
 PANEL_WINDOW = "raygs-viewer"
 
 
-def draw_panel(panel: PanelState, sections: Sequence[Callable[[], None]]) -> None:
+def draw_panel(panel: PanelState, sections: Sequence[Callable[[], Reply]]) -> Reply:
     """The panel's window with ``sections`` drawn in order, then ``panel``'s message
-    and error lines."""
+    and error lines; returns what the sections said and asked for, in order."""
     # Tab is the fly/orbit key. imgui would also tab into the panel (focused from its
     # first frame): a slider tabbed into turns into a text field that then takes every
     # key, so WASD, R and Tab itself stop reaching the camera.
     imgui.push_item_flag(imgui.ItemFlags_.no_tab_stop.value, True)
-    _window(panel, sections)
+    reply = _window(panel, sections)
     imgui.pop_item_flag()
+    return reply
 
 
-def _window(panel: PanelState, sections: Sequence[Callable[[], None]]) -> None:
+def _window(panel: PanelState, sections: Sequence[Callable[[], Reply]]) -> Reply:
     # Down the window's left edge, its whole height (a short window scrolls the panel
     # instead of cutting it off); the user resizes its width, which the view area
     # (layout.view_area) follows from the next frame on.
@@ -46,11 +51,12 @@ def _window(panel: PanelState, sections: Sequence[Callable[[], None]]) -> None:
     flags = imgui.WindowFlags_.no_move.value | imgui.WindowFlags_.no_collapse.value
     visible, _ = imgui.begin(PANEL_WINDOW, None, flags)
     panel.width = imgui.get_window_width()
+    reply = Reply()
     if not visible:
         imgui.end()
-        return
+        return reply
     for section in sections:
-        section()
+        reply += section()
     if panel.message:
         imgui.text_wrapped(panel.message)
     if panel.error:
@@ -58,3 +64,4 @@ def _window(panel: PanelState, sections: Sequence[Callable[[], None]]) -> None:
         imgui.text_wrapped(panel.error)
         imgui.pop_style_color()
     imgui.end()
+    return reply

@@ -1,7 +1,7 @@
 """The panel's Edit section: the selection tool, the box and the sphere, the histograms,
 the selection's and the deletions' counts, delete / undelete / crop / undo / redo, and
 the export. It edits the :class:`~raygs_viewer.viewer.edit_tool.EditTool` only through
-its methods and fields."""
+its methods and fields, and returns what the tool said."""
 
 from __future__ import annotations
 
@@ -12,19 +12,24 @@ from imgui_bundle import imgui
 from raygs_viewer.scene.edits import Operation
 from raygs_viewer.scene.filters import CropBox, CropSphere
 from raygs_viewer.scene.selection import ATTRIBUTES, Box, Sphere
+from raygs_viewer.scene.loader import LoadedScene
+from raygs_viewer.scene.model import Scene
 from raygs_viewer.viewer.edit_tool import LOG_ATTRIBUTES, TOOLS, EditTool
 from raygs_viewer.viewer.panel.widgets import button, choice, header, line, note, tooltip
+from raygs_viewer.viewer.part import Reply
+from raygs_viewer.viewer.state import Message
 
-TOOL_LABELS = {"off": "off", "click": "click", "rectangle": "rectangle", "lasso": "lasso", "brush": "brush"}
+TOOL_LABELS = {tool: tool for tool in TOOLS}
 SELECTS_LABELS = {"through": "centres inside (through)", "visible": "what the view shows"}
 HOW_LABELS = {"set": "set", "add": "add", "subtract": "subtract", "intersect": "intersect"}
 HISTOGRAM_HEIGHT = 60.0
 
 
-def draw_edit_section(tool: EditTool) -> None:
+def draw_edit_section(tool: EditTool, loaded: LoadedScene) -> Reply:
+    """The section, for the scene ``loaded`` the tool edits."""
     if not header("Edit", open_first=False) or tool.edits is None:
-        return
-    edits = tool.edits
+        return Reply()
+    edits, scene, said = tool.edits, loaded.scene, []
     line(f"{tool.selection_count():,} selected, {tool.deleted_count():,} deleted of {edits.count:,}")
     tool.tool = choice("tool##edit", tool.tool, TOOL_LABELS)
     tooltip("a left drag on the view selects with the shape it draws, a click the gaussian its pixel shows "
@@ -45,23 +50,22 @@ def draw_edit_section(tool: EditTool) -> None:
             tool.brush_radius = radius
     for label, op in (("All", "select all"), ("None", "select none"), ("Invert", "invert")):
         if imgui.button(f"{label}##select"):
-            tool.apply(Operation(op))
+            said.append(tool.apply(Operation(op), scene))
         imgui.same_line()
     note("")
     if button("Delete##edit", tool.selection_count() > 0):
-        tool.apply(Operation("delete"))
+        said.append(tool.apply(Operation("delete"), scene))
     imgui.same_line()
     if button("Undelete all##edit", tool.deleted_count() > 0):
-        tool.apply(Operation("undelete all"))
+        said.append(tool.apply(Operation("undelete all"), scene))
     imgui.same_line()
     if button("Undo##edit", edits.can_undo()):
-        tool.undo()
+        said.append(tool.undo())
     imgui.same_line()
     if button("Redo##edit", edits.can_redo()):
-        tool.redo()
-    _volume(tool)
-    _histogram(tool)
-    _export(tool)
+        said.append(tool.redo())
+    said += [_volume(tool, scene), _histogram(tool, scene), _export(tool, loaded)]
+    return Reply.of(*said)
 
 
 def _corner(label: str, values: tuple[float, float, float]) -> tuple[float, float, float] | None:
@@ -69,8 +73,9 @@ def _corner(label: str, values: tuple[float, float, float]) -> tuple[float, floa
     return tuple(float(v) for v in new) if changed and all(math.isfinite(v) for v in new) else None
 
 
-def _volume(tool: EditTool) -> None:
+def _volume(tool: EditTool, scene: Scene) -> tuple:
     """The box and the sphere: their numbers, select inside, crop to them."""
+    said = []
     imgui.separator_text("box")
     _, tool.handles.show_box = imgui.checkbox("show in the view##box", tool.handles.show_box)
     tooltip("the box's edges over the view; drag its centre dot to move it, a face's dot to move that face")
@@ -82,10 +87,10 @@ def _volume(tool: EditTool) -> None:
         except ValueError as exc:
             note(str(exc))
     if imgui.button("Select in box"):
-        tool.select(tool.box)
+        said.append(tool.select(tool.box, scene))
     imgui.same_line()
     if imgui.button("Crop to box"):
-        tool.apply(Operation("crop", tool.box))
+        said.append(tool.apply(Operation("crop", tool.box), scene))
     imgui.separator_text("sphere")
     _, tool.handles.show_sphere = imgui.checkbox("show in the view##sphere", tool.handles.show_sphere)
     tooltip("the sphere over the view; drag its centre dot to move it, the dot on its rim to set the radius")
@@ -95,17 +100,18 @@ def _volume(tool: EditTool) -> None:
         sphere = CropSphere(centre or tool.sphere.centre, radius if changed else tool.sphere.radius)
         tool.sphere = Sphere(sphere.centre, sphere.radius)
     if imgui.button("Select in sphere"):
-        tool.select(tool.sphere)
+        said.append(tool.select(tool.sphere, scene))
     imgui.same_line()
     if imgui.button("Crop to sphere"):
-        tool.apply(Operation("crop", tool.sphere))
+        said.append(tool.apply(Operation("crop", tool.sphere), scene))
+    return tuple(message for message in said if message is not None)
 
 
-def _histogram(tool: EditTool) -> None:
+def _histogram(tool: EditTool, scene: Scene) -> Message | None:
     """The attribute's histogram of what is not deleted; a drag across it selects that range."""
     imgui.separator_text("splat data")
     tool.attribute = choice("attribute##edit", tool.attribute, {a: a for a in ATTRIBUTES})
-    counts, edges = tool.histogram(tool.attribute)
+    counts, edges = tool.histogram(scene, tool.attribute)
     # Bars drawn over a button: the button holds the drag (a drag on bare panel moves it).
     imgui.invisible_button("##histogram", (max(imgui.get_content_region_avail().x, 1.0), HISTOGRAM_HEIGHT))
     low, high = imgui.get_item_rect_min(), imgui.get_item_rect_max()
@@ -129,30 +135,33 @@ def _histogram(tool: EditTool) -> None:
         tool.histogram_drag = x
     start = tool.histogram_drag
     if start is None:
-        return
+        return None
     draw.add_rect_filled(imgui.ImVec2(min(start, x), low.y), imgui.ImVec2(max(start, x), high.y),
                          imgui.get_color_u32((1.0, 0.85, 0.0, 0.35)))
-    if not active:
-        tool.histogram_drag = None
-        tool.select_range(tool.attribute, value(start), value(x))
+    if active:
+        return None
+    tool.histogram_drag = None
+    return tool.select_range(scene, tool.attribute, value(start), value(x))
 
 
-def _export(tool: EditTool) -> None:
+def _export(tool: EditTool, loaded: LoadedScene) -> tuple:
     imgui.separator_text("export")
     imgui.set_next_item_width(-70)
     export = tool.exporter
     _, export.file = imgui.input_text_with_hint("##export file", "clean.ply (.splat, .spz, .sog)", export.file)
     imgui.same_line()
+    said = ()
     if button("Export", export.writing is None):
-        export.export()
+        said = export.export(tool.edits, loaded)
     tooltip("the gaussians not deleted, in their order (a PLY's rows as the file has them), and the edits "
             "beside them as NAME.edits.json")
     if export.confirm_replace is not None:
         there = " and ".join(export.existing)
         note(f"{there} {'exist' if len(export.existing) > 1 else 'exists'}: replace {'them' if len(export.existing) > 1 else 'it'}?")
         if imgui.button("Replace##export"):
-            export.export(replace=True)
+            said = export.export(tool.edits, loaded, replace=True)
         imgui.same_line()
         if imgui.button("Cancel##export"):
             export.confirm_replace = None
+    return said
 

@@ -28,7 +28,7 @@ PICK_HELP = ("double-click the view: orbit mode orbits around the point under th
              "direction and centres it), fly mode turns to face it. The point is the pixel's median depth.")
 
 
-def draw_geometry_section(mode: ViewMode, range_in_use: tuple[float, float] | None, picked: Picked | None,
+def draw_geometry_section(mode: ViewMode, range_in_use: tuple[float, float] | None, *, picked: Picked | None,
                           scale: MeasureScale | None, stereo: StereoPreview, split: bool = False) -> None:
     """Edits ``mode`` (and ``stereo.converge_on_pick`` while the preview is on);
     ``range_in_use``: the depth range the last draw used; ``picked``: the last

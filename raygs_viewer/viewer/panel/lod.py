@@ -19,6 +19,7 @@ from raygs_viewer.scene.lod_file import LodScene
 from raygs_viewer.sort.lod_choice import LodChoice, automatic_distance, level_distances
 from raygs_viewer.viewer.lod_window import DEFAULT_WINDOW_BUDGET, LEVEL_COLOURS, WindowLod, reading
 from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, labelled_progress, line, slider, tooltip
+from raygs_viewer.viewer.part import ColourByLevel, Reply
 from raygs_viewer.viewer.stats import FrameStats, order_freshness
 
 PER_VIEW = "view"
@@ -37,16 +38,15 @@ TINT_HELP = ("each gaussian in its level's colour (the environment grey), to see
              "screenshots need the scene's own colours")
 
 
-def draw_lod_section(window: WindowLod, loaded: LoadedScene, loader: SceneLoader, settings: RenderSettings,
-                     set_settings: Callable[[RenderSettings], None], set_tint: Callable[[bool], None],
-                     stats: FrameStats) -> None:
+def draw_lod_section(window: WindowLod, loaded: LoadedScene, loader: SceneLoader, settings: RenderSettings, *,
+                     set_settings: Callable[[RenderSettings], None], stats: FrameStats) -> Reply:
     """``window``: the drawn choice and colour by level of the scene ``loaded`` (its
     levels), whose reading ``loader`` may be under way; ``set_settings`` receives the
-    edited settings, ``set_tint`` colour by level turned on or off; ``stats``: the
-    order's age."""
+    edited settings; ``stats``: the order's age. Colour by level turned on or off is a
+    request."""
     lod = loaded.lod
     if lod is None or not header("Level of detail"):
-        return
+        return Reply()
     _draw_reading(lod, reading(loaded, loader), loader)
     edited = _edit_level(lod, settings)
     imgui.begin_disabled(edited.lod is not None)  # one level everywhere: no budget, no distances
@@ -55,12 +55,11 @@ def draw_lod_section(window: WindowLod, loaded: LoadedScene, loader: SceneLoader
     if edited != settings:
         set_settings(edited)
     tint = checkbox("colour by level", window.tint, help_text=TINT_HELP)
-    if tint != window.tint:
-        set_tint(tint)
     if window.tint:
         _draw_legend(lod.levels)
     _draw_choice(window.choice, lod, edited, stats)
     imgui.separator()
+    return Reply.of(ColourByLevel(tint)) if tint != window.tint else Reply()
 
 
 def _draw_reading(lod: LodScene, reading: bool, loader: SceneLoader) -> None:

@@ -2,7 +2,7 @@
 delete, clear), the scale from one known length, and the measurements' file.
 
 It draws the :class:`~raygs_viewer.viewer.measure.MeasureWidget` and edits it only
-through the widget's methods and its form fields.
+through the widget's methods and its form fields; it returns what the widget said.
 """
 
 from __future__ import annotations
@@ -11,15 +11,19 @@ import math
 
 from imgui_bundle import imgui
 
+from raygs_viewer.scene.loader import LoadedScene
 from raygs_viewer.viewer.measure import MeasureWidget
+from raygs_viewer.viewer.part import Reply
+from raygs_viewer.viewer.state import Message
 from raygs_viewer.viewer.panel.widgets import button, checkbox, file_row, header, line, note, tooltip
 
 LIST_ROWS = 5
 
 
-def draw_measure_section(widget: MeasureWidget) -> None:
+def draw_measure_section(widget: MeasureWidget, loaded: LoadedScene) -> Reply:
+    """The section, for the scene ``loaded`` (the measurements' file names it)."""
     if not header("Measure", open_first=False):
-        return
+        return Reply()
     widget.on = checkbox("measure", widget.on,
                          help_text="click two points on the view for their distance (each point is its pixel's "
                                    "median depth); a double-click does not move the view while this is on")
@@ -27,8 +31,7 @@ def draw_measure_section(widget: MeasureWidget) -> None:
         imgui.same_line()
         note("second point next" if widget.pending is not None else "click a point")
     _list(widget)
-    _scale(widget)
-    _files(widget)
+    return Reply.of(_scale(widget), *_files(widget, loaded))
 
 
 def _list(widget: MeasureWidget) -> None:
@@ -48,7 +51,7 @@ def _list(widget: MeasureWidget) -> None:
         widget.clear()
 
 
-def _scale(widget: MeasureWidget) -> None:
+def _scale(widget: MeasureWidget) -> Message | None:
     imgui.set_next_item_width(90)
     changed, length = imgui.input_float("##known length", widget.known_length, 0.0, 0.0, "%.4g")
     if changed and math.isfinite(length):
@@ -60,25 +63,25 @@ def _scale(widget: MeasureWidget) -> None:
     if changed:
         widget.set_unit(unit)
     imgui.same_line()
+    said = None
     if button("Set scale", widget.selected is not None):
-        widget.set_scale(widget.selected)
+        said = widget.set_scale(widget.selected)
     tooltip("the selected measurement is this long: every distance is shown converted")
     scale = widget.scale
     if scale is None:
         note("distances in scene units")
-        return
+        return said
     source = "" if scale.reference is None else f" (from {scale.reference})"
     line(f"1 scene unit = {scale.factor:.6g} {scale.unit}{source}")
     imgui.same_line()
     if imgui.small_button("no scale"):
         widget.clear_scale()
+    return said
 
 
-def _files(widget: MeasureWidget) -> None:
+def _files(widget: MeasureWidget, loaded: LoadedScene) -> tuple[Message, ...]:
     widget.file, save, load = file_row("measure", widget.file, "measurements.json", bool(widget.measurements))
-    if save:
-        widget.save()
-    if load:
-        widget.load()
+    said = (widget.save(loaded) if save else None, widget.load(loaded) if load else None)
     widget.overwrite = checkbox("replace file##measure", widget.overwrite,
                                 help_text="let Save replace an existing file")
+    return tuple(message for message in said if message is not None)

@@ -4,7 +4,7 @@ the path's loop, duration and frame rate, playback (play, pause, step, scrub), t
 path's file (save, load, export) and Render video with its progress.
 
 It draws the :class:`~raygs_viewer.viewer.path_widget.PathWidget` and edits it only
-through the widget's methods and its form fields.
+through the widget's methods and its form fields; it returns what the widget said.
 """
 
 from __future__ import annotations
@@ -24,43 +24,48 @@ from raygs_viewer.viewer.panel.widgets import (
     slider,
     tooltip,
 )
-from raygs_viewer.viewer.path_widget import PathWidget
+from raygs_viewer.viewer.frame import NO_VIEWPORT
+from raygs_viewer.viewer.part import Reply
+from raygs_viewer.viewer.path_widget import PathScene, PathWidget
 from raygs_viewer.viewer.video_job import VIDEO_SIZES, progress_text
 
 LIST_ROWS = 6
 
 
-def draw_path_section(widget: PathWidget) -> None:
+def draw_path_section(widget: PathWidget, at: PathScene) -> Reply:
+    """The section, for the view and the scene ``at``."""
     if not header("Path"):
-        return
-    _generators(widget)
-    _keyframes(widget)
-    _timing(widget)
+        return Reply()
+    said: list = []
+    _generators(widget, at, said)
+    _keyframes(widget, said)
+    _timing(widget, said)
     _playback(widget)
-    _files(widget)
-    _video(widget)
+    _files(widget, at, said)
+    _video(widget, at, said)
+    return Reply.of(*said)
 
 
-def _generators(widget: PathWidget) -> None:
+def _generators(widget: PathWidget, at: PathScene, said: list) -> None:
     if imgui.button("Add view (K)"):
-        widget.add_view()
+        said.append(widget.add_view(at.view))
     tooltip("the current view as a keyframe, after the selected one (or at the end)")
     imgui.same_line()
-    training = widget.has_training_cameras
+    training = bool(at.loaded.cameras)
     imgui.begin_disabled(not training)
     if imgui.button("Add training cameras"):
-        widget.add_training_cameras()
+        said.append(widget.add_training_cameras(at.view, at.loaded))
     imgui.end_disabled()
     tooltip("every training camera, in order" if training else "this scene has no training cameras")
     imgui.same_line()
     if imgui.button("Clear##path"):
-        widget.clear()
+        said.append(widget.clear())
     if imgui.button("Orbit"):
-        widget.orbit()
+        said.append(widget.orbit(at.view, view_aspect(at)))
     tooltip("replace the path by a turntable lap around the scene's centre, from the current heading")
     imgui.same_line()
     if imgui.button("Dolly"):
-        widget.dolly()
+        said.append(widget.dolly(at.view))
     tooltip("replace the path by a straight move from the current view along its direction "
             "(negative: backwards)")
     imgui.same_line()
@@ -68,7 +73,7 @@ def _generators(widget: PathWidget) -> None:
     _, widget.dolly_distance = imgui.input_float("units##dolly", widget.dolly_distance, 0.0, 0.0, "%.3g")
 
 
-def _keyframes(widget: PathWidget) -> None:
+def _keyframes(widget: PathWidget, said: list) -> None:
     path = widget.path
     times = path.keyframe_times()
     rows = min(max(len(path.keyframes), 1), LIST_ROWS)
@@ -90,13 +95,13 @@ def _keyframes(widget: PathWidget) -> None:
                           ("Up", lambda: widget.move(index, -1)),
                           ("Down", lambda: widget.move(index, +1))):
         if imgui.button(f"{label}##keyframe"):
-            action()
+            said.append(action())
         imgui.same_line()
     imgui.new_line()
     auto = checkbox("auto time", keyframe.time is None,
                     help_text="placed by the path's even pacing; off: at the time typed beside it")
     if auto != (keyframe.time is None):
-        widget.set_time(index, None if auto else float(times[index]))
+        said.append(widget.set_time(index, None if auto else float(times[index])))
     imgui.same_line()
     imgui.begin_disabled(auto)
     imgui.set_next_item_width(120)
@@ -104,18 +109,18 @@ def _keyframes(widget: PathWidget) -> None:
                                          imgui.InputTextFlags_.enter_returns_true.value)
     imgui.end_disabled()
     if changed and not auto:
-        widget.set_time(index, seconds)
+        said.append(widget.set_time(index, seconds))
     fov = slider("fov##keyframe", keyframe.fov_y_degrees, *FOV_RANGE, "%.1f deg")
     if fov is not None:
-        widget.set_fov(index, min(max(fov, FOV_RANGE[0]), FOV_RANGE[1]))
+        said.append(widget.set_fov(index, min(max(fov, FOV_RANGE[0]), FOV_RANGE[1])))
 
 
-def _timing(widget: PathWidget) -> None:
+def _timing(widget: PathWidget, said: list) -> None:
     path = widget.path
     loop = checkbox("loop", path.interpolation.loop,
                     help_text="back from the last keyframe to the first, and around again")
     if loop != path.interpolation.loop:
-        widget.set_loop(loop)
+        said.append(widget.set_loop(loop))
     imgui.same_line()
     widget.show = checkbox("show path", widget.show,
                            help_text="draw the path and its keyframes' frustums over the view")
@@ -123,12 +128,12 @@ def _timing(widget: PathWidget) -> None:
     imgui.set_next_item_width(100)
     changed, seconds = imgui.input_float("duration (s)", path.duration, 0.0, 0.0, "%.2f", enter)
     if changed:
-        widget.set_duration(seconds)
+        said.append(widget.set_duration(seconds))
     beside(70 + imgui.get_style().item_inner_spacing.x + imgui.calc_text_size("fps").x)
     imgui.set_next_item_width(70)
     changed, fps = imgui.input_float("fps", path.fps, 0.0, 0.0, "%.3g", enter)
     if changed:
-        widget.set_fps(fps)
+        said.append(widget.set_fps(fps))
     note(f"{len(path.keyframes)} keyframes, {path.frame_count} frames")
 
 
@@ -159,16 +164,16 @@ def _playback(widget: PathWidget) -> None:
                    f"frame {playback.frame_number(path) + 1} / {path.frame_count}")
 
 
-def _files(widget: PathWidget) -> None:
+def _files(widget: PathWidget, at: PathScene, said: list) -> None:
     widget.file, save, load = file_row("path", widget.file, "path.json", bool(widget.path.keyframes), room=190)
     if save:
-        widget.save()
+        said.append(widget.save(at))
     if load:
-        widget.load()
+        said.append(widget.load(at.loaded))
     tooltip("a path JSON saved here, or a nerfstudio camera_path file")
     imgui.begin_disabled(not widget.path.keyframes)
     if imgui.button("Export nerfstudio"):
-        widget.export_nerfstudio()
+        said.append(widget.export_nerfstudio(at))
     imgui.end_disabled()
     tooltip("save the path as a nerfstudio camera_path file (every frame, and the keyframes for its viewer)")
     imgui.same_line()
@@ -176,7 +181,7 @@ def _files(widget: PathWidget) -> None:
                                 help_text="let Save replace an existing file")
 
 
-def _video(widget: PathWidget) -> None:
+def _video(widget: PathWidget, at: PathScene, said: list) -> None:
     video = widget.video
     if video.running:
         progress = video.job.progress
@@ -187,7 +192,7 @@ def _video(widget: PathWidget) -> None:
         return
     imgui.begin_disabled(not widget.path.keyframes)
     if imgui.button("Render video"):
-        widget.render_video()
+        said.append(widget.render_video(at))
     imgui.end_disabled()
     tooltip("render-path in the background: the path and the current render settings, saved as "
             "<folder>/raygs-<time>.json and .mp4")
@@ -198,3 +203,9 @@ def _video(widget: PathWidget) -> None:
     imgui.same_line()
     imgui.set_next_item_width(-1)
     _, video.folder = imgui.input_text("##video folder", video.folder)
+
+
+def view_aspect(at: PathScene) -> float:
+    """The last frame's viewport's width / height."""
+    _, _, width, height = NO_VIEWPORT if at.shown is None else at.shown.viewport
+    return width / height

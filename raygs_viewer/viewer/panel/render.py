@@ -23,7 +23,8 @@ from raygs_viewer.render.settings import (
 )
 from raygs_viewer.viewer.panel.order import with_mode
 from raygs_viewer.viewer.panel.widgets import checkbox, choice, header, slider, tooltip
-from raygs_viewer.viewer.state import SplitView, StereoPreview
+from raygs_viewer.viewer.part import Reply
+from raygs_viewer.viewer.state import SplitView, StereoPreview, note
 from raygs_viewer.viewer.window import Window
 
 P_MIN_RANGE = (1e-4, 0.5)
@@ -35,17 +36,15 @@ SUPERSAMPLE = setting_field(RenderSettings, "supersample").info
 Supports = Callable[[RenderSettings], "str | None"]
 
 
-def draw_render_section(settings: RenderSettings, set_settings: Callable[[RenderSettings], None],
+def draw_render_section(settings: RenderSettings, set_settings: Callable[[RenderSettings], None], *,
                         scene_sh_degree: int, supports: Supports, window: Window, stereo: StereoPreview,
-                        split: SplitView, notify: Callable[[str], None] = lambda note: None) -> None:
+                        split: SplitView) -> Reply:
     """``set_settings`` receives the edited settings (when an edit changed them);
-    ``window``: its vsync; ``stereo``: its on/off; ``split``: on/off and the preset;
-    ``notify``: a note for the panel (GS switches a per-pixel order to distance)."""
+    ``window``: its vsync; ``stereo``: its on/off; ``split``: on/off and the preset.
+    Returns a note for the panel (GS switches a per-pixel order to distance)."""
     if not header("Render"):
-        return
-    edited, note = with_mode(settings, choice("mode", settings.mode, {m: MODE_LABELS[m] for m in RENDER_MODES}))
-    if note:
-        notify(note)
+        return Reply()
+    edited, words = with_mode(settings, choice("mode", settings.mode, {m: MODE_LABELS[m] for m in RENDER_MODES}))
     tooltip("RayGS: the ray-based opacity, with the pixel-invariant MIP filter when MIP is on.\n"
             "RayGS exact MIP: the per-pixel MIP filter (Appendix A.5), always on.\n"
             "GS (EWA): INRIA's linearised splats with a 0.3 px^2 dilation.")
@@ -79,6 +78,7 @@ def draw_render_section(settings: RenderSettings, set_settings: Callable[[Render
                                    "midpoint, each eye rendered offscreen at the headset's resolution and scaled "
                                    "into the window (its controls: the Stereo section)")
     _split_controls(split, stereo.on)
+    return Reply.of(note(words)) if words else Reply()
 
 
 def _accuracy_controls(settings: RenderSettings, supports: Supports) -> RenderSettings:

@@ -5,7 +5,6 @@ was read in, with a switch between the two conventions when the file declares no
 from __future__ import annotations
 
 import os
-from typing import Callable
 
 from imgui_bundle import imgui
 
@@ -14,21 +13,22 @@ from raygs_viewer.scene.loader import LoadedScene, SceneLoader
 from raygs_viewer.scene.model import FileAxes
 from raygs_viewer.viewer.file_dialog import FileDialog, dialog_problem
 from raygs_viewer.viewer.panel.widgets import button_width, checkbox, header, labelled_progress, line, tooltip
-from raygs_viewer.viewer.state import PanelState
+from raygs_viewer.viewer.part import OpenScene, ReadAxes, Reply
+from raygs_viewer.viewer.state import PanelState, failed
 
 
-def draw_scene_section(loaded: LoadedScene, panel: PanelState, open_scene: Callable[[str], None],
-                       loader: SceneLoader, switch_axes: Callable[[str], None],
-                       dialog: FileDialog | None = None) -> None:
-    """``panel``: its path field; ``open_scene``: what Open (or Enter) does with it;
-    ``loader``: the background load whose progress is shown; ``switch_axes(axes)``:
-    reads the .spz again in the other convention ("rub" or "rdf"); ``dialog``: the
-    Open… button's file dialog (polled here, so a file chosen opens at once)."""
+def draw_scene_section(loaded: LoadedScene, panel: PanelState, loader: SceneLoader,
+                       dialog: FileDialog | None = None) -> Reply:
+    """``panel``: its path field, which Open (or Enter) asks to open; ``loader``: the
+    background load whose progress is shown; ``dialog``: the Open… button's file dialog
+    (polled here, so a file chosen opens at once). A .spz's axes switched ask for it to
+    be read again in the other convention ("rub" or "rdf")."""
+    said = []
     if dialog is not None and (chosen := dialog.poll()) is not None:
         panel.open_path = chosen
-        open_scene(chosen)
+        said.append(OpenScene(chosen))
     if not header("Scene"):
-        return
+        return Reply.of(*said)
     scene = loaded.scene
     imgui.text_wrapped("built-in demo scene" if loaded.source.is_demo else loaded.path)
     if scene.format:
@@ -36,7 +36,7 @@ def draw_scene_section(loaded: LoadedScene, panel: PanelState, open_scene: Calla
     line(f"{scene.count:,} gaussians, SH degree {scene.sh_degree}, "
                f"3D filter {'fused' if scene.filter_fused else 'none'}")
     if scene.axes is not None:
-        _draw_axes(scene.axes, switch_axes, loader.busy)
+        said.append(_draw_axes(scene.axes, loader.busy))
     # As wide as the buttons beside it leave. Selected whole when clicked: typing replaces the old path.
     imgui.set_next_item_width(-sum(button_width(label) for label in ("Open", "Open...")[:2 if dialog else 1]))
     entered, panel.open_path = imgui.input_text_with_hint(
@@ -45,16 +45,17 @@ def draw_scene_section(loaded: LoadedScene, panel: PanelState, open_scene: Calla
     tooltip(f"{' '.join(SCENE_SUFFIXES)}; Enter opens it")
     imgui.same_line()
     if imgui.button("Open") or entered:
-        open_scene(panel.open_path)
+        said.append(OpenScene(panel.open_path))
     if dialog is not None:
         imgui.same_line()
         if imgui.button("Open..."):
             problem = dialog.start(_folder_of(panel.open_path or loaded.path))
             if problem:
-                panel.error = f"error: {problem}"
+                said.append(failed(problem))
         tooltip("the desktop's file dialog" + (f" ({problem})" if (problem := dialog_problem()) else ""))
     if loader.busy:
         labelled_progress(loader.progress, loader.stage)
+    return Reply.of(*said)
 
 
 def _folder_of(path: str | None) -> str:
@@ -64,13 +65,12 @@ def _folder_of(path: str | None) -> str:
     return folder if os.path.isdir(folder) else os.getcwd()
 
 
-def _draw_axes(axes: FileAxes, switch_axes: Callable[[str], None], busy: bool) -> None:
+def _draw_axes(axes: FileAxes, busy: bool) -> ReadAxes | None:
     if axes.declared:  # the file's word wins: nothing to switch
         line(f"axes: {axes.stored}, declared by the file")
-        return
+        return None
     # Nothing in such a file tells the conventions apart; a scene upside down is the sign.
     rdf = checkbox("RDF axes (splat-transform's .spz)", axes.assumed == "rdf", not busy,
                    "off: RUB, the .spz specification's (Niantic, Scaniverse); on: RDF, the PLY's own axes,\n"
                    "which PlayCanvas's splat-transform and SuperSplat write. Switching reads the file again.")
-    if rdf != (axes.assumed == "rdf"):
-        switch_axes("rdf" if rdf else "rub")
+    return ReadAxes("rdf" if rdf else "rub") if rdf != (axes.assumed == "rdf") else None

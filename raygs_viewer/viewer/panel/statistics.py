@@ -11,7 +11,7 @@ from raygs_viewer.viewer.panel.widgets import line, ms, note, tooltip
 from raygs_viewer.viewer.stats import FrameStats, order_freshness
 
 
-def draw_statistics(stats: FrameStats, scene_count: int, sorter: BackgroundSorter | InlineSorter,
+def draw_statistics(stats: FrameStats, scene_count: int, sorter: BackgroundSorter | InlineSorter, *,
                     work: WorkCounters, general: bool, sort: str = "cpu", measured: list[str] = ()) -> None:
     """``sorter``: its request counts; ``work``: the renderer's pass counters;
     ``general``: whether it draws with the all-features shader variant; ``sort``: which

@@ -4,45 +4,46 @@ of their colours), and at one the Photo view's controls (panel.photo)."""
 
 from __future__ import annotations
 
-from typing import Callable
-
 from imgui_bundle import imgui
 
 from raygs_viewer.photos.dataset import TEST_EVERY
 from raygs_viewer.scene.loader import LoadedScene
 from raygs_viewer.viewer.panel.photo import draw_photo_controls
 from raygs_viewer.viewer.panel.widgets import checkbox, header, note
+from raygs_viewer.viewer.part import FlyTo, Reply
 from raygs_viewer.viewer.photo_view import PhotoCompare
 from raygs_viewer.viewer.training_frustums import TEST_COLOUR, TRAIN_COLOUR, TrainingFrustums
 
 
-def draw_training_section(loaded: LoadedScene, current: int | None, select: Callable[[int], None],
-                          step: Callable[[int], None], photo: PhotoCompare, frustums: TrainingFrustums) -> None:
-    """``current``: the training camera flown to last (None: a free view); ``select``
-    flies to a camera by index, ``step`` to the next (+1) or previous (-1); ``photo``:
-    the Photo view the controls under the list edit; ``frustums``: the cameras drawn in
-    the scene (whether they are shown)."""
+def draw_training_section(loaded: LoadedScene, current: int | None, photo: PhotoCompare,
+                          frustums: TrainingFrustums) -> Reply:
+    """``current``: the training camera flown to last (None: a free view); a camera
+    picked (by index, or the next or previous) asks to fly there; ``photo``: the Photo
+    view the controls under the list edit; ``frustums``: the cameras drawn in the scene
+    (whether they are shown)."""
     label = f"Training cameras ({len(loaded.cameras)})"
     if not header(label + "###training", open_first=False):
-        return
+        return Reply()
     if not loaded.cameras:
         note("none found (pass --cameras cameras.json)")
-        return
+        return Reply()
     if loaded.cameras_path:
         note(loaded.cameras_path)
+    flights = []
     if imgui.button("< previous (P)"):
-        step(-1)
+        flights.append(FlyTo(step=-1))
     imgui.same_line()
     if imgui.button("next (N) >"):
-        step(+1)
+        flights.append(FlyTo(step=+1))
     if imgui.begin_list_box("##cameras", (-1, 160)):
         for i, name in enumerate(loaded.camera_names):
             if imgui.selectable(f"{i}: {name}", current == i)[0]:
-                select(i)
+                flights.append(FlyTo(i))
                 current = i  # the entries below are drawn knowing it
         imgui.end_list_box()
     draw_frustum_controls(frustums)
     draw_photo_controls(photo)
+    return Reply.of(*flights)
 
 
 def draw_frustum_controls(frustums: TrainingFrustums) -> None:

@@ -3,21 +3,21 @@ the field of view, the fly speed, and resetting the view."""
 
 from __future__ import annotations
 
-from typing import Callable
-
 from imgui_bundle import imgui
 
 from raygs_viewer.camera.navigation import UP_AXES
 from raygs_viewer.viewer.panel.widgets import choice, header, note, slider, tooltip
+from raygs_viewer.viewer.part import Reply, ResetView
+from raygs_viewer.viewer.view_control import ViewControl
 
 FOV_RANGE = (10.0, 120.0)
 
 
-def draw_view_section(view, reset_view: Callable[[], None]) -> None:
-    """Edits ``view``'s (a view_control.ViewControl) navigation mode, up axis and field
-    of view; ``reset_view`` frames the scene again."""
+def draw_view_section(view: ViewControl) -> Reply:
+    """Edits ``view``'s navigation mode, up axis and field of view; Reset view asks to
+    frame the scene again."""
     if not header("View"):
-        return
+        return Reply()
     navigator = view.navigator
     for mode in ("fly", "orbit"):
         if imgui.radio_button(mode, navigator.mode == mode):
@@ -34,5 +34,4 @@ def draw_view_section(view, reset_view: Callable[[], None]) -> None:
     note(f"speed {navigator.speed:.3g} units/s")
     tooltip("the mouse wheel changes it in fly mode")
     imgui.same_line()
-    if imgui.button("Reset view (R)"):
-        reset_view()
+    return Reply.of(ResetView()) if imgui.button("Reset view (R)") else Reply()
