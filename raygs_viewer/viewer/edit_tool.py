@@ -20,11 +20,12 @@ or Ctrl+Shift+Z redoes.
 from __future__ import annotations
 
 import math
-from typing import Literal, get_args
+from typing import Callable, Literal, get_args
 
 import numpy as np
 from imgui_bundle import imgui
 
+from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.capture.edit_file import edit_document_json
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.gl.renderer import GLRenderer
@@ -263,15 +264,7 @@ class EditTool(Part):
         sx, sy = (scale.x or 1.0), (scale.y or 1.0)
         pixels = tuple(((px * sx - vx) / vw * camera.width, (py * sy - vy) / vh * camera.height)
                        for px, py in points)
-        if self.tool == "click":  # the pixel under the release, as the rectangle of its centre
-            u, v = math.floor(pixels[-1][0]), math.floor(pixels[-1][1])
-            inside = 0 <= u < camera.width and 0 <= v < camera.height
-            return ScreenShape("rectangle", camera, ((u, v), (u + 1, v + 1))) if inside else None
-        if self.tool == "rectangle":
-            return ScreenShape("rectangle", camera, (pixels[0], pixels[-1]))
-        if self.tool == "lasso":
-            return ScreenShape("polygon", camera, pixels) if len(pixels) >= 3 else None
-        return ScreenShape("brush", camera, pixels, self.brush_radius * sx * camera.width / vw)
+        return SHAPES[self.tool](pixels, camera, self.brush_radius * sx * camera.width / vw)
 
     def overlay(self, frame: Frame, scene: SceneView, pointing: Pointing) -> Reply:
         """The box and the sphere where shown, and the shape being drawn, over the view;
@@ -279,23 +272,41 @@ class EditTool(Part):
         if self.edits is not None:
             self.show_selection(scene.renderer)
             self.handles.draw(frame, scene.radius, self.box, self.sphere)
-        if not self.drag:
-            return NO_REPLY
-        draw = imgui.get_foreground_draw_list()
-        colour = imgui.get_color_u32((1.0, 0.85, 0.0, 1.0))
-        points = [imgui.ImVec2(x, y) for x, y in self.drag]
-        if self.tool == "rectangle":
-            draw.add_rect(points[0], points[-1], colour, 0.0, 1.5)
-        elif self.tool == "lasso":
-            draw.add_polyline(points, colour, 1.5, imgui.ImDrawFlags_.closed.value)
-        else:
-            for point in points:
-                draw.add_circle(point, self.brush_radius, colour, 0, 1.0)
+        if self.drag:
+            OUTLINES[self.tool](imgui.get_foreground_draw_list(), [imgui.ImVec2(x, y) for x, y in self.drag],
+                                imgui.get_color_u32((1.0, 0.85, 0.0, 1.0)), self.brush_radius)
         return NO_REPLY
 
     def show_selection(self, renderer: GLRenderer) -> None:
         """The selection tinted in ``renderer``'s next draw (uploaded when it changed)."""
         renderer.set_selection(self._state()[0], self.edits.generation.to_bytes(8, "little"))
+
+
+def clicked_pixel(pixels: tuple[tuple[float, float], ...], camera: Camera) -> ScreenShape | None:
+    """The pixel under a click's release, as the rectangle of its centre (None: off the image)."""
+    u, v = math.floor(pixels[-1][0]), math.floor(pixels[-1][1])
+    inside = 0 <= u < camera.width and 0 <= v < camera.height
+    return ScreenShape("rectangle", camera, ((u, v), (u + 1, v + 1))) if inside else None
+
+
+#: Each drawing tool's shape from its drag: (the drag's points in the camera's pixels, the
+#: camera, the brush's radius in its pixels) -> the shape (None: the drag drew none).
+SHAPES: dict[Tool, Callable[[tuple[tuple[float, float], ...], Camera, float], ScreenShape | None]] = {
+    "click": lambda pixels, camera, radius: clicked_pixel(pixels, camera),
+    "rectangle": lambda pixels, camera, radius: ScreenShape("rectangle", camera, (pixels[0], pixels[-1])),
+    "lasso": lambda pixels, camera, radius: ScreenShape("polygon", camera, pixels) if len(pixels) >= 3 else None,
+    "brush": lambda pixels, camera, radius: ScreenShape("brush", camera, pixels, radius),
+}
+#: Each drawing tool's outline of the drag under way: (imgui's draw list, the screen
+#: points, the colour, the brush's radius in screen units).
+OUTLINES: dict[Tool, Callable[[object, list, int, float], None]] = {
+    "rectangle": lambda draw, points, colour, radius: draw.add_rect(points[0], points[-1], colour, 0.0, 1.5),
+    "lasso": lambda draw, points, colour, radius: draw.add_polyline(points, colour, 1.5,
+                                                                   imgui.ImDrawFlags_.closed.value),
+    "brush": lambda draw, points, colour, radius: [draw.add_circle(point, radius, colour, 0, 1.0)
+                                                   for point in points],
+}
+OUTLINES["click"] = OUTLINES["brush"]  # the press under way, ringed as a dab
 
 
 def axis_values(scene: Scene, attribute: str) -> np.ndarray:

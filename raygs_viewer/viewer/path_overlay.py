@@ -143,7 +143,7 @@ def frustum_lines(path: CameraPath, size: float, aspect: float) -> tuple[np.ndar
     return pyramid_lines(apex, image_corners(R, apex, slopes, size))
 
 
-def draw_path_overlay(path: CameraPath, camera: Camera, viewport: tuple[int, int, int, int],
+def draw_path_overlay(path: CameraPath, camera: Camera, viewport: tuple[int, int, int, int], *,
                       selected: int | None, size: float, near: float) -> DrawnPath:
     """Draws ``path`` as ``camera`` sees it into ``viewport`` (framebuffer pixels):
     frustums ``size`` scene units deep, cut at ``near`` scene units in front of the

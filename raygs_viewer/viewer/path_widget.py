@@ -119,7 +119,8 @@ class PathWidget(Part):
         image shows two eyes rather than the frame's camera's view."""
         radius = scene.radius
         self.drawn = DrawnPath() if not self.show or frame.stereo is not None else draw_path_overlay(
-            self.path, frame.camera, frame.viewport, self.selected, FRUSTUM_SIZE * radius, OVERLAY_NEAR * radius)
+            self.path, frame.camera, frame.viewport, selected=self.selected, size=FRUSTUM_SIZE * radius,
+            near=OVERLAY_NEAR * radius)
         return NO_REPLY
 
     def document(self, at: PathScene) -> PathDocument:

@@ -54,7 +54,7 @@ class PickTool:
         scale = (scale.x or 1.0, scale.y or 1.0)
         origin = None
         if frame.stereo is not None:
-            found = stereo_pixel(x, y, frame.viewport, scale, camera, frame.eyes, frame.stereo.layout)
+            found = stereo_pixel(x, y, frame.viewport, scale, camera, eyes=frame.eyes, layout=frame.stereo.layout)
             if found is None:
                 return False
             eye, u, v = found
@@ -71,7 +71,7 @@ class PickTool:
             drawn = next(iter(scene.orders.values()), None)
             order = exact_order(scene.sorter, pixel_camera(eye, u, v), settings,
                                 levels=None if drawn is None else drawn.choice, deleted=scene.deleted)
-        return pick(scene.renderer, eye, u, v, settings, order, origin)
+        return pick(scene.renderer, eye, u, v, settings=settings, order=order, color_origin=origin)
 
     def double_click(self, x: float, y: float, shown: Shown, pointing: Pointing) -> Reply:
         """The point under (x, y) aims the view at it, or sets the stereo convergence to

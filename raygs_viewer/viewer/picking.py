@@ -59,7 +59,7 @@ def unproject(camera: Camera, u: float, v: float, depth: float) -> np.ndarray:
     return camera.R.T @ (local - camera.t)
 
 
-def pick(renderer, camera: Camera, u: int, v: int, settings: RenderSettings, order: Order,
+def pick(renderer, camera: Camera, u: int, v: int, *, settings: RenderSettings, order: Order,
          color_origin: np.ndarray | None = None) -> Picked | None:
     """The point under pixel (u, v) of ``camera`` drawn with ``settings`` and ``order``;
     None where the pixel has no median depth."""
@@ -72,7 +72,7 @@ def pick(renderer, camera: Camera, u: int, v: int, settings: RenderSettings, ord
     return Picked(point, depth, float(np.linalg.norm(point - camera.center)), (u, v), camera)
 
 
-def screen_pixel(x: float, y: float, viewport: Viewport, scale: tuple[float, float], width: int, height: int
+def screen_pixel(x: float, y: float, viewport: Viewport, scale: tuple[float, float], *, width: int, height: int
                  ) -> tuple[float, float] | None:
     """The position (continuous, in pixels of an image ``width`` x ``height`` shown
     letterboxed in ``viewport``) under screen position (x, y); None outside the image.
@@ -89,11 +89,11 @@ def screen_pixel(x: float, y: float, viewport: Viewport, scale: tuple[float, flo
 def mono_pixel(x: float, y: float, viewport: Viewport, scale: tuple[float, float], camera: Camera
                ) -> tuple[int, int] | None:
     """Pixel (u, v) of ``camera`` (the view, filling ``viewport``) under screen position (x, y)."""
-    position = screen_pixel(x, y, viewport, scale, camera.width, camera.height)
+    position = screen_pixel(x, y, viewport, scale, width=camera.width, height=camera.height)
     return None if position is None else (int(position[0]), int(position[1]))
 
 
-def stereo_pixel(x: float, y: float, viewport: Viewport, scale: tuple[float, float], camera: Camera,
+def stereo_pixel(x: float, y: float, viewport: Viewport, scale: tuple[float, float], camera: Camera, *,
                  eyes: tuple[Camera, Camera], layout: str) -> tuple[Camera, int, int] | None:
     """(eye camera, u, v) under screen position (x, y) of the stereo preview of ``eyes``
     around the midpoint ``camera`` in ``layout``: the eye whose image is there (side by
@@ -101,7 +101,7 @@ def stereo_pixel(x: float, y: float, viewport: Viewport, scale: tuple[float, flo
     lens preview's warp is not undone: a pick with it on lands near, not exactly on, the
     pixel shown."""
     halves = 2 if layout in _SIDE_BY_SIDE else 1
-    position = screen_pixel(x, y, viewport, scale, halves * camera.width, camera.height)
+    position = screen_pixel(x, y, viewport, scale, width=halves * camera.width, height=camera.height)
     if position is None:
         return None
     column, row = int(position[0]), int(position[1])

@@ -130,8 +130,8 @@ def _take(offscreen: Offscreen, shot: Shot, options: ScreenshotOptions, path: st
 
     if shown.stereo is not None:
         shots = [(image, sidecar(shown.settings, {**extra, "stereo_window_layout": shown.stereo.layout}, view), tag)
-                 for image, view, tag in _stereo_images(offscreen, camera, shown.settings, shown.stereo, shot.save_eyes,
-                                                        shown.channel_view)]
+                 for image, view, tag in _stereo_images(offscreen, camera, shown.settings, shown.stereo,
+                                                        save_eyes=shot.save_eyes, view=shown.channel_view)]
     elif shown.split is None:
         shots = [(render_shown(offscreen, camera, shown.settings, shown.channel_view), sidecar(shown.settings, extra),
                   "left")]
@@ -173,7 +173,7 @@ def render_shown(offscreen: Offscreen, camera: Camera, settings: RenderSettings,
     return np.concatenate([picture, np.ones(picture.shape[:2] + (1,), np.float32)], axis=-1)
 
 
-def _stereo_images(offscreen: Offscreen, camera: Camera, settings: RenderSettings, stereo: StereoView,
+def _stereo_images(offscreen: Offscreen, camera: Camera, settings: RenderSettings, stereo: StereoView, *,
                    save_eyes: bool, view: ChannelView | None) -> list[tuple[np.ndarray, StereoView, str]]:
     """The side-by-side pair whatever the window's layout (the sidecar notes that
     layout), and each eye when asked, each with the view that reproduces it."""

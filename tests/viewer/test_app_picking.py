@@ -92,11 +92,11 @@ def test_screen_positions_map_to_pixels_and_stereo_eyes():
     view = StereoPreview.of(EYE, on=True, layout="sbs", rig=StereoRig(ipd=0.2)).view()
     left, right = eye_cameras(camera, view.rig)
     sbs = (0, 0, 80, 30)
-    eye, u, v = stereo_pixel(45.5, 3.5, sbs, (1.0, 1.0), camera, (left, right), "sbs")
+    eye, u, v = stereo_pixel(45.5, 3.5, sbs, (1.0, 1.0), camera, eyes=(left, right), layout="sbs")
     assert (u, v) == (5, 3) and eye is right
-    eye, u, v = stereo_pixel(45.5, 3.5, sbs, (1.0, 1.0), camera, (left, right), "cross")
+    eye, u, v = stereo_pixel(45.5, 3.5, sbs, (1.0, 1.0), camera, eyes=(left, right), layout="cross")
     assert (u, v) == (5, 3) and eye is left
-    eye, u, v = stereo_pixel(5.5, 3.5, (0, 0, 40, 30), (1.0, 1.0), camera, (left, right), "anaglyph")
+    eye, u, v = stereo_pixel(5.5, 3.5, (0, 0, 40, 30), (1.0, 1.0), camera, eyes=(left, right), layout="anaglyph")
     assert (u, v) == (5, 3) and eye is camera
 
 

@@ -83,7 +83,7 @@ def file_row(tag: str, file: str, hint: str, can_save: bool, room: float | None 
     return file, save, load
 
 
-def slider(label: str, value: float, low: float, high: float, fmt: str, logarithmic: bool = False) -> float | None:
+def slider(label: str, value: float, low: float, high: float, fmt: str, *, logarithmic: bool = False) -> float | None:
     """A float slider over [low, high] (ctrl-click types any value); the new value when
     it was moved to a finite one, else None."""
     flags = imgui.SliderFlags_.logarithmic.value if logarithmic else 0
