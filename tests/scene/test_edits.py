@@ -183,3 +183,29 @@ def test_rows_select_exactly_their_rows_and_replay_from_json():
     assert again.shape.through.to_json() == through.to_json()
     with pytest.raises(ValueError, match="row 799 is past the scene's 10 gaussians"):
         rows.mask(SCENE.rows(np.arange(10)))
+
+
+def test_edits_grown_with_the_scene_keep_every_mask_operation_and_step():
+    """A streamed SOG's finer level adds rows after those read: the edits grow with them.
+    The rows before keep their selection and deletion (deleted gaussians must not come
+    back), the new rows start unedited, and undo and redo go on over the grown masks."""
+    coarse = SCENE.rows(np.arange(300))
+    edits = Edits(coarse.count)
+    edits.apply(coarse, Operation("select", Sphere((0.0, 0.0, 0.0), 1.0)))
+    edits.apply(coarse, Operation("delete"))
+    edits.apply(coarse, Operation("select", Box((-2.0, -2.0, -2.0), (0.0, 2.0, 2.0))))
+    deleted, selected = edits.deleted.copy(), edits.selected.copy()
+    assert 0 < deleted.sum() < 300 and selected.any()
+    grown = edits.grow(SCENE.count)
+    assert grown.count == SCENE.count and grown.generation != edits.generation
+    np.testing.assert_array_equal(grown.deleted[:300], deleted)
+    np.testing.assert_array_equal(grown.selected[:300], selected)
+    assert not grown.deleted[300:].any() and not grown.selected[300:].any()
+    assert grown.operations == edits.operations and grown.edited
+    assert grown.undo()  # the last selection undone over the grown rows
+    np.testing.assert_array_equal(grown.deleted[:300], deleted)
+    assert grown.undo() and not grown.deleted.any()  # the delete undone: every row back
+    assert grown.redo() and np.array_equal(grown.deleted[:300], deleted) and not grown.deleted[300:].any()
+    assert grown.apply(SCENE, Operation("select all")) and grown.selected[300:].all()
+    with pytest.raises(ValueError, match="cannot grow"):
+        edits.grow(299)

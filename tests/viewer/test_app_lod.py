@@ -227,6 +227,28 @@ def test_the_command_line_scene_shows_its_coarsest_level_then_reads_the_rest(ope
     assert viewer.scene.lod.choice.levels.tolist() == [0, 1, 2, 2]
 
 
+def test_gaussians_deleted_stay_deleted_when_a_finer_level_arrives(open_viewer, streamed):
+    """The edits grow with the scene (``Edits.grow``): rows deleted at the coarsest level
+    are still left out of every sort once the finer levels are read, and the new rows are not."""
+    index, cameras = streamed
+    viewer, drive = open_viewer(index, camera=cameras, settings=SETTINGS, hide_panel=True)
+    coarse = viewer.loaded.scene
+    assert viewer.loaded.lod.loaded.tolist() == [False, False, True]
+    tool = viewer.edit_tool
+    tool.apply(Operation("select all"), coarse)
+    tool.apply(Operation("delete"), coarse)
+    drive.frames(1)  # the finer levels' reading starts
+    drive.wait_for_load()
+    scene = viewer.loaded.scene
+    assert viewer.loaded.lod.loaded.all() and scene.count > coarse.count
+    deleted = tool.edits.deleted
+    assert deleted.size == scene.count and deleted[:coarse.count].all() and not deleted[coarse.count:].any()
+    drive.settle()
+    assert viewer.shown.sort.deleted.mask[:coarse.count].all()
+    drawn = viewer.drawer.orders[viewer.settings.sort_key].indices
+    assert len(drawn) and (np.asarray(drawn) >= coarse.count).all()  # no coarse gaussian came back
+
+
 def test_a_fixed_level_reads_that_level_alone_and_per_view_reads_the_rest(open_viewer, streamed):
     viewer, drive = open_viewer(streamed[0], camera=streamed[1], width=PANEL_WIDTH, height=PANEL_HEIGHT,
                                 settings=replace(SETTINGS, lod=1))
