@@ -135,13 +135,15 @@ class MinOpacity:
 
 @dataclass(frozen=True)
 class MaxScale:
-    """Largest axis (exp of the largest log-scale) at most ``scale`` (> 0)."""
+    """The largest axis (exp of the largest log-scale) at most ``scale`` (> 0, scene
+    units): convert's --max-scale drops the huge splats training leaves at the edges."""
 
     scale: float
 
     def __post_init__(self) -> None:
-        if not (math.isfinite(float(self.scale)) and float(self.scale) > 0):
-            raise ValueError(f"{self.scale:g} is not a finite number > 0")
+        scale = float(self.scale)
+        if not (math.isfinite(scale) and scale > 0):
+            raise ValueError(f"{scale:g} is not a finite number > 0")
 
     def keeps(self, values: KeepValues) -> np.ndarray:
         return values.largest_scales <= _float32(self.scale)

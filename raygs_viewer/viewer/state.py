@@ -13,6 +13,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field
+from operator import attrgetter
 from typing import Literal
 
 from raygs_viewer.camera.lens_model import DEFAULT_LENS
@@ -256,14 +257,9 @@ class PanelState:
     _message: str = ""
     _error: str = ""
     _standing: dict[str, str] = field(default_factory=dict)
-
-    @property
-    def message(self) -> str:
-        return self._message
-
-    @property
-    def error(self) -> str:
-        return self._error
+    #: The two lines, read-only: :meth:`say` is the one way to change them.
+    message = property(attrgetter("_message"))
+    error = property(attrgetter("_error"))
 
     def toggle(self) -> None:
         self.show_panel = not self.show_panel
