@@ -1,5 +1,6 @@
 """The package's shape, enforced: imports only down the data flow, no import cycle, no
-private name taken from another module, imports at the top of files, no code written twice.
+private name taken from another module, imports at the top of files, no code written twice,
+no function taking more than five positional parameters.
 
 Layers, lowest first: errors (and the package root) -> jsonfile -> camera | files -> scene -> sort ->
 render -> capture -> photos -> viewer | bench -> cli -> __main__. A module may import its own
@@ -107,6 +108,26 @@ def silent_late_imports(modules: dict[str, Path]) -> list[str]:
     return [f"{late.path.name}:{late.line}: {late.text}" for late in late_imports(modules) if not late.says_why]
 
 
+#: The most positional parameters a function takes, ``self`` and ``cls`` not counted.
+MOST_POSITIONALS = 5
+
+
+def long_signatures(modules: dict[str, Path]) -> list[str]:
+    """'module:line name takes N positionals' of each function, method or lambda with
+    more than MOST_POSITIONALS positional parameters: past the first few, a call reads
+    only with the signature beside it and two arguments swap silently, so the rest are
+    keyword-only (or, when they travel together, one value)."""
+    long = []
+    for module, path in modules.items():
+        for node in ast.walk(parsed(path.read_text(), str(path))):
+            if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef, ast.Lambda)):
+                names = [a.arg for a in node.args.posonlyargs + node.args.args]
+                count = len(names) - (names[:1] in (["self"], ["cls"]))
+                if count > MOST_POSITIONALS:
+                    long.append(f"{module}:{node.lineno} {getattr(node, 'name', 'lambda')} takes {count} positionals")
+    return long
+
+
 #: How many lines in a row, written twice, make a repeat (the ``duplicates`` tool's own limit).
 REPEAT_LINES = 6
 _LAYOUT = {tokenize.COMMENT, tokenize.NL, tokenize.NEWLINE, tokenize.INDENT, tokenize.DEDENT, tokenize.ENDMARKER}
@@ -196,6 +217,12 @@ def test_late_imports_say_why():
     assert not silent, "imports inside functions without a comment saying why:\n" + "\n".join(silent)
 
 
+def test_no_function_takes_more_than_five_positionals():
+    long = long_signatures(MODULES)
+    assert not long, ("functions with more than five positional parameters (make the rest keyword-only):\n"
+                      + "\n".join(long))
+
+
 def test_no_code_is_written_twice():
     """One home for each piece of logic: a repeat of six lines or more, in one module or
     two, is a helper waiting to be written (or a table that wants to be data)."""
@@ -227,7 +254,8 @@ def test_the_repeat_check_sees_a_repeat_and_only_a_repeat():
 
 
 def test_the_checks_see_what_they_forbid(tmp_path):
-    """The control: a small package with one of each fault, and each check finds its own."""
+    """The control: a small package with one of each fault, and each check finds its own
+    (and not the method whose sixth parameter past ``self`` is keyword-only)."""
     package = tmp_path / "pkg"
     files = {
         "camera/__init__.py": "",
@@ -236,7 +264,9 @@ def test_the_checks_see_what_they_forbid(tmp_path):
         "scene/a.py": "from pkg.scene.b import _helper\n",  # private, and a cycle with b
         "scene/b.py": "import pkg.scene.a\n\ndef _helper():\n    import json\n",  # silent late import
         "viewer/__init__.py": "",
-        "viewer/app.py": "from pkg.scene import a\n\nclass Viewer:\n    pass\n",
+        "viewer/app.py": ("from pkg.scene import a\n\nclass Viewer:\n"
+                          "    def draw(self, a, b, c, d, e, *, f):\n        pass\n\n\n"
+                          "def fly(a, b, c, d, e, f=1):\n    pass\n"),  # five positionals past self, and six
     }
     for name, text in files.items():
         (package / name).parent.mkdir(parents=True, exist_ok=True)
@@ -246,6 +276,7 @@ def test_the_checks_see_what_they_forbid(tmp_path):
     assert import_cycles(modules) == [["pkg.scene.a", "pkg.scene.b"]]
     assert private_imports(modules) == ["a.py:1 ['_helper'] from pkg.scene.b"]
     assert silent_late_imports(modules) == ["b.py:4: import json"]
+    assert long_signatures(modules) == ["pkg.viewer.app:8 fly takes 6 positionals"]
 
 
 def test_every_subpackage_is_installed():

@@ -514,8 +514,10 @@ class Viewer:
 
     def summary(self) -> str:
         """One line of the frame statistics, printed after a scripted run."""
-        return summary(self.stats, self.frame_index, self.camera, self.shown_stereo, *self.drawer.gpu_times(),
-                       self.loaded.scene.count, self.scene.renderer.general)
+        gpu_times, post_times = self.drawer.gpu_times()
+        return summary(self.stats, self.frame_index, camera=self.camera, stereo=self.shown_stereo, gpu_times=gpu_times,
+                       post_times=post_times, scene_count=self.loaded.scene.count,
+                       general=self.scene.renderer.general)
 
     def close(self) -> None:
         """Ends what runs (a load, a video, a probe) and releases what the window made, the

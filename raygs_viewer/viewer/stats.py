@@ -200,7 +200,7 @@ def median_ms(values: Sequence[float]) -> str:
     return f"{1000 * float(np.median(values)):.1f} ms" if values else "n/a"
 
 
-def summary(stats: FrameStats, frames: int, camera: Camera | None, stereo: StereoView | None,
+def summary(stats: FrameStats, frames: int, *, camera: Camera | None, stereo: StereoView | None,
             gpu_times: Sequence[float], post_times: Sequence[float], scene_count: int, general: bool) -> str:
     """One line of frame statistics after ``frames`` frames; gpu_times and post_times:
     every draw's GPU seconds (post: the stereo lens preview and layout)."""

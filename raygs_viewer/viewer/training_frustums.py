@@ -175,13 +175,13 @@ class TrainingFrustums(Part):
         corners = image_corners(cams.R[kept], cams.apex[kept], cams.slopes[kept], depth)   # (k, 4, 3)
         segments, lines = visible_segments(camera, *pyramid_lines(cams.apex[kept], corners), rect, near)
         owner = kept[lines // 8]
-        drawn = self._geometry(camera, cams, kept, corners, np.unique(owner), rect, near)
+        drawn = self._geometry(camera, cams, kept, corners, np.unique(owner), rect=rect, near=near)
         hovered = None
         if hover and not io.want_capture_mouse and _in_rect(rect, io.mouse_pos.x, io.mouse_pos.y):
             hovered = drawn.camera_at(io.mouse_pos.x, io.mouse_pos.y)
         colours = {i: HOVER_COLOUR if i == hovered else TEST_COLOUR if cams.test[i] else TRAIN_COLOUR
                    for i in drawn.cameras.tolist()}
-        images = self._paint(drawn, colours, segments, owner, rect, hovered)
+        images = self._paint(drawn, colours, segments, owner, rect=rect, hovered=hovered)
         self.drawn = replace(drawn, colours=colours, images=images, segments=len(segments), hovered=hovered)
         if hovered is not None:
             imgui.set_tooltip(f"{hovered}: {loaded.camera_names[hovered]} ({SPLIT_NAMES[bool(cams.test[hovered])]} "
@@ -198,7 +198,7 @@ class TrainingFrustums(Part):
         return self._cameras
 
     @staticmethod
-    def _geometry(camera: Camera, cams: _Cameras, kept: np.ndarray, corners: np.ndarray, shown: np.ndarray,
+    def _geometry(camera: Camera, cams: _Cameras, kept: np.ndarray, corners: np.ndarray, shown: np.ndarray, *,
                   rect: tuple[float, float, float, float], near: float) -> DrawnFrustums:
         """Where each camera with a line drawn (``shown``, a sorted subset of the sorted
         ``kept``, whose ``corners`` these are) lies on screen."""
@@ -214,7 +214,7 @@ class TrainingFrustums(Part):
         quad = project_points(camera, corners.reshape(-1, 3), rect).reshape(-1, 4, 2)
         return DrawnFrustums(shown, depth, apex_xy, apex_shown, quad, quad_shown)
 
-    def _paint(self, drawn: DrawnFrustums, colours: dict[int, tuple], segments: np.ndarray, owner: np.ndarray,
+    def _paint(self, drawn: DrawnFrustums, colours: dict[int, tuple], segments: np.ndarray, owner: np.ndarray, *,
                rect: tuple[float, float, float, float], hovered: int | None) -> frozenset[int]:
         """Draws the photos, then the lines over them, the hovered camera's last, then
         the centres; returns the cameras drawn with their photo. Lists, not arrays, go

@@ -156,20 +156,21 @@ class VolumeHandles:
         camera, rect = frame.camera, viewport_rect(frame.viewport, (scale.x or 1.0, scale.y or 1.0))
         draw = imgui.get_foreground_draw_list()
         if self.show_box:
-            self._lines(draw, camera, rect, near, *box_edges(box), BOX_COLOUR)
+            self._lines(draw, camera, box_edges(box), rect=rect, near=near, colour=BOX_COLOUR)
             handles = {name: point for name, point in box_handles(box).items()
                        if name == "box centre" or not along_the_view(camera, point, AXES.index(name[-1]))}
-            self._dots(draw, camera, rect, near, handles, BOX_COLOUR)
+            self._dots(draw, camera, handles, rect=rect, near=near, colour=BOX_COLOUR)
         if self.show_sphere:
-            self._lines(draw, camera, rect, near, *sphere_circles(sphere, camera), SPHERE_COLOUR)
-            self._dots(draw, camera, rect, near, sphere_handles(sphere, camera), SPHERE_COLOUR)
+            self._lines(draw, camera, sphere_circles(sphere, camera), rect=rect, near=near, colour=SPHERE_COLOUR)
+            self._dots(draw, camera, sphere_handles(sphere, camera), rect=rect, near=near, colour=SPHERE_COLOUR)
 
     @staticmethod
-    def _lines(draw, camera, rect, near, starts, ends, colour) -> None:
-        for (x0, y0), (x1, y1) in screen_segments(camera, starts, ends, rect, near):
+    def _lines(draw, camera, lines: tuple[np.ndarray, np.ndarray], *, rect, near, colour) -> None:
+        """``lines``: (N, 3) starts and ends, drawn where they show in ``rect``."""
+        for (x0, y0), (x1, y1) in screen_segments(camera, *lines, rect, near):
             draw.add_line((float(x0), float(y0)), (float(x1), float(y1)), imgui.IM_COL32(*colour), 1.5)
 
-    def _dots(self, draw, camera, rect, near, handles: dict[str, np.ndarray], colour) -> None:
+    def _dots(self, draw, camera, handles: dict[str, np.ndarray], *, rect, near, colour) -> None:
         names, points = list(handles), np.array(list(handles.values()))
         depths = (points @ camera.R.T + camera.t)[:, 2]
         active = None if self.drag is None else self.drag.name

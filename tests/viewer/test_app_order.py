@@ -233,10 +233,11 @@ def test_order_statistics_lines_and_summary():
     fetch = order_stats_lines(replace(LISTS, path="fetch", pool_fragments=0, pool_bytes=0, parts=1))
     assert fetch[1] == "no pool, 1 part" and fetch[2].startswith("path: k-buffer")
     stats = FrameStats()
-    plain = summary(stats, 3, None, None, [], [], 100, False)
+    quiet = dict(camera=None, stereo=None, gpu_times=[], post_times=[], scene_count=100, general=False)
+    plain = summary(stats, 3, **quiet)
     assert "per-pixel" not in plain
     stats.order_stats = (LISTS, None)
-    assert "per-pixel order 7.0 fragments/px (max 19) in 2 parts" in summary(stats, 3, None, None, [], [], 100, False)
+    assert "per-pixel order 7.0 fragments/px (max 19) in 2 parts" in summary(stats, 3, **quiet)
     assert math.isclose(LISTS.pool_use, 0.7)
 
 
