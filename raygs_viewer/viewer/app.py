@@ -81,7 +81,6 @@ from raygs_viewer.viewer.part import (
     ReadAxes,
     Reply,
     Request,
-    ResetView,
     SceneView,
     Shortcut,
     Shown,
@@ -308,8 +307,6 @@ class Viewer:
                 pointing = self.pointing()
                 self.answer(self.picker.double_click(x, y, shown, pointing) if double else
                             self.picker.click(x, y, shown, pointing, self.frustums.camera_at(x, y)))
-            case FlyTo(None, step):
-                said = self.view.step_training_camera(step)
             case FlyTo(index):
                 said = self.view.select_training_camera(index)
             case AimAt(point):
@@ -325,8 +322,6 @@ class Viewer:
             case ColourByLevel(on):
                 tinted = self.scene.set_tint(on, self.loaded.lod)
                 said = failed(tinted, "colour by level") if isinstance(tinted, str) else self._swapped(tinted)
-            case ResetView():
-                self.reset_view()
         self.panel.say(said)
 
     def _press(self, shortcut: Shortcut) -> Message | None:

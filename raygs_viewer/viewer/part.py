@@ -22,7 +22,6 @@ from typing import Literal, Mapping, Union
 
 import numpy as np
 
-from raygs_viewer.camera.navigation import Pose
 from raygs_viewer.camera.stereo import StereoRig
 from raygs_viewer.capture.measure_file import MeasureScale
 from raygs_viewer.render.gl.gpu_sort import GpuSorter
@@ -87,7 +86,8 @@ Shortcut = Literal["quit", "screenshot", "add_keyframe", "switch_navigation", "n
 
 @dataclass(frozen=True)
 class Press:
-    """A shortcut's key went down."""
+    """A shortcut's key went down, or the panel's button that does the same was pressed
+    (Reset view, previous and next training camera, Save screenshot)."""
 
     shortcut: Shortcut
 
@@ -103,11 +103,9 @@ class Click:
 
 @dataclass(frozen=True)
 class FlyTo:
-    """Fly to training camera ``index`` (wrapping), or ``step`` cameras on from the one
-    flown to last (``index`` None)."""
+    """Fly to training camera ``index`` (wrapping), and render with its intrinsics."""
 
-    index: int | None = None
-    step: int = 0
+    index: int
 
 
 @dataclass(frozen=True, eq=False)
@@ -131,14 +129,6 @@ class MeasurePoint:
     picked: Picked
 
 
-@dataclass(frozen=True, eq=False)
-class ShowPose:
-    """Show the view from ``pose`` with a free lens of ``fov_y_degrees`` (path playback)."""
-
-    pose: Pose
-    fov_y_degrees: float
-
-
 @dataclass(frozen=True)
 class OpenScene:
     """Open a scene file (with ``cameras``, a cameras.json, instead of one found beside it)."""
@@ -149,7 +139,8 @@ class OpenScene:
 
 @dataclass(frozen=True)
 class ReadAxes:
-    """Read .spz scenes in these axes from now on, the one shown again."""
+    """Read .spz scenes that declare no axes in ``axes`` ("rub" or "rdf") from now on,
+    and the one shown again."""
 
     axes: str
 
@@ -161,13 +152,7 @@ class ColourByLevel:
     on: bool
 
 
-@dataclass(frozen=True)
-class ResetView:
-    """Frame the scene again."""
-
-
-Request = Union[Press, Click, FlyTo, AimAt, Converge, MeasurePoint, ShowPose, OpenScene, ReadAxes, ColourByLevel,
-                ResetView]
+Request = Union[Press, Click, FlyTo, AimAt, Converge, MeasurePoint, OpenScene, ReadAxes, ColourByLevel]
 
 
 @dataclass(frozen=True)

@@ -10,7 +10,7 @@ from raygs_viewer.photos.dataset import TEST_EVERY
 from raygs_viewer.scene.loader import LoadedScene
 from raygs_viewer.viewer.panel.photo import draw_photo_controls
 from raygs_viewer.viewer.panel.widgets import checkbox, header, note
-from raygs_viewer.viewer.part import FlyTo, Reply
+from raygs_viewer.viewer.part import FlyTo, Press, Reply
 from raygs_viewer.viewer.photo_view import PhotoCompare
 from raygs_viewer.viewer.training_frustums import TEST_COLOUR, TRAIN_COLOUR, TrainingFrustums
 
@@ -18,7 +18,7 @@ from raygs_viewer.viewer.training_frustums import TEST_COLOUR, TRAIN_COLOUR, Tra
 def draw_training_section(loaded: LoadedScene, current: int | None, photo: PhotoCompare,
                           frustums: TrainingFrustums) -> Reply:
     """``current``: the training camera flown to last (None: a free view); a camera
-    picked (by index, or the next or previous) asks to fly there; ``photo``: the Photo
+    picked asks to fly there (the next or the previous: as N and P do); ``photo``: the Photo
     view the controls under the list edit; ``frustums``: the cameras drawn in the scene
     (whether they are shown)."""
     label = f"Training cameras ({len(loaded.cameras)})"
@@ -31,10 +31,10 @@ def draw_training_section(loaded: LoadedScene, current: int | None, photo: Photo
         note(loaded.cameras_path)
     flights = []
     if imgui.button("< previous (P)"):
-        flights.append(FlyTo(step=-1))
+        flights.append(Press("previous_camera"))
     imgui.same_line()
     if imgui.button("next (N) >"):
-        flights.append(FlyTo(step=+1))
+        flights.append(Press("next_camera"))
     if imgui.begin_list_box("##cameras", (-1, 160)):
         for i, name in enumerate(loaded.camera_names):
             if imgui.selectable(f"{i}: {name}", current == i)[0]:

@@ -7,15 +7,15 @@ from imgui_bundle import imgui
 
 from raygs_viewer.camera.navigation import UP_AXES
 from raygs_viewer.viewer.panel.widgets import choice, header, note, slider, tooltip
-from raygs_viewer.viewer.part import Reply, ResetView
+from raygs_viewer.viewer.part import Press, Reply
 from raygs_viewer.viewer.view_control import ViewControl
 
 FOV_RANGE = (10.0, 120.0)
 
 
 def draw_view_section(view: ViewControl) -> Reply:
-    """Edits ``view``'s navigation mode, up axis and field of view; Reset view asks to
-    frame the scene again."""
+    """Edits ``view``'s navigation mode, up axis and field of view; Reset view does what R
+    does (frames the scene again)."""
     if not header("View"):
         return Reply()
     navigator = view.navigator
@@ -34,4 +34,4 @@ def draw_view_section(view: ViewControl) -> Reply:
     note(f"speed {navigator.speed:.3g} units/s")
     tooltip("the mouse wheel changes it in fly mode")
     imgui.same_line()
-    return Reply.of(ResetView()) if imgui.button("Reset view (R)") else Reply()
+    return Reply.of(Press("reset_view")) if imgui.button("Reset view (R)") else Reply()
