@@ -120,11 +120,17 @@ def attribute_writes(tree: ast.AST, names: set[str], bases: set[str]) -> list[in
     return lines
 
 
+@functools.lru_cache(maxsize=1)
+def parsed(package: Path) -> dict[str, ast.AST]:
+    """{path from the package's parent: syntax tree} of every module of ``package``, parsed once."""
+    return {path.relative_to(package.parent).as_posix(): ast.parse(path.read_text())
+            for path in sorted(package.rglob("*.py"))}
+
+
 def writes_outside(owner: str, names: set[str], bases: set[str], package: Path = VIEWER) -> list[str]:
     """'file:line' of each write of those attributes anywhere in ``package`` but ``owner``'s module."""
-    return [f"{path.relative_to(package.parent)}:{line}" for path in sorted(package.rglob("*.py"))
-            if path.relative_to(package.parent).as_posix() != owner
-            for line in attribute_writes(ast.parse(path.read_text()), names, bases)]
+    return [f"{name}:{line}" for name, tree in parsed(package).items() if name != owner
+            for line in attribute_writes(tree, names, bases)]
 
 
 def test_the_statistics_and_the_panel_lines_have_one_writer_each():
