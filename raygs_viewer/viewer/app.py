@@ -1,347 +1,51 @@
 """The interactive viewer: a GLFW window, the RayGS renderer, and an imgui panel on top.
 
-:class:`Viewer` keeps the loop and owns the parts, each of which keeps only its own
-state (``part``): the edit tool (``edit_tool``, with its export and handles), the
-camera path (``path_widget``), the measure tool (``measure``), picking (``pick_tool``),
-the training cameras' frustums (``training_frustums``) and the photo view
-(``photo_view``); beside them the state (``state``), input (``input``), the camera
-(``view_control``), loading (``loading``), the scene shown with its sorters and level
-of detail (``shown_scene``, ``lod_window``), drawing (``drawing``, with
-``render.gl.mono_frame`` and ``render.gl.stereo_frame``), the frame statistics
-(``stats``), the panel (``panel``, composed by ``panel_sections``), the split view's
-overlay (``overlay``), and screenshots and the window's image (``screenshots``). The
-parts answer with values (``part.Reply``: messages, requests); the viewer says the
-messages in the panel (``PanelState.say``) and carries out the requests
-(:meth:`Viewer.carry_out`). Each frame is one value (``frame.Frame``), made once; the
-last one stays as ``Viewer.shown``. Screenshots re-render the same view offscreen with
-an exact sort, so they reproduce headlessly from their sidecar
-(``raygs-viewer render --sidecar``).
+:class:`Viewer` is the desktop window's loop over what ``window_state.WindowState``
+holds: each frame it takes the input, draws the panel, makes the frame once
+(``frame.Frame``), lets the parts draw over the view, draws the scene and shows it.
+The last frame stays as ``Viewer.shown``. Screenshots re-render the same view offscreen
+with an exact sort, so they reproduce headlessly from their sidecar
+(``raygs-viewer render --sidecar``); the window's own image (panel included) is kept
+for ``--window-screenshot``.
 """
 
 from __future__ import annotations
 
-import time
-from contextlib import ExitStack
-from dataclasses import replace
 from pathlib import Path
-from typing import Callable
 
-import moderngl
 import numpy as np
 from imgui_bundle import imgui
 
 from raygs_viewer.camera.pinhole import Camera
-from raygs_viewer.camera.stereo import StereoView
 from raygs_viewer.capture.image_io import check_output_path, save_image
 from raygs_viewer.capture.screenshot import check_screenshot_path
 from raygs_viewer.capture.sidecar import load_camera_source
-from raygs_viewer.errors import UserError, one_line
+from raygs_viewer.errors import UserError
 from raygs_viewer.photos.evaluate import evaluation_settings, render_view
 from raygs_viewer.render.gl.context import context_description
-from raygs_viewer.render.gl.mono_frame import Viewport
-from raygs_viewer.render.gl.probe import Probe
-from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.lod_view import lod_settings_given
-from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.loader import LoadedScene, load_now
 from raygs_viewer.scene.progress import ProgressCallback
-from raygs_viewer.sort.lod_choice import LodRequest
 from raygs_viewer.sort.request import SortResult
-from raygs_viewer.sort.worker import BackgroundSorter
-from raygs_viewer.viewer.auto_defaults import AutoDefaults
-from raygs_viewer.viewer.drawing import SceneDrawer, SortAsked, request_sort
-from raygs_viewer.viewer.edit_tool import EditTool
-from raygs_viewer.viewer.feedback import Feedback
-from raygs_viewer.viewer.file_dialog import FileDialog
-from raygs_viewer.viewer.frame import NO_VIEWPORT, Frame
-from raygs_viewer.viewer.input import InputHandler
-from raygs_viewer.viewer.loading import SceneOpener, load_failed, scene_title, shown_message
-from raygs_viewer.viewer.lod_window import (
-    first_levels,
-    lod_request,
-    reading,
-    refines,
-    window_fits,
-    window_settings,
-)
-from raygs_viewer.viewer.measure import MeasureWidget
+from raygs_viewer.viewer.drawing import SortAsked, request_sort
+from raygs_viewer.viewer.frame import Frame
+from raygs_viewer.viewer.lod_window import first_levels, lod_request, reading
 from raygs_viewer.viewer.overlay import draw_split_overlay
 from raygs_viewer.viewer.panel_sections import Draft, panel_sections
-from raygs_viewer.viewer.part import (
-    AimAt,
-    Click,
-    ColourByLevel,
-    Converge,
-    FlyTo,
-    MeasurePoint,
-    OpenScene,
-    Part,
-    Pointing,
-    Press,
-    ReadAxes,
-    Reply,
-    Request,
-    SceneView,
-    Shortcut,
-    Shown,
-)
-from raygs_viewer.viewer.path_widget import PathScene, PathWidget
-from raygs_viewer.viewer.photo_view import Drawn, PhotoCompare, ScenePhotos, blocked_reason, standing_at
-from raygs_viewer.viewer.pick_tool import PickTool
-from raygs_viewer.viewer.remembered import Remembered
-from raygs_viewer.viewer.screenshots import Captures, Saved, Shot, ShownView, screenshot_said, sidecar_extra
-from raygs_viewer.viewer.shown_scene import ShownScene, Swapped
-from raygs_viewer.viewer.side_panel import SidePanel
-from raygs_viewer.viewer.state import (
-    Message,
-    PanelState,
-    SplitView,
-    StereoPreview,
-    ViewerOptions,
-    ViewMode,
-    failed,
-    mended,
-)
-from raygs_viewer.viewer.stats import FrameStats, summary
-from raygs_viewer.viewer.thumbnails import Thumbnails
-from raygs_viewer.viewer.training_frustums import TrainingFrustums
-from raygs_viewer.viewer.view_control import ViewControl
-from raygs_viewer.viewer.window import Window, choose_platform
+from raygs_viewer.viewer.part import Shown
+from raygs_viewer.viewer.photo_view import Drawn, blocked_reason, standing_at
+from raygs_viewer.viewer.screenshots import Saved, Shot, ShownView, screenshot_said, sidecar_extra
+from raygs_viewer.viewer.state import ViewerOptions, failed, mended
+from raygs_viewer.viewer.stats import summary
+from raygs_viewer.viewer.window import choose_platform
+from raygs_viewer.viewer.window_state import WindowState
 
 
-class Viewer:
-    """The application: owns the window, the scene shown (``scene``: as read, on the GPU,
-    its sorters and its level of detail), the panel and the parts.
+class Viewer(WindowState):
+    """The desktop window: ``frame()`` runs one iteration of the loop; ``run()`` loops
+    until the window closes or ``options.frames`` are drawn (see ``WindowState`` for
+    what it holds and its factories)."""
 
-    ``frame()`` runs one iteration of the loop; ``run()`` loops until the window
-    closes. ``renderer_factory(ctx, scene, general=)``, ``sorter_factory(direct_sorter)``,
-    ``probe_factory(ctx)``: each scene's renderer and sorter, the probe of a new GL
-    (tests pass instrumented ones); ``clock()``: seconds, what a frame's time is
-    measured by (tests pass one that steps by a fixed frame time). ``settings`` is the
-    one RenderSettings (the left side's in the split view); the panel returns it edited.
-    ``shown``: the last frame (:class:`~raygs_viewer.viewer.frame.Frame`; None before
-    the first)."""
-
-    def __init__(self, options: ViewerOptions, loaded: LoadedScene, start_camera: Camera | None = None, *,
-                 renderer_factory: Callable[..., GLRenderer] = GLRenderer, probe_factory: Callable[..., Probe] = Probe,
-                 sorter_factory: Callable[..., BackgroundSorter] = BackgroundSorter,
-                 clock: Callable[[], float] = time.perf_counter):
-        self.options, self.clock = options, clock
-        # What close() releases and ends, each registered as it is made (undone in reverse).
-        self._made = ExitStack()
-        self.window = Window(f"raygs-viewer — {scene_title(loaded.path)}", options.width, options.height,
-                             options.platform, options.vsync)
-        self._made.callback(self.window.close)
-        self.ctx = self.window.ctx
-        self.auto = AutoDefaults(self.ctx, options.sort, options.auto_precision, options.frames is None, probe_factory)
-        self.settings: RenderSettings = self.auto.settings(options.settings, options.settings)
-        # Copies: the panel edits the viewer's state, never the options.
-        self.stereo: StereoPreview = replace(options.stereo)
-        self.captures = Captures(replace(options.screenshots))
-        self.split, self.view_mode, self.panel = SplitView(), ViewMode(), PanelState()
-        self.stats = FrameStats()
-        self.drawer = self._made_here(SceneDrawer(self.ctx), "release")
-        self.scene = self._made_here(ShownScene(self.ctx, general=options.general, renderer_factory=renderer_factory,
-                                                sorter_factory=sorter_factory, sort_for=self.auto.sort_for), "close")
-        self._made.callback(self.auto.close)  # a probe under way: its GL objects, while the context lives
-        self.photos = ScenePhotos(options.images)
-        self.photo = PhotoCompare(self.ctx, self.photos)
-        self.picker, self.input, self.file_dialog, self.feedback = PickTool(), InputHandler(), FileDialog(), Feedback()
-        self.frustums = TrainingFrustums(Thumbnails(self.ctx, self.photos.of))
-        self.camera_path, self.measure, self.edit_tool = PathWidget(), MeasureWidget(), EditTool()
-        #: The parts, in the one order every hook reaches them: the frustums under the
-        #: path's lines, the measurements over them, the edit tool's shapes on top (back
-        #: to front over the view); and the edit tool takes the mouse last, but before
-        #: the camera, which comes after every part.
-        self.parts: tuple[Part, ...] = (self.frustums, self.camera_path, self.measure, self.edit_tool)
-        for part in self.parts:
-            self._made.callback(part.close)
-        self._made.callback(self.window.make_current)  # the context current for the releases above
-        self.scenes = self._made_here(SceneOpener(options.source, window_fits(self.ctx)), "close")
-        self.side_panel = self._made_here(SidePanel(self.panel, Remembered()), "close")  # a drag of its edge
-        self.frame_index = 0
-        self.loaded: LoadedScene | None = None
-        self.view: ViewControl | None = None
-        self.shown: Frame | None = None
-        self.wait_for_sort = False          # set for the last frame of a scripted run
-        #: The split view's divider and side labels as drawn last frame, (x0, y0, x1, y1)
-        #: in screen coordinates (imgui's); empty without the split view.
-        self.overlay_rects: dict[str, tuple[float, float, float, float]] = {}
-        try:
-            self.auto.check(self.ctx)  # before any scene, in one line
-            self._install(loaded, start_camera)
-            if problem := self.scene.renderer.supports(self.settings):  # e.g. --transmittance-cutoff, no fetch
-                raise UserError(problem)
-        except BaseException:  # e.g. a scene too large for this GPU: no window left behind
-            self.close()
-            raise
-
-    def _made_here(self, thing, ending: str):
-        """``thing``, its method ``ending`` called when the viewer closes."""
-        self._made.callback(getattr(thing, ending))
-        return thing
-
-    # -- what the panel, the parts and the tests read ------------------------------------
-    @property
-    def camera(self) -> Camera | None:
-        """The view of the last frame (viewport-sized; in stereo the eyes' midpoint)."""
-        return None if self.shown is None else self.shown.camera
-
-    @property
-    def viewport(self) -> Viewport:
-        return NO_VIEWPORT if self.shown is None else self.shown.viewport
-
-    @property
-    def shown_stereo(self) -> StereoView | None:
-        """The stereo view of the last frame (None: mono)."""
-        return None if self.shown is None else self.shown.stereo
-
-    def right_settings(self) -> RenderSettings | None:
-        """The split view's right side; None when it is off (it is off in the stereo preview)."""
-        return None if self.stereo.on else self.split.right(self.settings)
-
-    def view_area(self) -> Viewport:
-        """The part of the window the view is laid out in: beside the panel while it is
-        shown (``layout.view_area``)."""
-        return self.side_panel.view_area(self.window.framebuffer_size(),
-                                         imgui.get_io().display_framebuffer_scale.x or 1.0)
-
-    def scene_view(self) -> SceneView:
-        """The scene shown, as the parts see it (the orders of the last frame drawn)."""
-        return SceneView(self.loaded, self.scene.renderer, self.scene.direct_sorter, self.edit_tool.deleted,
-                         self.drawer.orders, float(self.view.radius))
-
-    def path_scene(self) -> PathScene:
-        """What the path widget is handed for an action."""
-        return PathScene(self.view, self.loaded, self.settings, self.shown, self.edit_tool.sidecar_entry(self.loaded))
-
-    def pointing(self) -> Pointing:
-        """What the pointer's clicks do this frame."""
-        navigator, shown = self.view.navigator, self.shown
-        return Pointing(self.measure.on, self.measure.scale, self.stereo.converge_on_pick, self.stereo.rig,
-                        flying=navigator.animating, orbiting=navigator.mode == "orbit",
-                        divider=None if shown is None else self.split.column(shown.camera.width))
-
-    # -- scenes ----------------------------------------------------------------------------
-    def _install(self, loaded: LoadedScene, start_camera: Camera | None = None) -> None:
-        """Puts a loaded scene on the GPU; on failure the current scene stays."""
-        if refines(self.loaded, loaded):  # a streamed SOG's next level: the view stays
-            refined, swapped = self.scene.refine(self.loaded, loaded, self.settings, self.options.settings,
-                                                 self.scenes.loader)
-            self._swapped(swapped)
-            if refined is not None:
-                self.settings, self.loaded = refined.settings, refined.loaded
-                self._scene_shown(grown=True)
-            return
-        self._swapped(self.scene.open(loaded.scene))
-        self.loaded = loaded
-        self.settings = opened_settings(self.settings, self.options.settings, loaded)
-        # A new scene keeps the user's navigation choices.
-        choices = self.options.navigation if self.view is None else self.view.choices()
-        _, _, width, height = self.view_area()
-        self.view = ViewControl(loaded, start_camera, choices, width / height)
-        self._scene_shown(grown=False)
-        self.window.set_title(f"raygs-viewer — {scene_title(loaded.path)}")
-
-    def _scene_shown(self, grown: bool) -> None:
-        for part in self.parts:
-            self.panel.say(*part.scene_shown(self.loaded, grown).messages)
-
-    def _swapped(self, swapped: Swapped | None) -> None:
-        """Another copy of the scene is on the GPU: what was drawn of the one before is stale."""
-        if swapped is None:
-            return
-        self.stats.new_sorter(swapped.kept, self.frame_index)
-        self.drawer.forget()
-        self.photos.forget()
-        self.photo.forget_scene()
-        self.frustums.forget()
-
-    def _take_loaded(self) -> None:
-        """Shows a scene the background load finished (its words in the panel), and opens
-        files dropped on the window."""
-        result = self.scenes.poll()
-        if isinstance(result, LoadedScene):
-            try:
-                self._install(result)
-            except (UserError, MemoryError, moderngl.Error) as exc:  # e.g. too large for this GPU
-                self.panel.say(load_failed(f"{result.path}: {one_line(exc)}"))
-            else:
-                self.panel.say(shown_message(result))
-        else:
-            self.panel.say(result)
-        if dropped := self.window.dropped():
-            self.drop(dropped)
-
-    def open_scene(self, path: str, cameras: str | None = None) -> None:
-        """Starts opening ``path`` (the panel's Open; with ``cameras``, a cameras.json)."""
-        self.panel.say(self.scenes.open(path, cameras, self.edit_tool.unsaved()))
-
-    def drop(self, paths: list[str]) -> None:
-        """Files dropped on the window: the first is opened."""
-        self.panel.say(self.scenes.drop(paths, self.edit_tool.unsaved()))
-
-    def _lod_request(self) -> LodRequest | None:
-        """A frame's level-of-detail request of the scene shown, after starting to read the
-        levels the settings want that are not read (``WindowLod.for_frame``)."""
-        lod = self.scene.lod.for_frame(self.loaded, self.settings, self.scenes.loader)
-        if lod.read is not None:
-            self.panel.say(self.scenes.read_levels(lod.read))
-        return lod.request
-
-    # -- requests ---------------------------------------------------------------------------
-    def answer(self, reply: Reply) -> None:
-        """Says ``reply``'s messages in the panel and carries out its requests, in order."""
-        self.panel.say(*reply.messages)
-        for request in reply.requests:
-            self.carry_out(request)
-
-    def carry_out(self, request: Request) -> None:
-        """Does what a part, the panel or the input asks of the window."""
-        said: Message | tuple | None = None
-        match request:
-            case Press(shortcut):
-                said = self._press(shortcut)
-            case Click(x, y, double):
-                shown = Shown(self.shown, self.scene_view())
-                pointing = self.pointing()
-                self.answer(self.picker.double_click(x, y, shown, pointing) if double else
-                            self.picker.click(x, y, shown, pointing, self.frustums.camera_at(x, y)))
-            case FlyTo(index):
-                said = self.view.select_training_camera(index)
-            case AimAt(point):
-                self.view.navigator.aim_at(point)
-            case Converge(metres):
-                self.stereo.rig = replace(self.stereo.rig, convergence=metres)
-            case MeasurePoint(picked):
-                said = self.measure.add_point(picked)
-            case OpenScene(path, cameras):
-                self.open_scene(path, cameras)
-            case ReadAxes(axes):
-                said = self.scenes.switch_axes(self.loaded, axes, self.edit_tool.unsaved())
-            case ColourByLevel(on):
-                tinted = self.scene.set_tint(on, self.loaded.lod)
-                said = failed(tinted, "colour by level") if isinstance(tinted, str) else self._swapped(tinted)
-        self.panel.say(said)
-
-    def _press(self, shortcut: Shortcut) -> Message | None:
-        """What a shortcut's key does (and says)."""
-        actions: dict[Shortcut, Callable[[], Message | None]] = {
-            "quit": self.window.request_close,
-            "screenshot": self.captures.request,
-            "add_keyframe": lambda: self.camera_path.add_view(self.view),
-            "switch_navigation": self.view.switch_mode,
-            "next_camera": lambda: self.view.step_training_camera(+1),
-            "previous_camera": lambda: self.view.step_training_camera(-1),
-            "reset_view": self.reset_view,
-            "toggle_panel": self.panel.toggle,
-        }
-        return actions[shortcut]()
-
-    def reset_view(self) -> None:
-        self.view.reset(self.view_area()[2:], self.shown_stereo)
-
-    # -- frame -------------------------------------------------------------------------
     def frame(self) -> None:
         """One iteration of the loop. Its steps, in this order, and why:
 
@@ -366,7 +70,7 @@ class Viewer:
         dt = self.stats.tick(self.clock())
         self.frame_index += 1
         self.window.poll_events()
-        self._take_loaded()
+        self.take_loaded()
         width, height = self.window.framebuffer_size()
         if width <= 0 or height <= 0:  # minimised: nothing to draw, do not spin
             if self.options.frames is None:
@@ -402,7 +106,7 @@ class Viewer:
             self.panel.say(screenshot_said(self._save_shots))
         if self.auto.step():  # this GL's profile is measured: its sort for the scene shown, its blend
             resorted = self.scene.resort()
-            self.panel.say(failed(resorted, "sort") if isinstance(resorted, str) else self._swapped(resorted))
+            self.panel.say(failed(resorted, "sort") if isinstance(resorted, str) else self.forget_drawn(resorted))
             self.settings = self.auto.settings(self.settings, self.options.settings)
 
     def _act(self, dt: float) -> None:
@@ -429,7 +133,7 @@ class Viewer:
         self.panel.say(views[2])
         framing = self.view.camera(self.view_area(), stereo, self.stereo.headset_size)
         frame = self.shown = Frame.make(self.frame_index, framing, stereo=stereo, settings=self.settings, right=right,
-                                        lod=self._lod_request(), deleted=self.edit_tool.deleted, views=views[:2])
+                                        lod=self.frame_lod(), deleted=self.edit_tool.deleted, views=views[:2])
         # wait_for_sort: only the last frame of a scripted run, whose capture must show the finished view.
         result, asked = request_sort(self.scene.sorter, frame, self.wait_for_sort)
         return frame, self.scene.shown(result), asked
@@ -490,7 +194,7 @@ class Viewer:
             self.captures.keep_next |= last and options.window_screenshot is not None
             self.wait_for_sort = last
             if last:  # a scripted run ends on every level of a streamed SOG its settings want
-                self._lod_request()
+                self.frame_lod()
                 if reading(self.loaded, self.scenes.loader):
                     self.scenes.loader.wait_done()
             self.frame()
@@ -513,21 +217,6 @@ class Viewer:
         return summary(self.stats, self.frame_index, camera=self.camera, stereo=self.shown_stereo, gpu_times=gpu_times,
                        post_times=post_times, scene_count=self.loaded.scene.count,
                        general=self.scene.renderer.general)
-
-    def close(self) -> None:
-        """Ends what runs (a load, a video, a probe) and releases what the window made, the
-        window last; a second call does nothing."""
-        self._made.close()
-
-
-def opened_settings(settings: RenderSettings, start: RenderSettings, loaded: LoadedScene) -> RenderSettings:
-    """``settings`` for a newly opened scene: its SH degree (the command line's None:
-    every scene's own; else the panel's, capped at this scene's), and a streamed SOG's
-    level-of-detail settings (``lod_window.window_settings``)."""
-    degree = loaded.scene.sh_degree
-    if start.sh_degree is not None:
-        degree = min(settings.sh_degree, degree)
-    return window_settings(replace(settings, sh_degree=degree), start, loaded)
 
 
 def load_start_scene(options: ViewerOptions, progress: ProgressCallback | None = None) -> LoadedScene:

@@ -247,13 +247,11 @@ class GpuSorter(Closable):
         self.timer = timer
         self._cull = Cull(scene)
         count = self._cull.count
-        self.block_limit = gpu_limit(ctx, "GL_MAX_SHADER_STORAGE_BLOCK_SIZE", 1 << 27)
-        if count * 12 > self.block_limit:
+        if count > self.capacity(ctx):
             raise UserError(f"the GPU sort holds a scene's positions in one storage block: {count:,} gaussians "
-                            f"need {count * 12:,} bytes, this GPU allows {self.block_limit:,}")
-        self._spans: moderngl.Buffer | None = None
+                            f"need {count * 12:,} bytes; one holds {self.capacity(ctx):,} gaussians on this GPU")
+        self._spans = self._cameras = None  # buffers made as sorts come (moderngl.Buffer)
         self._spans_key: bytes | None = None
-        self._cameras: moderngl.Buffer | None = None
         self._orders: dict[str, list[_OrderBuffer]] = {}  # per key, the two buffers it alternates between
         capacity = max(count, 1)
         with ExitStack() as made:
@@ -280,8 +278,7 @@ class GpuSorter(Closable):
             self._owned = made.pop_all()
         self._support_key: tuple[float, bytes] | None = None
         self._serial = 0
-        self.sorted = 0
-        self.support_uploads = 0
+        self.sorted = self.support_uploads = 0
 
     @staticmethod
     def problem(ctx: moderngl.Context) -> str | None:
