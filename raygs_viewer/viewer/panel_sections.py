@@ -41,7 +41,7 @@ class Draft:
         self.settings = settings
 
 
-def said(draw: Callable[[], object]) -> Callable[[], Reply]:
+def quiet(draw: Callable[[], object]) -> Callable[[], Reply]:
     """A section that says nothing, as one that returns a Reply."""
     def section() -> Reply:
         draw()
@@ -58,7 +58,7 @@ def panel_sections(viewer, draft: Draft) -> list[Callable[[], Reply]]:
     split_shown = v.split.on and (shown is None or shown.stereo is None)
     path_scene = v.path_scene()
     return [
-        said(lambda: draw_statistics(stats, loaded.scene.count, v.scene.sorter, work=renderer.counters,
+        quiet(lambda: draw_statistics(stats, loaded.scene.count, v.scene.sorter, work=renderer.counters,
                                      general=renderer.general, sort=v.scene.sort,
                                      measured=v.auto.lines(loaded.scene.count))),
         lambda: draw_scene_section(loaded, v.panel, v.scenes.loader, v.file_dialog),
@@ -66,17 +66,17 @@ def panel_sections(viewer, draft: Draft) -> list[Callable[[], Reply]]:
                                  stats=stats),
         lambda: draw_render_section(draft.settings, draft.set, scene_sh_degree=loaded.scene.sh_degree,
                                     supports=renderer.supports, window=v.window, stereo=v.stereo, split=v.split),
-        said(lambda: draw_order_section(draft.settings, draft.set, stats, v.split.on and not v.stereo.on)),
-        said(lambda: draw_stereo_section(v.stereo, stats, shown)),
+        quiet(lambda: draw_order_section(draft.settings, draft.set, stats, v.split.on and not v.stereo.on)),
+        quiet(lambda: draw_stereo_section(v.stereo, stats, shown)),
         lambda: draw_view_section(view),
         lambda: draw_training_section(loaded, view.training_index, v.photo, v.frustums),
         lambda: draw_screenshot_section(v.captures.options, shown and shown.full_camera,
                                         stereo_shown=shown is not None and shown.stereo is not None,
                                         save_eyes=v.stereo.save_eyes, split_shown=split_shown),
-        said(lambda: draw_geometry_section(v.view_mode, v.drawer.view_range, picked=v.picker.last,
+        quiet(lambda: draw_geometry_section(v.view_mode, v.drawer.view_range, picked=v.picker.last,
                                            scale=v.measure.scale, stereo=v.stereo, split=split_shown)),
         lambda: draw_path_section(v.camera_path, path_scene),
         lambda: draw_measure_section(v.measure, loaded),
         lambda: draw_edit_section(v.edit_tool, loaded),
-        said(lambda: draw_history(v.feedback)),
+        quiet(lambda: draw_history(v.feedback)),
     ]

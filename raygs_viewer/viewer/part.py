@@ -11,8 +11,8 @@ part reads and changes only itself, and a second frame driver (a headset's) can 
 same parts.
 
 Each part implements the hooks of :class:`Part` it needs; ``app.Viewer.frame`` calls
-each hook on its parts in the one order ``app.Viewer`` writes down (splatviz's list of
-widgets; moderngl-window's event hooks).
+each hook on its parts in the one order ``window_state.WindowState.parts`` writes down
+(splatviz's list of widgets; moderngl-window's event hooks).
 """
 
 from __future__ import annotations

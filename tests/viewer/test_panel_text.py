@@ -9,7 +9,7 @@ from appkit import PANEL_HEIGHT, PANEL_WIDTH, text_past_the_panel
 from raygs_viewer.viewer import app as viewer_app
 from raygs_viewer.viewer.layout import MIN_PANEL_WIDTH
 from raygs_viewer.viewer.panel.widgets import labelled_progress
-from raygs_viewer.viewer.panel_sections import said
+from raygs_viewer.viewer.panel_sections import quiet
 from raygs_viewer.viewer.state import failed, note
 
 
@@ -45,7 +45,7 @@ def test_nothing_is_cut_in_every_section_of_the_narrowest_panel(open_viewer, mon
     # A progress bar with a load's longest stage, as the Scene and Level of detail sections show one.
     sections = viewer_app.panel_sections
     monkeypatch.setattr(viewer_app, "panel_sections", lambda window, draft: sections(window, draft) + [
-        said(lambda: labelled_progress(0.25, "reading level 3 of 5: 1,234,567 of 2,345,678 gaussians"))])
+        quiet(lambda: labelled_progress(0.25, "reading level 3 of 5: 1,234,567 of 2,345,678 gaussians"))])
     drive.frames(3)
     assert viewer.panel.width == MIN_PANEL_WIDTH
     assert "replace file##measure" in drive.panel and ("Stereo" in drive.panel or mode != "stereo")
