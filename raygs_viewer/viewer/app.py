@@ -105,8 +105,7 @@ class Viewer(WindowState):
         if self.captures.due():
             self.panel.say(screenshot_said(self._save_shots))
         if self.auto.step():  # this GL's profile is measured: its sort for the scene shown, its blend
-            resorted = self.scene.resort()
-            self.panel.say(failed(resorted, "sort") if isinstance(resorted, str) else self.forget_drawn(resorted))
+            self.panel.say(self.swap_said(self.scene.resort(), "sort"))
             self.settings = self.auto.settings(self.settings, self.options.settings)
 
     def _act(self, dt: float) -> None:

@@ -305,9 +305,16 @@ class WindowState:
             case ReadAxes(axes):
                 said = self.scenes.switch_axes(self.loaded, axes, self.edit_tool.unsaved())
             case ColourByLevel(on):
-                tinted = self.scene.set_tint(on, self.loaded.lod)
-                said = failed(tinted, "colour by level") if isinstance(tinted, str) else self.forget_drawn(tinted)
+                said = self.swap_said(self.scene.set_tint(on, self.loaded.lod), "colour by level")
         self.panel.say(said)
+
+    def swap_said(self, swap: Swapped | str | None, action: str) -> Message | None:
+        """What a swap of the GPU's copy (``ShownScene.set_tint``, ``.resort``) leaves to
+        do: forget what was drawn of the copy before, or say in one line why it failed."""
+        if isinstance(swap, str):
+            return failed(swap, action)
+        self.forget_drawn(swap)
+        return None
 
     def _press(self, shortcut: Shortcut) -> Message | None:
         """What a shortcut's key does (and says)."""
