@@ -13,7 +13,6 @@ from __future__ import annotations
 
 import ast
 import io
-import keyword
 import sys
 import tokenize
 from collections import defaultdict

@@ -11,7 +11,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from imgui_bundle import imgui  # before glfw (see raygs_viewer.viewer.window)
 
 from raygs_viewer.viewer.drawing import DrawReport
 from raygs_viewer.viewer.part import Reply
