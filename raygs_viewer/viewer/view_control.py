@@ -6,6 +6,11 @@ from __future__ import annotations
 
 import math
 
+# A flight's in-between poses slerp through scipy, which camera.navigation imports only
+# when a flight first needs it (0.4 s: the command line's commands never fly). The window
+# loads it when it opens, not in the frame of its first flight.
+import scipy.spatial.transform  # noqa: F401
+
 from raygs_viewer.camera.lens import Lens, letterbox
 from raygs_viewer.camera.navigation import (
     LOOK_RADIANS_PER_PIXEL,
