@@ -56,7 +56,6 @@ def panel_sections(viewer, draft: Draft) -> list[Callable[[], Reply]]:
     v = viewer
     loaded, renderer, view, stats, shown = v.loaded, v.scene.renderer, v.view, v.stats, v.shown
     split_shown = v.split.on and (shown is None or shown.stereo is None)
-    path_scene = v.path_scene()
     return [
         quiet(lambda: draw_statistics(stats, loaded.scene.count, v.scene.sorter, work=renderer.counters,
                                      general=renderer.general, sort=v.scene.sort,
@@ -75,7 +74,7 @@ def panel_sections(viewer, draft: Draft) -> list[Callable[[], Reply]]:
                                         save_eyes=v.stereo.save_eyes, split_shown=split_shown),
         quiet(lambda: draw_geometry_section(v.view_mode, v.drawer.view_range, picked=v.picker.last,
                                            scale=v.measure.scale, stereo=v.stereo, split=split_shown)),
-        lambda: draw_path_section(v.camera_path, path_scene),
+        lambda: draw_path_section(v.camera_path, v.path_scene(draft.settings)),
         lambda: draw_measure_section(v.measure, loaded),
         lambda: draw_edit_section(v.edit_tool, loaded),
         quiet(lambda: draw_history(v.feedback)),

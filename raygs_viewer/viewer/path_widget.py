@@ -65,14 +65,15 @@ OVERLAY_NEAR = 1e-3
 class PathScene:
     """What the path widget is handed for an action: the view's controls (their pose,
     field of view and up axis), the scene as read, the render settings (the left
-    side's), the last frame (None before the first) and the edit document's JSON where
-    a gaussian is deleted (None: nothing deleted; ``edit_tool.EditTool.sidecar_entry``)."""
+    side's), the last frame (None before the first), and what makes the edit document's
+    JSON where a gaussian is deleted (None: nothing deleted;
+    ``edit_tool.EditTool.sidecar_entry``), asked only when a document is written."""
 
     view: ViewControl
     loaded: LoadedScene
     settings: RenderSettings
     shown: Frame | None
-    edits: dict | None = None
+    edits: Callable[[], dict | None] = lambda: None
 
 
 class PathWidget(Part):
@@ -132,7 +133,7 @@ class PathWidget(Part):
         return PathDocument(self.path, width, height, at.settings, None if frame is None else frame.stereo,
                             scene_argument(loaded), loaded.content_sha256,
                             scene_axes=loaded.scene.axes,  # a .spz's: render-path reads it in the same axes
-                            edits=at.edits)
+                            edits=at.edits())
 
     # -- the one way an edit happens ----------------------------------------------------
     def edit(self, change: Callable[[CameraPath], CameraPath], select: int | None = -1) -> Message:

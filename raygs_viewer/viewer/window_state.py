@@ -196,9 +196,12 @@ class WindowState:
         return SceneView(self.loaded, self.scene.renderer, self.scene.direct_sorter, self.edit_tool.deleted,
                          self.drawer.orders, float(self.view.radius))
 
-    def path_scene(self) -> PathScene:
-        """What the path widget is handed for an action."""
-        return PathScene(self.view, self.loaded, self.settings, self.shown, self.edit_tool.sidecar_entry(self.loaded))
+    def path_scene(self, settings: RenderSettings | None = None) -> PathScene:
+        """What the path widget is handed for an action (``settings``: as the panel edits
+        them; None: the window's)."""
+        loaded = self.loaded
+        return PathScene(self.view, loaded, settings or self.settings, self.shown,
+                         lambda: self.edit_tool.sidecar_entry(loaded))
 
     def pointing(self) -> Pointing:
         """What the pointer's clicks do this frame."""
