@@ -38,7 +38,7 @@ DOCUMENT = ROOT / "docs" / "architecture.md"
 #: lower groups; the packages of one group stand side by side and import neither each
 #: other. The package root (``__init__``) counts as the lowest layer.
 LAYER_GROUPS = (("errors",), ("jsonfile",), ("camera", "files"), ("scene",), ("sort",), ("render",),
-                ("capture",), ("photos",), ("viewer", "bench"), ("cli",), ("__main__",))
+                ("capture",), ("photos",), ("xr",), ("viewer", "bench"), ("cli",), ("__main__",))
 #: {top-level module or package: its group's place in LAYER_GROUPS}.
 LAYERS = {name: rank for rank, group in enumerate(LAYER_GROUPS) for name in group}
 

@@ -1,0 +1,1 @@
+"""OpenXR: the scene in a headset (docs/xr.md)."""
