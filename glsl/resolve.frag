@@ -4,6 +4,9 @@
 // GEOMETRY: the geometry attachments (1, 2) are averaged too: their sums, and the
 // median as the mean of (z where found, else 0) and of found (render/gl/geometry.py).
 // Texels come from the interpolated uv (see present.frag for why not gl_FragCoord).
+// UNORM8_TARGET: the target stores 8 bits (a headset's swapchain image): the colour is
+// rounded here as a screenshot rounds the float32 image (half to even), so the bits
+// stored are the screenshot's whatever this GL's own float-to-unorm conversion does.
 uniform sampler2D u_samples;
 uniform int u_factor;  // k
 uniform vec3 u_background;
@@ -40,6 +43,9 @@ void main() {
     }
     float samples = float(u_factor * u_factor);
     out_color = sum / samples;
+#if UNORM8_TARGET
+    out_color.rgb = roundEven(clamp(out_color.rgb, 0.0, 1.0) * 255.0) / 255.0;
+#endif
 #if GEOMETRY
     out_depth = depth / samples;
     out_normal = normal / samples;

@@ -235,10 +235,12 @@ class RenderPlan:
         defines = {"ALPHA_MAX": glsl_literal(ALPHA_CLAMP), **self.pass_defines(), **self.feature_defines()}
         return f"{stage}.vert", f"{stage}.frag", defines
 
-    def resolve_defines(self) -> dict[str, object]:
+    def resolve_defines(self, unorm8_target: bool = False) -> dict[str, object]:
         """resolve.frag's: averaging a sample target down, adding the background after
-        front-to-back compositing, the geometry attachments too."""
-        return {"FRONT_TO_BACK": int(self.front_to_back), "GEOMETRY": int(self.geometry)}
+        front-to-back compositing, the geometry attachments too; rounding as a
+        screenshot does into an 8-bit target (``unorm8_target``: a headset's image)."""
+        return {"FRONT_TO_BACK": int(self.front_to_back), "GEOMETRY": int(self.geometry),
+                "UNORM8_TARGET": int(unorm8_target)}
 
 
 class Passes(Protocol):

@@ -233,7 +233,7 @@ class GLRenderer:
     def resolve_samples(self, samples: FloatTarget, target: FloatTarget, plan: RenderPlan) -> None:
         """Averages ``samples``' k x k blocks into ``target`` (resolve.frag), every
         attachment the plan has; after front-to-back compositing, adds the background."""
-        program, vao = self.programs.fullscreen("resolve.frag", plan.resolve_defines())
+        program, vao = self.programs.fullscreen("resolve.frag", plan.resolve_defines(target.dtypes[0] == "f1"))
         target.use()
         self.ctx.disable(moderngl.BLEND)
         for unit, name in enumerate(("u_samples", "u_depth", "u_normal")[:samples.attachments]):

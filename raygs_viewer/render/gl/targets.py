@@ -49,6 +49,19 @@ class FloatTarget:
         self.texture = self.textures[0]
         self.fbo = ctx.framebuffer(color_attachments=self.textures)
         self._single: list[moderngl.Framebuffer] = []  # one per attachment, for clear_each
+        self._owned = True  # the textures are this target's (see wrapping)
+
+    @classmethod
+    def wrapping(cls, ctx: moderngl.Context, texture: moderngl.Texture, dtype: str = "f1") -> "FloatTarget":
+        """A target that draws into a texture made elsewhere (a headset's swapchain image,
+        ``ctx.external_texture``), of kind ``dtype``; :meth:`release` frees the
+        framebuffer and leaves the texture to its owner."""
+        target = cls.__new__(cls)
+        target.ctx, target.dtypes, target.dtype = ctx, (dtype,), dtype
+        target.textures, target.texture = [texture], texture
+        target.fbo = ctx.framebuffer(color_attachments=[texture])
+        target._single, target._owned = [], False
+        return target
 
     @property
     def attachments(self) -> int:
@@ -86,7 +99,7 @@ class FloatTarget:
                 fbo.release()
             self._single = []
             self.fbo.release()
-            for texture in self.textures:
+            for texture in self.textures if self._owned else ():
                 texture.release()
             self.fbo = self.texture = None
             self.textures = []

@@ -124,7 +124,8 @@ def plan_programs(plan: RenderPlan) -> list[Program]:
     programs = [Program.of(("preprocess.comp",), plan.preprocess_defines(selection))
                 for selection in (False, True)]
     programs += [Program.of((vertex, fragment), defines),
-                Program.of((FULLSCREEN_VERTEX, "resolve.frag"), plan.resolve_defines())]
+                *(Program.of((FULLSCREEN_VERTEX, "resolve.frag"), plan.resolve_defines(unorm8))
+                  for unorm8 in (False, True))]
     if not plan.mode_gs:  # bench perf's floor pass
         vertex, fragment, defines = plan.draw_stages(floor=True)
         programs.append(Program.of((vertex, fragment), defines))
