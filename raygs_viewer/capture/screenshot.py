@@ -76,7 +76,8 @@ def tile_camera(camera: Camera, x0: int, y0: int, width: int, height: int) -> Ca
 
 
 def render_tiled(renderer: "GLRenderer", sorter: DepthSorter, order: Order, camera: Camera,
-                 settings: RenderSettings, *, tile: int = DEFAULT_TILE) -> np.ndarray:
+                 settings: RenderSettings, *, tile: int = DEFAULT_TILE,
+                 color_origin: np.ndarray | None = None) -> np.ndarray:
     """(H, W, 4) float32 image, top row first, like :meth:`GLRenderer.render` of
     ``order`` (``camera``'s, for ``settings``), drawn in tiles of at most ``tile`` x
     ``tile`` pixels so a large screenshot never needs one huge render target.
@@ -89,28 +90,35 @@ def render_tiled(renderer: "GLRenderer", sorter: DepthSorter, order: Order, came
     With ``settings.supersample`` k > 1 the renderer draws k x k samples per pixel, so
     tiles are at most ``tile // k`` pixels a side: the GPU target stays within ``tile``.
     GS clamps its rays to the whole image's borders (``frame=camera``), not the tile's.
+
+    ``color_origin``: the (3,) world point every tile evaluates the SH colour from
+    (:meth:`GLRenderer.render`'s; a headset eye's is the eyes' midpoint); None: the
+    camera's centre, which every tile shares.
     """
     if _fits_one_tile(camera, settings, tile):
-        return renderer.render(camera, settings, order)
+        return renderer.render(camera, settings, order, color_origin=color_origin)
     image = _allocate(camera, [(4,)], "float32 RGBA image")[0]
     for part, tile_order, rows, columns in _tiles(sorter, order, camera, settings, tile):
-        pixels = renderer.render(part, settings, tile_order, frame=camera)
+        pixels = renderer.render(part, settings, tile_order, frame=camera, color_origin=color_origin)
         image[rows, columns] = pixels[:rows.stop - rows.start, :columns.stop - columns.start]
     return image
 
 
 def render_tiled_channels(renderer: "GLRenderer", sorter: DepthSorter, order: Order, camera: Camera,
-                          settings: RenderSettings, *, tile: int = DEFAULT_TILE, median: bool = True) -> ChannelImage:
+                          settings: RenderSettings, *, tile: int = DEFAULT_TILE, median: bool = True,
+                          color_origin: np.ndarray | None = None) -> ChannelImage:
     """The ChannelImage of :meth:`GLRenderer.render_channels` (camera-space normals),
-    drawn in tiles as :func:`render_tiled` draws colour, with the same order per tile.
-    ``median`` False leaves the median depth out (None; cheaper in a global order)."""
+    drawn in tiles as :func:`render_tiled` draws colour, with the same order and colour
+    origin per tile. ``median`` False leaves the median depth out (None; cheaper in a
+    global order)."""
     if _fits_one_tile(camera, settings, tile):
-        return renderer.render_channels(camera, settings, order, median=median)
+        return renderer.render_channels(camera, settings, order, median=median, color_origin=color_origin)
     # CHANNELS are ChannelImage's per-pixel fields, in its constructor's order.
     shapes = [() if CHANNEL_WIDTHS[name] == 1 else (CHANNEL_WIDTHS[name],) for name in CHANNELS]
     arrays = _allocate(camera, shapes, "set of float32 channels")
     for part, tile_order, rows, columns in _tiles(sorter, order, camera, settings, tile):
-        channels = renderer.render_channels(part, settings, tile_order, frame=camera, median=median)
+        channels = renderer.render_channels(part, settings, tile_order, frame=camera, median=median,
+                                            color_origin=color_origin)
         for name, array in zip(CHANNELS, arrays):
             if getattr(channels, name) is not None:
                 array[rows, columns] = getattr(channels, name)[:rows.stop - rows.start, :columns.stop - columns.start]

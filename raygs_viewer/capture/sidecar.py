@@ -20,6 +20,7 @@ Layout (version 1)::
      "settings": {every RenderSettings field},
      "render_mode": "raygs",                                   # = settings.mode
      "stereo": {...},                                          # version 2, stereo images only (below)
+     "order": {...},                                           # version 6, an order sorted elsewhere (below)
      "extra": {...}}                                           # free-form, from the window
 
 A stereo image (version 2) adds::
@@ -48,6 +49,21 @@ a key this version does not know is an error. A file is written with the lowest
 version that describes it, so older readers keep reading mono sidecars and refuse
 stereo ones instead of rendering them as one eye.
 
+An image whose back-to-front order was not sorted from its own camera (version 6: each
+eye of a headset, drawn with the order the window's background sort made from the eyes'
+midpoint, possibly a frame earlier) adds::
+
+     "order": {"sorted_from": {camera entry, "world_to_camera": {"R": 3x3, "t": 3}},  # the sort's camera
+               "culled_for": [{camera entry, "world_to_camera": {...}}, ...] or null, # null: sorted_from's
+               "colour_from": [x, y, z] or null}      # the SH colour's world viewpoint; null: "camera"'s centre
+
+so that ``render --sidecar`` sorts from the same camera (its pose and intrinsics: the
+cull's dilation reads its fx), keeps what the same frusta see, evaluates the colour from
+the same point, and reproduces the image to the bit (:class:`OrderViewpoint`). Each
+camera is written as "camera" and "world_to_camera" are, float64 exact, and every key
+of "order" is required. An image that holds one eye is mono: a stereo sidecar with
+"order" is refused (both its eyes share the midpoint's order, which "stereo" says).
+
 "render_mode" mirrors ``settings.mode`` (one of :data:`raygs_viewer.render.settings.RENDER_MODES`).
 Sidecars written before "settings" had a "mode" take the mode from "render_mode"; when
 both are present they must agree.
@@ -71,7 +87,13 @@ from pathlib import Path
 import numpy as np
 
 import raygs_viewer
-from raygs_viewer.camera.pinhole import Camera, camera_from_json, camera_to_json, load_camera
+from raygs_viewer.camera.pinhole import (
+    MAX_COORDINATE,
+    Camera,
+    camera_from_json,
+    camera_to_json,
+    load_camera,
+)
 from raygs_viewer.camera.rotation import is_rotation
 from raygs_viewer.camera.stereo import StereoView, composed_size
 from raygs_viewer.capture.document_entries import (
@@ -88,18 +110,19 @@ from raygs_viewer.errors import UserError
 from raygs_viewer.jsonfile import JsonFields, read_json_file, show_json
 from raygs_viewer.render.channel_pictures import ChannelView
 from raygs_viewer.render.settings import RENDER_MODES, RenderSettings
-from raygs_viewer.scene.demo import demo_scene
 from raygs_viewer.scene.content_hash import arrays_sha256, file_sha256
+from raygs_viewer.scene.demo import demo_scene
 from raygs_viewer.scene.model import FileAxes, Scene
 from raygs_viewer.scene.source import DEMO, SceneSource, is_demo
 from raygs_viewer.scene.spz_format import DEFAULT_SPZ_AXES
 
 SIDECAR_FORMAT = "raygs-viewer screenshot"
-SIDECAR_VERSION = 5          # the newest this program reads and writes
-STEREO_SIDECAR_VERSION = 2   # the first with "stereo"
-CHANNEL_SIDECAR_VERSION = 3  # the first with "channel_view"
-RDF_SIDECAR_VERSION = 4      # the first with a .spz read in "rdf"
-EDITS_SIDECAR_VERSION = 5    # the first with "edits" (capture.edit_file: the scene was edited)
+SIDECAR_VERSION = 6            # the newest this program reads and writes
+STEREO_SIDECAR_VERSION = 2     # the first with "stereo"
+CHANNEL_SIDECAR_VERSION = 3    # the first with "channel_view"
+RDF_SIDECAR_VERSION = 4        # the first with a .spz read in "rdf"
+EDITS_SIDECAR_VERSION = 5      # the first with "edits" (capture.edit_file: the scene was edited)
+VIEWPOINT_SIDECAR_VERSION = 6  # the first with "order" (sorted from another viewpoint: a headset's eye)
 
 SHA256_HEX = re.compile(r"[0-9a-f]{64}")
 # A pose written by this program is orthonormal to ~1e-15; anything far off is an
@@ -155,6 +178,50 @@ def scene_mismatch_warning(*, document: str, recorded_path: str | None, recorded
     return f"{document} was {verb} on {recorded}, not on {scene} ({hashes}); {consequence}"
 
 
+# --------------------------------------------------------------------------- the order's viewpoint
+
+
+@dataclass(frozen=True)
+class OrderViewpoint:
+    """Where an image's back-to-front order was sorted from, when not from the image's
+    own camera (a headset's eye draws the order its window sorted from the eyes'
+    midpoint): what ``render --sidecar`` needs to draw the same order and colours.
+
+    camera: the camera the sort request was made from (its pose, and the intrinsics
+    whose fx the cull's dilation reads). cull_cameras: the cameras whose frusta the cull
+    kept (a headset's: both eyes); None: ``camera``'s own. color_origin: (3,) float64
+    world point the SH colour was evaluated from (``GLRenderer.render``'s
+    ``color_origin``); None: the image camera's centre."""
+
+    camera: Camera
+    cull_cameras: tuple[Camera, ...] | None = None
+    color_origin: np.ndarray | None = None
+
+    def __post_init__(self):
+        if self.cull_cameras is not None:
+            object.__setattr__(self, "cull_cameras", tuple(self.cull_cameras))
+            if not self.cull_cameras:
+                raise ValueError("cull_cameras must hold a camera, or be None (the sort camera's own)")
+        if self.color_origin is not None:
+            origin = np.array(self.color_origin, dtype=np.float64)  # a copy: the frozen value cannot change
+            if origin.shape != (3,):
+                raise ValueError(f"color_origin must be a (3,) point, got shape {origin.shape}")
+            object.__setattr__(self, "color_origin", origin)
+
+
+def viewpoint_entry(viewpoint: OrderViewpoint) -> dict:
+    """The "order" section (module docstring): each camera as "camera" and
+    "world_to_camera" are written, float64 exact."""
+    return {"sorted_from": _posed_camera_entry(viewpoint.camera),
+            "culled_for": None if viewpoint.cull_cameras is None
+            else [_posed_camera_entry(camera) for camera in viewpoint.cull_cameras],
+            "colour_from": None if viewpoint.color_origin is None else viewpoint.color_origin.tolist()}
+
+
+def _posed_camera_entry(camera: Camera) -> dict:
+    return {**_camera_entry(camera), "world_to_camera": _pose(camera)}
+
+
 # --------------------------------------------------------------------------- writing
 
 
@@ -173,7 +240,8 @@ def _pose(camera: Camera) -> dict:
 def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, settings: RenderSettings,
                   scale: float, window_camera: Camera | None = None, extra: dict | None = None,
                   stereo: StereoView | None = None, channel_view: ChannelView | None = None,
-                  levels: tuple[int, ...] | None = None, edits: dict | None = None) -> dict:
+                  levels: tuple[int, ...] | None = None, edits: dict | None = None,
+                  viewpoint: OrderViewpoint | None = None) -> dict:
     """The sidecar of a screenshot rendered at ``camera`` (the window's camera already
     scaled by ``scale``) with ``settings``. ``scene_path`` is the loaded file ("demo"
     for the demo), recorded as an absolute path; ``window_camera`` is the on-screen
@@ -185,7 +253,10 @@ def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, 
     (the choice depends on them: a screenshot taken while finer levels were still being
     read, or on a GPU that held fewer, re-renders from those alone). ``edits``: the edit
     document (``capture.edit_file``) of a scene edited in the window, whose deletions
-    the image shows."""
+    the image shows. ``viewpoint``: where the image's order was sorted from when not
+    from ``camera`` (a headset's eye; mono images only)."""
+    if viewpoint is not None and stereo is not None:
+        raise ValueError("a stereo image's eyes share the midpoint's order: it records no viewpoint")
     recorded_path = SceneSource(scene_path).recorded_path
     width, height = (camera.width, camera.height) if stereo is None else \
         composed_size(camera.width, camera.height, stereo.layout)
@@ -194,7 +265,8 @@ def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, 
         **document_head(SIDECAR_FORMAT, max(STEREO_SIDECAR_VERSION if stereo is not None else 1,
                                             CHANNEL_SIDECAR_VERSION if _is_picture(channel_view) else 1,
                                             RDF_SIDECAR_VERSION if axes and axes.assumed != DEFAULT_SPZ_AXES else 1,
-                                            EDITS_SIDECAR_VERSION if edits is not None else 1)),
+                                            EDITS_SIDECAR_VERSION if edits is not None else 1,
+                                            VIEWPOINT_SIDECAR_VERSION if viewpoint is not None else 1)),
         "image": {"width": int(width), "height": int(height), "scale": float(scale)},
         "scene": {"path": recorded_path, "sha256": scene_sha256, "count": int(scene.count),
                   "sh_degree": int(scene.sh_degree), "filter_fused": bool(scene.filter_fused),
@@ -213,6 +285,8 @@ def build_sidecar(*, scene_path: str, scene_sha256: str, scene, camera: Camera, 
         sidecar["window"] = {"camera": _camera_entry(window_camera), "world_to_camera": _pose(window_camera)}
     if edits is not None:
         sidecar["edits"] = edits
+    if viewpoint is not None:
+        sidecar["order"] = viewpoint_entry(viewpoint)
     return sidecar
 
 
@@ -254,7 +328,8 @@ class Sidecar(ImageView):
     scene was read in (None: another format, or an older sidecar: read it as the
     default). levels: the levels of a streamed SOG to read (None: every level that fits).
     edits: the edit document's JSON where the scene was edited (``capture.edit_file``
-    reads it), else None."""
+    reads it), else None. viewpoint: where the order was sorted from when not from
+    ``camera`` (its "order"; None: from ``camera``, as a mono image's)."""
 
     path: Path
     scene_path: str
@@ -265,6 +340,7 @@ class Sidecar(ImageView):
     axes: FileAxes | None = None
     levels: tuple[int, ...] | None = None
     edits: dict | None = None
+    viewpoint: OrderViewpoint | None = None
 
     def source(self, scene_path: str) -> SceneSource:
         """The scene ``scene_path`` (:func:`resolve_scene`'s) read as the screenshot's was."""
@@ -332,8 +408,15 @@ def load_sidecar(path: str | os.PathLike) -> Sidecar:
     edits = fields.get("edits", dict) if "edits" in data else None
     if edits is not None and version < EDITS_SIDECAR_VERSION:
         raise UserError(f"{path}: 'edits' needs sidecar version {EDITS_SIDECAR_VERSION}, the file says {version}")
+    viewpoint = load_viewpoint_entry(fields) if "order" in data else None
+    if viewpoint is not None and version < VIEWPOINT_SIDECAR_VERSION:
+        raise UserError(f"{path}: 'order' needs sidecar version {VIEWPOINT_SIDECAR_VERSION}, the file says {version}")
+    if viewpoint is not None and stereo is not None:
+        raise UserError(f"{path}: 'order' is a mono image's (a headset eye), but the file has 'stereo', whose eyes "
+                        f"share the midpoint's order; remove one of them")
     return Sidecar(camera, settings, stereo, channel_view, path=path, scene_path=scene_path, scene_sha256=sha,
-                   scale=scale, render_mode=render_mode, raw=data, axes=axes, levels=levels, edits=edits)
+                   scale=scale, render_mode=render_mode, raw=data, axes=axes, levels=levels, edits=edits,
+                   viewpoint=viewpoint)
 
 
 def is_sidecar_file(path: str | os.PathLike) -> bool:
@@ -376,27 +459,68 @@ def load_channel_view_entry(fields: JsonFields) -> ChannelView:
         raise UserError(f"{fields.path}: 'channel_view': {exc}") from None
 
 
-def _load_camera(fields: JsonFields) -> Camera:
-    """The screenshot's camera: intrinsics from "camera", the exact pose from
-    "world_to_camera" (older or hand-made files without it: the INRIA pose)."""
+def load_viewpoint_entry(fields: JsonFields) -> OrderViewpoint:
+    """The "order" section (module docstring): every key required, each camera with its
+    exact pose and no key a camera entry does not have, "culled_for" null or a non-empty
+    array, "colour_from" null or a finite point."""
+    entry = fields.get("order", dict)
+    fields.keys("order", entry, ("sorted_from", "culled_for", "colour_from"))
+    camera = _load_posed_camera(fields, "order.sorted_from")
+    cull_cameras = None
+    if entry["culled_for"] is not None:
+        listed = fields.get("order.culled_for", list)
+        if not listed:
+            raise UserError(f"{fields.path}: 'order.culled_for' must list the cameras the cull kept, or be null "
+                            f"(the sort camera's own)")
+        # Each entry through its own fields, named "order.culled_for[i]" in messages.
+        cull_cameras = tuple(_load_posed_camera(JsonFields(fields.path, {"order": {f"culled_for[{i}]": item}}),
+                                                f"order.culled_for[{i}]") for i, item in enumerate(listed))
+    origin = None
+    if entry["colour_from"] is not None:
+        origin = fields.array("order.colour_from", (3,))
+        if np.abs(origin).max() > MAX_COORDINATE:  # bounded as a camera position is
+            raise UserError(f"{fields.path}: 'order.colour_from' is beyond {MAX_COORDINATE:g} in magnitude")
+    return OrderViewpoint(camera, cull_cameras, origin)
+
+
+#: The keys of a camera entry of "order": what ``_camera_entry`` writes, and its pose.
+_POSED_CAMERA_KEYS = (("width", "height", "position", "rotation", "fx", "fy", "cx", "cy", "world_to_camera"),
+                      ("id", "img_name"))
+
+
+def _load_posed_camera(fields: JsonFields, dotted: str) -> Camera:
+    """The camera entry at ``dotted`` with its required "world_to_camera" (no key of
+    either beyond what this program writes)."""
+    entry = fields.get(dotted, dict)
+    fields.keys(dotted, entry, *_POSED_CAMERA_KEYS)
+    fields.keys(f"{dotted}.world_to_camera", fields.get(f"{dotted}.world_to_camera", dict), ("R", "t"))
+    return _load_camera(fields, dotted)
+
+
+def _load_camera(fields: JsonFields, dotted: str = "camera") -> Camera:
+    """The camera at ``dotted``: intrinsics from its INRIA entry, the exact pose from
+    "world_to_camera" (beside the top level's "camera", inside any other; older or
+    hand-made files without it: the INRIA pose)."""
     path = fields.path
-    entry = fields.get("camera", dict)
-    camera = camera_from_json(entry, f"{path}: 'camera'")
-    if "world_to_camera" not in fields.data:
+    entry = fields.get(dotted, dict)
+    camera = camera_from_json(entry, f"{path}: '{dotted}'")
+    pose = "world_to_camera" if dotted == "camera" else f"{dotted}.world_to_camera"
+    parent, _, key = pose.rpartition(".")
+    if key not in (fields.get(parent, dict) if parent else fields.data):
         return camera
-    fields.get("world_to_camera", dict)
-    R = fields.array("world_to_camera.R", (3, 3))
-    t = fields.array("world_to_camera.t", (3,))
+    fields.get(pose, dict)
+    R = fields.array(f"{pose}.R", (3, 3))
+    t = fields.array(f"{pose}.t", (3,))
     # Entries of a rotation lie in [-1, 1]: bounded first, the product cannot overflow.
     if not is_rotation(R, ROTATION_TOLERANCE):
-        raise UserError(f"{path}: 'world_to_camera.R' is not a rotation matrix")
+        raise UserError(f"{path}: '{pose}.R' is not a rotation matrix")
     center = -R.T @ t
     rotation = np.array(entry["rotation"], dtype=np.float64)  # shape and finiteness checked by camera_from_json
     position = np.array(entry["position"], dtype=np.float64)
     if (np.abs(rotation - R.T).max() > _POSE_AGREEMENT
             or np.abs(position - center).max() > _POSE_AGREEMENT * (1.0 + np.abs(center).max())):
-        raise UserError(f"{path}: 'camera' position/rotation and 'world_to_camera' describe different poses "
-                        f"(edit both, or remove 'world_to_camera')")
+        remedy = "edit both, or remove 'world_to_camera'" if dotted == "camera" else "edit both"
+        raise UserError(f"{path}: '{dotted}' position/rotation and '{pose}' describe different poses ({remedy})")
     return Camera(camera.width, camera.height, camera.fx, camera.fy, camera.cx, camera.cy, R, t)
 
 

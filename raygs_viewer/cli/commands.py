@@ -26,6 +26,7 @@ from raygs_viewer.capture.channel_io import (
 from raygs_viewer.capture.edit_file import read_edit_json
 from raygs_viewer.capture.image_io import check_output_path, save_image
 from raygs_viewer.capture.sidecar import (
+    OrderViewpoint,
     Sidecar,
     load_camera_source,
     load_sidecar,
@@ -224,6 +225,9 @@ def command_render(args) -> int:
     stereo = stereo_view(args)
     out = check_output_path(args.out, args.overwrite, CHANNEL_SUFFIXES)  # fail before any slow work
     shot = None if args.sidecar is None else load_sidecar(args.sidecar)
+    if shot is not None and shot.viewpoint is not None and args.reference:
+        raise UserError(f"{shot.path}: its order was sorted from another viewpoint (its 'order'), which "
+                        f"--reference cannot draw; render it with GL")
     output = channel_output(args, out, shot)
     if needs_geometry(output.channels) and (stereo is not None or (shot is not None and shot.stereo is not None)):
         raise UserError(("--stereo" if shot is None else f"{shot.path}: the stereo image") + " composes colour: "
@@ -241,7 +245,8 @@ def command_render(args) -> int:
             settings = render_settings(args)
             opened, camera = _scene_and_camera(args, settings, ctx)
         start = time.perf_counter()
-        image, drawn = render_image(args, ctx, opened, camera, settings, stereo=stereo, channels=output.channels)
+        image, drawn = render_image(args, ctx, opened, camera, settings, stereo=stereo, channels=output.channels,
+                                    viewpoint=None if shot is None else shot.viewpoint)
         elapsed = time.perf_counter() - start
     finally:
         if ctx is not None:
@@ -292,11 +297,14 @@ def channel_output(args, out: Path, shot: Sidecar | None) -> ChannelOutput:
 
 
 def render_image(args, ctx, opened: OpenedScene, camera: Camera, settings: RenderSettings, *, stereo,
-                 channels: tuple[str, ...]) -> tuple[np.ndarray | ChannelImage, str]:
+                 channels: tuple[str, ...], viewpoint: OrderViewpoint | None = None
+                 ) -> tuple[np.ndarray | ChannelImage, str]:
     """The render: a ChannelImage (camera-space normals) when ``channels`` need geometry,
     else the (H, W, 4) RGBA image render always made (float64 from the reference), of
     the pair when ``stereo`` (a StereoView) is given; and what it drew, in words.
-    ``ctx``: the GL context (None with --reference)."""
+    ``ctx``: the GL context (None with --reference). ``viewpoint``: a sidecar's "order"
+    (a headset eye): the order is sorted from its camera, culled for its cameras, and
+    the colour evaluated from its origin, as the window drew the image (mono, GL only)."""
     geometry = needs_geometry(channels)
     if args.reference:
         scene, choice = opened.drawn(camera)
@@ -315,12 +323,18 @@ def render_image(args, ctx, opened: OpenedScene, camera: Camera, settings: Rende
             return render_stereo_view(renderer, order, camera, settings, stereo)[0], drawn_words(opened, order.choice)
         # Tiled like the window's screenshots: the same pixels, and sizes beyond
         # the GPU's largest render target.
-        order = exact_order(sorter, camera, settings, levels=opened.lod, deleted=opened.deleted)
+        if viewpoint is None:
+            order, origin = exact_order(sorter, camera, settings, levels=opened.lod, deleted=opened.deleted), None
+        else:  # the sort's camera also chooses the levels, as it did in the window
+            order = exact_order(sorter, viewpoint.camera, settings, cull_cameras=viewpoint.cull_cameras,
+                                levels=opened.lod, deleted=opened.deleted)
+            origin = viewpoint.color_origin
         if geometry:
             return (screenshot.render_tiled_channels(renderer, sorter, order, camera, settings,
-                                                     median="median_depth" in channels),
+                                                     median="median_depth" in channels, color_origin=origin),
                     drawn_words(opened, order.choice))
-        return screenshot.render_tiled(renderer, sorter, order, camera, settings), drawn_words(opened, order.choice)
+        return (screenshot.render_tiled(renderer, sorter, order, camera, settings, color_origin=origin),
+                drawn_words(opened, order.choice))
     finally:
         sorter.close()
         renderer.release()

@@ -532,8 +532,8 @@ def test_render_with_accuracy_options_is_the_gl_render_of_those_settings(capsys,
 
     used = []
     render_tiled = screenshot.render_tiled
-    monkeypatch.setattr(screenshot, "render_tiled", lambda renderer, sorter, order, camera, settings: used.append(
-        settings) or render_tiled(renderer, sorter, order, camera, settings))
+    monkeypatch.setattr(screenshot, "render_tiled", lambda renderer, sorter, order, camera, settings, **options:
+                        used.append(settings) or render_tiled(renderer, sorter, order, camera, settings, **options))
     out = tmp_path / "gs.npy"
     code, _, err = run_cli(capsys, "render", *SMALL, "--mode", "gs", "--supersample", "2", "--out", out)
     assert code == 0, err
@@ -577,8 +577,8 @@ def test_render_and_its_sidecar_take_the_order(capsys, tmp_path, gl_ctx, demo, m
 
     used = []
     render_tiled = screenshot.render_tiled
-    monkeypatch.setattr(screenshot, "render_tiled", lambda renderer, sorter, order, camera, settings: used.append(
-        settings) or render_tiled(renderer, sorter, order, camera, settings))
+    monkeypatch.setattr(screenshot, "render_tiled", lambda renderer, sorter, order, camera, settings, **options:
+                        used.append(settings) or render_tiled(renderer, sorter, order, camera, settings, **options))
     camera = demo_camera().resized(64, 48)
     for argv, settings in ((["--order", "distance"], RenderSettings(order="distance")),
                            (["--order-k", "3"], RenderSettings(order="per-pixel", order_k=3))):
