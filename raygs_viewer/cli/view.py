@@ -26,6 +26,9 @@ from raygs_viewer.render.settings import DEFAULT_BACKGROUND, DEFAULT_P_MIN
 from raygs_viewer.scene.io import SCENE_FILES
 from raygs_viewer.scene.source import DEMO
 from raygs_viewer.viewer.state import (
+    MIRRORS,
+    TURNS,
+    HeadsetChoices,
     NavigationChoices,
     ScreenshotOptions,
     StereoPreview,
@@ -80,6 +83,19 @@ def add_parsers(commands) -> None:
     argtypes.add_sort_option(parser, default="auto")
     parser.add_argument("--save-eyes", action="store_true",
                         help="stereo screenshots also save each eye on its own (-left, -right), besides the pair")
+    headset = parser.add_argument_group("headset (OpenXR: docs/xr.md; needs pip install 'raygs-viewer[xr]')")
+    headset.add_argument("--xr", action="store_true",
+                         help="open a session in the active OpenXR runtime's headset at the start (the panel's "
+                              "Enter headset); with --frames N: N headset frames, then one line about them")
+    headset.add_argument("--xr-scale", type=argtypes.real_in(0.1, 2.0, "times the runtime's recommended size"),
+                         default=1.0, metavar="K",
+                         help="each eye's size as K times the runtime's recommended size, 0.1..2 (default 1)")
+    headset.add_argument("--xr-no-depth", action="store_true",
+                         help="do not submit the eyes' depth (XR_KHR_composition_layer_depth) for reprojection")
+    headset.add_argument("--xr-mirror", choices=MIRRORS, default="both",
+                         help="what the window shows of the headset's eyes (default both)")
+    headset.add_argument("--xr-turn", choices=TURNS, default="snap",
+                         help="the right stick turns in steps of 30 degrees (snap, default) or smoothly")
     parser.add_argument("--eyes-at-headset-size", action="store_true",
                         help="the stereo preview draws each eye at the headset's per-eye resolution, shrunk to fit "
                              "(default: at the size the window shows them, faster); screenshots and videos are at "
@@ -139,6 +155,8 @@ def command_view(args) -> int:
         navigation=NavigationChoices(mode="orbit" if args.orbit else "fly", up_axis=args.up_axis,
                                      turntable=args.turntable),
         stereo=_viewer_stereo_options(args), images=args.images, sort=args.sort,
-        auto_precision=auto_precision)
+        auto_precision=auto_precision,
+        headset=HeadsetChoices(enter=args.xr, scale=args.xr_scale, depth=not args.xr_no_depth,
+                               mirror=args.xr_mirror, turn=args.xr_turn))
     with TerminalProgress(options.source.path) as progress:  # a multi-GB scene takes seconds before the window
         return run_viewer(options, progress)

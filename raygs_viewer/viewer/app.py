@@ -11,34 +11,49 @@ for ``--window-screenshot``.
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
 
 import numpy as np
 from imgui_bundle import imgui
 
+from raygs_viewer.camera.navigation import UP_AXES
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.capture.image_io import check_output_path, save_image
 from raygs_viewer.capture.screenshot import check_screenshot_path
 from raygs_viewer.capture.sidecar import load_camera_source
-from raygs_viewer.errors import UserError
+from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.photos.evaluate import evaluation_settings, render_view
 from raygs_viewer.render.gl.context import context_description
 from raygs_viewer.render.lod_view import lod_settings_given
 from raygs_viewer.scene.loader import LoadedScene, load_now
 from raygs_viewer.scene.progress import ProgressCallback
 from raygs_viewer.sort.request import SortResult
-from raygs_viewer.viewer.drawing import SortAsked, request_sort
+from raygs_viewer.viewer.drawing import SortAsked, order_for, request_sort
 from raygs_viewer.viewer.frame import Frame
+from raygs_viewer.viewer.headset import mirror_framing
 from raygs_viewer.viewer.lod_window import first_levels, lod_request, reading
 from raygs_viewer.viewer.overlay import draw_split_overlay
 from raygs_viewer.viewer.panel_sections import Draft, panel_sections
 from raygs_viewer.viewer.part import Shown
 from raygs_viewer.viewer.photo_view import Drawn, blocked_reason, standing_at
-from raygs_viewer.viewer.screenshots import Saved, Shot, ShownView, screenshot_said, sidecar_extra
+from raygs_viewer.viewer.screenshots import (
+    Saved,
+    Shot,
+    ShownView,
+    levels_read,
+    screenshot_said,
+    sidecar_extra,
+)
 from raygs_viewer.viewer.state import ViewerOptions, failed, mended
 from raygs_viewer.viewer.stats import summary
 from raygs_viewer.viewer.window import choose_platform
 from raygs_viewer.viewer.window_state import WindowState
+from raygs_viewer.xr.eyes import HeadsetEyes
+
+#: Window frames a scripted headset run waits for the session to start (and to end):
+#: the runtime takes a few; this many is a runtime that is not going to.
+MAX_FRAMES_TO_START = 600
 
 
 class Viewer(WindowState):
@@ -71,6 +86,7 @@ class Viewer(WindowState):
         self.frame_index += 1
         self.window.poll_events()
         self.take_loaded()
+        self._follow_headset()
         width, height = self.window.framebuffer_size()
         if width <= 0 or height <= 0:  # minimised: nothing to draw, do not spin
             if self.options.frames is None:
@@ -86,7 +102,8 @@ class Viewer(WindowState):
         reply = self.side_panel.draw(panel_sections(self, draft))
         self.settings = draft.settings
         self.answer(reply)
-        frame, result, asked = self._make_frame()
+        eyes = self._wait_for_headset(dt)
+        frame, result, asked = self._make_frame(eyes)
         scene, pointing = self.scene_view(), self.pointing()
         self.overlay_rects = {} if not frame.split else draw_split_overlay(
             frame.viewport, self.split, self.settings, self.input.dragging_divider)
@@ -96,7 +113,11 @@ class Viewer(WindowState):
         left = self.side_panel.notes_left(width_shown)
         self.feedback.draw(left, 10.0, width_shown - left - 10.0)
         imgui.render()
-        self._draw(frame, result, asked)
+        if eyes is not None:
+            self._draw_headset(frame, result, asked)
+        else:
+            self.headset.submit_empty()  # a headset frame waited for with no eyes located: ended, empty
+            self._draw(frame, result, asked)
         self.drawer.mono.present(self.ctx.screen, (width, height), frame.viewport,
                                  self.split.column(frame.viewport[2]))
         if self.captures.window_due():
@@ -122,15 +143,44 @@ class Viewer(WindowState):
         self.view.advance(dt, self.options.navigation.turntable)
         self.camera_path.follow(self.view, self.stats.last_frame_time)
 
-    def _make_frame(self) -> tuple[Frame, SortResult | None, SortAsked]:
+    def _follow_headset(self) -> None:
+        """The headset's news (a session that began, ended or was lost), and the window's
+        vsync: off while the runtime paces the loop, as asked otherwise."""
+        said = self.headset.poll()
+        self.panel.say(*said)
+        if said and not self.headset.active:
+            self.drawer.forget()  # the desktop draws its own view again
+        vsync = self.options.vsync and not self.headset.running
+        if self.window.vsync != vsync:
+            self.window.vsync = vsync
+
+    def _wait_for_headset(self, dt: float) -> HeadsetEyes | None:
+        """A running headset's next frame (its wait paces the loop) and its eyes, placed
+        by the desktop view, the stereo rig's scale and the controllers (None: no
+        headset frame to draw this time)."""
+        if not self.headset.running:
+            return None
+        desktop = self.view.camera(self.view_area(), None).camera
+        up = np.asarray(UP_AXES[self.view.navigator.up], np.float64)
+        self.headset.capture_asked = self.captures.requested or (self.wait_for_sort and
+                                                                 self.options.screenshot is not None)
+        return self.headset.wait(desktop, up, self.stereo.rig.scene_scale, dt)
+
+    def _make_frame(self, eyes: HeadsetEyes | None = None) -> tuple[Frame, SortResult | None, SortAsked]:
         """Step 5 of :meth:`frame`: the frame, and its sort asked for (the newest result
-        to draw, after a streamed SOG's level arrived the last order until its first)."""
+        to draw, after a streamed SOG's level arrived the last order until its first).
+        ``eyes``: a headset frame's, which it is made for (mono, culled for both eyes,
+        sorted from their midpoint; the desktop mirrors them)."""
         stereo, said = self.stereo.frame_view(self.shown_stereo)
         self.panel.say(said)
         right = self.right_settings()
         views = self.view_mode.side_views(split=right is not None)
         self.panel.say(views[2])
-        framing = self.view.camera(self.view_area(), stereo, self.stereo.headset_size)
+        if eyes is not None:
+            stereo, views = None, (None, None, None)
+            framing = mirror_framing(eyes, self.view_area(), self.headset.choices.mirror)
+        else:
+            framing = self.view.camera(self.view_area(), stereo, self.stereo.headset_size)
         frame = self.shown = Frame.make(self.frame_index, framing, stereo=stereo, settings=self.settings, right=right,
                                         lod=self.frame_lod(), deleted=self.edit_tool.deleted, views=views[:2])
         # wait_for_sort: only the last frame of a scripted run, whose capture must show the finished view.
@@ -153,6 +203,20 @@ class Viewer(WindowState):
             lambda photo_view, dataset: render_view(self.scene.renderer, self.scene.direct_sorter, photo_view,
                                                     evaluation_settings(self.settings, dataset)))))
 
+    def _draw_headset(self, frame: Frame, result: SortResult | None, asked: SortAsked) -> None:
+        """Step 7 of :meth:`frame` in the headset: both eyes drawn and submitted, the
+        desktop shows them as submitted."""
+        order = order_for({} if result is None else result.orders, self.settings.sort_key)
+        age = asked.serial - (0 if result is None else result.serial)
+        try:
+            mirror = self.headset.draw(self.scene.renderer, self.settings, order, order_age=age)
+        except UserError as exc:
+            self.panel.say(failed(one_line(exc), source="draw"))
+            return
+        self.panel.say(mended("draw"))
+        if mirror is not None:
+            self.drawer.mono.drawn(("headset", self.frame_index), mirror)
+
     def capture_window(self, overlay: bool = True) -> np.ndarray:
         """(H, W, 3) uint8, top row first: the window as shown, panel included;
         ``overlay=False``: without anything imgui draws (panel, divider, labels)."""
@@ -166,6 +230,13 @@ class Viewer(WindowState):
         frame = self.shown
         if frame is None:
             raise UserError("nothing has been drawn yet")
+        if self.headset.active:
+            self.captures.saved = self.headset.save_shot(
+                self.loaded, extra=sidecar_extra(self.view.navigator, self.loaded, self.view.training_index,
+                                                 context_description(self.ctx)),
+                edits=self.edit_tool.sidecar_entry(self.loaded), levels=levels_read(self.loaded, self.settings),
+                path=path, folder=self.captures.options.folder)
+            return self.captures.last
         self.photo.check_screenshot()
         self.scene.lod.check_screenshot()
         # The settings now: what the frame drew, or what a script set since.
@@ -185,11 +256,12 @@ class Viewer(WindowState):
 
     # -- loop ------------------------------------------------------------------------
     def run(self) -> None:
-        """Frames until the window closes or ``options.frames`` are drawn; the last keeps
-        the window's image for ``--window-screenshot``."""
+        """Frames until the window closes or ``options.frames`` are drawn (in the
+        headset: headset frames submitted); the last keeps the window's image for
+        ``--window-screenshot``."""
         options = self.options
         while not (self.window.should_close and self.may_close()):
-            last = options.frames is not None and self.frame_index + 1 >= options.frames
+            last = options.frames is not None and self._frames_done() + 1 >= options.frames
             self.captures.keep_next |= last and options.window_screenshot is not None
             self.wait_for_sort = last
             if last:  # a scripted run ends on every level of a streamed SOG its settings want
@@ -199,6 +271,29 @@ class Viewer(WindowState):
             self.frame()
             if last:
                 break
+
+    def _frames_done(self) -> int:
+        """The frames a scripted run has drawn: the window's, or with ``--xr`` the headset
+        frames submitted (a session that is over, or never runs, is an error)."""
+        if not self.options.headset.enter:
+            return self.frame_index
+        if not self.headset.active:
+            said = self.panel.error or "the headset session ended"
+            raise UserError(f"{said} after {self.headset.stats.ended} of {self.options.frames} headset frames")
+        if not self.headset.running and self.frame_index > MAX_FRAMES_TO_START:
+            raise UserError(f"the headset session did not start within {MAX_FRAMES_TO_START} frames "
+                            f"(it is {self.headset.session.state})")
+        return self.headset.stats.ended
+
+    def leave_headset(self) -> None:
+        """Ends the session and follows it until it is over (a scripted run's end)."""
+        self.headset.leave()
+        for _ in range(MAX_FRAMES_TO_START):
+            if not self.headset.active:
+                break
+            self.panel.say(*self.headset.poll())
+            time.sleep(0.01)
+        self.headset.close()
 
     def may_close(self) -> bool:
         """Whether the window, asked to close, may: not at the first ask while deletions
@@ -257,13 +352,22 @@ def run_viewer(options: ViewerOptions, progress: ProgressCallback | None = None)
         print(f"warning: {warning}", flush=True)
     viewer = Viewer(options, loaded, start_camera(options))
     try:
+        if options.headset.enter:
+            entered = viewer.headset.enter()
+            if entered.kind == "error":
+                raise UserError(entered.text)
+            viewer.panel.say(entered)
         viewer.run()
         captures = viewer.captures
         if options.screenshot is not None:
             viewer.save_screenshot(options.screenshot)
         if options.window_screenshot is not None and captures.window is not None:
             save_image(options.window_screenshot, captures.window.astype(np.float32) / 255.0)
-        if options.frames is not None:
+        if options.headset.enter and viewer.headset.session is not None:
+            line = viewer.headset.summary()  # the scripted headset run's one line
+            viewer.leave_headset()
+            print(line, flush=True)
+        elif options.frames is not None:
             print(viewer.summary(), flush=True)
         if captures.last is not None and options.screenshot is not None:
             for png, sidecar in captures.saved:

@@ -57,6 +57,29 @@ class SplitView:
         return int(round(self.fraction * width))
 
 
+#: The headset mirror's choices: both eyes side by side, or the left alone.
+MIRRORS = ("both", "left")
+#: How the right stick turns the world: a step at a time, or continuously.
+TURNS = ("snap", "smooth")
+
+
+@dataclass
+class HeadsetChoices:
+    """The headset's options (``view --xr``, the panel's Headset section).
+
+    enter: open a session when the window opens (``--xr``). scale: each eye's size as a
+    fraction of the runtime's recommended size (the panel's resolution scale; a new
+    session takes it). depth: submit each eye's depth where the runtime takes it.
+    mirror: what the desktop window shows of the eyes (:data:`MIRRORS`). turn: the right
+    stick's turning (:data:`TURNS`)."""
+
+    enter: bool = False
+    scale: float = 1.0
+    depth: bool = True
+    mirror: str = "both"
+    turn: str = "snap"
+
+
 @dataclass
 class StereoPreview:
     """The stereo preview (see :mod:`raygs_viewer.camera.stereo`): on or off, the rig,
@@ -303,6 +326,7 @@ class ViewerOptions:
     on the GPU: ``render.sorting.SORTS``) or "auto" (the one this GL measured faster:
     ``viewer.auto_defaults``). auto_precision: the blend this GL measured fastest within
     the accuracy study's error instead of ``settings.precision`` (``--precision auto``).
+    headset: the OpenXR headset's options (``--xr`` enters it at the start).
     """
 
     source: SceneSource = SceneSource.demo()
@@ -323,3 +347,4 @@ class ViewerOptions:
     images: str | None = None
     sort: str = "cpu"
     auto_precision: bool = False
+    headset: HeadsetChoices = field(default_factory=HeadsetChoices)

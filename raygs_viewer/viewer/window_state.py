@@ -41,6 +41,7 @@ from raygs_viewer.viewer.edit_tool import EditTool
 from raygs_viewer.viewer.feedback import Feedback
 from raygs_viewer.viewer.file_dialog import FileDialog
 from raygs_viewer.viewer.frame import NO_VIEWPORT, Frame
+from raygs_viewer.viewer.headset import HeadsetMode
 from raygs_viewer.viewer.input import InputHandler
 from raygs_viewer.viewer.loading import SceneOpener, load_failed, scene_title, shown_message
 from raygs_viewer.viewer.lod_window import (
@@ -145,6 +146,8 @@ class WindowState:
             self._made.callback(self.window.make_current)  # the context current for the releases above
             self.scenes = self._made_here(SceneOpener(options.source, window_fits(self.ctx)), "close")
             self.side_panel = self._made_here(SidePanel(self.panel, Remembered()), "close")  # a drag of its edge
+            #: The headset (an OpenXR session on this window's context, once entered).
+            self.headset = self._made_here(HeadsetMode(self.ctx, options.headset), "close")
             self.frame_index = 0
             self.loaded: LoadedScene | None = None
             self.view: ViewControl | None = None
@@ -183,7 +186,7 @@ class WindowState:
 
     def right_settings(self) -> RenderSettings | None:
         """The split view's right side; None when it is off (it is off in the stereo preview)."""
-        return None if self.stereo.on else self.split.right(self.settings)
+        return None if self.stereo.on or self.headset.running else self.split.right(self.settings)
 
     def view_area(self) -> Viewport:
         """The part of the window the view is laid out in: beside the panel while it is

@@ -135,7 +135,8 @@ def plan_programs(plan: RenderPlan) -> list[Program]:
 
 def fixed_programs() -> list[Program]:
     """The passes whose defines are constants of their modules."""
-    programs = [Program.of((FULLSCREEN_VERTEX, name)) for name in ("present.frag", "lens.frag", "stereo_compose.frag")]
+    programs = [Program.of((FULLSCREEN_VERTEX, name))
+                for name in ("present.frag", "lens.frag", "stereo_compose.frag", "xr_depth.frag")]
     programs += [Program.of((FULLSCREEN_VERTEX, "channel_picture.frag"), {"CHANNEL": channel, "SAMPLES": samples})
                  for name, channel in PICTURE_DEFINES.items()
                  for samples in ((0, 1) if name in SAMPLED_PICTURES else (0,))]
