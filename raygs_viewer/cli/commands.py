@@ -225,9 +225,6 @@ def command_render(args) -> int:
     stereo = stereo_view(args)
     out = check_output_path(args.out, args.overwrite, CHANNEL_SUFFIXES)  # fail before any slow work
     shot = None if args.sidecar is None else load_sidecar(args.sidecar)
-    if shot is not None and shot.viewpoint is not None and args.reference:
-        raise UserError(f"{shot.path}: its order was sorted from another viewpoint (its 'order'), which "
-                        f"--reference cannot draw; render it with GL")
     output = channel_output(args, out, shot)
     if needs_geometry(output.channels) and (stereo is not None or (shot is not None and shot.stereo is not None)):
         raise UserError(("--stereo" if shot is None else f"{shot.path}: the stereo image") + " composes colour: "
@@ -304,13 +301,23 @@ def render_image(args, ctx, opened: OpenedScene, camera: Camera, settings: Rende
     the pair when ``stereo`` (a StereoView) is given; and what it drew, in words.
     ``ctx``: the GL context (None with --reference). ``viewpoint``: a sidecar's "order"
     (a headset eye): the order is sorted from its camera, culled for its cameras, and
-    the colour evaluated from its origin, as the window drew the image (mono, GL only)."""
+    the colour evaluated from its origin, as the window drew the image (mono; the
+    float64 reference draws its colour the same way)."""
     geometry = needs_geometry(channels)
     if args.reference:
-        scene, choice = opened.drawn(camera)
+        if viewpoint is None:
+            scene, choice = opened.drawn(camera)
+            if geometry:
+                return reference.render_reference_channels(scene, camera, settings), drawn_words(opened, choice)
+            return render_reference(scene, camera, settings), drawn_words(opened, choice)
         if geometry:
-            return reference.render_reference_channels(scene, camera, settings), drawn_words(opened, choice)
-        return render_reference(scene, camera, settings), drawn_words(opened, choice)
+            raise UserError("the float64 reference of an image sorted from another viewpoint (a headset eye) "
+                            "draws its colour only")
+        # The rows the sort's camera chose, sorted and culled where the window sorted them.
+        scene, choice = opened.drawn(viewpoint.camera)
+        order = exact_order(DepthSorter(scene), viewpoint.camera, settings, cull_cameras=viewpoint.cull_cameras)
+        return (render_reference(scene, camera, settings, order.indices, color_origin=viewpoint.color_origin),
+                drawn_words(opened, choice))
     renderer = GLRenderer(ctx, opened.scene, general=args.general)
     try:
         sorter = open_sorter(args.sort, ctx, opened.scene)

@@ -55,7 +55,7 @@ COLOR_VALUES, GEOMETRY_VALUES = 4, 10
 
 
 def render_reference(scene: Scene, camera: Camera, settings: RenderSettings = RenderSettings(),
-                     order: np.ndarray | str | None = None) -> np.ndarray:
+                     order: np.ndarray | str | None = None, *, color_origin: np.ndarray | None = None) -> np.ndarray:
     """(H, W, 4) float64 image: RGB composited over the background, and accumulated alpha.
 
     ``order``: the global order (indices, back to front), by default the sorter's for
@@ -64,10 +64,12 @@ def render_reference(scene: Scene, camera: Camera, settings: RenderSettings = Re
     ``order``. Every field of ``settings`` is honoured; with ``supersample`` k the image
     is the k x k block mean of the image rendered with ``camera.resized(k W, k H)``.
     Per-pixel order composites each pixel by t* (:mod:`raygs_viewer.render.ray_order`);
-    its window (``order_k``) is fed in the global order.
+    its window (``order_k``) is fed in the global order. ``color_origin``: the world
+    point SH colour is seen from (None: the camera's centre), as ``GLRenderer.render``'s.
     """
     settings, order = _settings_and_order(scene, camera, settings, order)
-    return _render(scene, camera, settings, order, samples=settings.supersample, band_samples=BAND_SAMPLES)
+    return _render(scene, camera, settings, order, samples=settings.supersample, band_samples=BAND_SAMPLES,
+                   color_origin=color_origin)
 
 
 def render_reference_channels(scene: Scene, camera: Camera, settings: RenderSettings = RenderSettings(),
@@ -136,7 +138,7 @@ class _Pass:
 
 
 def _render(scene: Scene, camera: Camera, settings: RenderSettings, order, *, samples: int,
-            band_samples: int, geometry: bool = False) -> np.ndarray:
+            band_samples: int, geometry: bool = False, color_origin: np.ndarray | None = None) -> np.ndarray:
     """(H, W, COLOR_VALUES) or, with ``geometry``, (H, W, GEOMETRY_VALUES): ``render_reference``
     with an explicit sample count per axis (``settings.supersample`` is ignored), so ground
     truth can go past the settings' limit, in bands of about ``band_samples`` samples.
@@ -154,7 +156,7 @@ def _render(scene: Scene, camera: Camera, settings: RenderSettings, order, *, sa
     # pixel u sits at u + (i + 0.5) / k. Every pixel-unit quantity (MIP variance, GS
     # dilation and clamping) refers to this rendered camera.
     rendered = camera if samples == 1 else camera.resized(samples * width, samples * height)
-    gaussians = CameraGaussians.of(scene, order, camera)
+    gaussians = CameraGaussians.of(scene, order, camera, color_origin)
     render = _Pass(MODELS[settings.mode](gaussians, rendered, settings), gaussians, rendered, settings, order,
                    geometry)
 

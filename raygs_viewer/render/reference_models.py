@@ -37,10 +37,14 @@ class CameraGaussians:
     normals: np.ndarray
 
     @classmethod
-    def of(cls, scene: Scene, order: np.ndarray, camera: Camera) -> "CameraGaussians":
+    def of(cls, scene: Scene, order: np.ndarray, camera: Camera,
+           color_origin: np.ndarray | None = None) -> "CameraGaussians":
+        """``color_origin``: the world point SH colour is seen from (None: the camera's
+        centre; stereo and headset eyes see it from their midpoint, as the GL path does)."""
         positions = scene.positions[order].astype(np.float64)
         offsets = positions - camera.center  # world-space vectors camera -> centre
-        directions = offsets / np.linalg.norm(offsets, axis=1, keepdims=True).clip(1e-300)
+        seen = offsets if color_origin is None else positions - np.asarray(color_origin, np.float64)
+        directions = seen / np.linalg.norm(seen, axis=1, keepdims=True).clip(1e-300)
         colors = sh_to_rgb(scene.sh[order].astype(np.float64), scene.sh_degree, directions)
         rotation = quaternion_to_matrix(scene.rotations[order].astype(np.float64)).transpose(0, 2, 1)
         rotation = rotation @ camera.R.T

@@ -354,8 +354,8 @@ def run_viewer(options: ViewerOptions, progress: ProgressCallback | None = None)
     try:
         if options.headset.enter:
             entered = viewer.headset.enter()
-            if entered.kind == "error":
-                raise UserError(entered.text)
+            if entered.kind == "error":  # the CLI says it once, with its own "error: "
+                raise UserError(entered.text.removeprefix("error: "))
             viewer.panel.say(entered)
         viewer.run()
         captures = viewer.captures

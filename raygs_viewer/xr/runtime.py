@@ -121,6 +121,7 @@ def error_line(exc: BaseException, xr: ModuleType, doing: str) -> str:
                                       "try again",
         "FormFactorUnsupportedError": "this OpenXR runtime does not drive head-mounted displays",
         "GraphicsDeviceInvalidError": "the OpenXR runtime refused this OpenGL context",
+        "InitializationFailedError": "the OpenXR runtime could not start its side of the session",
         "InstanceLostError": "the OpenXR runtime went away",
         "SessionLostError": "the headset session was lost",
     }

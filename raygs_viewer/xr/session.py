@@ -25,6 +25,7 @@ image as sRGB, as a screenshot viewer would, with no second gamma.
 from __future__ import annotations
 
 import ctypes
+import sys
 from dataclasses import dataclass
 from typing import Literal
 
@@ -195,6 +196,10 @@ class HeadsetSession:
         self.colour: list[Swapchain] = []
         self.depth: list[Swapchain] = []
         self.session = self.space = None
+        #: What the last frame submitted: its projection layer (None: none yet) and each
+        #: view's depth info chained to it (kept alive until xrEndFrame read them).
+        self.last_layer = None
+        self.last_depth_infos: list = []
         try:
             self.runtime.opengl_requirements()
             binding = make_binding(xr, self.binding)
@@ -337,20 +342,20 @@ class HeadsetSession:
             layers = []
             if drawn and frame.views is not None:
                 views = (xr.CompositionLayerProjectionView * 2)()
-                self._depth_infos = []
+                self.last_depth_infos = []
                 for side, (pose, fov) in enumerate(frame.views):
                     info = None
                     if self.depth and depth:
                         info = xr.CompositionLayerDepthInfoKHR(
                             sub_image=self.depth[side].sub_image(), min_depth=0.0, max_depth=1.0,
                             near_z=NEAR_METRES, far_z=float("inf"))
-                        self._depth_infos.append(info)  # alive until xrEndFrame has read it
+                        self.last_depth_infos.append(info)  # alive until xrEndFrame has read it
                     views[side] = xr.CompositionLayerProjectionView(
                         pose=xr_pose(xr, pose), fov=xr.Fovf(fov.left, fov.right, fov.up, fov.down),
                         sub_image=self.colour[side].sub_image(),
                         next=None if info is None else ctypes.cast(ctypes.pointer(info), ctypes.c_void_p))
-                self._layer = xr.CompositionLayerProjection(space=self.space, views=views)
-                layers = [ctypes.byref(self._layer)]
+                self.last_layer = xr.CompositionLayerProjection(space=self.space, views=views)
+                layers = [ctypes.byref(self.last_layer)]
             xr.end_frame(self.session, xr.FrameEndInfo(
                 display_time=frame.display_time, environment_blend_mode=xr.EnvironmentBlendMode.OPAQUE,
                 layers=layers))
@@ -400,8 +405,10 @@ def xr_pose(xr, pose: Pose):
 
 
 def _context_hint(ctx: moderngl.Context, exc: BaseException) -> str:
-    """What the context lacks that a runtime on Linux needs, when it refused it."""
-    if type(exc).__name__ != "GraphicsDeviceInvalidError":
+    """What the context lacks that a runtime on Linux shares its images through, when a
+    session could not be made on it."""
+    if type(exc).__name__ not in ("GraphicsDeviceInvalidError", "InitializationFailedError") \
+            or not sys.platform.startswith("linux"):
         return ""
     missing = [name for name in ("GL_EXT_memory_object", "GL_EXT_memory_object_fd") if name not in ctx.extensions]
     return f": this OpenGL lacks {' and '.join(missing)}, which the runtime shares images through" if missing else ""

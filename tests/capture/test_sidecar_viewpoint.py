@@ -209,11 +209,21 @@ def test_a_bad_order_entry_through_render(capsys, tmp_path, case):
     assert listing(tmp_path) == before
 
 
-def test_render_reference_refuses_a_recorded_order(capsys, tmp_path):
+def test_render_reference_draws_a_recorded_order_as_gl_does(capsys, tmp_path):
+    """The float64 reference of a headset eye: the same order (sorted from the viewpoint,
+    culled for its cameras) and the colour seen from its origin, so it matches the GL
+    render tightly; without the origin (the eye's own centre) it visibly does not."""
     path = write_json(tmp_path / "shot.json", headset_sidecar())
-    code, out, err = run_cli(capsys, "render", "--sidecar", path, "--reference", "--out", tmp_path / "ref.npy")
-    assert "--reference" in assert_one_line_error(code, err) and out == ""
-    assert not (tmp_path / "ref.npy").exists()
+    for name, extra in (("ref.npy", ("--reference",)), ("gl.npy", ())):
+        code, _, err = run_cli(capsys, "render", "--sidecar", path, *extra, "--out", tmp_path / name)
+        assert code == 0, err
+    reference, image = np.load(tmp_path / "ref.npy"), np.load(tmp_path / "gl.npy")
+    assert_matches(image, reference)
+    no_origin = write_json(tmp_path / "no-origin.json", headset_sidecar(viewpoint=dataclasses.replace(
+        HEADSET, color_origin=None)))
+    code, _, err = run_cli(capsys, "render", "--sidecar", no_origin, "--reference", "--out", tmp_path / "ref2.npy")
+    assert code == 0, err
+    assert_differs(image, np.load(tmp_path / "ref2.npy"))
 
 
 # --------------------------------------------------------------------------- rendering
