@@ -35,7 +35,7 @@ from raygs_viewer.viewer.headset import mirror_framing
 from raygs_viewer.viewer.lod_window import first_levels, lod_request, reading
 from raygs_viewer.viewer.overlay import draw_split_overlay
 from raygs_viewer.viewer.panel_sections import Draft, panel_sections
-from raygs_viewer.viewer.part import Shown
+from raygs_viewer.viewer.part import Click, Shown
 from raygs_viewer.viewer.photo_view import Drawn, blocked_reason, standing_at
 from raygs_viewer.viewer.screenshots import (
     Saved,
@@ -65,7 +65,8 @@ class Viewer(WindowState):
         """One iteration of the loop. Its steps, in this order, and why:
 
         1. The clock, the window's events, and what finished in the background: a loaded
-           scene is shown before anything reads the scene shown.
+           scene is shown before anything reads the scene shown; the headset's news (a
+           session that began or ended: the window's vsync follows it).
         2. The parts act (``Part.act``, in the order of :attr:`parts`), on the last
            frame's view (what the pointer is over): the edit tool's handles and shapes
            take the left button before the camera can.
@@ -74,11 +75,15 @@ class Viewer(WindowState):
            last, so that it yields to what the user did.
         4. The panel draws, from the last frame, and returns what it changed: the render
            settings (a draft), messages and requests, carried out before the frame is made.
-        5. The frame is made, once, from the camera and everything the panel set; its sort
-           is asked for (never waited on but on a scripted run's last frame).
-        6. The parts draw over the view (``Part.overlay``, the same order: back to front),
-           then the notes.
+        5. In the headset, the runtime's wait paces the loop here, as late as it can be:
+           its eyes are located just before they are drawn. The frame is made, once, from
+           the camera (or the headset's eyes) and everything the panel set; its sort is
+           asked for (never waited on but on a scripted run's last frame).
+        6. The parts draw over the view (``Part.overlay``, the same order: back to front;
+           not over the headset's mirror), then the notes.
         7. The draw returns a report: the statistics record it, the photo view follows it.
+           In the headset, both eyes are drawn and submitted instead, and the window
+           shows them as submitted.
         8. Present, keep the window's image, swap; a screenshot asked for (it re-renders
            offscreen); one step of a probe under way.
         """
@@ -107,7 +112,7 @@ class Viewer(WindowState):
         scene, pointing = self.scene_view(), self.pointing()
         self.overlay_rects = {} if not frame.split else draw_split_overlay(
             frame.viewport, self.split, self.settings, self.input.dragging_divider)
-        for part in self.parts:
+        for part in self.parts if eyes is None else ():  # the mirror shows the eyes as submitted
             self.answer(part.overlay(frame, scene, pointing))
         width_shown = imgui.get_io().display_size.x
         left = self.side_panel.notes_left(width_shown)
@@ -139,6 +144,8 @@ class Viewer(WindowState):
         for request in self.input.handle(dt, self.view.navigator, camera=self.camera, viewport=self.viewport,
                                          split=self.split if self.right_settings() is not None else None,
                                          mouse_taken=not mouse_free):
+            if isinstance(request, Click) and self.headset.running:
+                continue  # a click on the mirror picks nothing: it shows the eyes, not the view it would pick in
             self.carry_out(request)
         self.view.advance(dt, self.options.navigation.turntable)
         self.camera_path.follow(self.view, self.stats.last_frame_time)
