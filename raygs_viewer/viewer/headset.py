@@ -154,6 +154,7 @@ class HeadsetMode:
         self.locomotion = Locomotion()
         self.room: Room | None = None
         self.desktop: Camera | None = None     # the desktop camera the room last followed
+        self.metres_per_unit: float | None = None  # the stereo rig's scale the room was placed with
         self.frame: HeadsetFrame | None = None
         self.eyes: HeadsetEyes | None = None
         self.stats = HeadsetStats()
@@ -238,12 +239,12 @@ class HeadsetMode:
             return None
         head = midpoint(frame.views[0][0], frame.views[1][0])
         units_per_metre = 1.0 / metres_per_unit
-        if self.room is None or not np.isclose(self.room.units_per_metre, units_per_metre, rtol=0.0, atol=0.0) \
-                and self.desktop is None:
+        if self.room is None or metres_per_unit != self.metres_per_unit:
+            # The start, a recentre, or a new scale in the panel: the room at the desktop view.
             self.room = room_at_view(desktop, head, up, units_per_metre)
-        elif self.desktop is not None:
+        else:
             self.room = follow_desktop(self.room, self.desktop, desktop, up)
-        self.desktop = desktop
+        self.desktop, self.metres_per_unit = desktop, metres_per_unit
         left, right = NO_HAND, NO_HAND
         if self.actions is not None:
             try:
@@ -259,7 +260,6 @@ class HeadsetMode:
     def recentre(self) -> None:
         """The room goes back to the desktop view at the next frame."""
         self.room = None
-        self.desktop = None
 
     def draw(self, renderer: GLRenderer, settings: RenderSettings, order: Order, *, order_age: int
              ) -> FloatTarget | None:
