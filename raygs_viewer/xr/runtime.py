@@ -122,8 +122,9 @@ def error_line(exc: BaseException, xr: ModuleType, doing: str) -> str:
         "FormFactorUnsupportedError": "this OpenXR runtime does not drive head-mounted displays",
         "GraphicsDeviceInvalidError": "the OpenXR runtime refused this OpenGL context",
         "InitializationFailedError": "the OpenXR runtime could not start its side of the session",
-        "InstanceLostError": "the OpenXR runtime went away",
-        "SessionLostError": "the headset session was lost",
+        "InstanceLostError": "the OpenXR runtime went away: Enter headset tries again",
+        "SessionLostError": "the headset session was lost (the runtime quit or the headset was unplugged): Enter "
+                            "headset tries again",
     }
     text = known.get(type(exc).__name__)
     if text is None:

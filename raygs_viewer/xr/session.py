@@ -200,6 +200,7 @@ class HeadsetSession:
         #: view's depth info chained to it (kept alive until xrEndFrame read them).
         self.last_layer = None
         self.last_depth_infos: list = []
+        self._news: list[SessionNews] = []  # what failed outside a poll, for the next one
         try:
             self.runtime.opengl_requirements()
             binding = make_binding(xr, self.binding)
@@ -236,22 +237,29 @@ class HeadsetSession:
 
     # -- lifecycle -----------------------------------------------------------------
     def poll(self) -> list[SessionNews]:
-        """Handles every event the runtime has queued (module docstring)."""
-        xr, news = self.xr, []
+        """Handles every event the runtime has queued (module docstring), after saying
+        what failed since the last poll."""
+        xr, news = self.xr, self._news
+        self._news = []
         while self.runtime.instance is not None:
             try:
                 event = xr.poll_event(self.runtime.instance)
             except xr.EventUnavailable:
                 break
             except xr.ResultException as exc:
-                news.append(self._lose(error_line(exc, xr, "reading the runtime's events")))
+                self._lose(error_line(exc, xr, "reading the runtime's events"))
                 break
             kind = xr.StructureType(event.type)
             if kind == xr.StructureType.EVENT_DATA_SESSION_STATE_CHANGED:
                 changed = ctypes.cast(ctypes.byref(event), ctypes.POINTER(xr.EventDataSessionStateChanged)).contents
                 news.extend(self._state(xr.SessionState(changed.state).name))
             elif kind == xr.StructureType.EVENT_DATA_INSTANCE_LOSS_PENDING:
-                news.append(self._lose("the OpenXR runtime is going away (it quit, or the headset was unplugged)"))
+                self._lose("the OpenXR runtime is going away (it quit, or the headset was unplugged): Enter headset "
+                           "tries again")
+        return news + self._pop_news()
+
+    def _pop_news(self) -> list[SessionNews]:
+        news, self._news = self._news, []
         return news
 
     def _state(self, state: str) -> list[SessionNews]:
@@ -268,18 +276,22 @@ class HeadsetSession:
                 xr.end_session(self.session)
                 return []
             if state == "LOSS_PENDING":
-                return [self._lose("the headset session was lost (the runtime quit or the headset was unplugged): "
-                                   "Enter headset tries again")]
+                self._lose("the headset session was lost (the runtime quit or the headset was unplugged): "
+                           "Enter headset tries again")
+                return []
             if state == "EXITING":
                 self.destroy()
                 return [SessionNews("left the headset")]
         except xr.ResultException as exc:
-            return [self._lose(error_line(exc, xr, f"following the session to {state}"))]
+            self._lose(error_line(exc, xr, f"following the session to {state}"))
         return []
 
     def _lose(self, text: str) -> SessionNews:
+        """Ends a session that failed; the next :meth:`poll` says why (and so does the return)."""
         self.destroy()
-        return SessionNews(text, error=True)
+        news = SessionNews(text, error=True)
+        self._news.append(news)
+        return news
 
     def request_exit(self) -> None:
         """Asks the runtime to end the session (it goes STOPPING, then EXITING through
@@ -320,8 +332,13 @@ class HeadsetSession:
         """Each eye's colour target and depth image (empty list: no depth) for this frame,
         or None when an image did not come (the frame is then ended with no layer)."""
         self.ctx.disable_direct(GL_FRAMEBUFFER_SRGB)  # display values stored as they are (module docstring)
-        colour = [chain.acquire() for chain in self.colour]
-        depth = [chain.acquire() for chain in self.depth]
+        try:
+            colour = [chain.acquire() for chain in self.colour]
+            depth = [chain.acquire() for chain in self.depth]
+        except self.xr.ResultException as exc:
+            self._release_images()
+            self._lose(error_line(exc, self.xr, "acquiring the headset's images"))
+            return None
         if any(image is None for image in (*colour, *depth)):
             self._release_images()
             return None
@@ -329,7 +346,10 @@ class HeadsetSession:
 
     def _release_images(self) -> None:
         for chain in (*self.colour, *self.depth):
-            chain.release()
+            try:
+                chain.release()
+            except self.xr.ResultException:
+                chain.held = None  # a session going away takes its images with it
 
     def submit(self, frame: HeadsetFrame, *, drawn: bool, depth: bool = False) -> bool:
         """Releases the images and ends ``frame``: with the projection layer of both views

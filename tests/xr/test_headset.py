@@ -135,6 +135,55 @@ finally:
 """
 
 
+def test_a_lost_session_leaves_the_window_drawing_says_so_and_enter_tries_again():
+    """The runtime answers a frame with XR_ERROR_SESSION_LOST (what an unplugged headset
+    or a runtime that quit gives): the window goes on drawing its own view, the panel
+    says so, and entering again runs a new session."""
+    done = xr_kit.run_child(["-c", LOSS_SCRIPT], xr_kit.runtime_env())
+    assert done.returncode == 0, done.stderr[-3000:]
+    result = json.loads(done.stdout.strip().splitlines()[-1])
+    assert result["error"].startswith("error: the headset session was lost"), result
+    assert "Enter headset tries again" in result["error"], result
+    # The window drew its own view again, and shows it (not the last mirror).
+    assert result["active_after_loss"] is False and result["desktop_frames_after_loss"] >= 1, result
+    assert result["shows_mirror"] is False, result
+    assert result["submitted_again"] >= 2, result
+
+
+LOSS_SCRIPT = r"""
+import json
+import xr
+from raygs_viewer.viewer.app import Viewer, load_start_scene
+from raygs_viewer.viewer.state import ViewerOptions
+
+options = ViewerOptions(width=160, height=120, platform="null", frames=1000)
+viewer = Viewer(options, load_start_scene(options))
+try:
+    assert viewer.headset.enter().kind == "done"
+    while viewer.headset.stats.ended < 2:
+        viewer.frame()
+    real_wait = xr.wait_frame
+    def lost(*args, **kwargs):
+        raise xr.SessionLostError()
+    xr.wait_frame = lost
+    viewer.frame()
+    xr.wait_frame = real_wait
+    drawn_before = viewer.stats.draws
+    for _ in range(3):
+        viewer.frame()
+    result = {"error": viewer.panel.error, "active_after_loss": viewer.headset.active,
+              "desktop_frames_after_loss": viewer.stats.draws - drawn_before,
+              "shows_mirror": viewer.drawer.mono.stereo_image is not None}
+    assert viewer.headset.enter().kind == "done"
+    while viewer.headset.stats.ended < 2:
+        viewer.frame()
+    result["submitted_again"] = viewer.headset.stats.ended
+    print(json.dumps(result))
+finally:
+    viewer.close()
+"""
+
+
 def test_the_glx_binding_under_an_x_server(tmp_path):
     """Under Xvfb the window's context is a GLX one: the session binds it (with the
     FBConfig and visual the runtime needs) and submits its frames."""
