@@ -17,6 +17,7 @@ from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.viewer.feedback import draw_history
 from raygs_viewer.viewer.panel.edit import draw_edit_section
 from raygs_viewer.viewer.panel.geometry import draw_geometry_section
+from raygs_viewer.viewer.panel.headset import draw_headset_section
 from raygs_viewer.viewer.panel.lod import draw_lod_section
 from raygs_viewer.viewer.panel.measure import draw_measure_section
 from raygs_viewer.viewer.panel.order import draw_order_section
@@ -67,6 +68,7 @@ def panel_sections(viewer, draft: Draft) -> list[Callable[[], Reply]]:
                                     supports=renderer.supports, window=v.window, stereo=v.stereo, split=v.split),
         quiet(lambda: draw_order_section(draft.settings, draft.set, stats, v.split.on and not v.stereo.on)),
         quiet(lambda: draw_stereo_section(v.stereo, stats, shown)),
+        lambda: draw_headset_section(v.headset),
         lambda: draw_view_section(view),
         lambda: draw_training_section(loaded, view.training_index, v.photo, v.frustums),
         lambda: draw_screenshot_section(v.captures.options, shown and shown.full_camera,

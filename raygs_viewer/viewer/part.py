@@ -152,7 +152,23 @@ class ColourByLevel:
     on: bool
 
 
-Request = Union[Press, Click, FlyTo, AimAt, Converge, MeasurePoint, OpenScene, ReadAxes, ColourByLevel]
+@dataclass(frozen=True)
+class EnterHeadset:
+    """Open a headset session with the Headset section's choices (its Enter button)."""
+
+
+@dataclass(frozen=True)
+class LeaveHeadset:
+    """Ask the runtime to end the headset session (the Headset section's Leave button)."""
+
+
+@dataclass(frozen=True)
+class RecentreHeadset:
+    """Put the headset's room back at the desktop view (the Headset section's Recentre)."""
+
+
+Request = Union[Press, Click, FlyTo, AimAt, Converge, MeasurePoint, OpenScene, ReadAxes, ColourByLevel,
+                EnterHeadset, LeaveHeadset, RecentreHeadset]
 
 
 @dataclass(frozen=True)

@@ -55,13 +55,16 @@ from raygs_viewer.viewer.part import (
     Click,
     ColourByLevel,
     Converge,
+    EnterHeadset,
     FlyTo,
+    LeaveHeadset,
     MeasurePoint,
     OpenScene,
     Part,
     Pointing,
     Press,
     ReadAxes,
+    RecentreHeadset,
     Reply,
     Request,
     SceneView,
@@ -312,6 +315,12 @@ class WindowState:
                 said = self.scenes.switch_axes(self.loaded, axes, self.edit_tool.unsaved())
             case ColourByLevel(on):
                 said = self.swap_said(self.scene.set_tint(on, self.loaded.lod), "colour by level")
+            case EnterHeadset():
+                said = self.headset.enter()
+            case LeaveHeadset():
+                self.headset.leave()
+            case RecentreHeadset():
+                self.headset.recentre()
         self.panel.say(said)
 
     def swap_said(self, swap: Swapped | str | None, action: str) -> Message | None:
