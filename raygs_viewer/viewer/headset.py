@@ -73,7 +73,7 @@ class HeadsetStats:
     cpu: deque = field(default_factory=lambda: deque(maxlen=HISTORY))
     gpu: deque = field(default_factory=lambda: deque(maxlen=HISTORY))
     period: float = float("nan")
-    order_age: int = 0
+    order_frames: int = 0
     last_display: int | None = None
 
     def timed(self, frame: HeadsetFrame) -> None:
@@ -85,11 +85,13 @@ class HeadsetStats:
     def lines(self) -> list[str]:
         """The panel's lines."""
         cpu = np.mean(self.cpu) * 1e3 if self.cpu else float("nan")
-        gpu = np.nanmean(np.asarray(self.gpu, float), axis=0) * 1e3 if self.gpu else (float("nan"),) * 2
+        gpu = np.asarray(self.gpu, float).reshape(-1, 2)
+        read = gpu[np.isfinite(gpu).all(axis=1)]  # the timers' results come a few frames late
+        gpu = read.mean(axis=0) * 1e3 if len(read) else (float("nan"),) * 2
         return [f"headset frames: {self.ended} submitted, {self.skipped} skipped, {self.late} late",
                 f"display period {self.period * 1e3:.1f} ms; app CPU {cpu:.1f} ms a frame",
                 f"GPU per eye: left {gpu[0]:.1f} ms, right {gpu[1]:.1f} ms",
-                f"order age: {self.order_age} headset frame{'s' if self.order_age != 1 else ''}"]
+                f"order age: {self.order_frames} headset frame{'s' if self.order_frames != 1 else ''}"]
 
 
 @dataclass(frozen=True)
@@ -178,6 +180,7 @@ class HeadsetMode:
         """Opens a session on the window's context; a failure is the panel's one line."""
         if self.active:
             return note("already in the headset")
+        self.room, self.stats, self.locomotion, self.last_shot = None, HeadsetStats(), Locomotion(), None
         try:
             self.session = HeadsetSession(self.ctx, scale=self.choices.scale, depth=self.choices.depth)
             try:
@@ -189,7 +192,6 @@ class HeadsetMode:
         except UserError as exc:
             self.session = None
             return failed(one_line(exc), source="headset")
-        self.room, self.stats, self.locomotion = None, HeadsetStats(), Locomotion()
         size = self.session.sizes[0]
         return done(f"headset: {self.session.info.describe()}, {size[0]}x{size[1]} per eye")
 
@@ -284,7 +286,7 @@ class HeadsetMode:
         mirror = self._compose_mirror(colours)
         if read is not None:
             self.last_shot = EyeShot(read, eyes, settings, order)
-        self.stats.order_age = order_age
+        self.stats.order_frames = order_age
         self.stats.gpu.append(self.eye_drawer.seconds())
         self._end(frame, drawn=True, depth=depth)
         return mirror

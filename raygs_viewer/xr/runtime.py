@@ -79,7 +79,8 @@ def manifest_problem(manifest: Path | None) -> str | None:
         return None
     path = Path(library) if Path(library).is_absolute() else manifest.resolve().parent / library
     if not path.exists():
-        return f"the OpenXR runtime manifest {manifest} names {library}, which is missing ({path})"
+        where = "" if str(path) == library else f" ({path})"
+        return f"the OpenXR runtime manifest {manifest} names {library}, which is missing{where}"
     return None
 
 

@@ -523,6 +523,7 @@ def test_panel_button_saves_at_the_chosen_scale(open_viewer):
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=PANEL_HEIGHT)
     drive.frames(2)
     viewer.captures.options.scale = 2.0
+    drive.reveal("Save screenshot (F12)")
     drive.click("Save screenshot (F12)")
     png, sidecar = viewer.captures.last
     _, _, w, h = viewer.viewport

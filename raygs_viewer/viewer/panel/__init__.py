@@ -1,6 +1,6 @@
 """The imgui panel: one module per section (statistics, scene, level of detail (a
-streamed SOG), render, order, stereo, view, training cameras, screenshot, geometry,
-camera path, measure), each drawing from
+streamed SOG), render, order, stereo, headset, view, training cameras, screenshot,
+geometry, camera path, measure), each drawing from
 and editing only the state it is given (the path and measure sections: the viewer's
 PathWidget and MeasureWidget), and the panel's two message lines under them.
 
