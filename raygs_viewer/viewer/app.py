@@ -50,6 +50,7 @@ from raygs_viewer.viewer.stats import summary
 from raygs_viewer.viewer.window import choose_platform
 from raygs_viewer.viewer.window_state import WindowState
 from raygs_viewer.xr.eyes import HeadsetEyes
+from raygs_viewer.xr.runtime import check_runtime
 
 #: Window frames a scripted headset run waits for the session to start (and to end):
 #: the runtime takes a few; this many is a runtime that is not going to.
@@ -354,6 +355,8 @@ def run_viewer(options: ViewerOptions, progress: ProgressCallback | None = None)
         if not options.window_screenshot.lower().endswith(".png"):
             raise UserError(f"{options.window_screenshot}: the window screenshot must be a .png")
         check_output_path(options.window_screenshot)
+    if options.headset.enter:
+        check_runtime()  # before a large scene's load
     loaded = load_start_scene(options, progress)
     for warning in loaded.warnings:
         print(f"warning: {warning}", flush=True)

@@ -283,7 +283,7 @@ class HeadsetMode:
         except UserError:
             self._end(frame, drawn=False)
             raise
-        mirror = self._compose_mirror(colours)
+        mirror = self._compose_mirror([chain.plain[chain.held] for chain in session.colour])
         if read is not None:
             self.last_shot = EyeShot(read, eyes, settings, order)
         self.stats.order_frames = order_age
@@ -304,12 +304,14 @@ class HeadsetMode:
         self.stats.skipped += not layered
         self.frame = None
 
-    def _compose_mirror(self, colours: list[FloatTarget]) -> FloatTarget:
-        left, right = colours
+    def _compose_mirror(self, images: list[moderngl.Texture]) -> FloatTarget:
+        """The desktop's copy of the eyes (``images``: each swapchain image's plain view,
+        read as stored), side by side or the left alone."""
+        left, right = images
         layout = "sbs" if self.choices.mirror == "both" and left.size == right.size else "left"
         width, height = left.size
         self._mirror = sized(self._mirror, self.ctx, width * (2 if layout == "sbs" else 1), height, dtype="f1")
-        self._passes.compose(left.texture, right.texture, self._mirror.fbo, layout)
+        self._passes.compose(left, right, self._mirror.fbo, layout)
         return self._mirror
 
     def summary(self) -> str:

@@ -84,6 +84,16 @@ def manifest_problem(manifest: Path | None) -> str | None:
     return None
 
 
+def check_runtime() -> None:
+    """UserError (one line) when no headset session can start here for want of pyopenxr
+    or of a loadable runtime: asked before a scene is read, so a large scene's load is
+    not waited through for nothing."""
+    load_openxr()
+    problem = manifest_problem(active_manifest())
+    if problem is not None:
+        raise UserError(problem)
+
+
 @dataclass(frozen=True)
 class ViewSize:
     """One view's sizes, as the runtime recommends and allows them (pixels)."""
@@ -141,10 +151,8 @@ class XrRuntime:
     runtime offers them (:attr:`has_depth`). :meth:`destroy` ends the instance."""
 
     def __init__(self, binding: str, *, depth: bool = True):
+        check_runtime()
         xr = self.xr = load_openxr()
-        problem = manifest_problem(active_manifest())
-        if problem is not None:
-            raise UserError(problem)
         try:
             offered = {p.extension_name.decode() for p in xr.enumerate_instance_extension_properties()}
         except xr.ResultException as exc:

@@ -26,7 +26,7 @@ pytestmark = pytest.mark.skipif(xr_kit.skip_reason() is not None, reason=str(xr_
 #: Small windows: the eyes are the runtime's recommended 320 x 240 whatever the window.
 WINDOW = ["--width", "160", "--height", "120"]
 LINE = re.compile(r"^xr: Monado [\d.]+, Monado: Simulated HMD, (\d+)x(\d+) per eye \((EGL|GLX), GL_SRGB8_ALPHA8, "
-                  r"(with depth|no depth)\), (\d+) frames submitted", re.M)
+                  r"(with depth|no depth)\), (\d+) frames submitted", re.MULTILINE)
 
 
 def xr_line(done: subprocess.CompletedProcess) -> re.Match:
@@ -82,7 +82,7 @@ def test_each_eye_as_submitted_is_its_sidecar_rendered_again_to_the_bit_and_the_
     assert not np.allclose(left.center, right.center)
 
 
-def test_the_depth_layer_is_chained_and_holds_each_eyes_median_depth(tmp_path):
+def test_the_depth_layer_is_chained_and_holds_each_eyes_median_depth_and_the_mirror_the_eyes(tmp_path):
     """In a child: a Viewer in the headset draws a frame with depth; the layer's views
     each chain a depth info naming that eye's depth swapchain, and the depth image
     read back equals 1 - near / z of the median-depth channel of the same eye, order
@@ -93,6 +93,8 @@ def test_the_depth_layer_is_chained_and_holds_each_eyes_median_depth(tmp_path):
     assert result["chained"] == [True, True]
     assert result["found"] > 0.2 and result["max_error"] <= 1e-6, result
     assert result["far_where_none"], result
+    # The desktop's mirror shows both eyes as submitted: the same bytes, not decoded from sRGB.
+    assert result["mirrored"], result
 
 
 DEPTH_SCRIPT = r"""
@@ -128,8 +130,10 @@ try:
         errors.append(float(np.abs(got - expected).max()))
         found.append(float((channels.median_depth > 0).mean()))
         far.append(bool(np.all(got[channels.median_depth <= 0] == 1.0)))
+    mirror = viewer.drawer.mono.stereo_image.read(components=3, as_bytes=True)
+    mirrored = bool(np.array_equal(mirror, np.concatenate(shot.images.colour, axis=1)))
     print(json.dumps({"chained": chained, "max_error": max(errors), "found": min(found),
-                      "far_where_none": all(far)}))
+                      "far_where_none": all(far), "mirrored": mirrored}))
 finally:
     viewer.close()
 """
@@ -222,51 +226,54 @@ class xvfb:
 # --------------------------------------------------------------------------- bad cases
 
 
-def bad_case(tmp_path, env: dict[str, str], *extra: str) -> str:
-    """Runs ``view --xr --frames 2 --screenshot`` in a child; asserts exit 2, one
-    ``error:`` line, nothing written; returns the line."""
+def bad_case(capsys, tmp_path) -> str:
+    """Runs ``view --xr --frames 2 --screenshot`` in this process (each case here fails
+    before any session or swapchain is made, so file descriptor 0 is safe); asserts exit
+    2, one ``error:`` line, nothing written; returns the line."""
     before = listing(tmp_path)
-    done = xr_kit.run_cli(["view", "--xr", "--frames", "2", "--screenshot", str(tmp_path / "shot.png"), *WINDOW,
-                           *extra], env)
-    assert done.returncode == 2, (done.stdout, done.stderr[-2000:])
-    errors = [line for line in done.stderr.splitlines() if line.startswith("error:")]
-    assert len(errors) == 1 and "Traceback" not in done.stderr, done.stderr[-2000:]
+    code, out, err = run_cli(capsys, "view", "--xr", "--frames", "2", "--screenshot", tmp_path / "shot.png", *WINDOW)
     assert listing(tmp_path) == before
-    return errors[0]
+    return assert_one_line_error(code, err)
 
 
-def test_a_manifest_naming_a_missing_library(tmp_path):
+def test_a_manifest_naming_a_missing_library(capsys, tmp_path, monkeypatch):
     manifest = tmp_path / "runtime.json"
     manifest.write_text(json.dumps({"file_format_version": "1.0.0",
                                     "runtime": {"name": "gone", "library_path": "./libgone_openxr.so"}}))
-    line = bad_case(tmp_path, {**xr_kit.runtime_env(), "XR_RUNTIME_JSON": str(manifest)})
+    monkeypatch.setenv("XR_RUNTIME_JSON", str(manifest))
+    line = bad_case(capsys, tmp_path)
     assert "libgone_openxr.so" in line and "missing" in line
 
 
-def test_no_runtime_active(tmp_path):
-    env = {key: value for key, value in xr_kit.runtime_env().items() if key != "XR_RUNTIME_JSON"}
-    env.update(XDG_CONFIG_HOME=str(tmp_path / "config"), XDG_CONFIG_DIRS=str(tmp_path / "etc"),
-               HOME=str(tmp_path))
+def test_no_runtime_active(capsys, tmp_path, monkeypatch):
     from raygs_viewer.xr.runtime import active_manifest
-    if active_manifest(env) is not None:
+
+    monkeypatch.delenv("XR_RUNTIME_JSON", raising=False)
+    for key, value in (("XDG_CONFIG_HOME", tmp_path / "config"), ("XDG_CONFIG_DIRS", tmp_path / "etc"),
+                       ("HOME", tmp_path)):
+        monkeypatch.setenv(key, str(value))
+    if active_manifest() is not None:
         pytest.skip("this machine has a system-wide OpenXR runtime")
-    line = bad_case(tmp_path, env)
+    line = bad_case(capsys, tmp_path)
     assert "no OpenXR runtime is active" in line
 
 
-def test_a_gl_without_what_the_runtime_shares_images_through(tmp_path):
-    """Mesa hides GL_EXT_memory_object_fd: Monado cannot import the swapchain images."""
-    line = bad_case(tmp_path, {**xr_kit.runtime_env(), "MESA_EXTENSION_OVERRIDE": "-GL_EXT_memory_object_fd"})
-    assert "GL_EXT_memory_object_fd" in line
-
-
-def test_pyopenxr_missing_names_the_extra(tmp_path):
-    script = ("import sys; sys.modules['xr'] = None\n"
-              "from raygs_viewer.cli.main import main\n"
-              f"sys.exit(main(['view', '--xr', '--frames', '2', '--width', '160', '--height', '120']))")
-    done = xr_kit.run_child(["-c", script], xr_kit.runtime_env())
-    line = assert_one_line_error(done.returncode, done.stderr)
+def test_pyopenxr_missing_names_the_extra(capsys, tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "xr", None)  # what an import of a missing package meets
+    line = bad_case(capsys, tmp_path)
     assert "pip install 'raygs-viewer[xr]'" in line
+
+
+def test_a_gl_without_what_the_runtime_shares_images_through(tmp_path):
+    """Mesa hides GL_EXT_memory_object_fd: Monado cannot import the swapchain images. In
+    a child (the runtime starts its side of a session before refusing it)."""
+    before = listing(tmp_path)
+    done = xr_kit.run_cli(["view", "--xr", "--frames", "2", "--screenshot", str(tmp_path / "shot.png"), *WINDOW],
+                          {**xr_kit.runtime_env(), "MESA_EXTENSION_OVERRIDE": "-GL_EXT_memory_object_fd"})
+    errors = [line for line in done.stderr.splitlines() if line.startswith("error:")]
+    assert done.returncode == 2 and len(errors) == 1 and "Traceback" not in done.stderr, done.stderr[-2000:]
+    assert "GL_EXT_memory_object_fd" in errors[0]
+    assert listing(tmp_path) == before
 
 
 def test_a_runtime_without_opengl_or_without_a_headset_is_one_line(monkeypatch):
@@ -302,7 +309,12 @@ def test_an_egl_context_needs_the_runtimes_egl_extension(monkeypatch):
 
 def test_the_colour_format_is_an_srgb_one_of_the_runtimes_list():
     from raygs_viewer.errors import UserError
-    from raygs_viewer.xr.session import GL_RGBA8, GL_SRGB8, GL_SRGB8_ALPHA8, choose_format
+    from raygs_viewer.xr.session import (
+        GL_RGBA8,
+        GL_SRGB8,
+        GL_SRGB8_ALPHA8,
+        choose_format,
+    )
 
     assert choose_format([0x881A, GL_RGBA8, GL_SRGB8_ALPHA8, GL_SRGB8]) == GL_SRGB8_ALPHA8
     assert choose_format([GL_RGBA8, GL_SRGB8]) == GL_SRGB8
