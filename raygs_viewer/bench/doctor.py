@@ -11,7 +11,9 @@ In one run, on one headless GL context:
 3. fast here: fill, a frame and a stereo pair in today's defaults and each faster
    correct option, the CPU against the GPU sort, the VR budget
    (:mod:`raygs_viewer.bench.doctor_speed`);
-4. what ``--sort auto`` and ``--precision auto`` choose here (``render.gl.probe``).
+4. what ``--sort auto`` and ``--precision auto`` choose here (``render.gl.probe``);
+5. the active OpenXR runtime and a run of headset frames, in a child process of its own
+   (:mod:`raygs_viewer.bench.doctor_xr`); ``xr_only``: this section alone.
 
 Every correctness row passes: exit status 0; else 1, and one line names the rows that
 failed. ``quick``: smaller sizes (:func:`doctor_options`).
@@ -23,7 +25,7 @@ import time
 from dataclasses import dataclass, field
 from typing import Callable, TextIO
 
-from raygs_viewer.bench import doctor_sort
+from raygs_viewer.bench import doctor_sort, doctor_xr
 from raygs_viewer.bench.common import fmt_error, gl_context, printer, run_date, software_renderer
 from raygs_viewer.bench.doctor_checks import (
     DEMO,
@@ -66,7 +68,9 @@ class DoctorOptions:
     """What a run measures: ``cases`` (None: the demo and every hard case), the axes
     each case varies (the demo's, the hard cases'), the sort rows' size (0: none) and
     scenes (None: all), the speed rows' sizes (None: none), ``auto``: the auto defaults'
-    section; ``quick`` as given, for the report and the probe."""
+    section; ``quick`` as given, for the report and the probe; ``xr_frames``: the headset
+    frames the XR section draws (0: the runtime described only); ``xr_only``: the XR
+    section alone (no GL context of doctor's own, no correctness rows)."""
 
     quick: bool = False
     command_line: str = "raygs-viewer doctor"
@@ -78,13 +82,16 @@ class DoctorOptions:
     sort_scenes: tuple[str, ...] | None = None
     speed: SpeedSizes | None = FULL_SPEED
     auto: bool = True
+    xr_frames: int = doctor_xr.FRAMES
+    xr_only: bool = False
 
 
 def doctor_options(quick: bool, **changes) -> DoctorOptions:
     """The full run, or ``quick``'s (every axis for the demo, the modes for the hard
-    cases, the sort rows at 200k, ``bench gpu --quick``'s sizes); ``changes`` on top."""
-    sizes = {"hard_axes": QUICK_HARD_AXES, "sort_count": doctor_sort.QUICK_SORT_COUNT, "speed": QUICK_SPEED} \
-        if quick else {}
+    cases, the sort rows at 200k, ``bench gpu --quick``'s sizes, fewer headset frames);
+    ``changes`` on top."""
+    sizes = {"hard_axes": QUICK_HARD_AXES, "sort_count": doctor_sort.QUICK_SORT_COUNT, "speed": QUICK_SPEED,
+             "xr_frames": doctor_xr.QUICK_FRAMES} if quick else {}
     return DoctorOptions(quick=quick, **{**sizes, **changes})
 
 
@@ -100,6 +107,7 @@ class DoctorResult:
     auto: list[str]
     seconds: dict[str, float] = field(default_factory=dict)
     stopped: dict[str, str] = field(default_factory=dict)   # section -> the error that ended it
+    xr: list[str] = field(default_factory=list)             # the XR section's lines (doctor_xr)
 
     @property
     def judged(self) -> list:
@@ -136,19 +144,25 @@ def run_doctor(options: DoctorOptions, ctx=None, out: TextIO | None = None) -> D
             seconds[name] = time.perf_counter() - began
 
     cases = check_cases(options.cases)  # unknown names: before any work
-    with gl_context(ctx, options.gl_backend) as ctx:
-        device = context_description(ctx)
-        say(f"doctor: {device}")
-        gl = timed("GL", lambda: gl_tables(ctx))
-        checks = timed("renders", lambda: check_renders(
-            ctx, cases, lambda name: options.demo_axes if name == DEMO else options.hard_axes, say))
-        sorts = [] if not options.sort_count else timed(
-            "sorts", lambda: doctor_sort.check_sorts(ctx, options.sort_count, say, options.sort_scenes))
-        speed = None if options.speed is None else timed("speed", lambda: measure_speed(
-            ctx, options.speed, software_renderer(device), lambda name: option_problem(name, checks), say), True)
-        auto = (timed("auto", lambda: auto_choices_section(ctx, options.quick, say), True) or []) \
-            if options.auto else []
-    return DoctorResult(options, device, run_date(), gl, checks, sorts, speed, auto, seconds, stopped)
+    device, gl, checks, sorts, speed, auto = "", [], [], [], None, []
+    if not options.xr_only:
+        with gl_context(ctx, options.gl_backend) as ctx:
+            device = context_description(ctx)
+            say(f"doctor: {device}")
+            gl = timed("GL", lambda: gl_tables(ctx))
+            checks = timed("renders", lambda: check_renders(
+                ctx, cases, lambda name: options.demo_axes if name == DEMO else options.hard_axes, say))
+            sorts = [] if not options.sort_count else timed(
+                "sorts", lambda: doctor_sort.check_sorts(ctx, options.sort_count, say, options.sort_scenes))
+            speed = None if options.speed is None else timed("speed", lambda: measure_speed(
+                ctx, options.speed, software_renderer(device), lambda name: option_problem(name, checks), say),
+                True)
+            auto = (timed("auto", lambda: auto_choices_section(ctx, options.quick, say), True) or []) \
+                if options.auto else []
+    xr = doctor_xr.xr_section(options.xr_frames, say)  # after doctor's own context is gone; never raises
+    if xr.ran:
+        seconds["XR"] = xr.seconds
+    return DoctorResult(options, device, run_date(), gl, checks, sorts, speed, auto, seconds, stopped, xr.lines)
 
 
 def option_problem(name: str, checks: list[CheckRow]) -> str | None:
@@ -203,6 +217,8 @@ def summary_line(result: DoctorResult) -> str:
     """``doctor: all 57 correctness rows passed`` or ``doctor: 1 of 57 correctness rows
     failed: demo, draw layout indexed (max error 0.31 > 0.008)``."""
     judged, failed = result.judged, result.failed
+    if result.options.xr_only:
+        return "doctor: the XR section only (--xr-only): no correctness rows checked"
     if not failed:
         return f"doctor: all {len(judged)} correctness rows passed"
     named = "; ".join(_failure(row) for row in failed[:NAMED_FAILURES])
@@ -227,18 +243,11 @@ def _sort_result(row: doctor_sort.SortRow) -> str:
 def format_report(result: DoctorResult) -> str:
     options = result.options
     took = ", ".join(f"{name} {value:.1f} s" for name, value in result.seconds.items())
-    lines = ["# raygs-viewer doctor", "",
-             f"`{options.command_line}` on {result.date}, {sum(result.seconds.values()):.0f} s ({took}).", "",
-             f"**{summary_line(result)}**", "", "## The GL", ""] + result.gl
-    lines += ["", "## Correct here: renders against the float64 reference", "",
-              "Each case drawn small by GL and by the float64 reference, one axis at a time varied from the base "
-              "(mode, blend precision, order, draw layout, sort); the error is the largest over pixels and "
-              "channels (RGBA), held to the tolerance the tests use (`render.tolerance`).", "",
-              "| case | setting | max error | tolerance | result |", "|---|---|---:|---|---|"]
-    for row in result.checks:
-        error = "" if row.agreement is None else fmt_error(row.agreement.max)
-        limit = "" if row.tolerance is None else row.tolerance.words()
-        lines.append(f"| {row.case} | {row.variant.label} | {error} | {limit} | {_result(row)} |")
+    timing = f", {sum(result.seconds.values()):.0f} s ({took})" if result.seconds else ""
+    lines = ["# raygs-viewer doctor", "", f"`{options.command_line}` on {result.date}{timing}.", "",
+             f"**{summary_line(result)}**"]
+    if not options.xr_only:
+        lines += [""] + _gl_and_renders(result)
     if result.sorts:
         lines += ["", "## Correct here: the GPU sort against the CPU sort", "",
                   "Generated scenes (`bench.doctor_sort`): both keys over one cull, quantised (auto) and float keys; "
@@ -257,4 +266,20 @@ def format_report(result: DoctorResult) -> str:
     if result.auto or "auto" in result.stopped:
         lines += ["", "## What `--sort auto` and `--precision auto` choose here", ""]
         lines += result.auto or [f"Not measured: {result.stopped['auto']}"]
+    lines += ["", "## XR: the headset runtime (OpenXR)", ""] + result.xr
     return "\n".join(lines) + "\n"
+
+
+def _gl_and_renders(result: DoctorResult) -> list[str]:
+    """The GL's tables and the renders' rows."""
+    lines = ["## The GL", ""] + result.gl
+    lines += ["", "## Correct here: renders against the float64 reference", "",
+              "Each case drawn small by GL and by the float64 reference, one axis at a time varied from the base "
+              "(mode, blend precision, order, draw layout, sort); the error is the largest over pixels and "
+              "channels (RGBA), held to the tolerance the tests use (`render.tolerance`).", "",
+              "| case | setting | max error | tolerance | result |", "|---|---|---:|---|---|"]
+    for row in result.checks:
+        error = "" if row.agreement is None else fmt_error(row.agreement.max)
+        limit = "" if row.tolerance is None else row.tolerance.words()
+        lines.append(f"| {row.case} | {row.variant.label} | {error} | {limit} | {_result(row)} |")
+    return lines

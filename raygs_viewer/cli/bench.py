@@ -1,4 +1,4 @@
-"""``raygs-viewer bench accuracy|stereo|perf|order|sort|formats|lod|gpu``: their options,
+"""``raygs-viewer bench accuracy|stereo|perf|order|sort|formats|lod|gpu|xr``: their options,
 the options handed to each benchmark (everything that can be checked is, before any
 work) and the dispatch; what they share (the parser's skeleton, the recorded command
 line, the report's output) is ``cli.bench_shared``.
@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import argparse
 import os
+import shlex
 from pathlib import Path
 
 from raygs_viewer.bench import accuracy, accuracy_report, freshness, perf
@@ -17,6 +18,7 @@ from raygs_viewer.bench import lod as lod_bench
 from raygs_viewer.bench import order as order_bench
 from raygs_viewer.bench import sort as sort_bench
 from raygs_viewer.bench import stereo as stereo_bench
+from raygs_viewer.bench import xr as xr_bench
 from raygs_viewer.bench.common import (
     DEMO,
     count_label,
@@ -61,6 +63,7 @@ def add_parsers(commands) -> None:
     _add_formats_parser(kinds)
     _add_lod_parser(kinds)
     _add_gpu_parser(kinds)
+    _add_xr_parser(kinds)
 
 
 def command(args: argparse.Namespace, ctx=None) -> int:
@@ -71,7 +74,8 @@ def command(args: argparse.Namespace, ctx=None) -> int:
                 "sort": (sort_options, sort_bench.run_sort, sort_bench.format_report),
                 "formats": (formats_options, formats_bench.run_formats, formats_bench.format_report),
                 "lod": (lod_options, lod_bench.run_lod, lod_bench.format_report),
-                "gpu": (gpu_options, gpu_bench.run_gpu, gpu_bench.format_report)}
+                "gpu": (gpu_options, gpu_bench.run_gpu, gpu_bench.format_report),
+                "xr": (xr_options, xr_bench.run_xr, xr_bench.format_report)}
     runs = {"accuracy": _run_accuracy, "perf": _run_perf}
     if args.bench in reported:
         return run_reported(*reported[args.bench], args, ctx)
@@ -416,3 +420,36 @@ def gpu_options(args: argparse.Namespace) -> gpu_bench.GpuOptions:
         eye_shrink=gpu_bench.QUICK_EYE_SHRINK if quick else 1,
         frames=args.frames or (gpu_bench.QUICK_FRAMES if quick else gpu_bench.DEFAULT_FRAMES),
         **reported_run_fields("gpu", args, notes))
+
+
+# --- xr --------------------------------------------------------------------------------------------
+
+
+def _add_xr_parser(kinds) -> None:
+    parser = bench_parser(kinds, "xr", f"{xr_bench.QUICK_FRAMES} timed frames of each kind (seconds with the demo "
+                                       f"on llvmpipe)")
+    parser.add_argument("scene", nargs="?", default=DEMO, metavar="SCENE",
+                        help="the scene file (default: the built-in demo)")
+    parser.add_argument("--frames", type=argtypes.whole_number(1, 100_000), metavar="N",
+                        help=f"timed frames of each kind (default {xr_bench.DEFAULT_FRAMES}, --quick "
+                             f"{xr_bench.QUICK_FRAMES}), after {xr_bench.WARMUP_FRAMES} untimed")
+    parser.add_argument("--xr-scale", type=argtypes.real_in(0.1, 2.0, "times the runtime's recommended size"),
+                        metavar="F", help="each eye's size as a fraction of the runtime's recommended size "
+                                          "(default 1, as view --xr-scale)")
+    parser.add_argument("--xr-no-depth", action="store_true",
+                        help="no depth swapchains: the headset frame with depth is not measured")
+    parser.add_argument("--out", metavar="PATH.md", help="also write the markdown report there")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing --out file")
+
+
+def xr_options(args: argparse.Namespace) -> xr_bench.XrOptions:
+    """Checks everything that can be checked before any work: the scene, pyopenxr and an
+    active runtime (each a one-line error)."""
+    if args.scene != DEMO and not os.path.exists(args.scene):
+        raise UserError(f"{args.scene}: no such file")
+    xr_bench.check_runtime()
+    command_line = recorded_command("xr", args) + ("" if args.scene == DEMO else " " + shlex.quote(args.scene))
+    return xr_bench.XrOptions(
+        scene=args.scene, frames=args.frames or (xr_bench.QUICK_FRAMES if args.quick else xr_bench.DEFAULT_FRAMES),
+        scale=args.xr_scale or 1.0, depth=not args.xr_no_depth, command_line=command_line,
+        out=report_path(args.out, args.overwrite), overwrite=args.overwrite)

@@ -78,4 +78,14 @@ ABOUT: dict[str, tuple[str, str]] = {
         "the VR budget of both eyes at 72/90/120 Hz, and each blend precision and draw layout as a ratio "
         "to today's path, measured side by side in the same frames. Prints a line per case and the "
         "markdown report; --out writes it."),
+    "xr": (
+        "a headset frame against the active OpenXR runtime, beside a mono frame of one eye in the same run",
+        "Against the active OpenXR runtime (docs/xr.md): headset frames of SCENE (default: the demo) drawn as the "
+        "window draws them (the runtime's wait, the eyes located, one sort from their midpoint, both eyes into "
+        "the swapchain images, submitted; with depth too where the runtime takes it), interleaved with a mono "
+        "frame of the left eye's camera and size drawn offscreen with one sort. Prints the ratio headset/mono "
+        "(goal: at most 2.1), the headset frame's work outside xrWaitFrame (its wall time includes the runtime's "
+        "wait), each eye's GPU time and the runtime's display period, as 'xr KIND KEY VALUE' lines and a markdown "
+        "report; --out writes it. Needs pip install 'raygs-viewer[xr]' and an active runtime (exit status 2 "
+        "without)."),
 }

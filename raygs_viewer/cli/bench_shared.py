@@ -34,6 +34,7 @@ RECORDED_FLAGS: dict[str, tuple[str, ...]] = {
     "formats": ("--quick", "--scenes", "--no-samples", "--width", "--repeat", "--out", "--gl-backend", "--overwrite"),
     "lod": ("--quick", "--scenes", "--width", "--repeat", "--lod-distance", "--out", "--gl-backend", "--overwrite"),
     "gpu": ("--quick", "--counts", "--scenes", "--frames", "--out", "--gl-backend", "--overwrite"),
+    "xr": ("--quick", "--frames", "--xr-scale", "--xr-no-depth", "--out", "--overwrite"),
 }
 #: Options a recorded command leaves out at these values (by argparse dest).
 RECORDED_DEFAULTS: dict[str, dict[str, object]] = {"perf": {"frames": perf.DEFAULT_FRAMES}}

@@ -12,6 +12,7 @@ import argparse
 import shlex
 import sys
 
+from raygs_viewer.bench import doctor_xr
 from raygs_viewer.bench.common import write_report
 from raygs_viewer.bench.doctor import doctor_options, format_report, run_doctor, summary_line
 from raygs_viewer.cli import argtypes
@@ -25,7 +26,9 @@ ABOUT = ("the GL (vendor, renderer, version, driver, context, the limits and ext
          "precision, order, draw layout and sort this GL supports against the float64 reference, and the GPU "
          "sort against the CPU sort on 1M keys, random and adversarial; fast here: fill, a 1920x1080 frame and a "
          "Quest 3 pair of a generated 1M scene in today's defaults and each faster correct option, the CPU "
-         f"against the GPU sort at 1M and 3M, the VR budget; what --sort auto and --precision auto choose. Exit "
+         f"against the GPU sort at 1M and 3M, the VR budget; what --sort auto and --precision auto choose; the "
+         "active OpenXR runtime (its headset, views, sizes, swapchain formats, extensions, controller bindings) and "
+         "a run of headset frames, in a child process. Exit "
          f"status 0 when every correctness row passes, 1 (with a one-line summary) when one fails, 2 on bad "
          f"input. The full run took {FULL_TIME} on two CPU cores with llvmpipe (2026-12-05); on a desktop GPU "
          f"it is meant to take under a minute")
@@ -44,8 +47,15 @@ def add_parsers(commands) -> None:
                         help="only this correctness case (repeat for more; 'demo' or a hard case's name, as the "
                              "report's rows name them): re-checks what failed without the rest")
     parser.add_argument("--no-speed", action="store_true",
-                        help="the correctness sections only (the GL, the renders, the sort rows): no speed rows and "
-                             "no auto choices, for a check that needs no timing")
+                        help="the correctness sections only (the GL, the renders, the sort rows): no speed rows, "
+                             "no auto choices and no headset frames (the XR section describes the runtime), for a "
+                             "check that needs no timing")
+    parser.add_argument("--xr-only", action="store_true",
+                        help="the XR section alone (the active OpenXR runtime and its headset frames): no GL checks, "
+                             "no correctness rows")
+    parser.add_argument("--xr-frames", type=argtypes.whole_number(0, 10_000), metavar="N",
+                        help=f"headset frames the XR section draws (default {doctor_xr.FRAMES}, --quick "
+                             f"{doctor_xr.QUICK_FRAMES}, --no-speed 0; 0: the runtime described only)")
     parser.add_argument("--report", metavar="FILE.md",
                         help="also write the report there (never over an existing file without --overwrite)")
     parser.add_argument("--overwrite", action="store_true", help="replace an existing --report file")
@@ -55,6 +65,8 @@ def add_parsers(commands) -> None:
 def recorded_command(args: argparse.Namespace) -> str:
     parts = ["raygs-viewer", "doctor"] + (["--quick"] if args.quick else [])
     parts += ["--no-speed"] if args.no_speed else []
+    parts += ["--xr-only"] if args.xr_only else []
+    parts += ["--xr-frames", str(args.xr_frames)] if args.xr_frames is not None else []
     for name in args.cases or ():
         parts += ["--case", name]
     if args.gl_backend:
@@ -69,7 +81,11 @@ def command_doctor(args: argparse.Namespace, ctx=None, **changes) -> int:
     out = report_path(args.report, args.overwrite)  # before any work
     chosen = {"cases": tuple(dict.fromkeys(args.cases))} if args.cases else {}
     if args.no_speed:
-        chosen |= {"speed": None, "auto": False}
+        chosen |= {"speed": None, "auto": False, "xr_frames": 0}
+    if args.xr_only:
+        chosen |= {"xr_only": True}
+    if args.xr_frames is not None:
+        chosen |= {"xr_frames": args.xr_frames}
     options = doctor_options(args.quick, command_line=recorded_command(args), gl_backend=args.gl_backend,
                              **{**chosen, **changes})
     result = run_doctor(options, ctx)
