@@ -45,7 +45,6 @@ from raygs_viewer.bench.xr import (
     end_session,
     format_name,
     headset_context,
-    kept_stdin,
     session_facts,
     start_session,
     summarize,
@@ -64,6 +63,7 @@ from raygs_viewer.xr.runtime import (
     active_manifest,
     manifest_problem,
 )
+from raygs_viewer.xr.session import kept_stdin
 
 #: Headset frames the full run draws (after WARMUP_FRAMES untimed), and --quick's.
 FRAMES, QUICK_FRAMES = 30, 10

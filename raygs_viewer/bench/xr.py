@@ -66,7 +66,7 @@ from raygs_viewer.xr.runtime import (
     load_openxr,
     manifest_problem,
 )
-from raygs_viewer.xr.session import HeadsetSession
+from raygs_viewer.xr.session import HeadsetSession, kept_stdin
 
 DEFAULT_FRAMES, QUICK_FRAMES = 40, 8
 #: Untimed frames of each kind first: shaders compile, the targets and the runtime settle.
@@ -127,25 +127,6 @@ class WaitClock:
             return self.module.wait_frame(*args, **kwargs)
         finally:
             self.waited = time.perf_counter() - began
-
-
-@contextlib.contextmanager
-def kept_stdin() -> Iterator[None]:
-    """Puts standard input back if the runtime closed it: this Monado closes file
-    descriptor 0 when a swapchain is destroyed (../shared/openxr/README.md)."""
-    try:
-        saved = os.dup(0)
-    except OSError:
-        saved = None  # no standard input to keep
-    try:
-        yield
-    finally:
-        if saved is not None:
-            try:
-                os.fstat(0)
-            except OSError:
-                os.dup2(saved, 0)
-            os.close(saved)
 
 
 def runtime_offers(extension: str) -> bool | None:

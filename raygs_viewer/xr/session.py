@@ -24,8 +24,11 @@ image as sRGB, as a screenshot viewer would, with no second gamma.
 
 from __future__ import annotations
 
+import contextlib
 import ctypes
+import os
 import sys
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Literal
 
@@ -52,6 +55,24 @@ IMAGE_WAIT_NS = 1_000_000_000
 NEAR_METRES = 0.05
 
 SessionPhase = Literal["starting", "running", "stopping", "over"]
+
+
+@contextlib.contextmanager
+def kept_stdin() -> Iterator[None]:
+    """Standard input as it was after the block: this Monado closes file descriptor 0
+    when a swapchain is destroyed (../shared/openxr/README.md), which would leave the
+    next file opened to take 0, and the runtime's next close to take it away. Put back
+    whatever happened (a dup2 onto itself changes nothing)."""
+    try:
+        saved = os.dup(0)
+    except OSError:
+        saved = None  # no standard input to keep
+    try:
+        yield
+    finally:
+        if saved is not None:
+            os.dup2(saved, 0)
+            os.close(saved)
 
 
 def choose_format(offered: list[int] | tuple[int, ...]) -> int:
@@ -412,20 +433,21 @@ class HeadsetSession:
     def destroy(self) -> None:
         """Frees everything, last made first; the session is then over. Idempotent."""
         xr = self.xr
-        for chain in (*self.colour, *self.depth):
-            try:
-                chain.destroy()
-            except xr.ResultException:
-                pass
-        self.colour, self.depth = [], []
-        for handle, destroy in ((self.space, xr.destroy_space), (self.session, xr.destroy_session)):
-            if handle is not None:
+        with kept_stdin():
+            for chain in (*self.colour, *self.depth):
                 try:
-                    destroy(handle)
+                    chain.destroy()
                 except xr.ResultException:
                     pass
-        self.space = self.session = None
-        self.runtime.destroy()
+            self.colour, self.depth = [], []
+            for handle, destroy in ((self.space, xr.destroy_space), (self.session, xr.destroy_session)):
+                if handle is not None:
+                    try:
+                        destroy(handle)
+                    except xr.ResultException:
+                        pass
+            self.space = self.session = None
+            self.runtime.destroy()
         self.phase = "over"
 
 
