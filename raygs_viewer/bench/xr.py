@@ -34,7 +34,6 @@ from __future__ import annotations
 import contextlib
 import math
 import os
-import sys
 import time
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -60,12 +59,7 @@ from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.xr.eyes import EyeDrawer, HeadsetEyes, headset_eyes
 from raygs_viewer.xr.room import Room, midpoint, room_at_view
-from raygs_viewer.xr.runtime import (
-    EGL_EXTENSION,
-    active_manifest,
-    load_openxr,
-    manifest_problem,
-)
+from raygs_viewer.xr.runtime import EGL_EXTENSION, check_runtime, load_openxr
 from raygs_viewer.xr.session import HeadsetSession, kept_stdin
 
 DEFAULT_FRAMES, QUICK_FRAMES = 40, 8
@@ -93,18 +87,6 @@ SOFTWARE_NOTE = ("This is a software OpenGL renderer (on the CPU): its timer que
 def format_name(value: int | None) -> str:
     """A GL internal format as its name (hex where unknown; "none" for None)."""
     return "none" if value is None else GL_FORMAT_NAMES.get(int(value), f"0x{int(value):04x}")
-
-
-def check_runtime() -> None:
-    """A UserError (one line) unless pyopenxr is installed and a runtime is active with its
-    library there: checked before any work."""
-    load_openxr()
-    manifest = active_manifest()
-    if manifest is None and not sys.platform.startswith("linux"):
-        return  # the loader reads the registry there
-    problem = manifest_problem(manifest)
-    if problem is not None:
-        raise UserError(problem)
 
 
 # --- the context, the session -------------------------------------------------------------------

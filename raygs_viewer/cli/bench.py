@@ -45,6 +45,7 @@ from raygs_viewer.cli.bench_shared import (
 )
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.lod_meta import LOD_META_NAME
+from raygs_viewer.xr.runtime import check_runtime
 
 
 def add_parsers(commands) -> None:
@@ -447,7 +448,7 @@ def xr_options(args: argparse.Namespace) -> xr_bench.XrOptions:
     active runtime (each a one-line error)."""
     if args.scene != DEMO and not os.path.exists(args.scene):
         raise UserError(f"{args.scene}: no such file")
-    xr_bench.check_runtime()
+    check_runtime()
     command_line = recorded_command("xr", args) + ("" if args.scene == DEMO else " " + shlex.quote(args.scene))
     return xr_bench.XrOptions(
         scene=args.scene, frames=args.frames or (xr_bench.QUICK_FRAMES if args.quick else xr_bench.DEFAULT_FRAMES),

@@ -89,7 +89,10 @@ def check_runtime() -> None:
     or of a loadable runtime: asked before a scene is read, so a large scene's load is
     not waited through for nothing."""
     load_openxr()
-    problem = manifest_problem(active_manifest())
+    manifest = active_manifest()
+    if manifest is None and not sys.platform.startswith("linux"):
+        return  # the loader reads the registry there: what it finds, it says at the instance
+    problem = manifest_problem(manifest)
     if problem is not None:
         raise UserError(problem)
 
