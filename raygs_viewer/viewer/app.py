@@ -216,6 +216,9 @@ class Viewer(WindowState):
         desktop shows them as submitted."""
         order = order_for({} if result is None else result.orders, self.settings.sort_key)
         age = asked.serial - (0 if result is None else result.serial)
+        # The headset shows the scene (as its screenshots and their sidecars do): the
+        # selection's tint is an editing aid of the desktop view, which sets it again.
+        self.scene.renderer.set_selection(None)
         try:
             mirror = self.headset.draw(self.scene.renderer, self.settings, order, order_age=age)
         except UserError as exc:

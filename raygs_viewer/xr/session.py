@@ -247,6 +247,8 @@ class HeadsetSession:
         self.last_layer = None
         self.last_depth_infos: list = []
         self._news: list[SessionNews] = []  # what failed outside a poll, for the next one
+        #: Every state the runtime moved the session to, in order (the panel shows the last).
+        self.states_seen: list[str] = []
         try:
             self.runtime.opengl_requirements()
             binding = make_binding(xr, self.binding)
@@ -311,6 +313,7 @@ class HeadsetSession:
     def _state(self, state: str) -> list[SessionNews]:
         xr = self.xr
         self.state = state
+        self.states_seen.append(state)
         try:
             if state == "READY":
                 xr.begin_session(self.session, xr.SessionBeginInfo(

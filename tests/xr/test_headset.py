@@ -95,6 +95,10 @@ def test_the_depth_layer_is_chained_and_holds_each_eyes_median_depth_and_the_mir
     assert result["far_where_none"], result
     # The desktop's mirror shows both eyes as submitted: the same bytes, not decoded from sRGB.
     assert result["mirrored"], result
+    # The session ran focused and ended cleanly on the exit it asked for.
+    states = result["states"]
+    assert states[:5] == ["IDLE", "READY", "SYNCHRONIZED", "VISIBLE", "FOCUSED"], states
+    assert states[-2:] == ["IDLE", "EXITING"] and "STOPPING" in states and result["over"], states
 
 
 DEPTH_SCRIPT = r"""
@@ -132,8 +136,10 @@ try:
         far.append(bool(np.all(got[channels.median_depth <= 0] == 1.0)))
     mirror = viewer.drawer.mono.stereo_image.read(components=3, as_bytes=True)
     mirrored = bool(np.array_equal(mirror, np.concatenate(shot.images.colour, axis=1)))
+    viewer.leave_headset()
     print(json.dumps({"chained": chained, "max_error": max(errors), "found": min(found),
-                      "far_where_none": all(far), "mirrored": mirrored}))
+                      "far_where_none": all(far), "mirrored": mirrored, "states": session.states_seen,
+                      "over": session.over}))
 finally:
     viewer.close()
 """
