@@ -9,8 +9,8 @@ version, the headset ("system"), the view configuration, each eye's recommended 
 largest size, the swapchain formats offered (GL names where known) and those chosen, the
 extensions enabled and the binding, the controller bindings as suggested to the runtime
 (``xr.actions.binding_lines``) and whether it took them; then :data:`FRAMES` headset frames
-of the demo drawn as the window draws them (one sort, both eyes, depth where the runtime
-takes it, submitted): their work outside ``xrWaitFrame`` and their pace against the
+of the demo drawn as the window draws them by default (one sort, both eyes, no depth
+layer: ``HeadsetChoices.depth``, submitted): their work outside ``xrWaitFrame`` and their pace against the
 runtime's display period, how many were late or skipped.
 
 Why a child: a runtime lives inside the process that loads it. This Monado closes file
@@ -222,13 +222,13 @@ def measure_frames(session, clock, *, frames: int) -> list[str]:
                                 settings=RenderSettings())
         drawer, timed = EyeDrawer(ctx), []
         for index in range(WARMUP_FRAMES + frames):
-            times = drawing.draw(drawer, depth=True)
+            times = drawing.draw(drawer, depth=False)  # the window's default
             if times is None:
                 raise UserError(f"the headset session ended after {index} frames: {drawing.ended_why}")
             if index >= WARMUP_FRAMES:
                 timed.append(times)
         return frame_lines(summarize(timed, drawer, skip=WARMUP_FRAMES), size=session.sizes[0],
-                           depth=bool(session.depth), scene=f"{item.name} ({item.scene.count:,} gaussians)")
+                           depth=False, scene=f"{item.name} ({item.scene.count:,} gaussians)")
 
 
 def child_lines(frames: int) -> list[str]:

@@ -90,8 +90,9 @@ def add_parsers(commands) -> None:
     headset.add_argument("--xr-scale", type=argtypes.real_in(0.1, 2.0, "times the runtime's recommended size"),
                          default=1.0, metavar="K",
                          help="each eye's size as K times the runtime's recommended size, 0.1..2 (default 1)")
-    headset.add_argument("--xr-no-depth", action="store_true",
-                         help="do not submit the eyes' depth (XR_KHR_composition_layer_depth) for reprojection")
+    headset.add_argument("--xr-depth", action="store_true",
+                         help="also submit each eye's median depth (XR_KHR_composition_layer_depth) for the runtime's "
+                              "positional reprojection; it costs several colour frames (docs/xr.md)")
     headset.add_argument("--xr-mirror", choices=MIRRORS, default="both",
                          help="what the window shows of the headset's eyes (default both)")
     headset.add_argument("--xr-turn", choices=TURNS, default="snap",
@@ -156,7 +157,7 @@ def command_view(args) -> int:
                                      turntable=args.turntable),
         stereo=_viewer_stereo_options(args), images=args.images, sort=args.sort,
         auto_precision=auto_precision,
-        headset=HeadsetChoices(enter=args.xr, scale=args.xr_scale, depth=not args.xr_no_depth,
+        headset=HeadsetChoices(enter=args.xr, scale=args.xr_scale, depth=args.xr_depth,
                                mirror=args.xr_mirror, turn=args.xr_turn))
     with TerminalProgress(options.source.path) as progress:  # a multi-GB scene takes seconds before the window
         return run_viewer(options, progress)

@@ -182,7 +182,8 @@ class HeadsetMode:
             return note("already in the headset")
         self.room, self.stats, self.locomotion, self.last_shot = None, HeadsetStats(), Locomotion(), None
         try:
-            self.session = HeadsetSession(self.ctx, scale=self.choices.scale, depth=self.choices.depth)
+            # Depth swapchains wherever the runtime takes depth, so the panel's toggle acts at once.
+            self.session = HeadsetSession(self.ctx, scale=self.choices.scale, depth=True)
             try:
                 self.actions = ControllerActions.create(self.session.runtime.instance)
                 self.actions.attach(self.session.session)

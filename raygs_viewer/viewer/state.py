@@ -69,13 +69,14 @@ class HeadsetChoices:
 
     enter: open a session when the window opens (``--xr``). scale: each eye's size as a
     fraction of the runtime's recommended size (the panel's resolution scale; a new
-    session takes it). depth: submit each eye's depth where the runtime takes it.
+    session takes it). depth: submit each eye's depth where the runtime takes it (off
+    by default: the median depth costs several colour frames, docs/xr.md).
     mirror: what the desktop window shows of the eyes (:data:`MIRRORS`). turn: the right
     stick's turning (:data:`TURNS`)."""
 
     enter: bool = False
     scale: float = 1.0
-    depth: bool = True
+    depth: bool = False
     mirror: str = "both"
     turn: str = "snap"
 

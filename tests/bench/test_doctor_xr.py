@@ -66,7 +66,7 @@ def test_the_section_describes_monado_its_headset_and_two_headset_frames():
     listed = [line[2:] for line in lines if line.startswith("- ")]
     assert "valve/index_controller  grab: left squeeze/value, right squeeze/value" in listed
     assert listed == binding_lines() and len(listed) == 15
-    assert any(line.startswith("2 headset frames of the demo (3,914 gaussians) at 320x240 per eye, with depth")
+    assert any(line.startswith("2 headset frames of the demo (3,914 gaussians) at 320x240 per eye, without depth")
                for line in lines)
     counts = next(line for line in lines if "submitted with the eyes' layer" in line)
     assert re.match(r"2 of 2 submitted with the eyes' layer, 0 skipped, [0-2] late; the work ", counts), counts

@@ -158,7 +158,7 @@ def test_the_section_edits_the_windows_choices_and_fits_the_narrowest_panel(open
     click_choice(drive, "turning", "smooth")
     choices = viewer.headset.choices
     assert 0.1 <= choices.scale < 0.15  # the slider's lowest end: 0.1 of the recommended size
-    assert (choices.depth, choices.mirror, choices.turn) == (False, "left", "smooth")
+    assert (choices.depth, choices.mirror, choices.turn) == (True, "left", "smooth")
     assert viewer.options.headset == HeadsetChoices()  # the window's copy changed, never the options
     assert viewer.headset.session is None and not viewer.headset.active
     cut = text_past_the_panel(drive)
@@ -192,7 +192,7 @@ def test_entering_and_leaving_twice_mirrors_the_eyes_then_draws_the_desktop_as_i
         assert "Leave headset" in labels and "Recentre" in labels and "Enter headset" not in labels
         assert "resolution scale" not in labels  # taken at Enter: not offered while in the headset
         assert any(label.startswith("Monado") for label in labels)
-        assert f"{eye[0]}x{eye[1]} per eye, depth submitted" in labels
+        assert f"{eye[0]}x{eye[1]} per eye, depth off" in labels
         assert any(label.startswith("headset frames: ") for label in labels)
         # Left: the desktop draws its own view again, the view and settings as before.
         assert done["left"] and done["message_left"] == "left the headset" and done["error_left"] == ""

@@ -41,7 +41,7 @@ def scripted(tmp_path_factory):
     """One scripted session on the EGL binding (no X server): 5 headset frames, the last
     one's eyes saved, with --scene-scale 0.5 (two scene units a metre)."""
     folder = tmp_path_factory.mktemp("xr")
-    done = xr_kit.run_cli(["view", "--xr", "--frames", "5", "--scene-scale", "0.5", "--screenshot",
+    done = xr_kit.run_cli(["view", "--xr", "--xr-depth", "--frames", "5", "--scene-scale", "0.5", "--screenshot",
                            str(folder / "shot.png"), *WINDOW], xr_kit.runtime_env())
     return folder, done
 
@@ -110,7 +110,7 @@ from raygs_viewer.xr.eyes import depth_values
 
 # A screenshot path makes the frames waited for (below) capture their eyes; nothing is saved here.
 options = ViewerOptions(width=160, height=120, platform="null", frames=100, screenshot="unsaved.png",
-                        headset=HeadsetChoices(enter=True))
+                        headset=HeadsetChoices(enter=True, depth=True))
 viewer = Viewer(options, load_start_scene(options))
 try:
     assert viewer.headset.enter().kind == "done"
@@ -200,7 +200,7 @@ def test_the_glx_binding_under_an_x_server(tmp_path):
     if shutil.which("Xvfb") is None:
         pytest.skip("Xvfb is not installed (apt-get install xvfb)")
     with xvfb() as display:
-        done = xr_kit.run_cli(["view", "--xr", "--frames", "3", "--xr-no-depth", *WINDOW],
+        done = xr_kit.run_cli(["view", "--xr", "--frames", "3", *WINDOW],
                               xr_kit.runtime_env(display=display))
     match = xr_line(done)
     assert match.group(3, 4, 5) == ("GLX", "no depth", "3")
