@@ -94,8 +94,10 @@ class Viewer(WindowState):
         self.take_loaded()
         self._follow_headset()
         width, height = self.window.framebuffer_size()
-        if width <= 0 or height <= 0:  # minimised: nothing to draw, do not spin
-            if self.options.frames is None:
+        if width <= 0 or height <= 0:  # minimised: nothing to show
+            if self.headset.running:  # the headset goes on: the runtime paces the loop
+                self._headset_unseen(dt)
+            elif self.options.frames is None:  # do not spin
                 self.window.wait_events(0.1)
             return
         self.window.begin_frame()
@@ -168,11 +170,26 @@ class Viewer(WindowState):
         headset frame to draw this time)."""
         if not self.headset.running:
             return None
-        desktop = self.view.camera(self.view_area(), None).camera
+        area = self.view_area()
+        # A minimised window has no view: the room stays where the last one put it.
+        desktop = self.view.camera(area, None).camera if min(area[2:]) > 0 else self.headset.desktop
         up = np.asarray(UP_AXES[self.view.navigator.up], np.float64)
-        self.headset.capture_asked = self.captures.requested or (self.wait_for_sort and
-                                                                 self.options.screenshot is not None)
-        return self.headset.wait(desktop, up, self.stereo.rig.scene_scale, dt)
+        # A scripted run's screenshot: its last frame's eyes, and the first drawn until then
+        # (a last frame the runtime does not show leaves the one before it).
+        scripted = self.options.screenshot is not None and self.options.frames is not None and (
+            self.wait_for_sort or self.headset.last_shot is None)
+        self.headset.capture_asked = self.captures.requested or scripted
+        return self.headset.wait(desktop or self.view.camera((0, 0, 64, 64), None).camera, up,
+                                 self.stereo.rig.scene_scale, dt)
+
+    def _headset_unseen(self, dt: float) -> None:
+        """A headset frame while the window is minimised: waited for, drawn and submitted,
+        with nothing shown on the desktop."""
+        eyes = self._wait_for_headset(dt)
+        if eyes is None:
+            self.headset.submit_empty()
+            return
+        self._draw_headset(*self._make_frame(eyes))
 
     def _make_frame(self, eyes: HeadsetEyes | None = None) -> tuple[Frame, SortResult | None, SortAsked]:
         """Step 5 of :meth:`frame`: the frame, and its sort asked for (the newest result

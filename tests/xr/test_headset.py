@@ -148,7 +148,8 @@ finally:
 def test_a_lost_session_leaves_the_window_drawing_says_so_and_enter_tries_again():
     """The runtime answers a frame with XR_ERROR_SESSION_LOST (what an unplugged headset
     or a runtime that quit gives): the window goes on drawing its own view, the panel
-    says so, and entering again runs a new session."""
+    says so, and entering again runs a new session, which a minimised window keeps
+    running."""
     done = xr_kit.run_child(["-c", LOSS_SCRIPT], xr_kit.runtime_env())
     assert done.returncode == 0, done.stderr[-3000:]
     result = json.loads(done.stdout.strip().splitlines()[-1])
@@ -158,6 +159,7 @@ def test_a_lost_session_leaves_the_window_drawing_says_so_and_enter_tries_again(
     assert result["active_after_loss"] is False and result["desktop_frames_after_loss"] >= 1, result
     assert result["shows_mirror"] is False, result
     assert result["submitted_again"] >= 2, result
+    assert result["minimised"] == {"submitted": 3, "desktop": 0}, result
 
 
 LOSS_SCRIPT = r"""
@@ -188,6 +190,13 @@ try:
     while viewer.headset.stats.ended < 2:
         viewer.frame()
     result["submitted_again"] = viewer.headset.stats.ended
+    # Minimised (GLFW's null platform cannot iconify: its framebuffer is made empty), the
+    # headset goes on and the desktop draws nothing.
+    viewer.window.framebuffer_size = lambda: (0, 0)
+    ended, draws = viewer.headset.stats.ended, viewer.stats.draws
+    for _ in range(3):
+        viewer.frame()
+    result["minimised"] = {"submitted": viewer.headset.stats.ended - ended, "desktop": viewer.stats.draws - draws}
     print(json.dumps(result))
 finally:
     viewer.close()
