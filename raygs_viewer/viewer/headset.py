@@ -27,6 +27,7 @@ from __future__ import annotations
 
 import time
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 
@@ -145,10 +146,11 @@ def mirror_framing(eyes: HeadsetEyes, area: Viewport, mirror: str) -> Framing:
 
 class HeadsetMode:
     """The headset side of the window (module docstring). ``choices``: the panel's
-    (resolution scale, depth, mirror, turning). Not entered until :meth:`enter`."""
+    (resolution scale, depth, mirror, turning); ``make_current``: makes the window's
+    context current again (after the runtime's calls). Not entered until :meth:`enter`."""
 
-    def __init__(self, ctx: moderngl.Context, choices: HeadsetChoices):
-        self.ctx = ctx
+    def __init__(self, ctx: moderngl.Context, choices: HeadsetChoices, make_current: Callable[[], None]):
+        self.ctx, self.make_current = ctx, make_current
         self.choices = replace(choices)
         self.session: HeadsetSession | None = None
         self.actions: ControllerActions | None = None
@@ -183,7 +185,8 @@ class HeadsetMode:
         self.room, self.stats, self.locomotion, self.last_shot = None, HeadsetStats(), Locomotion(), None
         try:
             # Depth swapchains wherever the runtime takes depth, so the panel's toggle acts at once.
-            self.session = HeadsetSession(self.ctx, scale=self.choices.scale, depth=True)
+            self.session = HeadsetSession(self.ctx, scale=self.choices.scale, depth=True,
+                                          make_current=self.make_current)
             try:
                 self.actions = ControllerActions.create(self.session.runtime.instance)
                 self.actions.attach(self.session.session)

@@ -150,7 +150,8 @@ class WindowState:
             self.scenes = self._made_here(SceneOpener(options.source, window_fits(self.ctx)), "close")
             self.side_panel = self._made_here(SidePanel(self.panel, Remembered()), "close")  # a drag of its edge
             #: The headset (an OpenXR session on this window's context, once entered).
-            self.headset = self._made_here(HeadsetMode(self.ctx, options.headset), "close")
+            self.headset = self._made_here(HeadsetMode(self.ctx, options.headset, self.window.make_current),
+                                           "close")
             self.frame_index = 0
             self.loaded: LoadedScene | None = None
             self.view: ViewControl | None = None

@@ -28,7 +28,7 @@ import contextlib
 import ctypes
 import os
 import sys
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass
 from typing import Literal
 
@@ -231,8 +231,12 @@ class HeadsetSession:
     (one line) where no session can be made; after that, nothing raises: see the module
     docstring."""
 
-    def __init__(self, ctx: moderngl.Context, *, scale: float = 1.0, depth: bool = True):
+    def __init__(self, ctx: moderngl.Context, *, scale: float = 1.0, depth: bool = True,
+                 make_current: Callable[[], None] | None = None):
         self.ctx = ctx
+        #: Makes this context current again after each call into the runtime: SteamVR may
+        #: switch the current context (None: nothing to do, e.g. a headless context).
+        self.make_current = make_current or (lambda: None)
         self.binding = context_binding()
         self.runtime = XrRuntime(self.binding, depth=depth)
         xr = self.xr = self.runtime.xr
@@ -371,6 +375,7 @@ class HeadsetSession:
             valid = xr.ViewStateFlags.ORIENTATION_VALID_BIT | xr.ViewStateFlags.POSITION_VALID_BIT
             if (view_state.view_state_flags & valid) == valid and len(located) >= 2:
                 views = tuple((pose_of(view.pose), fov_of(view.fov)) for view in located[:2])
+            self._took_back()
         except xr.ResultException as exc:
             self._lose(error_line(exc, xr, "waiting for the headset's frame"))
             return None
@@ -384,6 +389,7 @@ class HeadsetSession:
         try:
             colour = [chain.acquire() for chain in self.colour]
             depth = [chain.acquire() for chain in self.depth]
+            self._took_back()
         except self.xr.ResultException as exc:
             self._release_images()
             self._lose(error_line(exc, self.xr, "acquiring the headset's images"))
@@ -428,10 +434,17 @@ class HeadsetSession:
             xr.end_frame(self.session, xr.FrameEndInfo(
                 display_time=frame.display_time, environment_blend_mode=xr.EnvironmentBlendMode.OPAQUE,
                 layers=layers))
+            self._took_back()
             return bool(layers)
         except xr.ResultException as exc:
             self._lose(error_line(exc, xr, "submitting the headset's frame"))
             return False
+
+    def _took_back(self) -> None:
+        """The context back after the runtime had it: current again, and without the GL
+        error SteamVR leaves set behind xrEndFrame (moderngl would take it for its own)."""
+        self.make_current()
+        _ = self.ctx.error  # reading it clears it
 
     def destroy(self) -> None:
         """Frees everything, last made first; the session is then over. Idempotent."""
