@@ -162,7 +162,8 @@ class HeadsetMode:
         self.frame: HeadsetFrame | None = None
         self.eyes: HeadsetEyes | None = None
         self.stats = HeadsetStats()
-        self.capture_asked: str | Path | bool = False
+        #: Read the next frame's eyes back (a screenshot's): :attr:`last_shot`.
+        self.capture_asked = False
         self.last_shot: EyeShot | None = None
         self._passes = StereoPasses(ctx)
         self._mirror: FloatTarget | None = None

@@ -385,6 +385,8 @@ class HeadsetSession:
     def acquire(self) -> tuple[list, list] | None:
         """Each eye's colour target and depth image (empty list: no depth) for this frame,
         or None when an image did not come (the frame is then ended with no layer)."""
+        if self.session is None:  # lost since the frame began
+            return None
         self.ctx.disable_direct(GL_FRAMEBUFFER_SRGB)  # display values stored as they are (module docstring)
         try:
             colour = [chain.acquire() for chain in self.colour]
@@ -412,6 +414,8 @@ class HeadsetSession:
         ``1 - NEAR_METRES / z``, an infinite far plane), else with none. Returns whether
         a layer went."""
         xr = self.xr
+        if self.session is None:  # lost since the frame began: nothing to end
+            return False
         try:
             self._release_images()
             layers = []

@@ -159,6 +159,8 @@ def test_a_lost_session_leaves_the_window_drawing_says_so_and_enter_tries_again(
     assert result["active_after_loss"] is False and result["desktop_frames_after_loss"] >= 1, result
     assert result["shows_mirror"] is False, result
     assert result["submitted_again"] >= 2, result
+    assert result["acquire_lost"]["active"] is False, result
+    assert result["acquire_lost"]["error"].startswith("error: the headset session was lost"), result
     assert result["minimised"] == {"submitted": 3, "desktop": 0}, result
 
 
@@ -190,6 +192,16 @@ try:
     while viewer.headset.stats.ended < 2:
         viewer.frame()
     result["submitted_again"] = viewer.headset.stats.ended
+    # Lost while acquiring a swapchain image, in the middle of drawing the eyes.
+    real_acquire = xr.acquire_swapchain_image
+    xr.acquire_swapchain_image = lost
+    viewer.frame()
+    xr.acquire_swapchain_image = real_acquire
+    viewer.frame()
+    result["acquire_lost"] = {"error": viewer.panel.error, "active": viewer.headset.active}
+    assert viewer.headset.enter().kind == "done"
+    while viewer.headset.stats.ended < 2:
+        viewer.frame()
     # Minimised (GLFW's null platform cannot iconify: its framebuffer is made empty), the
     # headset goes on and the desktop draws nothing.
     viewer.window.framebuffer_size = lambda: (0, 0)
