@@ -51,7 +51,7 @@ COLOUR_FORMATS = {GL_SRGB8_ALPHA8: "GL_SRGB8_ALPHA8", GL_SRGB8: "GL_SRGB8"}
 #: a runtime that stalls longer than a few frames is not going to give it back.
 IMAGE_WAIT_NS = 1_000_000_000
 #: Where the depth layer's projection starts, in metres: depth is stored as
-#: 1 - NEAR_METRES / z (an infinite far plane), see ``xr.depth``.
+#: 1 - NEAR_METRES / z (an infinite far plane), see ``xr.eyes.depth_values``.
 NEAR_METRES = 0.05
 
 SessionPhase = Literal["starting", "running", "stopping", "over"]
