@@ -2,7 +2,7 @@
 simulated headset, ``xr_kit``): the window enters the headset through the section's
 buttons, mirrors the eyes on the desktop, leaves, and draws its own view again as it
 was; an Enter that fails leaves the desktop drawing and says why in the panel, in one
-line.
+line (in this process: no session is made).
 
 Each session runs in a child process (``xr_kit.run_child``: this Monado closes file
 descriptor 0), a window on GLFW's null platform with an EGL context (no X server). The
@@ -19,10 +19,18 @@ eyes; the mirror of both eyes side by side is 4:1.5 (8:3), which letterboxes int
 from __future__ import annotations
 
 import json
+import sys
 
+import numpy as np
 import pytest
 import xr_kit
-from appkit import PANEL_HEIGHT, PANEL_WIDTH, click_choice, text_past_the_panel
+from appkit import (
+    PANEL_HEIGHT,
+    PANEL_WIDTH,
+    click_choice,
+    presented,
+    text_past_the_panel,
+)
 
 from raygs_viewer.viewer.layout import MIN_PANEL_WIDTH
 from raygs_viewer.viewer.state import HeadsetChoices
@@ -115,35 +123,6 @@ finally:
 print(json.dumps(rounds))
 """
 
-#: Enter with a runtime whose library is not there, then with pyopenxr missing: no
-#: session is made either time.
-FAILING = PRELUDE + r"""
-tries = []
-try:
-    drive.frames(3)
-    drive.reveal("Headset")
-    drive.click("Headset")  # the section starts closed
-    drive.reveal("Enter headset")
-    drive.settle()
-    for blocked in (False, True):
-        if blocked:
-            sys.modules["xr"] = None  # import xr raises ImportError: pyopenxr missing
-        draws = viewer.stats.draws
-        drive.click("Enter headset")
-        said = dict(error=viewer.panel.error, active=headset.active, session=headset.session is not None)
-        drive.frames(1)  # the panel draws the error line
-        view_before = desktop()
-        viewer.view.set_fov(viewer.view.lens.fov_y_degrees * 0.8)  # a new view: the desktop draws it
-        drive.settle()
-        tries.append(dict(said, labels=drive.panel.labels(), draws=viewer.stats.draws - draws,
-                          mirror_gone=viewer.drawer.mono.stereo_image is None, fx_before=view_before["camera"][2],
-                          fx_after=viewer.camera.fx, spread=spread(presented(viewer))))
-finally:
-    close_all()
-print(json.dumps(tries))
-"""
-
-
 def test_the_section_edits_the_windows_choices_and_fits_the_narrowest_panel(open_viewer):
     """In process, with no session (Enter is never pressed): this needs no runtime."""
     viewer, drive = open_viewer(width=PANEL_WIDTH, height=3 * PANEL_HEIGHT)  # the whole panel: no scroll bar
@@ -208,13 +187,38 @@ def test_entering_and_leaving_twice_mirrors_the_eyes_then_draws_the_desktop_as_i
     assert second["mirrored"]["switched_viewport"] == [0, 0, 320, 240]
 
 
-@needs_runtime
-def test_a_failing_enter_says_why_in_one_line_and_the_desktop_draws_on(tmp_path):
+def test_a_failing_enter_says_why_in_one_line_and_the_desktop_draws_on(open_viewer, tmp_path, monkeypatch):
+    """Enter with a runtime whose library is not there, then with pyopenxr missing. No
+    session is made either time (each fails before the loader is asked), so this runs
+    in the test's own process and needs no runtime."""
     manifest = tmp_path / "broken_runtime.json"
     manifest.write_text(json.dumps({"file_format_version": "1.0.0",
                                     "runtime": {"library_path": str(tmp_path / "libmissing_openxr.so")}}))
-    missing_library, no_pyopenxr = run_script(FAILING, tmp_path, XR_RUNTIME_JSON=str(manifest))
-    for tried in (missing_library, no_pyopenxr):
+    monkeypatch.setenv("XR_RUNTIME_JSON", str(manifest))
+    viewer, drive = open_viewer(width=320, height=240)
+    headset = viewer.headset
+    drive.frames(3)
+    drive.reveal("Headset")
+    drive.click("Headset")  # the section starts closed
+    drive.reveal("Enter headset")
+    drive.settle()
+    tries = []
+    for blocked in (False, True):
+        if blocked:
+            monkeypatch.setitem(sys.modules, "xr", None)  # import xr raises ImportError: pyopenxr missing
+        draws = viewer.stats.draws
+        drive.click("Enter headset")
+        error, active, session = viewer.panel.error, headset.active, headset.session is not None
+        drive.frames(1)  # the panel draws the error line
+        fx_before = viewer.camera.fx
+        viewer.view.set_fov(viewer.view.lens.fov_y_degrees * 0.8)  # a new view: the desktop draws it
+        drive.settle()
+        tries.append({"error": error, "active": active, "session": session, "labels": drive.panel.labels(),
+                      "draws": viewer.stats.draws - draws, "mirror_gone": viewer.drawer.mono.stereo_image is None,
+                      "fx_before": fx_before, "fx_after": viewer.camera.fx,
+                      "spread": float(np.asarray(presented(viewer), float).std())})
+    missing_library, no_pyopenxr = tries
+    for tried in tries:
         error = tried["error"]
         assert error.startswith("error: ") and "\n" not in error, error
         assert error in tried["labels"]  # drawn in the panel
