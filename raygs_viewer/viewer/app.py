@@ -289,6 +289,9 @@ class Viewer(WindowState):
         ``--window-screenshot``."""
         options = self.options
         while not (self.window.should_close and self.may_close()):
+            if options.headset.enter and options.frames is None and self.window.platform == "null" \
+                    and not self.headset.active:
+                break  # an invisible window whose headset session ended has nothing left to show
             last = options.frames is not None and self._frames_done() + 1 >= options.frames
             self.captures.keep_next |= last and options.window_screenshot is not None
             self.wait_for_sort = last
@@ -314,14 +317,17 @@ class Viewer(WindowState):
         return self.headset.stats.ended
 
     def leave_headset(self) -> None:
-        """Ends the session and follows it until it is over (a scripted run's end)."""
+        """Ends the session and follows it until it is over (a scripted run's end); one
+        the runtime does not end in time is abandoned. The window then draws its own
+        view again."""
         self.headset.leave()
         for _ in range(MAX_FRAMES_TO_START):
             if not self.headset.active:
                 break
             self.panel.say(*self.headset.poll())
             time.sleep(0.01)
-        self.headset.close()
+        self.headset.abandon()
+        self.drawer.forget()
 
     def may_close(self) -> bool:
         """Whether the window, asked to close, may: not at the first ask while deletions
@@ -365,8 +371,10 @@ def run_viewer(options: ViewerOptions, progress: ProgressCallback | None = None)
     drawn); returns the exit status. Bad input found before the window opens (scene,
     cameras, screenshot path) raises UserError, so the CLI exits with status 2.
     ``progress`` follows the scene's load, before the window opens."""
-    if choose_platform(options.platform) == "null" and options.frames is None and options.platform == "auto":
-        # An invisible window that runs until killed would look like a hang.
+    if choose_platform(options.platform) == "null" and options.frames is None and options.platform == "auto" \
+            and not options.headset.enter:
+        # An invisible window that runs until killed would look like a hang (not so in a
+        # headset: it shows the scene, e.g. a headless machine streaming through WiVRn).
         raise UserError("no display (DISPLAY and WAYLAND_DISPLAY are unset): run on a desktop, or add "
                         "--frames N --screenshot shot.png for a headless capture")
     if options.screenshot is not None:

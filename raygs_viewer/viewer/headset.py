@@ -352,11 +352,16 @@ class HeadsetMode:
             return save_screenshots(shots, path=Path(path))
         return save_screenshots(shots, folder=Path(folder))
 
-    def close(self) -> None:
-        """Ends a session still open (the window is closing) and frees the GPU objects."""
+    def abandon(self) -> None:
+        """Ends a session still there at once, without waiting for the runtime (a
+        scripted run's end when the runtime does not end it, the window closing)."""
         if self.session is not None:
             self.session.destroy()
             self._ended()
+
+    def close(self) -> None:
+        """Ends a session still open (the window is closing) and frees the GPU objects."""
+        self.abandon()
         self._passes.release()
         if self._mirror is not None:
             self._mirror.release()

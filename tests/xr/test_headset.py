@@ -82,14 +82,22 @@ def test_each_eye_as_submitted_is_its_sidecar_rendered_again_to_the_bit_and_the_
     assert not np.allclose(left.center, right.center)
 
 
-def test_the_depth_layer_is_chained_and_holds_each_eyes_median_depth_and_the_mirror_the_eyes(tmp_path):
-    """In a child: a Viewer in the headset draws a frame with depth; the layer's views
-    each chain a depth info naming that eye's depth swapchain, and the depth image
-    read back equals 1 - near / z of the median-depth channel of the same eye, order
-    and colour origin (xr.eyes.depth_values, the shader's twin)."""
-    done = xr_kit.run_child(["-c", DEPTH_SCRIPT], xr_kit.runtime_env())
+@pytest.fixture(scope="module")
+def windowed():
+    """One child drives a Viewer through two sessions' worth of cases (one window and
+    one runtime start for all): :data:`DEPTH_PART`, then :data:`LOSS_PART`; returns
+    what each printed."""
+    done = xr_kit.run_child(["-c", WINDOWED], xr_kit.runtime_env())
     assert done.returncode == 0, done.stderr[-3000:]
-    result = json.loads(done.stdout.strip().splitlines()[-1])
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def test_the_depth_layer_is_chained_and_holds_each_eyes_median_depth_and_the_mirror_the_eyes(windowed):
+    """A Viewer in the headset draws a frame with depth; the layer's views each chain a
+    depth info naming that eye's depth swapchain, and the depth image read back equals
+    1 - near / z of the median-depth channel of the same eye, order and colour origin
+    (xr.eyes.depth_values, the shader's twin)."""
+    result = windowed["depth"]
     assert result["chained"] == [True, True]
     assert result["found"] > 0.2 and result["max_error"] <= 1e-6, result
     assert result["far_where_none"], result
@@ -101,18 +109,24 @@ def test_the_depth_layer_is_chained_and_holds_each_eyes_median_depth_and_the_mir
     assert states[-2:] == ["IDLE", "EXITING"] and "STOPPING" in states and result["over"], states
 
 
-DEPTH_SCRIPT = r"""
+#: The child's window, for both parts.
+WINDOW_PRELUDE = r"""
 import ctypes, json
 import numpy as np
+import xr
 from raygs_viewer.viewer.app import Viewer, load_start_scene
 from raygs_viewer.viewer.state import HeadsetChoices, ViewerOptions
 from raygs_viewer.xr.eyes import depth_values
 
-# A screenshot path makes the frames waited for (below) capture their eyes; nothing is saved here.
+# A screenshot path makes the frames waited for capture their eyes; nothing is saved here.
 options = ViewerOptions(width=160, height=120, platform="null", frames=100, screenshot="unsaved.png",
                         headset=HeadsetChoices(enter=True, depth=True))
 viewer = Viewer(options, load_start_scene(options))
-try:
+results = {}
+"""
+
+DEPTH_PART = r"""
+if True:
     assert viewer.headset.enter().kind == "done"
     while viewer.headset.stats.layered < 3:
         viewer.wait_for_sort = True  # each frame draws the order of its own view, and captures
@@ -137,22 +151,19 @@ try:
     mirror = viewer.drawer.mono.stereo_image.read(components=3, as_bytes=True)
     mirrored = bool(np.array_equal(mirror, np.concatenate(shot.images.colour, axis=1)))
     viewer.leave_headset()
-    print(json.dumps({"chained": chained, "max_error": max(errors), "found": min(found),
-                      "far_where_none": all(far), "mirrored": mirrored, "states": session.states_seen,
-                      "over": session.over}))
-finally:
-    viewer.close()
+    viewer.wait_for_sort = False
+    results["depth"] = {"chained": chained, "max_error": max(errors), "found": min(found),
+                        "far_where_none": all(far), "mirrored": mirrored, "states": session.states_seen,
+                        "over": session.over}
 """
 
 
-def test_a_lost_session_leaves_the_window_drawing_says_so_and_enter_tries_again():
+def test_a_lost_session_leaves_the_window_drawing_says_so_and_enter_tries_again(windowed):
     """The runtime answers a frame with XR_ERROR_SESSION_LOST (what an unplugged headset
     or a runtime that quit gives): the window goes on drawing its own view, the panel
     says so, and entering again runs a new session, which a minimised window keeps
     running."""
-    done = xr_kit.run_child(["-c", LOSS_SCRIPT], xr_kit.runtime_env())
-    assert done.returncode == 0, done.stderr[-3000:]
-    result = json.loads(done.stdout.strip().splitlines()[-1])
+    result = windowed["loss"]
     assert result["error"].startswith("error: the headset session was lost"), result
     assert "Enter headset tries again" in result["error"], result
     # The window drew its own view again, and shows it (not the last mirror).
@@ -164,15 +175,8 @@ def test_a_lost_session_leaves_the_window_drawing_says_so_and_enter_tries_again(
     assert result["minimised"] == {"submitted": 3, "desktop": 0}, result
 
 
-LOSS_SCRIPT = r"""
-import json
-import xr
-from raygs_viewer.viewer.app import Viewer, load_start_scene
-from raygs_viewer.viewer.state import ViewerOptions
-
-options = ViewerOptions(width=160, height=120, platform="null", frames=1000)
-viewer = Viewer(options, load_start_scene(options))
-try:
+LOSS_PART = r"""
+if True:
     assert viewer.headset.enter().kind == "done"
     while viewer.headset.stats.ended < 2:
         viewer.frame()
@@ -209,10 +213,11 @@ try:
     for _ in range(3):
         viewer.frame()
     result["minimised"] = {"submitted": viewer.headset.stats.ended - ended, "desktop": viewer.stats.draws - draws}
-    print(json.dumps(result))
-finally:
-    viewer.close()
+    results["loss"] = result
 """
+
+WINDOWED = (WINDOW_PRELUDE + "try:\n" + "\n".join("    " + line for line in (DEPTH_PART + LOSS_PART).splitlines())
+            + "\n    print(json.dumps(results))\nfinally:\n    viewer.close()\n")
 
 
 def test_the_glx_binding_under_an_x_server(tmp_path):
