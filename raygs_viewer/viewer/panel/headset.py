@@ -71,8 +71,9 @@ def _scale(headset: HeadsetMode) -> None:
 def _live_choices(headset: HeadsetMode) -> None:
     choices = headset.choices
     choices.depth = checkbox("Depth for reprojection", choices.depth,
-                             help_text="submit each eye's depth with its colour where the runtime takes it, so "
-                                       "its reprojection of a late frame follows the scene's depth")
+                             help_text="submit each eye's median depth with its colour where the runtime takes "
+                                       "it, so its reprojection of a late frame follows the scene's depth; it "
+                                       "costs several colour frames (the GPU per eye line shows how many)")
     choices.mirror = choice("mirror", choices.mirror, MIRROR_LABELS)
     tooltip("what the desktop window shows of the eyes")
     choices.turn = choice("turning", choices.turn, TURN_LABELS)
