@@ -11,8 +11,8 @@ them the state (``state``), input (``input``), the camera (``view_control``), lo
 (``side_panel``) and screenshots (``screenshots``). The parts answer with values
 (``part.Reply``: messages, requests); the window says the messages in the panel
 (``PanelState.say``) and carries out the requests (:meth:`WindowState.carry_out`). The
-loop that drives all this each frame is ``app.Viewer``'s; a headset's would drive the
-same state.
+loop that drives all this each frame is ``app.Viewer``'s, paced by the runtime while the
+window is in a headset (``headset``).
 """
 
 from __future__ import annotations
