@@ -64,7 +64,8 @@ class HeadsetStats:
     ``layered`` (with the eyes' layer), ``skipped`` (not to be rendered: the runtime's
     ``shouldRender`` false, or an image it did not give back), ``late`` (the predicted
     display time moved on by more than one and a half periods: a frame missed);
-    per frame: the app's CPU seconds outside the runtime's wait, each eye's GPU seconds,
+    per frame: the app's seconds outside the runtime's wait (``cpu``: the loop's thread's
+    CPU time; ``wall``: wall-clock, waits on the GPU included), each eye's GPU seconds,
     the runtime's display period, and the order's age in headset frames."""
 
     ended: int = 0
@@ -72,6 +73,7 @@ class HeadsetStats:
     skipped: int = 0
     late: int = 0
     cpu: deque = field(default_factory=lambda: deque(maxlen=HISTORY))
+    wall: deque = field(default_factory=lambda: deque(maxlen=HISTORY))
     gpu: deque = field(default_factory=lambda: deque(maxlen=HISTORY))
     period: float = float("nan")
     order_frames: int = 0
@@ -86,11 +88,13 @@ class HeadsetStats:
     def lines(self) -> list[str]:
         """The panel's lines."""
         cpu = np.mean(self.cpu) * 1e3 if self.cpu else float("nan")
+        wall = np.mean(self.wall) * 1e3 if self.wall else float("nan")
         gpu = np.asarray(self.gpu, float).reshape(-1, 2)
         read = gpu[np.isfinite(gpu).all(axis=1)]  # the timers' results come a few frames late
         gpu = read.mean(axis=0) * 1e3 if len(read) else (float("nan"),) * 2
         return [f"headset frames: {self.ended} submitted, {self.skipped} skipped, {self.late} late",
-                f"display period {self.period * 1e3:.1f} ms; app CPU {cpu:.1f} ms a frame",
+                f"display period {self.period * 1e3:.1f} ms; app CPU {cpu:.1f} ms a frame ({wall:.1f} ms wall) "
+                f"outside the runtime's wait",
                 f"GPU per eye: left {gpu[0]:.1f} ms, right {gpu[1]:.1f} ms",
                 f"order age: {self.order_frames} headset frame{'s' if self.order_frames != 1 else ''}"]
 
@@ -167,7 +171,7 @@ class HeadsetMode:
         self.last_shot: EyeShot | None = None
         self._passes = StereoPasses(ctx)
         self._mirror: FloatTarget | None = None
-        self._waited_at = time.perf_counter()
+        self._waited_at = (time.perf_counter(), time.thread_time())  # (wall, this thread's CPU)
 
     # -- entering and leaving -----------------------------------------------------------
     @property
@@ -238,7 +242,7 @@ class HeadsetMode:
             self.frame = None
             return None
         self.frame = frame = self.session.wait()
-        self._waited_at = time.perf_counter()
+        self._waited_at = (time.perf_counter(), time.thread_time())
         if frame is None:
             return None
         self.stats.timed(frame)
@@ -302,7 +306,9 @@ class HeadsetMode:
             self._end(self.frame, drawn=False)
 
     def _end(self, frame: HeadsetFrame, *, drawn: bool, depth: bool = False) -> None:
-        self.stats.cpu.append(time.perf_counter() - self._waited_at)
+        wall, cpu = self._waited_at
+        self.stats.wall.append(time.perf_counter() - wall)
+        self.stats.cpu.append(time.thread_time() - cpu)
         layered = self.session.submit(frame, drawn=drawn, depth=depth)
         self.stats.ended += 1
         self.stats.layered += layered

@@ -74,3 +74,14 @@ def test_a_frame_predicted_more_than_one_and_a_half_periods_on_is_late():
     for time_ns in (0, 12_500_000, 25_000_000, 62_500_000, 75_000_000):
         stats.timed(HeadsetFrame(time_ns, period, True, None))
     assert stats.late == 1 and stats.period == period
+
+
+def test_the_statistics_lines_average_what_was_measured_and_skip_timers_not_yet_read():
+    stats = HeadsetStats(ended=7, skipped=1, late=2, period=0.0125, order_frames=1)
+    stats.cpu.extend([0.002, 0.004])
+    stats.wall.extend([0.010, 0.020])
+    stats.gpu.extend([(float("nan"), float("nan")), (0.005, 0.007), (0.007, 0.009)])  # the first not read yet
+    assert stats.lines() == ["headset frames: 7 submitted, 1 skipped, 2 late",
+                             "display period 12.5 ms; app CPU 3.0 ms a frame (15.0 ms wall) outside the runtime's wait",
+                             "GPU per eye: left 6.0 ms, right 8.0 ms",
+                             "order age: 1 headset frame"]
