@@ -50,7 +50,7 @@ def run_child(args: list[str], env: dict[str, str], *, cwd: str | Path | None = 
     """``python args...`` in a child with standard input from /dev/null (see the module
     docstring), its output captured as text."""
     return subprocess.run([sys.executable, *args], env=env, cwd=cwd or ROOT, stdin=subprocess.DEVNULL,
-                          capture_output=True, text=True, timeout=HANG_SECONDS)
+                          capture_output=True, text=True, timeout=HANG_SECONDS, check=False)
 
 
 def run_cli(args: list[str], env: dict[str, str], **options) -> subprocess.CompletedProcess:
@@ -67,7 +67,7 @@ print("ok")
 """
 
 
-@functools.lru_cache(maxsize=None)
+@functools.cache
 def skip_reason() -> str | None:
     """None when a session can run here, else why not (one line)."""
     if not MONADO_MANIFEST.is_file():

@@ -93,8 +93,8 @@ class HeadsetStats:
         read = gpu[np.isfinite(gpu).all(axis=1)]  # the timers' results come a few frames late
         gpu = read.mean(axis=0) * 1e3 if len(read) else (float("nan"),) * 2
         return [f"headset frames: {self.ended} submitted, {self.skipped} skipped, {self.late} late",
-                f"display period {self.period * 1e3:.1f} ms; app CPU {cpu:.1f} ms a frame ({wall:.1f} ms wall) "
-                f"outside the runtime's wait",
+                (f"display period {self.period * 1e3:.1f} ms; app CPU {cpu:.1f} ms a frame ({wall:.1f} ms wall) "
+                 f"outside the runtime's wait"),
                 f"GPU per eye: left {gpu[0]:.1f} ms, right {gpu[1]:.1f} ms",
                 f"order age: {self.order_frames} headset frame{'s' if self.order_frames != 1 else ''}"]
 

@@ -273,7 +273,7 @@ def bad_case(capsys, tmp_path) -> str:
     before any session or swapchain is made, so file descriptor 0 is safe); asserts exit
     2, one ``error:`` line, nothing written; returns the line."""
     before = listing(tmp_path)
-    code, out, err = run_cli(capsys, "view", "--xr", "--frames", "2", "--screenshot", tmp_path / "shot.png", *WINDOW)
+    code, _, err = run_cli(capsys, "view", "--xr", "--frames", "2", "--screenshot", tmp_path / "shot.png", *WINDOW)
     assert listing(tmp_path) == before
     return assert_one_line_error(code, err)
 

@@ -14,7 +14,16 @@ from __future__ import annotations
 from imgui_bundle import imgui
 
 from raygs_viewer.viewer.headset import HeadsetMode
-from raygs_viewer.viewer.panel.widgets import button, checkbox, choice, header, line, note, slider, tooltip
+from raygs_viewer.viewer.panel.widgets import (
+    button,
+    checkbox,
+    choice,
+    header,
+    line,
+    note,
+    slider,
+    tooltip,
+)
 from raygs_viewer.viewer.part import EnterHeadset, LeaveHeadset, RecentreHeadset, Reply
 
 #: The resolution scale's range: a fraction of the runtime's recommended per-eye size
