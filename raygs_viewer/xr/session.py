@@ -127,8 +127,8 @@ class Swapchain:
             self.targets = [FloatTarget.wrapping(ctx, ctx.external_texture(name, size, 4, 0, "f1"))
                             for name in self.names]
             #: Each image as RGBA8 (a texture view: the same memory, read without sRGB
-            #: decoding), for the desktop's mirror (:func:`_plain_view`).
-            self.plain = [ctx.external_texture(_plain_view(name), size, 4, 0, "f1") for name in self.names]
+            #: decoding), for the desktop's mirror (:func:`plain_view`).
+            self.plain = [ctx.external_texture(plain_view(ctx, name), size, 4, 0, "f1") for name in self.names]
         self.held: int | None = None
 
     def acquire(self):
@@ -156,8 +156,9 @@ class Swapchain:
     def destroy(self) -> None:
         for target in self.targets:
             target.release()
-        for view in getattr(self, "plain", ()):
-            _delete_texture(view.glo)
+        for view, image in zip(getattr(self, "plain", ()), self.names):
+            if view.glo != image:  # a view of the image, not the image itself
+                _delete_texture(view.glo)
         self.targets, self.plain = [], []
         self.xr.destroy_swapchain(self.handle)
 
@@ -190,18 +191,23 @@ _GL_FRAMEBUFFER, _GL_DEPTH_ATTACHMENT, _GL_TEXTURE_2D = 0x8D40, 0x8D00, 0x0DE1
 _GL_DEPTH_COMPONENT, _GL_FLOAT = 0x1902, 0x1406
 
 
-def _plain_view(texture: int) -> int:
+def plain_view(ctx: moderngl.Context, texture: int) -> int:
     """A GL_RGBA8 view of an sRGB swapchain image: the desktop's mirror samples it as the
     display values it stores (as a screenshot holds them). Sampling the image itself
     would decode sRGB to linear, and ``GL_EXT_texture_sRGB_decode`` cannot stop that for
-    texelFetch, which the mirror's pass uses. Swapchain images have immutable storage,
-    which views need."""
+    texelFetch, which the mirror's pass uses. Views need immutable storage, which
+    swapchain images have where the runtime makes them with ``glTexStorage*``; where it
+    does not, the image itself (the mirror is then darker than the headset, nothing else)."""
     generate = gl_function("glGenTextures", None, [ctypes.c_int, ctypes.POINTER(ctypes.c_uint)])
     view = gl_function("glTextureView", None, [ctypes.c_uint, ctypes.c_uint, ctypes.c_uint, ctypes.c_uint,
                                                ctypes.c_uint, ctypes.c_uint, ctypes.c_uint, ctypes.c_uint])
     name = ctypes.c_uint()
     generate(1, ctypes.byref(name))
+    _ = ctx.error  # what came before is not this call's
     view(name.value, _GL_TEXTURE_2D, texture, GL_RGBA8, 0, 1, 0, 1)
+    if ctx.error != "GL_NO_ERROR":
+        _delete_texture(name.value)
+        return texture
     return name.value
 
 
