@@ -63,7 +63,7 @@ from raygs_viewer.xr.runtime import (
     active_manifest,
     manifest_problem,
 )
-from raygs_viewer.xr.session import kept_stdin
+from raygs_viewer.xr.swapchain import kept_stdin
 
 #: Headset frames the full run draws (after WARMUP_FRAMES untimed), and --quick's.
 FRAMES, QUICK_FRAMES = 30, 10

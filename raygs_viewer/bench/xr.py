@@ -60,7 +60,8 @@ from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.xr.eyes import EyeDrawer, HeadsetEyes, headset_eyes
 from raygs_viewer.xr.room import Room, midpoint, room_at_view
 from raygs_viewer.xr.runtime import EGL_EXTENSION, check_runtime, load_openxr
-from raygs_viewer.xr.session import HeadsetSession, kept_stdin
+from raygs_viewer.xr.session import HeadsetSession
+from raygs_viewer.xr.swapchain import kept_stdin
 
 DEFAULT_FRAMES, QUICK_FRAMES = 40, 8
 #: Untimed frames of each kind first: shaders compile, the targets and the runtime settle.

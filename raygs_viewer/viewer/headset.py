@@ -52,7 +52,8 @@ from raygs_viewer.xr.actions import ControllerActions
 from raygs_viewer.xr.controls import NO_HAND, Locomotion
 from raygs_viewer.xr.eyes import EyeDrawer, EyeImages, HeadsetEyes, headset_eyes
 from raygs_viewer.xr.room import Room, midpoint, room_at_view
-from raygs_viewer.xr.session import COLOUR_FORMATS, HeadsetFrame, HeadsetSession
+from raygs_viewer.xr.session import HeadsetFrame, HeadsetSession
+from raygs_viewer.xr.swapchain import COLOUR_FORMATS
 
 #: How many headset frames the statistics average over.
 HISTORY = 120

@@ -32,7 +32,8 @@ from raygs_viewer.render.gl.timing import GpuTimer
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.sort.request import Order
 from raygs_viewer.xr.room import Room, eye_camera, midpoint_camera
-from raygs_viewer.xr.session import NEAR_METRES, DepthImage, HeadsetFrame
+from raygs_viewer.xr.session import NEAR_METRES, HeadsetFrame
+from raygs_viewer.xr.swapchain import DepthImage
 
 
 @dataclass(frozen=True)

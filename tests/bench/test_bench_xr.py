@@ -65,7 +65,7 @@ def test_pyopenxr_missing_names_the_extra():
 
 def test_standard_input_closed_inside_is_put_back():
     script = ("import os\n"
-              "from raygs_viewer.xr.session import kept_stdin\n"
+              "from raygs_viewer.xr.swapchain import kept_stdin\n"
               "before = os.fstat(0).st_ino\n"
               "with kept_stdin():\n"
               "    os.close(0)\n"

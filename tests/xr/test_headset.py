@@ -364,7 +364,7 @@ def test_an_egl_context_needs_the_runtimes_egl_extension(monkeypatch, tmp_path):
 
 def test_the_colour_format_is_an_srgb_one_of_the_runtimes_list():
     from raygs_viewer.errors import UserError
-    from raygs_viewer.xr.session import (
+    from raygs_viewer.xr.swapchain import (
         GL_RGBA8,
         GL_SRGB8,
         GL_SRGB8_ALPHA8,

@@ -1,4 +1,4 @@
-"""The desktop mirror's view of a swapchain image (``xr.session.plain_view``) on a GL of
+"""The desktop mirror's view of a swapchain image (``xr.swapchain.plain_view``) on a GL of
 this process's own, no runtime: an immutable sRGB texture (as runtimes make swapchain
 images) gets an RGBA8 view that samples its stored bytes; a mutable one, which cannot
 have views, is sampled itself."""
@@ -13,7 +13,7 @@ import pytest
 
 from raygs_viewer.render.gl.context import create_headless_context
 from raygs_viewer.xr.binding import gl_function
-from raygs_viewer.xr.session import GL_SRGB8_ALPHA8, plain_view
+from raygs_viewer.xr.swapchain import GL_SRGB8_ALPHA8, plain_view
 
 STORED = 128  # the byte a screenshot holds; sRGB-decoded it would read 0.216, not 0.502
 
