@@ -65,7 +65,7 @@ from raygs_viewer.camera.path import (
 from raygs_viewer.camera.rotation import is_rotation
 from raygs_viewer.capture.image_io import check_output_path
 from raygs_viewer.capture.screenshot import MAX_SCREENSHOT_SIDE
-from raygs_viewer.capture.sidecar import ROTATION_TOLERANCE
+from raygs_viewer.capture.camera_entries import ROTATION_TOLERANCE
 from raygs_viewer.errors import UserError
 from raygs_viewer.jsonfile import JsonFields, json_text, show_json
 from raygs_viewer.files import write_atomically

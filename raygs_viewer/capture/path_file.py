@@ -73,12 +73,12 @@ from raygs_viewer.capture.document_entries import (
     reading_entry,
     stereo_entry,
 )
+from raygs_viewer.capture.camera_entries import ROTATION_TOLERANCE
 from raygs_viewer.capture.edit_file import read_edit_json
 from raygs_viewer.capture.image_io import check_output_path
 from raygs_viewer.capture.nerfstudio import NerfstudioPath, is_nerfstudio, read_nerfstudio, save_nerfstudio
 from raygs_viewer.capture.screenshot import MAX_SCREENSHOT_SIDE, with_relative_scene_path
 from raygs_viewer.capture.sidecar import (
-    ROTATION_TOLERANCE,
     SHA256_HEX,
     document_head,
     scene_mismatch_warning,

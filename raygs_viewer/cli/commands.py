@@ -15,6 +15,7 @@ import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera, frame_points
 from raygs_viewer.capture import screenshot
+from raygs_viewer.capture.camera_entries import OrderViewpoint
 from raygs_viewer.capture.channel_io import (
     CHANNEL_SUFFIXES,
     colour_channels,
@@ -26,7 +27,6 @@ from raygs_viewer.capture.channel_io import (
 from raygs_viewer.capture.edit_file import read_edit_json
 from raygs_viewer.capture.image_io import check_output_path, save_image
 from raygs_viewer.capture.sidecar import (
-    OrderViewpoint,
     Sidecar,
     load_camera_source,
     load_sidecar,
@@ -52,8 +52,8 @@ from raygs_viewer.render.gl.memory import scene_fits
 from raygs_viewer.render.gl.renderer import GLRenderer
 from raygs_viewer.render.gl.stereo_frame import render_stereo_view, stereo_order
 from raygs_viewer.render.gl.storage import gpu_bytes
-from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.lod_view import OpenedScene, open_scene
+from raygs_viewer.render.reference import render_reference
 from raygs_viewer.render.setting_info import setting_parts
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.render.sorting import exact_order, open_sorter
@@ -65,11 +65,11 @@ from raygs_viewer.scene.io import (
     format_description,
     load_scene,
 )
-from raygs_viewer.scene.source import DEMO, SceneSource
 from raygs_viewer.scene.lod_file import lod_summary
 from raygs_viewer.scene.model import Scene
-from raygs_viewer.sort.depth import DepthSorter
+from raygs_viewer.scene.source import DEMO, SceneSource
 from raygs_viewer.sort.deleted import DeletedRows
+from raygs_viewer.sort.depth import DepthSorter
 from raygs_viewer.sort.lod_choice import LodChoice
 
 #: The view options that resize a camera instead of choosing one: with --sidecar they

@@ -20,7 +20,7 @@ the horizon) carry the room along (:func:`follow_desktop`).
 A screenshot in the headset saves each eye exactly as submitted, read back from its
 swapchain image before release (``NAME-left.png``, ``NAME-right.png``), each with a
 sidecar holding that eye's camera and where its order was sorted from
-(``capture.sidecar.OrderViewpoint``), so ``render --sidecar`` reproduces it to the bit.
+(``capture.camera_entries.OrderViewpoint``), so ``render --sidecar`` reproduces it to the bit.
 """
 
 from __future__ import annotations
@@ -36,8 +36,9 @@ import numpy as np
 
 from raygs_viewer.camera.lens import letterbox
 from raygs_viewer.camera.pinhole import Camera
+from raygs_viewer.capture.camera_entries import OrderViewpoint
 from raygs_viewer.capture.screenshot import save_screenshots
-from raygs_viewer.capture.sidecar import OrderViewpoint, build_sidecar
+from raygs_viewer.capture.sidecar import build_sidecar
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.gl.mono_frame import Viewport
 from raygs_viewer.render.gl.renderer import GLRenderer

@@ -28,14 +28,10 @@ from testkit import (
 
 from raygs_viewer.camera.pinhole import Camera, look_at
 from raygs_viewer.camera.stereo import StereoRig, StereoView
+from raygs_viewer.capture.camera_entries import OrderViewpoint, viewpoint_entry
 from raygs_viewer.capture.image_io import encode_image
 from raygs_viewer.capture.screenshot import render_tiled, save_screenshot
-from raygs_viewer.capture.sidecar import (
-    VIEWPOINT_SIDECAR_VERSION,
-    OrderViewpoint,
-    load_sidecar,
-    viewpoint_entry,
-)
+from raygs_viewer.capture.sidecar import VIEWPOINT_SIDECAR_VERSION, load_sidecar
 from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.sort.depth import DepthSorter
 
