@@ -41,13 +41,15 @@ from raygs_viewer.bench.xr import (
     WARMUP_FRAMES,
     HeadsetFrames,
     HeadsetSummary,
+    summarize,
+)
+from raygs_viewer.bench.xr_session import (
     SessionFacts,
     end_session,
     format_name,
     headset_context,
     session_facts,
     start_session,
-    summarize,
 )
 from raygs_viewer.errors import UserError, one_line
 from raygs_viewer.render.gl.context import context_description
