@@ -11,27 +11,26 @@ for ``--window-screenshot``.
 
 from __future__ import annotations
 
-import time
 from pathlib import Path
 
 import numpy as np
 from imgui_bundle import imgui
 
-from raygs_viewer.camera.navigation import UP_AXES
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.capture.image_io import check_output_path, save_image
 from raygs_viewer.capture.screenshot import check_screenshot_path
 from raygs_viewer.capture.sidecar import load_camera_source
-from raygs_viewer.errors import UserError, one_line
+from raygs_viewer.errors import UserError
 from raygs_viewer.photos.evaluate import evaluation_settings, render_view
 from raygs_viewer.render.gl.context import context_description
 from raygs_viewer.render.lod_view import lod_settings_given
 from raygs_viewer.scene.loader import LoadedScene, load_now
 from raygs_viewer.scene.progress import ProgressCallback
 from raygs_viewer.sort.request import SortResult
-from raygs_viewer.viewer.drawing import SortAsked, order_for, request_sort
+from raygs_viewer.viewer.drawing import SortAsked, request_sort
 from raygs_viewer.viewer.frame import Frame
 from raygs_viewer.viewer.headset import mirror_framing
+from raygs_viewer.viewer.headset_steps import HeadsetSteps
 from raygs_viewer.viewer.lod_window import first_levels, lod_request, reading
 from raygs_viewer.viewer.overlay import draw_split_overlay
 from raygs_viewer.viewer.panel_sections import Draft, panel_sections
@@ -48,16 +47,11 @@ from raygs_viewer.viewer.screenshots import (
 from raygs_viewer.viewer.state import ViewerOptions, failed, mended
 from raygs_viewer.viewer.stats import summary
 from raygs_viewer.viewer.window import choose_platform
-from raygs_viewer.viewer.window_state import WindowState
 from raygs_viewer.xr.eyes import HeadsetEyes
 from raygs_viewer.xr.runtime import check_runtime
 
-#: Window frames a scripted headset run waits for the session to start (and to end):
-#: the runtime takes a few; this many is a runtime that is not going to.
-MAX_FRAMES_TO_START = 600
 
-
-class Viewer(WindowState):
+class Viewer(HeadsetSteps):
     """The desktop window: ``frame()`` runs one iteration of the loop; ``run()`` loops
     until the window closes or ``options.frames`` are drawn (see ``WindowState`` for
     what it holds and its factories)."""
@@ -92,7 +86,7 @@ class Viewer(WindowState):
         self.frame_index += 1
         self.window.poll_events()
         self.take_loaded()
-        self._follow_headset()
+        self.follow_headset()
         width, height = self.window.framebuffer_size()
         if width <= 0 or height <= 0:  # minimised: nothing to show
             if self.headset.running:  # the headset goes on: the runtime paces the loop
@@ -110,7 +104,7 @@ class Viewer(WindowState):
         reply = self.side_panel.draw(panel_sections(self, draft))
         self.settings = draft.settings
         self.answer(reply)
-        eyes = self._wait_for_headset(dt)
+        eyes = self.wait_for_headset(dt)
         frame, result, asked = self._make_frame(eyes)
         scene, pointing = self.scene_view(), self.pointing()
         self.overlay_rects = {} if not frame.split else draw_split_overlay(
@@ -122,7 +116,7 @@ class Viewer(WindowState):
         self.feedback.draw(left, 10.0, width_shown - left - 10.0)
         imgui.render()
         if eyes is not None:
-            self._draw_headset(frame, result, asked)
+            self.draw_headset(frame, result, asked)
         else:
             self.headset.submit_empty()  # a headset frame waited for with no eyes located: ended, empty
             self._draw(frame, result, asked)
@@ -153,43 +147,14 @@ class Viewer(WindowState):
         self.view.advance(dt, self.options.navigation.turntable)
         self.camera_path.follow(self.view, self.stats.last_frame_time)
 
-    def _follow_headset(self) -> None:
-        """The headset's news (a session that began, ended or was lost), and the window's
-        vsync: off while the runtime paces the loop, as asked otherwise."""
-        said = self.headset.poll()
-        self.panel.say(*said)
-        if said and not self.headset.active:
-            self.drawer.forget()  # the desktop draws its own view again
-        vsync = self.options.vsync and not self.headset.running
-        if self.window.vsync != vsync:
-            self.window.vsync = vsync
-
-    def _wait_for_headset(self, dt: float) -> HeadsetEyes | None:
-        """A running headset's next frame (its wait paces the loop) and its eyes, placed
-        by the desktop view, the stereo rig's scale and the controllers (None: no
-        headset frame to draw this time)."""
-        if not self.headset.running:
-            return None
-        area = self.view_area()
-        # A minimised window has no view: the room stays where the last one put it.
-        desktop = self.view.camera(area, None).camera if min(area[2:]) > 0 else self.headset.desktop
-        up = np.asarray(UP_AXES[self.view.navigator.up], np.float64)
-        # A scripted run's screenshot: its last frame's eyes, and the first drawn until then
-        # (a last frame the runtime does not show leaves the one before it).
-        scripted = self.options.screenshot is not None and self.options.frames is not None and (
-            self.wait_for_sort or self.headset.last_shot is None)
-        self.headset.capture_asked = self.captures.requested or scripted
-        return self.headset.wait(desktop or self.view.camera((0, 0, 64, 64), None).camera, up,
-                                 self.stereo.rig.scene_scale, dt)
-
     def _headset_unseen(self, dt: float) -> None:
         """A headset frame while the window is minimised: waited for, drawn and submitted,
         with nothing shown on the desktop."""
-        eyes = self._wait_for_headset(dt)
+        eyes = self.wait_for_headset(dt)
         if eyes is None:
             self.headset.submit_empty()
             return
-        self._draw_headset(*self._make_frame(eyes))
+        self.draw_headset(*self._make_frame(eyes))
 
     def _make_frame(self, eyes: HeadsetEyes | None = None) -> tuple[Frame, SortResult | None, SortAsked]:
         """Step 5 of :meth:`frame`: the frame, and its sort asked for (the newest result
@@ -227,23 +192,6 @@ class Viewer(WindowState):
             # panel's settings over the dataset's background, so the two measure one PSNR.
             lambda photo_view, dataset: render_view(self.scene.renderer, self.scene.direct_sorter, photo_view,
                                                     evaluation_settings(self.settings, dataset)))))
-
-    def _draw_headset(self, frame: Frame, result: SortResult | None, asked: SortAsked) -> None:
-        """Step 7 of :meth:`frame` in the headset: both eyes drawn and submitted, the
-        desktop shows them as submitted."""
-        order = order_for({} if result is None else result.orders, self.settings.sort_key)
-        age = asked.serial - (0 if result is None else result.serial)
-        # The headset shows the scene (as its screenshots and their sidecars do): the
-        # selection's tint is an editing aid of the desktop view, which sets it again.
-        self.scene.renderer.set_selection(None)
-        try:
-            mirror = self.headset.draw(self.scene.renderer, self.settings, order, order_age=age)
-        except UserError as exc:
-            self.panel.say(failed(one_line(exc), source="draw"))
-            return
-        self.panel.say(mended("draw"))
-        if mirror is not None:
-            self.drawer.mono.drawn(("headset", self.frame_index), mirror)
 
     def capture_window(self, overlay: bool = True) -> np.ndarray:
         """(H, W, 3) uint8, top row first: the window as shown, panel included;
@@ -292,7 +240,7 @@ class Viewer(WindowState):
             if options.headset.enter and options.frames is None and self.window.platform == "null" \
                     and not self.headset.active:
                 break  # an invisible window whose headset session ended has nothing left to show
-            last = options.frames is not None and self._frames_done() + 1 >= options.frames
+            last = options.frames is not None and self.frames_done() + 1 >= options.frames
             self.captures.keep_next |= last and options.window_screenshot is not None
             self.wait_for_sort = last
             if last:  # a scripted run ends on every level of a streamed SOG its settings want
@@ -302,32 +250,6 @@ class Viewer(WindowState):
             self.frame()
             if last:
                 break
-
-    def _frames_done(self) -> int:
-        """The frames a scripted run has drawn: the window's, or with ``--xr`` the headset
-        frames submitted (a session that is over, or never runs, is an error)."""
-        if not self.options.headset.enter:
-            return self.frame_index
-        if not self.headset.active:
-            said = self.panel.error or "the headset session ended"
-            raise UserError(f"{said} after {self.headset.stats.ended} of {self.options.frames} headset frames")
-        if not self.headset.running and self.frame_index > MAX_FRAMES_TO_START:
-            raise UserError(f"the headset session did not start within {MAX_FRAMES_TO_START} frames "
-                            f"(it is {self.headset.session.state})")
-        return self.headset.stats.ended
-
-    def leave_headset(self) -> None:
-        """Ends the session and follows it until it is over (a scripted run's end); one
-        the runtime does not end in time is abandoned. The window then draws its own
-        view again."""
-        self.headset.leave()
-        for _ in range(MAX_FRAMES_TO_START):
-            if not self.headset.active:
-                break
-            self.panel.say(*self.headset.poll())
-            time.sleep(0.01)
-        self.headset.abandon()
-        self.drawer.forget()
 
     def may_close(self) -> bool:
         """Whether the window, asked to close, may: not at the first ask while deletions

@@ -48,6 +48,7 @@ from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.scene.loader import LoadedScene
 from raygs_viewer.sort.request import Order
 from raygs_viewer.viewer.frame import Framing
+from raygs_viewer.viewer.part import HeadsetAction
 from raygs_viewer.viewer.state import HeadsetChoices, Message, done, failed, note
 from raygs_viewer.xr.actions import ControllerActions
 from raygs_viewer.xr.controls import NO_HAND, Locomotion
@@ -273,6 +274,12 @@ class HeadsetMode:
     def recentre(self) -> None:
         """The room goes back to the desktop view at the next frame."""
         self.room = None
+
+    def act(self, action: HeadsetAction) -> Message | None:
+        """What the Headset section's button ``action`` asks (``part.Headset``), and what it says."""
+        actions: dict[HeadsetAction, Callable[[], Message | None]] = {
+            "enter": self.enter, "leave": self.leave, "recentre": self.recentre}
+        return actions[action]()
 
     def draw(self, renderer: GLRenderer, settings: RenderSettings, order: Order, *, order_age: int
              ) -> FloatTarget | None:

@@ -17,8 +17,9 @@ each hook on its parts in the one order ``window_state.WindowState.parts`` write
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Literal, Mapping, Union
+from typing import Literal, Union
 
 import numpy as np
 
@@ -152,23 +153,19 @@ class ColourByLevel:
     on: bool
 
 
-@dataclass(frozen=True)
-class EnterHeadset:
-    """Open a headset session with the Headset section's choices (its Enter button)."""
+#: What the Headset section's buttons ask: open a session with its choices (Enter), ask
+#: the runtime to end it (Leave), put the room back at the desktop view (Recentre).
+HeadsetAction = Literal["enter", "leave", "recentre"]
 
 
 @dataclass(frozen=True)
-class LeaveHeadset:
-    """Ask the runtime to end the headset session (the Headset section's Leave button)."""
+class Headset:
+    """One of the Headset section's buttons (``HeadsetMode.act`` carries it out)."""
+
+    action: HeadsetAction
 
 
-@dataclass(frozen=True)
-class RecentreHeadset:
-    """Put the headset's room back at the desktop view (the Headset section's Recentre)."""
-
-
-Request = Union[Press, Click, FlyTo, AimAt, Converge, MeasurePoint, OpenScene, ReadAxes, ColourByLevel,
-                EnterHeadset, LeaveHeadset, RecentreHeadset]
+Request = Union[Press, Click, FlyTo, AimAt, Converge, MeasurePoint, OpenScene, ReadAxes, ColourByLevel, Headset]
 
 
 @dataclass(frozen=True)

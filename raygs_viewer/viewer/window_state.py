@@ -18,9 +18,9 @@ window is in a headset (``headset``).
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from contextlib import ExitStack
 from dataclasses import replace
-from typing import Callable
 
 import moderngl
 from imgui_bundle import imgui
@@ -43,7 +43,12 @@ from raygs_viewer.viewer.file_dialog import FileDialog
 from raygs_viewer.viewer.frame import NO_VIEWPORT, Frame
 from raygs_viewer.viewer.headset import HeadsetMode
 from raygs_viewer.viewer.input import InputHandler
-from raygs_viewer.viewer.loading import SceneOpener, load_failed, scene_title, shown_message
+from raygs_viewer.viewer.loading import (
+    SceneOpener,
+    load_failed,
+    scene_title,
+    shown_message,
+)
 from raygs_viewer.viewer.lod_window import (
     refines,
     window_fits,
@@ -55,16 +60,14 @@ from raygs_viewer.viewer.part import (
     Click,
     ColourByLevel,
     Converge,
-    EnterHeadset,
     FlyTo,
-    LeaveHeadset,
+    Headset,
     MeasurePoint,
     OpenScene,
     Part,
     Pointing,
     Press,
     ReadAxes,
-    RecentreHeadset,
     Reply,
     Request,
     SceneView,
@@ -149,9 +152,7 @@ class WindowState:
             self._made.callback(self.window.make_current)  # the context current for the releases above
             self.scenes = self._made_here(SceneOpener(options.source, window_fits(self.ctx)), "close")
             self.side_panel = self._made_here(SidePanel(self.panel, Remembered()), "close")  # a drag of its edge
-            #: The headset (an OpenXR session on this window's context, once entered).
-            self.headset = self._made_here(HeadsetMode(self.ctx, options.headset, self.window.make_current),
-                                           "close")
+            self.headset = self._made_here(HeadsetMode(self.ctx, options.headset, self.window.make_current), "close")
             self.frame_index = 0
             self.loaded: LoadedScene | None = None
             self.view: ViewControl | None = None
@@ -189,7 +190,7 @@ class WindowState:
         return None if self.shown is None else self.shown.stereo
 
     def right_settings(self) -> RenderSettings | None:
-        """The split view's right side; None when it is off (it is off in the stereo preview)."""
+        """The split view's right side; None when it is off (it is, in the stereo preview and the headset)."""
         return None if self.stereo.on or self.headset.running else self.split.right(self.settings)
 
     def view_area(self) -> Viewport:
@@ -316,12 +317,8 @@ class WindowState:
                 said = self.scenes.switch_axes(self.loaded, axes, self.edit_tool.unsaved())
             case ColourByLevel(on):
                 said = self.swap_said(self.scene.set_tint(on, self.loaded.lod), "colour by level")
-            case EnterHeadset():
-                said = self.headset.enter()
-            case LeaveHeadset():
-                self.headset.leave()
-            case RecentreHeadset():
-                self.headset.recentre()
+            case Headset(action):
+                said = self.headset.act(action)
         self.panel.say(said)
 
     def swap_said(self, swap: Swapped | str | None, action: str) -> Message | None:

@@ -24,7 +24,7 @@ from raygs_viewer.viewer.panel.widgets import (
     slider,
     tooltip,
 )
-from raygs_viewer.viewer.part import EnterHeadset, LeaveHeadset, RecentreHeadset, Reply
+from raygs_viewer.viewer.part import Headset, Reply
 
 #: The resolution scale's range: a fraction of the runtime's recommended per-eye size
 #: (``view --xr-scale`` takes the same).
@@ -36,7 +36,7 @@ TURN_LABELS = {"snap": "snap", "smooth": "smooth"}
 def draw_headset_section(headset: HeadsetMode) -> Reply:
     """Edits ``headset.choices`` (the scale while no session is open, the rest at any
     time: the headset reads them each frame); its buttons ask the window to enter,
-    leave or recentre (``part.EnterHeadset``, ``LeaveHeadset``, ``RecentreHeadset``)."""
+    leave or recentre (``part.Headset``)."""
     # Closed at first: most windows never see a headset, and the panel stays short; open
     # the first time it is drawn in the headset (``view --xr``).
     active = headset.active
@@ -48,7 +48,7 @@ def draw_headset_section(headset: HeadsetMode) -> Reply:
     recentre = None
     if active:
         imgui.same_line()
-        recentre = RecentreHeadset() if button("Recentre") else None
+        recentre = Headset("recentre") if button("Recentre") else None
         tooltip("put the scene back where the desktop view shows it, facing the way you face now")
     imgui.push_item_width(-imgui.calc_text_size("resolution scale").x - 12)  # room for the longest label
     if not active:
@@ -60,13 +60,13 @@ def draw_headset_section(headset: HeadsetMode) -> Reply:
     return Reply.of(asked, recentre)
 
 
-def _enter_or_leave(active: bool) -> EnterHeadset | LeaveHeadset | None:
+def _enter_or_leave(active: bool) -> Headset | None:
     if active:
-        return LeaveHeadset() if button("Leave headset") else None
+        return Headset("leave") if button("Leave headset") else None
     pressed = button("Enter headset")
     tooltip("open a session of the active OpenXR runtime (SteamVR, Monado, WiVRn, Quest Link, ...); the desktop "
             "then mirrors the eyes, and the panel's settings reach the headset at once")
-    return EnterHeadset() if pressed else None
+    return Headset("enter") if pressed else None
 
 
 def _scale(headset: HeadsetMode) -> None:
