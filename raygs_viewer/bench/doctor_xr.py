@@ -46,7 +46,6 @@ from raygs_viewer.bench.xr import (
 from raygs_viewer.bench.xr_session import (
     SessionFacts,
     end_session,
-    format_name,
     headset_context,
     session_facts,
     start_session,
@@ -65,7 +64,7 @@ from raygs_viewer.xr.runtime import (
     active_manifest,
     manifest_problem,
 )
-from raygs_viewer.xr.swapchain import kept_stdin
+from raygs_viewer.xr.swapchain import format_name, kept_stdin
 
 #: Headset frames the full run draws (after WARMUP_FRAMES untimed), and --quick's.
 FRAMES, QUICK_FRAMES = 30, 10

@@ -44,7 +44,6 @@ from raygs_viewer.bench.xr_session import (
     SessionFacts,
     WaitClock,
     end_session,
-    format_name,
     headset_context,
     session_facts,
     start_session,
@@ -65,7 +64,7 @@ from raygs_viewer.xr.eyes import EyeDrawer, HeadsetEyes, headset_eyes
 from raygs_viewer.xr.room import Room, midpoint, room_at_view
 from raygs_viewer.xr.runtime import check_runtime
 from raygs_viewer.xr.session import HeadsetSession
-from raygs_viewer.xr.swapchain import kept_stdin
+from raygs_viewer.xr.swapchain import format_name, kept_stdin
 
 DEFAULT_FRAMES, QUICK_FRAMES = 40, 8
 #: Untimed frames of each kind first: shaders compile, the targets and the runtime settle.

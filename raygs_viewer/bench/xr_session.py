@@ -26,21 +26,6 @@ from raygs_viewer.xr.session import HeadsetSession
 
 #: How long the runtime may take to make a session ready, and to end it.
 START_SECONDS, STOP_SECONDS = 10.0, 5.0
-#: The GL names of the swapchain formats runtimes offer (doctor lists them; others in hex).
-GL_FORMAT_NAMES = {
-    0x8058: "GL_RGBA8", 0x8C43: "GL_SRGB8_ALPHA8", 0x8051: "GL_RGB8", 0x8C41: "GL_SRGB8",
-    0x805B: "GL_RGBA16", 0x881A: "GL_RGBA16F", 0x881B: "GL_RGB16F", 0x8814: "GL_RGBA32F",
-    0x8059: "GL_RGB10_A2", 0x8C3A: "GL_R11F_G11F_B10F", 0x8D62: "GL_RGB565", 0x8229: "GL_R8",
-    0x81A5: "GL_DEPTH_COMPONENT16", 0x81A6: "GL_DEPTH_COMPONENT24", 0x8CAC: "GL_DEPTH_COMPONENT32F",
-    0x88F0: "GL_DEPTH24_STENCIL8", 0x8CAD: "GL_DEPTH32F_STENCIL8",
-}
-
-def format_name(value: int | None) -> str:
-    """A GL internal format as its name (hex where unknown; "none" for None)."""
-    return "none" if value is None else GL_FORMAT_NAMES.get(int(value), f"0x{int(value):04x}")
-
-
-
 class WaitClock:
     """pyopenxr's module as a session sees it (``HeadsetSession.xr``), with ``xrWaitFrame``
     timed: every other name passes through; :attr:`waited` is the seconds of the last

@@ -55,7 +55,7 @@ from raygs_viewer.xr.controls import NO_HAND, Locomotion
 from raygs_viewer.xr.eyes import EyeDrawer, EyeImages, HeadsetEyes, headset_eyes
 from raygs_viewer.xr.room import Room, midpoint, room_at_view
 from raygs_viewer.xr.session import HeadsetFrame, HeadsetSession
-from raygs_viewer.xr.swapchain import COLOUR_FORMATS
+from raygs_viewer.xr.swapchain import format_name
 
 #: How many headset frames the statistics average over.
 HISTORY = 120
@@ -340,7 +340,7 @@ class HeadsetMode:
         width, height = session.sizes[0]
         depth = "with depth" if self.choices.depth and session.depth else "no depth"
         return (f"xr: {session.info.describe()}, {width}x{height} per eye ({session.binding.upper()}, "
-                f"{COLOUR_FORMATS[session.format]}, {depth}), {stats.ended} frames submitted, "
+                f"{format_name(session.format)}, {depth}), {stats.ended} frames submitted, "
                 f"{stats.skipped} without a layer, {stats.late} late")
 
     # -- screenshots --------------------------------------------------------------------------

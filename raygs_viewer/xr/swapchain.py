@@ -30,7 +30,15 @@ GL_DEPTH_COMPONENT32F = 0x8CAC
 GL_FRAMEBUFFER_SRGB = 0x8DB9
 #: The colour formats this viewer draws into, best first: sRGB ones store the display
 #: values as they are (see the module docstring).
-COLOUR_FORMATS = {GL_SRGB8_ALPHA8: "GL_SRGB8_ALPHA8", GL_SRGB8: "GL_SRGB8"}
+COLOUR_FORMATS = (GL_SRGB8_ALPHA8, GL_SRGB8)
+#: The GL names of the swapchain formats runtimes offer (others are named in hex).
+GL_FORMAT_NAMES = {
+    0x8058: "GL_RGBA8", 0x8C43: "GL_SRGB8_ALPHA8", 0x8051: "GL_RGB8", 0x8C41: "GL_SRGB8",
+    0x805B: "GL_RGBA16", 0x881A: "GL_RGBA16F", 0x881B: "GL_RGB16F", 0x8814: "GL_RGBA32F",
+    0x8059: "GL_RGB10_A2", 0x8C3A: "GL_R11F_G11F_B10F", 0x8D62: "GL_RGB565", 0x8229: "GL_R8",
+    0x81A5: "GL_DEPTH_COMPONENT16", 0x81A6: "GL_DEPTH_COMPONENT24", 0x8CAC: "GL_DEPTH_COMPONENT32F",
+    0x88F0: "GL_DEPTH24_STENCIL8", 0x8CAD: "GL_DEPTH32F_STENCIL8",
+}
 #: Nanoseconds the acquire of a swapchain image may wait before the frame is skipped:
 #: a runtime that stalls longer than a few frames is not going to give it back.
 IMAGE_WAIT_NS = 1_000_000_000
@@ -54,13 +62,18 @@ def kept_stdin() -> Iterator[None]:
             os.close(saved)
 
 
+def format_name(value: int | None) -> str:
+    """A GL internal format as its name (hex where unknown; "none" for None)."""
+    return "none" if value is None else GL_FORMAT_NAMES.get(int(value), f"0x{int(value):04x}")
+
+
 def choose_format(offered: list[int] | tuple[int, ...]) -> int:
     """The colour format of the eyes' swapchains among the runtime's ``offered`` ones,
     or a UserError naming what it offers instead."""
     for wanted in COLOUR_FORMATS:
         if wanted in offered:
             return wanted
-    listed = ", ".join(hex(value) for value in offered) or "none"
+    listed = ", ".join(format_name(value) for value in offered) or "none"
     raise UserError(f"the OpenXR runtime offers no sRGB colour swapchain (GL_SRGB8_ALPHA8 or GL_SRGB8; it offers "
                     f"{listed})")
 

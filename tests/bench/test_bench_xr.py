@@ -18,7 +18,8 @@ from testkit import assert_one_line_error
 
 from raygs_viewer.bench import xr as xr_bench
 from raygs_viewer.bench.xr import HeadsetTimes, summarize
-from raygs_viewer.bench.xr_session import WaitClock, format_name
+from raygs_viewer.bench.xr_session import WaitClock
+from raygs_viewer.xr.swapchain import format_name
 
 needs_runtime = pytest.mark.skipif(xr_kit.skip_reason() is not None, reason=str(xr_kit.skip_reason()))
 VALUE = re.compile(r"^xr (\S+) (\S+) (\S+)$", re.MULTILINE)
