@@ -14,6 +14,8 @@
 // PER_PIXEL 1 (fragment lists, fragment_lists.glsl): no colour output; the fragment
 // is counted, or stored with its t* in its pixel's list. PER_PIXEL 2 (a k-buffer,
 // kbuffer.glsl): the fragment enters its pixel's window of K, through framebuffer fetch.
+// WEIGHTS (render/gl/weighing.py), front to back: each fragment's weight T alpha raises
+// its gaussian's in a storage buffer (the fragment lists' resolve does it for them).
 // Included first: an #extension directive must precede all other code.
 #if FRONT_TO_BACK || PER_PIXEL == 2
 #extension GL_EXT_shader_framebuffer_fetch : require
@@ -25,6 +27,12 @@ uniform float u_p_min;
 #if PER_PIXEL
 flat in uint v_index;
 flat in uint v_rank;
+#elif WEIGHTS && FRONT_TO_BACK
+// Each fragment of the pixels weighed raises its gaussian's weight to T alpha
+// (render/gl/weighing.py: the global order's weights through framebuffer fetch).
+flat in uint v_index;
+layout(std430, binding = 16) buffer Weights { uint weights[]; };
+uniform sampler2D u_inside;  // the pixels weighed (> 0.5), in the target's pixels
 #endif
 #if PER_PIXEL == 1
 #include "fragment_lists.glsl"
@@ -72,10 +80,15 @@ void emit_geometry(vec3 rgb, float alpha, float t, float z, vec3 normal) {
     if (so_far.a < -0.5) discard;
     float transmittance = 1.0 - so_far.a;
     float next = transmittance * (1.0 - alpha);
-    if (next < MIN_TRANSMITTANCE) {
+    if (CUTOFF && next < MIN_TRANSMITTANCE) {
         frag_color = vec4(so_far.rgb, so_far.a - 2.0);
         return;
     }
+#if WEIGHTS
+    if (texelFetch(u_inside, ivec2(gl_FragCoord.xy), 0).r > 0.5) {
+        atomicMax(weights[v_index], floatBitsToUint(transmittance * alpha));
+    }
+#endif
     frag_color = vec4(so_far.rgb + transmittance * alpha * rgb, 1.0 - next);
 #else
     frag_color = vec4(rgb * alpha, alpha);

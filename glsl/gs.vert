@@ -20,6 +20,8 @@ flat out vec4 v_normal_depth;  // the shortest axis, and the centre's camera-spa
 invariant gl_Position;
 flat out uint v_index;
 flat out uint v_rank;
+#elif WEIGHTS
+flat out uint v_index;       // the gaussian's scene index: the weight's slot (render/gl/weighing.py)
 #endif
 
 void main() {
@@ -29,6 +31,9 @@ void main() {
     Splat s = fetch_splat(v_index);
 #else
     Splat s = this_instance_splat();
+#if WEIGHTS
+    v_index = this_instance_index();
+#endif
 #endif
     v_conic_opacity = s.axis1_opacity;
     v_color = s.color.rgb;

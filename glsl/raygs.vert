@@ -10,6 +10,9 @@ invariant gl_Position;
 flat out uint v_index;       // the gaussian's scene index: its record, and the tie-break
 flat out uint v_rank;        // its place in the global front-to-back order
 #endif
+#if WEIGHTS && !PER_PIXEL
+flat out uint v_index;       // the gaussian's scene index: the weight's slot (render/gl/weighing.py)
+#endif
 #if PER_PIXEL || GEOMETRY
 out vec3 v_point;            // the quad point in camera space, for t* (section 11)
 #endif
@@ -33,6 +36,9 @@ void main() {
     Splat s = fetch_splat(v_index);
 #else
     Splat s = this_instance_splat();
+#endif
+#if WEIGHTS && !PER_PIXEL
+    v_index = this_instance_index();
 #endif
 #if PER_PIXEL || GEOMETRY
     v_point = vec3(0.0);

@@ -18,6 +18,7 @@ are those of the 1 x 1 sample image, which ``supersample`` 1 draws).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
+from typing import Iterator
 
 import numpy as np
 
@@ -54,13 +55,23 @@ def max_weights(scene: Scene, camera: Camera, settings: RenderSettings, order: n
     the global ``order`` ((M,) scene rows, back to front, as ``reference.global_order``
     gives; rows left out of it, such as deleted ones, weigh 0). UserError past
     :data:`MAX_FRAGMENTS` fragments."""
+    weights = np.zeros(scene.count)
+    for _ in weigh_bands(scene, camera, settings, order, inside, weights):
+        pass
+    return weights
+
+
+def weigh_bands(scene: Scene, camera: Camera, settings: RenderSettings, order: np.ndarray, inside: np.ndarray,
+                weights: np.ndarray) -> Iterator[tuple[int, int]]:
+    """:func:`max_weights` a band of pixel rows at a time: raises ``weights`` ((N,)
+    float64, zeros to begin with) band by band, yielding (rows weighed, rows to weigh)
+    after each (a caller may stop between bands)."""
     inside = np.asarray(inside, bool)
     if inside.shape != (camera.height, camera.width):
         raise ValueError(f"inside is {inside.shape}, the camera's image is {(camera.height, camera.width)}")
-    weights = np.zeros(scene.count)
     order = np.asarray(order, np.int64)
     if order.size == 0 or not inside.any():
-        return weights
+        return
     rows, cols = bounds(inside)
     settings = replace(settings, supersample=1)
     scene = scene.with_sh_degree(settings.effective_sh_degree(scene.sh_degree))
@@ -87,7 +98,7 @@ def max_weights(scene: Scene, camera: Camera, settings: RenderSettings, order: n
                                                 window=settings.order_k, cutoff=weighing.cutoff), out=weights)
         else:
             weighing.global_weights(weights, top, bottom, counted)
-    return weights
+        yield bottom - rows.start, rows.stop - rows.start
 
 
 @dataclass(frozen=True)

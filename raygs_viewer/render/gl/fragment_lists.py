@@ -117,6 +117,7 @@ class FragmentLists:
         self._rows: list[moderngl.Buffer] = []    # row bases, row statistics
         self._status: moderngl.Buffer | None = None
         self._capacity = (0, 0)  # pixels, rows
+        self._counted = (0, 0)   # the size the last count() counted
 
     def _hold(self, width: int, height: int) -> None:
         pixels, rows = width * height, height
@@ -156,75 +157,104 @@ class FragmentLists:
         attachments and receives the geometry sums and median in the second and third
         (glsl/lists_resolve.comp), in the settings' order: per-pixel, or the global one."""
         settings = plan.settings
-        ctx = self.ctx
         width, height = camera.width, camera.height
-        self._hold(width, height)
-        counts = self._pixels[0]
-        counts.clear(size=width * height * 4)
-        self._status.clear()
-        self._bind(width, height)
-        defines = plan.pass_defines()
-        programs = passes.programs
-
-        # 1. count
-        target.use()
-        _write_mask(target, False)
-        try:
-            passes.draw(camera, plan, order, uniforms={"u_pass": 0, "u_width": width, "u_part": (0, 0, width, height)})
-            ctx.memory_barrier()
-            # 2. scan and plan
-            scan = programs.compute("lists_scan.comp", defines)
-            set_uniform(scan, "u_width", width)
-            set_uniform(scan, "u_height", height)
-            scan.run(group_x=-(-height // SCAN_WORKGROUP))
-            ctx.memory_barrier()
-            row_stats = np.frombuffer(self._rows[1].read(size=height * 16), np.uint32).reshape(height, 4)
-
-            def row_counts(y: int) -> np.ndarray:
-                return np.frombuffer(counts.read(size=width * 4, offset=y * width * 4), np.uint32)
-
-            parts, row_bases = plan_parts(row_stats[:, 0], width, self.pool_fragments, row_counts)
-            self._rows[0].write(row_bases.tobytes())
-            # 3. per part: prepare, fill, resolve
-            prepare = programs.compute("lists_prepare.comp", defines)
-            resolve = programs.compute("lists_resolve.comp", defines)
-            set_uniform(prepare, "u_width", width)
-            set_uniform(resolve, "u_width", width)
-            set_uniform(resolve, "u_background", settings.background)
-            # -1: the global order itself (by rank), which only the geometry outputs take this way.
-            set_uniform(resolve, "u_window", settings.order_k if settings.per_pixel else -1)
-            for unit, texture in enumerate(target.textures):
-                texture.bind_to_image(unit, read=False, write=True)
-            if plan.geometry:
-                set_uniform(resolve, "u_intrinsics", (camera.fx, camera.fy, camera.cx, camera.cy))
-                set_uniform(resolve, "u_height", height)
-            for part in parts:
-                rect = (part.x0, part.y0, part.x1, part.y1)
-                groups = (-(-(rect[2] - rect[0]) // WORKGROUP_2D), -(-(rect[3] - rect[1]) // WORKGROUP_2D))
-                set_uniform(prepare, "u_part", rect)
-                prepare.run(*groups)
-                ctx.memory_barrier()
-                if part.fragments:
-                    target.use()
-                    target.fbo.scissor = (rect[0], rect[1], rect[2] - rect[0], rect[3] - rect[1])
-                    passes.draw(camera, plan, order, uniforms={"u_pass": 1, "u_width": width, "u_part": rect})
-                    target.fbo.scissor = None
-                    ctx.memory_barrier()
-                set_uniform(resolve, "u_part", rect)
-                resolve.run(*groups)
-            ctx.memory_barrier()
-        finally:
-            target.fbo.scissor = None
-            _write_mask(target, True)
-        overflow, short = np.frombuffer(self._status.read(size=8), np.uint32)
-        if overflow or short:
-            raise RuntimeError(f"per-pixel fragment lists: {overflow} fragments found their list full and {short} "
-                               f"lists were left short: the count and fill passes kept different fragments")
+        resolve = passes.programs.compute("lists_resolve.comp", plan.pass_defines())
+        set_uniform(resolve, "u_background", settings.background)
+        for unit, texture in enumerate(target.textures):
+            texture.bind_to_image(unit, read=False, write=True)
+        if plan.geometry:
+            set_uniform(resolve, "u_intrinsics", (camera.fx, camera.fy, camera.cx, camera.cy))
+            set_uniform(resolve, "u_height", height)
+        row_stats = self.count(passes, target, camera, plan, order)
+        parts = self.parts(row_stats)
+        for part in parts:
+            self.fill_and_resolve(passes, target, camera, plan, order, part, resolve)
+        self.ctx.memory_barrier()
+        self.check_status()
         return OrderStats(path="lists", width=width, height=height, fragments=int(row_stats[:, 0].sum()),
                           max_per_pixel=int(row_stats[:, 1].max(initial=0)),
                           covered_pixels=int(row_stats[:, 2].sum()), pool_fragments=self.pool_fragments,
                           pool_bytes=self.pool_fragments * FRAGMENT_BYTES, parts=len(parts),
                           largest_part=max((p.fragments for p in parts), default=0))
+
+    def count(self, passes: Passes, target: FloatTarget, camera: Camera, plan: RenderPlan, order: Order
+              ) -> np.ndarray:
+        """Steps 1 and 2: counts each pixel's kept fragments of ``order`` drawn from
+        ``camera`` into ``target`` (its size is the lists'; a target smaller than the
+        camera's image holds the part its viewport puts there), and scans the counts.
+        Returns (H, 4) uint32 per row: fragments, most at one pixel, covered pixels, 0."""
+        width, height = target.size
+        self._hold(width, height)
+        self._pixels[0].clear(size=width * height * 4)
+        self._status.clear()
+        self._bind(width, height)
+        target.use()
+        _write_mask(target, False)
+        try:
+            passes.draw(camera, plan, order, uniforms={"u_pass": 0, "u_width": width, "u_part": (0, 0, width, height)})
+        finally:
+            _write_mask(target, True)
+        self.ctx.memory_barrier()
+        scan = passes.programs.compute("lists_scan.comp", plan.pass_defines())
+        set_uniform(scan, "u_width", width)
+        set_uniform(scan, "u_height", height)
+        scan.run(group_x=-(-height // SCAN_WORKGROUP))
+        self.ctx.memory_barrier()
+        self._counted = (width, height)
+        return np.frombuffer(self._rows[1].read(size=height * 16), np.uint32).reshape(height, 4)
+
+    def parts(self, row_stats: np.ndarray, most_fragments: int | None = None) -> list[Part]:
+        """Step 3's parts for the last :meth:`count` (``row_stats``: what it returned):
+        each holding at most ``most_fragments`` (None or more than the pool: the pool's
+        capacity), and where each row's list starts within its part."""
+        width, height = self._counted
+        pool = min(self.pool_fragments, most_fragments or self.pool_fragments)
+        counts = self._pixels[0]
+
+        def row_counts(y: int) -> np.ndarray:
+            return np.frombuffer(counts.read(size=width * 4, offset=y * width * 4), np.uint32)
+
+        parts, row_bases = plan_parts(row_stats[:, 0], width, pool, row_counts)
+        self._rows[0].write(row_bases.tobytes())
+        return parts
+
+    def fill_and_resolve(self, passes: Passes, target: FloatTarget, camera: Camera, plan: RenderPlan,
+                         order: Order, part: Part, resolve: moderngl.ComputeShader) -> None:
+        """Step 3 for one of the last :meth:`count`'s parts: sets its cursors, draws its
+        fragments into their lists, and runs ``resolve`` (lists_resolve.comp of ``plan``,
+        its own uniforms and images set) over it. The buffers are bound again first: other
+        lists may have been drawn since the count."""
+        width, height = self._counted
+        self._bind(width, height)
+        prepare = passes.programs.compute("lists_prepare.comp", plan.pass_defines())
+        set_uniform(prepare, "u_width", width)
+        set_uniform(resolve, "u_width", width)
+        # -1: the global order itself (by rank), which the geometry outputs and weights take this way.
+        set_uniform(resolve, "u_window", plan.settings.order_k if plan.settings.per_pixel else -1)
+        rect = (part.x0, part.y0, part.x1, part.y1)
+        groups = (-(-(rect[2] - rect[0]) // WORKGROUP_2D), -(-(rect[3] - rect[1]) // WORKGROUP_2D))
+        set_uniform(prepare, "u_part", rect)
+        prepare.run(*groups)
+        self.ctx.memory_barrier()
+        if part.fragments:
+            target.use()
+            _write_mask(target, False)
+            target.fbo.scissor = (rect[0], rect[1], rect[2] - rect[0], rect[3] - rect[1])
+            try:
+                passes.draw(camera, plan, order, uniforms={"u_pass": 1, "u_width": width, "u_part": rect})
+            finally:
+                target.fbo.scissor = None
+                _write_mask(target, True)
+            self.ctx.memory_barrier()
+        set_uniform(resolve, "u_part", rect)
+        resolve.run(*groups)
+
+    def check_status(self) -> None:
+        """RuntimeError where a fill pass kept other fragments than the count did."""
+        overflow, short = np.frombuffer(self._status.read(size=8), np.uint32)
+        if overflow or short:
+            raise RuntimeError(f"per-pixel fragment lists: {overflow} fragments found their list full and {short} "
+                               f"lists were left short: the count and fill passes kept different fragments")
 
     def release(self) -> None:
         for buffer in (self.pool, self._status, *self._pixels, *self._rows):

@@ -122,6 +122,9 @@ class RenderPlan:
     problem:   why this GPU cannot draw the plan (one line), None when it can.
     draw:      the draw layout; the per-pixel passes read records by scene index, so
                with a per-pixel path the records stay in scene order.
+    weights:   the passes weigh instead of drawing an image (render/gl/weighing.py): the
+               global order front to back (or the lists' resolve) raise each gaussian's
+               largest weight T alpha over the pixels weighed.
     """
 
     settings: RenderSettings
@@ -133,6 +136,7 @@ class RenderPlan:
     general: bool = False
     problem: str | None = None
     draw: DrawLayout = DEFAULT_DRAW_LAYOUT
+    weights: bool = False
 
     def __post_init__(self) -> None:
         if self.path is not None and self.draw.records != "scene":
@@ -179,8 +183,9 @@ class RenderPlan:
 
     @property
     def front_to_back(self) -> bool:
-        """The fragment stage composites front to back (the cut-off without a per-pixel path)."""
-        return bool(self.settings.transmittance_cutoff) and self.path is None
+        """The fragment stage composites front to back (the cut-off, or weights, without a
+        per-pixel path)."""
+        return (bool(self.settings.transmittance_cutoff) or self.weights) and self.path is None
 
     @property
     def window(self) -> int:
@@ -224,7 +229,7 @@ class RenderPlan:
                 "CUTOFF": glsl_literal(bool(self.settings.transmittance_cutoff)),
                 "FRONT_TO_BACK": int(self.front_to_back), "MAX_ORDER_K": MAX_ORDER_K, "ORDER_K": max(1, self.window),
                 "DRAW_VERTICES": DRAW_VERTICES[self.draw.vertices],
-                "RECORDS_IN_DRAW_ORDER": int(self.records_in_draw_order)}
+                "RECORDS_IN_DRAW_ORDER": int(self.records_in_draw_order), "WEIGHTS": int(self.weights)}
 
     def draw_stages(self, floor: bool = False) -> tuple[str, str, dict[str, object]]:
         """(vertex shader, fragment shader, defines) of the quads; ``floor``: glsl/quads.*,

@@ -156,7 +156,7 @@ class GLRenderer:
         set_uniform(program, "u_intrinsics", (camera.fx, camera.fy, camera.cx, camera.cy))  # GS geometry
         ctx = self.ctx
         ctx.disable(moderngl.DEPTH_TEST | moderngl.CULL_FACE)
-        if settings.transmittance_cutoff or plan.path is not None:
+        if plan.front_to_back or plan.path is not None:
             ctx.disable(moderngl.BLEND)
         else:
             ctx.enable(moderngl.BLEND)
