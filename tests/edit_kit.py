@@ -1,6 +1,7 @@
 """Scenes made for the editing tests: INRIA PLY rows with every kind of column (SH degree
 3, extra properties, a 3D filter, invalid rows), written with plyfile, and the rows the
-documented filter rules keep, computed from the file's columns alone."""
+documented filter rules keep, computed from the file's columns alone; and the window
+driver's gestures of the edit tool (a drag, a chord, waiting for a weighing)."""
 
 from __future__ import annotations
 
@@ -59,3 +60,46 @@ def numpy_truth(rows, low=None, high=None, centre=None, radius=None, min_opacity
     if max_scale is not None:
         keep &= np.exp(log_scales.max(axis=1)).astype(np.float32) <= np.float32(max_scale)
     return np.flatnonzero(keep)
+
+
+# -- driving the window's edit tool (tests/appkit.py's driver) ---------------------------
+def on_view(viewer, *fractions):
+    """Screen points at these fractions of the view, whole (imgui's mouse positions are)."""
+    x, y, w, h = viewer.viewport
+    return [(float(round(x + fx * w)), float(round(y + fy * h))) for fx, fy in fractions]
+
+
+def drag(drive, points, modifier=None):
+    """A left drag through ``points`` (screen), one frame a point, ``modifier`` held."""
+    if modifier is not None:
+        drive.key(modifier, True)
+    drive.move_mouse(*points[0])
+    drive.frames(1)
+    drive.button(0, True)
+    drive.frames(1)
+    for point in points[1:]:
+        drive.move_mouse(*point)
+        drive.frames(1)
+    drive.button(0, False)
+    drive.frames(1)
+    if modifier is not None:
+        drive.key(modifier, False)
+        drive.frames(1)
+
+
+def weighed(drive, viewer, most=200):
+    """Frames until the selection of what the view shows is weighed (a slice a frame)."""
+    for _ in range(most):
+        if viewer.edit_tool.weighing is None:
+            return
+        drive.frames(1)
+    raise AssertionError(f"still weighing after {most} frames")
+
+
+def chord(drive, *keys):
+    for key in keys:
+        drive.key(key, True)
+    drive.frames(1)
+    for key in reversed(keys):
+        drive.key(key, False)
+    drive.frames(1)

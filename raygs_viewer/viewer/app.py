@@ -133,14 +133,16 @@ class Viewer(HeadsetSteps):
 
     def _act(self, dt: float) -> None:
         """Steps 2 and 3 of :meth:`frame`: the parts act, then the camera moves."""
-        shown, mouse_free = Shown(self.shown, self.scene_view()), True
+        shown, mouse_free, keys_taken = Shown(self.shown, self.scene_view(), self.pointing().divider,
+                                             self.stats.last_frame_time), True, ()
         for part in self.parts:
             reply = part.act(shown, mouse_free)
             mouse_free = mouse_free and not reply.took_mouse
+            keys_taken += reply.took_keys
             self.answer(reply)
         for request in self.input.handle(dt, self.view.navigator, camera=self.camera, viewport=self.viewport,
                                          split=self.split if self.right_settings() is not None else None,
-                                         mouse_taken=not mouse_free):
+                                         mouse_taken=not mouse_free, keys_taken=keys_taken):
             if isinstance(request, Click) and self.headset.running:
                 continue  # a click on the mirror picks nothing: it shows the eyes, not the view it would pick in
             self.carry_out(request)

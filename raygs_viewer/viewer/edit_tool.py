@@ -15,11 +15,18 @@ centres it covers ("through"), or the gaussians that give at least ``min_weight`
 some pixel's colour under it ("visible", :mod:`.view_selection`); the click tool selects
 the gaussian its pixel shows most. Delete deletes the selection, Ctrl+Z undoes, Ctrl+Y
 or Ctrl+Shift+Z redoes.
+
+What the view shows is weighed beside the frames, a slice each (the panel shows how far
+it is): Escape or the panel's Cancel drops it with nothing changed; a new shape replaces
+it; another scene, or a streamed SOG's next level, drops it with a message. In the split
+view each side weighs with its own settings, in the stereo preview the eye the shape
+begins on.
 """
 
 from __future__ import annotations
 
 import math
+import time
 from typing import Callable, Literal, get_args
 
 import numpy as np
@@ -38,7 +45,9 @@ from raygs_viewer.viewer.edit_export import EditExport, edit_document
 from raygs_viewer.viewer.frame import Frame
 from raygs_viewer.viewer.part import NO_REPLY, Part, Pointing, Reply, SceneView, Shown
 from raygs_viewer.viewer.state import Message, failed, note
-from raygs_viewer.viewer.view_selection import shown_rows
+from raygs_viewer.render.gl.weighing import WeighOn
+from raygs_viewer.viewer.picking import stereo_image
+from raygs_viewer.viewer.view_selection import ShownWeighing, start_shown_weighing
 from raygs_viewer.viewer.volume_handles import VolumeHandles
 
 #: The tools the left button draws with ("off": it turns the camera; "click": the gaussian
@@ -51,6 +60,9 @@ Selects = Literal["through", "visible"]
 BINS = 64
 #: Attributes shown on a log10 axis (they span decades).
 LOG_ATTRIBUTES = ("largest scale", "volume")
+#: The least time a slice of a weighing aims at (seconds): a fast view still weighs in
+#: few slices, each paying its sort and draw once.
+MIN_SLICE_SECONDS = 0.05
 #: A dragged point is kept when it is this far (screen units) from the last one.
 TRACE_STEP = 2.0
 
@@ -75,6 +87,9 @@ class EditTool(Part):
         self.drag: list[tuple[float, float]] | None = None   # screen points of the shape being drawn
         self.histogram_drag: float | None = None   # where a drag across the histogram began (screen x)
         self._drag_how: How = "set"
+        self.weighing: ShownWeighing | None = None   # what the view shows, being weighed
+        self.weigh_on: WeighOn = "auto"
+        self.slice_seconds: float | None = None     # a slice's time (None: the last frame's)
         # Made from the edits' masks, each keyed on the edits' generation (unique to a state).
         self._deleted: tuple[int, DeletedRows | None] = (0, None)
         self._histogram: tuple[int, str, np.ndarray, np.ndarray] | None = None
@@ -84,9 +99,10 @@ class EditTool(Part):
     def scene_shown(self, loaded: LoadedScene, grown: bool) -> Reply:
         """A new scene: no edits, the box and the sphere around its centres. A streamed
         SOG's finer level (``grown``): the rows added after those read start unedited."""
+        dropped = self.drop_weighing("dropped: the scene changed while what the view shows was weighed")
         if grown and self.edits is not None:
             self.edits = self.edits.grow(loaded.scene.count)
-            return NO_REPLY
+            return Reply.of(dropped)
         scene = loaded.scene
         self.edits = Edits(scene.count)
         self.drag, self.exporter.confirm_replace, self.handles.drag, self.exporter.exported = None, None, None, None
@@ -99,7 +115,7 @@ class EditTool(Part):
             low, high, centre, radius = np.zeros(3), np.zeros(3), np.zeros(3), 0.0
         self.box = Box(tuple(low.tolist()), tuple(high.tolist()))
         self.sphere = Sphere(tuple(centre.tolist()), radius)
-        return NO_REPLY
+        return Reply.of(dropped)
 
     @property
     def deleted(self) -> DeletedRows | None:
@@ -155,6 +171,34 @@ class EditTool(Part):
             return note(f"redone: {self._counts()}")
         return None
 
+    # -- what the view shows, weighed beside the frames ------------------------------------
+    def drop_weighing(self, why: str) -> Message | None:
+        """Drops the selection being weighed, nothing changed; says ``why`` (None: none ran)."""
+        if self.weighing is None:
+            return None
+        self.weighing.release()
+        self.weighing = None
+        return note(f"selection {why}; nothing changed")
+
+    def _weigh(self, scene: Scene) -> Message | None:
+        """The next slice of the selection being weighed; selects what it found once done."""
+        weighing = self.weighing
+        try:
+            if not weighing.step():
+                return None
+            rows = weighing.rows()
+        except UserError as exc:
+            self.drop_weighing("failed")
+            return failed(exc, "nothing selected")
+        self.weighing = None
+        weighing.release()
+        if rows is None:
+            return note("nothing selected: no gaussian shows at that pixel")
+        said = self.select(rows, scene, weighing.how)
+        took = time.perf_counter() - weighing.started
+        return note(f"{said.text} (weighed in {took:.2f} s, {weighing.slices} slices, {weighing.where})") \
+            if said is not None else None
+
     def _counts(self) -> str:
         return f"{self.selection_count():,} selected, {self.deleted_count():,} deleted"
 
@@ -197,6 +241,13 @@ class EditTool(Part):
         if self.edits is None:
             return Reply.of(*said)
         scene = shown.scene.loaded.scene
+        keys = ()
+        if self.weighing is not None:
+            if not io.want_capture_keyboard and imgui.is_key_pressed(imgui.Key.escape, False):
+                said.append(self.drop_weighing("cancelled"))
+                keys = (imgui.Key.escape,)  # Escape cancels here: it does not quit
+            else:
+                said.append(self._weigh(scene))
         if not io.want_capture_keyboard:
             if imgui.is_key_pressed(imgui.Key.delete, False):
                 said.append(self.apply(Operation("delete"), scene))
@@ -205,7 +256,7 @@ class EditTool(Part):
             if io.key_ctrl and imgui.is_key_pressed(imgui.Key.y, False):
                 said.append(self.redo())
         took = mouse_free and self.take_mouse(shown, said)
-        return Reply.of(*said, took_mouse=took)
+        return Reply.of(*said, took_mouse=took, took_keys=keys)
 
     def take_mouse(self, shown: Shown, said: list) -> bool:
         """Draws the tool's shape with the left button on the last frame's view; True while
@@ -221,7 +272,7 @@ class EditTool(Part):
                 self.sphere = moved
             if took:
                 return True
-        if self.tool == "off" or frame is None or frame.stereo is not None:
+        if self.tool == "off" or frame is None:
             self.drag = None
             return False
         x, y = io.mouse_pos.x, io.mouse_pos.y
@@ -239,32 +290,49 @@ class EditTool(Part):
         if finite and (x, y) != self.drag[-1]:
             self.drag.append((x, y))
         points, self.drag = self.drag, None
-        said.append(self._select_drawn(points, frame, shown.scene))
+        said.append(self._select_drawn(points, frame, shown))
         return True
 
-    def _select_drawn(self, points: list[tuple[float, float]], frame: Frame, scene: SceneView) -> Message | None:
+    def _select_drawn(self, points: list[tuple[float, float]], frame: Frame, shown: Shown) -> Message | None:
         """Selects what the shape drawn through screen ``points`` holds: the centres it
-        covers, or what the view shows under it (the click: its pixel's top gaussian)."""
+        covers; or starts weighing what the view shows under it (the click: its pixel's
+        top gaussian), replacing a weighing under way."""
         shape = self.screen_shape(points, frame)
-        if shape is not None and (self.tool == "click" or self.selects == "visible"):
-            try:
-                shape = shown_rows(scene.loaded.scene, scene.sorter, frame, shape, deleted=self.deleted,
-                                   min_weight=None if self.tool == "click" else self.min_weight)
-            except UserError as exc:
-                return failed(exc, "nothing selected")
-            if shape is None:
-                return note("nothing selected: no gaussian shows at that pixel")
-        return None if shape is None else self.select(shape, scene.loaded.scene, self._drag_how)
+        scene = shown.scene
+        if shape is None:
+            return None
+        if self.tool != "click" and self.selects != "visible":
+            return self.select(shape, scene.loaded.scene, self._drag_how)
+        replaced = self.drop_weighing("replaced by the next shape")
+        try:
+            self.weighing = start_shown_weighing(
+                scene, frame, shape, divider=None if frame.stereo is not None else shown.divider,
+                min_weight=None if self.tool == "click" else self.min_weight, how=self._drag_how,
+                scene_key=scene.loaded, weigh_on=self.weigh_on,
+                # A slice may take about a frame: the view's rate halves at worst while it runs.
+                slice_seconds=self.slice_seconds or max(MIN_SLICE_SECONDS, shown.frame_seconds))
+        except UserError as exc:
+            return failed(exc, "nothing selected")
+        return replaced
 
     def screen_shape(self, points: list[tuple[float, float]], frame: Frame) -> ScreenShape | None:
         """The shape drawn through screen ``points`` on ``frame``'s view, in its camera's
-        pixels; None where the drag drew nothing (a lasso of fewer than three points)."""
+        pixels (in the stereo preview the camera of the eye the shape begins on); None
+        where the drag drew nothing (a lasso of fewer than three points) or began off
+        the image."""
         camera, (vx, vy, vw, vh) = frame.camera, frame.viewport
         scale = imgui.get_io().display_framebuffer_scale
         sx, sy = (scale.x or 1.0), (scale.y or 1.0)
-        pixels = tuple(((px * sx - vx) / vw * camera.width, (py * sy - vy) / vh * camera.height)
+        offset, halves = 0.0, 1
+        if frame.stereo is not None:
+            found = stereo_image(points[0][0], points[0][1], frame.viewport, (sx, sy), camera, eyes=frame.eyes,
+                                 layout=frame.stereo.layout)
+            if found is None:
+                return None
+            camera, offset, halves = found
+        pixels = tuple(((px * sx - vx) / vw * halves * camera.width - offset, (py * sy - vy) / vh * camera.height)
                        for px, py in points)
-        return SHAPES[self.tool](pixels, camera, self.brush_radius * sx * camera.width / vw)
+        return SHAPES[self.tool](pixels, camera, self.brush_radius * sx * halves * camera.width / vw)
 
     def overlay(self, frame: Frame, scene: SceneView, pointing: Pointing) -> Reply:
         """The box and the sphere where shown, and the shape being drawn, over the view;

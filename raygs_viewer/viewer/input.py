@@ -68,18 +68,19 @@ class InputHandler:
         self._injected.append((float(x), float(y)))
 
     def handle(self, dt: float, navigator: Navigator, *, camera: Camera | None, viewport: tuple[int, int, int, int],
-               split: SplitView | None, mouse_taken: bool = False) -> list[Request]:
+               split: SplitView | None, mouse_taken: bool = False, keys_taken: tuple = ()) -> list[Request]:
         """One frame's input: moves ``navigator``; returns the shortcuts pressed and the
         clicks on the view, in order. ``camera`` and ``viewport``: the last frame's view;
         ``split``: the split view while it is shown (its divider can be dragged);
-        ``mouse_taken``: an edit tool draws with the mouse this frame (keys only)."""
+        ``mouse_taken``: an edit tool draws with the mouse this frame (keys only);
+        ``keys_taken``: keys a part answered this frame, whose shortcuts do nothing."""
         io = imgui.get_io()
         requests: list[Request] = []
         if not io.want_capture_keyboard and not self._panel_clicked(io):
             # Letters act on the view only while the pointer is not over the panel: a
             # person typing a path has the pointer there, and a field that lost the keys
             # (Enter, a click beside it) must not turn the next letters into shortcuts.
-            requests += self._keys(io, dt, navigator, letters=not io.want_capture_mouse)
+            requests += self._keys(io, dt, navigator, letters=not io.want_capture_mouse, taken=keys_taken)
         injected, self._injected = self._injected, []
         if mouse_taken:
             self._press = None
@@ -116,11 +117,12 @@ class InputHandler:
             injected.append((x, y))
         return clicks + [Click(*position, double=True) for position in injected]
 
-    def _keys(self, io, dt: float, navigator: Navigator, letters: bool = True) -> list[Press]:
+    def _keys(self, io, dt: float, navigator: Navigator, letters: bool = True, taken: tuple = ()) -> list[Press]:
         """The shortcuts pressed, and the movement keys; with ``letters`` False only the
         keys that type no text (F12, Escape, Tab, Page Up/Down, Home, F1)."""
         pressed = [Press(shortcut) for shortcut, keys in SHORTCUTS.items()
-                   if any(imgui.is_key_pressed(k, False) for k in keys if letters or k not in LETTERS)]
+                   if any(imgui.is_key_pressed(k, False) for k in keys
+                          if (letters or k not in LETTERS) and k not in taken)]
         if not letters:
             return pressed
 

@@ -55,10 +55,14 @@ class SceneView:
 @dataclass(frozen=True, eq=False)
 class Shown:
     """What the pointer is over at a frame's start: the last frame drawn (None before the
-    first) and the scene it shows."""
+    first), the scene it shows, in the split view the divider (the first column of its
+    right side, in the frame camera's pixels), and the last frame's time (seconds: what
+    work beside the frames may take a frame)."""
 
     frame: Frame | None
     scene: SceneView
+    divider: int | None = None
+    frame_seconds: float = 0.05
 
 
 @dataclass(frozen=True, eq=False)
@@ -172,24 +176,27 @@ Request = Union[Press, Click, FlyTo, AimAt, Converge, MeasurePoint, OpenScene, R
 class Reply:
     """What a part answers: ``messages`` for the panel, in order; ``requests`` for the
     window, in order; ``took_mouse``: the part draws with the mouse this frame (the
-    parts after it, and the camera, leave the buttons alone)."""
+    parts after it, and the camera, leave the buttons alone); ``took_keys``: the keys
+    whose press this frame the part answered (their shortcuts do nothing: Escape
+    cancels a selection being weighed, it does not quit)."""
 
     messages: tuple[Message, ...] = ()
     requests: tuple[Request, ...] = ()
     took_mouse: bool = False
+    took_keys: tuple = ()
 
     @classmethod
-    def of(cls, *said: Message | Request | tuple | None, took_mouse: bool = False) -> Reply:
+    def of(cls, *said: Message | Request | tuple | None, took_mouse: bool = False, took_keys: tuple = ()) -> Reply:
         """A reply of the messages and requests in ``said``, in order (a tuple: each of its
         items; None: nothing)."""
         items = [item for entry in said if entry is not None
                  for item in (entry if isinstance(entry, tuple) else (entry,)) if item is not None]
         return cls(tuple(item for item in items if isinstance(item, Message)),
-                   tuple(item for item in items if not isinstance(item, Message)), took_mouse)
+                   tuple(item for item in items if not isinstance(item, Message)), took_mouse, took_keys)
 
     def __add__(self, other: Reply) -> Reply:
         return Reply(self.messages + other.messages, self.requests + other.requests,
-                     self.took_mouse or other.took_mouse)
+                     self.took_mouse or other.took_mouse, self.took_keys + other.took_keys)
 
 
 NO_REPLY = Reply()

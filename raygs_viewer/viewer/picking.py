@@ -93,6 +93,22 @@ def mono_pixel(x: float, y: float, viewport: Viewport, scale: tuple[float, float
     return None if position is None else (int(position[0]), int(position[1]))
 
 
+def stereo_image(x: float, y: float, viewport: Viewport, scale: tuple[float, float], camera: Camera, *,
+                 eyes: tuple[Camera, Camera], layout: str) -> tuple[Camera, float, int] | None:
+    """(camera, column, halves) of the image under screen position (x, y) of the stereo
+    preview (arguments as :func:`stereo_pixel`): the eye (or the anaglyph's midpoint)
+    whose image is there, the column of the composed image its own begins at, and how
+    many images the composed one holds side by side (so that a composed column c is that
+    camera's c - column). None off the image."""
+    found = stereo_pixel(x, y, viewport, scale, camera, eyes=eyes, layout=layout)
+    if found is None:
+        return None
+    shown, u, _ = found
+    halves = 2 if layout in _SIDE_BY_SIDE else 1
+    column = int(screen_pixel(x, y, viewport, scale, width=halves * camera.width, height=camera.height)[0])
+    return shown, float(column - u), halves
+
+
 def stereo_pixel(x: float, y: float, viewport: Viewport, scale: tuple[float, float], camera: Camera, *,
                  eyes: tuple[Camera, Camera], layout: str) -> tuple[Camera, int, int] | None:
     """(eye camera, u, v) under screen position (x, y) of the stereo preview of ``eyes``

@@ -13,7 +13,7 @@ import threading
 import numpy as np
 import pytest
 from appkit import PANEL_HEIGHT, PANEL_WIDTH, click_choice, window_image
-from edit_kit import rich_rows, write_rows
+from edit_kit import chord, drag, on_view, rich_rows, weighed, write_rows
 from imgui_bundle import imgui
 from PIL import Image
 from plyfile import PlyData
@@ -52,39 +52,6 @@ def projected(viewer):
     with np.errstate(divide="ignore", invalid="ignore"):
         uv = np.stack([camera.fx * mu[:, 0] / mu[:, 2] + camera.cx, camera.fy * mu[:, 1] / mu[:, 2] + camera.cy], 1)
     return uv, mu[:, 2] > 0
-
-
-def on_view(viewer, *fractions):
-    """Screen points at these fractions of the view, whole (imgui's mouse positions are)."""
-    x, y, w, h = viewer.viewport
-    return [(float(round(x + fx * w)), float(round(y + fy * h))) for fx, fy in fractions]
-
-
-def drag(drive, points, modifier=None):
-    """A left drag through ``points`` (screen), one frame a point, ``modifier`` held."""
-    if modifier is not None:
-        drive.key(modifier, True)
-    drive.move_mouse(*points[0])
-    drive.frames(1)
-    drive.button(0, True)
-    drive.frames(1)
-    for point in points[1:]:
-        drive.move_mouse(*point)
-        drive.frames(1)
-    drive.button(0, False)
-    drive.frames(1)
-    if modifier is not None:
-        drive.key(modifier, False)
-        drive.frames(1)
-
-
-def chord(drive, *keys):
-    for key in keys:
-        drive.key(key, True)
-    drive.frames(1)
-    for key in reversed(keys):
-        drive.key(key, False)
-    drive.frames(1)
 
 
 def without(viewer, deleted):
@@ -308,16 +275,19 @@ def test_visible_selection_and_a_click_take_what_the_view_shows_not_what_it_cove
     click_choice(drive, "selects##edit", "what the view shows")
     assert viewer.edit_tool.selects == "visible"
     drag(drive, box)
+    weighed(drive, viewer)
     # The front one gives 0.98 of the centre pixel; the one it hides at most (1 - 0.98) * 0.9.
     assert np.flatnonzero(viewer.edit_tool.edits.selection).tolist() == [0]
 
     click_choice(drive, "tool##edit", "click")
     drive.click_at(*screen_of(viewer, cu, cv))
+    weighed(drive, viewer)
     assert np.flatnonzero(viewer.edit_tool.edits.selection).tolist() == [0]
     drive.tap(Key.delete)
     drive.settle()
     assert np.flatnonzero(viewer.edit_tool.edits.deleted).tolist() == [0]
     drive.click_at(*screen_of(viewer, cu, cv))  # the deleted one shows no more: the one behind it does
+    weighed(drive, viewer)
     assert np.flatnonzero(viewer.edit_tool.edits.selection).tolist() == [1]
     operations = edit_document(viewer.loaded, viewer.edit_tool.edits).operations
     assert operations[-1].shape.to_json()["found by"] == "top"

@@ -22,7 +22,6 @@ reference's.
 
 from __future__ import annotations
 
-import math
 import time
 from dataclasses import replace
 from typing import Callable, Iterator, Literal, Protocol
@@ -33,7 +32,7 @@ import numpy as np
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.errors import UserError
 from raygs_viewer.render.contributions import bounds, cropped, weigh_bands
-from raygs_viewer.render.gl.fragment_lists import FragmentLists, Part
+from raygs_viewer.render.gl.fragment_lists import FragmentLists
 from raygs_viewer.render.gl.kbuffer import FRAMEBUFFER_FETCH
 from raygs_viewer.render.gl.per_pixel import LIST_BLOCKS, storage_block_problem
 from raygs_viewer.render.gl.plan import DrawLayout, RenderPlan

@@ -31,6 +31,7 @@ def draw_edit_section(tool: EditTool, loaded: LoadedScene) -> Reply:
         return Reply()
     edits, scene, said = tool.edits, loaded.scene, []
     line(f"{tool.selection_count():,} selected, {tool.deleted_count():,} deleted of {edits.count:,}")
+    said.append(_weighing(tool))
     tool.tool = choice("tool##edit", tool.tool, TOOL_LABELS)
     tooltip("a left drag on the view selects with the shape it draws, a click the gaussian its pixel shows "
             "most (Shift adds, Ctrl subtracts, both intersect); the camera turns again with the tool off")
@@ -66,6 +67,19 @@ def draw_edit_section(tool: EditTool, loaded: LoadedScene) -> Reply:
         said.append(tool.redo())
     said += [_volume(tool, scene), _histogram(tool, scene), _export(tool, loaded)]
     return Reply.of(*said)
+
+
+def _weighing(tool: EditTool) -> Message | None:
+    """What the view shows being weighed: how far, on what, and Cancel (Escape does the same)."""
+    weighing = tool.weighing
+    if weighing is None:
+        return None
+    imgui.progress_bar(weighing.progress, imgui.ImVec2(-80.0, 0.0),
+                       f"weighing what the view shows: {weighing.progress:.0%}")
+    imgui.same_line()
+    cancelled = imgui.button("Cancel##weighing")
+    tooltip(f"weighed on the {weighing.where}, a slice a frame; Escape or Cancel drops it, nothing changed")
+    return tool.drop_weighing("cancelled") if cancelled else None
 
 
 def _corner(label: str, values: tuple[float, float, float]) -> tuple[float, float, float] | None:
