@@ -1,4 +1,4 @@
-"""``raygs-viewer bench accuracy|stereo|perf|order|sort|formats|lod|gpu|xr``: their options,
+"""``raygs-viewer bench accuracy|stereo|perf|order|sort|formats|lod|gpu|xr|edit``: their options,
 the options handed to each benchmark (everything that can be checked is, before any
 work) and the dispatch; what they share (the parser's skeleton, the recorded command
 line, the report's output) is ``cli.bench_shared``.
@@ -12,6 +12,7 @@ import shlex
 from pathlib import Path
 
 from raygs_viewer.bench import accuracy, accuracy_report, freshness, perf
+from raygs_viewer.bench import edit as edit_bench
 from raygs_viewer.bench import formats as formats_bench
 from raygs_viewer.bench import gpu as gpu_bench
 from raygs_viewer.bench import lod as lod_bench
@@ -42,6 +43,7 @@ from raygs_viewer.cli.bench_shared import (
     run_fields,
     run_reported,
     scene_choice,
+    show_report,
 )
 from raygs_viewer.errors import UserError
 from raygs_viewer.scene.lod_meta import LOD_META_NAME
@@ -65,6 +67,7 @@ def add_parsers(commands) -> None:
     _add_lod_parser(kinds)
     _add_gpu_parser(kinds)
     _add_xr_parser(kinds)
+    _add_edit_parser(kinds)
 
 
 def command(args: argparse.Namespace, ctx=None) -> int:
@@ -77,7 +80,7 @@ def command(args: argparse.Namespace, ctx=None) -> int:
                 "lod": (lod_options, lod_bench.run_lod, lod_bench.format_report),
                 "gpu": (gpu_options, gpu_bench.run_gpu, gpu_bench.format_report),
                 "xr": (xr_options, xr_bench.run_xr, xr_bench.format_report)}
-    runs = {"accuracy": _run_accuracy, "perf": _run_perf}
+    runs = {"accuracy": _run_accuracy, "perf": _run_perf, "edit": _run_edit}
     if args.bench in reported:
         return run_reported(*reported[args.bench], args, ctx)
     if args.bench not in runs:
@@ -454,3 +457,41 @@ def xr_options(args: argparse.Namespace) -> xr_bench.XrOptions:
         scene=args.scene, frames=args.frames or (xr_bench.QUICK_FRAMES if args.quick else xr_bench.DEFAULT_FRAMES),
         scale=args.xr_scale or 1.0, depth=not args.xr_no_depth, command_line=command_line,
         out=report_path(args.out, args.overwrite), overwrite=args.overwrite)
+
+
+# --- edit ------------------------------------------------------------------------------------------
+
+
+def _add_edit_parser(kinds) -> None:
+    (width, height), default = edit_bench.QUICK_SIZE, edit_bench.DEFAULT_SIZE
+    parser = kinds.add_parser("edit", help="what a selection of what the view shows costs against a frame",
+                              description=edit_bench.ABOUT)
+    parser.add_argument("scenes", nargs="*", metavar="SCENE",
+                        help="scene files instead of the shared real scenes (then no generated scene unless --counts)")
+    parser.add_argument("--quick", action="store_true",
+                        help=f"one generated scene of {count_label(edit_bench.QUICK_COUNTS[0])} gaussians and one real "
+                             f"scene at {width}x{height}, the shapes scaled to it (under a minute on llvmpipe)")
+    parser.add_argument("--counts", nargs="*", type=argtypes.whole_number(1, 100_000_000), metavar="N",
+                        help=f"generated scenes' sizes (default {' '.join(map(count_label, edit_bench.COUNTS))})")
+    parser.add_argument("--size", type=argtypes.resolution, metavar="WxH",
+                        help=f"the view's size (default {default[0]}x{default[1]}, --quick {width}x{height})")
+    parser.add_argument("--json", metavar="PATH.json", help="also write the figures there")
+    parser.add_argument("--overwrite", action="store_true", help="replace an existing --json file")
+    argtypes.add_backend_option(parser)
+
+
+def _run_edit(args: argparse.Namespace, ctx) -> int:
+    """Exit status 1 where a selection differs from the float64 weighing outside the band."""
+    size, json_path = args.size and ["x".join(map(str, args.size))], args.json and [args.json]
+    flags = (("--quick", args.quick), ("--counts", args.counts), ("--size", size), ("--json", json_path),
+             ("--gl-backend", args.gl_backend and [args.gl_backend]), ("--overwrite", args.overwrite))
+    options = edit_bench.edit_options(
+        scenes=tuple(args.scenes), counts=args.counts, quick=args.quick, size=args.size, json=args.json,
+        overwrite=args.overwrite, gl_backend=args.gl_backend, command_line=edit_bench.command_line(flags, args.scenes))
+    print_notes(options.notes)
+    results = edit_bench.run_edit(options, ctx)
+    show_report(edit_bench.format_report(results), None, False)
+    if options.json is not None:
+        edit_bench.write_json(results, options.json, options.overwrite)
+        print_written(options.json)
+    return 1 if results.failures else 0
