@@ -56,12 +56,12 @@ def max_weights(scene: Scene, camera: Camera, settings: RenderSettings, order: n
     gives; rows left out of it, such as deleted ones, weigh 0). UserError past
     :data:`MAX_FRAGMENTS` fragments."""
     weights = np.zeros(scene.count)
-    for _ in weigh_bands(scene, camera, settings, order, inside, weights):
+    for _ in weigh_bands(scene, camera, settings, order, inside, weights=weights):
         pass
     return weights
 
 
-def weigh_bands(scene: Scene, camera: Camera, settings: RenderSettings, order: np.ndarray, inside: np.ndarray,
+def weigh_bands(scene: Scene, camera: Camera, settings: RenderSettings, order: np.ndarray, inside: np.ndarray, *,
                 weights: np.ndarray) -> Iterator[tuple[int, int]]:
     """:func:`max_weights` a band of pixel rows at a time: raises ``weights`` ((N,)
     float64, zeros to begin with) band by band, yielding (rows weighed, rows to weigh)

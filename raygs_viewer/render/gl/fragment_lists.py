@@ -168,7 +168,7 @@ class FragmentLists:
         row_stats = self.count(passes, target, camera, plan, order)
         parts = self.parts(row_stats)
         for part in parts:
-            self.fill_and_resolve(passes, target, camera, plan, order, part, resolve)
+            self.fill_and_resolve(passes, target, camera, plan, order, part=part, resolve=resolve)
         self.ctx.memory_barrier()
         self.check_status()
         return OrderStats(path="lists", width=width, height=height, fragments=int(row_stats[:, 0].sum()),
@@ -219,7 +219,7 @@ class FragmentLists:
         return parts
 
     def fill_and_resolve(self, passes: Passes, target: FloatTarget, camera: Camera, plan: RenderPlan,
-                         order: Order, part: Part, resolve: moderngl.ComputeShader) -> None:
+                         order: Order, *, part: Part, resolve: moderngl.ComputeShader) -> None:
         """Step 3 for one of the last :meth:`count`'s parts: sets its cursors, draws its
         fragments into their lists, and runs ``resolve`` (lists_resolve.comp of ``plan``,
         its own uniforms and images set) over it. The buffers are bound again first: other

@@ -282,7 +282,8 @@ class GpuWeighing:
             set_uniform(self._resolve, "u_inside_origin", (0, self._inside.size[1] - bottom))
             for part in self._lists.parts(row_stats):
                 self._buffer.bind_to_storage_buffer(WEIGHTS_BINDING)
-                self._lists.fill_and_resolve(renderer, target, camera, plan, order, part, self._resolve)
+                self._lists.fill_and_resolve(renderer, target, camera, plan, order, part=part,
+                                             resolve=self._resolve)
             self.renderer.ctx.memory_barrier()
             self._lists.check_status()
         finally:
@@ -314,7 +315,7 @@ class CpuWeighing:
         indices = order.indices.read() if order.on_device else order.indices  # a GPU sort's, fetched
         self._result = np.zeros(scene.count)
         self._bands: Iterator[tuple[int, int]] | None = weigh_bands(scene, camera, settings, indices, inside,
-                                                                    self._result)
+                                                                    weights=self._result)
         self._progress = 0.0
 
     @property
