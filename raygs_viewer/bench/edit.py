@@ -11,7 +11,8 @@ smaller than 1280 px), weighed in the global order and in the per-ray order
 (``order="per-pixel"``) as the window weighs it (``render.gl.weighing``): one timed
 span from ``start_weighing`` to its last ``step``, back to back, with the sorts of the
 view's order culled to each slice it asks for, after one untimed click in that order
-(its shaders compiled). Its time is given as a ratio to the frame's.
+(its shaders compiled). Each slice aims at about the frame's time, as the window's
+(:func:`window_slice`). Its time is given as a ratio to the frame's.
 
 Each selection's weights are checked against the float64 weighing
 (``render.contributions.max_weights``, the view's order culled to the shape's box): a
@@ -87,7 +88,7 @@ class EditOptions(common.RunOptions):
     height: int = DEFAULT_SIZE[1]
     json: Path | None = None
     overwrite: bool = False
-    slice_seconds: float = DEFAULT_SLICE_SECONDS
+    slice_seconds: float | None = None      # None: as the window slices (:func:`window_slice`)
     command_line: str = "raygs-viewer bench edit"
 
 
@@ -109,6 +110,7 @@ class Case:
     shape: str
     order: str
     seconds: float
+    slices: int
     where: str
     rows: RowCheck
 
@@ -120,6 +122,7 @@ class SceneResult:
     width: int
     height: int
     frame_seconds: float
+    slice_seconds: float
     cases: list[Case]
 
     def ratio(self, case: Case) -> float:
@@ -246,16 +249,35 @@ def reference_weights(scene: Scene, sorter, camera: Camera, settings: RenderSett
         return np.maximum(*halves)
 
 
+def window_slice(frame: float) -> float:
+    """The time a slice aims at where a frame takes ``frame`` seconds: about a frame, at
+    least ``DEFAULT_SLICE_SECONDS``, as the window's Edit tool asks (viewer.edit_tool: so
+    a slow view weighs in few slices, each paying its sort and its gaussians' setup once)."""
+    return max(DEFAULT_SLICE_SECONDS, frame)
+
+
+@dataclass(frozen=True)
+class Weighed:
+    """A timed weighing: seconds from ``start_weighing`` to its last step, the steps
+    (slices) it took, its weights and its path."""
+
+    seconds: float
+    slices: int
+    weights: np.ndarray
+    where: str
+
+
 def timed_weighing(renderer, camera: Camera, settings: RenderSettings, sort, inside: np.ndarray, *,
-                   slice_seconds: float) -> tuple[float, np.ndarray, str]:
-    """(seconds from ``start_weighing`` to its last step, the weights, the path)."""
+                   slice_seconds: float) -> Weighed:
+    """One weighing, every step back to back (the module docstring)."""
     started = time.perf_counter()
     weighing = start_weighing(renderer, camera, settings, sort, inside, slice_seconds=slice_seconds)
     try:
+        slices = 1
         while not weighing.step():
-            pass
+            slices += 1
         seconds = time.perf_counter() - started
-        return seconds, weighing.weights, weighing.where
+        return Weighed(seconds, slices, weighing.weights, weighing.where)
     finally:
         weighing.release()
 
@@ -277,33 +299,31 @@ def measure_scene(ctx, name: str, scene: Scene, camera: Camera, *, options: Edit
     """The frame and every shape in every order of one scene (the module docstring)."""
     with common.scene_renderer(ctx, scene) as (renderer, sorter):
         progress(f"bench edit: {name} ({scene.count:,} gaussians), {camera.width}x{camera.height}: the frame")
-        result = SceneResult(name, scene.count, camera.width, camera.height, frame_seconds(renderer, sorter, camera),
-                             [])
-        progress(f"bench edit: {name}: frame {result.frame_seconds:.3f} s")
+        frame = frame_seconds(renderer, sorter, camera)
+        slice_seconds = options.slice_seconds or window_slice(frame)
+        result = SceneResult(name, scene.count, camera.width, camera.height, frame, slice_seconds, [])
+        progress(f"bench edit: {name}: frame {frame:.3f} s, slices of {slice_seconds:.3f} s")
         u, v = camera.width // 4, camera.height // 4
         warm = ScreenShape("rectangle", camera, ((u, v), (u + 1, v + 1)))
         for order_name, settings in ORDERS.items():
             def sort(part: Camera, settings=settings):
                 return exact_order(sorter, camera, settings, cull_cameras=[part])
-            timed_weighing(renderer, camera, settings, sort, warm.pixel_mask(), slice_seconds=options.slice_seconds)
+            timed_weighing(renderer, camera, settings, sort, warm.pixel_mask(), slice_seconds=slice_seconds)
             for shape_name, shape in shapes(camera).items():
                 inside = shape.pixel_mask()
-                seconds, weights, where = timed_weighing(renderer, camera, settings, sort, inside,
-                                                         slice_seconds=options.slice_seconds)
-                progress(f"bench edit: {name}: {order_name} {shape_name}: {seconds:.3f} s ({where}); "
-                         f"the float64 weighing")
-                checked = compare_rows(weights, reference_weights(scene, sorter, camera, settings, inside))
-                case = Case(shape_name, order_name, seconds, where, checked)
+                weighed = timed_weighing(renderer, camera, settings, sort, inside, slice_seconds=slice_seconds)
+                progress(f"bench edit: {name}: {order_name} {shape_name}: {weighed.seconds:.3f} s "
+                         f"({weighed.where}); the float64 weighing")
+                checked = compare_rows(weighed.weights, reference_weights(scene, sorter, camera, settings, inside))
+                case = Case(shape_name, order_name, weighed.seconds, weighed.slices, weighed.where, checked)
                 result.cases.append(case)
                 progress(case_line(result, case))
     return result
 
 
-def run_edit(options: EditOptions, given=None, out: TextIO | None = None,
-             progress: TextIO | None = None) -> EditResults:
+def run_edit(options: EditOptions, given=None, progress: TextIO | None = None) -> EditResults:
     """Every scene of ``options`` (generated first), measured in ``given`` (default: a
-    headless context of its own); progress lines to ``progress`` (stderr), the report's
-    lines are :func:`format_report`'s to ``out``."""
+    headless context of its own); progress lines to ``progress`` (stderr)."""
     say_progress = common.printer(progress or sys.stderr)
     real = common.load_scenes(options.scenes) if options.scenes else []
     if not options.counts and not real:
@@ -340,7 +360,7 @@ def case_line(scene: SceneResult, case: Case) -> str:
     rows = case.rows
     band = f"; in band: {_listed(rows.in_band)}" if rows.in_band else ""
     differ = f"; DIFFERING: {_listed(rows.differing)}" if rows.differing else ""
-    return (f"edit {scene.scene} {case.order} {case.shape}: {case.seconds:.3f} s, "
+    return (f"edit {scene.scene} {case.order} {case.shape}: {case.seconds:.3f} s in {case.slices} slices, "
             f"{common.fmt_ratio(scene.ratio(case))} frames, {case.where}; "
             f"rows equal {rows.equal:,} of {rows.compared:,}{band}{differ}")
 
@@ -363,6 +383,9 @@ def format_report(results: EditResults) -> str:
         "Selecting what the view shows, against a frame",
         f"Generated by `{options.command_line}` on {results.date}, {results.seconds:.0f} s.", results.notes)
     failures = results.failures
+    slice_words = (f"about a frame's time (at least {DEFAULT_SLICE_SECONDS * 1000:g} ms), as the window's"
+                   if options.slice_seconds is None
+                   else f"{options.slice_seconds * 1000:g} ms")
     verdict = (f"**FAILED: {len(failures)} selections differ from the float64 weighing outside the band**"
                if failures else "Every selection equals the float64 weighing's outside the band.")
     lines += [f"- Machine: {results.machine}, {results.cpu_count} CPU cores",
@@ -370,7 +393,7 @@ def format_report(results: EditResults) -> str:
               "- Frame: the view drawn with `RenderSettings()` (the global order), once untimed, then one "
               "`renderer.render` timed with the GL drained",
               "- Selection: `start_weighing` to its last step, back to back, the sorts it asks for included, "
-              f"slices of {options.slice_seconds * 1000:g} ms, after one untimed click in that order",
+              f"each slice aiming at {slice_words}, after one untimed click in that order",
               f"- Rows: selected at weight >= {THRESHOLD:g}, against the float64 weighing; rows whose float64 "
               f"weight lies within {BAND:g} of it are in the band and not compared",
               f"- Goal (llvmpipe): the global order within {GOALS['global']:g} frame's time, the per-ray order "
@@ -378,14 +401,15 @@ def format_report(results: EditResults) -> str:
     lines += [f"- {line}" for line in failures] + ([""] if failures else [])
     for scene in results.scenes:
         lines += [f"## {scene.scene}: {scene.gaussians:,} gaussians, {scene.width}x{scene.height}, "
-                  f"frame {common.fmt_ms(scene.frame_seconds * 1000)}", "",
-                  "| order | shape | selection | frames | goal | path | rows equal | in band |",
-                  "|---|---|---:|---:|---|---|---:|---|"]
+                  f"frame {common.fmt_ms(scene.frame_seconds * 1000)}, slices of "
+                  f"{common.fmt_ms(scene.slice_seconds * 1000)}", "",
+                  "| order | shape | selection | frames | goal | slices | path | rows equal | in band |",
+                  "|---|---|---:|---:|---|---:|---|---:|---|"]
         for case in scene.cases:
             rows = case.rows
             equal = f"{rows.equal:,} of {rows.compared:,}" + (" **(differ)**" if rows.differing else "")
             cells = [case.order, case.shape, common.fmt_ms(case.seconds * 1000), common.fmt_ratio(scene.ratio(case)),
-                     _verdict(scene, case), case.where, equal, _listed(rows.in_band) or "none"]
+                     _verdict(scene, case), str(case.slices), case.where, equal, _listed(rows.in_band) or "none"]
             lines.append("| " + " | ".join(cells) + " |")
         lines.append("")
     return "\n".join(lines)

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import argparse
 import json
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -69,6 +70,7 @@ def test_every_selection_equals_the_float64_weighings_outside_the_band(tiny_run)
     assert not tiny_run.failures
     assert [s.gaussians for s in tiny_run.scenes] == [2000, 1200]
     for scene in tiny_run.scenes:
+        assert scene.slice_seconds == bench_edit.window_slice(scene.frame_seconds) >= 0.05  # as the window slices
         assert [(c.order, c.shape) for c in scene.cases] == \
             [(order, shape) for order in bench_edit.ORDERS for shape in bench_edit.SHAPES]
         for case in scene.cases:
@@ -110,10 +112,10 @@ def test_cli_writes_the_json_and_a_differing_row_fails_loudly(gl_ctx, tiny_ply, 
 
     def wrong_row(*args, **kwargs):
         """The weighing with row 0 raised far past the threshold: a selection the float64 one is unlikely to make."""
-        seconds, weights, where = timed(*args, **kwargs)
-        weights = weights.copy()
+        weighed = timed(*args, **kwargs)
+        weights = weighed.weights.copy()
         weights[0] = 0.99
-        return seconds, weights, where
+        return replace(weighed, weights=weights)
 
     out = tmp_path / "edit.json"
     args = ("--size", f"{WIDTH}x{HEIGHT}", "--json", out)
