@@ -15,7 +15,7 @@ view's order culled to each slice it asks for, after one untimed click in that o
 (:func:`window_slice`). Its time is given as a ratio to the frame's.
 
 Each selection's weights are checked against the float64 weighing
-(``render.contributions.max_weights``, the view's order culled to the shape's box): a
+(``render.contributions.max_weights``, in the view's own order): a
 row is selected at weight >= :data:`THRESHOLD`. Rows whose float64 weight lies within
 :data:`BAND` of it are left out (float32 may fall either side); every other row must be
 selected by both or by neither, and one that is not fails the run loudly.
@@ -40,10 +40,10 @@ from raygs_viewer.capture.image_io import check_output_path
 from raygs_viewer.errors import UserError
 from raygs_viewer.files import write_atomically
 from raygs_viewer.jsonfile import json_text
-from raygs_viewer.render.contributions import bounds, cropped, max_weights
+from raygs_viewer.render.contributions import bounds, max_weights
 from raygs_viewer.render.gl.weighing import DEFAULT_SLICE_SECONDS, start_weighing
 from raygs_viewer.render.settings import RenderSettings
-from raygs_viewer.render.sorting import exact_order
+from raygs_viewer.render.sorting import exact_order, part_orders
 from raygs_viewer.scene.model import Scene, sh_coefficient_count
 from raygs_viewer.scene.selection import ScreenShape
 from raygs_viewer.scene.source import DEMO
@@ -225,16 +225,14 @@ def compare_rows(weights: np.ndarray, reference: np.ndarray, threshold: float = 
                     tuple(np.flatnonzero(differs).tolist()), int(np.count_nonzero(reference >= threshold)))
 
 
-def reference_weights(scene: Scene, sorter, camera: Camera, settings: RenderSettings,
+def reference_weights(scene: Scene, indices: np.ndarray, camera: Camera, settings: RenderSettings,
                       inside: np.ndarray) -> np.ndarray:
-    """The float64 weights of the pixels ``inside``, in the view's order culled to their
-    box; a box past ``max_weights``' fragment limit is weighed in halves of its rows
-    (each pixel's weights are its own, so the largest over the halves is the whole's)."""
+    """The float64 weights of the pixels ``inside``, in the view's order ``indices``; a
+    box past ``max_weights``' fragment limit is weighed in halves of its rows (each
+    pixel's weights are its own, so the largest over the halves is the whole's)."""
     if not inside.any():
         return np.zeros(scene.count)
-    rows, cols = bounds(inside)
-    order = exact_order(sorter, cropped(camera, rows, cols), settings)
-    indices = order.indices.read() if order.on_device else order.indices
+    rows, _ = bounds(inside)
     try:
         return max_weights(scene, camera, settings, np.asarray(indices), inside)
     except UserError:
@@ -245,7 +243,7 @@ def reference_weights(scene: Scene, sorter, camera: Camera, settings: RenderSett
         for part in (slice(0, middle), slice(middle, None)):
             half = np.zeros_like(inside)
             half[part] = inside[part]
-            halves.append(reference_weights(scene, sorter, camera, settings, half))
+            halves.append(reference_weights(scene, indices, camera, settings, half))
         return np.maximum(*halves)
 
 
@@ -306,15 +304,16 @@ def measure_scene(ctx, name: str, scene: Scene, camera: Camera, *, options: Edit
         u, v = camera.width // 4, camera.height // 4
         warm = ScreenShape("rectangle", camera, ((u, v), (u + 1, v + 1)))
         for order_name, settings in ORDERS.items():
-            def sort(part: Camera, settings=settings):
-                return exact_order(sorter, camera, settings, cull_cameras=[part])
+            view = exact_order(sorter, camera, settings)  # what the view draws
+            view_indices = np.asarray(view.indices.read() if view.on_device else view.indices)
+            sort = part_orders(sorter, camera, settings, view)
             timed_weighing(renderer, camera, settings, sort, warm.pixel_mask(), slice_seconds=slice_seconds)
             for shape_name, shape in shapes(camera).items():
                 inside = shape.pixel_mask()
                 weighed = timed_weighing(renderer, camera, settings, sort, inside, slice_seconds=slice_seconds)
                 progress(f"bench edit: {name}: {order_name} {shape_name}: {weighed.seconds:.3f} s "
                          f"({weighed.where}); the float64 weighing")
-                checked = compare_rows(weighed.weights, reference_weights(scene, sorter, camera, settings, inside))
+                checked = compare_rows(weighed.weights, reference_weights(scene, view_indices, camera, settings, inside))
                 case = Case(shape_name, order_name, weighed.seconds, weighed.slices, weighed.where, checked)
                 result.cases.append(case)
                 progress(case_line(result, case))

@@ -10,9 +10,11 @@ CPU's (:class:`~raygs_viewer.sort.depth.DepthSorter`, the default) and the GPU's
 
 from __future__ import annotations
 
-from typing import Sequence
+from dataclasses import replace
+from typing import Callable, Sequence
 
 import moderngl
+import numpy as np
 
 from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.render.gl.gpu_sort import GpuSorter
@@ -82,3 +84,23 @@ def exact_order(sorter: DepthSorter, camera: Camera, settings: RenderSettings, *
                 levels: LodRequest | LodChoice | None = None, deleted: DeletedRows | None = None) -> Order:
     """``camera``'s order for ``settings``, sorted now (see :func:`sort_request`)."""
     return sorter.sort(sort_request(camera, settings, cull_cameras=cull_cameras, levels=levels, deleted=deleted)).order
+
+
+def part_orders(sorter: DepthSorter, camera: Camera, settings: RenderSettings, view: Order, *,
+                levels: LodRequest | LodChoice | None = None, deleted: DeletedRows | None = None
+                ) -> Callable[[Camera], Order]:
+    """For a part of ``camera``'s image (or an eye's, culled from ``camera``'s pose): the
+    order ``view`` (what the view draws, sorted from ``camera``) holding only the
+    gaussians the cull keeps for that part, in ``view``'s own sequence. Sorting the part
+    afresh would not do: the radix sort quantises its keys over the depth range of what
+    its cull kept, so near ties fall one way in a part and the other in the whole view."""
+    indices = np.asarray(view.indices.read() if view.on_device else view.indices)
+
+    def order_of(part: Camera) -> Order:
+        kept = exact_order(sorter, camera, settings, cull_cameras=[part], levels=levels, deleted=deleted)
+        rows = np.asarray(kept.indices.read() if kept.on_device else kept.indices)
+        member = np.zeros(max(int(indices.max(initial=0)), int(rows.max(initial=0))) + 1, bool)
+        member[rows] = True
+        return replace(view, indices=indices[member[indices]], request=None)
+    return order_of
+

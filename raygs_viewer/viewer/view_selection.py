@@ -18,10 +18,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from raygs_viewer.camera.pinhole import Camera
 from raygs_viewer.render.gl.weighing import DEFAULT_SLICE_SECONDS, WeighOn, Weighing, start_weighing
 from raygs_viewer.render.settings import RenderSettings
-from raygs_viewer.render.sorting import exact_order
+from raygs_viewer.render.sorting import part_orders
 from raygs_viewer.scene.selection import Rows, ScreenShape
 from raygs_viewer.viewer.frame import Frame
 
@@ -117,12 +116,12 @@ def start_shown_weighing(scene, frame: Frame, shape: ScreenShape, *, divider: in
 
 def view_sort(scene, frame: Frame, settings: RenderSettings):
     """The view's order for ``settings`` culled for a camera (a part of the view, or of an
-    eye): sorted from the frame's camera (the stereo midpoint) by its key, of the
-    level-of-detail choice the view drew, without the deleted rows."""
+    eye), in the view's own sequence (``render.sorting.part_orders``): the order the frame
+    drew where it answers the frame's sort, else that sort made now (sorted from the
+    frame's camera, the stereo midpoint, by ``settings``' key, of the level-of-detail
+    choice drawn, without the deleted rows)."""
     drawn = scene.orders.get(settings.sort_key)
-    levels = drawn.choice if drawn is not None and drawn.choice is not None else frame.lod
-
-    def sort(camera: Camera):
-        return exact_order(scene.sorter, frame.camera, settings, cull_cameras=[camera], levels=levels,
-                           deleted=scene.deleted)
-    return sort
+    if drawn is None or drawn.request != frame.sort:
+        drawn = scene.sorter.sort(frame.sort).orders[settings.sort_key]
+    return part_orders(scene.sorter, frame.camera, settings, drawn, levels=drawn.choice or frame.lod,
+                       deleted=scene.deleted)

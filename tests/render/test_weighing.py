@@ -19,7 +19,7 @@ from testkit import make_scene, patched_glsl, point_on_pixel_ray, random_scene
 
 from raygs_viewer.camera.pinhole import look_at
 from raygs_viewer.errors import UserError
-from raygs_viewer.render.contributions import max_weights
+from raygs_viewer.render.contributions import cropped, max_weights
 from raygs_viewer.render.gl import weighing
 from raygs_viewer.render.gl.kbuffer import FRAMEBUFFER_FETCH
 from raygs_viewer.render.gl.per_pixel import LIST_BLOCKS
@@ -32,7 +32,7 @@ from raygs_viewer.render.gl.weighing import (
 )
 from raygs_viewer.render.reference import global_order
 from raygs_viewer.render.settings import RenderSettings
-from raygs_viewer.render.sorting import exact_order
+from raygs_viewer.render.sorting import exact_order, part_orders
 from raygs_viewer.scene.model import Scene
 from raygs_viewer.sort.deleted import DeletedRows
 from raygs_viewer.sort.depth import DepthSorter
@@ -423,3 +423,20 @@ def test_an_order_still_holding_the_deleted_row_is_caught(gl_ctx, renderer, sort
     assert got[DELETED] > 0.9 and got[UNVEILED] < 0.05
     with pytest.raises(AssertionError, match="selected"):
         assert_weights_match(got, references(name))
+
+
+def test_a_parts_order_is_the_views_own_sequence_of_what_reaches_the_part(gl_ctx):
+    """``part_orders``: a band's order keeps the view's sequence (a sort of the band alone
+    would quantise its radix keys over another depth range) and holds every gaussian
+    the band's own cull keeps."""
+    scene = random_scene(n=4000, seed=9, degree=0, spread=1.0, log_scale=(-3.5, -2.0))
+    settings = RenderSettings()
+    sorter = DepthSorter(scene)
+    view = exact_order(sorter, CAMERA, settings)
+    band = cropped(CAMERA, slice(10, 14), slice(0, CAMERA.width))
+    part = part_orders(sorter, CAMERA, settings, view)(band)
+    culled = exact_order(sorter, CAMERA, settings, cull_cameras=[band]).indices
+    assert set(part.indices.tolist()) == set(culled.tolist()) and 0 < part.count < view.count
+    place = np.empty(scene.count, np.int64)
+    place[view.indices] = np.arange(view.count)
+    assert np.all(np.diff(place[part.indices]) > 0)  # the view's own sequence

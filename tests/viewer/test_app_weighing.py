@@ -12,7 +12,7 @@ from appkit import PANEL_HEIGHT, PANEL_WIDTH, click_choice, window_image
 from edit_kit import chord, drag, on_view, rich_rows, weighed, write_rows
 from imgui_bundle import imgui
 
-from raygs_viewer.render.contributions import cropped, max_weights
+from raygs_viewer.render.contributions import max_weights
 from raygs_viewer.render.sorting import exact_order
 from raygs_viewer.sort.depth import DepthSorter
 
@@ -39,9 +39,7 @@ def truth(viewer, shape):
     """The rows the float64 weighing selects through ``shape`` (on its own camera), and
     those within 1e-4 of the threshold (either answer is right for them)."""
     scene, settings, inside = viewer.loaded.scene, viewer.settings, shape.pixel_mask()
-    rows, cols = np.flatnonzero(inside.any(axis=1)), np.flatnonzero(inside.any(axis=0))
-    box = cropped(shape.camera, slice(rows[0], rows[-1] + 1), slice(cols[0], cols[-1] + 1))
-    order = exact_order(DepthSorter(scene), shape.camera, settings, cull_cameras=[box])
+    order = exact_order(DepthSorter(scene), shape.camera, settings)  # the view's order
     weights = max_weights(scene, shape.camera, settings, order.indices, inside)
     return weights >= MIN_WEIGHT, np.abs(weights - MIN_WEIGHT) < 1e-4
 
