@@ -47,9 +47,9 @@ from raygs_viewer.sort.request import Order
 #: lists: every order, any OpenGL 4.3), "cpu" (float64, render.contributions).
 WeighOn = Literal["auto", "fetch", "lists", "cpu"]
 WEIGH_ON: tuple[WeighOn, ...] = ("auto", "fetch", "lists", "cpu")
-#: The view's order culled for a camera (a band of the view's image): the same sort
-#: camera and keys as the view's, so the same relative order (``render.sorting.exact_order``
-#: with ``cull_cameras``).
+#: The view's order keeping what the cull for a camera (a band of the view's image)
+#: keeps, in the view's own sequence (``render.sorting.part_orders``: a sort of the band
+#: alone would order near ties of the radix keys otherwise than the view).
 Sort = Callable[[Camera], Order]
 #: The weights' storage binding (glsl/lists_resolve.comp, glsl/fragment_output.glsl).
 WEIGHTS_BINDING = 16
