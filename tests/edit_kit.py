@@ -6,6 +6,7 @@ driver's gestures of the edit tool (a drag, a chord, waiting for a weighing)."""
 from __future__ import annotations
 
 import numpy as np
+from appkit import click_choice
 from plyfile import PlyData, PlyElement
 
 EXTRAS = [("nx", "<f4"), ("ny", "<f4"), ("nz", "<f4"), ("label", "u1"), ("weight", "<f8")]
@@ -103,3 +104,13 @@ def chord(drive, *keys):
     for key in reversed(keys):
         drive.key(key, False)
     drive.frames(1)
+
+
+def rectangle_tool(drive):
+    """The Edit section opened and its rectangle tool chosen, through the panel."""
+    drive.frames(2)
+    drive.reveal("Edit")
+    drive.click("Edit")
+    drive.frames(1)
+    drive.reveal("tool##edit")
+    click_choice(drive, "tool##edit", "rectangle")

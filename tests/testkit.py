@@ -472,3 +472,17 @@ class LineSink:
 
     def flush(self):
         pass
+
+
+#: Every way a pixel's fragments are composited: modes, the MIP filter, the cut-off, and
+#: the per-pixel orders (exact, a window of K, with the cut-off).
+COMPOSITING_SETUPS = {
+    "global": RenderSettings(),
+    "mip": RenderSettings(mip=True),
+    "exact mip": RenderSettings(mode="raygs-exact-mip"),
+    "ewa": RenderSettings(mode="gs"),
+    "cut-off": RenderSettings(transmittance_cutoff=True, alpha_clamp=True),
+    "per pixel": RenderSettings(order="per-pixel"),
+    "per pixel k=2": RenderSettings(order="per-pixel", order_k=2),
+    "per pixel cut-off": RenderSettings(order="per-pixel", transmittance_cutoff=True),
+}

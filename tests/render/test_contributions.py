@@ -8,7 +8,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from testkit import make_scene, random_scene
+from testkit import COMPOSITING_SETUPS, make_scene, random_scene
 
 from raygs_viewer.camera.pinhole import look_at
 from raygs_viewer.errors import UserError
@@ -20,16 +20,7 @@ from raygs_viewer.render.settings import RenderSettings
 
 # Odd size, fx != fy, an off-centre principal point: a slip of the crop shows.
 CAMERA = replace(look_at([0.3, -0.2, -3.0], [0.0, 0.05, 0.0], width=26, height=19), fx=30.0, fy=27.0, cx=12.7, cy=9.1)
-SETTINGS = {
-    "global": RenderSettings(),
-    "mip": RenderSettings(mip=True),
-    "exact mip": RenderSettings(mode="raygs-exact-mip"),
-    "ewa": RenderSettings(mode="gs"),
-    "cut-off": RenderSettings(transmittance_cutoff=True, alpha_clamp=True),
-    "per pixel": RenderSettings(order="per-pixel"),
-    "per pixel k=2": RenderSettings(order="per-pixel", order_k=2),
-    "per pixel cut-off": RenderSettings(order="per-pixel", transmittance_cutoff=True),
-}
+SETTINGS = COMPOSITING_SETUPS
 
 
 @pytest.fixture(scope="module")

@@ -15,7 +15,7 @@ from dataclasses import replace
 
 import numpy as np
 import pytest
-from testkit import make_scene, patched_glsl, point_on_pixel_ray, random_scene
+from testkit import COMPOSITING_SETUPS, make_scene, patched_glsl, point_on_pixel_ray, random_scene
 
 from raygs_viewer.camera.pinhole import look_at
 from raygs_viewer.errors import UserError
@@ -40,16 +40,7 @@ from raygs_viewer.sort.request import Order
 
 # Odd size, fx != fy, an off-centre principal point: a slip of a band's viewport shows.
 CAMERA = replace(look_at([0.3, -0.2, -3.0], [0.0, 0.05, 0.0], width=46, height=39), fx=50.0, fy=47.0, cx=22.7, cy=19.1)
-SETTINGS = {
-    "global": RenderSettings(),
-    "mip": RenderSettings(mip=True),
-    "exact mip": RenderSettings(mode="raygs-exact-mip"),
-    "ewa": RenderSettings(mode="gs"),
-    "cut-off": RenderSettings(transmittance_cutoff=True, alpha_clamp=True),
-    "per pixel": RenderSettings(order="per-pixel"),
-    "per pixel k=2": RenderSettings(order="per-pixel", order_k=2),
-    "per pixel cut-off": RenderSettings(order="per-pixel", transmittance_cutoff=True),
-}
+SETTINGS = COMPOSITING_SETUPS
 # Framebuffer fetch weighs the global orders only; the lists weigh every order.
 CASES = [(name, path) for name, settings in SETTINGS.items() for path in ("fetch", "lists")
          if path == "lists" or not settings.per_pixel]

@@ -13,7 +13,7 @@ import threading
 import numpy as np
 import pytest
 from appkit import PANEL_HEIGHT, PANEL_WIDTH, click_choice, window_image
-from edit_kit import chord, drag, on_view, rich_rows, weighed, write_rows
+from edit_kit import chord, drag, on_view, rectangle_tool, rich_rows, weighed, write_rows
 from imgui_bundle import imgui
 from PIL import Image
 from plyfile import PlyData
@@ -257,12 +257,7 @@ def screen_of(viewer, u, v):
 
 def test_visible_selection_and_a_click_take_what_the_view_shows_not_what_it_covers(open_viewer, occluded):
     viewer, drive = open_viewer(str(occluded), width=PANEL_WIDTH, height=PANEL_HEIGHT)
-    drive.frames(2)
-    drive.reveal("Edit")
-    drive.click("Edit")
-    drive.frames(1)
-    drive.reveal("tool##edit")
-    click_choice(drive, "tool##edit", "rectangle")
+    rectangle_tool(drive)
     drive.settle()
     uv, front = projected(viewer)
     assert front.all() and np.abs(uv[0] - uv[1]).max() < 0.5  # the two centres on one pixel

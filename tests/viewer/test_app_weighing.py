@@ -9,7 +9,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 from appkit import PANEL_HEIGHT, PANEL_WIDTH, click_choice, window_image
-from edit_kit import chord, drag, on_view, rich_rows, weighed, write_rows
+from edit_kit import chord, drag, on_view, rectangle_tool, rich_rows, weighed, write_rows
 from imgui_bundle import imgui
 
 from raygs_viewer.render.contributions import max_weights
@@ -45,12 +45,7 @@ def truth(viewer, shape):
 
 
 def visible_rectangle(viewer, drive):
-    drive.frames(2)
-    drive.reveal("Edit")
-    drive.click("Edit")
-    drive.frames(1)
-    drive.reveal("tool##edit")
-    click_choice(drive, "tool##edit", "rectangle")
+    rectangle_tool(drive)
     drive.reveal("selects##edit")
     click_choice(drive, "selects##edit", "what the view shows")
     viewer.edit_tool.slice_seconds = TINY_SLICE
