@@ -26,7 +26,6 @@ begins on.
 from __future__ import annotations
 
 import math
-import time
 from typing import Callable, Literal, get_args
 
 import numpy as np
@@ -47,7 +46,7 @@ from raygs_viewer.viewer.part import NO_REPLY, Part, Pointing, Reply, SceneView,
 from raygs_viewer.viewer.state import Message, failed, note
 from raygs_viewer.render.gl.weighing import WeighOn
 from raygs_viewer.viewer.picking import stereo_image
-from raygs_viewer.viewer.view_selection import ShownWeighing, start_shown_weighing
+from raygs_viewer.viewer.view_selection import ShownWeighing, advance, start_shown_weighing
 from raygs_viewer.viewer.volume_handles import VolumeHandles
 
 #: The tools the left button draws with ("off": it turns the camera; "click": the gaussian
@@ -60,8 +59,9 @@ Selects = Literal["through", "visible"]
 BINS = 64
 #: Attributes shown on a log10 axis (they span decades).
 LOG_ATTRIBUTES = ("largest scale", "volume")
-#: The least time a slice of a weighing aims at (seconds): a fast view still weighs in
-#: few slices, each paying its sort and draw once.
+#: The least time a slice of a weighing aims at (seconds; else about a frame's, so the
+#: view's rate halves at worst while it runs): a fast view still weighs in few slices,
+#: each paying its sort and draw once.
 MIN_SLICE_SECONDS = 0.05
 #: A dragged point is kept when it is this far (screen units) from the last one.
 TRACE_STEP = 2.0
@@ -182,22 +182,11 @@ class EditTool(Part):
 
     def _weigh(self, scene: Scene) -> Message | None:
         """The next slice of the selection being weighed; selects what it found once done."""
-        weighing = self.weighing
-        try:
-            if not weighing.step():
-                return None
-            rows = weighing.rows()
-        except UserError as exc:
-            self.drop_weighing("failed")
-            return failed(exc, "nothing selected")
-        self.weighing = None
-        weighing.release()
-        if rows is None:
-            return note("nothing selected: no gaussian shows at that pixel")
-        said = self.select(rows, scene, weighing.how)
-        took = time.perf_counter() - weighing.started
-        return note(f"{said.text} (weighed in {took:.2f} s, {weighing.slices} slices, {weighing.where})") \
-            if said is not None else None
+        done, said = advance(self.weighing, lambda rows, how: self.select(rows, scene, how))
+        if done:
+            self.weighing.release()
+            self.weighing = None
+        return said
 
     def _counts(self) -> str:
         return f"{self.selection_count():,} selected, {self.deleted_count():,} deleted"
@@ -297,7 +286,7 @@ class EditTool(Part):
         """Selects what the shape drawn through screen ``points`` holds: the centres it
         covers; or starts weighing what the view shows under it (the click: its pixel's
         top gaussian), replacing a weighing under way."""
-        shape = self.screen_shape(points, frame)
+        shape = screen_shape(self.tool, points, frame, self.brush_radius)
         scene = shown.scene
         if shape is None:
             return None
@@ -309,30 +298,10 @@ class EditTool(Part):
                 scene, frame, shape, divider=None if frame.stereo is not None else shown.divider,
                 min_weight=None if self.tool == "click" else self.min_weight, how=self._drag_how,
                 scene_key=scene.loaded, weigh_on=self.weigh_on,
-                # A slice may take about a frame: the view's rate halves at worst while it runs.
                 slice_seconds=self.slice_seconds or max(MIN_SLICE_SECONDS, shown.frame_seconds))
         except UserError as exc:
             return failed(exc, "nothing selected")
         return replaced
-
-    def screen_shape(self, points: list[tuple[float, float]], frame: Frame) -> ScreenShape | None:
-        """The shape drawn through screen ``points`` on ``frame``'s view, in its camera's
-        pixels (in the stereo preview the camera of the eye the shape begins on); None
-        where the drag drew nothing (a lasso of fewer than three points) or began off
-        the image."""
-        camera, (vx, vy, vw, vh) = frame.camera, frame.viewport
-        scale = imgui.get_io().display_framebuffer_scale
-        sx, sy = (scale.x or 1.0), (scale.y or 1.0)
-        offset, halves = 0.0, 1
-        if frame.stereo is not None:
-            found = stereo_image(points[0][0], points[0][1], frame.viewport, (sx, sy), camera, eyes=frame.eyes,
-                                 layout=frame.stereo.layout)
-            if found is None:
-                return None
-            camera, offset, halves = found
-        pixels = tuple(((px * sx - vx) / vw * halves * camera.width - offset, (py * sy - vy) / vh * camera.height)
-                       for px, py in points)
-        return SHAPES[self.tool](pixels, camera, self.brush_radius * sx * halves * camera.width / vw)
 
     def overlay(self, frame: Frame, scene: SceneView, pointing: Pointing) -> Reply:
         """The box and the sphere where shown, and the shape being drawn, over the view;
@@ -348,6 +317,27 @@ class EditTool(Part):
     def show_selection(self, renderer: GLRenderer) -> None:
         """The selection tinted in ``renderer``'s next draw (uploaded when it changed)."""
         renderer.set_selection(self._state()[0], self.edits.generation.to_bytes(8, "little"))
+
+
+def screen_shape(tool: Tool, points: list[tuple[float, float]], frame: Frame, brush_radius: float
+                 ) -> ScreenShape | None:
+    """The shape ``tool`` drew through screen ``points`` on ``frame``'s view, in its
+    camera's pixels (in the stereo preview the camera of the eye the shape begins on);
+    None where the drag drew nothing (a lasso of fewer than three points) or began off
+    the image. ``brush_radius``: in screen units."""
+    camera, (vx, vy, vw, vh) = frame.camera, frame.viewport
+    scale = imgui.get_io().display_framebuffer_scale
+    sx, sy = (scale.x or 1.0), (scale.y or 1.0)
+    offset, halves = 0.0, 1
+    if frame.stereo is not None:
+        found = stereo_image(points[0][0], points[0][1], frame.viewport, (sx, sy), camera, eyes=frame.eyes,
+                             layout=frame.stereo.layout)
+        if found is None:
+            return None
+        camera, offset, halves = found
+    pixels = tuple(((px * sx - vx) / vw * halves * camera.width - offset, (py * sy - vy) / vh * camera.height)
+                   for px, py in points)
+    return SHAPES[tool](pixels, camera, brush_radius * sx * halves * camera.width / vw)
 
 
 def clicked_pixel(pixels: tuple[tuple[float, float], ...], camera: Camera) -> ScreenShape | None:

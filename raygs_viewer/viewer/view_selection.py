@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -22,7 +23,9 @@ from raygs_viewer.render.gl.weighing import DEFAULT_SLICE_SECONDS, WeighOn, Weig
 from raygs_viewer.render.settings import RenderSettings
 from raygs_viewer.render.sorting import part_orders
 from raygs_viewer.scene.selection import Rows, ScreenShape
+from raygs_viewer.errors import UserError
 from raygs_viewer.viewer.frame import Frame
+from raygs_viewer.viewer.state import Message, failed, note
 
 
 @dataclass(frozen=True, eq=False)
@@ -125,3 +128,22 @@ def view_sort(scene, frame: Frame, settings: RenderSettings):
         drawn = scene.sorter.sort(frame.sort).orders[settings.sort_key]
     return part_orders(scene.sorter, frame.camera, settings, drawn, levels=drawn.choice or frame.lod,
                        deleted=scene.deleted)
+
+
+def advance(weighing: ShownWeighing, select: Callable[[Rows, str], Message | None]) -> tuple[bool, Message | None]:
+    """One slice of ``weighing``: (whether it has ended, what to say). Once finished, what
+    ``select`` (rows, how) said of the rows it found, with how long it took and on what."""
+    try:
+        if not weighing.step():
+            return False, None
+        rows = weighing.rows()
+    except UserError as exc:
+        return True, failed(exc, "nothing selected")
+    if rows is None:
+        return True, note("nothing selected: no gaussian shows at that pixel")
+    said = select(rows, weighing.how)
+    if said is None:
+        return True, None
+    took = time.perf_counter() - weighing.started
+    return True, note(f"{said.text} (weighed in {took:.2f} s, {weighing.slices} slices, {weighing.where})")
+
