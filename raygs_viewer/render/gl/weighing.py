@@ -3,19 +3,24 @@ slices: what "select what the view shows" selects by, the twin of the float64
 ``render.contributions.max_weights`` (which the tests hold this to, and which weighs
 where this cannot run).
 
-The pixels' bounding box is drawn through the fragment lists (render/gl/fragment_lists.py)
-into a target of its own size, whose viewport puts the camera's image around it: the
-count pass, then one part of the lists per slice, fill and resolve. The resolve
-(glsl/lists_resolve.comp, ``WEIGHTS``) composites each pixel's list in the view's order
-(the global one by rank, with or without the cut-off; each ray's own, exact or through
-the k-buffer's window of K, exactly as the window draws them) and, at the pixels asked
-about, raises ``weights[scene row]`` to each fragment's weight with ``atomicMax`` on the
-float's bits (which order as the floats do for weights >= 0). The gaussians drawn are
-the order's: rows it leaves out (deleted ones) weigh 0 and hide nothing.
+Each fragment at the pixels asked about raises ``weights[scene row]`` to its weight with
+``atomicMax`` on the float's bits (which order as the floats do for weights >= 0). Two
+paths, both drawing into targets whose viewport puts the camera's whole image around
+the pixels' box (the records stay the view's):
 
-A slice is one part; the parts are cut after the count pass so that each costs about
-``slice_seconds`` (the count pass's time says what a fragment costs here). So a
-selection runs beside the frames, a slice each, and can be dropped between slices.
+- "fetch": the global order (with or without the cut-off) drawn front to back, each
+  fragment reading T through ``GL_EXT_shader_framebuffer_fetch`` (glsl/fragment_output.glsl,
+  ``WEIGHTS``): one draw.
+- "lists": every order, through the fragment lists (render/gl/fragment_lists.py), whose
+  resolve (glsl/lists_resolve.comp, ``WEIGHTS``) composites each pixel's list as the
+  window does (the global order by rank; each ray's own, exact or through the window of
+  K). The fallback where fetch is missing (NVIDIA's desktop drivers).
+
+The gaussians drawn are the order's: rows it leaves out (deleted ones) weigh 0 and hide
+nothing. A slice is a band of the box's rows, drawn with the view's order keeping only
+what reaches the band (``Sort``), as many rows as the last slice's time says fit
+``slice_seconds``; so a selection runs beside the frames, a slice each, and can be
+dropped between slices. Where neither path runs, :class:`CpuWeighing` weighs in float64.
 A pixel's ray is its centre's (supersampling's sub-samples are not weighed), as the
 reference's.
 """
