@@ -297,7 +297,7 @@ class EditTool(Part):
             self.weighing = start_shown_weighing(
                 scene, frame, shape, divider=None if frame.stereo is not None else shown.divider,
                 min_weight=None if self.tool == "click" else self.min_weight, how=self._drag_how,
-                scene_key=scene.loaded, weigh_on=self.weigh_on,
+                weigh_on=self.weigh_on,
                 slice_seconds=self.slice_seconds or max(MIN_SLICE_SECONDS, shown.frame_seconds))
         except UserError as exc:
             return failed(exc, "nothing selected")

@@ -51,14 +51,12 @@ def sides(frame: Frame, shape: ScreenShape, divider: int | None) -> list[Side]:
 
 class ShownWeighing:
     """A selection of what the view shows, being weighed: one weighing a side, stepped a
-    slice a frame (:meth:`step`), then :meth:`rows`. ``scene_key`` names the scene and
-    level it weighs (a result for another is dropped by the caller); ``how`` and
-    ``min_weight`` say what to select (None: the click's top gaussian)."""
+    slice a frame (:meth:`step`), then :meth:`rows`. ``how`` and ``min_weight`` say what
+    to select (None: the click's top gaussian). The edit tool drops it when another scene,
+    or a streamed SOG's next level, is shown."""
 
-    def __init__(self, weighings: list[Weighing], shape: ScreenShape, *, min_weight: float | None, how: str,
-                 scene_key: object):
+    def __init__(self, weighings: list[Weighing], shape: ScreenShape, *, min_weight: float | None, how: str):
         self.weighings, self.shape, self.min_weight, self.how = weighings, shape, min_weight, how
-        self.scene_key = scene_key
         self.started = time.perf_counter()
         self.slices = 0
         self._next = 0
@@ -99,7 +97,7 @@ class ShownWeighing:
 
 
 def start_shown_weighing(scene, frame: Frame, shape: ScreenShape, *, divider: int | None, min_weight: float | None,
-                         how: str, scene_key: object, weigh_on: WeighOn = "auto",
+                         how: str, weigh_on: WeighOn = "auto",
                          slice_seconds: float = DEFAULT_SLICE_SECONDS) -> ShownWeighing:
     """The weighing of ``shape`` (drawn on ``frame``'s view, or one stereo eye) of
     ``scene`` (the window's ``SceneView``: its renderer, direct sorter, deleted rows and
@@ -114,7 +112,7 @@ def start_shown_weighing(scene, frame: Frame, shape: ScreenShape, *, divider: in
         for weighing in weighings:
             weighing.release()
         raise
-    return ShownWeighing(weighings, shape, min_weight=min_weight, how=how, scene_key=scene_key)
+    return ShownWeighing(weighings, shape, min_weight=min_weight, how=how)
 
 
 def view_sort(scene, frame: Frame, settings: RenderSettings):

@@ -356,7 +356,7 @@ def test_a_gpu_that_cannot_weigh_weighs_on_the_cpu(gl_ctx, scene, renderer, sort
 def test_weighing_on_the_cpu_gives_the_references_weights(gl_ctx, renderer, sorter, references, name):
     settings = SETTINGS[name]
     weighed = start_weighing(renderer, CAMERA, settings, sort_for(sorter, settings), INSIDE, weigh_on="cpu")
-    assert weighed.where == "CPU (--weigh-on cpu)"
+    assert weighed.where == "CPU (forced)"
     while not weighed.step():
         pass
     assert weighed.progress == 1.0

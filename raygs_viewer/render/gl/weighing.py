@@ -60,9 +60,6 @@ Sort = Callable[[Camera], Order]
 WEIGHTS_BINDING = 16
 #: The mask's texture unit.
 INSIDE_UNIT = 0
-#: What a fragment costs filled and resolved, in count passes' fragments (the fill draws
-#: it again and stores it; the resolve sorts and composites it): cuts the lists' parts.
-FILL_COST = 2.0
 #: The time a slice aims at when none is given (seconds).
 DEFAULT_SLICE_SECONDS = 0.05
 #: Rows the first slice of a front-to-back weighing draws (later ones as its time says).
@@ -139,7 +136,7 @@ def start_weighing(renderer, camera: Camera, settings: RenderSettings, sort: Sor
             return GpuWeighing(renderer, camera, settings, sort, inside, path=path, slice_seconds=slice_seconds)
         reasons.append(problem)
     return CpuWeighing(renderer.scene, camera, settings, sort, inside, slice_seconds=slice_seconds,
-                       reason=reasons[-1] if reasons else "--weigh-on cpu")
+                       reason=reasons[-1] if reasons else "forced")
 
 
 def weigh_now(renderer, camera: Camera, settings: RenderSettings, sort: Sort, inside: np.ndarray, *,
@@ -180,7 +177,6 @@ class GpuWeighing:
         self.plan = weighing_plan(renderer, settings, path)
         self.slice_seconds = max(float(slice_seconds), 1e-3)
         self.count = renderer.scene.count
-        self.fragments = 0                      # the lists' fragments counted so far
         self._weights: np.ndarray | None = None
         self._made: list = []
         self._box = bounds(inside) if inside.any() else None
@@ -281,7 +277,6 @@ class GpuWeighing:
         target = self._box_target(top, bottom, "f1")
         try:
             row_stats = self._lists.count(renderer, target, camera, plan, order)
-            self.fragments += int(row_stats[:, 0].sum())
             set_uniform(self._resolve, "u_inside", INSIDE_UNIT)
             # The band's rows start this far up the box's mask (GL's rows from the bottom).
             set_uniform(self._resolve, "u_inside_origin", (0, self._inside.size[1] - bottom))
