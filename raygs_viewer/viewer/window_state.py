@@ -162,7 +162,7 @@ class WindowState:
             #: in screen coordinates (imgui's); empty without the split view.
             self.overlay_rects: dict[str, tuple[float, float, float, float]] = {}
             self.auto.check(self.ctx)  # before any scene, in one line
-            self._install(loaded, start_camera)
+            self.panel.say(*self._install(loaded, start_camera))
             if problem := self.scene.renderer.supports(self.settings):  # e.g. --transmittance-cutoff, no fetch
                 raise UserError(problem)
         except BaseException:  # e.g. a scene too large for this GPU: no window left behind
@@ -219,16 +219,17 @@ class WindowState:
                         divider=None if shown is None else self.split.column(shown.camera.width))
 
     # -- scenes ----------------------------------------------------------------------------
-    def _install(self, loaded: LoadedScene, start_camera: Camera | None = None) -> None:
-        """Puts a loaded scene on the GPU; on failure the current scene stays."""
+    def _install(self, loaded: LoadedScene, start_camera: Camera | None = None) -> tuple[Message, ...]:
+        """Puts a loaded scene on the GPU; on failure the current scene stays. Returns what
+        the parts said of it (said after the scene's own line)."""
         if refines(self.loaded, loaded):  # a streamed SOG's next level: the view stays
             refined, swapped = self.scene.refine(self.loaded, loaded, self.settings, self.options.settings,
                                                  self.scenes.loader)
             self.forget_drawn(swapped)
-            if refined is not None:
-                self.settings, self.loaded = refined.settings, refined.loaded
-                self._scene_shown(grown=True)
-            return
+            if refined is None:
+                return ()
+            self.settings, self.loaded = refined.settings, refined.loaded
+            return self._scene_shown(grown=True)
         self.forget_drawn(self.scene.open(loaded.scene))
         self.loaded = loaded
         self.settings = opened_settings(self.settings, self.options.settings, loaded)
@@ -236,12 +237,11 @@ class WindowState:
         choices = self.options.navigation if self.view is None else self.view.choices()
         _, _, width, height = self.view_area()
         self.view = ViewControl(loaded, start_camera, choices, width / height)
-        self._scene_shown(grown=False)
         self.window.set_title(f"raygs-viewer — {scene_title(loaded.path)}")
+        return self._scene_shown(grown=False)
 
-    def _scene_shown(self, grown: bool) -> None:
-        for part in self.parts:
-            self.panel.say(*part.scene_shown(self.loaded, grown).messages)
+    def _scene_shown(self, grown: bool) -> tuple[Message, ...]:
+        return tuple(message for part in self.parts for message in part.scene_shown(self.loaded, grown).messages)
 
     def forget_drawn(self, swapped: Swapped | None) -> None:
         """Another copy of the scene is on the GPU: what was drawn of the one before is stale."""
@@ -259,11 +259,11 @@ class WindowState:
         result = self.scenes.poll()
         if isinstance(result, LoadedScene):
             try:
-                self._install(result)
+                news = self._install(result)
             except (UserError, MemoryError, moderngl.Error) as exc:  # e.g. too large for this GPU
                 self.panel.say(load_failed(f"{result.path}: {one_line(exc)}"))
             else:
-                self.panel.say(shown_message(result))
+                self.panel.say(shown_message(result), *news)
         else:
             self.panel.say(result)
         if dropped := self.window.dropped():

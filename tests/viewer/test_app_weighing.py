@@ -108,3 +108,16 @@ def test_escape_cancels_a_selection_under_way_with_nothing_changed(open_viewer, 
     drive.reveal("Cancel##weighing")
     drive.click("Cancel##weighing")
     assert tool.weighing is None and not tool.edits.selection.any()
+
+
+def test_a_scene_opened_while_a_selection_weighs_drops_it_with_a_message(open_viewer, crowd):
+    viewer, drive = open_viewer(str(crowd), width=PANEL_WIDTH, height=PANEL_HEIGHT)
+    visible_rectangle(viewer, drive)
+    drag(drive, on_view(viewer, (0.1, 0.1), (0.9, 0.9)))
+    drive.frames(1)
+    assert viewer.edit_tool.weighing is not None
+    viewer.drop(["demo"])  # nothing deleted: it opens at once
+    drive.wait_for_load()
+    assert viewer.loaded.source.is_demo and viewer.edit_tool.weighing is None
+    assert "selection dropped: the scene changed" in viewer.panel.message
+    assert not viewer.edit_tool.edits.selection.any()  # never applied to the new scene's rows
